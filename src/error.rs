@@ -1,0 +1,96 @@
+//! The library's error type. Every message names the file, grid or flag involved, so
+//! `main` can print it as one line and exit non-zero.
+
+use std::path::PathBuf;
+
+/// Result alias used throughout plume.
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// Everything that can go wrong before or after rendering (the render itself is infallible).
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// The input file does not exist or cannot be opened.
+    #[error("cannot open {}: {source}", .path.display())]
+    Open {
+        /// File that was opened.
+        path: PathBuf,
+        /// OS error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// OpenVDB refused the file (corrupt, truncated, not a VDB, unsupported version).
+    #[error("cannot read VDB file {}: {message}", .path.display())]
+    Vdb {
+        /// File being read.
+        path: PathBuf,
+        /// What OpenVDB (or the shim's validation) said.
+        message: String,
+    },
+    /// No grid with the requested name (or index) in the file.
+    #[error("no grid {name:?} in {}; available: {}", .path.display(), format_list(.available))]
+    GridNotFound {
+        /// File searched.
+        path: PathBuf,
+        /// Requested selector, e.g. `density` or `density[1]`.
+        name: String,
+        /// Selectors of the grids that exist.
+        available: Vec<String>,
+    },
+    /// The grid exists but has a value type or transform plume cannot use.
+    #[error("grid {grid:?} in {}: {message}", .path.display())]
+    UnsupportedGrid {
+        /// File read.
+        path: PathBuf,
+        /// Grid selector.
+        grid: String,
+        /// What is unsupported, e.g. "value type vec3s is not a scalar grid".
+        message: String,
+    },
+    /// Reading would need more memory than allowed.
+    #[error("{}: grid {grid:?} needs {needed} bytes, more than the input memory limit of {limit} bytes (--max-input-memory)", .path.display())]
+    TooLarge {
+        /// File read.
+        path: PathBuf,
+        /// Grid selector.
+        grid: String,
+        /// Bytes the grid would need.
+        needed: u64,
+        /// Limit in force.
+        limit: u64,
+    },
+    /// A flag has a value plume cannot use.
+    #[error("invalid value for {flag}: {message}")]
+    InvalidArgument {
+        /// The flag, e.g. `--camera-from`.
+        flag: String,
+        /// Why.
+        message: String,
+    },
+    /// Writing an output failed (nothing is left half-written).
+    #[error("cannot write {}: {source}", .path.display())]
+    Write {
+        /// Output path.
+        path: PathBuf,
+        /// Underlying error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The scene cannot be rendered (empty volume, incompatible grids, …).
+    #[error("{0}")]
+    Scene(String),
+}
+
+impl Error {
+    /// Shorthand for [`Error::InvalidArgument`].
+    pub fn invalid(flag: &str, message: impl Into<String>) -> Error {
+        Error::InvalidArgument { flag: flag.to_string(), message: message.into() }
+    }
+}
+
+fn format_list(items: &[String]) -> String {
+    if items.is_empty() {
+        "none".to_string()
+    } else {
+        items.join(", ")
+    }
+}

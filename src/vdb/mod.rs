@@ -1,0 +1,97 @@
+//! Reading and writing OpenVDB files.
+//!
+//! This module is the only place that talks to OpenVDB, through the C++ shim in
+//! `cpp/vdb_shim.cc` bridged by [`cxx`] (see `ffi.rs`). No OpenVDB type and no C++
+//! exception crosses the bridge: every call that can throw returns `Result`.
+//!
+//! Data comes out as plain [`FloatGrid`]s: leaf origins plus 8³ value blocks in index
+//! space, and the affine `world_from_index` transform. Active tiles are voxelized into
+//! leaves on the C++ side, so constant regions are never lost.
+
+use glam::{DAffine3, IVec3};
+use serde::Serialize;
+
+/// Voxels per leaf edge (OpenVDB's `LeafNode<float, 3>`).
+pub const LEAF_DIM: i32 = 8;
+/// Voxels per leaf.
+pub const LEAF_VOXELS: usize = 512;
+
+/// Offset of local voxel `(x, y, z)`, each in `0..8`, inside a leaf's value block.
+///
+/// Same order as OpenVDB's `LeafNode::coordToOffset`: x-major, `(x << 6) | (y << 3) | z`.
+#[inline]
+#[must_use]
+pub fn leaf_offset(x: i32, y: i32, z: i32) -> usize {
+    (((x & 7) << 6) | ((y & 7) << 3) | (z & 7)) as usize
+}
+
+/// One scalar float grid as plain data, in index space.
+#[derive(Clone, Debug)]
+pub struct FloatGrid {
+    /// Grid name as stored in the file (for duplicates, the bare name).
+    pub name: String,
+    /// Affine map from index coordinates to world coordinates (voxel (i,j,k) is centred at
+    /// index (i,j,k)).
+    pub world_from_index: DAffine3,
+    /// Value outside all leaves.
+    pub background: f32,
+    /// Leaf origins in index space; each component a multiple of 8.
+    pub origins: Vec<IVec3>,
+    /// [`LEAF_VOXELS`] values per leaf, in [`leaf_offset`] order, leaf after leaf.
+    /// Inactive voxels inside a leaf keep their stored value (OpenVDB `getValue` semantics).
+    pub values: Vec<f32>,
+}
+
+impl FloatGrid {
+    /// Number of leaves.
+    #[must_use]
+    pub fn leaf_count(&self) -> usize {
+        self.origins.len()
+    }
+
+    /// The value block of leaf `i`.
+    ///
+    /// # Panics
+    /// If `i >= self.leaf_count()`.
+    #[must_use]
+    pub fn leaf_values(&self, i: usize) -> &[f32] {
+        &self.values[i * LEAF_VOXELS..(i + 1) * LEAF_VOXELS]
+    }
+}
+
+/// Summary of one grid in a file, as printed by `plume info`.
+#[derive(Clone, Debug, Serialize)]
+pub struct GridInfo {
+    /// Grid name (duplicates appear once per grid, with the same name).
+    pub name: String,
+    /// Position of the grid in the file (0-based).
+    pub file_index: usize,
+    /// Selector that binds exactly this grid (`density`, or `density[1]` for the second
+    /// grid named `density`).
+    pub selector: String,
+    /// OpenVDB value type name (`float`, `double`, `vec3s`, `int32`, …).
+    #[serde(rename = "type")]
+    pub value_type: String,
+    /// Grid class (`fog volume`, `level set`, `staggered`, `unknown`).
+    pub class: String,
+    /// Active voxels, active tiles counted voxel by voxel.
+    pub active_voxels: u64,
+    /// Leaf nodes.
+    pub leaf_count: u64,
+    /// Active tiles (above leaf level).
+    pub active_tiles: u64,
+    /// Inclusive index bounding box of active voxels, `None` for an empty grid.
+    pub index_bbox: Option<[[i32; 3]; 2]>,
+    /// World size of one voxel along index x, y, z.
+    pub voxel_size: [f64; 3],
+    /// Transform kind (`linear`, `scale`, `scale-translate`, `uniform-scale`, `frustum`, …).
+    pub transform: String,
+    /// Minimum of active values (scalar grids; vector grids: of the magnitude).
+    pub min: Option<f64>,
+    /// Maximum of active values.
+    pub max: Option<f64>,
+    /// Mean of active values.
+    pub mean: Option<f64>,
+    /// In-memory size of the tree in bytes, as OpenVDB reports it.
+    pub memory_bytes: u64,
+}

@@ -1,0 +1,3 @@
+//! (placeholder; being written)
+/// Sparse brick volume (being written).
+pub struct Volume;

@@ -1,0 +1,179 @@
+//! The [`Field`] trait and [`Segment`], the contract between volume data and estimators,
+//! plus analytic fields ([`Constant`], [`Slab`], [`LinearRamp`]-like strips) for tests.
+//!
+//! A field is piecewise constant along any ray: it returns [`Segment`]s
+//! `[t0, t1)` with one `density` and one emission `source` value each. Segments are
+//! contiguous (`s[k].t1 == s[k+1].t0`), increasing, and cover exactly the ray's parameter
+//! range clipped to the field's bounds. `t` is the distance along a unit-length world
+//! direction, so segment lengths are world lengths (metres), also under non-uniform
+//! voxel sizes and shear.
+
+use glam::DVec3;
+
+/// A piece of a ray over which density and emission source are constant.
+///
+/// `t0 < t1` (never empty), in world distance along the ray. Stored in `f64` because
+/// optical depth accumulates over thousands of voxels (METHOD.md §10.2).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Segment {
+    /// Entry distance.
+    pub t0: f64,
+    /// Exit distance.
+    pub t1: f64,
+    /// Density ρ (unitless grid value; μ_t = σ_t ρ).
+    pub density: f32,
+    /// Emission source value: temperature in Kelvin after mapping and cutoff, or the
+    /// emission grid's value. Zero means "emits nothing".
+    pub source: f32,
+}
+
+impl Segment {
+    /// World length `t1 - t0`.
+    #[inline]
+    #[must_use]
+    pub fn length(&self) -> f64 {
+        self.t1 - self.t0
+    }
+}
+
+/// A ray in world space for [`Field::segments`]. `direction` must be unit length.
+#[derive(Clone, Copy, Debug)]
+pub struct Ray {
+    /// Origin, world space.
+    pub origin: DVec3,
+    /// Unit direction, world space.
+    pub direction: DVec3,
+}
+
+impl Ray {
+    /// Point at distance `t`.
+    #[must_use]
+    pub fn at(&self, t: f64) -> DVec3 {
+        self.origin + self.direction * t
+    }
+}
+
+/// A piecewise-constant scalar volume that can be traversed along rays.
+pub trait Field: Sync {
+    /// Iterator type returned by [`Field::segments`].
+    type Segments<'a>: Iterator<Item = Segment>
+    where
+        Self: 'a;
+
+    /// World-space axis-aligned bounds `(min, max)` of everything that can be non-zero.
+    fn world_bounds(&self) -> (DVec3, DVec3);
+
+    /// Segments of `ray` within `[t_min, t_max]`, clipped to the field's bounds, in order.
+    /// An empty iterator when the ray misses.
+    fn segments(&self, ray: &Ray, t_min: f64, t_max: f64) -> Self::Segments<'_>;
+}
+
+/// Intersect a ray with an axis-aligned box; returns the parameter interval clipped to
+/// `[t_min, t_max]`, or `None` if empty. Robust to zero (and −0.0) direction components.
+#[must_use]
+pub fn clip_to_box(
+    origin: DVec3,
+    direction: DVec3,
+    lo: DVec3,
+    hi: DVec3,
+    t_min: f64,
+    t_max: f64,
+) -> Option<(f64, f64)> {
+    let mut t0 = t_min;
+    let mut t1 = t_max;
+    for a in 0..3 {
+        let (o, d) = (origin[a], direction[a]);
+        if d == 0.0 {
+            if o < lo[a] || o > hi[a] {
+                return None;
+            }
+            continue;
+        }
+        let inv = 1.0 / d;
+        let (mut ta, mut tb) = ((lo[a] - o) * inv, (hi[a] - o) * inv);
+        if ta > tb {
+            std::mem::swap(&mut ta, &mut tb);
+        }
+        t0 = t0.max(ta);
+        t1 = t1.min(tb);
+    }
+    (t0 < t1).then_some((t0, t1))
+}
+
+/// Analytic test field: a constant box.
+#[derive(Clone, Copy, Debug)]
+pub struct Constant {
+    /// Box minimum, world.
+    pub lo: DVec3,
+    /// Box maximum, world.
+    pub hi: DVec3,
+    /// Density inside.
+    pub density: f32,
+    /// Emission source inside.
+    pub source: f32,
+}
+
+impl Field for Constant {
+    type Segments<'a> = std::option::IntoIter<Segment>;
+
+    fn world_bounds(&self) -> (DVec3, DVec3) {
+        (self.lo, self.hi)
+    }
+
+    fn segments(&self, ray: &Ray, t_min: f64, t_max: f64) -> Self::Segments<'_> {
+        clip_to_box(ray.origin, ray.direction, self.lo, self.hi, t_min, t_max)
+            .map(|(t0, t1)| Segment { t0, t1, density: self.density, source: self.source })
+            .into_iter()
+    }
+}
+
+/// Analytic test field: a 1-D strip of cells along +x inside a box, each cell with its
+/// own density and source (used for ramps, empty cells and random strips).
+#[derive(Clone, Debug)]
+pub struct Strip {
+    /// Box minimum, world; cells start at `lo.x`.
+    pub lo: DVec3,
+    /// Box maximum, world.
+    pub hi: DVec3,
+    /// `(density, source)` per cell, cells of equal width along x.
+    pub cells: Vec<(f32, f32)>,
+}
+
+impl Field for Strip {
+    type Segments<'a> = std::vec::IntoIter<Segment>;
+
+    fn world_bounds(&self) -> (DVec3, DVec3) {
+        (self.lo, self.hi)
+    }
+
+    fn segments(&self, ray: &Ray, t_min: f64, t_max: f64) -> Self::Segments<'_> {
+        let mut out = Vec::new();
+        let Some((t0, t1)) = clip_to_box(ray.origin, ray.direction, self.lo, self.hi, t_min, t_max)
+        else {
+            return out.into_iter();
+        };
+        let n = self.cells.len();
+        let width = (self.hi.x - self.lo.x) / n as f64;
+        let dx = ray.direction.x;
+        // Cell boundaries crossed between t0 and t1, in t order.
+        let mut cuts: Vec<f64> = Vec::new();
+        if dx != 0.0 {
+            for k in 1..n {
+                let t = (self.lo.x + k as f64 * width - ray.origin.x) / dx;
+                if t > t0 && t < t1 {
+                    cuts.push(t);
+                }
+            }
+        }
+        cuts.sort_by(f64::total_cmp);
+        let mut a = t0;
+        for b in cuts.into_iter().chain(std::iter::once(t1)) {
+            let mid = ray.at(0.5 * (a + b)).x;
+            let cell = (((mid - self.lo.x) / width).floor() as isize).clamp(0, n as isize - 1) as usize;
+            let (density, source) = self.cells[cell];
+            out.push(Segment { t0: a, t1: b, density, source });
+            a = b;
+        }
+        out.into_iter()
+    }
+}

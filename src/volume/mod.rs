@@ -1,0 +1,14 @@
+//! Volume data: sparse 8³ bricks in index space, the min/max pyramid, the hierarchical
+//! DDA that turns a ray into [`Segment`]s, and analytic test fields.
+//!
+//! This is the *data* half of plume. The optics (`crate::medium`) see the volume only
+//! through [`Field::segments`]: an ordered, gap-free sequence of constant-valued pieces
+//! of the ray. Nothing downstream indexes a voxel.
+
+pub mod brick;
+pub mod dda;
+pub mod field;
+pub mod pyramid;
+
+pub use brick::Volume;
+pub use field::{Field, Segment};

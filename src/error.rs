@@ -81,6 +81,22 @@ pub enum Error {
 }
 
 impl Error {
+    /// Process exit code for this error: 2 bad arguments, 3 input missing/unreadable/
+    /// invalid, 4 render or output failure.
+    #[must_use]
+    pub fn exit_code(&self) -> i32 {
+        match self {
+            Error::InvalidArgument { .. } => 2,
+            Error::Open { .. }
+            | Error::Vdb { .. }
+            | Error::GridNotFound { .. }
+            | Error::UnsupportedGrid { .. }
+            | Error::TooLarge { .. }
+            | Error::Scene(_) => 3,
+            Error::Write { .. } => 4,
+        }
+    }
+
     /// Shorthand for [`Error::InvalidArgument`].
     pub fn invalid(flag: &str, message: impl Into<String>) -> Error {
         Error::InvalidArgument { flag: flag.to_string(), message: message.into() }

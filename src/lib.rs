@@ -8,9 +8,18 @@
 //! Data flows one way:
 //! `.vdb → vdb (shim) → volume (bricks + pyramid) → medium → integrator → film → EXR`.
 
+pub mod camera;
+pub mod cli;
 pub mod color;
 pub mod error;
+pub mod film;
 pub mod info;
+pub mod integrator;
+pub mod medium;
+pub mod output;
+pub mod render;
+pub mod sampling;
+pub mod stats;
 pub mod synth;
 pub mod vdb;
 pub mod volume;

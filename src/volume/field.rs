@@ -70,6 +70,7 @@ pub trait Field: Sync {
 
 /// Intersect a ray with an axis-aligned box; returns the parameter interval clipped to
 /// `[t_min, t_max]`, or `None` if empty. Robust to zero (and −0.0) direction components.
+/// `direction` need not be unit length: `t` is the ray parameter.
 #[must_use]
 pub fn clip_to_box(
     origin: DVec3,
@@ -84,7 +85,9 @@ pub fn clip_to_box(
     for a in 0..3 {
         let (o, d) = (origin[a], direction[a]);
         if d == 0.0 {
-            if o < lo[a] || o > hi[a] {
+            // Half-open [lo, hi): a ray lying in the max face belongs to the cell beyond
+            // it, matching the nearest-voxel lookup ⌊p + ½⌋.
+            if o < lo[a] || o >= hi[a] {
                 return None;
             }
             continue;

@@ -1,0 +1,167 @@
+//! Emission density `L_e(ρ, v)` from the density ρ and the stored *source* value v
+//! (METHOD.md §2).
+//!
+//! | kind / convention | physical | cycles |
+//! |---|---|---|
+//! | blackbody (v = T′ in K) | `s_e · c · ρ · C(T′)` | `s_e · c · σ_SB/π · 10⁻⁶ · T′⁴ · Ĉ(T′)` |
+//! | grid (v = grid value)   | `s_e · c · ρ · v`      | `s_e · c · v` |
+//!
+//! `C(T)` is full Planck integrated against the CIE 1931 matching functions into linear
+//! Rec.709 (W m⁻² sr⁻¹), `Ĉ = C/Y` its luminance-normalised colour, `s_e` the
+//! `--emission-scale`, `c` the `--emission-color`. The *cycles* convention reproduces
+//! Blender's Principled Volume: emission is not multiplied by density.
+//!
+//! Temperatures are mapped (`kelvin` or `linear:OFFSET,SCALE`) and cut off (physical
+//! blackbody only: `T′ < T_cut` emits nothing) once, when the volume is built, so that a
+//! stored source of 0 always means "no emission" and the DDA can skip it.
+
+use crate::color::blackbody::{blackbody_table, cycles_blackbody};
+use crate::color::Rgb;
+use crate::error::{Error, Result};
+
+/// What drives emission.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum EmissionKind {
+    /// No emission.
+    None,
+    /// Blackbody radiation from a temperature grid.
+    Blackbody,
+    /// A scalar emission grid times a colour.
+    Grid,
+}
+
+/// Which renderer's meaning of emission to follow.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Convention {
+    /// Emission density proportional to density × source.
+    Physical,
+    /// Blender Cycles' Principled Volume: emission not multiplied by density; blackbody
+    /// scaled by σ_SB/π·10⁻⁶·T⁴.
+    Cycles,
+}
+
+/// Mapping from temperature-grid values to Kelvin.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum TemperatureMap {
+    /// Values are Kelvin.
+    Kelvin,
+    /// `T′ = offset + scale · v`.
+    Linear {
+        /// Kelvin at v = 0.
+        offset: f32,
+        /// Kelvin per unit v.
+        scale: f32,
+    },
+}
+
+impl std::str::FromStr for TemperatureMap {
+    type Err = Error;
+
+    fn from_str(s: &str) -> Result<TemperatureMap> {
+        if s == "kelvin" {
+            return Ok(TemperatureMap::Kelvin);
+        }
+        let bad = || Error::invalid("--temperature-map", format!("{s:?}: expected `kelvin` or `linear:OFFSET,SCALE`"));
+        let rest = s.strip_prefix("linear:").ok_or_else(bad)?;
+        let (a, b) = rest.split_once(',').ok_or_else(bad)?;
+        let offset: f32 = a.trim().parse().map_err(|_| bad())?;
+        let scale: f32 = b.trim().parse().map_err(|_| bad())?;
+        if !offset.is_finite() || !scale.is_finite() {
+            return Err(bad());
+        }
+        Ok(TemperatureMap::Linear { offset, scale })
+    }
+}
+
+impl TemperatureMap {
+    /// Kelvin for a grid value.
+    #[inline]
+    #[must_use]
+    pub fn kelvin(&self, v: f32) -> f32 {
+        match *self {
+            TemperatureMap::Kelvin => v,
+            TemperatureMap::Linear { offset, scale } => offset + scale * v,
+        }
+    }
+}
+
+/// An emission model (see the module table).
+#[derive(Clone, Copy, Debug)]
+pub struct Emission {
+    /// What drives emission.
+    pub kind: EmissionKind,
+    /// Physical or Cycles meaning.
+    pub convention: Convention,
+    /// `s_e`, the emission scale.
+    pub scale: f32,
+    /// `c`, the emission colour (a tint for blackbody).
+    pub color: Rgb,
+    /// Temperature mapping (blackbody only).
+    pub temperature_map: TemperatureMap,
+    /// Physical blackbody: temperatures below this emit nothing, in Kelvin.
+    pub cutoff_kelvin: f32,
+}
+
+impl Emission {
+    /// No emission at all.
+    #[must_use]
+    pub fn none() -> Emission {
+        Emission {
+            kind: EmissionKind::None,
+            convention: Convention::Physical,
+            scale: 0.0,
+            color: Rgb::ONE,
+            temperature_map: TemperatureMap::Kelvin,
+            cutoff_kelvin: 0.0,
+        }
+    }
+
+    /// Raw source-grid value → stored source (Kelvin after map and cutoff, or the grid
+    /// value). 0 means "no emission"; negative or non-finite results are cleaned (and
+    /// counted) by the volume builder.
+    #[inline]
+    #[must_use]
+    pub fn map_source(&self, v: f32) -> f32 {
+        match self.kind {
+            EmissionKind::None => 0.0,
+            EmissionKind::Grid => v,
+            EmissionKind::Blackbody => {
+                let t = self.temperature_map.kelvin(v);
+                let cut = match self.convention {
+                    Convention::Physical => self.cutoff_kelvin,
+                    Convention::Cycles => 0.0,
+                };
+                if t.is_finite() && t < cut && t >= 0.0 {
+                    0.0
+                } else {
+                    t
+                }
+            }
+        }
+    }
+
+    /// Emission density `L_e` for density `density` and stored source `source`.
+    #[inline]
+    #[must_use]
+    pub fn le(&self, density: f32, source: f32) -> Rgb {
+        if source == 0.0 {
+            return Rgb::ZERO;
+        }
+        match (self.kind, self.convention) {
+            (EmissionKind::None, _) => Rgb::ZERO,
+            (EmissionKind::Blackbody, Convention::Physical) => {
+                blackbody_table().rgb(source) * self.color * (self.scale * density)
+            }
+            (EmissionKind::Blackbody, Convention::Cycles) => cycles_blackbody(source) * self.color * self.scale,
+            (EmissionKind::Grid, Convention::Physical) => self.color * (self.scale * source * density),
+            (EmissionKind::Grid, Convention::Cycles) => self.color * (self.scale * source),
+        }
+    }
+
+    /// True when emission can be non-zero where density is zero (then the point
+    /// estimator, which scores only at collisions, misses it).
+    #[must_use]
+    pub fn emits_without_density(&self) -> bool {
+        self.kind != EmissionKind::None && self.convention == Convention::Cycles
+    }
+}

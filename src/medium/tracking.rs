@@ -1,0 +1,206 @@
+//! Regular tracking: exact free-path sampling through piecewise-constant segments, and
+//! the emission estimators F of METHOD.md §3–4.
+//!
+//! Optical depth `OD(s) = ∫₀ˢ μ_t`, transmittance `τ = e^{−OD}`. A free path solves
+//! `OD(t) = E` with `E = −ln(1 − u)`: walking segments in order, the collision lies in the
+//! first segment `i` with `OD + μ_iΔ_i > E` (strict, so `μ = 0` never collides), at
+//! `t = a_i + (E − OD)/μ_i`. This is exact (`Pr{t > s} = τ(s)`), with no majorant.
+//! OD and `t` are `f64` (METHOD.md §10.2).
+//!
+//! Each estimator returns an unbiased estimate of `I_e = ∫₀^d τ(s) L_e(s) ds`:
+//! - **point** (collision): `L_{e,c}/μ_c` at a collision, 0 on escape;
+//! - **line** (track-length, the paper's): `∫₀^{min(t,d)} L_e ds`;
+//! - **ray-march** (expected value): `Σ_i τ(a_i) L_{e,i} Δ_i φ(μ_iΔ_i)`,
+//!   `φ(x) = (1 − e^{−x})/x`, independent of the collision, stopped by Russian roulette
+//!   once `τ` is small;
+//! - **blend** (our extension, METHOD.md §4): per-segment mix
+//!   `α_i = 1/(1 + κ μ_i Δ_i)` of line (weight α) and point (1 − α).
+
+use crate::color::Rgb;
+use crate::medium::Medium;
+use crate::sampling::Sampler;
+use crate::volume::field::{Field, Ray};
+
+/// Emission estimator along a free-path segment.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Estimator {
+    /// Collision estimator `L_e/μ_t` at the sampled collision.
+    Point,
+    /// Track-length estimator: emission integrated up to the collision or exit.
+    Line,
+    /// Expected-value estimator: the deterministic per-segment closed form.
+    RayMarch,
+    /// Per-segment blend of line and point with parameter κ ≥ 0.
+    Blend {
+        /// κ in `α = 1/(1 + κ μ Δ)`; 0 gives the line estimator.
+        kappa: f64,
+    },
+}
+
+/// Where the free path ended.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum DistanceSample {
+    /// A real collision at distance `t`, inside a segment with these values (use them,
+    /// not a lookup at `x(t)`, which can round into a `μ = 0` neighbour: METHOD.md §10.3).
+    Collided {
+        /// Distance along the ray.
+        t: f64,
+        /// Density of the segment that holds the collision.
+        density: f32,
+        /// Source of that segment.
+        source: f32,
+    },
+    /// No collision before `t_max` (or the field's end).
+    Escaped,
+}
+
+/// Outcome of [`track`].
+#[derive(Clone, Copy, Debug)]
+pub struct TrackResult {
+    /// Collision or escape.
+    pub event: DistanceSample,
+    /// The estimator's value F, an unbiased estimate of `∫₀^d τ L_e ds`.
+    pub emission: [f64; 3],
+    /// An unbiased estimate of `τ(d)` (0/1 for point, line and blend; the exact value,
+    /// roulette-weighted, for ray-march).
+    pub transmittance: f64,
+    /// Segments visited.
+    pub segments: u32,
+}
+
+/// Transmittance below which the ray-march estimator plays Russian roulette.
+pub const RAY_MARCH_ROULETTE_THRESHOLD: f64 = 1e-2;
+
+/// `φ(x) = (1 − e^{−x})/x` with `φ(0) = 1`, accurate for small `x`.
+#[inline]
+#[must_use]
+pub fn phi(x: f64) -> f64 {
+    if x < 1e-4 {
+        1.0 - x * (0.5 - x / 6.0)
+    } else {
+        -(-x).exp_m1() / x
+    }
+}
+
+/// `E = −ln(1 − u)` for `u ∈ [0, 1)`, without cancellation near 0.
+#[inline]
+#[must_use]
+pub fn sample_exponential(u: f64) -> f64 {
+    -(-u).ln_1p()
+}
+
+#[inline]
+fn add(acc: &mut [f64; 3], le: Rgb, w: f64) {
+    for (a, c) in acc.iter_mut().zip(le.0) {
+        *a += f64::from(c) * w;
+    }
+}
+
+/// Sample a free path along `ray` over `[0, t_max]` and estimate the emission collected.
+///
+/// `u` drives the free path; `sampler` supplies roulette decisions for ray-march. With
+/// `need_collision == false` (no scattering), ray-march does not locate the collision.
+pub fn track<F: Field>(
+    field: &F,
+    medium: &Medium,
+    ray: &Ray,
+    t_max: f64,
+    estimator: Estimator,
+    need_collision: bool,
+    u: f64,
+    sampler: &mut Sampler,
+) -> TrackResult {
+    match estimator {
+        Estimator::RayMarch => track_expected(field, medium, ray, t_max, need_collision, u, sampler),
+        _ => track_free_path(field, medium, ray, t_max, estimator, u),
+    }
+}
+
+fn track_free_path<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, estimator: Estimator, u: f64) -> TrackResult {
+    let e = sample_exponential(u);
+    let mut od = 0.0f64;
+    let mut f = [0.0f64; 3];
+    let mut segments = 0u32;
+    for seg in field.segments(ray, 0.0, t_max) {
+        segments += 1;
+        let mu = medium.mu_t(seg.density);
+        let len = seg.length();
+        let x = mu * len;
+        let le = medium.emission.le(seg.density, seg.source);
+        if od + x > e {
+            // Collide inside this segment
+            let t = (seg.t0 + (e - od) / mu).clamp(seg.t0, seg.t1);
+            match estimator {
+                Estimator::Point => add(&mut f, le, 1.0 / mu),
+                Estimator::Line => add(&mut f, le, t - seg.t0),
+                Estimator::Blend { kappa } => {
+                    let alpha = 1.0 / (1.0 + kappa * x);
+                    add(&mut f, le, alpha * (t - seg.t0) + (1.0 - alpha) / mu);
+                }
+                Estimator::RayMarch => unreachable!("ray-march is tracked by track_expected"),
+            }
+            let event = DistanceSample::Collided { t, density: seg.density, source: seg.source };
+            return TrackResult { event, emission: f, transmittance: 0.0, segments };
+        }
+        od += x;
+        // Add emission along the whole segment
+        match estimator {
+            Estimator::Line => add(&mut f, le, len),
+            Estimator::Blend { kappa } => add(&mut f, le, len / (1.0 + kappa * x)),
+            _ => {}
+        }
+    }
+    TrackResult { event: DistanceSample::Escaped, emission: f, transmittance: 1.0, segments }
+}
+
+fn track_expected<F: Field>(
+    field: &F,
+    medium: &Medium,
+    ray: &Ray,
+    t_max: f64,
+    need_collision: bool,
+    u: f64,
+    sampler: &mut Sampler,
+) -> TrackResult {
+    let e = sample_exponential(u);
+    let mut od = 0.0f64;
+    let mut weight = 1.0f64; // roulette weight
+    let mut f = [0.0f64; 3];
+    let mut segments = 0u32;
+    let mut event = DistanceSample::Escaped;
+    let mut marching = true;
+    for seg in field.segments(ray, 0.0, t_max) {
+        segments += 1;
+        let mu = medium.mu_t(seg.density);
+        let len = seg.length();
+        let x = mu * len;
+        if need_collision && event == DistanceSample::Escaped && od + x > e {
+            let t = (seg.t0 + (e - od) / mu).clamp(seg.t0, seg.t1);
+            event = DistanceSample::Collided { t, density: seg.density, source: seg.source };
+        }
+        if marching {
+            let mut tau = (-od).exp() * weight;
+            if tau < RAY_MARCH_ROULETTE_THRESHOLD {
+                // Russian roulette on small transmittance keeps the walk finite
+                let q = tau / RAY_MARCH_ROULETTE_THRESHOLD;
+                if sampler.next_f64() >= q {
+                    marching = false;
+                    weight = 0.0;
+                } else {
+                    weight /= q;
+                    tau = RAY_MARCH_ROULETTE_THRESHOLD;
+                }
+            }
+            if marching {
+                let le = medium.emission.le(seg.density, seg.source);
+                add(&mut f, le, tau * len * phi(x));
+            }
+        }
+        od += x;
+        if !marching && (!need_collision || event != DistanceSample::Escaped) {
+            break;
+        }
+    }
+    let transmittance = if marching { (-od).exp() * weight } else { 0.0 };
+    TrackResult { event, emission: f, transmittance, segments }
+}

@@ -1,0 +1,207 @@
+//! Volume data tier: DDA segment invariants (proptest), pyramid bounds, voxel-centre
+//! convention, constant tiles and extreme rays.
+
+use glam::{DAffine3, DMat3, DVec3, IVec3};
+use plume::vdb::{leaf_offset, FloatGrid, LEAF_VOXELS};
+use plume::volume::field::Ray;
+use plume::volume::{Field, Volume};
+use proptest::prelude::*;
+
+/// A grid with the given leaves; each leaf's values from `f(voxel ijk)`.
+fn grid(name: &str, xf: DAffine3, leaves: &[IVec3], f: impl Fn(IVec3) -> f32) -> FloatGrid {
+    let mut values = Vec::with_capacity(leaves.len() * LEAF_VOXELS);
+    for &o in leaves {
+        let mut block = vec![0.0f32; LEAF_VOXELS];
+        for x in 0..8 {
+            for y in 0..8 {
+                for z in 0..8 {
+                    block[leaf_offset(x, y, z)] = f(o + IVec3::new(x, y, z));
+                }
+            }
+        }
+        values.extend(block);
+    }
+    FloatGrid { name: name.into(), world_from_index: xf, background: 0.0, origins: leaves.to_vec(), values }
+}
+
+fn hash(p: IVec3, seed: u32) -> u32 {
+    let mut h = (p.x as u32).wrapping_mul(0x8da6_b343) ^ (p.y as u32).wrapping_mul(0xd816_3841) ^ (p.z as u32).wrapping_mul(0xcb1a_b31f) ^ seed.wrapping_mul(0x9e37_79b9);
+    h ^= h >> 15;
+    h = h.wrapping_mul(0x2c1b_3c6d);
+    h ^ (h >> 12)
+}
+
+/// Random volume: some dense leaves, some constant, some with zeros.
+fn random_volume(seed: u32, xf: DAffine3) -> Volume {
+    let mut leaves = Vec::new();
+    for bx in -2..2 {
+        for by in -1..2 {
+            for bz in 0..3 {
+                let b = IVec3::new(bx, by, bz);
+                if hash(b, seed) % 3 != 0 {
+                    leaves.push(b * 8);
+                }
+            }
+        }
+    }
+    let d = grid("density", xf, &leaves, |p| {
+        let h = hash(p, seed + 1);
+        match hash(p.div_euclid(IVec3::splat(8)), seed + 2) % 4 {
+            0 => 0.5,                                      // constant leaf
+            1 => 0.0,                                      // zero leaf
+            _ => if h % 5 == 0 { 0.0 } else { (h % 1000) as f32 / 100.0 },
+        }
+    });
+    let s = grid("temperature", xf, &leaves, |p| if hash(p, seed + 3) % 2 == 0 { 1000.0 } else { 0.0 });
+    Volume::build(&d, Some(&s), |v| v).unwrap()
+}
+
+fn check_segments(vol: &Volume, ray: &Ray, t_min: f64, t_max: f64) -> Result<(), TestCaseError> {
+    let segs: Vec<_> = vol.segments(ray, t_min, t_max).collect();
+    let (lo, hi) = vol.index_bounds();
+    let o = vol.index_from_world().transform_point3(ray.origin);
+    let d = vol.index_from_world().transform_vector3(ray.direction);
+    let clip = plume::volume::field::clip_to_box(o, d, lo, hi, t_min, t_max);
+    match clip {
+        None => prop_assert!(segs.is_empty(), "ray misses but got {} segments", segs.len()),
+        Some((a, b)) => {
+            prop_assert!(!segs.is_empty());
+            prop_assert_eq!(segs[0].t0, a, "first segment starts at the clipped entry");
+            prop_assert_eq!(segs.last().unwrap().t1, b, "last segment ends at the clipped exit");
+            for w in segs.windows(2) {
+                prop_assert_eq!(w[0].t1, w[1].t0, "contiguous");
+            }
+            for s in &segs {
+                prop_assert!(s.t0 < s.t1, "non-empty, increasing: {:?}", s);
+                // Values at the middle match a direct nearest-voxel lookup (skip slivers,
+                // whose midpoint may round onto a face).
+                if s.t1 - s.t0 > 1e-6 * (1.0 + s.t1.abs()) {
+                    let (dv, sv) = vol.lookup_world(ray.at(0.5 * (s.t0 + s.t1)));
+                    prop_assert_eq!((dv, sv), (s.density, s.source), "segment {:?}", s);
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+fn axis_component() -> impl Strategy<Value = f64> {
+    prop_oneof![3 => -1.0f64..1.0, 1 => Just(0.0), 1 => Just(-0.0)]
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(300))]
+
+    #[test]
+    fn dda_segments_are_ordered_contiguous_and_exact(
+        seed in 0u32..50,
+        ox in -40.0f64..40.0, oy in -30.0f64..30.0, oz in -10.0f64..40.0,
+        dx in axis_component(), dy in axis_component(), dz in axis_component(),
+        snap in any::<bool>(),
+        t_min in 0.0f64..5.0, len in 0.1f64..200.0,
+        scaled in any::<bool>(),
+    ) {
+        let xf = if scaled {
+            DAffine3::from_mat3_translation(DMat3::from_diagonal(DVec3::new(0.7, 0.7, 0.716)) * DMat3::from_rotation_y(0.3), DVec3::new(1.0, -2.0, 3.0))
+        } else {
+            DAffine3::IDENTITY
+        };
+        let vol = random_volume(seed, xf);
+        let dir = DVec3::new(dx, dy, dz);
+        prop_assume!(dir.length() > 1e-3);
+        // Optionally start exactly on a voxel face.
+        let origin = if snap { (DVec3::new(ox, oy, oz)).round() + 0.5 } else { DVec3::new(ox, oy, oz) };
+        let ray = Ray { origin, direction: dir.normalize() };
+        check_segments(&vol, &ray, t_min, t_min + len)?;
+    }
+}
+
+#[test]
+fn pyramid_bounds_cover_every_voxel() {
+    for seed in 0..5 {
+        let vol = random_volume(seed, DAffine3::IDENTITY);
+        let levels = vol.pyramid_levels();
+        let (lo, hi) = vol.index_bounds();
+        let (lo, hi) = ((lo + 0.5).as_ivec3(), (hi + 0.5).as_ivec3());
+        for x in lo.x..hi.x {
+            for y in lo.y..hi.y {
+                for z in lo.z..hi.z {
+                    let v = IVec3::new(x, y, z);
+                    let (d, s) = vol.voxel(v);
+                    for (k, level) in levels.iter().enumerate() {
+                        let node = level.get((v - lo).div_euclid(IVec3::splat(8 << k)));
+                        assert!(node.density_max >= d && node.density_min <= d, "level {k} density at {v}");
+                        assert!(node.source_max >= s && node.source_min <= s, "level {k} source at {v}");
+                    }
+                }
+            }
+        }
+        assert_eq!(levels.last().unwrap().nodes.len(), 1, "single root");
+    }
+}
+
+#[test]
+fn voxel_centres_follow_openvdb() {
+    // One leaf at the origin with value = x index: voxel i covers [i-½, i+½].
+    let g = grid("density", DAffine3::IDENTITY, &[IVec3::ZERO], |p| p.x as f32 + 1.0);
+    let vol = Volume::build(&g, None, |v| v).unwrap();
+    assert_eq!(vol.lookup_index(DVec3::new(2.49, 3.0, 3.0)).0, 3.0);
+    assert_eq!(vol.lookup_index(DVec3::new(2.51, 3.0, 3.0)).0, 4.0);
+    assert_eq!(vol.lookup_index(DVec3::new(-0.49, 3.0, 3.0)).0, 1.0);
+    let (lo, hi) = vol.index_bounds();
+    assert_eq!(lo, DVec3::splat(-0.5));
+    assert_eq!(hi, DVec3::splat(7.5));
+    // A ray along +x through the leaf: 8 unit-length voxels, the first from -0.5.
+    let ray = Ray { origin: DVec3::new(-10.0, 3.0, 3.0), direction: DVec3::X };
+    let segs: Vec<_> = vol.segments(&ray, 0.0, 100.0).collect();
+    assert_eq!(segs.len(), 8);
+    assert_eq!(segs[0].t0, 9.5);
+    assert_eq!(segs[0].density, 1.0);
+    assert_eq!(segs[7].t1, 17.5);
+}
+
+#[test]
+fn constant_bricks_and_empty_space_are_single_segments() {
+    // Two constant leaves far apart with empty space between: 3 segments in total.
+    let g = grid("density", DAffine3::IDENTITY, &[IVec3::ZERO, IVec3::new(64, 0, 0)], |_| 2.0);
+    let vol = Volume::build(&g, None, |v| v).unwrap();
+    assert_eq!(vol.dense_brick_count(), 0, "constant leaves stored as constants");
+    let ray = Ray { origin: DVec3::new(-1.0, 3.0, 3.0), direction: DVec3::X };
+    let segs: Vec<_> = vol.segments(&ray, 0.0, 1000.0).collect();
+    assert_eq!(segs.len(), 3, "{segs:?}");
+    assert_eq!((segs[0].t0, segs[0].t1, segs[0].density), (0.5, 8.5, 2.0));
+    assert_eq!((segs[1].t0, segs[1].t1, segs[1].density), (8.5, 64.5, 0.0));
+    assert_eq!((segs[2].t0, segs[2].t1, segs[2].density), (64.5, 72.5, 2.0));
+}
+
+#[test]
+fn very_long_and_grazing_rays_terminate_and_cover() {
+    let vol = random_volume(7, DAffine3::IDENTITY);
+    // Origin far away (1e7 voxels), nearly axis-parallel direction.
+    let dir = DVec3::new(1.0, 1e-9, -1e-9).normalize();
+    let ray = Ray { origin: DVec3::new(-1e7, 2.0, 5.0), direction: dir };
+    let segs: Vec<_> = vol.segments(&ray, 0.0, f64::INFINITY).collect();
+    assert!(!segs.is_empty());
+    for w in segs.windows(2) {
+        assert_eq!(w[0].t1, w[1].t0);
+    }
+    // A ray along a voxel face (x = 0.5 exactly) with -0.0 components.
+    let ray = Ray { origin: DVec3::new(0.5, -20.0, 4.0), direction: DVec3::new(-0.0, 1.0, -0.0) };
+    let segs: Vec<_> = vol.segments(&ray, 0.0, 100.0).collect();
+    assert!(!segs.is_empty());
+    assert_eq!(segs[0].t0, 11.5);
+}
+
+#[test]
+fn nan_inf_negative_density_is_clamped_and_counted() {
+    let g = grid("density", DAffine3::IDENTITY, &[IVec3::ZERO], |p| match p.x {
+        0 => f32::NAN,
+        1 => f32::INFINITY,
+        2 => -1.0,
+        _ => 1.0,
+    });
+    let vol = Volume::build(&g, None, |v| v).unwrap();
+    assert_eq!(vol.report.density_clamped, 3 * 64);
+    assert_eq!(vol.voxel(IVec3::new(0, 1, 1)).0, 0.0);
+    assert_eq!(vol.voxel(IVec3::new(3, 1, 1)).0, 1.0);
+}

@@ -64,6 +64,9 @@ pub struct TrackResult {
     /// An unbiased estimate of `τ(d)` (0/1 for point, line and blend; the exact value,
     /// roulette-weighted, for ray-march).
     pub transmittance: f64,
+    /// Optical depth from the origin to the collision (`E`, exactly, for a sampled
+    /// collision), or to the end of the range on escape.
+    pub optical_depth: f64,
     /// Segments visited.
     pub segments: u32,
 }
@@ -140,7 +143,7 @@ fn track_free_path<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, 
                 Estimator::RayMarch => unreachable!("ray-march is tracked by track_expected"),
             }
             let event = DistanceSample::Collided { t, density: seg.density, source: seg.source };
-            return TrackResult { event, emission: f, transmittance: 0.0, segments };
+            return TrackResult { event, emission: f, transmittance: 0.0, optical_depth: e, segments };
         }
         od += x;
         // Add emission along the whole segment
@@ -150,7 +153,7 @@ fn track_free_path<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, 
             _ => {}
         }
     }
-    TrackResult { event: DistanceSample::Escaped, emission: f, transmittance: 1.0, segments }
+    TrackResult { event: DistanceSample::Escaped, emission: f, transmittance: 1.0, optical_depth: od, segments }
 }
 
 fn track_expected<F: Field>(
@@ -202,5 +205,21 @@ fn track_expected<F: Field>(
         }
     }
     let transmittance = if marching { (-od).exp() * weight } else { 0.0 };
-    TrackResult { event, emission: f, transmittance, segments }
+    let optical_depth = if matches!(event, DistanceSample::Collided { .. }) { e } else { od };
+    TrackResult { event, emission: f, transmittance, optical_depth, segments }
+}
+
+/// Exact optical depth along `ray` over `[0, t_max]` (for shadow rays: `τ = e^{−OD}`).
+/// Stops early once OD exceeds `od_stop` (then `τ` is negligible anyway).
+pub fn optical_depth<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, od_stop: f64) -> (f64, u32) {
+    let mut od = 0.0;
+    let mut n = 0;
+    for seg in field.segments(ray, 0.0, t_max) {
+        n += 1;
+        od += medium.mu_t(seg.density) * seg.length();
+        if od > od_stop {
+            break;
+        }
+    }
+    (od, n)
 }

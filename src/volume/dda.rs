@@ -261,4 +261,8 @@ impl Field for Volume {
     fn segments(&self, ray: &Ray, t_min: f64, t_max: f64) -> VolumeSegments<'_> {
         VolumeSegments::new(self, ray, t_min, t_max)
     }
+
+    fn values_at(&self, p_world: DVec3) -> (f32, f32) {
+        self.lookup_world(p_world)
+    }
 }

@@ -1,5 +1,5 @@
 //! The [`Field`] trait and [`Segment`], the contract between volume data and estimators,
-//! plus analytic fields ([`Constant`], [`Slab`], [`LinearRamp`]-like strips) for tests.
+//! plus analytic fields ([`Constant`], [`Strip`]) for tests.
 //!
 //! A field is piecewise constant along any ray: it returns [`Segment`]s
 //! `[t0, t1)` with one `density` and one emission `source` value each. Segments are
@@ -66,6 +66,13 @@ pub trait Field: Sync {
     /// Segments of `ray` within `[t_min, t_max]`, clipped to the field's bounds, in order.
     /// An empty iterator when the ray misses.
     fn segments(&self, ray: &Ray, t_min: f64, t_max: f64) -> Self::Segments<'_>;
+
+    /// `(density, source)` at a world point (for next-event sampling of a chosen point).
+    fn values_at(&self, p_world: DVec3) -> (f32, f32);
+}
+
+fn inside(p: DVec3, lo: DVec3, hi: DVec3) -> bool {
+    p.cmpge(lo).all() && p.cmplt(hi).all()
 }
 
 /// Intersect a ray with an axis-aligned box; returns the parameter interval clipped to
@@ -128,6 +135,10 @@ impl Field for Constant {
             .map(|(t0, t1)| Segment { t0, t1, density: self.density, source: self.source })
             .into_iter()
     }
+
+    fn values_at(&self, p: DVec3) -> (f32, f32) {
+        if inside(p, self.lo, self.hi) { (self.density, self.source) } else { (0.0, 0.0) }
+    }
 }
 
 /// Analytic test field: a 1-D strip of cells along +x inside a box, each cell with its
@@ -178,5 +189,14 @@ impl Field for Strip {
             a = b;
         }
         out.into_iter()
+    }
+
+    fn values_at(&self, p: DVec3) -> (f32, f32) {
+        if !inside(p, self.lo, self.hi) {
+            return (0.0, 0.0);
+        }
+        let n = self.cells.len();
+        let width = (self.hi.x - self.lo.x) / n as f64;
+        self.cells[(((p.x - self.lo.x) / width) as usize).min(n - 1)]
     }
 }

@@ -7,6 +7,41 @@
 //! Data comes out as plain [`FloatGrid`]s: leaf origins plus 8³ value blocks in index
 //! space, and the affine `world_from_index` transform. Active tiles are voxelized into
 //! leaves on the C++ side, so constant regions are never lost.
+//!
+//! # Conventions
+//!
+//! - **Grids are addressed in file order** by a [`GridSelector`]: `density` is the first
+//!   grid named `density`, `density[1]` the second, and so on. (OpenVDB's `io::File`
+//!   lists grids alphabetically; the shim recovers the order in which they are stored.)
+//! - **Index space**: voxel `(i, j, k)` is centred at index point `(i, j, k)`, as in
+//!   OpenVDB; `world_from_index` maps index points to world points.
+//! - **Leaves**: [`FloatGrid::origins`] lists the file's leaves first, in OpenVDB's tree
+//!   order, then one leaf-sized block per 8³ cell of each active tile (tile value
+//!   everywhere). Inactive tiles are not voxelized: outside the leaves the grid reads as
+//!   its background.
+//! - **Types**: `float` grids (including half-float storage, which reads as float) and
+//!   `double` grids (cast to `f32`) are read; anything else is
+//!   [`Error::UnsupportedGrid`](crate::Error::UnsupportedGrid), as is a non-affine
+//!   (frustum) transform.
+//! - **Memory**: [`read_float_grid`] computes the bytes its output needs (file leaves plus
+//!   voxelized tiles) before allocating and refuses with
+//!   [`Error::TooLarge`](crate::Error::TooLarge) above [`ReadLimits::max_bytes`]. Header
+//!   metadata such as `file_bbox_min/max` is never used to size anything.
+//! - **Hostile files**: before OpenVDB parses a file, the shim walks its header and grid
+//!   descriptors with every length checked against the file size, so a truncated file is
+//!   an error rather than silently missing data (OpenVDB 10 itself reads a truncated file
+//!   without complaint and fills the missing leaves with garbage). Values that come out
+//!   NaN or infinite are rejected as corrupt.
+//! - **Writing** is atomic: a temp file in the target directory, then a rename.
+
+mod ffi;
+mod read;
+mod selector;
+mod write;
+
+pub use read::{list_grids, read_float_grid, ReadLimits};
+pub use selector::GridSelector;
+pub use write::write_float_grids;
 
 use glam::{DAffine3, IVec3};
 use serde::Serialize;
@@ -84,9 +119,12 @@ pub struct GridInfo {
     pub index_bbox: Option<[[i32; 3]; 2]>,
     /// World size of one voxel along index x, y, z.
     pub voxel_size: [f64; 3],
-    /// Transform kind (`linear`, `scale`, `scale-translate`, `uniform-scale`, `frustum`, …).
+    /// Transform kind: OpenVDB's map type in kebab case (`uniform-scale`,
+    /// `uniform-scale-translate`, `scale`, `scale-translate`, `translation`, `unitary`,
+    /// `affine`), or `frustum` for the non-linear frustum map.
     pub transform: String,
-    /// Minimum of active values (scalar grids; vector grids: of the magnitude).
+    /// Minimum of active values, tiles included (`float`, `double`, `int32`, `int64`;
+    /// `vec3s`/`vec3d`: of the magnitude). `None` for an empty grid or another type.
     pub min: Option<f64>,
     /// Maximum of active values.
     pub max: Option<f64>,

@@ -1,0 +1,51 @@
+//! Builds the OpenVDB shim (`cpp/vdb_shim.cc`) and its cxx bridge (`src/vdb/ffi.rs`).
+//!
+//! Why `cxx_build` rather than the `cmake` crate: the shim is one C++ file, and Debian's
+//! `libopenvdb-dev` installs plain headers and shared libraries that link directly. With
+//! cmake we would need the cmake package plus OpenVDB's `FindOpenVDB.cmake` and the
+//! find-modules of its dependencies (TBB, Blosc, Imath), which are not all packaged.
+//!
+//! OpenVDB discovery: the system include path, or `OPENVDB_INCLUDE_DIR` /
+//! `OPENVDB_LIB_DIR` for a custom install.
+
+use std::env;
+use std::path::PathBuf;
+
+fn main() {
+    for file in ["build.rs", "cpp/vdb_shim.cc", "cpp/vdb_shim.h", "src/vdb/ffi.rs"] {
+        println!("cargo:rerun-if-changed={file}");
+    }
+    println!("cargo:rerun-if-env-changed=OPENVDB_INCLUDE_DIR");
+    println!("cargo:rerun-if-env-changed=OPENVDB_LIB_DIR");
+
+    let include_dir = env::var_os("OPENVDB_INCLUDE_DIR").map(PathBuf::from);
+    let search = include_dir
+        .iter()
+        .cloned()
+        .chain(["/usr/include", "/usr/local/include"].map(PathBuf::from));
+    let found = search.clone().any(|dir| dir.join("openvdb/openvdb.h").is_file());
+    if !found {
+        panic!(
+            "OpenVDB headers not found (looked for openvdb/openvdb.h in {:?}); install \
+             libopenvdb-dev or set OPENVDB_INCLUDE_DIR",
+            search.collect::<Vec<_>>()
+        );
+    }
+
+    let mut build = cxx_build::bridge("src/vdb/ffi.rs");
+    build.file("cpp/vdb_shim.cc").std("c++17").opt_level(2);
+    if let Some(dir) = &include_dir {
+        build.include(dir);
+    }
+    build.compile("plume_vdb_shim");
+
+    if let Some(dir) = env::var_os("OPENVDB_LIB_DIR") {
+        println!("cargo:rustc-link-search=native={}", PathBuf::from(dir).display());
+    }
+    // OpenVDB's own dependencies (blosc, zlib, boost_iostreams, log4cplus) come in through
+    // libopenvdb.so's DT_NEEDED entries; the shim's inline header code calls TBB and
+    // Imath (half) directly.
+    for lib in ["openvdb", "tbb", "Imath-3_1"] {
+        println!("cargo:rustc-link-lib=dylib={lib}");
+    }
+}

@@ -1,0 +1,648 @@
+// plume's OpenVDB shim: the only code that sees OpenVDB types.
+//
+// Conventions (see src/vdb/mod.rs for the Rust side):
+// - Grids are addressed by (name, occurrence) in *file order*. io::File keeps its grid
+//   descriptors in a multimap sorted by name, so its own listings are alphabetical; the
+//   file order comes from `scan_descriptors`, a bounds-checked walk over the header,
+//   file metadata and grid descriptors that runs before OpenVDB parses the file.
+// - Files are opened without delayed loading (no memory map, no private temp copy).
+// - world_from_index is returned as 12 doubles, the columns of a 3x4 matrix in the
+//   column-vector convention (x axis, y axis, z axis, translation) = glam's
+//   DAffine3::to_cols_array. OpenVDB's Mat4 uses row vectors, so column i here is row i
+//   of its matrix.
+// - Leaf values are copied in LeafNode offset order, (x << 6) | (y << 3) | z.
+
+#include "plume/cpp/vdb_shim.h"
+#include "plume/src/vdb/ffi.rs.h"
+
+#include <openvdb/openvdb.h>
+#include <openvdb/io/Archive.h>
+#include <openvdb/io/File.h>
+#include <openvdb/io/GridDescriptor.h>
+
+#include <algorithm>
+#include <array>
+#include <cctype>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <limits>
+#include <mutex>
+#include <optional>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace plume {
+namespace shim {
+namespace {
+
+namespace vdb = openvdb;
+
+void ensure_initialized() {
+    static std::once_flag once;
+    std::call_once(once, [] { vdb::initialize(); });
+}
+
+// Keeps exception text to one printable line (the truncated OpenImageIO file, for
+// example, makes OpenVDB quote raw bytes in its message).
+std::string printable(const std::string& text) {
+    std::string out;
+    out.reserve(text.size());
+    for (unsigned char c : text) {
+        out.push_back(c >= 0x20 && c < 0x7f ? static_cast<char>(c) : '?');
+    }
+    return out;
+}
+
+// Runs `body`, turning every exception (OpenVDB, standard or unknown) into a
+// std::runtime_error, the type the cxx glue converts into a Rust `Err`.
+template <typename F>
+auto guarded(F&& body) -> decltype(body()) {
+    try {
+        return body();
+    } catch (const vdb::Exception& e) {
+        throw std::runtime_error(printable(e.what()));
+    } catch (const std::bad_alloc&) {
+        throw std::runtime_error("out of memory");
+    } catch (const std::exception& e) {
+        throw std::runtime_error(printable(e.what()));
+    } catch (...) {
+        throw std::runtime_error("unknown C++ exception in the OpenVDB shim");
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// Descriptor scan
+
+// Gives access to Archive's protected header reader (magic, versions, UUID: fixed-size
+// fields only).
+class HeaderReader : public vdb::io::Archive {
+public:
+    void read(std::istream& is) { readHeader(is); }
+    bool has_grid_offsets() const { return inputHasGridOffsets(); }
+};
+
+// Reads little-endian fields and length-prefixed strings, refusing any length that runs
+// past the end of the file, so a lying header can never size an allocation.
+class BoundedReader {
+public:
+    BoundedReader(std::istream& is, std::uint64_t size) : is_(is), size_(size) {}
+
+    std::uint64_t position() {
+        const std::streamoff p = is_.tellg();
+        if (!is_ || p < 0) throw std::runtime_error("read error in the file header");
+        return static_cast<std::uint64_t>(p);
+    }
+    void require(std::uint64_t bytes, const char* what) {
+        const std::uint64_t p = position();
+        if (bytes > size_ || p > size_ - bytes) {
+            std::ostringstream msg;
+            msg << "truncated or corrupt file: " << what << " at byte " << p << " needs "
+                << bytes << " bytes, but the file has " << size_ << " bytes";
+            throw std::runtime_error(msg.str());
+        }
+    }
+    template <typename T>
+    T read(const char* what) {
+        require(sizeof(T), what);
+        T value{};
+        is_.read(reinterpret_cast<char*>(&value), sizeof(T));
+        return value;
+    }
+    std::string read_string(const char* what) {
+        const auto length = read<std::uint32_t>(what);
+        require(length, what);
+        std::string s(length, '\0');
+        is_.read(s.data(), length);
+        return s;
+    }
+    void skip(std::uint64_t bytes, const char* what) {
+        require(bytes, what);
+        is_.seekg(static_cast<std::streamoff>(bytes), std::ios_base::cur);
+    }
+    void seek(std::uint64_t pos) { is_.seekg(static_cast<std::streamoff>(pos)); }
+    std::uint64_t size() const { return size_; }
+
+private:
+    std::istream& is_;
+    std::uint64_t size_;
+};
+
+struct Entry {
+    std::string name;         // grid name (descriptor name without the uniqueness suffix)
+    std::string lookup_name;  // "name[N]" form that io::File::readGrid resolves
+};
+
+struct Scan {
+    bool has_grid_offsets = true;
+    std::vector<Entry> entries;  // file order; empty when !has_grid_offsets
+};
+
+// Walks the header, the file-level metadata and the grid descriptors the way
+// io::File::open does, with every length checked against the file size.
+Scan scan_descriptors(const std::string& path) {
+    std::ifstream is(path, std::ios_base::in | std::ios_base::binary);
+    if (!is) throw std::runtime_error("cannot open file");
+    is.seekg(0, std::ios_base::end);
+    const std::streamoff end = is.tellg();
+    if (end < 0) throw std::runtime_error("cannot determine the file size");
+    is.seekg(0);
+    const auto size = static_cast<std::uint64_t>(end);
+    if (size < 8) throw std::runtime_error("file too short to be a VDB file");
+
+    HeaderReader header;
+    header.read(is);  // throws IoError on a bad magic number or unsupported version
+    if (!is) throw std::runtime_error("truncated or corrupt file: incomplete file header");
+    const std::uint32_t version = header.fileVersion();
+
+    BoundedReader in(is, size);
+    // File metadata (MetaMap::readMeta): count, then (name, type name, byte size, bytes).
+    const auto meta_count = in.read<std::uint32_t>("file metadata count");
+    for (std::uint32_t i = 0; i < meta_count; ++i) {
+        in.read_string("file metadata name");
+        in.read_string("file metadata type");
+        in.skip(in.read<std::uint32_t>("file metadata size"), "file metadata value");
+    }
+
+    Scan scan;
+    scan.has_grid_offsets = header.has_grid_offsets();
+    if (!scan.has_grid_offsets) return scan;  // grids follow inline; io::File reads them all
+
+    const auto grid_count = in.read<std::int32_t>("grid count");
+    if (grid_count < 0) throw std::runtime_error("corrupt file: negative grid count");
+    for (std::int32_t i = 0; i < grid_count; ++i) {
+        const std::string unique_name = in.read_string("grid name");
+        in.read_string("grid type");
+        if (version >= vdb::OPENVDB_FILE_VERSION_GRID_INSTANCING) {
+            in.read_string("grid instance parent");
+        }
+        const auto grid_pos = in.read<std::int64_t>("grid offset");
+        const auto block_pos = in.read<std::int64_t>("grid block offset");
+        const auto end_pos = in.read<std::int64_t>("grid end offset");
+        const std::uint64_t descriptor_end = in.position();
+        const std::string name = vdb::io::GridDescriptor::stripSuffix(unique_name);
+        if (grid_pos < 0 || static_cast<std::uint64_t>(grid_pos) < descriptor_end ||
+            block_pos < grid_pos || end_pos < block_pos ||
+            static_cast<std::uint64_t>(end_pos) > size) {
+            std::ostringstream msg;
+            msg << "truncated or corrupt file: grid \"" << printable(name)
+                << "\" claims data in bytes " << grid_pos << ".." << end_pos
+                << ", but the file has " << size << " bytes";
+            throw std::runtime_error(msg.str());
+        }
+        scan.entries.push_back({name, vdb::io::GridDescriptor::nameAsString(unique_name)});
+        in.seek(static_cast<std::uint64_t>(end_pos));
+    }
+    return scan;
+}
+
+// An open file plus its grids in file order.
+class Catalog {
+public:
+    explicit Catalog(const std::string& path) : file_(path) {
+        ensure_initialized();
+        Scan scan = scan_descriptors(path);
+        file_.open(/*delayLoad=*/false);
+        if (scan.has_grid_offsets) {
+            entries_ = std::move(scan.entries);
+        } else {
+            // Written to a non-seekable stream: open() has already read every grid, in
+            // file order.
+            preloaded_ = file_.getGrids();
+            for (const auto& grid : *preloaded_) entries_.push_back({grid->getName(), ""});
+        }
+    }
+
+    const std::vector<Entry>& entries() const { return entries_; }
+
+    std::optional<std::size_t> find(const std::string& name, std::size_t occurrence) const {
+        std::size_t seen = 0;
+        for (std::size_t i = 0; i < entries_.size(); ++i) {
+            if (entries_[i].name == name && seen++ == occurrence) return i;
+        }
+        return std::nullopt;
+    }
+
+    // Metadata and transform only.
+    vdb::GridBase::Ptr read_metadata(std::size_t i) {
+        if (preloaded_) return (*preloaded_)[i];
+        return file_.readGridMetadata(entries_[i].lookup_name);
+    }
+
+    vdb::GridBase::Ptr read_grid(std::size_t i) {
+        if (preloaded_) return (*preloaded_)[i];
+        vdb::GridBase::Ptr grid = file_.readGrid(entries_[i].lookup_name);
+        if (!grid) throw std::runtime_error("OpenVDB returned no grid");
+        return grid;
+    }
+
+private:
+    vdb::io::File file_;
+    std::vector<Entry> entries_;
+    vdb::GridPtrVecPtr preloaded_;
+};
+
+// ---------------------------------------------------------------------------------------
+// Grid summaries
+
+// "UniformScaleTranslateMap" -> "uniform-scale-translate"; the frustum map -> "frustum".
+std::string map_kind(const vdb::math::Transform& transform) {
+    std::string type = transform.mapType();
+    if (type == vdb::math::NonlinearFrustumMap::mapType()) return "frustum";
+    const std::string suffix = "Map";
+    if (type.size() > suffix.size() &&
+        type.compare(type.size() - suffix.size(), suffix.size(), suffix) == 0) {
+        type.erase(type.size() - suffix.size());
+    }
+    std::string out;
+    for (std::size_t i = 0; i < type.size(); ++i) {
+        const char c = type[i];
+        if (std::isupper(static_cast<unsigned char>(c))) {
+            if (i > 0) out.push_back('-');
+            out.push_back(static_cast<char>(std::tolower(static_cast<unsigned char>(c))));
+        } else {
+            out.push_back(c);
+        }
+    }
+    return out;
+}
+
+// Min, max and voxel-weighted mean of the active values (tiles count once per voxel),
+// through `to_double` (identity for scalars, length for vectors).
+template <typename GridT, typename ToDouble>
+void accumulate_stats(const vdb::GridBase& base, ToDouble to_double, GridSummary& out) {
+    const auto& tree = static_cast<const GridT&>(base).tree();
+    double lo = std::numeric_limits<double>::infinity();
+    double hi = -lo;
+    double sum = 0.0;
+    std::uint64_t count = 0;
+    for (auto it = tree.cbeginValueOn(); it; ++it) {
+        const double v = to_double(*it);
+        const std::uint64_t n = it.isVoxelValue() ? 1 : it.getVoxelCount();
+        lo = std::min(lo, v);
+        hi = std::max(hi, v);
+        sum += v * static_cast<double>(n);
+        count += n;
+    }
+    if (count > 0) {
+        out.has_stats = true;
+        out.min = lo;
+        out.max = hi;
+        out.mean = sum / static_cast<double>(count);
+    }
+}
+
+void fill_stats(const vdb::GridBase& grid, GridSummary& out) {
+    const auto scalar = [](auto v) { return static_cast<double>(v); };
+    const auto length = [](const auto& v) { return static_cast<double>(v.length()); };
+    if (grid.isType<vdb::FloatGrid>()) {
+        accumulate_stats<vdb::FloatGrid>(grid, scalar, out);
+    } else if (grid.isType<vdb::DoubleGrid>()) {
+        accumulate_stats<vdb::DoubleGrid>(grid, scalar, out);
+    } else if (grid.isType<vdb::Int32Grid>()) {
+        accumulate_stats<vdb::Int32Grid>(grid, scalar, out);
+    } else if (grid.isType<vdb::Int64Grid>()) {
+        accumulate_stats<vdb::Int64Grid>(grid, scalar, out);
+    } else if (grid.isType<vdb::Vec3SGrid>()) {
+        accumulate_stats<vdb::Vec3SGrid>(grid, length, out);
+    } else if (grid.isType<vdb::Vec3DGrid>()) {
+        accumulate_stats<vdb::Vec3DGrid>(grid, length, out);
+    }
+    // bool, mask, string and point grids have no meaningful value statistics.
+}
+
+GridSummary summarize(const std::string& name, const vdb::GridBase& grid) {
+    GridSummary s;
+    s.name = rust::String::lossy(name);
+    s.value_type = grid.valueType();
+    s.grid_class = vdb::GridBase::gridClassToString(grid.getGridClass());
+    const vdb::TreeBase& tree = grid.baseTree();
+    s.active_voxels = tree.activeVoxelCount();
+    s.leaf_count = tree.leafCount();
+    s.active_tiles = tree.activeTileCount();
+    const vdb::CoordBBox bbox = grid.evalActiveVoxelBoundingBox();
+    s.has_bbox = s.active_voxels > 0 && !bbox.empty();
+    s.bbox_min = {0, 0, 0};
+    s.bbox_max = {0, 0, 0};
+    if (s.has_bbox) {
+        for (int a = 0; a < 3; ++a) {
+            s.bbox_min[a] = bbox.min()[a];
+            s.bbox_max[a] = bbox.max()[a];
+        }
+    }
+    const vdb::Vec3d voxel = grid.transform().voxelSize();
+    s.voxel_size = {voxel[0], voxel[1], voxel[2]};
+    s.transform = map_kind(grid.transform());
+    s.has_stats = false;
+    s.min = s.max = s.mean = 0.0;
+    fill_stats(grid, s);
+    s.memory_bytes = tree.memUsage();
+    return s;
+}
+
+// ---------------------------------------------------------------------------------------
+// Float grid reading
+
+std::array<double, 12> world_from_index_columns(const vdb::math::Transform& transform) {
+    const vdb::Mat4d m = transform.baseMap()->getAffineMap()->getMat4();
+    std::array<double, 12> out{};
+    for (int i = 0; i < 4; ++i) {
+        for (int j = 0; j < 3; ++j) out[3 * i + j] = m(i, j);
+    }
+    return out;
+}
+
+std::uint64_t saturating_add(std::uint64_t a, std::uint64_t b) {
+    return b > std::numeric_limits<std::uint64_t>::max() - a
+               ? std::numeric_limits<std::uint64_t>::max()
+               : a + b;
+}
+
+// An active tile, to be voxelized into leaf-sized blocks of its value.
+struct Tile {
+    vdb::CoordBBox bbox;  // inclusive; every side a multiple of 8 voxels
+    double value;
+};
+
+// Active tiles above leaf level. Tiles are constant regions, so voxelizing means
+// emitting one 8^3 block per leaf-sized cell of each tile.
+template <typename TreeT>
+std::vector<Tile> collect_tiles(const TreeT& tree, std::uint64_t& tile_leaves) {
+    std::vector<Tile> tiles;
+    tile_leaves = 0;
+    auto it = tree.cbeginValueOn();
+    it.setMaxDepth(TreeT::DEPTH - 2);  // stop above the leaves: tiles only
+    for (; it; ++it) {
+        if (!it.isTileValue()) continue;
+        Tile tile;
+        it.getBoundingBox(tile.bbox);
+        tile.value = static_cast<double>(*it);
+        tiles.push_back(tile);
+        tile_leaves = saturating_add(tile_leaves, it.getVoxelCount() / 512);
+    }
+    return tiles;
+}
+
+template <typename TreeT>
+void copy_tree(const TreeT& tree, const std::vector<Tile>& tiles, std::int32_t* origins,
+               float* values) {
+    using ValueT = typename TreeT::ValueType;
+    static_assert(TreeT::LeafNodeType::SIZE == 512, "plume expects 8^3 leaves");
+    std::size_t k = 0;
+    for (auto leaf = tree.cbeginLeaf(); leaf; ++leaf, ++k) {
+        const vdb::Coord origin = leaf->origin();
+        for (int a = 0; a < 3; ++a) origins[3 * k + a] = origin[a];
+        const ValueT* src = leaf->buffer().data();
+        float* dst = values + 512 * k;
+        if constexpr (std::is_same_v<ValueT, float>) {
+            std::memcpy(dst, src, 512 * sizeof(float));
+        } else {
+            for (int i = 0; i < 512; ++i) dst[i] = static_cast<float>(src[i]);
+        }
+    }
+    for (const Tile& tile : tiles) {
+        const vdb::Coord& lo = tile.bbox.min();
+        const vdb::Coord& hi = tile.bbox.max();
+        const float value = static_cast<float>(tile.value);
+        for (std::int64_t x = lo.x(); x <= hi.x(); x += 8) {
+            for (std::int64_t y = lo.y(); y <= hi.y(); y += 8) {
+                for (std::int64_t z = lo.z(); z <= hi.z(); z += 8, ++k) {
+                    origins[3 * k + 0] = static_cast<std::int32_t>(x);
+                    origins[3 * k + 1] = static_cast<std::int32_t>(y);
+                    origins[3 * k + 2] = static_cast<std::int32_t>(z);
+                    std::fill(values + 512 * k, values + 512 * (k + 1), value);
+                }
+            }
+        }
+    }
+}
+
+}  // namespace
+
+struct FloatGridReader::Impl {
+    ReadStatus status = ReadStatus::NotFound;
+    std::string value_type;
+    std::string transform;
+    std::array<double, 12> world_from_index{};
+    float background = 0.0f;
+    std::uint64_t leaf_count = 0;
+    std::uint64_t tile_leaf_count = 0;
+    std::uint64_t active_tiles = 0;
+    vdb::FloatGrid::ConstPtr float_grid;  // exactly one of these is set when Ready
+    vdb::DoubleGrid::ConstPtr double_grid;
+    std::vector<Tile> tiles;
+};
+
+FloatGridReader::FloatGridReader(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+FloatGridReader::~FloatGridReader() = default;
+
+FloatGridHeader FloatGridReader::header() const {
+    return guarded([&] {
+        FloatGridHeader h;
+        h.status = impl_->status;
+        h.value_type = impl_->value_type;
+        h.transform = impl_->transform;
+        h.world_from_index = impl_->world_from_index;
+        h.background = impl_->background;
+        h.leaf_count = impl_->leaf_count;
+        h.tile_leaf_count = impl_->tile_leaf_count;
+        h.active_tiles = impl_->active_tiles;
+        return h;
+    });
+}
+
+void FloatGridReader::copy_leaves(rust::Slice<std::int32_t> origins,
+                                  rust::Slice<float> values) const {
+    guarded([&] {
+        if (impl_->status != ReadStatus::Ready) {
+            throw std::runtime_error("copy_leaves called on a grid that is not ready");
+        }
+        const std::uint64_t leaves = impl_->leaf_count + impl_->tile_leaf_count;
+        if (origins.size() != 3 * leaves || values.size() != 512 * leaves) {
+            throw std::runtime_error("copy_leaves: output buffers have the wrong size");
+        }
+        if (impl_->float_grid) {
+            copy_tree(impl_->float_grid->tree(), impl_->tiles, origins.data(), values.data());
+        } else {
+            copy_tree(impl_->double_grid->tree(), impl_->tiles, origins.data(), values.data());
+        }
+    });
+}
+
+template <typename GridT>
+void prepare(FloatGridReader::Impl& impl, typename GridT::ConstPtr grid) {
+    impl.background = static_cast<float>(grid->background());
+    impl.leaf_count = grid->tree().leafCount();
+    impl.tiles = collect_tiles(grid->tree(), impl.tile_leaf_count);
+    impl.active_tiles = impl.tiles.size();
+}
+
+std::unique_ptr<FloatGridReader> open_float_grid(rust::Str path, rust::Str name,
+                                                 std::size_t occurrence) {
+    return guarded([&] {
+        auto impl = std::make_unique<FloatGridReader::Impl>();
+        Catalog catalog{std::string(path)};
+        const auto index = catalog.find(std::string(name), occurrence);
+        if (!index) {
+            impl->status = ReadStatus::NotFound;
+            return std::make_unique<FloatGridReader>(std::move(impl));
+        }
+        // Type and transform come from the metadata, before any tree is read.
+        const vdb::GridBase::Ptr meta = catalog.read_metadata(*index);
+        impl->value_type = meta->valueType();
+        impl->transform = map_kind(meta->transform());
+        if (!meta->isType<vdb::FloatGrid>() && !meta->isType<vdb::DoubleGrid>()) {
+            impl->status = ReadStatus::NotScalar;
+            return std::make_unique<FloatGridReader>(std::move(impl));
+        }
+        if (!meta->transform().isLinear()) {
+            impl->status = ReadStatus::NonLinearTransform;
+            return std::make_unique<FloatGridReader>(std::move(impl));
+        }
+        impl->world_from_index = world_from_index_columns(meta->transform());
+
+        // Reading the tree allocates only what the file stores (tiles stay tiles); the
+        // voxelized output is sized and checked against the memory limit by the caller
+        // from header() before anything is copied.
+        const vdb::GridBase::Ptr grid = catalog.read_grid(*index);
+        if (auto g = vdb::GridBase::constGrid<vdb::FloatGrid>(grid)) {
+            impl->float_grid = g;
+            prepare<vdb::FloatGrid>(*impl, g);
+        } else if (auto d = vdb::GridBase::constGrid<vdb::DoubleGrid>(grid)) {
+            impl->double_grid = d;
+            prepare<vdb::DoubleGrid>(*impl, d);
+        } else {
+            throw std::runtime_error("grid type changed between metadata and tree read");
+        }
+        impl->status = ReadStatus::Ready;
+        return std::make_unique<FloatGridReader>(std::move(impl));
+    });
+}
+
+rust::Vec<rust::String> grid_names(rust::Str path) {
+    return guarded([&] {
+        Catalog catalog{std::string(path)};
+        rust::Vec<rust::String> names;
+        for (const Entry& e : catalog.entries()) names.push_back(rust::String::lossy(e.name));
+        return names;
+    });
+}
+
+rust::Vec<GridSummary> list_grids(rust::Str path) {
+    return guarded([&] {
+        Catalog catalog{std::string(path)};
+        rust::Vec<GridSummary> out;
+        for (std::size_t i = 0; i < catalog.entries().size(); ++i) {
+            const vdb::GridBase::Ptr grid = catalog.read_grid(i);
+            out.push_back(summarize(catalog.entries()[i].name, *grid));
+        }
+        return out;
+    });
+}
+
+// ---------------------------------------------------------------------------------------
+// Writing
+
+namespace {
+
+// Gives access to Archive's protected stream writer, so that the write goes to a stream
+// we own and can check after flushing (io::File::write ignores a failed final write).
+class StreamWriter : public vdb::io::Archive {
+public:
+    void write_file(const std::string& path, const vdb::GridCPtrVec& grids,
+                    const vdb::MetaMap& meta) const {
+        std::ofstream os(path, std::ios_base::out | std::ios_base::binary |
+                                   std::ios_base::trunc);
+        if (!os) throw std::runtime_error("cannot open " + path + " for writing");
+        Archive::write(os, grids, /*seekable=*/true, meta);
+        os.flush();
+        if (!os) throw std::runtime_error("write to " + path + " failed (disk full?)");
+        os.close();
+        if (os.fail()) throw std::runtime_error("closing " + path + " failed");
+    }
+};
+
+}  // namespace
+
+struct GridWriter::Impl {
+    vdb::GridCPtrVec grids;
+};
+
+GridWriter::GridWriter() : impl_(std::make_unique<Impl>()) {}
+GridWriter::~GridWriter() = default;
+
+std::unique_ptr<GridWriter> new_grid_writer() {
+    return guarded([] {
+        ensure_initialized();
+        return std::make_unique<GridWriter>();
+    });
+}
+
+void GridWriter::add_float_grid(rust::Str name, rust::Slice<const double> world_from_index,
+                                float background, rust::Slice<const std::int32_t> origins,
+                                rust::Slice<const float> values) {
+    guarded([&] {
+        const std::string grid_name(name);
+        if (world_from_index.size() != 12) {
+            throw std::runtime_error("world_from_index must have 12 entries");
+        }
+        if (origins.size() % 3 != 0 || values.size() != 512 * (origins.size() / 3)) {
+            throw std::runtime_error("grid \"" + grid_name + "\": origins and values disagree");
+        }
+        vdb::Mat4d m = vdb::Mat4d::identity();
+        for (int i = 0; i < 4; ++i) {
+            for (int j = 0; j < 3; ++j) m(i, j) = world_from_index[3 * i + j];
+        }
+        const double det = m.getMat3().det();
+        if (!std::isfinite(det) || det == 0.0) {
+            throw std::runtime_error("grid \"" + grid_name + "\": world_from_index is singular");
+        }
+
+        vdb::FloatGrid::Ptr grid = vdb::FloatGrid::create(background);
+        grid->setName(grid_name);
+        grid->setGridClass(vdb::GRID_FOG_VOLUME);
+        grid->setTransform(vdb::math::Transform::createLinearTransform(m));
+        vdb::FloatTree& tree = grid->tree();
+        using Leaf = vdb::FloatTree::LeafNodeType;
+        const std::size_t leaves = origins.size() / 3;
+        for (std::size_t k = 0; k < leaves; ++k) {
+            const vdb::Coord origin(origins[3 * k], origins[3 * k + 1], origins[3 * k + 2]);
+            if ((origin.x() & 7) != 0 || (origin.y() & 7) != 0 || (origin.z() & 7) != 0) {
+                throw std::runtime_error("grid \"" + grid_name +
+                                         "\": leaf origin is not a multiple of 8");
+            }
+            const float* src = values.data() + 512 * k;
+            // Active iff different from the background; all-background leaves are pruned.
+            Leaf::NodeMaskType mask;
+            for (vdb::Index i = 0; i < Leaf::SIZE; ++i) {
+                if (src[i] != background) mask.setOn(i);
+            }
+            if (mask.isOff()) continue;
+            if (tree.probeConstLeaf(origin) != nullptr) {
+                throw std::runtime_error("grid \"" + grid_name + "\": duplicate leaf origin");
+            }
+            Leaf* leaf = tree.touchLeaf(origin);
+            std::memcpy(leaf->buffer().data(), src, 512 * sizeof(float));
+            leaf->setValueMask(mask);
+        }
+        impl_->grids.push_back(grid);
+    });
+}
+
+void GridWriter::write(rust::Str path) const {
+    guarded([&] {
+        StreamWriter writer;
+        writer.setCompression(vdb::io::Archive::hasBloscCompression()
+                                  ? (vdb::io::COMPRESS_BLOSC | vdb::io::COMPRESS_ACTIVE_MASK)
+                                  : (vdb::io::COMPRESS_ZIP | vdb::io::COMPRESS_ACTIVE_MASK));
+        vdb::MetaMap meta;
+        meta.insertMeta("creator", vdb::StringMetadata("plume"));
+        writer.write_file(std::string(path), impl_->grids, meta);
+    });
+}
+
+}  // namespace shim
+}  // namespace plume

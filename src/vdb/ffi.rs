@@ -1,0 +1,121 @@
+//! The `cxx` bridge to the C++ shim in `cpp/vdb_shim.cc`, and the crate's only `unsafe`.
+//!
+//! Every C++ function is declared `-> Result`: the shim turns any exception into a
+//! `std::runtime_error`, which cxx hands to Rust as a [`cxx::Exception`]. An exception
+//! escaping a function *not* declared `Result` would call `std::terminate`.
+//!
+//! Nothing here is public outside [`crate::vdb`]; the safe API lives in `vdb/mod.rs`.
+
+#[cxx::bridge(namespace = "plume::shim")]
+mod bridge {
+    /// Summary of one grid (see [`crate::vdb::GridInfo`] for the meaning of each field).
+    struct GridSummary {
+        name: String,
+        value_type: String,
+        grid_class: String,
+        active_voxels: u64,
+        leaf_count: u64,
+        active_tiles: u64,
+        /// False for an empty grid; then `bbox_min`/`bbox_max` are meaningless.
+        has_bbox: bool,
+        bbox_min: [i32; 3],
+        bbox_max: [i32; 3],
+        voxel_size: [f64; 3],
+        transform: String,
+        /// False for value types without statistics (bool, mask, points) and empty grids.
+        has_stats: bool,
+        min: f64,
+        max: f64,
+        mean: f64,
+        memory_bytes: u64,
+    }
+
+    /// Outcome of opening one grid for reading.
+    enum ReadStatus {
+        /// Tree read; `header()` and `copy_leaves()` are valid.
+        Ready,
+        /// No grid with that name and occurrence.
+        NotFound,
+        /// The grid's value type is not `float` or `double`.
+        NotScalar,
+        /// The transform is not affine (e.g. a frustum).
+        NonLinearTransform,
+    }
+
+    /// What a [`FloatGridReader`] holds, before any value is copied.
+    struct FloatGridHeader {
+        status: ReadStatus,
+        /// OpenVDB value type name (`float`, `vec3s`, …); empty when not found.
+        value_type: String,
+        /// Map kind (`uniform-scale-translate`, `affine`, `frustum`, …).
+        transform: String,
+        /// Columns of the 3×4 world_from_index matrix: x axis, y axis, z axis,
+        /// translation (glam's `DAffine3::to_cols_array` order).
+        world_from_index: [f64; 12],
+        background: f32,
+        /// Leaves stored in the file.
+        leaf_count: u64,
+        /// Leaf-sized blocks produced by voxelizing active tiles (saturating).
+        tile_leaf_count: u64,
+        /// Active tiles above leaf level.
+        active_tiles: u64,
+    }
+
+    unsafe extern "C++" {
+        include!("plume/cpp/vdb_shim.h");
+
+        /// One float or double grid read into memory (opaque, owned by C++).
+        type FloatGridReader;
+        /// Collects float grids and writes them to a file (opaque, owned by C++).
+        type GridWriter;
+
+        /// Grid names in file order, duplicates repeated; reads no tree.
+        fn grid_names(path: &str) -> Result<Vec<String>>;
+        /// One summary per grid in file order; reads every tree, one at a time.
+        fn list_grids(path: &str) -> Result<Vec<GridSummary>>;
+        /// Reads the `occurrence`-th grid named `name` (file order), unless its type or
+        /// transform is unusable; the outcome is in `header().status`.
+        fn open_float_grid(
+            path: &str,
+            name: &str,
+            occurrence: usize,
+        ) -> Result<UniquePtr<FloatGridReader>>;
+        /// Status, transform and output size of an opened grid.
+        fn header(self: &FloatGridReader) -> Result<FloatGridHeader>;
+        /// Copies every leaf, then every voxelized tile block: 3 origin components and
+        /// 512 values per block. The slices must match the sizes in `header()`.
+        fn copy_leaves(
+            self: &FloatGridReader,
+            origins: &mut [i32],
+            values: &mut [f32],
+        ) -> Result<()>;
+
+        /// An empty writer.
+        fn new_grid_writer() -> Result<UniquePtr<GridWriter>>;
+        /// Adds one fog-volume float grid; voxels that differ from `background` are active.
+        fn add_float_grid(
+            self: Pin<&mut GridWriter>,
+            name: &str,
+            world_from_index: &[f64],
+            background: f32,
+            origins: &[i32],
+            values: &[f32],
+        ) -> Result<()>;
+        /// Writes all added grids to `path` (truncating it), blosc-compressed.
+        fn write(self: &GridWriter, path: &str) -> Result<()>;
+    }
+}
+
+pub(crate) use bridge::*;
+
+/// Physical memory of this machine in bytes, if the OS reports it.
+pub(crate) fn physical_memory_bytes() -> Option<u64> {
+    // SAFETY: sysconf only reads system configuration; it has no preconditions and
+    // returns -1 for an unknown name.
+    let (pages, page_size) =
+        unsafe { (libc::sysconf(libc::_SC_PHYS_PAGES), libc::sysconf(libc::_SC_PAGESIZE)) };
+    if pages <= 0 || page_size <= 0 {
+        return None;
+    }
+    (pages as u64).checked_mul(page_size as u64)
+}

@@ -1,0 +1,238 @@
+//! Reading: [`list_grids`] for `plume info`, [`read_float_grid`] for rendering.
+//!
+//! Both check the path in Rust first (exists, regular file, OpenVDB magic number; a
+//! NanoVDB file gets its own message), then call the shim.
+
+use std::collections::HashMap;
+use std::fs;
+use std::io::{self, Read};
+use std::path::Path;
+
+use glam::{DAffine3, IVec3};
+
+use super::ffi;
+use super::{FloatGrid, GridInfo, GridSelector, LEAF_VOXELS};
+use crate::error::{Error, Result};
+
+/// OpenVDB's magic number, the int64 `0x56444220` (" BDV") in little-endian order.
+const OPENVDB_MAGIC: [u8; 8] = [0x20, 0x42, 0x44, 0x56, 0, 0, 0, 0];
+/// NanoVDB files start with `NanoVDB0` (grid buffers) or `NanoVDB1`/`NanoVDB2`.
+const NANOVDB_MAGIC_PREFIX: &[u8] = b"NanoVDB";
+
+/// Output bytes per leaf: 512 `f32` values plus an `i32` origin triple.
+const BYTES_PER_LEAF: u64 = (LEAF_VOXELS * 4 + 3 * 4) as u64;
+
+/// Used when the OS does not report its physical memory.
+const FALLBACK_MAX_BYTES: u64 = 4 << 30;
+
+/// Resource limits for [`read_float_grid`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ReadLimits {
+    /// Most bytes the voxelized output of one grid may occupy (values and leaf origins).
+    pub max_bytes: u64,
+}
+
+impl Default for ReadLimits {
+    /// Half of physical memory, or 4 GiB where the OS does not say.
+    fn default() -> ReadLimits {
+        let max_bytes = ffi::physical_memory_bytes().map_or(FALLBACK_MAX_BYTES, |bytes| bytes / 2);
+        ReadLimits { max_bytes }
+    }
+}
+
+/// Summaries of every grid in the file at `path`, in file order.
+///
+/// Reads each grid's tree (one at a time) to count voxels and compute value statistics.
+///
+/// # Errors
+/// [`Error::Open`] if the file is missing or not a regular file; [`Error::Vdb`] if it is
+/// not a readable OpenVDB file (including NanoVDB files and truncated files).
+pub fn list_grids(path: &Path) -> Result<Vec<GridInfo>> {
+    let path_str = check_file(path)?;
+    let summaries = ffi::list_grids(path_str).map_err(|e| vdb_error(path, &e))?;
+    let mut occurrences: HashMap<String, usize> = HashMap::new();
+    let infos = summaries
+        .into_iter()
+        .enumerate()
+        .map(|(file_index, s)| {
+            let occurrence = occurrences.entry(s.name.clone()).or_insert(0);
+            let selector = GridSelector { name: s.name.clone(), occurrence: *occurrence };
+            *occurrence += 1;
+            GridInfo {
+                selector: selector.to_string(),
+                name: s.name,
+                file_index,
+                value_type: s.value_type,
+                class: s.grid_class,
+                active_voxels: s.active_voxels,
+                leaf_count: s.leaf_count,
+                active_tiles: s.active_tiles,
+                index_bbox: s.has_bbox.then_some([s.bbox_min, s.bbox_max]),
+                voxel_size: s.voxel_size,
+                transform: s.transform,
+                min: s.has_stats.then_some(s.min),
+                max: s.has_stats.then_some(s.max),
+                mean: s.has_stats.then_some(s.mean),
+                memory_bytes: s.memory_bytes,
+            }
+        })
+        .collect();
+    Ok(infos)
+}
+
+/// Reads one scalar grid as a [`FloatGrid`], voxelizing its active tiles.
+///
+/// `float` and `double` grids are accepted (doubles are cast to `f32`; half-float storage
+/// reads as float). Leaves come out in OpenVDB tree order, followed by one leaf-sized
+/// block per 8³ cell of every active tile, filled with the tile value.
+///
+/// # Errors
+/// - [`Error::Open`]: the file is missing or not a regular file.
+/// - [`Error::Vdb`]: not a readable OpenVDB file, or it holds NaN/infinite values.
+/// - [`Error::GridNotFound`]: no grid matches `selector`; the error lists the selectors
+///   that exist.
+/// - [`Error::UnsupportedGrid`]: the grid is not `float`/`double`, or its transform is
+///   not affine (e.g. a frustum).
+/// - [`Error::TooLarge`]: the voxelized grid would need more than `limits.max_bytes`.
+pub fn read_float_grid(
+    path: &Path,
+    selector: &GridSelector,
+    limits: &ReadLimits,
+) -> Result<FloatGrid> {
+    let path_str = check_file(path)?;
+    let reader = ffi::open_float_grid(path_str, &selector.name, selector.occurrence)
+        .map_err(|e| vdb_error(path, &e))?;
+    let header = reader.header().map_err(|e| vdb_error(path, &e))?;
+    let unsupported = |message: String| Error::UnsupportedGrid {
+        path: path.to_path_buf(),
+        grid: selector.to_string(),
+        message,
+    };
+    match header.status {
+        ffi::ReadStatus::Ready => {}
+        ffi::ReadStatus::NotFound => {
+            return Err(Error::GridNotFound {
+                path: path.to_path_buf(),
+                name: selector.to_string(),
+                available: available_selectors(path, path_str)?,
+            });
+        }
+        ffi::ReadStatus::NotScalar => {
+            return Err(unsupported(format!(
+                "value type {} is not a scalar grid (plume reads float and double grids)",
+                header.value_type
+            )));
+        }
+        ffi::ReadStatus::NonLinearTransform => {
+            return Err(unsupported(format!(
+                "transform {} is not affine (plume needs a linear index-to-world map)",
+                header.transform
+            )));
+        }
+        _ => {
+            return Err(vdb_message(
+                path,
+                format!("shim returned an unknown status for {selector}"),
+            ));
+        }
+    }
+
+    // Size the output from the tree (leaves + tiles), never from header metadata.
+    let leaves = header.leaf_count.saturating_add(header.tile_leaf_count);
+    let needed = leaves.saturating_mul(BYTES_PER_LEAF);
+    let too_large = || Error::TooLarge {
+        path: path.to_path_buf(),
+        grid: selector.to_string(),
+        needed,
+        limit: limits.max_bytes,
+    };
+    if needed > limits.max_bytes {
+        return Err(too_large());
+    }
+    let leaf_count = usize::try_from(leaves).map_err(|_| too_large())?;
+    let mut origins = zeroed_vec::<i32>(3 * leaf_count).ok_or_else(too_large)?;
+    let mut values = zeroed_vec::<f32>(LEAF_VOXELS * leaf_count).ok_or_else(too_large)?;
+    reader.copy_leaves(&mut origins, &mut values).map_err(|e| vdb_error(path, &e))?;
+
+    let non_finite = values.iter().filter(|v| !v.is_finite()).count();
+    if non_finite > 0 || !header.background.is_finite() {
+        return Err(vdb_message(
+            path,
+            format!(
+                "grid {selector}: {non_finite} of {} values (or the background) are NaN or \
+                 infinite; the file is corrupt",
+                values.len()
+            ),
+        ));
+    }
+    Ok(FloatGrid {
+        name: selector.name.clone(),
+        world_from_index: DAffine3::from_cols_array(&header.world_from_index),
+        background: header.background,
+        origins: origins.chunks_exact(3).map(IVec3::from_slice).collect(),
+        values,
+    })
+}
+
+/// A zero-filled vector, or `None` if the allocation fails.
+fn zeroed_vec<T: Default + Clone>(len: usize) -> Option<Vec<T>> {
+    let mut v = Vec::new();
+    v.try_reserve_exact(len).ok()?;
+    v.resize(len, T::default());
+    Some(v)
+}
+
+/// Selectors of every grid in the file, for [`Error::GridNotFound`].
+fn available_selectors(path: &Path, path_str: &str) -> Result<Vec<String>> {
+    let names = ffi::grid_names(path_str).map_err(|e| vdb_error(path, &e))?;
+    let mut occurrences: HashMap<String, usize> = HashMap::new();
+    Ok(names
+        .into_iter()
+        .map(|name| {
+            let occurrence = occurrences.entry(name.clone()).or_insert(0);
+            let selector = GridSelector { name, occurrence: *occurrence };
+            *occurrence += 1;
+            selector.to_string()
+        })
+        .collect())
+}
+
+/// Checks that `path` is a regular OpenVDB file and returns it as UTF-8 for the shim.
+fn check_file(path: &Path) -> Result<&str> {
+    let open_error = |source: io::Error| Error::Open { path: path.to_path_buf(), source };
+    let metadata = fs::metadata(path).map_err(open_error)?;
+    if !metadata.is_file() {
+        return Err(open_error(io::Error::new(io::ErrorKind::InvalidInput, "not a regular file")));
+    }
+    let mut magic = Vec::with_capacity(OPENVDB_MAGIC.len());
+    fs::File::open(path)
+        .and_then(|file| file.take(OPENVDB_MAGIC.len() as u64).read_to_end(&mut magic))
+        .map_err(open_error)?;
+    if magic.starts_with(NANOVDB_MAGIC_PREFIX) {
+        return Err(vdb_message(
+            path,
+            format!(
+                "this is a NanoVDB file, not OpenVDB; convert it with `nanovdb_convert {} out.vdb`",
+                path.display()
+            ),
+        ));
+    }
+    if magic != OPENVDB_MAGIC {
+        let hex: Vec<String> = magic.iter().map(|b| format!("{b:02x}")).collect();
+        return Err(vdb_message(
+            path,
+            format!("not an OpenVDB file (starts with bytes {})", hex.join(" ")),
+        ));
+    }
+    path.to_str().ok_or_else(|| {
+        open_error(io::Error::new(io::ErrorKind::InvalidInput, "path is not valid UTF-8"))
+    })
+}
+
+fn vdb_error(path: &Path, error: &cxx::Exception) -> Error {
+    vdb_message(path, error.what().to_string())
+}
+
+fn vdb_message(path: &Path, message: String) -> Error {
+    Error::Vdb { path: path.to_path_buf(), message }
+}

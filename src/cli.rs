@@ -75,6 +75,39 @@ pub enum EstimatorArg {
     Blend,
 }
 
+/// The paper's methods (its conclusion table) as presets.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum MethodArg {
+    /// Collision estimator + classic NEE with MIS in volume measure.
+    PointNee,
+    /// Line integration + classic NEE (no MIS partner).
+    LineNee,
+    /// Line integration + forward NEE with MIS (the paper's method).
+    LineFnee,
+    /// Expected-value (ray-marching) estimator, forward paths only.
+    RayMarch,
+}
+
+/// Next event technique.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum LightSamplingArg {
+    /// Forward (phase-sampled) paths only.
+    None,
+    /// Classic NEE to emissive voxels (volume measure).
+    Nee,
+    /// Forward NEE: proxy direction + free path, MIS in solid angle.
+    Fnee,
+}
+
+/// MIS heuristic.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum MisArg {
+    /// Balance heuristic.
+    Balance,
+    /// Power heuristic (exponent 2).
+    Power,
+}
+
 /// What drives emission.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum EmissionArg {
@@ -148,9 +181,38 @@ pub struct RenderArgs {
     /// Up axis for automatic framing and the default --camera-up.
     #[arg(long, value_enum, default_value_t = UpAxis::Y)]
     pub up_axis: UpAxis,
-    /// Emission estimator.
-    #[arg(long, value_enum, default_value_t = EstimatorArg::Line)]
-    pub estimator: EstimatorArg,
+    /// The paper's methods as presets: estimator + light sampling. `--estimator` and
+    /// `--light-sampling` override the preset's parts.
+    #[arg(long, value_enum, default_value_t = MethodArg::LineFnee)]
+    pub method: MethodArg,
+    /// Emission estimator (default: from --method).
+    #[arg(long, value_enum)]
+    pub estimator: Option<EstimatorArg>,
+    /// Next event technique at scattering vertices (default: from --method).
+    #[arg(long, value_enum)]
+    pub light_sampling: Option<LightSamplingArg>,
+    /// MIS heuristic between forward sampling and NEE/FNEE.
+    #[arg(long, value_enum, default_value_t = MisArg::Power)]
+    pub mis: MisArg,
+    /// FNEE proxy grid resolution (cells along the longest axis; a power of two, 8 up to
+    /// the data resolution).
+    #[arg(long, default_value_t = 64)]
+    pub proxy_resolution: u32,
+    /// Single-scattering albedo in [0, 1] (0: emission–absorption only).
+    #[arg(long, default_value_t = 0.0)]
+    pub albedo: f32,
+    /// Henyey–Greenstein asymmetry g in (−1, 1).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub g: f64,
+    /// Largest number of scattering events per path.
+    #[arg(long, default_value_t = 64)]
+    pub max_depth: u32,
+    /// Constant environment radiance r,g,b seen by escaping paths (default: none).
+    #[arg(long, value_parser = parse_vec3)]
+    pub environment: Option<DVec3>,
+    /// Render only sample S of pixel (X, Y) and print its path: X,Y,S.
+    #[arg(long)]
+    pub debug_pixel: Option<String>,
     /// κ of the blend estimator: α = 1/(1 + κ μ Δ) per voxel.
     #[arg(long, default_value_t = 4.0)]
     pub kappa: f64,
@@ -246,6 +308,19 @@ pub fn parse_bytes(s: &str) -> Result<u64, String> {
         return Err(format!("{s:?} must be at least 1 byte"));
     }
     Ok(v as u64)
+}
+
+/// Parse `--debug-pixel X,Y,S`.
+///
+/// # Errors
+/// A message naming the flag when the text is not three non-negative integers.
+pub fn parse_debug_pixel(s: &str) -> Result<(u32, u32, u64), String> {
+    let p: Vec<&str> = s.split(',').map(str::trim).collect();
+    let bad = || format!("--debug-pixel: expected X,Y,S (pixel column, row, sample index), got {s:?}");
+    if p.len() != 3 {
+        return Err(bad());
+    }
+    Ok((p[0].parse().map_err(|_| bad())?, p[1].parse().map_err(|_| bad())?, p[2].parse().map_err(|_| bad())?))
 }
 
 #[cfg(test)]

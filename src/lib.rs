@@ -8,6 +8,7 @@
 //! Data flows one way:
 //! `.vdb → vdb (shim) → volume (bricks + pyramid) → medium → integrator → film → EXR`.
 
+pub mod app;
 pub mod camera;
 pub mod cli;
 pub mod color;

@@ -39,6 +39,22 @@ pub fn write_atomic(path: &Path, write: impl FnOnce(&mut BufWriter<File>) -> std
     })
 }
 
+/// Check, before any expensive work, that `path` can be written: its directory exists and
+/// accepts a new file. Creates and removes a probe file.
+///
+/// # Errors
+/// [`Error::Write`] naming `path`.
+pub fn check_writable(path: &Path) -> Result<()> {
+    let name = path.file_name().map_or_else(|| "out".into(), |n| n.to_string_lossy().into_owned());
+    let probe = path.with_file_name(format!(".{name}.probe"));
+    write_atomic(&probe, |_| Ok(()))
+        .and_then(|()| std::fs::remove_file(&probe).map_err(|source| Error::Write { path: probe.clone(), source }))
+        .map_err(|e| match e {
+            Error::Write { source, .. } => Error::Write { path: path.to_path_buf(), source },
+            other => other,
+        })
+}
+
 /// Write `pixels` (row-major RGBA, linear) as a 32-bit float EXR with text attributes
 /// `metadata` (name, value), atomically.
 ///

@@ -142,6 +142,8 @@ pub enum UpAxis {
 
 /// `plume render`.
 #[derive(Debug, Args)]
+// Negative numbers reach our validation, which names the flag and the allowed range.
+#[command(allow_negative_numbers = true)]
 pub struct RenderArgs {
     /// The .vdb file.
     pub file: PathBuf,

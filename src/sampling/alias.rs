@@ -6,9 +6,10 @@
 //! *A linear algorithm for generating random numbers with a given distribution*).
 //!
 //! **Probabilities are those of the stored table, not of the input weights.** Thresholds
-//! `q_k` are stored as 32-bit fixed point, so the table realises probabilities within
-//! about `2⁻³²/n` of `w_i/Σw`. After building we compute the *exact* probability mass of
-//! every index under the stored table,
+//! `q_k` are stored as 32-bit fixed point, rounded *up*, so every positive weight keeps a
+//! positive probability and the table realises `w_i/Σw` to within `(1 + m_i) 2⁻³²/n`
+//! absolute (`m_i` = slots aliasing to `i`; at worst about `2⁻³²`). After building we
+//! compute the *exact* probability mass of every index under the stored table,
 //!
 //! ```text
 //! pmf_i = ( q_i + Σ_{k : alias_k = i, k ≠ i} (1 − q_k) ) / n,
@@ -16,8 +17,9 @@
 //!
 //! in `f64` and store it once, so [`AliasTable::sample`] and [`AliasTable::pmf`] return the
 //! same bits and the pmf is the density actually sampled (up to `f64` rounding of that
-//! sum), which is what unbiased Monte Carlo needs. Zero weights get `q = 0` and are never an
-//! alias target, so they are never sampled and their pmf is exactly 0.
+//! sum, and for a continuous `u`), which is what unbiased Monte Carlo needs. Zero weights get
+//! `q = 0` and are never an alias target, so they are never sampled and their pmf is exactly
+//! 0; `pmf_i > 0` exactly when `w_i > 0`.
 //!
 //! **Memory: 16 bytes per entry** (`f64` pmf + `u32` threshold + `u32` alias), one cache
 //! line for the common case where the slot itself is chosen. An `f64` threshold would cost
@@ -70,8 +72,7 @@ impl AliasTable {
         }
         let mut total = 0.0f64;
         for &w in weights {
-            // `!(w >= 0)` also rejects NaN
-            if !(w >= 0.0) {
+            if w.is_nan() || w < 0.0 {
                 return None;
             }
             total += w;
@@ -123,10 +124,11 @@ impl AliasTable {
                 alias[i as usize] = heaviest;
             }
         }
-        // Quantise thresholds; q = 2³² ("always keep") is stored as alias = self
+        // Quantise thresholds upwards (a positive weight keeps a positive probability);
+        // q = 2³² ("always keep") is stored as alias = self
         let mut slots: Vec<Slot> = (0..n)
             .map(|k| {
-                let q = (threshold[k] * FIXED_ONE).floor();
+                let q = (threshold[k] * FIXED_ONE).ceil();
                 if q >= FIXED_ONE || alias[k] as usize == k {
                     Slot { pmf: 0.0, threshold: u32::MAX, alias: k as u32 }
                 } else {
@@ -224,6 +226,12 @@ mod tests {
     }
 
     #[test]
+    fn tiny_positive_weights_keep_positive_probability() {
+        let t = AliasTable::new(&[1.0, 1e-300, 0.0, 1e-20]).unwrap();
+        assert!(t.pmf(1) > 0.0 && t.pmf(3) > 0.0 && t.pmf(2) == 0.0);
+    }
+
+    #[test]
     fn single_and_degenerate_tables() {
         let t = AliasTable::new(&[3.0]).unwrap();
         assert_eq!(t.sample(0.0), AliasSample { index: 0, pmf: 1.0 });
@@ -243,7 +251,8 @@ mod tests {
         let mut sum = 0.0;
         for (i, &wi) in w.iter().enumerate() {
             let expected = wi / total;
-            assert!((t.pmf(i) - expected).abs() <= 1e-9 * expected, "{i}: {} vs {expected}", t.pmf(i));
+            // The documented bound: (1 + m_i) 2⁻³²/n ≤ about 2⁻³² absolute
+            assert!((t.pmf(i) - expected).abs() <= 1e-12 * expected + 2f64.powi(-32), "{i}: {} vs {expected}", t.pmf(i));
             if wi == 0.0 {
                 assert_eq!(t.pmf(i), 0.0);
             }

@@ -26,7 +26,8 @@
 //! 24 bytes (alignment) for no gain: 32-bit fixed point already resolves the split of a
 //! slot to 2.3·10⁻¹⁰, and the reported pmf is exact for the stored thresholds anyway. The pmf
 //! stays `f64` because light pdfs multiply into MIS weights and must match bit for bit
-//! (METHOD.md §10.8). Tables hold at most `u32::MAX` entries.
+//! (METHOD.md §10.8). Tables hold at most `u32::MAX` entries; building needs about 16 more
+//! bytes per entry transiently.
 
 /// A sampled index with its probability.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -97,12 +98,11 @@ impl AliasTable {
             .iter()
             .enumerate()
             .fold(0usize, |m, (i, &w)| if w > weights[m] { i } else { m }) as u32;
-        let mut threshold = vec![0.0f64; n];
+        // A popped small slot's p is final: it becomes that slot's threshold in place
         let mut alias: Vec<u32> = (0..n as u32).collect();
         while let (Some(&s), Some(&l)) = (small.last(), large.last()) {
             small.pop();
             large.pop();
-            threshold[s as usize] = p[s as usize];
             alias[s as usize] = l;
             // p_l − (1 − p_s): Vose's more accurate update
             let pl = p[l as usize] - (1.0 - p[s as usize]);
@@ -117,10 +117,10 @@ impl AliasTable {
         // (possible only through rounding) must never be chosen: alias it away entirely.
         for i in large.into_iter().chain(small) {
             if weights[i as usize] > 0.0 {
-                threshold[i as usize] = 1.0;
+                p[i as usize] = 1.0;
                 alias[i as usize] = i;
             } else {
-                threshold[i as usize] = 0.0;
+                p[i as usize] = 0.0;
                 alias[i as usize] = heaviest;
             }
         }
@@ -128,7 +128,7 @@ impl AliasTable {
         // q = 2³² ("always keep") is stored as alias = self
         let mut slots: Vec<Slot> = (0..n)
             .map(|k| {
-                let q = (threshold[k] * FIXED_ONE).ceil();
+                let q = (p[k] * FIXED_ONE).ceil();
                 if q >= FIXED_ONE || alias[k] as usize == k {
                     Slot { pmf: 0.0, threshold: u32::MAX, alias: k as u32 }
                 } else {
@@ -136,20 +136,21 @@ impl AliasTable {
                 }
             })
             .collect();
+        drop((p, alias));
         // Exact pmf of the stored table (see module docs), accumulated in slot units
-        let mut mass = vec![0.0f64; n];
-        for (k, s) in slots.iter().enumerate() {
+        for k in 0..n {
+            let s = slots[k];
             if s.alias as usize == k {
-                mass[k] += 1.0;
+                slots[k].pmf += 1.0;
             } else {
                 let keep = f64::from(s.threshold) / FIXED_ONE;
-                mass[k] += keep;
-                mass[s.alias as usize] += 1.0 - keep;
+                slots[k].pmf += keep;
+                slots[s.alias as usize].pmf += 1.0 - keep;
             }
         }
         let inv_n = 1.0 / n as f64;
-        for (s, m) in slots.iter_mut().zip(mass) {
-            s.pmf = m * inv_n;
+        for s in &mut slots {
+            s.pmf *= inv_n;
         }
         Some(AliasTable { slots })
     }

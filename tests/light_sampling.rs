@@ -288,6 +288,11 @@ fn proxy_resolution_is_validated() {
     }
     let full = ProxyGrid::build(&volume, 32, power).unwrap().unwrap();
     assert_eq!((full.cell_edge_voxels(), full.dims()), (1, IVec3::new(24, 16, 16)));
+    // An empty volume has no data resolution: any power of two ≥ 8, and nothing emits
+    let empty = Volume::build(&grid("density", DAffine3::IDENTITY, &[], |_| 0.0), None, |v| v).unwrap();
+    assert!(ProxyGrid::build(&empty, 64, power).unwrap().is_none());
+    assert!(matches!(ProxyGrid::build(&empty, 12, power), Err(Error::InvalidArgument { .. })));
+    assert!(EmitterDistribution::build(&empty, power).unwrap().is_none());
     // Nothing emits: None; invalid power: a clear error
     assert!(ProxyGrid::build(&volume, 8, |_, _| 0.0).unwrap().is_none());
     assert!(matches!(ProxyGrid::build(&volume, 8, |_, _| f64::NAN), Err(Error::Scene(_))));

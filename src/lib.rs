@@ -16,6 +16,7 @@ pub mod error;
 pub mod film;
 pub mod info;
 pub mod integrator;
+pub mod light;
 pub mod medium;
 pub mod output;
 pub mod render;

@@ -5,6 +5,9 @@
 //! image does not depend on which thread rendered which tile. Building blocks never own
 //! a sampler; they take uniform numbers `u` as arguments.
 
+pub mod alias;
+pub mod phase;
+
 /// SplitMix64 finaliser (Steele, Lea, Flood 2014): a bijective 64-bit mix.
 #[inline]
 #[must_use]

@@ -359,3 +359,33 @@ impl Volume {
         &self.pyramid.levels
     }
 }
+
+/// Brick access for the light-sampling builders (`volume::proxy`, `light::nee`), which
+/// must visit every voxel exactly once and sum power in a fixed order.
+impl Volume {
+    /// Brick coordinates (brick origin / 8) covered by the brick table: `lo .. lo + dims`.
+    #[must_use]
+    pub(crate) fn brick_range(&self) -> (IVec3, IVec3) {
+        (self.brick_lo, self.dims)
+    }
+
+    /// `(density, source)` of local voxel `l` (each component in `0..8`) of `brick`.
+    #[inline]
+    #[must_use]
+    pub(crate) fn brick_voxel(&self, brick: &Brick, l: IVec3) -> (f32, f32) {
+        (
+            Self::slot_value(&self.density_values, brick.density, l.x, l.y, l.z),
+            Self::slot_value(&self.source_values, brick.source, l.x, l.y, l.z),
+        )
+    }
+
+    /// `Some((density, source))` when both channels of `brick` are constant.
+    #[inline]
+    #[must_use]
+    pub(crate) fn brick_constant(brick: &Brick) -> Option<(f32, f32)> {
+        match (brick.density, brick.source) {
+            (Slot::Constant(d), Slot::Constant(s)) => Some((d, s)),
+            _ => None,
+        }
+    }
+}

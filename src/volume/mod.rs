@@ -8,6 +8,7 @@
 pub mod brick;
 pub mod dda;
 pub mod field;
+pub mod proxy;
 pub mod pyramid;
 
 pub use brick::Volume;

@@ -1,0 +1,16 @@
+//! Light sampling building blocks for the path integrator (METHOD.md §6–8).
+//!
+//! The volume is the only light. Two techniques sample it:
+//!
+//! - [`nee`]: volume-measure next-event estimation (Villemin & Hery 2013): a *point* `y`
+//!   drawn from the full-resolution emissive voxels ∝ power, density per unit world volume.
+//! - FNEE (`crate::volume::proxy`): a *direction* drawn through the coarse proxy grid,
+//!   density per unit solid angle.
+//!
+//! Both are pure: randomness enters as `u` arguments, so each sample/pdf pair is
+//! chi²-tested in `tests/light_sampling.rs`. Emission enters as a closure
+//! `power(density, source) = Y(L_e)`, keeping the data side free of optics.
+
+pub mod nee;
+
+pub use nee::{EmitterDistribution, VoxelSample};

@@ -1,0 +1,290 @@
+//! Volume-measure next-event estimation (Villemin & Hery 2013; METHOD.md §6): sample a
+//! point `y` in the emissive voxels with probability proportional to emitted power.
+//!
+//! **Distribution.** Every full-resolution voxel `i` with positive power
+//! `Φ_i = V · Y(L_e(ρ_i, s_i))` (`V = |det A|` the voxel's world volume, `Y` the luminance
+//! passed in as `power`) is an entry of an alias table with `P_i = Φ_i / ΣΦ`. A sample picks
+//! `i ~ P`, then `y` uniformly in the voxel's box `[i − ½, i + ½]³` (index space), so
+//!
+//! ```text
+//! p_V(y) = P_i / V     per unit world volume,      Σ_i p_V · V = 1.
+//! ```
+//!
+//! [`EmitterDistribution::sample`] and [`EmitterDistribution::pdf`] read the same stored
+//! `P_i` and divide by the same `V`, so they agree bit for bit for the same voxel. The
+//! estimator `f τ L_e / (P_vol p_V |y − x|²)` is the integrator's business.
+//!
+//! **Layout and memory.** Entries are ordered brick by brick (brick-table order, x
+//! fastest), and within a brick by OpenVDB's leaf offset. No per-voxel coordinates are
+//! stored: each emitting brick keeps a 512-bit mask of its emitting voxels, its first
+//! entry and its origin (80 bytes); a copy of the brick table maps brick coordinates to
+//! emitting bricks (4 bytes per table cell, like the volume's own table).
+//! - voxel → entry (for `pdf`): table lookup, then `first + popcount(mask below voxel)`;
+//! - entry → voxel (for `sample`): binary search on `first`, then select the rank-th set bit.
+//!
+//! So an emissive voxel costs **16 bytes** (its alias slot) plus at most 80/512 bytes of
+//! brick overhead, against ≥ 40 bytes for an explicit coordinate per entry plus a hash map
+//! for the reverse lookup. A voxel→entry `HashMap` alone would cost ≈ 20 bytes per voxel.
+
+use glam::{DAffine3, DVec3, IVec3};
+use rayon::prelude::*;
+
+use crate::error::{Error, Result};
+use crate::sampling::alias::AliasTable;
+use crate::vdb::{leaf_offset, LEAF_VOXELS};
+use crate::volume::brick::{Volume, BRICK};
+
+/// Marker for "no emitting brick here".
+const NONE: u32 = u32::MAX;
+
+/// A point sampled in an emissive voxel.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct VoxelSample {
+    /// The point, world space, uniform in its voxel.
+    pub p_world: DVec3,
+    /// Density of `p_world` per unit world volume, `P_i / V`; bit-identical to
+    /// [`EmitterDistribution::pdf_voxel`]`(voxel)`.
+    pub pdf: f64,
+    /// The sampled voxel's index. Evaluate `L_e` here rather than by a lookup at `p_world`,
+    /// which can round into a neighbour on a face (METHOD.md §10.3).
+    pub voxel: IVec3,
+}
+
+/// One brick with at least one emitting voxel: 80 bytes.
+#[derive(Clone, Copy, Debug)]
+struct EmitterBrick {
+    /// Bit `leaf_offset(l)` set when local voxel `l` emits.
+    mask: [u64; 8],
+    /// Alias entry of the brick's first emitting voxel.
+    first: u32,
+    /// Index of the brick's voxel (0,0,0).
+    origin: IVec3,
+}
+
+/// Per-brick result of the parallel pass.
+struct BrickPower {
+    table_cell: usize,
+    origin: IVec3,
+    mask: [u64; 8],
+    weights: Vec<f64>,
+}
+
+/// Power-proportional distribution over the emissive voxels of a volume. See module docs.
+#[derive(Clone, Debug)]
+pub struct EmitterDistribution {
+    world_from_index: DAffine3,
+    index_from_world: DAffine3,
+    /// Brick coordinate of table cell (0,0,0) and the table size in bricks.
+    brick_lo: IVec3,
+    dims: IVec3,
+    /// Emitting-brick ordinal per brick-table cell (x fastest), or [`NONE`].
+    table: Vec<u32>,
+    bricks: Vec<EmitterBrick>,
+    alias: AliasTable,
+    voxel_volume: f64,
+    total_power: f64,
+}
+
+/// Position of the `rank`-th set bit (0-based) of a 512-bit mask.
+fn select(mask: &[u64; 8], mut rank: u32) -> usize {
+    for (w, &word) in mask.iter().enumerate() {
+        let count = word.count_ones();
+        if rank < count {
+            let mut word = word;
+            for _ in 0..rank {
+                word &= word - 1;
+            }
+            return w * 64 + word.trailing_zeros() as usize;
+        }
+        rank -= count;
+    }
+    unreachable!("invariant: rank < popcount(mask)")
+}
+
+/// Local voxel of leaf offset `off` (inverse of [`leaf_offset`]).
+#[inline]
+fn local_of(off: usize) -> IVec3 {
+    IVec3::new((off >> 6) as i32, ((off >> 3) & 7) as i32, (off & 7) as i32)
+}
+
+impl EmitterDistribution {
+    /// Build the distribution of `volume`'s emissive voxels, `power(density, source)`
+    /// being the luminance `Y(L_e)` of the emission density. Called once per voxel with a
+    /// non-zero source (once per constant brick), in parallel.
+    ///
+    /// Returns `Ok(None)` when nothing emits.
+    ///
+    /// # Errors
+    /// [`Error::Scene`] when `power` returns a negative or non-finite value, when the total
+    /// power overflows, or when more than `u32::MAX − 1` voxels emit.
+    pub fn build(volume: &Volume, power: impl Fn(f32, f32) -> f64 + Sync) -> Result<Option<EmitterDistribution>> {
+        let (brick_lo, dims) = volume.brick_range();
+        let table_len = dims.x.max(0) as usize * dims.y.max(0) as usize * dims.z.max(0) as usize;
+        let coords = |k: usize| {
+            let (nx, ny) = (dims.x as usize, dims.y as usize);
+            brick_lo + IVec3::new((k % nx) as i32, ((k / nx) % ny) as i32, (k / (nx * ny)) as i32)
+        };
+        // Power of every emitting voxel, brick by brick (order kept by collect)
+        let per_brick: Vec<Result<BrickPower>> = (0..table_len)
+            .into_par_iter()
+            .filter_map(|k| {
+                let b = coords(k);
+                let brick = volume.brick(b)?;
+                let origin = b * BRICK;
+                let mut mask = [0u64; 8];
+                let mut weights = Vec::new();
+                let mut add = |off: usize, density: f32, source: f32, p: f64| -> Result<()> {
+                    if !(p >= 0.0 && p.is_finite()) {
+                        return Err(Error::Scene(format!(
+                            "emitted power {p} at voxel {} (density {density}, source {source}) is negative or not finite",
+                            origin + local_of(off)
+                        )));
+                    }
+                    if p > 0.0 {
+                        mask[off >> 6] |= 1 << (off & 63);
+                        weights.push(p);
+                    }
+                    Ok(())
+                };
+                let result = if let Some((density, source)) = Volume::brick_constant(brick) {
+                    // Constant brick: one power call
+                    if source == 0.0 {
+                        return None;
+                    }
+                    let p = power(density, source);
+                    (0..LEAF_VOXELS).try_for_each(|off| add(off, density, source, p))
+                } else {
+                    (0..LEAF_VOXELS).try_for_each(|off| {
+                        let (density, source) = volume.brick_voxel(brick, local_of(off));
+                        if source == 0.0 {
+                            return Ok(());
+                        }
+                        add(off, density, source, power(density, source))
+                    })
+                };
+                match result {
+                    Err(e) => Some(Err(e)),
+                    Ok(()) if weights.is_empty() => None,
+                    Ok(()) => Some(Ok(BrickPower { table_cell: k, origin, mask, weights })),
+                }
+            })
+            .collect();
+        let mut table = vec![NONE; table_len];
+        let mut bricks = Vec::new();
+        let mut weights = Vec::new();
+        for item in per_brick {
+            let bp = item?;
+            if weights.len() + bp.weights.len() >= u32::MAX as usize {
+                return Err(Error::Scene("more than 2^32 - 1 emitting voxels; plume's NEE table cannot hold them".into()));
+            }
+            table[bp.table_cell] = bricks.len() as u32;
+            bricks.push(EmitterBrick { mask: bp.mask, first: weights.len() as u32, origin: bp.origin });
+            weights.extend_from_slice(&bp.weights);
+        }
+        if weights.is_empty() {
+            return Ok(None);
+        }
+        let voxel_volume = volume.voxel_volume();
+        let total_power = voxel_volume * weights.iter().sum::<f64>();
+        let Some(alias) = AliasTable::new(&weights) else {
+            return Err(Error::Scene(format!("total emitted power {total_power} of the volume is not finite")));
+        };
+        Ok(Some(EmitterDistribution {
+            world_from_index: volume.world_from_index(),
+            index_from_world: volume.index_from_world(),
+            brick_lo,
+            dims,
+            table,
+            bricks,
+            alias,
+            voxel_volume,
+            total_power,
+        }))
+    }
+
+    /// Sample a voxel `i ~ P` with `u_voxel` and a point uniformly in it with `u_pos` (all in
+    /// `[0, 1)`). The pdf is per unit world volume.
+    #[must_use]
+    pub fn sample(&self, u_voxel: f64, u_pos: [f64; 3]) -> VoxelSample {
+        let s = self.alias.sample(u_voxel);
+        // Entry → brick (entries are grouped by brick, `first` increasing) → set bit
+        let ordinal = self.bricks.partition_point(|b| b.first as usize <= s.index) - 1;
+        let brick = &self.bricks[ordinal];
+        let off = select(&brick.mask, (s.index - brick.first as usize) as u32);
+        let voxel = brick.origin + local_of(off);
+        let p_index = (voxel.as_dvec3() - 0.5) + DVec3::from(u_pos);
+        VoxelSample { p_world: self.world_from_index.transform_point3(p_index), pdf: s.pmf / self.voxel_volume, voxel }
+    }
+
+    /// Density per unit world volume of sampling a point in voxel `ijk` (0 where the voxel
+    /// emits nothing).
+    #[must_use]
+    pub fn pdf_voxel(&self, ijk: IVec3) -> f64 {
+        let b = ijk.div_euclid(IVec3::splat(BRICK));
+        let r = b - self.brick_lo;
+        if r.cmplt(IVec3::ZERO).any() || r.cmpge(self.dims).any() {
+            return 0.0;
+        }
+        let cell = r.x as usize + self.dims.x as usize * (r.y as usize + self.dims.y as usize * r.z as usize);
+        let ordinal = self.table[cell];
+        if ordinal == NONE {
+            return 0.0;
+        }
+        let brick = &self.bricks[ordinal as usize];
+        let l = ijk - b * BRICK;
+        let off = leaf_offset(l.x, l.y, l.z);
+        let (word, bit) = (off >> 6, off & 63);
+        if brick.mask[word] >> bit & 1 == 0 {
+            return 0.0;
+        }
+        let below: u32 = brick.mask[..word].iter().map(|w| w.count_ones()).sum::<u32>()
+            + (brick.mask[word] & ((1u64 << bit) - 1)).count_ones();
+        self.alias.pmf(brick.first as usize + below as usize) / self.voxel_volume
+    }
+
+    /// Density per unit world volume of sampling `p_world`: [`Self::pdf_voxel`] of the voxel
+    /// `⌊p_index + ½⌋` containing it (0 outside the emissive voxels or for non-finite input).
+    #[must_use]
+    pub fn pdf(&self, p_world: DVec3) -> f64 {
+        let v = (self.index_from_world.transform_point3(p_world) + 0.5).floor();
+        if !v.is_finite() || v.abs().max_element() > f64::from(i32::MAX - BRICK) {
+            return 0.0;
+        }
+        self.pdf_voxel(v.as_ivec3())
+    }
+
+    /// `ΣΦ_i = V Σ Y(L_e)`: the volume's emitted luminance power, for choosing between
+    /// lights (same quantity as the proxy grid's `total_power`).
+    #[must_use]
+    pub fn total_power(&self) -> f64 {
+        self.total_power
+    }
+
+    /// Number of emissive voxels (alias entries).
+    #[must_use]
+    pub fn voxel_count(&self) -> usize {
+        self.alias.len()
+    }
+
+    /// Heap bytes: 16 per emissive voxel, 80 per emitting brick, 4 per brick-table cell.
+    #[must_use]
+    pub fn memory_bytes(&self) -> usize {
+        self.alias.memory_bytes() + self.bricks.len() * std::mem::size_of::<EmitterBrick>() + self.table.len() * 4
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn select_inverts_rank() {
+        let mask = [0x8000_0000_0000_0001, 0, 0b1010, 0, 0, 0, 0, 1 << 63];
+        let positions: Vec<usize> = (0..5).map(|r| select(&mask, r)).collect();
+        assert_eq!(positions, vec![0, 63, 129, 131, 511]);
+        for off in [0usize, 77, 511] {
+            assert_eq!(leaf_offset(local_of(off).x, local_of(off).y, local_of(off).z), off);
+        }
+        assert_eq!(std::mem::size_of::<EmitterBrick>(), 80);
+    }
+}

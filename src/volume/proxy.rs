@@ -1,0 +1,547 @@
+//! The FNEE proxy grid (METHOD.md §7): a coarse grid of cells carrying emitted power, used
+//! to sample *directions* towards emission and to evaluate their density.
+//!
+//! **Cells.** Cubes of `e` voxels on a side in index space, aligned to voxel faces and
+//! starting at the volume's `index_bounds().0`. The longest axis of the index bounds is
+//! split into `resolution` cells, `e = ⌈extent/resolution⌉ ≥ 1` voxels; the other axes get
+//! `⌈extent/e⌉` cells (the last cells may reach past the data into empty space). With
+//! `A` the linear part of `world_from_index`, a cell's world volume is `V_j = |det A| e³`.
+//!
+//! **Power.** `Φ_j = Σ_{voxels i ∈ j} |det A| · Y(L_e(ρ_i, s_i))`, summed over *every* voxel
+//! (dense bricks voxel by voxel, constant bricks with one call per brick), in `f64`. The
+//! luminance function is passed in, so the grid stays optics-agnostic. A voxel whose
+//! source is 0 emits nothing by the volume's contract (`volume::brick`) and is skipped.
+//! `P_j = Φ_j/ΣΦ` lives in an `f64` alias table over the emitting cells.
+//!
+//! **Point density** (per unit world volume): `p_V(y) = P_j / V_j` for `y` in cell `j`;
+//! [`ProxyGrid::sample_point`] draws `j ~ P`, then `y` uniformly in the cell.
+//!
+//! **Direction density** (per unit solid angle; the paper's Eq. 15 with `dV = t² dt dω`):
+//!
+//! ```text
+//! p_σ(ω) = ∫₀^∞ p_V(x + tω) t² dt = Σ_{cells j on the ray} (P_j/V_j) (t_out³ − t_in³)/3,
+//! ```
+//!
+//! the ray clipped at `t = 0`, each term evaluated as `(t_o − t_i)(t_o² + t_o t_i + t_i²)/3`
+//! and accumulated in `f64`. `t` is world distance along the unit world direction `ω`;
+//! the walk runs in index space (`o' = A⁻¹(x − b)`, `d' = A⁻¹ω`) where `t` is shared, so
+//! non-uniform scale and shear are exact. [`ProxyGrid::sample_direction`] returns
+//! `ω = (y − x)/|y − x|` and its pdf from the *same* [`ProxyGrid::direction_pdf`], so the
+//! sampling and evaluation paths agree bit for bit (METHOD.md §10.8).
+//!
+//! **DDA robustness** follows `volume::dda`: integer cell state; every crossing is computed
+//! afresh from an exact cell boundary (`origin + k·e` is a half-integer, exact in `f64`);
+//! a zero direction component (`0.0` or `-0.0`) never steps and is never divided by; a start
+//! exactly on a face takes the cell being entered. A cell found from a position (at the
+//! start, or where the walk leaves an empty block) is checked against the crossing times
+//! of its own faces, so a ray within rounding of a face it crosses later (index direction
+//! components of `10⁻¹⁷` arise from axis-aligned world rays under rotations) is in the cell
+//! before it.
+//!
+//! **Empty space.** The walk is clipped to the bounding box of the emitting cells and
+//! crosses each block of 4³ cells without emission in one step (a one-byte-per-block
+//! occupancy level); inside occupied blocks it steps cell by cell.
+//!
+//! **Memory:** 4 bytes per cell (its alias entry, or empty) plus 20 bytes per emitting cell
+//! (16 for the alias slot, 4 for the entry's cell index) plus 1 byte per 4³-cell block. A
+//! 64³ proxy costs at most 6.3 MiB.
+
+use glam::{DAffine3, DVec3, IVec3};
+use rayon::prelude::*;
+
+use super::brick::{Volume, BRICK};
+use super::field::clip_to_box;
+use crate::error::{Error, Result};
+use crate::sampling::alias::AliasTable;
+
+/// Marker for a cell that emits nothing.
+const EMPTY: u32 = u32::MAX;
+
+/// Edge of an occupancy block in cells: the walk crosses a block without emission in one
+/// step (1 byte per 64 cells).
+const BLOCK: i32 = 4;
+
+/// The command-line flag that sets the proxy resolution (named in errors).
+pub const RESOLUTION_FLAG: &str = "--proxy-resolution";
+
+/// A point sampled from the proxy's point density `p_V`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ProxyPoint {
+    /// The point, world space (uniform in its cell).
+    pub p_world: DVec3,
+    /// Linear index of the cell, `x + dims.x (y + dims.y z)`.
+    pub cell: usize,
+    /// Probability of choosing that cell, `P_j` (unitless). The point's density per unit
+    /// world volume is `pmf / cell_volume()`.
+    pub pmf: f64,
+}
+
+/// A direction sampled by FNEE.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DirectionSample {
+    /// Unit world direction from the shading point towards the sampled proxy point.
+    pub direction: DVec3,
+    /// `p_σ(direction)` per unit solid angle, bit-identical to
+    /// [`ProxyGrid::direction_pdf`] for the same point and direction.
+    pub pdf: f64,
+}
+
+/// The FNEE proxy: emitted power per coarse cell. See the module docs.
+#[derive(Clone, Debug)]
+pub struct ProxyGrid {
+    world_from_index: DAffine3,
+    index_from_world: DAffine3,
+    /// Index-space corner of cell (0,0,0): a voxel face (half-integer).
+    origin: DVec3,
+    /// Cell edge in voxels.
+    edge: i32,
+    /// Cells per axis.
+    dims: IVec3,
+    resolution: u32,
+    /// Alias entry per cell (x fastest), or [`EMPTY`].
+    entry: Vec<u32>,
+    /// Cell per alias entry.
+    cells: Vec<u32>,
+    alias: AliasTable,
+    /// `|det A| e³`, world volume of one cell.
+    cell_volume: f64,
+    /// Bounding box of the emitting cells, `[lo, hi)` in cell coordinates.
+    occupied_lo: IVec3,
+    occupied_hi: IVec3,
+    /// Blocks of [`BLOCK`]³ cells per axis.
+    block_dims: IVec3,
+    /// Per block (x fastest): does any of its cells emit?
+    block_occupied: Vec<bool>,
+    /// `ΣΦ_j`, luminance power of the whole volume (world volume × emission luminance).
+    total_power: f64,
+}
+
+/// Check `resolution` against the data: a power of two from 8 up to the smallest power of
+/// two ≥ the longest axis in voxels (which gives one cell per voxel). An empty volume
+/// (`None`) only needs a power of two ≥ 8.
+fn validate_resolution(resolution: u32, longest_voxels: Option<i32>) -> Result<()> {
+    let power_of_two = resolution.is_power_of_two() && resolution >= 8;
+    match longest_voxels {
+        None if !power_of_two => Err(Error::invalid(RESOLUTION_FLAG, format!("{resolution} is not a power of two ≥ 8"))),
+        Some(longest) if !power_of_two || resolution > (longest.max(8) as u32).next_power_of_two() => {
+            let max = (longest.max(8) as u32).next_power_of_two();
+            Err(Error::invalid(
+                RESOLUTION_FLAG,
+                format!(
+                    "{resolution} is not a power of two between 8 and {max} (the volume spans {longest} voxels \
+                     along its longest axis; {max} gives one cell per voxel)"
+                ),
+            ))
+        }
+        _ => Ok(()),
+    }
+}
+
+/// `(t₁³ − t₀³)/3` in the form that keeps its relative accuracy for `t₁ ≈ t₀`.
+#[inline]
+fn shell(t0: f64, t1: f64) -> f64 {
+    (t1 - t0) * (t1 * t1 + t1 * t0 + t0 * t0) * (1.0 / 3.0)
+}
+
+/// What goes wrong while summing power (reported after the parallel pass).
+#[derive(Clone, Copy, Debug)]
+struct BadPower {
+    voxel: IVec3,
+    density: f32,
+    source: f32,
+    power: f64,
+}
+
+impl ProxyGrid {
+    /// Build the proxy of `volume` with `resolution` cells along its longest axis.
+    ///
+    /// `power(density, source)` is the luminance of the emission density, `Y(L_e)`, per
+    /// unit world volume (any consistent unit); it is called once per emitting voxel (once
+    /// per constant brick), in parallel.
+    ///
+    /// Returns `Ok(None)` when nothing emits.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] for `--proxy-resolution` when `resolution` is not a power
+    /// of two from 8 up to the data resolution, or when the grid would need more than
+    /// `u32::MAX` cells; [`Error::Scene`] when `power` returns a negative or non-finite value
+    /// or the total power overflows.
+    pub fn build(volume: &Volume, resolution: u32, power: impl Fn(f32, f32) -> f64 + Sync) -> Result<Option<ProxyGrid>> {
+        let (brick_lo, brick_dims) = volume.brick_range();
+        if volume.is_empty() {
+            validate_resolution(resolution, None)?;
+            return Ok(None);
+        }
+        let extent = brick_dims * BRICK;
+        let longest = extent.max_element();
+        validate_resolution(resolution, Some(longest))?;
+        let edge = (longest as u32).div_ceil(resolution) as i32;
+        let dims = (extent + (edge - 1)) / edge;
+        let count = dims.x as u64 * dims.y as u64 * dims.z as u64;
+        if count >= u64::from(u32::MAX) {
+            return Err(Error::invalid(
+                RESOLUTION_FLAG,
+                format!("{resolution} needs {count} proxy cells, more than plume supports; choose a smaller resolution"),
+            ));
+        }
+        let voxel_lo = brick_lo * BRICK;
+
+        // Sum voxel power per cell, one z-layer of cells per task (deterministic order)
+        let layers: Vec<(Vec<f64>, Option<BadPower>)> = (0..dims.z)
+            .into_par_iter()
+            .map(|cz| layer_power(volume, &power, voxel_lo, extent, edge, dims, cz))
+            .collect();
+        if let Some(bad) = layers.iter().find_map(|l| l.1) {
+            return Err(Error::Scene(format!(
+                "emitted power {} at voxel {} (density {}, source {}) is negative or not finite",
+                bad.power, bad.voxel, bad.density, bad.source
+            )));
+        }
+        let voxel_volume = volume.voxel_volume();
+        let mut entry = vec![EMPTY; count as usize];
+        let mut cells = Vec::new();
+        let mut weights = Vec::new();
+        let mut occupied_lo = IVec3::MAX;
+        let mut occupied_hi = IVec3::MIN;
+        for (cz, (layer, _)) in layers.iter().enumerate() {
+            for (k, &sum) in layer.iter().enumerate() {
+                if sum > 0.0 {
+                    let cell = k + cz * layer.len();
+                    let c = IVec3::new((k % dims.x as usize) as i32, (k / dims.x as usize) as i32, cz as i32);
+                    occupied_lo = occupied_lo.min(c);
+                    occupied_hi = occupied_hi.max(c + 1);
+                    entry[cell] = cells.len() as u32;
+                    cells.push(cell as u32);
+                    weights.push(voxel_volume * sum);
+                }
+            }
+        }
+        if weights.is_empty() {
+            return Ok(None);
+        }
+        let total_power: f64 = weights.iter().sum();
+        let Some(alias) = AliasTable::new(&weights) else {
+            return Err(Error::Scene(format!("total emitted power {total_power} of the volume is not finite")));
+        };
+        let block_dims = (dims + (BLOCK - 1)) / BLOCK;
+        let mut block_occupied = vec![false; (block_dims.x * block_dims.y * block_dims.z) as usize];
+        for &cell in &cells {
+            let c = IVec3::new(
+                (cell % dims.x as u32) as i32,
+                ((cell / dims.x as u32) % dims.y as u32) as i32,
+                (cell / (dims.x as u32 * dims.y as u32)) as i32,
+            ) / BLOCK;
+            block_occupied[(c.x + block_dims.x * (c.y + block_dims.y * c.z)) as usize] = true;
+        }
+        let e = f64::from(edge);
+        Ok(Some(ProxyGrid {
+            world_from_index: volume.world_from_index(),
+            index_from_world: volume.index_from_world(),
+            origin: volume.index_bounds().0,
+            edge,
+            dims,
+            resolution,
+            entry,
+            cells,
+            alias,
+            cell_volume: voxel_volume * e * e * e,
+            occupied_lo,
+            occupied_hi,
+            block_dims,
+            block_occupied,
+            total_power,
+        }))
+    }
+
+    /// The requested resolution (cells along the longest axis).
+    #[must_use]
+    pub fn resolution(&self) -> u32 {
+        self.resolution
+    }
+
+    /// Cells per axis.
+    #[must_use]
+    pub fn dims(&self) -> IVec3 {
+        self.dims
+    }
+
+    /// Cell edge in voxels.
+    #[must_use]
+    pub fn cell_edge_voxels(&self) -> i32 {
+        self.edge
+    }
+
+    /// Number of cells, emitting or not.
+    #[must_use]
+    pub fn cell_count(&self) -> usize {
+        self.entry.len()
+    }
+
+    /// Number of cells with positive power.
+    #[must_use]
+    pub fn emitting_cell_count(&self) -> usize {
+        self.cells.len()
+    }
+
+    /// World volume of one cell, `|det A| e³`.
+    #[must_use]
+    pub fn cell_volume(&self) -> f64 {
+        self.cell_volume
+    }
+
+    /// `ΣΦ_j`: the volume's emitted luminance power (`|det A| Σ Y(L_e)` over all voxels).
+    #[must_use]
+    pub fn total_power(&self) -> f64 {
+        self.total_power
+    }
+
+    /// Cell coordinates of linear cell index `cell`.
+    #[must_use]
+    pub fn cell_coords(&self, cell: usize) -> IVec3 {
+        let (nx, ny) = (self.dims.x as usize, self.dims.y as usize);
+        IVec3::new((cell % nx) as i32, ((cell / nx) % ny) as i32, (cell / (nx * ny)) as i32)
+    }
+
+    /// Index-space box `[lo, hi]` of linear cell `cell`.
+    #[must_use]
+    pub fn cell_index_bounds(&self, cell: usize) -> (DVec3, DVec3) {
+        let e = f64::from(self.edge);
+        let lo = self.origin + self.cell_coords(cell).as_dvec3() * e;
+        (lo, lo + e)
+    }
+
+    /// Probability `P_j` of choosing linear cell `cell` (0 for a cell that emits nothing).
+    ///
+    /// # Panics
+    /// If `cell >= self.cell_count()`.
+    #[must_use]
+    pub fn cell_probability(&self, cell: usize) -> f64 {
+        match self.entry[cell] {
+            EMPTY => 0.0,
+            e => self.alias.pmf(e as usize),
+        }
+    }
+
+    /// Heap bytes: 4 per cell, 20 per emitting cell and 1 per block of 4³ cells.
+    #[must_use]
+    pub fn memory_bytes(&self) -> usize {
+        self.entry.len() * 4 + self.cells.len() * 4 + self.alias.memory_bytes() + self.block_occupied.len()
+    }
+
+    /// Sample a cell `j ~ P` with `u_cell` and a point uniformly inside it with `u_pos`
+    /// (all in `[0, 1)`). The point's density is `p_V = pmf / cell_volume()` per unit world
+    /// volume.
+    #[must_use]
+    pub fn sample_point(&self, u_cell: f64, u_pos: [f64; 3]) -> ProxyPoint {
+        let s = self.alias.sample(u_cell);
+        let cell = self.cells[s.index] as usize;
+        let p_index = self.origin + (self.cell_coords(cell).as_dvec3() + DVec3::from(u_pos)) * f64::from(self.edge);
+        ProxyPoint { p_world: self.world_from_index.transform_point3(p_index), cell, pmf: s.pmf }
+    }
+
+    /// Sample an FNEE direction from `x_world`: `y` from [`ProxyGrid::sample_point`], then
+    /// `ω = (y − x)/|y − x|`; the pdf is [`ProxyGrid::direction_pdf`]`(x_world, ω)`, per unit
+    /// solid angle.
+    ///
+    /// `None` when `y == x` or the pdf rounds to 0 (a grazing ray along a cell face); both
+    /// are events of probability zero, so dropping them keeps the estimator unbiased.
+    #[must_use]
+    pub fn sample_direction(&self, x_world: DVec3, u_cell: f64, u_pos: [f64; 3]) -> Option<DirectionSample> {
+        let y = self.sample_point(u_cell, u_pos).p_world;
+        let v = y - x_world;
+        let length = v.length();
+        if !(length > 0.0 && length.is_finite()) {
+            return None;
+        }
+        let direction = v / length;
+        let pdf = self.direction_pdf(x_world, direction);
+        (pdf > 0.0).then_some(DirectionSample { direction, pdf })
+    }
+
+    /// `p_σ(ω)`: density per unit solid angle with which [`ProxyGrid::sample_direction`]
+    /// at `x_world` produces the unit world direction `w_world`. See the module docs.
+    ///
+    /// 0 when the ray `x + tω, t ≥ 0` meets no emitting cell, or for non-finite input.
+    #[must_use]
+    pub fn direction_pdf(&self, x_world: DVec3, w_world: DVec3) -> f64 {
+        debug_assert!((w_world.length() - 1.0).abs() < 1e-6, "direction_pdf needs a unit direction, got {w_world}");
+        let o = self.index_from_world.transform_point3(x_world);
+        let d = self.index_from_world.transform_vector3(w_world);
+        if !o.is_finite() || !d.is_finite() || d == DVec3::ZERO {
+            return 0.0;
+        }
+        let e = f64::from(self.edge);
+        let boundary = |a: usize, k: i32| self.origin[a] + f64::from(k) * e;
+        let lo = DVec3::new(boundary(0, self.occupied_lo.x), boundary(1, self.occupied_lo.y), boundary(2, self.occupied_lo.z));
+        let hi = DVec3::new(boundary(0, self.occupied_hi.x), boundary(1, self.occupied_hi.y), boundary(2, self.occupied_hi.z));
+        let Some((t_start, t_end)) = clip_to_box(o, d, lo, hi, 0.0, f64::INFINITY) else {
+            return 0.0;
+        };
+        // Same reciprocal as clip_to_box, so the last crossing equals t_end bit for bit
+        let inv_d = DVec3::new(
+            if d.x != 0.0 { 1.0 / d.x } else { 0.0 },
+            if d.y != 0.0 { 1.0 / d.y } else { 0.0 },
+            if d.z != 0.0 { 1.0 / d.z } else { 0.0 },
+        );
+        // The cell along axis `a` at parameter `t`, from the position, then made consistent
+        // with the crossing times of its own faces: a point within rounding of a face whose
+        // crossing lies ahead is in the cell before it. On a face: the cell being entered.
+        let cell_at = |a: usize, t: f64| -> i32 {
+            let g = (o[a] + d[a] * t - self.origin[a]) / e;
+            let k = (if d[a] < 0.0 { g.ceil() - 1.0 } else { g.floor() }) as i32;
+            let crossing = |k: i32| (boundary(a, k) - o[a]) * inv_d[a];
+            if d[a] > 0.0 {
+                if crossing(k) > t {
+                    return k - 1;
+                } else if crossing(k + 1) <= t {
+                    return k + 1;
+                }
+            } else if d[a] < 0.0 {
+                if crossing(k + 1) > t {
+                    return k + 1;
+                } else if crossing(k) <= t {
+                    return k - 1;
+                }
+            }
+            k
+        };
+        // Exit of the cell box [lo, hi): per-axis crossing of the face ahead
+        let exits = |lo: IVec3, hi: IVec3| -> [f64; 3] {
+            let mut ta = [f64::INFINITY; 3];
+            for (a, t_axis) in ta.iter_mut().enumerate() {
+                if d[a] > 0.0 {
+                    *t_axis = (boundary(a, hi[a]) - o[a]) * inv_d[a];
+                } else if d[a] < 0.0 {
+                    *t_axis = (boundary(a, lo[a]) - o[a]) * inv_d[a];
+                }
+            }
+            ta
+        };
+        let (occupied_lo, occupied_hi) = (self.occupied_lo, self.occupied_hi);
+        let inside = |c: IVec3| c.cmpge(occupied_lo).all() && c.cmplt(occupied_hi).all();
+        let mut c = IVec3::ZERO;
+        for a in 0..3 {
+            c[a] = cell_at(a, t_start).clamp(occupied_lo[a], occupied_hi[a] - 1);
+        }
+        let (nx, ny) = (self.dims.x as usize, self.dims.y as usize);
+        let (bx, by) = (self.block_dims.x as usize, self.block_dims.y as usize);
+        let mut t = t_start;
+        let mut sum = 0.0f64;
+        loop {
+            let b = c / BLOCK;
+            if !self.block_occupied[b.x as usize + bx * (b.y as usize + by * b.z as usize)] {
+                // Cross a block without emission in one step
+                let (lo, hi) = (b * BLOCK, (b * BLOCK + BLOCK).min(self.dims));
+                let ta = exits(lo, hi);
+                let t_exit = ta[0].min(ta[1]).min(ta[2]);
+                if t_exit >= t_end {
+                    break;
+                }
+                t = t.max(t_exit);
+                for a in 0..3 {
+                    c[a] = if ta[a] == t_exit {
+                        if d[a] > 0.0 { hi[a] } else { lo[a] - 1 }
+                    } else {
+                        cell_at(a, t_exit).clamp(lo[a], hi[a] - 1)
+                    };
+                }
+                if !inside(c) {
+                    break;
+                }
+                continue;
+            }
+            // Step one cell
+            let ta = exits(c, c + 1);
+            let t_exit = ta[0].min(ta[1]).min(ta[2]);
+            let t1 = t_exit.min(t_end);
+            if t1 > t {
+                // Add this cell's share P_j (t₁³ − t₀³)/3 (divided by V_j once at the end)
+                let entry = self.entry[c.x as usize + nx * (c.y as usize + ny * c.z as usize)];
+                if entry != EMPTY {
+                    sum += self.alias.pmf(entry as usize) * shell(t, t1);
+                }
+                t = t1;
+            }
+            if t_exit >= t_end {
+                break;
+            }
+            for a in 0..3 {
+                if ta[a] == t_exit {
+                    c[a] += if d[a] > 0.0 { 1 } else { -1 };
+                }
+            }
+            if !inside(c) {
+                break;
+            }
+        }
+        sum / self.cell_volume
+    }
+}
+
+/// Voxel-power sums (without `|det A|`) of the cells in layer `cz`, plus the first invalid
+/// power met.
+fn layer_power(
+    volume: &Volume,
+    power: &(impl Fn(f32, f32) -> f64 + Sync),
+    voxel_lo: IVec3,
+    extent: IVec3,
+    edge: i32,
+    dims: IVec3,
+    cz: i32,
+) -> (Vec<f64>, Option<BadPower>) {
+    let (brick_lo, brick_dims) = volume.brick_range();
+    let mut acc = vec![0.0f64; dims.x as usize * dims.y as usize];
+    let mut bad = None;
+    let mut check = |p: f64, voxel: IVec3, density: f32, source: f32| {
+        if !(p >= 0.0 && p.is_finite()) && bad.is_none() {
+            bad = Some(BadPower { voxel, density, source, power: p });
+        }
+    };
+    // Voxel z range of the layer
+    let z0 = voxel_lo.z + cz * edge;
+    let z1 = (z0 + edge).min(voxel_lo.z + extent.z);
+    let cell_of = |v: i32, a: usize| ((v - voxel_lo[a]) / edge) as usize;
+    for bz in z0.div_euclid(BRICK)..=(z1 - 1).div_euclid(BRICK) {
+        for by in brick_lo.y..brick_lo.y + brick_dims.y {
+            for bx in brick_lo.x..brick_lo.x + brick_dims.x {
+                let b = IVec3::new(bx, by, bz);
+                let Some(brick) = volume.brick(b) else { continue };
+                let origin = b * BRICK;
+                let (lz0, lz1) = ((z0 - origin.z).max(0), (z1 - origin.z).min(BRICK));
+                if let Some((density, source)) = Volume::brick_constant(brick) {
+                    // Constant brick: one power call, 64 column adds
+                    if source == 0.0 {
+                        continue;
+                    }
+                    let p = power(density, source);
+                    check(p, origin, density, source);
+                    let column = p * f64::from(lz1 - lz0);
+                    for ly in 0..BRICK {
+                        let row = cell_of(origin.y + ly, 1) * dims.x as usize;
+                        for lx in 0..BRICK {
+                            acc[row + cell_of(origin.x + lx, 0)] += column;
+                        }
+                    }
+                    continue;
+                }
+                for lx in 0..BRICK {
+                    let cx = cell_of(origin.x + lx, 0);
+                    for ly in 0..BRICK {
+                        let k = cx + cell_of(origin.y + ly, 1) * dims.x as usize;
+                        for lz in lz0..lz1 {
+                            let l = IVec3::new(lx, ly, lz);
+                            let (density, source) = volume.brick_voxel(brick, l);
+                            if source == 0.0 {
+                                continue;
+                            }
+                            let p = power(density, source);
+                            check(p, origin + l, density, source);
+                            acc[k] += p;
+                        }
+                    }
+                }
+            }
+        }
+    }
+    (acc, bad)
+}

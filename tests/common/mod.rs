@@ -1,0 +1,139 @@
+//! Shared test harness: chi-square goodness of fit in the style of Mitsuba 3's `chi2.py`
+//! (cells pooled to ≥ 5 expected counts, `f64` statistics, Šidák correction for the number
+//! of tests, histograms dumped on failure) and synthetic grid builders.
+//!
+//! Each test binary uses a subset of these helpers.
+#![allow(dead_code)]
+
+use std::fmt::Write as _;
+use std::path::PathBuf;
+
+use glam::{DAffine3, IVec3};
+use plume::vdb::{leaf_offset, FloatGrid, LEAF_VOXELS};
+use statrs::distribution::{ChiSquared, ContinuousCDF};
+
+/// Fewest expected counts a cell may have before it is pooled with others.
+pub const MIN_EXPECTED: f64 = 5.0;
+
+/// Result of one chi-square test.
+#[derive(Clone, Copy, Debug)]
+pub struct Chi2Outcome {
+    /// Pearson's statistic Σ (o − e)²/e over pooled cells.
+    pub statistic: f64,
+    /// Degrees of freedom: pooled cells − 1.
+    pub dof: usize,
+    /// Probability of a statistic at least this large under the null hypothesis.
+    pub p_value: f64,
+    /// Per-test significance level after the Šidák correction.
+    pub significance: f64,
+}
+
+/// Per-test level that keeps the family-wise false-failure rate at `alpha` over
+/// `test_count` independent tests: `1 − (1 − α)^(1/n)`.
+#[must_use]
+pub fn sidak(alpha: f64, test_count: usize) -> f64 {
+    -((-alpha).ln_1p() / test_count as f64).exp_m1()
+}
+
+/// Where failing histograms go: `$CARGO_TARGET_DIR/chi2` or `<crate>/target/chi2`.
+fn dump_dir() -> PathBuf {
+    std::env::var_os("CARGO_TARGET_DIR")
+        .map_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("target"), PathBuf::from)
+        .join("chi2")
+}
+
+fn dump(name: &str, observed: &[f64], expected: &[f64], why: &str) -> PathBuf {
+    let dir = dump_dir();
+    let path = dir.join(format!("{name}.tsv"));
+    let mut text = format!("# {why}\n# cell\tobserved\texpected\t(o-e)/sqrt(e)\n");
+    for (i, (&o, &e)) in observed.iter().zip(expected).enumerate() {
+        let z = if e > 0.0 { (o - e) / e.sqrt() } else { f64::NAN };
+        let _ = writeln!(text, "{i}\t{o}\t{e}\t{z:.3}");
+    }
+    let _ = std::fs::create_dir_all(&dir).and_then(|()| std::fs::write(&path, &text));
+    path
+}
+
+/// Chi-square goodness-of-fit test of `observed` counts against `expected` counts (same
+/// cell order, same total up to the distribution's mass), at family-wise level `alpha`
+/// over `test_count` tests.
+///
+/// Cells are sorted by expected count; cells below [`MIN_EXPECTED`] are pooled until the
+/// pool reaches it. A sample in a cell of zero expected count fails at once.
+///
+/// # Panics
+/// When the test fails, after printing a summary and dumping both histograms to
+/// `target/chi2/<name>.tsv`.
+pub fn chi2_test(name: &str, observed: &[f64], expected: &[f64], alpha: f64, test_count: usize) -> Chi2Outcome {
+    assert_eq!(observed.len(), expected.len(), "{name}: histogram sizes differ");
+    let significance = sidak(alpha, test_count);
+    let mut order: Vec<usize> = (0..expected.len()).collect();
+    order.sort_by(|&a, &b| expected[a].total_cmp(&expected[b]));
+    let (mut statistic, mut cells) = (0.0f64, 0usize);
+    let (mut pool_o, mut pool_e) = (0.0f64, 0.0f64);
+    for &i in &order {
+        let (o, e) = (observed[i], expected[i]);
+        assert!(e.is_finite() && e >= 0.0, "{name}: expected count {e} in cell {i}");
+        if e == 0.0 {
+            if o > 0.0 {
+                let path = dump(name, observed, expected, "samples in a cell of zero probability");
+                panic!("{name}: {o} samples in cell {i} of zero expected count; histograms in {}", path.display());
+            }
+        } else if e < MIN_EXPECTED {
+            pool_o += o;
+            pool_e += e;
+            if pool_e >= MIN_EXPECTED {
+                statistic += (pool_o - pool_e).powi(2) / pool_e;
+                cells += 1;
+                pool_o = 0.0;
+                pool_e = 0.0;
+            }
+        } else {
+            statistic += (o - e).powi(2) / e;
+            cells += 1;
+        }
+    }
+    if pool_e > 0.0 {
+        statistic += (pool_o - pool_e).powi(2) / pool_e;
+        cells += 1;
+    }
+    assert!(cells >= 2, "{name}: only {cells} cells after pooling; use more samples or bins");
+    let dof = cells - 1;
+    let p_value = ChiSquared::new(dof as f64).expect("dof > 0").sf(statistic);
+    let outcome = Chi2Outcome { statistic, dof, p_value, significance };
+    println!("chi2 {name}: statistic {statistic:.2}, dof {dof}, p = {p_value:.4} (reject below {significance:.2e})");
+    if p_value.is_nan() || p_value < significance {
+        let path = dump(name, observed, expected, &format!("{outcome:?}"));
+        panic!("{name}: chi-square rejected the sampler, {outcome:?}; histograms in {}", path.display());
+    }
+    outcome
+}
+
+/// A float grid with the given 8³ leaves; each leaf's values from `f(voxel ijk)`.
+pub fn grid(name: &str, xf: DAffine3, leaves: &[IVec3], f: impl Fn(IVec3) -> f32) -> FloatGrid {
+    let mut values = Vec::with_capacity(leaves.len() * LEAF_VOXELS);
+    for &o in leaves {
+        let mut block = vec![0.0f32; LEAF_VOXELS];
+        for x in 0..8 {
+            for y in 0..8 {
+                for z in 0..8 {
+                    block[leaf_offset(x, y, z)] = f(o + IVec3::new(x, y, z));
+                }
+            }
+        }
+        values.extend(block);
+    }
+    FloatGrid { name: name.into(), world_from_index: xf, background: 0.0, origins: leaves.to_vec(), values }
+}
+
+/// A deterministic 32-bit hash of a voxel and a seed.
+#[must_use]
+pub fn hash(p: IVec3, seed: u32) -> u32 {
+    let mut h = (p.x as u32).wrapping_mul(0x8da6_b343)
+        ^ (p.y as u32).wrapping_mul(0xd816_3841)
+        ^ (p.z as u32).wrapping_mul(0xcb1a_b31f)
+        ^ seed.wrapping_mul(0x9e37_79b9);
+    h ^= h >> 15;
+    h = h.wrapping_mul(0x2c1b_3c6d);
+    h ^ (h >> 12)
+}

@@ -9,10 +9,15 @@ use glam::DVec3;
 use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::camera::Camera;
-use crate::cli::{Cli, Command, ConventionArg, EmissionArg, EstimatorArg, InfoArgs, RenderArgs, SynthCommand, UpAxis};
+use crate::cli::{
+    Cli, Command, ConventionArg, EmissionArg, EstimatorArg, InfoArgs, LightSamplingArg, MethodArg, MisArg, RenderArgs,
+    SynthCommand, UpAxis,
+};
 use crate::color::Rgb;
 use crate::error::{Error, Result};
-use crate::integrator::{Integrator, Scene};
+use crate::integrator::{Integrator, LightSampling, Lights, LineTrace, MisHeuristic, Scene};
+use crate::light::nee::EmitterDistribution;
+use crate::volume::proxy::ProxyGrid;
 use crate::medium::{Convention, Emission, EmissionKind, Estimator, Medium, TemperatureMap};
 use crate::render::{render, RenderSettings, SampleBudget};
 use crate::stats::{cpu_seconds, peak_rss_bytes, RenderStats};
@@ -31,6 +36,15 @@ pub fn run(cli: Cli, command_line: &str) -> Result<()> {
     match cli.command {
         Command::Render(args) => render_command(&args, command_line),
         Command::Info(args) => info_command(&args),
+        Command::Bench(crate::cli::BenchCommand::Core(args)) => {
+            let report = crate::bench::core::run(args.resolution, args.threads, &args.ttfs_file)?;
+            print!("{report}");
+            if let Some(p) = &args.json {
+                let json = serde_json::to_string_pretty(&report).map_err(|e| Error::Scene(e.to_string()))?;
+                crate::output::write_atomic(p, |w| std::io::Write::write_all(w, json.as_bytes()))?;
+            }
+            Ok(())
+        }
         Command::Synth(SynthCommand::Explosion(args)) => {
             let t = Instant::now();
             let params = crate::synth::ExplosionParams { resolution: args.resolution, seed: args.seed, ..Default::default() };
@@ -99,6 +113,23 @@ fn validate(args: &RenderArgs) -> Result<()> {
     check_finite_nonneg("--temperature-cutoff", f64::from(args.temperature_cutoff))?;
     if args.emission_color.min_element() < 0.0 {
         return Err(Error::invalid("--emission-color", "components must be ≥ 0"));
+    }
+    if !(0.0..=1.0).contains(&args.albedo) {
+        return Err(Error::invalid("--albedo", format!("{} is not in [0, 1]", args.albedo)));
+    }
+    if !(args.g > -1.0 && args.g < 1.0) {
+        return Err(Error::invalid("--g", format!("{} is not in (-1, 1)", args.g)));
+    }
+    if let Some(env) = args.environment {
+        if env.min_element() < 0.0 {
+            return Err(Error::invalid("--environment", "components must be ≥ 0"));
+        }
+    }
+    if let Some(dp) = &args.debug_pixel {
+        let (x, y, _) = crate::cli::parse_debug_pixel(dp).map_err(|m| Error::invalid("--debug-pixel", m))?;
+        if x >= args.width || y >= args.height {
+            return Err(Error::invalid("--debug-pixel", format!("pixel {x},{y} is outside the {}x{} image", args.width, args.height)));
+        }
     }
     if let Some(e) = args.exposure {
         if !e.is_finite() {
@@ -206,26 +237,70 @@ pub fn load_scene(args: &RenderArgs) -> Result<LoadedScene> {
             cam
         }
     };
-    let medium = Medium { sigma_t: args.density_scale, albedo: 0.0, emission };
+    let medium = Medium { sigma_t: args.density_scale, albedo: args.albedo, g: args.g, emission };
+    // Light-sampling structures, only for the technique in use and only when paths scatter
+    let (_, light_sampling) = method(args);
+    let power = |d: f32, s: f32| f64::from(emission.le(d, s).luminance().max(0.0));
+    let mut lights = Lights::default();
+    if args.albedo > 0.0 && args.max_depth > 0 {
+        match light_sampling {
+            LightSampling::Fnee => lights.proxy = ProxyGrid::build(&volume, args.proxy_resolution, power)?,
+            LightSampling::Nee => lights.nee = EmitterDistribution::build(&volume, power)?,
+            LightSampling::None => {}
+        }
+    }
     Ok(LoadedScene {
-        scene: Scene { field: volume, medium, camera },
+        scene: Scene { field: volume, medium, camera, lights },
         emission_kind: kind,
         source_grid: source.map(|g| g.name),
     })
 }
 
-fn estimator(args: &RenderArgs) -> Estimator {
-    let preset = match args.method {
-        crate::cli::MethodArg::PointNee => EstimatorArg::Point,
-        crate::cli::MethodArg::LineNee | crate::cli::MethodArg::LineFnee => EstimatorArg::Line,
-        crate::cli::MethodArg::RayMarch => EstimatorArg::RayMarch,
+/// The estimator and light sampling of `--method`, overridden by `--estimator` and
+/// `--light-sampling`.
+#[must_use]
+pub fn method(args: &RenderArgs) -> (Estimator, LightSampling) {
+    let (est, ls) = match args.method {
+        MethodArg::PointNee => (EstimatorArg::Point, LightSamplingArg::Nee),
+        MethodArg::LineNee => (EstimatorArg::Line, LightSamplingArg::Nee),
+        MethodArg::LineFnee => (EstimatorArg::Line, LightSamplingArg::Fnee),
+        MethodArg::RayMarch => (EstimatorArg::RayMarch, LightSamplingArg::None),
     };
-    match args.estimator.unwrap_or(preset) {
+    let estimator = match args.estimator.unwrap_or(est) {
         EstimatorArg::Point => Estimator::Point,
         EstimatorArg::Line => Estimator::Line,
         EstimatorArg::RayMarch => Estimator::RayMarch,
         EstimatorArg::Blend => Estimator::Blend { kappa: args.kappa },
+    };
+    let light_sampling = match args.light_sampling.unwrap_or(ls) {
+        LightSamplingArg::None => LightSampling::None,
+        LightSamplingArg::Nee => LightSampling::Nee,
+        LightSamplingArg::Fnee => LightSampling::Fnee,
+    };
+    (estimator, light_sampling)
+}
+
+/// The integrator described by the render flags.
+#[must_use]
+pub fn integrator(args: &RenderArgs) -> Integrator {
+    let (estimator, light_sampling) = method(args);
+    Integrator {
+        estimator,
+        light_sampling,
+        mis: match args.mis {
+            MisArg::Balance => MisHeuristic::Balance,
+            MisArg::Power => MisHeuristic::Power,
+        },
+        max_depth: if args.albedo > 0.0 { args.max_depth } else { 0 },
+        environment: args.environment.map(|e| {
+            let e = e.as_vec3();
+            Rgb([e.x, e.y, e.z])
+        }),
     }
+}
+
+fn estimator(args: &RenderArgs) -> Estimator {
+    method(args).0
 }
 
 fn render_command(args: &RenderArgs, command_line: &str) -> Result<()> {
@@ -266,8 +341,21 @@ fn render_command(args: &RenderArgs, command_line: &str) -> Result<()> {
         seed: args.seed,
         threads: args.threads,
         first_sample: 0,
-        integrator: Integrator { estimator: estimator(args) },
+        integrator: integrator(args),
     };
+    if let Some(dp) = &args.debug_pixel {
+        // Replay one pixel sample and print its path
+        let (x, y, s) = crate::cli::parse_debug_pixel(dp).map_err(|m| Error::invalid("--debug-pixel", m))?;
+        let (ray, mut sampler) = crate::render::pixel_sample(scene, args.seed, x, y, s);
+        let mut trace = LineTrace::default();
+        let mut counters = crate::integrator::Counters::default();
+        let l = settings.integrator.li(scene, &ray, &mut sampler, &mut counters, &mut trace);
+        for line in &trace.0 {
+            eprintln!("plume: debug {x},{y},{s}: {line}");
+        }
+        println!("{:?}", l);
+        return Ok(());
+    }
     let bar = if !quiet && std::io::stderr().is_terminal() {
         let total = match settings.budget {
             SampleBudget::Spp(n) => u64::from(n),

@@ -29,6 +29,34 @@ pub enum Command {
     /// Generate procedural volumes.
     #[command(subcommand)]
     Synth(SynthCommand),
+    /// Benchmarks: speed and memory figures.
+    #[command(subcommand)]
+    Bench(BenchCommand),
+}
+
+/// `plume bench …`.
+#[derive(Debug, Subcommand)]
+pub enum BenchCommand {
+    /// Core renderer figures: DDA voxel steps/s per core, parallel speed-up, time to first
+    /// sample, brick memory vs raw voxel data.
+    Core(BenchCoreArgs),
+}
+
+/// `plume bench core`.
+#[derive(Debug, Args)]
+pub struct BenchCoreArgs {
+    /// Resolution of the generated explosion.
+    #[arg(long, default_value_t = 256)]
+    pub resolution: u32,
+    /// Threads for the parallel run (0 = all cores).
+    #[arg(long, default_value_t = 0)]
+    pub threads: usize,
+    /// File whose time to first sample is measured.
+    #[arg(long, default_value = "../shared/data/smoke/openvdb_org_smoke1.vdb")]
+    pub ttfs_file: PathBuf,
+    /// Also write the figures as JSON here.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
 }
 
 /// `plume info`.

@@ -9,6 +9,7 @@
 //! `.vdb → vdb (shim) → volume (bricks + pyramid) → medium → integrator → film → EXR`.
 
 pub mod app;
+pub mod bench;
 pub mod camera;
 pub mod cli;
 pub mod color;

@@ -10,7 +10,7 @@ use std::time::{Duration, Instant};
 use rayon::prelude::*;
 
 use crate::film::{Film, Tile};
-use crate::integrator::{Counters, Integrator, Scene};
+use crate::integrator::{Counters, Integrator, NoTrace, Scene};
 use crate::sampling::Sampler;
 use crate::volume::field::Field;
 
@@ -51,19 +51,24 @@ pub struct RenderResult {
     pub render_seconds: f64,
 }
 
+/// The camera ray and sampler state of one pixel sample, as the render loop makes them
+/// (used by `--debug-pixel` to replay a sample exactly).
+pub fn pixel_sample<F: Field>(scene: &Scene<F>, seed: u64, x: u32, y: u32, s: u64) -> (crate::volume::field::Ray, Sampler) {
+    let pixel = u64::from(y) * u64::from(scene.camera.width) + u64::from(x);
+    let mut sampler = Sampler::new(seed, pixel, s);
+    let (jx, jy) = (sampler.next_f64(), sampler.next_f64());
+    (scene.camera.ray(f64::from(x) + jx, f64::from(y) + jy), sampler)
+}
+
 fn render_tile<F: Field>(scene: &Scene<F>, integ: &Integrator, seed: u64, samples: std::ops::Range<u64>, tile: &mut Tile) -> Counters {
     let mut counters = Counters::default();
-    let width = u64::from(scene.camera.width);
     for ty in 0..tile.height {
         for tx in 0..tile.width {
             let (x, y) = (tile.x0 + tx, tile.y0 + ty);
-            let pixel = u64::from(y) * width + u64::from(x);
             let sum = &mut tile.sums[(ty * tile.width + tx) as usize];
             for s in samples.clone() {
-                let mut sampler = Sampler::new(seed, pixel, s);
-                let (jx, jy) = (sampler.next_f64(), sampler.next_f64());
-                let ray = scene.camera.ray(f64::from(x) + jx, f64::from(y) + jy);
-                let l = integ.li(scene, &ray, &mut sampler, &mut counters);
+                let (ray, mut sampler) = pixel_sample(scene, seed, x, y, s);
+                let l = integ.li(scene, &ray, &mut sampler, &mut counters, &mut NoTrace);
                 counters.samples += 1;
                 if l.iter().all(|v| v.is_finite()) {
                     for (a, v) in sum.iter_mut().zip(l) {

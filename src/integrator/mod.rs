@@ -1,13 +1,17 @@
 //! Integrators: radiance along camera rays.
 //!
-//! The emission–absorption integrator estimates, per camera ray,
-//! `L = ∫₀^d τ(s) L_e(s) ds` with the chosen [`Estimator`] and reports `α = 1 − τ(d)`
+//! [`Integrator`] (in `volpath.rs`) traces forward paths with line-integrated emission and
+//! optional NEE/FNEE; with `max_depth = 0` or albedo 0 it is the emission–absorption
+//! integrator `L = ∫₀^d τ(s) L_e(s) ds`. Alpha is `1 − τ(d)` of the camera segment
 //! (estimated: the escape indicator, or the exact ray-marched transmittance).
 
+pub mod volpath;
+
 use crate::camera::Camera;
-use crate::medium::{track, Estimator, Medium};
-use crate::sampling::Sampler;
-use crate::volume::field::{Field, Ray};
+use crate::medium::Medium;
+use crate::volume::field::Field;
+
+pub use volpath::{Integrator, LightSampling, Lights, MisHeuristic};
 
 /// Everything a render reads: immutable and `Sync`, built once.
 #[derive(Debug)]
@@ -18,6 +22,8 @@ pub struct Scene<F: Field> {
     pub medium: Medium,
     /// The camera.
     pub camera: Camera,
+    /// Light-sampling structures (NEE distribution, FNEE proxy), when used.
+    pub lights: Lights,
 }
 
 /// Integer counters gathered per tile and summed in tile order.
@@ -29,6 +35,10 @@ pub struct Counters {
     pub segments: u64,
     /// Real collisions sampled.
     pub collisions: u64,
+    /// FNEE direction samples taken.
+    pub fnee_samples: u64,
+    /// Classic NEE samples taken.
+    pub nee_samples: u64,
     /// Samples dropped because they were NaN or infinite.
     pub nonfinite_samples: u64,
     /// The first dropped sample as `(x, y, sample)`, for `--debug-pixel`.
@@ -41,6 +51,8 @@ impl Counters {
         self.samples += o.samples;
         self.segments += o.segments;
         self.collisions += o.collisions;
+        self.fnee_samples += o.fnee_samples;
+        self.nee_samples += o.nee_samples;
         self.nonfinite_samples += o.nonfinite_samples;
         if self.first_nonfinite.is_none() {
             self.first_nonfinite = o.first_nonfinite;
@@ -48,22 +60,27 @@ impl Counters {
     }
 }
 
-/// How radiance is estimated.
-#[derive(Clone, Copy, Debug)]
-pub struct Integrator {
-    /// Emission estimator for every free-path segment.
-    pub estimator: Estimator,
+/// Receives a path's events when a sample is replayed with `--debug-pixel`. The render
+/// loop uses [`NoTrace`], which compiles to nothing.
+pub trait Trace {
+    /// Record one event; `message` is only called when tracing.
+    fn event(&mut self, message: impl FnOnce() -> String);
 }
 
-impl Integrator {
-    /// Radiance and alpha `[r, g, b, α]` along `ray`.
-    pub fn li<F: Field>(&self, scene: &Scene<F>, ray: &Ray, sampler: &mut Sampler, counters: &mut Counters) -> [f64; 4] {
-        let u = sampler.next_f64();
-        let r = track(&scene.field, &scene.medium, ray, f64::INFINITY, self.estimator, false, u, sampler);
-        counters.segments += u64::from(r.segments);
-        if matches!(r.event, crate::medium::DistanceSample::Collided { .. }) {
-            counters.collisions += 1;
-        }
-        [r.emission[0], r.emission[1], r.emission[2], 1.0 - r.transmittance]
+/// Tracing off.
+pub struct NoTrace;
+
+impl Trace for NoTrace {
+    #[inline(always)]
+    fn event(&mut self, _message: impl FnOnce() -> String) {}
+}
+
+/// Tracing into a list of lines.
+#[derive(Default)]
+pub struct LineTrace(pub Vec<String>);
+
+impl Trace for LineTrace {
+    fn event(&mut self, message: impl FnOnce() -> String) {
+        self.0.push(message());
     }
 }

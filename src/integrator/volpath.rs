@@ -37,7 +37,7 @@ use crate::sampling::Sampler;
 use crate::volume::field::{Field, Ray};
 use crate::volume::proxy::ProxyGrid;
 
-use super::{Counters, Scene};
+use super::{Counters, Scene, Trace};
 
 /// Which next event technique runs at scattering vertices.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -87,9 +87,9 @@ pub struct Lights {
     pub proxy: Option<ProxyGrid>,
 }
 
-/// Path-tracing settings.
+/// The path integrator and its settings.
 #[derive(Clone, Copy, Debug)]
-pub struct PathSettings {
+pub struct Integrator {
     /// Emission estimator on every free-path segment.
     pub estimator: Estimator,
     /// Next event technique.
@@ -111,9 +111,15 @@ fn add(l: &mut [f64; 3], w: f64, e: [f64; 3]) {
     }
 }
 
-impl PathSettings {
+impl Integrator {
+    /// Emission–absorption only: no scattering, no light sampling.
+    #[must_use]
+    pub fn emission_only(estimator: Estimator) -> Integrator {
+        Integrator { estimator, light_sampling: LightSampling::None, mis: MisHeuristic::Power, max_depth: 0, environment: None }
+    }
+
     /// Radiance `[r, g, b]` and alpha along a camera ray.
-    pub fn li<F: Field>(&self, scene: &Scene<F>, camera_ray: &Ray, sampler: &mut Sampler, c: &mut Counters) -> [f64; 4] {
+    pub fn li<F: Field, T: Trace>(&self, scene: &Scene<F>, camera_ray: &Ray, sampler: &mut Sampler, c: &mut Counters, trace: &mut T) -> [f64; 4] {
         let m = &scene.medium;
         let lights = &scene.lights;
         let mut l = [0.0f64; 3];
@@ -141,6 +147,7 @@ impl PathSettings {
                 w = self.mis.weight(p_fwd, nee.pdf(ray.at(t)));
             }
             add(&mut l, beta * w, r.emission);
+            trace.event(|| format!("segment depth {depth}: origin {:?} dir {:?} -> {:?}, F {:?}, w_fwd {w}, beta {beta}, tau {}", ray.origin, ray.direction, r.event, r.emission, r.transmittance));
             if depth == 0 {
                 alpha = 1.0 - r.transmittance;
             }
@@ -169,6 +176,7 @@ impl PathSettings {
                             let rl = track(&scene.field, m, &Ray { origin: x, direction: ds.direction }, f64::INFINITY, self.estimator, false, u2, sampler);
                             c.segments += u64::from(rl.segments);
                             add(&mut l, beta * f * w_l / ds.pdf, rl.emission);
+                            trace.event(|| format!("  fnee: dir {:?} p_sigma {} f {f} w {w_l} F {:?}", ds.direction, ds.pdf, rl.emission));
                         }
                     }
                 }
@@ -192,6 +200,7 @@ impl PathSettings {
                                 let f = hg_pdf(m.g, ray.direction.dot(wi));
                                 let w_l = if point_nee { self.mis.weight(vs.pdf, f * m.mu_t(dy) * tau / r2) } else { 1.0 };
                                 add(&mut l, beta * f * tau * w_l / (vs.pdf * r2), le.to_f64());
+                                trace.event(|| format!("  nee: y {:?} p_V {} tau {tau} f {f} w {w_l} L_e {le:?}", vs.p_world, vs.pdf));
                             }
                         }
                     }
@@ -202,6 +211,7 @@ impl PathSettings {
             let q = beta.min(1.0);
             if q < 1.0 {
                 if sampler.next_f64() >= q {
+                    trace.event(|| format!("  roulette: terminated (q {q})"));
                     break;
                 }
                 beta /= q;
@@ -217,6 +227,7 @@ impl PathSettings {
                 LightSampling::Nee => if lights.nee.is_some() { 0.0 } else { 1.0 },
             };
         }
+        trace.event(|| format!("result L {l:?} alpha {alpha}"));
         [l[0], l[1], l[2], alpha]
     }
 }

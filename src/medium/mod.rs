@@ -19,6 +19,8 @@ pub struct Medium {
     pub sigma_t: f64,
     /// Single-scattering albedo `a = μ_s / μ_t`, in `[0, 1]`.
     pub albedo: f32,
+    /// Henyey–Greenstein asymmetry `g ∈ (−1, 1)`.
+    pub g: f64,
     /// Emission model.
     pub emission: Emission,
 }

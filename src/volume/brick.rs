@@ -25,6 +25,22 @@ pub const BRICK: i32 = 8;
 /// memory on a file whose few leaves lie far apart.
 pub const MAX_TABLE_ENTRIES: u64 = 1 << 30;
 
+/// Spread the 3 bits of `v` to positions 0, 3, 6.
+const fn spread3(v: i32) -> usize {
+    ((v & 1) | ((v & 2) << 2) | ((v & 4) << 4)) as usize
+}
+
+/// Offset of local voxel `(x, y, z)` (each in `0..8`) inside a stored brick: Morton
+/// (Z-order) interleaving `… z1 x0 y0 z0`, so one 64-byte cache line holds a 2×2×4 block
+/// and a ray in any direction touches a new line every 2–4 voxels rather than every
+/// voxel (OpenVDB's x-major order puts x-neighbours 256 bytes apart). Measured on random
+/// chords through a 256³ explosion: see `plume bench core` in the README.
+#[inline]
+#[must_use]
+pub fn brick_offset(x: i32, y: i32, z: i32) -> usize {
+    (spread3(x & 7) << 2) | (spread3(y & 7) << 1) | spread3(z & 7)
+}
+
 /// Marker for "no brick here" in the brick table.
 const NO_BRICK: u32 = u32::MAX;
 
@@ -33,7 +49,7 @@ const NO_BRICK: u32 = u32::MAX;
 pub enum Slot {
     /// All 512 voxels hold this value.
     Constant(f32),
-    /// Values at `offset .. offset + 512` of the channel array, in [`leaf_offset`] order.
+    /// Values at `offset .. offset + 512` of the channel array, in [`brick_offset`] order.
     Dense(u32),
 }
 
@@ -290,7 +306,7 @@ impl Volume {
     pub(crate) fn slot_value(values: &[f32], slot: Slot, x: i32, y: i32, z: i32) -> f32 {
         match slot {
             Slot::Constant(v) => v,
-            Slot::Dense(off) => values[off as usize + leaf_offset(x, y, z)],
+            Slot::Dense(off) => values[off as usize + brick_offset(x, y, z)],
         }
     }
 
@@ -340,15 +356,24 @@ fn clean(v: f32, count: &mut u64) -> f32 {
     }
 }
 
-/// Store 512 values as a constant slot when uniform, else append them.
+/// Store 512 values given in OpenVDB leaf order as a constant slot when uniform, else
+/// append them in [`brick_offset`] order.
 fn store(values: &[f32; LEAF_VOXELS], out: &mut Vec<f32>) -> Slot {
     let first = values[0];
     if values.iter().all(|&v| v.to_bits() == first.to_bits()) {
         Slot::Constant(first)
     } else {
-        let off = out.len() as u32;
-        out.extend_from_slice(values);
-        Slot::Dense(off)
+        let off = out.len();
+        out.resize(off + LEAF_VOXELS, 0.0);
+        let brick = &mut out[off..];
+        for x in 0..8 {
+            for y in 0..8 {
+                for z in 0..8 {
+                    brick[brick_offset(x, y, z)] = values[leaf_offset(x, y, z)];
+                }
+            }
+        }
+        Slot::Dense(off as u32)
     }
 }
 
@@ -386,6 +411,27 @@ impl Volume {
         match (brick.density, brick.source) {
             (Slot::Constant(d), Slot::Constant(s)) => Some((d, s)),
             _ => None,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::brick_offset;
+
+    #[test]
+    fn brick_offset_is_a_bijection_with_cache_line_blocks() {
+        let mut seen = [false; 512];
+        for x in 0..8 {
+            for y in 0..8 {
+                for z in 0..8 {
+                    let o = brick_offset(x, y, z);
+                    assert!(!seen[o]);
+                    seen[o] = true;
+                    // 16 floats per 64-byte line: a 2×2×4 block shares a line.
+                    assert_eq!(o / 16, brick_offset(x & !1, y & !1, z & !3) / 16);
+                }
+            }
         }
     }
 }

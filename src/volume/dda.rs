@@ -5,7 +5,7 @@
 //! `t` with the world ray, so crossings are world distances even under non-uniform scale
 //! or shear (METHOD.md §1). Voxel `k` spans `[k−½, k+½]` along each axis.
 //!
-//! On entering a brick the DDA asks the pyramid, coarsest level first, for the largest
+//! On entering a brick the DDA asks the pyramid for the largest
 //! node around the current voxel that is *uniform* (constant in both channels, zero
 //! included); such a node is crossed as one segment. Otherwise the brick is dense and
 //! the DDA steps voxel by voxel (Amanatides & Woo 1987) until it leaves the brick.
@@ -41,6 +41,13 @@ pub struct VolumeSegments<'a> {
     o: DVec3,
     d: DVec3,
     inv_d: DVec3,
+    /// Per axis: `+1`/`−1` voxel step, 0 for a zero component.
+    step: IVec3,
+    /// Per axis: offset of the exit face from the voxel centre (`±½`).
+    face: DVec3,
+    /// Per axis: parameter of the current voxel's exit face (+∞ for a zero component);
+    /// valid while stepping through a dense brick.
+    t_next: DVec3,
     t: f64,
     t_end: f64,
     ijk: IVec3,
@@ -60,11 +67,19 @@ impl<'a> VolumeSegments<'a> {
             if d.y != 0.0 { 1.0 / d.y } else { 0.0 },
             if d.z != 0.0 { 1.0 / d.z } else { 0.0 },
         );
+        let step = IVec3::new(
+            (d.x > 0.0) as i32 - (d.x < 0.0) as i32,
+            (d.y > 0.0) as i32 - (d.y < 0.0) as i32,
+            (d.z > 0.0) as i32 - (d.z < 0.0) as i32,
+        );
         let mut it = VolumeSegments {
             volume,
             o,
             d,
             inv_d,
+            step,
+            face: step.as_dvec3() * 0.5,
+            t_next: DVec3::INFINITY,
             t: 0.0,
             t_end: 0.0,
             ijk: IVec3::ZERO,
@@ -102,6 +117,17 @@ impl<'a> VolumeSegments<'a> {
             f64::INFINITY
         } else {
             (b - self.o[a]) * self.inv_d[a]
+        }
+    }
+
+    /// Parameter at which the ray leaves the current voxel `ijk` on axis `a` (+∞ if it
+    /// never does). Computed from the integer index, so it never drifts.
+    #[inline]
+    fn face_crossing(&self, a: usize) -> f64 {
+        if self.step[a] == 0 {
+            f64::INFINITY
+        } else {
+            (f64::from(self.ijk[a]) + self.face[a] - self.o[a]) * self.inv_d[a]
         }
     }
 
@@ -147,22 +173,15 @@ impl<'a> VolumeSegments<'a> {
                 let l = self.ijk - origin;
                 density = Volume::slot_value(&self.volume.density_values, brick.density, l.x, l.y, l.z);
                 source = Volume::slot_value(&self.volume.source_values, brick.source, l.x, l.y, l.z);
-                let mut ta = [f64::INFINITY; 3];
-                for (a, t) in ta.iter_mut().enumerate() {
-                    if self.d[a] > 0.0 {
-                        *t = self.crossing(a, f64::from(self.ijk[a]) + 0.5);
-                    } else if self.d[a] < 0.0 {
-                        *t = self.crossing(a, f64::from(self.ijk[a]) - 0.5);
-                    }
-                }
-                t_exit = ta[0].min(ta[1]).min(ta[2]);
+                t_exit = self.t_next.x.min(self.t_next.y).min(self.t_next.z);
                 for a in 0..3 {
-                    if ta[a] == t_exit {
-                        self.ijk[a] += if self.d[a] > 0.0 { 1 } else { -1 };
+                    if self.t_next[a] == t_exit {
+                        self.ijk[a] += self.step[a];
+                        self.t_next[a] = self.face_crossing(a);
                     }
                 }
                 let l = self.ijk - origin;
-                if l.cmplt(IVec3::ZERO).any() || l.cmpge(IVec3::splat(BRICK)).any() {
+                if (l.x as u32 | l.y as u32 | l.z as u32) >= BRICK as u32 {
                     self.brick = None;
                 }
             } else {
@@ -179,14 +198,19 @@ impl<'a> VolumeSegments<'a> {
                 }
                 let rel = bc - self.volume.brick_lo;
                 let levels = &self.volume.pyramid.levels;
+                // Coarsest uniform node around the voxel. A uniform node's children are
+                // uniform with the same values, so a non-uniform brick settles it in one
+                // lookup; otherwise search from the top for the coarsest uniform level.
                 let mut uniform = None;
-                for k in (0..levels.len()).rev() {
-                    let nc = rel >> (k as i32);
-                    let node = levels[k].get(nc);
-                    if node.is_uniform() {
-                        let lo = (self.volume.brick_lo + (nc << (k as i32))) * BRICK;
-                        uniform = Some((lo, BRICK << k, node.density_max, node.source_max));
-                        break;
+                if levels[0].get(rel).is_uniform() {
+                    for (k, level) in levels.iter().enumerate().rev() {
+                        let nc = rel >> (k as i32);
+                        let node = level.get(nc);
+                        if node.is_uniform() {
+                            let lo = (self.volume.brick_lo + (nc << (k as i32))) * BRICK;
+                            uniform = Some((lo, BRICK << k, node.density_max, node.source_max));
+                            break;
+                        }
                     }
                 }
                 match uniform {
@@ -199,6 +223,7 @@ impl<'a> VolumeSegments<'a> {
                     None => {
                         let brick = *self.volume.brick(bc).expect("invariant: non-uniform cell has a brick");
                         self.brick = Some((brick, bc * BRICK));
+                        self.t_next = DVec3::new(self.face_crossing(0), self.face_crossing(1), self.face_crossing(2));
                         continue;
                     }
                 }

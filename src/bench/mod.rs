@@ -1,0 +1,4 @@
+//! Benchmarks (`plume bench …`): speed and memory figures are measured here, never in
+//! timed tests (STYLE.md §8). Each prints a table and can write JSON.
+
+pub mod core;

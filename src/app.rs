@@ -16,8 +16,6 @@ use crate::cli::{
 use crate::color::Rgb;
 use crate::error::{Error, Result};
 use crate::integrator::{Integrator, LightSampling, Lights, LineTrace, MisHeuristic, Scene};
-use crate::light::nee::EmitterDistribution;
-use crate::volume::proxy::ProxyGrid;
 use crate::medium::{Convention, Emission, EmissionKind, Estimator, Medium, TemperatureMap};
 use crate::render::{render, RenderSettings, SampleBudget};
 use crate::stats::{cpu_seconds, peak_rss_bytes, RenderStats};
@@ -240,15 +238,11 @@ pub fn load_scene(args: &RenderArgs) -> Result<LoadedScene> {
     let medium = Medium { sigma_t: args.density_scale, albedo: args.albedo, g: args.g, emission };
     // Light-sampling structures, only for the technique in use and only when paths scatter
     let (_, light_sampling) = method(args);
-    let power = |d: f32, s: f32| f64::from(emission.le(d, s).luminance().max(0.0));
-    let mut lights = Lights::default();
-    if args.albedo > 0.0 && args.max_depth > 0 {
-        match light_sampling {
-            LightSampling::Fnee => lights.proxy = ProxyGrid::build(&volume, args.proxy_resolution, power)?,
-            LightSampling::Nee => lights.nee = EmitterDistribution::build(&volume, power)?,
-            LightSampling::None => {}
-        }
-    }
+    let lights = if args.albedo > 0.0 && args.max_depth > 0 {
+        Lights::build(&volume, &emission, light_sampling, args.proxy_resolution)?
+    } else {
+        Lights::default()
+    };
     Ok(LoadedScene {
         scene: Scene { field: volume, medium, camera, lights },
         emission_kind: kind,

@@ -87,6 +87,28 @@ pub struct Lights {
     pub proxy: Option<ProxyGrid>,
 }
 
+impl Lights {
+    /// Build what `light_sampling` needs over `volume`, with cell/voxel power = luminance
+    /// of the emission density (`Y(L_e)`, METHOD §7). Nothing for `None`, or when nothing
+    /// emits.
+    ///
+    /// # Errors
+    /// An invalid proxy resolution (`--proxy-resolution`) or invalid emission power.
+    pub fn build(
+        volume: &crate::volume::Volume,
+        emission: &crate::medium::Emission,
+        light_sampling: LightSampling,
+        proxy_resolution: u32,
+    ) -> crate::error::Result<Lights> {
+        let power = |d: f32, s: f32| f64::from(emission.le(d, s).luminance().max(0.0));
+        Ok(match light_sampling {
+            LightSampling::None => Lights::default(),
+            LightSampling::Nee => Lights { nee: EmitterDistribution::build(volume, power)?, proxy: None },
+            LightSampling::Fnee => Lights { nee: None, proxy: ProxyGrid::build(volume, proxy_resolution, power)? },
+        })
+    }
+}
+
 /// The path integrator and its settings.
 #[derive(Clone, Copy, Debug)]
 pub struct Integrator {

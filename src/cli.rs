@@ -40,6 +40,44 @@ pub enum BenchCommand {
     /// Core renderer figures: DDA voxel steps/s per core, parallel speed-up, time to first
     /// sample, brick memory vs raw voxel data.
     Core(BenchCoreArgs),
+    /// The paper's equal-time comparison of methods on thin and dense generated
+    /// explosions: RMSE against a converged reference, spp, core-hours.
+    Methods(BenchMethodsArgs),
+}
+
+/// `plume bench methods`.
+#[derive(Debug, Args)]
+pub struct BenchMethodsArgs {
+    /// Explosion resolution.
+    #[arg(long, default_value_t = 64)]
+    pub resolution: u32,
+    /// Image width.
+    #[arg(long, default_value_t = 160)]
+    pub width: u32,
+    /// Image height.
+    #[arg(long, default_value_t = 120)]
+    pub height: u32,
+    /// Seconds per method.
+    #[arg(long, default_value_t = 10.0)]
+    pub time: f64,
+    /// Seconds for each reference render.
+    #[arg(long, default_value_t = 120.0)]
+    pub reference_time: f64,
+    /// MIS heuristic of the compared methods.
+    #[arg(long, value_enum, default_value_t = MisArg::Power)]
+    pub mis: MisArg,
+    /// FNEE proxy resolution of the compared methods.
+    #[arg(long, default_value_t = 64)]
+    pub proxy_resolution: u32,
+    /// Regimes as NAME=DENSITY_SCALE, comma-separated.
+    #[arg(long, default_value = "thin=1,dense=20")]
+    pub regimes: String,
+    /// Threads (0 = all cores).
+    #[arg(long, default_value_t = 0)]
+    pub threads: usize,
+    /// Also write the results as JSON here.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
 }
 
 /// `plume bench core`.

@@ -2,3 +2,4 @@
 //! timed tests (STYLE.md §8). Each prints a table and can write JSON.
 
 pub mod core;
+pub mod methods;

@@ -1,0 +1,135 @@
+//! `plume bench methods`: the paper's equal-time comparison (METHOD.md §9) on generated
+//! explosions, "thin" and "dense".
+//!
+//! For each regime: a converged reference (a long `line-fnee` render with its own seed),
+//! then every method for the same wall time on the same threads (so equal CPU time),
+//! reporting RMSE against the reference (over all RGB values), spp reached, samples per
+//! CPU second and core-hours. The ratio `RMSE(line-fnee) / RMSE(point-nee)` is the
+//! paper's figure (0.76 thin, 0.64 dense in the authors' slides).
+
+use std::time::Instant;
+
+use glam::DVec3;
+use serde::Serialize;
+
+use crate::camera::Camera;
+use crate::color::Rgb;
+use crate::error::Result;
+use crate::integrator::{Integrator, LightSampling, Lights, MisHeuristic, Scene};
+use crate::medium::{Convention, Emission, EmissionKind, Estimator, Medium, TemperatureMap};
+use crate::render::{render, RenderSettings, SampleBudget};
+use crate::stats::cpu_seconds;
+use crate::synth::{explosion, ExplosionParams};
+use crate::volume::{Field, Volume};
+
+/// The methods compared, as (name, estimator, light sampling).
+pub const METHODS: [(&str, Estimator, LightSampling); 4] = [
+    ("point-nee", Estimator::Point, LightSampling::Nee),
+    ("line-nee", Estimator::Line, LightSampling::Nee),
+    ("line-fnee", Estimator::Line, LightSampling::Fnee),
+    ("ray-march", Estimator::RayMarch, LightSampling::None),
+];
+
+/// One method's result in one regime.
+#[derive(Debug, Serialize)]
+pub struct MethodResult {
+    /// Regime (`thin` or `dense`).
+    pub regime: String,
+    /// Method name.
+    pub method: String,
+    /// RMSE against the reference, all RGB values.
+    pub rmse: f64,
+    /// Samples per pixel reached.
+    pub spp: u64,
+    /// Camera samples per CPU second.
+    pub samples_per_cpu_second: f64,
+    /// CPU core-hours spent.
+    pub core_hours: f64,
+}
+
+/// Everything `plume bench methods` measured.
+#[derive(Debug, Serialize)]
+pub struct MethodsReport {
+    /// Explosion resolution.
+    pub resolution: u32,
+    /// Image size.
+    pub width: u32,
+    /// Image size.
+    pub height: u32,
+    /// Seconds per method.
+    pub seconds_per_method: f64,
+    /// Reference spp per regime.
+    pub reference_spp: Vec<(String, u64)>,
+    /// Results.
+    pub results: Vec<MethodResult>,
+}
+
+fn scene(resolution: u32, sigma_t: f64, ls: LightSampling, width: u32, height: u32, proxy: u32) -> Result<Scene<Volume>> {
+    let ex = explosion(&ExplosionParams { resolution, seed: 1, ..Default::default() });
+    let e = Emission { kind: EmissionKind::Blackbody, convention: Convention::Physical, scale: 1.0, color: Rgb::ONE, temperature_map: TemperatureMap::Kelvin, cutoff_kelvin: 500.0 };
+    let vol = Volume::build(&ex.density, Some(&ex.temperature), |v| e.map_source(v))?;
+    let lights = Lights::build(&vol, &e, ls, proxy.min(resolution.next_power_of_two()))?;
+    let (lo, hi) = vol.world_bounds();
+    let camera = Camera::frame_bounds(lo, hi, DVec3::new(0.35, 0.25, 1.0), DVec3::Y, 40.0, width, height)?;
+    Ok(Scene { field: vol, medium: Medium { sigma_t, albedo: 0.8, g: 0.3, emission: e }, camera, lights })
+}
+
+fn integrator(estimator: Estimator, light_sampling: LightSampling, mis: MisHeuristic) -> Integrator {
+    Integrator { estimator, light_sampling, mis, max_depth: 64, environment: None }
+}
+
+/// RMSE between two images over all RGB values.
+#[must_use]
+pub fn rmse(a: &[[f32; 4]], b: &[[f32; 4]]) -> f64 {
+    let n = (a.len() * 3) as f64;
+    let s: f64 = a.iter().zip(b).flat_map(|(p, q)| (0..3).map(move |c| (f64::from(p[c]) - f64::from(q[c])).powi(2))).sum();
+    (s / n).sqrt()
+}
+
+/// Run the comparison.
+///
+/// # Errors
+/// Scene construction failures (not expected for generated data).
+#[allow(clippy::too_many_arguments)] // one flag each
+pub fn run(resolution: u32, width: u32, height: u32, seconds: f64, reference_seconds: f64, threads: usize, mis: MisHeuristic, proxy: u32, regimes: &[(&str, f64)], on_line: &dyn Fn(&str)) -> Result<MethodsReport> {
+    let mut results = Vec::new();
+    let mut reference_spp = Vec::new();
+    for &(regime, sigma_t) in regimes {
+        let s = scene(resolution, sigma_t, LightSampling::Fnee, width, height, 64)?;
+        let t = Instant::now();
+        let reference = render(&s, &RenderSettings { budget: SampleBudget::Time(reference_seconds), seed: 1_000_003, threads, first_sample: 0, integrator: integrator(Estimator::Line, LightSampling::Fnee, MisHeuristic::Power) }, &|_, _| {});
+        on_line(&format!("{regime}: reference line-fnee {} spp in {:.0} s", reference.spp, t.elapsed().as_secs_f64()));
+        reference_spp.push((regime.to_string(), reference.spp));
+        let ref_px = reference.film.average(reference.spp);
+        for (name, est, ls) in METHODS {
+            let s = scene(resolution, sigma_t, ls, width, height, proxy)?;
+            let cpu0 = cpu_seconds();
+            let r = render(&s, &RenderSettings { budget: SampleBudget::Time(seconds), seed: 7, threads, first_sample: 0, integrator: integrator(est, ls, mis) }, &|_, _| {});
+            let cpu = cpu_seconds() - cpu0;
+            let res = MethodResult {
+                regime: regime.into(),
+                method: name.into(),
+                rmse: rmse(&r.film.average(r.spp), &ref_px),
+                spp: r.spp,
+                samples_per_cpu_second: r.counters.samples as f64 / cpu.max(1e-9),
+                core_hours: cpu / 3600.0,
+            };
+            on_line(&format!("{regime}: {name}: RMSE {:.5} at {} spp", res.rmse, res.spp));
+            results.push(res);
+        }
+    }
+    Ok(MethodsReport { resolution, width, height, seconds_per_method: seconds, reference_spp, results })
+}
+
+impl std::fmt::Display for MethodsReport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        writeln!(f, "Equal time ({:.0} s per method), {}³ explosion, {}x{}:", self.seconds_per_method, self.resolution, self.width, self.height)?;
+        writeln!(f, "| regime | method | RMSE | RMSE / point-nee | spp | samples per CPU s | core-hours |")?;
+        writeln!(f, "|---|---|---|---|---|---|---|")?;
+        for r in &self.results {
+            let base = self.results.iter().find(|b| b.regime == r.regime && b.method == "point-nee").map_or(f64::NAN, |b| b.rmse);
+            writeln!(f, "| {} | {} | {:.5} | {:.2} | {} | {:.0} | {:.5} |", r.regime, r.method, r.rmse, r.rmse / base, r.spp, r.samples_per_cpu_second, r.core_hours)?;
+        }
+        Ok(())
+    }
+}

@@ -373,7 +373,7 @@ fn render_command(args: &RenderArgs, command_line: &str) -> Result<()> {
     let bar = if !quiet && std::io::stderr().is_terminal() {
         let total = match settings.budget {
             SampleBudget::Spp(n) => u64::from(n),
-            SampleBudget::Time(_) => 0,
+            SampleBudget::Time(_) | SampleBudget::CpuTime(_) => 0,
         };
         let pb = if total > 0 { ProgressBar::new(total) } else { ProgressBar::new_spinner() };
         pb.set_style(

@@ -57,7 +57,7 @@ pub struct BenchMethodsArgs {
     /// Image height.
     #[arg(long, default_value_t = 120)]
     pub height: u32,
-    /// Seconds per method.
+    /// CPU seconds per method (equal CPU time).
     #[arg(long, default_value_t = 10.0)]
     pub time: f64,
     /// Seconds for each reference render.

@@ -21,6 +21,9 @@ pub enum SampleBudget {
     Spp(u32),
     /// Whole 1-spp passes until this many seconds are spent (at least one pass).
     Time(f64),
+    /// Whole 1-spp passes until the process has used this many CPU seconds more (at least
+    /// one pass): equal-CPU-time comparisons on a shared machine.
+    CpuTime(f64),
 }
 
 /// Settings of one render, validated once.
@@ -100,8 +103,10 @@ pub fn render<F: Field>(scene: &Scene<F>, settings: &RenderSettings, on_pass: &(
     let mut done: u64 = 0;
     let total = match settings.budget {
         SampleBudget::Spp(n) => u64::from(n),
-        SampleBudget::Time(_) => 0,
+        SampleBudget::Time(_) | SampleBudget::CpuTime(_) => 0,
     };
+    let cpu_start = crate::stats::cpu_seconds();
+    let mut last_pass_cpu = 0.0;
     let mut last_pass = Duration::ZERO;
     loop {
         let pass = match settings.budget {
@@ -119,7 +124,14 @@ pub fn render<F: Field>(scene: &Scene<F>, settings: &RenderSettings, on_pass: &(
                 }
                 1
             }
+            SampleBudget::CpuTime(limit) => {
+                if done > 0 && crate::stats::cpu_seconds() - cpu_start + last_pass_cpu > limit {
+                    break;
+                }
+                1
+            }
         };
+        let pass_cpu_start = crate::stats::cpu_seconds();
         let first = settings.first_sample + done;
         let range = first..first + pass;
         let pass_start = Instant::now();
@@ -133,6 +145,7 @@ pub fn render<F: Field>(scene: &Scene<F>, settings: &RenderSettings, on_pass: &(
             counters.merge(c);
         }
         last_pass = pass_start.elapsed();
+        last_pass_cpu = crate::stats::cpu_seconds() - pass_cpu_start;
         done += pass;
         on_pass(done, total);
     }

@@ -2,7 +2,8 @@
 //! explosions, "thin" and "dense".
 //!
 //! For each regime: a converged reference (a long `line-fnee` render with its own seed),
-//! then every method for the same wall time on the same threads (so equal CPU time),
+//! then every method for the same CPU time (`SampleBudget::CpuTime`, so a loaded machine
+//! does not favour one method),
 //! reporting RMSE against the reference (over all RGB values), spp reached, samples per
 //! CPU second and core-hours. The ratio `RMSE(line-fnee) / RMSE(point-nee)` is the
 //! paper's figure (0.76 thin, 0.64 dense in the authors' slides).
@@ -56,7 +57,7 @@ pub struct MethodsReport {
     pub width: u32,
     /// Image size.
     pub height: u32,
-    /// Seconds per method.
+    /// CPU seconds per method.
     pub seconds_per_method: f64,
     /// Reference spp per regime.
     pub reference_spp: Vec<(String, u64)>,
@@ -104,7 +105,7 @@ pub fn run(resolution: u32, width: u32, height: u32, seconds: f64, reference_sec
         for (name, est, ls) in METHODS {
             let s = scene(resolution, sigma_t, ls, width, height, proxy)?;
             let cpu0 = cpu_seconds();
-            let r = render(&s, &RenderSettings { budget: SampleBudget::Time(seconds), seed: 7, threads, first_sample: 0, integrator: integrator(est, ls, mis) }, &|_, _| {});
+            let r = render(&s, &RenderSettings { budget: SampleBudget::CpuTime(seconds), seed: 7, threads, first_sample: 0, integrator: integrator(est, ls, mis) }, &|_, _| {});
             let cpu = cpu_seconds() - cpu0;
             let res = MethodResult {
                 regime: regime.into(),
@@ -123,7 +124,7 @@ pub fn run(resolution: u32, width: u32, height: u32, seconds: f64, reference_sec
 
 impl std::fmt::Display for MethodsReport {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        writeln!(f, "Equal time ({:.0} s per method), {}³ explosion, {}x{}:", self.seconds_per_method, self.resolution, self.width, self.height)?;
+        writeln!(f, "Equal CPU time ({:.0} CPU s per method), {}³ explosion, {}x{}:", self.seconds_per_method, self.resolution, self.width, self.height)?;
         writeln!(f, "| regime | method | RMSE | RMSE / point-nee | spp | samples per CPU s | core-hours |")?;
         writeln!(f, "|---|---|---|---|---|---|---|")?;
         for r in &self.results {

@@ -124,6 +124,20 @@ pub struct Integrator {
     pub environment: Option<Rgb>,
 }
 
+/// The MIS weight owed to a forward segment's emission.
+#[derive(Clone, Copy, Debug)]
+enum ForwardWeight {
+    /// No partner technique: full weight.
+    One,
+    /// Another technique carries this emission.
+    Zero,
+    /// FNEE partner: `w(p_phase, p_σ(ω))`, evaluated only if the segment collects emission.
+    Fnee {
+        /// Phase pdf of the segment's direction.
+        p_phase: f64,
+    },
+}
+
 #[inline]
 fn add(l: &mut [f64; 3], w: f64, e: [f64; 3]) {
     if w != 0.0 {
@@ -149,7 +163,9 @@ impl Integrator {
         let mut ray = *camera_ray;
         let mut alpha = 0.0;
         let mut depth = 0u32;
-        let mut w_fwd = 1.0f64;
+        // MIS weight of the current forward segment, evaluated only if it collects
+        // emission: `p_σ` needs a proxy walk, and the weight of a zero F is irrelevant.
+        let mut w_fwd = ForwardWeight::One;
         // Phase pdf of the direction of the current segment (None: camera ray).
         let mut segment_phase_pdf: Option<f64> = None;
         let scatters = m.albedo > 0.0 && self.max_depth > 0;
@@ -160,7 +176,15 @@ impl Integrator {
             let r = track(&scene.field, m, &ray, f64::INFINITY, self.estimator, need_collision, u, sampler);
             c.segments += u64::from(r.segments);
             // Add emission along the segment
-            let mut w = w_fwd;
+            let has_emission = r.emission.iter().any(|&v| v != 0.0);
+            let mut w = match w_fwd {
+                ForwardWeight::One => 1.0,
+                ForwardWeight::Zero => 0.0,
+                ForwardWeight::Fnee { p_phase } if has_emission => {
+                    lights.proxy.as_ref().map_or(1.0, |p| self.mis.weight(p_phase, p.direction_pdf(ray.origin, ray.direction)))
+                }
+                ForwardWeight::Fnee { .. } => 0.0,
+            };
             if let (true, Some(p_ph), Some(nee), DistanceSample::Collided { t, density, .. }) =
                 (point_nee, segment_phase_pdf, lights.nee.as_ref(), r.event)
             {
@@ -190,15 +214,21 @@ impl Integrator {
                     if let Some(proxy) = &lights.proxy {
                         let u_cell = sampler.next_f64();
                         let u_pos = [sampler.next_f64(), sampler.next_f64(), sampler.next_f64()];
-                        if let Some(ds) = proxy.sample_direction(x, u_cell, u_pos) {
+                        if let Some(wi) = proxy.sample_direction_only(x, u_cell, u_pos) {
                             c.fnee_samples += 1;
-                            let f = hg_pdf(m.g, ray.direction.dot(ds.direction));
-                            let w_l = self.mis.weight(ds.pdf, f);
                             let u2 = sampler.next_f64();
-                            let rl = track(&scene.field, m, &Ray { origin: x, direction: ds.direction }, f64::INFINITY, self.estimator, false, u2, sampler);
+                            let rl = track(&scene.field, m, &Ray { origin: x, direction: wi }, f64::INFINITY, self.estimator, false, u2, sampler);
                             c.segments += u64::from(rl.segments);
-                            add(&mut l, beta * f * w_l / ds.pdf, rl.emission);
-                            trace.event(|| format!("  fnee: dir {:?} p_sigma {} f {f} w {w_l} F {:?}", ds.direction, ds.pdf, rl.emission));
+                            // p_σ only when the free path collected emission
+                            if rl.emission.iter().any(|&v| v != 0.0) {
+                                let p_sigma = proxy.direction_pdf(x, wi);
+                                if p_sigma > 0.0 {
+                                    let f = hg_pdf(m.g, ray.direction.dot(wi));
+                                    let w_l = self.mis.weight(p_sigma, f);
+                                    add(&mut l, beta * f * w_l / p_sigma, rl.emission);
+                                    trace.event(|| format!("  fnee: dir {wi:?} p_sigma {p_sigma} f {f} w {w_l} F {:?}", rl.emission));
+                                }
+                            }
                         }
                     }
                 }
@@ -243,10 +273,12 @@ impl Integrator {
             ray = Ray { origin: x, direction: ps.direction };
             segment_phase_pdf = Some(ps.pdf);
             w_fwd = match self.light_sampling {
-                LightSampling::None => 1.0,
-                LightSampling::Fnee => lights.proxy.as_ref().map_or(1.0, |p| self.mis.weight(ps.pdf, p.direction_pdf(x, ps.direction))),
-                LightSampling::Nee if point_nee => 1.0, // weighted at the collision
-                LightSampling::Nee => if lights.nee.is_some() { 0.0 } else { 1.0 },
+                LightSampling::None => ForwardWeight::One,
+                LightSampling::Fnee if lights.proxy.is_some() => ForwardWeight::Fnee { p_phase: ps.pdf },
+                LightSampling::Fnee => ForwardWeight::One,
+                LightSampling::Nee if point_nee => ForwardWeight::One, // weighted at the collision
+                LightSampling::Nee if lights.nee.is_some() => ForwardWeight::Zero,
+                LightSampling::Nee => ForwardWeight::One,
             };
         }
         trace.event(|| format!("result L {l:?} alpha {alpha}"));

@@ -347,15 +347,21 @@ impl ProxyGrid {
     /// are events of probability zero, so dropping them keeps the estimator unbiased.
     #[must_use]
     pub fn sample_direction(&self, x_world: DVec3, u_cell: f64, u_pos: [f64; 3]) -> Option<DirectionSample> {
+        let direction = self.sample_direction_only(x_world, u_cell, u_pos)?;
+        let pdf = self.direction_pdf(x_world, direction);
+        (pdf > 0.0).then_some(DirectionSample { direction, pdf })
+    }
+
+    /// The direction of [`ProxyGrid::sample_direction`] without its pdf, for callers that
+    /// need `p_σ` only when the sample turns out to contribute (the pdf is then
+    /// [`ProxyGrid::direction_pdf`] of the same arguments, bit for bit). `None` when the
+    /// sampled point coincides with `x_world`.
+    #[must_use]
+    pub fn sample_direction_only(&self, x_world: DVec3, u_cell: f64, u_pos: [f64; 3]) -> Option<DVec3> {
         let y = self.sample_point(u_cell, u_pos).p_world;
         let v = y - x_world;
         let length = v.length();
-        if !(length > 0.0 && length.is_finite()) {
-            return None;
-        }
-        let direction = v / length;
-        let pdf = self.direction_pdf(x_world, direction);
-        (pdf > 0.0).then_some(DirectionSample { direction, pdf })
+        (length > 0.0 && length.is_finite()).then(|| v / length)
     }
 
     /// `p_σ(ω)`: density per unit solid angle with which [`ProxyGrid::sample_direction`]

@@ -31,8 +31,10 @@ pub struct Scene<F: Field> {
 pub struct Counters {
     /// Camera samples taken.
     pub samples: u64,
-    /// Segments visited by tracking.
+    /// Segments visited by tracking (after merging equal neighbours).
     pub segments: u64,
+    /// Voxel steps of all traversals (voxels crossed plus skipped pyramid nodes).
+    pub voxel_steps: u64,
     /// Real collisions sampled.
     pub collisions: u64,
     /// FNEE direction samples taken.
@@ -50,6 +52,7 @@ impl Counters {
     pub fn merge(&mut self, o: &Counters) {
         self.samples += o.samples;
         self.segments += o.segments;
+        self.voxel_steps += o.voxel_steps;
         self.collisions += o.collisions;
         self.fnee_samples += o.fnee_samples;
         self.nee_samples += o.nee_samples;

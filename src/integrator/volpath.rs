@@ -175,6 +175,7 @@ impl Integrator {
             let u = sampler.next_f64();
             let r = track(&scene.field, m, &ray, f64::INFINITY, self.estimator, need_collision, u, sampler);
             c.segments += u64::from(r.segments);
+            c.voxel_steps += r.voxel_steps;
             // Add emission along the segment
             let has_emission = r.emission.iter().any(|&v| v != 0.0);
             let mut w = match w_fwd {
@@ -219,6 +220,7 @@ impl Integrator {
                             let u2 = sampler.next_f64();
                             let rl = track(&scene.field, m, &Ray { origin: x, direction: wi }, f64::INFINITY, self.estimator, false, u2, sampler);
                             c.segments += u64::from(rl.segments);
+                            c.voxel_steps += rl.voxel_steps;
                             // p_σ only when the free path collected emission
                             if rl.emission.iter().any(|&v| v != 0.0) {
                                 let p_sigma = proxy.direction_pdf(x, wi);
@@ -244,7 +246,7 @@ impl Integrator {
                             let dist = r2.sqrt();
                             let wi = d / dist;
                             let (od, n) = optical_depth(&scene.field, m, &Ray { origin: x, direction: wi }, dist, 745.0);
-                            c.segments += u64::from(n);
+                            c.voxel_steps += n;
                             let tau = (-od).exp();
                             if tau > 0.0 {
                                 let (dy, sy) = scene.field.values_at(vs.p_world);

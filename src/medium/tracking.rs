@@ -19,7 +19,7 @@
 use crate::color::Rgb;
 use crate::medium::Medium;
 use crate::sampling::Sampler;
-use crate::volume::field::{Field, Ray};
+use crate::volume::field::{Field, Ray, SegmentIter};
 
 /// Emission estimator along a free-path segment.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -69,6 +69,8 @@ pub struct TrackResult {
     pub optical_depth: f64,
     /// Segments visited.
     pub segments: u32,
+    /// Voxel steps of the traversal (see [`SegmentIter::voxel_steps`]).
+    pub voxel_steps: u64,
 }
 
 /// Transmittance below which the ray-march estimator plays Russian roulette.
@@ -124,7 +126,8 @@ fn track_free_path<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, 
     let mut od = 0.0f64;
     let mut f = [0.0f64; 3];
     let mut segments = 0u32;
-    for seg in field.segments(ray, 0.0, t_max) {
+    let mut it = field.segments(ray, 0.0, t_max);
+    for seg in it.by_ref() {
         segments += 1;
         let mu = medium.mu_t(seg.density);
         let len = seg.length();
@@ -143,7 +146,7 @@ fn track_free_path<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, 
                 Estimator::RayMarch => unreachable!("ray-march is tracked by track_expected"),
             }
             let event = DistanceSample::Collided { t, density: seg.density, source: seg.source };
-            return TrackResult { event, emission: f, transmittance: 0.0, optical_depth: e, segments };
+            return TrackResult { event, emission: f, transmittance: 0.0, optical_depth: e, segments, voxel_steps: it.voxel_steps() };
         }
         od += x;
         // Add emission along the whole segment
@@ -153,7 +156,7 @@ fn track_free_path<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, 
             _ => {}
         }
     }
-    TrackResult { event: DistanceSample::Escaped, emission: f, transmittance: 1.0, optical_depth: od, segments }
+    TrackResult { event: DistanceSample::Escaped, emission: f, transmittance: 1.0, optical_depth: od, segments, voxel_steps: it.voxel_steps() }
 }
 
 fn track_expected<F: Field>(
@@ -172,7 +175,8 @@ fn track_expected<F: Field>(
     let mut segments = 0u32;
     let mut event = DistanceSample::Escaped;
     let mut marching = true;
-    for seg in field.segments(ray, 0.0, t_max) {
+    let mut it = field.segments(ray, 0.0, t_max);
+    for seg in it.by_ref() {
         segments += 1;
         let mu = medium.mu_t(seg.density);
         let len = seg.length();
@@ -206,20 +210,20 @@ fn track_expected<F: Field>(
     }
     let transmittance = if marching { (-od).exp() * weight } else { 0.0 };
     let optical_depth = if matches!(event, DistanceSample::Collided { .. }) { e } else { od };
-    TrackResult { event, emission: f, transmittance, optical_depth, segments }
+    TrackResult { event, emission: f, transmittance, optical_depth, segments, voxel_steps: it.voxel_steps() }
 }
 
 /// Exact optical depth along `ray` over `[0, t_max]` (for shadow rays: `τ = e^{−OD}`).
 /// Stops early once OD exceeds `od_stop` (then `τ` is negligible anyway).
-pub fn optical_depth<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, od_stop: f64) -> (f64, u32) {
+/// Returns `(OD, voxel steps)`.
+pub fn optical_depth<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, od_stop: f64) -> (f64, u64) {
     let mut od = 0.0;
-    let mut n = 0;
-    for seg in field.segments(ray, 0.0, t_max) {
-        n += 1;
+    let mut it = field.segments(ray, 0.0, t_max);
+    for seg in it.by_ref() {
         od += medium.mu_t(seg.density) * seg.length();
         if od > od_stop {
             break;
         }
     }
-    (od, n)
+    (od, it.voxel_steps())
 }

@@ -23,7 +23,7 @@
 use glam::{DVec3, IVec3};
 
 use super::brick::{Brick, Volume, BRICK};
-use super::field::{clip_to_box, Field, Ray, Segment};
+use super::field::{clip_to_box, Field, Ray, Segment, SegmentIter};
 
 /// Voxel containing coordinate `p` along an axis moving in direction `d`; on a boundary,
 /// the voxel being entered.
@@ -260,6 +260,12 @@ impl Iterator for VolumeSegments<'_> {
                 }
             }
         }
+    }
+}
+
+impl SegmentIter for VolumeSegments<'_> {
+    fn voxel_steps(&self) -> u64 {
+        self.raw_steps
     }
 }
 

@@ -53,10 +53,45 @@ impl Ray {
     }
 }
 
+/// A segment iterator that can say how much traversal work it did.
+pub trait SegmentIter: Iterator<Item = Segment> {
+    /// Cells the traversal stepped through so far (voxel steps plus skipped nodes for a
+    /// [`crate::volume::Volume`]; segments for analytic fields).
+    fn voxel_steps(&self) -> u64;
+}
+
+/// Segments of analytic fields, precomputed.
+#[derive(Debug)]
+pub struct VecSegments {
+    inner: std::vec::IntoIter<Segment>,
+    taken: u64,
+}
+
+impl From<Vec<Segment>> for VecSegments {
+    fn from(v: Vec<Segment>) -> Self {
+        VecSegments { inner: v.into_iter(), taken: 0 }
+    }
+}
+
+impl Iterator for VecSegments {
+    type Item = Segment;
+    fn next(&mut self) -> Option<Segment> {
+        let s = self.inner.next();
+        self.taken += u64::from(s.is_some());
+        s
+    }
+}
+
+impl SegmentIter for VecSegments {
+    fn voxel_steps(&self) -> u64 {
+        self.taken
+    }
+}
+
 /// A piecewise-constant scalar volume that can be traversed along rays.
 pub trait Field: Sync {
     /// Iterator type returned by [`Field::segments`].
-    type Segments<'a>: Iterator<Item = Segment>
+    type Segments<'a>: SegmentIter
     where
         Self: 'a;
 
@@ -124,7 +159,7 @@ pub struct Constant {
 }
 
 impl Field for Constant {
-    type Segments<'a> = std::option::IntoIter<Segment>;
+    type Segments<'a> = VecSegments;
 
     fn world_bounds(&self) -> (DVec3, DVec3) {
         (self.lo, self.hi)
@@ -134,6 +169,8 @@ impl Field for Constant {
         clip_to_box(ray.origin, ray.direction, self.lo, self.hi, t_min, t_max)
             .map(|(t0, t1)| Segment { t0, t1, density: self.density, source: self.source })
             .into_iter()
+            .collect::<Vec<_>>()
+            .into()
     }
 
     fn values_at(&self, p: DVec3) -> (f32, f32) {
@@ -154,7 +191,7 @@ pub struct Strip {
 }
 
 impl Field for Strip {
-    type Segments<'a> = std::vec::IntoIter<Segment>;
+    type Segments<'a> = VecSegments;
 
     fn world_bounds(&self) -> (DVec3, DVec3) {
         (self.lo, self.hi)
@@ -164,7 +201,7 @@ impl Field for Strip {
         let mut out = Vec::new();
         let Some((t0, t1)) = clip_to_box(ray.origin, ray.direction, self.lo, self.hi, t_min, t_max)
         else {
-            return out.into_iter();
+            return out.into();
         };
         let n = self.cells.len();
         let width = (self.hi.x - self.lo.x) / n as f64;
@@ -188,7 +225,7 @@ impl Field for Strip {
             out.push(Segment { t0: a, t1: b, density, source });
             a = b;
         }
-        out.into_iter()
+        out.into()
     }
 
     fn values_at(&self, p: DVec3) -> (f32, f32) {

@@ -132,8 +132,8 @@ fn validate(args: &RenderArgs) -> Result<()> {
     if args.emission_color.min_element() < 0.0 {
         return Err(Error::invalid("--emission-color", "components must be ≥ 0"));
     }
-    if !(0.0..=1.0).contains(&args.albedo) {
-        return Err(Error::invalid("--albedo", format!("{} is not in [0, 1]", args.albedo)));
+    if !(0.0..=1.0).contains(&args.albedo()) {
+        return Err(Error::invalid("--albedo", format!("{} is not in [0, 1]", args.albedo())));
     }
     if !(args.g > -1.0 && args.g < 1.0) {
         return Err(Error::invalid("--g", format!("{} is not in (-1, 1)", args.g)));
@@ -234,7 +234,11 @@ pub fn load_scene(args: &RenderArgs) -> Result<LoadedScene> {
         temperature_map,
         cutoff_kelvin: args.temperature_cutoff,
     };
-    let volume = Volume::build(&density, source.as_ref(), |v| emission.map_source(v))?;
+    let albedo_grid = match &args.albedo_grid {
+        Some(name) => Some(vdb::read_float_grid(&args.file, &selector("--albedo-grid", name)?, &limits)?),
+        None => None,
+    };
+    let volume = Volume::build_with_albedo(&density, source.as_ref(), |v| emission.map_source(v), albedo_grid.as_ref())?;
     let up = args.camera_up.unwrap_or(match args.up_axis {
         UpAxis::Y => DVec3::Y,
         UpAxis::Z => DVec3::Z,
@@ -255,10 +259,10 @@ pub fn load_scene(args: &RenderArgs) -> Result<LoadedScene> {
             cam
         }
     };
-    let medium = Medium { sigma_t: args.density_scale, albedo: args.albedo, g: args.g, emission };
+    let medium = Medium { sigma_t: args.density_scale, albedo: args.albedo(), g: args.g, emission };
     // Light-sampling structures, only for the technique in use and only when paths scatter
     let (_, light_sampling) = method(args);
-    let lights = if args.albedo > 0.0 && args.max_depth > 0 {
+    let lights = if args.albedo() > 0.0 && args.max_depth > 0 {
         Lights::build(&volume, &emission, light_sampling, args.proxy_resolution)?
     } else {
         Lights::default()
@@ -305,7 +309,7 @@ pub fn integrator(args: &RenderArgs) -> Integrator {
             MisArg::Balance => MisHeuristic::Balance,
             MisArg::Power => MisHeuristic::Power,
         },
-        max_depth: if args.albedo > 0.0 { args.max_depth } else { 0 },
+        max_depth: if args.albedo() > 0.0 { args.max_depth } else { 0 },
         environment: args.environment.map(|e| {
             let e = e.as_vec3();
             Rgb([e.x, e.y, e.z])
@@ -333,6 +337,9 @@ fn render_command(args: &RenderArgs, command_line: &str) -> Result<()> {
     };
     if volume.report.density_clamped > 0 {
         warn(format!("{}: {} density voxels were NaN, infinite or negative and were set to 0", args.file.display(), volume.report.density_clamped));
+    }
+    if volume.report.albedo_clamped > 0 {
+        warn(format!("{}: {} albedo voxels were outside [0, 1] or NaN and were clamped", args.file.display(), volume.report.albedo_clamped));
     }
     if volume.report.source_invalid > 0 {
         warn(format!("{}: {} emission-source voxels were NaN, infinite or negative and were set to 0", args.file.display(), volume.report.source_invalid));

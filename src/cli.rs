@@ -206,6 +206,14 @@ pub enum UpAxis {
     Z,
 }
 
+impl RenderArgs {
+    /// The albedo scale: `--albedo`, else 1 with an albedo grid, else 0.
+    #[must_use]
+    pub fn albedo(&self) -> f32 {
+        self.albedo.unwrap_or(if self.albedo_grid.is_some() { 1.0 } else { 0.0 })
+    }
+}
+
 /// `plume render`.
 #[derive(Debug, Args)]
 // Negative numbers reach our validation, which names the flag and the allowed range.
@@ -266,9 +274,13 @@ pub struct RenderArgs {
     /// the data resolution).
     #[arg(long, default_value_t = 64)]
     pub proxy_resolution: u32,
-    /// Single-scattering albedo in [0, 1] (0: emission–absorption only).
-    #[arg(long, default_value_t = 0.0)]
-    pub albedo: f32,
+    /// Single-scattering albedo in [0, 1] (0: emission–absorption only). With
+    /// --albedo-grid it multiplies the grid (default 1 then).
+    #[arg(long)]
+    pub albedo: Option<f32>,
+    /// Per-voxel albedo grid (values clamped to [0, 1]), times --albedo.
+    #[arg(long)]
+    pub albedo_grid: Option<String>,
     /// Henyey–Greenstein asymmetry g in (−1, 1).
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     pub g: f64,

@@ -201,13 +201,17 @@ impl Integrator {
             if let Some(env) = self.environment {
                 add(&mut l, beta * r.transmittance, env.to_f64());
             }
-            let DistanceSample::Collided { t, .. } = r.event else { break };
+            let DistanceSample::Collided { t, albedo, .. } = r.event else { break };
             if !need_collision {
                 break;
             }
             c.collisions += 1;
             depth += 1;
-            beta *= f64::from(m.albedo);
+            // Scattering albedo of the collision's own segment (METHOD §10.3)
+            beta *= f64::from(m.albedo * albedo);
+            if beta == 0.0 {
+                break; // absorbed: nothing more to carry
+            }
             let x = ray.at(t);
             // Sample the volume light at x
             match self.light_sampling {

@@ -49,6 +49,8 @@ pub enum DistanceSample {
         density: f32,
         /// Source of that segment.
         source: f32,
+        /// Albedo factor of that segment.
+        albedo: f32,
     },
     /// No collision before `t_max` (or the field's end).
     Escaped,
@@ -145,7 +147,7 @@ fn track_free_path<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, 
                 }
                 Estimator::RayMarch => unreachable!("ray-march is tracked by track_expected"),
             }
-            let event = DistanceSample::Collided { t, density: seg.density, source: seg.source };
+            let event = DistanceSample::Collided { t, density: seg.density, source: seg.source, albedo: seg.albedo };
             return TrackResult { event, emission: f, transmittance: 0.0, optical_depth: e, segments, voxel_steps: it.voxel_steps() };
         }
         od += x;
@@ -183,7 +185,7 @@ fn track_expected<F: Field>(
         let x = mu * len;
         if need_collision && event == DistanceSample::Escaped && od + x > e {
             let t = (seg.t0 + (e - od) / mu).clamp(seg.t0, seg.t1);
-            event = DistanceSample::Collided { t, density: seg.density, source: seg.source };
+            event = DistanceSample::Collided { t, density: seg.density, source: seg.source, albedo: seg.albedo };
         }
         if marching {
             let mut tau = (-od).exp() * weight;

@@ -60,6 +60,8 @@ pub struct Brick {
     pub density: Slot,
     /// Emission source channel.
     pub source: Slot,
+    /// Albedo-factor channel (`Constant(1.0)` without an albedo grid).
+    pub albedo: Slot,
 }
 
 /// How input values were cleaned while building (METHOD policy: NaN, ±inf and negative
@@ -69,8 +71,10 @@ pub struct BuildReport {
     /// Density voxels that were NaN, infinite or negative, set to 0.
     pub density_clamped: u64,
     /// Source voxels that were NaN, infinite or negative (or below the emission cutoff after
-    /// mapping), set to 0. Voxels below the cutoff are not errors; see `source_cut`.
+    /// mapping), set to 0. Voxels below the cutoff are not errors.
     pub source_invalid: u64,
+    /// Albedo voxels outside `[0, 1]` (clamped) or NaN (set to 1).
+    pub albedo_clamped: u64,
 }
 
 /// A sparse brick volume in index space with its `world_from_index` transform.
@@ -87,6 +91,7 @@ pub struct Volume {
     pub(crate) bricks: Vec<Brick>,
     pub(crate) density_values: Vec<f32>,
     pub(crate) source_values: Vec<f32>,
+    pub(crate) albedo_values: Vec<f32>,
     pub(crate) pyramid: Pyramid,
     /// Input clean-up counts.
     pub report: BuildReport,
@@ -111,7 +116,21 @@ impl Volume {
         source: Option<&FloatGrid>,
         source_map: impl Fn(f32) -> f32 + Sync,
     ) -> Result<Volume> {
-        if let Some(s) = source {
+        Volume::build_with_albedo(density, source, source_map, None)
+    }
+
+    /// [`Volume::build`] with an optional albedo grid: its values, clamped to `[0, 1]`
+    /// (NaN → 1, counted), become a per-voxel albedo factor (1 outside its leaves).
+    ///
+    /// # Errors
+    /// As [`Volume::build`].
+    pub fn build_with_albedo(
+        density: &FloatGrid,
+        source: Option<&FloatGrid>,
+        source_map: impl Fn(f32) -> f32 + Sync,
+        albedo: Option<&FloatGrid>,
+    ) -> Result<Volume> {
+        for s in source.iter().chain(albedo.iter()) {
             let a = density.world_from_index;
             let b = s.world_from_index;
             let scale = a.matrix3.abs().to_cols_array().iter().fold(0.0f64, |m, v| m.max(*v));
@@ -127,6 +146,9 @@ impl Volume {
         let mut origins: Vec<IVec3> = density.origins.clone();
         if let Some(s) = source {
             origins.extend_from_slice(&s.origins);
+        }
+        if let Some(a) = albedo {
+            origins.extend_from_slice(&a.origins);
         }
         let index_from_world = density.world_from_index.inverse();
         if !index_from_world.is_finite() || density.world_from_index.matrix3.determinant() == 0.0 {
@@ -167,10 +189,17 @@ impl Volume {
                 src_leaf[cell(brick_of(o))] = i as u32;
             }
         }
+        let mut albedo_leaf = vec![NO_BRICK; if albedo.is_some() { entries as usize } else { 0 }];
+        if let Some(a) = albedo {
+            for (i, &o) in a.origins.iter().enumerate() {
+                albedo_leaf[cell(brick_of(o))] = i as u32;
+            }
+        }
         let mut table = vec![NO_BRICK; entries as usize];
         let mut bricks = Vec::new();
         let mut density_values = Vec::new();
         let mut source_values = Vec::new();
+        let mut albedo_values = Vec::new();
         let mut report = BuildReport::default();
         let mut scratch = [0.0f32; LEAF_VOXELS];
         let density_background = clean(density.background, &mut 0);
@@ -178,7 +207,8 @@ impl Volume {
         for idx in 0..entries as usize {
             let dl = dens_leaf[idx];
             let sl = src_leaf.get(idx).copied().unwrap_or(NO_BRICK);
-            if dl == NO_BRICK && sl == NO_BRICK {
+            let al = albedo_leaf.get(idx).copied().unwrap_or(NO_BRICK);
+            if dl == NO_BRICK && sl == NO_BRICK && al == NO_BRICK {
                 continue;
             }
             let density_slot = if dl == NO_BRICK {
@@ -198,8 +228,18 @@ impl Volume {
                 }
                 _ => Slot::Constant(source_background),
             };
+            let albedo_slot = match albedo {
+                Some(a) if al != NO_BRICK => {
+                    for (d, &v) in scratch.iter_mut().zip(a.leaf_values(al as usize)) {
+                        *d = clean_albedo(v, &mut report.albedo_clamped);
+                    }
+                    store(&scratch, &mut albedo_values)
+                }
+                Some(a) => Slot::Constant(clean_albedo(a.background, &mut 0)),
+                None => Slot::Constant(1.0),
+            };
             table[idx] = bricks.len() as u32;
-            bricks.push(Brick { density: density_slot, source: source_slot });
+            bricks.push(Brick { density: density_slot, source: source_slot, albedo: albedo_slot });
         }
         let mut volume = Volume {
             world_from_index: density.world_from_index,
@@ -210,6 +250,7 @@ impl Volume {
             bricks,
             density_values,
             source_values,
+            albedo_values,
             pyramid: Pyramid::default(),
             report,
         };
@@ -227,6 +268,7 @@ impl Volume {
             bricks: Vec::new(),
             density_values: Vec::new(),
             source_values: Vec::new(),
+            albedo_values: Vec::new(),
             pyramid: Pyramid::default(),
             report: BuildReport::default(),
         };
@@ -280,7 +322,7 @@ impl Volume {
     pub fn memory_bytes(&self) -> usize {
         self.table.len() * 4
             + self.bricks.len() * std::mem::size_of::<Brick>()
-            + (self.density_values.len() + self.source_values.len()) * 4
+            + (self.density_values.len() + self.source_values.len() + self.albedo_values.len()) * 4
             + self.pyramid.memory_bytes()
     }
 
@@ -326,6 +368,16 @@ impl Volume {
         }
     }
 
+    /// Albedo factor of voxel `ijk` (1 outside bricks or without an albedo grid).
+    #[must_use]
+    pub fn voxel_albedo(&self, ijk: IVec3) -> f32 {
+        let b = IVec3::new(floor_div(ijk.x, BRICK), floor_div(ijk.y, BRICK), floor_div(ijk.z, BRICK));
+        self.brick(b).map_or(1.0, |br| {
+            let l = ijk - b * BRICK;
+            Self::slot_value(&self.albedo_values, br.albedo, l.x, l.y, l.z)
+        })
+    }
+
     /// `(density, source)` at an index-space point: the voxel `⌊p + ½⌋`.
     #[must_use]
     pub fn lookup_index(&self, p_index: DVec3) -> (f32, f32) {
@@ -353,6 +405,17 @@ fn clean(v: f32, count: &mut u64) -> f32 {
     } else {
         *count += 1;
         0.0
+    }
+}
+
+/// Albedo factor: clamped to `[0, 1]`, NaN → 1; changed values are counted.
+#[inline]
+fn clean_albedo(v: f32, count: &mut u64) -> f32 {
+    if (0.0..=1.0).contains(&v) {
+        v
+    } else {
+        *count += 1;
+        if v.is_nan() { 1.0 } else { v.clamp(0.0, 1.0) }
     }
 }
 

@@ -167,12 +167,13 @@ impl<'a> VolumeSegments<'a> {
                 return None;
             }
             let t0 = self.t;
-            let (t_exit, density, source);
+            let (t_exit, density, source, albedo);
             if let Some((brick, origin)) = self.brick {
                 // Step one voxel of a dense brick
                 let l = self.ijk - origin;
                 density = Volume::slot_value(&self.volume.density_values, brick.density, l.x, l.y, l.z);
                 source = Volume::slot_value(&self.volume.source_values, brick.source, l.x, l.y, l.z);
+                albedo = if density > 0.0 { Volume::slot_value(&self.volume.albedo_values, brick.albedo, l.x, l.y, l.z) } else { 1.0 };
                 t_exit = self.t_next.x.min(self.t_next.y).min(self.t_next.z);
                 for a in 0..3 {
                     if self.t_next[a] == t_exit {
@@ -194,7 +195,7 @@ impl<'a> VolumeSegments<'a> {
                     // Left the table (only by rounding before t_end): the rest is empty.
                     self.done = true;
                     self.raw_steps += 1;
-                    return Some(Segment { t0, t1: self.t_end, density: 0.0, source: 0.0 });
+                    return Some(Segment { t0, t1: self.t_end, density: 0.0, source: 0.0, albedo: 1.0 });
                 }
                 let rel = bc - self.volume.brick_lo;
                 let levels = &self.volume.pyramid.levels;
@@ -208,16 +209,17 @@ impl<'a> VolumeSegments<'a> {
                         let node = level.get(nc);
                         if node.is_uniform() {
                             let lo = (self.volume.brick_lo + (nc << (k as i32))) * BRICK;
-                            uniform = Some((lo, BRICK << k, node.density_max, node.source_max));
+                            uniform = Some((lo, BRICK << k, node.density_max, node.source_max, node.uniform_albedo()));
                             break;
                         }
                     }
                 }
                 match uniform {
-                    Some((lo, size, dv, sv)) => {
+                    Some((lo, size, dv, sv, av)) => {
                         // Cross a constant (often empty) node in one step
                         density = dv;
                         source = sv;
+                        albedo = av;
                         t_exit = self.exit_box(lo, size);
                     }
                     None => {
@@ -232,7 +234,7 @@ impl<'a> VolumeSegments<'a> {
             if t1 > t0 {
                 self.t = t1;
                 self.raw_steps += 1;
-                return Some(Segment { t0, t1, density, source });
+                return Some(Segment { t0, t1, density, source, albedo });
             }
         }
         None
@@ -250,7 +252,10 @@ impl Iterator for VolumeSegments<'_> {
                 (Some(p), None) => return Some(p),
                 (None, Some(s)) => self.pending = Some(s),
                 (Some(mut p), Some(s)) => {
-                    if p.density.to_bits() == s.density.to_bits() && p.source.to_bits() == s.source.to_bits() {
+                    if p.density.to_bits() == s.density.to_bits()
+                        && p.source.to_bits() == s.source.to_bits()
+                        && p.albedo.to_bits() == s.albedo.to_bits()
+                    {
                         p.t1 = s.t1;
                         self.pending = Some(p);
                     } else {

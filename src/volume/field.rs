@@ -25,6 +25,9 @@ pub struct Segment {
     /// Emission source value: temperature in Kelvin after mapping and cutoff, or the
     /// emission grid's value. Zero means "emits nothing".
     pub source: f32,
+    /// Albedo factor of the albedo grid (1 without one); the medium's albedo multiplies
+    /// it. Meaningless, and 1, where `density` is 0.
+    pub albedo: f32,
 }
 
 impl Segment {
@@ -167,7 +170,7 @@ impl Field for Constant {
 
     fn segments(&self, ray: &Ray, t_min: f64, t_max: f64) -> Self::Segments<'_> {
         clip_to_box(ray.origin, ray.direction, self.lo, self.hi, t_min, t_max)
-            .map(|(t0, t1)| Segment { t0, t1, density: self.density, source: self.source })
+            .map(|(t0, t1)| Segment { t0, t1, density: self.density, source: self.source, albedo: 1.0 })
             .into_iter()
             .collect::<Vec<_>>()
             .into()
@@ -222,7 +225,7 @@ impl Field for Strip {
             let mid = ray.at(0.5 * (a + b)).x;
             let cell = (((mid - self.lo.x) / width).floor() as isize).clamp(0, n as isize - 1) as usize;
             let (density, source) = self.cells[cell];
-            out.push(Segment { t0: a, t1: b, density, source });
+            out.push(Segment { t0: a, t1: b, density, source, albedo: 1.0 });
             a = b;
         }
         out.into()

@@ -24,16 +24,31 @@ pub struct NodeBounds {
     pub source_min: f32,
     /// Largest source beneath.
     pub source_max: f32,
+    /// Smallest albedo factor beneath (over voxels with density > 0; 1 without any).
+    pub albedo_min: f32,
+    /// Largest albedo factor beneath (over voxels with density > 0; 1 without any).
+    pub albedo_max: f32,
 }
 
 impl NodeBounds {
-    const ZERO: NodeBounds = NodeBounds { density_min: 0.0, density_max: 0.0, source_min: 0.0, source_max: 0.0 };
+    const ZERO: NodeBounds =
+        NodeBounds { density_min: 0.0, density_max: 0.0, source_min: 0.0, source_max: 0.0, albedo_min: 1.0, albedo_max: 1.0 };
 
-    /// True when the node is constant in both channels.
+    /// True when the node is constant in every channel that matters: density, source,
+    /// and albedo where there is density (no collision happens where density is 0).
     #[inline]
     #[must_use]
     pub fn is_uniform(&self) -> bool {
-        self.density_min == self.density_max && self.source_min == self.source_max
+        self.density_min == self.density_max
+            && self.source_min == self.source_max
+            && (self.albedo_min == self.albedo_max || self.density_max == 0.0)
+    }
+
+    /// Albedo factor to report for a uniform node.
+    #[inline]
+    #[must_use]
+    pub fn uniform_albedo(&self) -> f32 {
+        if self.density_max == 0.0 { 1.0 } else { self.albedo_max }
     }
 
     fn union(self, o: NodeBounds) -> NodeBounds {
@@ -42,6 +57,8 @@ impl NodeBounds {
             density_max: self.density_max.max(o.density_max),
             source_min: self.source_min.min(o.source_min),
             source_max: self.source_max.max(o.source_max),
+            albedo_min: self.albedo_min.min(o.albedo_min),
+            albedo_max: self.albedo_max.max(o.albedo_max),
         }
     }
 }
@@ -80,6 +97,30 @@ fn slot_bounds(values: &[f32], slot: Slot) -> (f32, f32) {
     }
 }
 
+/// Albedo bounds of a brick over its voxels with density > 0 (`(1, 1)` if none).
+fn albedo_bounds(volume: &Volume, b: &super::brick::Brick) -> (f32, f32) {
+    if let Slot::Constant(a) = b.albedo {
+        let (_, dmax) = slot_bounds(&volume.density_values, b.density);
+        return if dmax > 0.0 { (a, a) } else { (1.0, 1.0) };
+    }
+    let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+    for i in 0..LEAF_VOXELS {
+        let d = match b.density {
+            Slot::Constant(v) => v,
+            Slot::Dense(off) => volume.density_values[off as usize + i],
+        };
+        if d > 0.0 {
+            let a = match b.albedo {
+                Slot::Constant(v) => v,
+                Slot::Dense(off) => volume.albedo_values[off as usize + i],
+            };
+            lo = lo.min(a);
+            hi = hi.max(a);
+        }
+    }
+    if lo > hi { (1.0, 1.0) } else { (lo, hi) }
+}
+
 impl Pyramid {
     /// Build all levels of `volume`'s pyramid.
     #[must_use]
@@ -93,7 +134,8 @@ impl Pyramid {
             if let Some(b) = volume.bricks.get(bi as usize) {
                 let (dmin, dmax) = slot_bounds(&volume.density_values, b.density);
                 let (smin, smax) = slot_bounds(&volume.source_values, b.source);
-                *node = NodeBounds { density_min: dmin, density_max: dmax, source_min: smin, source_max: smax };
+                let (amin, amax) = albedo_bounds(volume, b);
+                *node = NodeBounds { density_min: dmin, density_max: dmax, source_min: smin, source_max: smax, albedo_min: amin, albedo_max: amax };
             }
         }
         let mut levels = vec![base];

@@ -64,10 +64,11 @@ impl MisHeuristic {
     #[inline]
     #[must_use]
     pub fn weight(self, a: f64, b: f64) -> f64 {
-        if !(b > 0.0) || a == f64::INFINITY {
+        // NaN or non-positive pdfs count as "cannot sample this".
+        if b.is_nan() || b <= 0.0 || a == f64::INFINITY {
             return 1.0;
         }
-        if !(a > 0.0) || b == f64::INFINITY {
+        if a.is_nan() || a <= 0.0 || b == f64::INFINITY {
             return 0.0;
         }
         let r = b / a;

@@ -3,6 +3,13 @@
 //! ranges and merging them exactly, signals, time limits, exit codes, progress lines and
 //! per-frame cost records. See the README's "Render farms" and `ARCHITECTURE.md`.
 
+pub mod fingerprint;
+pub mod frame;
 pub mod frames;
+pub mod job;
+pub mod merge;
+pub mod part;
 pub mod pattern;
+pub mod progress;
+pub mod signals;
 pub mod split;

@@ -3,9 +3,10 @@
 //!
 //! - An output that is complete, with the same settings hash and samples, is skipped
 //!   (it must decode fully and carry plume's record; existing is not enough).
-//! - An output left by an interrupted or time-limited render of the same settings and
-//!   input is continued: its exact sums are loaded and only the missing samples are
-//!   rendered, so the result is bit-identical to an uninterrupted render.
+//! - An output of the same settings and input with exact sums and fewer samples than
+//!   asked (left by an interrupted or time-limited render, or rendered with `--sums` and
+//!   a smaller `--spp`) is continued: its sums are loaded and only the missing samples
+//!   are rendered, so the result is bit-identical to rendering them all at once.
 //! - Anything else at the output path is rendered anew.
 //!
 //! Outputs are written atomically, so SIGKILL at any moment leaves either the previous
@@ -62,11 +63,10 @@ pub fn render_frame(job: &Job<'_>, index: usize, frame: Option<i64>, command_lin
     let start = Instant::now();
     let cpu_at_start = cpu_seconds();
     reset_peak_rss();
-    let f = frame.unwrap_or(0);
-    let input = job.input.path(f);
-    let output = job.output.path(f);
-    let preview = job.preview.as_ref().map(|p| p.path(f));
-    let stats_path = job.stats.as_ref().map(|p| p.path(f));
+    let input = job.input.resolve(frame);
+    let output = job.output.resolve(frame);
+    let preview = job.preview.as_ref().map(|p| p.resolve(frame));
+    let stats_path = job.stats.as_ref().map(|p| p.resolve(frame));
     // Default seed: the frame number (two's complement for negative frames)
     let seed = args.seed.unwrap_or(frame.map_or(0, |f| f as u64));
     let (width, height) = (args.width, args.height);

@@ -189,8 +189,9 @@ pub enum Existing {
     Missing,
     /// Complete, with the same settings and samples: skip the frame.
     Complete(PartInfo),
-    /// An interrupted or time-limited render of the same settings, with exact sums and
-    /// fewer samples than asked: continue it (if the input is unchanged).
+    /// The same settings with exact sums and fewer samples than asked (an interrupted or
+    /// time-limited render, or a smaller budget rendered with `--sums`): continue it (if
+    /// the input is unchanged).
     Resumable(PartInfo, Vec<[i128; 4]>),
     /// Anything else (unreadable, truncated, other settings): render anew; the reason.
     Stale(String),
@@ -213,15 +214,24 @@ pub fn assess(path: &Path, expected: &Expected) -> Existing {
         return Existing::Stale(format!("holds pixels {} of {}x{}, not {} of {}x{}", info.crop, info.width, info.height, expected.crop, expected.width, expected.height));
     }
     let range = crate::farm::split::format_range;
-    match (info.status, &expected.samples) {
-        (Completion::Complete, None) => Existing::Complete(info),
-        (Completion::Complete, Some(r)) if info.samples == *r => Existing::Complete(info),
-        (Completion::Complete, Some(r)) => Existing::Stale(format!("holds samples {}, not {}", range(&info.samples), range(r))),
-        (_, Some(r)) if info.samples.start == r.start && info.samples.end < r.end => match contents.sums {
+    let Some(r) = &expected.samples else {
+        // A --time budget: any complete image will do; a partial one cannot be continued
+        return match info.status {
+            Completion::Complete => Existing::Complete(info),
+            status => Existing::Stale(format!("{} and a --time budget cannot be continued", status.as_str())),
+        };
+    };
+    if info.status == Completion::Complete && info.samples == *r {
+        Existing::Complete(info)
+    } else if info.samples.start == r.start && info.samples.end < r.end {
+        // Fewer samples than asked (interrupted, time-limited, or a smaller budget
+        // rendered with --sums): continue from the exact sums
+        match contents.sums {
             Some(sums) => Existing::Resumable(info, sums),
-            None => Existing::Stale("partial image without exact sums".into()),
-        },
-        (status, _) => Existing::Stale(format!("{} with samples {}, which cannot be continued", status.as_str(), range(&info.samples))),
+            None => Existing::Stale(format!("holds samples {} without exact sums (--sums), not {}", range(&info.samples), range(r))),
+        }
+    } else {
+        Existing::Stale(format!("{} with samples {}, not {}", info.status.as_str(), range(&info.samples), range(r)))
     }
 }
 

@@ -117,6 +117,13 @@ impl FramePattern {
         PathBuf::from(s)
     }
 
+    /// The path of `frame`, or the pattern taken literally without a frame (a run
+    /// without `--frames`).
+    #[must_use]
+    pub fn resolve(&self, frame: Option<i64>) -> PathBuf {
+        frame.map_or_else(|| self.original.clone(), |f| self.path(f))
+    }
+
     /// The pattern as given.
     #[must_use]
     pub fn as_path(&self) -> &Path {

@@ -180,7 +180,7 @@ pub fn render_frame(job: &Job<'_>, index: usize, frame: Option<i64>, command_lin
             pb.set_position(done);
         }
         let fraction = match settings.budget {
-            SampleBudget::Spp(_) => done as f64 / total.max(1) as f64,
+            SampleBudget::Spp(_) => (resumed_spp + done) as f64 / (resumed_spp + total).max(1) as f64,
             SampleBudget::Time(t) => render_start.elapsed().as_secs_f64() / t,
         };
         progress.pass(index, frame, resumed_spp + done, resumed_spp + total, fraction);

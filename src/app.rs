@@ -155,7 +155,7 @@ pub fn validate(args: &RenderArgs) -> Result<()> {
             return Err(Error::invalid("--exposure", "must be finite"));
         }
     }
-    if args.output.extension().is_none_or(|e| !e.eq_ignore_ascii_case("exr")) {
+    if !args.output.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr")) {
         return Err(Error::invalid("--output", format!("{} must end in .exr", args.output.display())));
     }
     Ok(())

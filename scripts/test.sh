@@ -5,4 +5,12 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 source scripts/setup.sh
 export PATH="$HOME/.cargo/bin:$PATH"
+# openjd-cli (PyPI) for the Open Job Description test in tests/farm.rs, installed the way a
+# user would, into a venv under target/. Without it that test skips with a loud message.
+venv="${CARGO_TARGET_DIR:-target}/openjd-venv"
+if [ ! -x "$venv/bin/openjd" ]; then
+    if ! { python3 -m venv "$venv" && "$venv/bin/python" -m pip install --quiet openjd-cli; }; then
+        echo "test.sh: WARNING: cannot install openjd-cli into $venv; the OpenJD test will be SKIPPED" >&2
+    fi
+fi
 cargo test --all-targets --no-fail-fast "$@"

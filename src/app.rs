@@ -1,12 +1,11 @@
-//! The commands behind the CLI: `render`, `info`, `synth`. `main.rs` only parses
-//! arguments, calls [`run`] and turns an error into a one-line message and exit code.
+//! The commands behind the CLI: `render` (its farm side, frames and outputs, is in
+//! `farm/`), `merge`, `info`, `synth`. `main.rs` only parses arguments, calls [`run`] and
+//! turns an error into a one-line message and exit code.
 
-use std::io::IsTerminal;
 use std::path::Path;
 use std::time::Instant;
 
 use glam::DVec3;
-use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::camera::Camera;
 use crate::cli::{
@@ -15,10 +14,8 @@ use crate::cli::{
 };
 use crate::color::Rgb;
 use crate::error::{Error, Result};
-use crate::integrator::{Integrator, LightSampling, Lights, LineTrace, MisHeuristic, Scene};
+use crate::integrator::{Integrator, LightSampling, Lights, MisHeuristic, Scene};
 use crate::medium::{Convention, Emission, EmissionKind, Estimator, Medium, TemperatureMap};
-use crate::render::{render, RenderSettings, SampleBudget};
-use crate::stats::{cpu_seconds, peak_rss_bytes, RenderStats};
 use crate::vdb::{self, FloatGrid, GridSelector, ReadLimits};
 use crate::volume::{Field, Volume};
 
@@ -32,7 +29,8 @@ pub const EMISSION_GRID_CANDIDATES: [&str; 4] = ["emission", "flame", "heat", "f
 /// Any input, argument or output error, with a message naming the file, grid or flag.
 pub fn run(cli: Cli, command_line: &str) -> Result<()> {
     match cli.command {
-        Command::Render(args) => render_command(&args, command_line),
+        Command::Render(args) => crate::farm::job::render_command(&args, command_line),
+        Command::Merge(args) => crate::farm::merge::merge_command(&args, command_line),
         Command::Info(args) => info_command(&args),
         Command::Bench(crate::cli::BenchCommand::Methods(args)) => {
             let mut regimes = Vec::new();
@@ -113,7 +111,10 @@ fn check_finite_nonneg(flag: &str, v: f64) -> Result<()> {
 }
 
 /// Validate the render flags that clap cannot.
-fn validate(args: &RenderArgs) -> Result<()> {
+///
+/// # Errors
+/// [`Error::InvalidArgument`] naming the flag.
+pub fn validate(args: &RenderArgs) -> Result<()> {
     if args.spp == Some(0) {
         return Err(Error::invalid("--spp", "must be at least 1"));
     }
@@ -154,7 +155,7 @@ fn validate(args: &RenderArgs) -> Result<()> {
             return Err(Error::invalid("--exposure", "must be finite"));
         }
     }
-    if args.output.extension().is_none_or(|e| !e.eq_ignore_ascii_case("exr")) {
+    if !args.output.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr")) {
         return Err(Error::invalid("--output", format!("{} must end in .exr", args.output.display())));
     }
     Ok(())
@@ -315,152 +316,4 @@ pub fn integrator(args: &RenderArgs) -> Integrator {
             Rgb([e.x, e.y, e.z])
         }),
     }
-}
-
-fn estimator(args: &RenderArgs) -> Estimator {
-    method(args).0
-}
-
-fn render_command(args: &RenderArgs, command_line: &str) -> Result<()> {
-    let start = Instant::now();
-    validate(args)?;
-    // Fail before loading or rendering if an output cannot be written
-    for path in std::iter::once(&args.output).chain(args.preview.iter()).chain(args.stats.iter()) {
-        crate::output::check_writable(path)?;
-    }
-    let loaded = load_scene(args)?;
-    let scene = &loaded.scene;
-    let volume = &scene.field;
-    let quiet = args.quiet;
-    let warn = |msg: String| {
-        eprintln!("plume: warning: {msg}");
-    };
-    if volume.report.density_clamped > 0 {
-        warn(format!("{}: {} density voxels were NaN, infinite or negative and were set to 0", args.file.display(), volume.report.density_clamped));
-    }
-    if volume.report.albedo_clamped > 0 {
-        warn(format!("{}: {} albedo voxels were outside [0, 1] or NaN and were clamped", args.file.display(), volume.report.albedo_clamped));
-    }
-    if volume.report.source_invalid > 0 {
-        warn(format!("{}: {} emission-source voxels were NaN, infinite or negative and were set to 0", args.file.display(), volume.report.source_invalid));
-    }
-    if volume.is_empty() {
-        warn(format!("{}: grid {:?} is empty; the image will be transparent black", args.file.display(), args.density_grid));
-    }
-    if loaded.emission_kind == EmissionKind::None && args.emission == EmissionArg::Auto {
-        warn(format!("{}: no temperature or emission grid found; rendering absorption only", args.file.display()));
-    }
-    if estimator(args) == Estimator::Point && scene.medium.emission.emits_without_density() {
-        warn("--estimator point scores only at collisions: emission where density is 0 (allowed by --convention cycles) is not rendered".into());
-    }
-    let settings = RenderSettings {
-        budget: match (args.spp, args.time) {
-            (_, Some(t)) => SampleBudget::Time(t),
-            (Some(n), None) => SampleBudget::Spp(n),
-            (None, None) => SampleBudget::Spp(64),
-        },
-        seed: args.seed,
-        threads: args.threads,
-        first_sample: 0,
-        integrator: integrator(args),
-    };
-    if let Some(dp) = &args.debug_pixel {
-        // Replay one pixel sample and print its path
-        let (x, y, s) = crate::cli::parse_debug_pixel(dp).map_err(|m| Error::invalid("--debug-pixel", m))?;
-        let (ray, mut sampler) = crate::render::pixel_sample(scene, args.seed, x, y, s);
-        let mut trace = LineTrace::default();
-        let mut counters = crate::integrator::Counters::default();
-        let l = settings.integrator.li(scene, &ray, &mut sampler, &mut counters, &mut trace);
-        for line in &trace.0 {
-            eprintln!("plume: debug {x},{y},{s}: {line}");
-        }
-        println!("{:?}", l);
-        return Ok(());
-    }
-    let bar = if !quiet && std::io::stderr().is_terminal() {
-        let total = match settings.budget {
-            SampleBudget::Spp(n) => u64::from(n),
-            SampleBudget::Time(_) | SampleBudget::CpuTime(_) => 0,
-        };
-        let pb = if total > 0 { ProgressBar::new(total) } else { ProgressBar::new_spinner() };
-        pb.set_style(
-            ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} spp {msg}")
-                .unwrap_or_else(|_| ProgressStyle::default_bar()),
-        );
-        Some(pb)
-    } else {
-        None
-    };
-    let time_to_first_sample = start.elapsed().as_secs_f64();
-    let result = render(scene, &settings, &|done, _| {
-        if let Some(pb) = &bar {
-            pb.set_position(done);
-        }
-    });
-    if let Some(pb) = &bar {
-        pb.finish_and_clear();
-    }
-    let pixels = result.film.average(result.spp);
-    let cpu = cpu_seconds();
-    let est_name = format!("{:?}", settings.integrator.estimator);
-    let metadata: Vec<(String, String)> = vec![
-        ("plume:version".into(), env!("CARGO_PKG_VERSION").into()),
-        ("plume:commandLine".into(), command_line.into()),
-        ("plume:input".into(), args.file.display().to_string()),
-        ("plume:spp".into(), result.spp.to_string()),
-        ("plume:seed".into(), args.seed.to_string()),
-        ("plume:estimator".into(), est_name.clone()),
-        ("plume:renderSeconds".into(), format!("{:.3}", result.render_seconds)),
-        ("plume:cpuSeconds".into(), format!("{cpu:.3}")),
-    ];
-    crate::output::write_exr(&args.output, args.width, args.height, &pixels, &metadata)?;
-    if let Some(p) = &args.preview {
-        let exposure = args.exposure.map_or_else(|| crate::output::auto_exposure(&pixels), |ev| 2f32.powf(ev));
-        crate::output::write_png(p, args.width, args.height, &pixels, exposure)?;
-    }
-    let wall = start.elapsed().as_secs_f64();
-    let samples = result.counters.samples as f64;
-    if let Some(c) = result.counters.first_nonfinite {
-        warn(format!("{} non-finite samples dropped; first at --debug-pixel {},{},{}", result.counters.nonfinite_samples, c.0, c.1, c.2));
-    }
-    if let Some(path) = &args.stats {
-        let stats = RenderStats {
-            plume_version: env!("CARGO_PKG_VERSION").into(),
-            input: args.file.display().to_string(),
-            spp: result.spp,
-            seed: args.seed,
-            wall_seconds: wall,
-            render_seconds: result.render_seconds,
-            time_to_first_sample_seconds: time_to_first_sample,
-            cpu_seconds: cpu,
-            core_hours: cpu / 3600.0,
-            samples_per_second: samples / result.render_seconds.max(1e-9),
-            samples_per_cpu_second: samples / cpu.max(1e-9),
-            peak_rss_bytes: peak_rss_bytes(),
-            threads: if args.threads == 0 { rayon::current_num_threads() } else { args.threads },
-            width: args.width,
-            height: args.height,
-            estimator: est_name,
-            volume_bytes: volume.memory_bytes() as u64,
-            counters: result.counters,
-            density_voxels_clamped: volume.report.density_clamped,
-            source_voxels_clamped: volume.report.source_invalid,
-        };
-        let json = serde_json::to_string_pretty(&stats).map_err(|e| Error::Scene(e.to_string()))?;
-        crate::output::write_atomic(path, |w| std::io::Write::write_all(w, json.as_bytes()))?;
-    }
-    if !quiet {
-        eprintln!(
-            "plume: {} ({}x{}, {} spp, {:?}) in {:.2} s ({:.2} s to first sample, {:.3} core-h)",
-            args.output.display(),
-            args.width,
-            args.height,
-            result.spp,
-            settings.integrator.estimator,
-            wall,
-            time_to_first_sample,
-            cpu / 3600.0
-        );
-    }
-    Ok(())
 }

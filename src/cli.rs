@@ -8,8 +8,13 @@ use glam::DVec3;
 /// plume: a renderer for emissive heterogeneous volumes (OpenVDB), with line
 /// integration and forward next-event estimation.
 ///
-/// Exit codes: 0 success; 2 bad arguments; 3 input missing, unreadable or invalid;
-/// 4 render or output failure.
+/// Exit codes: 0 success (also when every output was already complete and skipped);
+/// 2 bad arguments; 3 input missing, unreadable or invalid (VDB file, grid, merge part);
+/// 4 render or output failure; 5 interrupted by SIGTERM/SIGINT (the image so far was
+/// written with its real spp; a rerun continues it); 6 --time-limit reached (likewise);
+/// 7 a run of several frames in which some frames failed or stopped early (each is
+/// reported; the others were rendered). A run of one frame exits with that frame's code.
+/// 101 is a bug (a panic): please report it.
 #[derive(Debug, Parser)]
 #[command(name = "plume", version, about, long_about)]
 pub struct Cli {
@@ -21,8 +26,12 @@ pub struct Cli {
 /// Subcommands.
 #[derive(Debug, Subcommand)]
 pub enum Command {
-    /// Render a VDB file to a float EXR (and optionally a PNG preview).
+    /// Render a VDB file, or a sequence of them, to float EXRs (and optionally PNG
+    /// previews).
     Render(Box<RenderArgs>),
+    /// Assemble parts of a frame rendered as tiles (--crop, --tile) and sample ranges
+    /// (--sample-range) into one EXR, bit-identical to rendering it in one process.
+    Merge(MergeArgs),
     /// Print every grid of a VDB file: name, type, class, voxels, bounds, transform,
     /// value range, memory.
     Info(InfoArgs),
@@ -95,6 +104,42 @@ pub struct BenchCoreArgs {
     /// Also write the figures as JSON here.
     #[arg(long)]
     pub json: Option<PathBuf>,
+}
+
+/// `plume merge`.
+#[derive(Debug, Args)]
+pub struct MergeArgs {
+    /// Parts: EXRs written with --crop, --tile, --sample-range or --sums, of one frame.
+    #[arg(required = true)]
+    pub parts: Vec<PathBuf>,
+    /// Output EXR.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Keep the exact sums in the output, so that it can be merged again (e.g. with more
+    /// samples rendered later).
+    #[arg(long)]
+    pub sums: bool,
+    /// Write a tone-mapped sRGB PNG preview here.
+    #[arg(long)]
+    pub preview: Option<PathBuf>,
+    /// Preview exposure in stops (default: automatic).
+    #[arg(long, allow_hyphen_values = true)]
+    pub exposure: Option<f32>,
+    /// No summary.
+    #[arg(long, short)]
+    pub quiet: bool,
+}
+
+/// Machine-readable progress on stdout.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum ProgressArg {
+    /// None (logs on stderr only).
+    None,
+    /// Open Job Description: `openjd_progress: PERCENT` and `openjd_status: TEXT` lines.
+    Openjd,
+    /// One JSON object per line (`event`: frame_start, progress, frame_done, frame_skipped,
+    /// frame_failed, done).
+    Json,
 }
 
 /// `plume info`.
@@ -215,13 +260,17 @@ impl RenderArgs {
 }
 
 /// `plume render`.
-#[derive(Debug, Args)]
+#[derive(Clone, Debug, Args)]
 // Negative numbers reach our validation, which names the flag and the allowed range.
 #[command(allow_negative_numbers = true)]
 pub struct RenderArgs {
-    /// The .vdb file.
+    /// The .vdb file, or with --frames a pattern with a frame token: `fire.####.vdb`
+    /// (one `#` per digit), `fire.%04d.vdb` or `fire.$F4.vdb`. Numbers wider than the
+    /// padding are printed in full.
     pub file: PathBuf,
-    /// Output EXR (32-bit float RGBA; alpha = 1 − transmittance).
+    /// Output EXR (32-bit float RGBA; alpha = 1 − transmittance); with --frames a
+    /// pattern like FILE's. Written atomically; an output that is already complete is
+    /// skipped unless --overwrite, and one left by an interrupted render is continued.
     #[arg(short, long)]
     pub output: PathBuf,
     /// Samples per pixel.
@@ -230,9 +279,9 @@ pub struct RenderArgs {
     /// Render whole 1-spp passes until this many seconds are spent.
     #[arg(long)]
     pub time: Option<f64>,
-    /// Seed of the sample streams.
-    #[arg(long, default_value_t = 0)]
-    pub seed: u64,
+    /// Seed of the sample streams (default: the frame number with --frames, else 0).
+    #[arg(long)]
+    pub seed: Option<u64>,
     /// Worker threads (0 = all cores). The image does not depend on it.
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
@@ -326,13 +375,15 @@ pub struct RenderArgs {
     /// Physical, or Blender Cycles' Principled Volume convention.
     #[arg(long, value_enum, default_value_t = ConventionArg::Physical)]
     pub convention: ConventionArg,
-    /// Write a tone-mapped sRGB PNG preview here.
+    /// Write a tone-mapped sRGB PNG preview here (a pattern with --frames).
     #[arg(long)]
     pub preview: Option<PathBuf>,
     /// Preview exposure in stops (default: automatic).
     #[arg(long, allow_hyphen_values = true)]
     pub exposure: Option<f32>,
-    /// Write render statistics (JSON) here.
+    /// Append render statistics here, one JSON object per frame and line (JSON Lines):
+    /// wall and CPU seconds, core-hours, spp, samples/s, peak RSS, input SHA-256, host,
+    /// command line. May hold a frame token.
     #[arg(long)]
     pub stats: Option<PathBuf>,
     /// Largest input a grid read may allocate, e.g. `8GiB`, `512MiB` (default: half of RAM).
@@ -341,6 +392,38 @@ pub struct RenderArgs {
     /// No progress bar or summary.
     #[arg(long, short)]
     pub quiet: bool,
+    /// Frames to render: `1-100`, `1-100x2` (or `1-100:2`), `1,5,10-20`. One process
+    /// renders them in order, each frame's grids loaded once; a frame that fails is
+    /// reported and the others go on (exit code 7).
+    #[arg(long, allow_hyphen_values = true)]
+    pub frames: Option<String>,
+    /// Render frames even when their output is already complete (default: skip them).
+    #[arg(long)]
+    pub overwrite: bool,
+    /// Per-frame wall-clock limit in seconds (loading included): the frame stops between
+    /// passes and its image is written with the spp reached (exit code 6); a rerun
+    /// continues it.
+    #[arg(long)]
+    pub time_limit: Option<f64>,
+    /// Render only these pixels: x0,y0,x1,y1 (columns x0..x1−1, rows y0..y1−1). Writes a
+    /// part for `plume merge`.
+    #[arg(long, value_parser = clap::value_parser!(crate::film::Crop), conflicts_with = "tile")]
+    pub crop: Option<crate::film::Crop>,
+    /// Render only tile i of n (0-based; a near-square grid, row by row). Writes a part
+    /// for `plume merge`.
+    #[arg(long, value_parser = crate::farm::split::parse_tile)]
+    pub tile: Option<(u32, u32)>,
+    /// Render only samples a..b−1 of every pixel (instead of --spp/--time). Writes a part
+    /// for `plume merge`.
+    #[arg(long, value_parser = crate::farm::split::parse_sample_range, conflicts_with_all = ["spp", "time"])]
+    pub sample_range: Option<std::ops::Range<u64>>,
+    /// Also store the exact sample sums in the EXR (implied by --crop, --tile and
+    /// --sample-range), so that it can be merged with more samples later.
+    #[arg(long)]
+    pub sums: bool,
+    /// Machine-readable progress on stdout (logs stay on stderr).
+    #[arg(long, value_enum, default_value_t = ProgressArg::None)]
+    pub progress: ProgressArg,
 }
 
 /// Parse `x,y,z`.

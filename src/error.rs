@@ -78,11 +78,60 @@ pub enum Error {
     /// The scene cannot be rendered (empty volume, incompatible grids, …).
     #[error("{0}")]
     Scene(String),
+    /// A part given to `plume merge` is unusable or disagrees with the others.
+    #[error("{}: {message}", .path.display())]
+    InvalidPart {
+        /// The part (EXR) at fault.
+        path: PathBuf,
+        /// Why, naming the other part where two disagree.
+        message: String,
+    },
+    /// SIGTERM or SIGINT stopped the render; what was rendered was written.
+    #[error("interrupted by {signal}: {what} (run the same command again to finish)")]
+    Interrupted {
+        /// `SIGTERM` or `SIGINT`.
+        signal: String,
+        /// What was written or not.
+        what: String,
+    },
+    /// `--time-limit` stopped a frame before its sample budget; the image was written.
+    #[error("time limit reached: {what} (run the same command again to continue)")]
+    TimeLimit {
+        /// What was written.
+        what: String,
+    },
+    /// Some frames of a sequence failed; the others were rendered.
+    #[error("{} of {total} frames failed: {}", .failed.len(), format_frames(.failed))]
+    FramesFailed {
+        /// The failed frames.
+        failed: Vec<i64>,
+        /// Frames in the run.
+        total: usize,
+    },
+}
+
+/// Process exit codes (documented in `plume --help` and the README).
+pub mod exit {
+    /// Success (also: every output already complete and skipped).
+    pub const SUCCESS: i32 = 0;
+    /// Bad arguments (also clap's usage errors).
+    pub const BAD_ARGUMENTS: i32 = 2;
+    /// An input is missing, unreadable or invalid (VDB, grid, merge part).
+    pub const INPUT: i32 = 3;
+    /// Rendering or writing an output failed.
+    pub const RENDER_OR_OUTPUT: i32 = 4;
+    /// Interrupted by SIGTERM/SIGINT; the image so far was written with its spp.
+    pub const INTERRUPTED: i32 = 5;
+    /// `--time-limit` reached; the image so far was written with its spp.
+    pub const TIME_LIMIT: i32 = 6;
+    /// A run of several frames in which some frames failed or stopped early.
+    pub const FRAMES_FAILED: i32 = 7;
 }
 
 impl Error {
     /// Process exit code for this error: 2 bad arguments, 3 input missing/unreadable/
-    /// invalid, 4 render or output failure.
+    /// invalid, 4 render or output failure, 5 interrupted, 6 time limit, 7 some frames
+    /// failed (see [`exit`]).
     #[must_use]
     pub fn exit_code(&self) -> i32 {
         match self {
@@ -94,6 +143,10 @@ impl Error {
             | Error::TooLarge { .. }
             | Error::Scene(_) => 3,
             Error::Write { .. } => 4,
+            Error::InvalidPart { .. } => exit::INPUT,
+            Error::Interrupted { .. } => exit::INTERRUPTED,
+            Error::TimeLimit { .. } => exit::TIME_LIMIT,
+            Error::FramesFailed { .. } => exit::FRAMES_FAILED,
         }
     }
 
@@ -109,4 +162,13 @@ fn format_list(items: &[String]) -> String {
     } else {
         items.join(", ")
     }
+}
+
+/// Comma-separated frame numbers (at most 20 shown).
+fn format_frames(frames: &[i64]) -> String {
+    let mut parts: Vec<String> = frames.iter().take(20).map(i64::to_string).collect();
+    if frames.len() > 20 {
+        parts.push(format!("… ({} more)", frames.len() - 20));
+    }
+    parts.join(", ")
 }

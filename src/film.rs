@@ -1,65 +1,351 @@
-//! Film: per-pixel `f64` sums of RGB and alpha, filled tile by tile.
+//! The film: per-pixel sums of samples, owned by tiles, in an exact fixed-point
+//! representation so that any split of the work sums to the same bits.
 //!
-//! Each tile owns its pixels; a pixel's samples are always added in sample order by the
-//! one thread that owns its tile, so the sums, and the image, are the same bytes for any
-//! thread count (STYLE.md §8).
+//! Every sample's `[r, g, b, alpha]` is rounded once to an integer number of units of
+//! 2^−[`FIXED_POINT_BITS`] ([`to_fixed`]) and the integers are added in `i128`. Integer
+//! addition is associative and commutative, so the sum over samples `0..n` of a pixel is
+//! the same integer whether it was taken in one pass, in passes of any size, in several
+//! processes each rendering a sample range, or resumed after an interruption.
+//! [`pixel_value`] turns a sum and a sample count into the pixel value; it is the only
+//! place that does, used by the render loop and by `plume merge` alike. See
+//! `ARCHITECTURE.md`, "Exact sums", for the choice of F = 64.
 
-/// Tile edge in pixels.
+use std::fmt;
+use std::str::FromStr;
+
+/// Edge length of a film tile in pixels.
 pub const TILE: u32 = 16;
 
-/// A rectangle of pixels with its own sums.
+/// F: sample values are stored in units of 2^−F. With F = 64 an `i128` sum covers
+/// 2^−64 ≈ 5.4·10⁻²⁰ up to 2^63 ≈ 9.2·10¹⁸ (`ARCHITECTURE.md`, "Exact sums").
+pub const FIXED_POINT_BITS: u32 = 64;
+
+/// 2^F, exact in `f64`.
+const SCALE: f64 = 18_446_744_073_709_551_616.0;
+/// 2^−F, exact in `f64`.
+const INV_SCALE: f64 = 1.0 / SCALE;
+/// 2^127: the first magnitude that no longer fits an `i128`.
+const I128_LIMIT: f64 = 170_141_183_460_469_231_731_687_303_715_884_105_728.0;
+
+/// A sample value in fixed point: `round(v · 2^F)` (ties away from zero), or `None` when
+/// its magnitude does not fit an `i128` (|v| ≥ 2^63) or it is not finite.
+///
+/// Exact and deterministic: scaling by a power of two is exact in binary floating
+/// point, `round` is exact, and every integral `f64` below 2^127 converts exactly.
+#[must_use]
+#[inline]
+pub fn to_fixed(v: f64) -> Option<i128> {
+    let x = (v * SCALE).round();
+    if x.abs() < I128_LIMIT {
+        Some(x as i128)
+    } else {
+        None
+    }
+}
+
+/// The pixel value of an exact sum over `spp` samples: `sum · 2^−F / spp`, rounded to
+/// `f32` (0 when `spp` is 0). The one function that turns sums into pixels, used by the
+/// render loop and by `plume merge`, so both give the same bits.
+#[must_use]
+#[inline]
+pub fn pixel_value(sum: i128, spp: u64) -> f32 {
+    if spp == 0 {
+        return 0.0;
+    }
+    // i128 → f64 rounds to nearest; × 2^−F is exact; one division; one rounding to f32
+    ((sum as f64 * INV_SCALE) / spp as f64) as f32
+}
+
+/// A pixel rectangle `[x0, x1) × [y0, y1)` of the full image (a crop or a film tile).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct Crop {
+    /// First column.
+    pub x0: u32,
+    /// First row.
+    pub y0: u32,
+    /// One past the last column.
+    pub x1: u32,
+    /// One past the last row.
+    pub y1: u32,
+}
+
+impl Crop {
+    /// The whole `width × height` image.
+    #[must_use]
+    pub fn full(width: u32, height: u32) -> Crop {
+        Crop { x0: 0, y0: 0, x1: width, y1: height }
+    }
+
+    /// Width in pixels.
+    #[must_use]
+    pub fn width(&self) -> u32 {
+        self.x1.saturating_sub(self.x0)
+    }
+
+    /// Height in pixels.
+    #[must_use]
+    pub fn height(&self) -> u32 {
+        self.y1.saturating_sub(self.y0)
+    }
+
+    /// Number of pixels.
+    #[must_use]
+    pub fn area(&self) -> u64 {
+        u64::from(self.width()) * u64::from(self.height())
+    }
+
+    /// True when the rectangle has no pixels.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.area() == 0
+    }
+
+    /// True when the rectangle lies inside a `width × height` image.
+    #[must_use]
+    pub fn fits(&self, width: u32, height: u32) -> bool {
+        self.x0 <= self.x1 && self.y0 <= self.y1 && self.x1 <= width && self.y1 <= height
+    }
+
+    /// True when `other` lies inside `self`.
+    #[must_use]
+    pub fn contains(&self, other: &Crop) -> bool {
+        other.x0 >= self.x0 && other.x1 <= self.x1 && other.y0 >= self.y0 && other.y1 <= self.y1
+    }
+
+    /// The common pixels of two rectangles, if any.
+    #[must_use]
+    pub fn intersection(&self, other: &Crop) -> Option<Crop> {
+        let c = Crop { x0: self.x0.max(other.x0), y0: self.y0.max(other.y0), x1: self.x1.min(other.x1), y1: self.y1.min(other.y1) };
+        (c.x0 < c.x1 && c.y0 < c.y1).then_some(c)
+    }
+}
+
+impl fmt::Display for Crop {
+    /// `x0,y0,x1,y1`, the `--crop` syntax.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{},{},{},{}", self.x0, self.y0, self.x1, self.y1)
+    }
+}
+
+impl FromStr for Crop {
+    type Err = String;
+
+    /// Parse `x0,y0,x1,y1` (pixels, half-open: columns x0 to x1−1, rows y0 to y1−1).
+    fn from_str(s: &str) -> Result<Crop, String> {
+        let v: Vec<&str> = s.split(',').map(str::trim).collect();
+        let bad = || format!("expected x0,y0,x1,y1 in pixels (x1 > x0, y1 > y0), got {s:?}");
+        if v.len() != 4 {
+            return Err(bad());
+        }
+        let n: Vec<u32> = v.iter().map(|p| p.parse::<u32>()).collect::<Result<_, _>>().map_err(|_| bad())?;
+        let c = Crop { x0: n[0], y0: n[1], x1: n[2], y1: n[3] };
+        if c.x1 <= c.x0 || c.y1 <= c.y0 {
+            return Err(bad());
+        }
+        Ok(c)
+    }
+}
+
+/// A rectangle of pixels with its own exact sums.
 #[derive(Clone, Debug)]
 pub struct Tile {
-    /// Left pixel column.
+    /// Left pixel column (full-image coordinates).
     pub x0: u32,
-    /// Top pixel row.
+    /// Top pixel row (full-image coordinates).
     pub y0: u32,
     /// Width in pixels.
     pub width: u32,
     /// Height in pixels.
     pub height: u32,
-    /// `[r, g, b, alpha]` sums, row-major within the tile.
-    pub sums: Vec<[f64; 4]>,
+    /// `[r, g, b, alpha]` sums in units of 2^−F, row-major within the tile.
+    pub sums: Vec<[i128; 4]>,
+    /// Sample values or sums that did not fit and were clamped to the `i128` range.
+    pub saturated: u64,
+    /// Non-zero sample values smaller than half a unit (2^−65), stored as 0.
+    pub underflowed: u64,
 }
 
-/// The image being rendered: the sums over all samples so far.
+impl Tile {
+    /// Add one finite sample `l` to pixel `index` (row-major within the tile).
+    #[inline]
+    pub fn add_sample(&mut self, index: usize, l: [f64; 4]) {
+        let sum = &mut self.sums[index];
+        for (a, v) in sum.iter_mut().zip(l) {
+            let q = match to_fixed(v) {
+                Some(q) => {
+                    if q == 0 && v != 0.0 {
+                        self.underflowed += 1;
+                    }
+                    q
+                }
+                None => {
+                    self.saturated += 1;
+                    if v < 0.0 { i128::MIN } else { i128::MAX }
+                }
+            };
+            // Radiance and alpha are ≥ 0, so saturating addition is min(Σ, MAX): still
+            // independent of order, and every clamp is counted
+            let (s, overflow) = a.overflowing_add(q);
+            if overflow {
+                self.saturated += 1;
+                *a = if q < 0 { i128::MIN } else { i128::MAX };
+            } else {
+                *a = s;
+            }
+        }
+    }
+}
+
+/// The image being rendered: the sums over all samples so far, for the pixels of
+/// `crop` (the whole image unless a tile of it is rendered).
 #[derive(Clone, Debug)]
 pub struct Film {
-    /// Width in pixels.
+    /// Width of the full image in pixels.
     pub width: u32,
-    /// Height in pixels.
+    /// Height of the full image in pixels.
     pub height: u32,
-    /// Tiles in row-major tile order.
+    /// The pixels this film holds.
+    pub crop: Crop,
+    /// Tiles covering `crop`, in row-major tile order.
     pub tiles: Vec<Tile>,
 }
 
 impl Film {
-    /// An empty film cut into [`TILE`]-sized tiles.
+    /// An empty film of the whole `width × height` image.
     #[must_use]
     pub fn new(width: u32, height: u32) -> Film {
-        let mut tiles = Vec::new();
-        for y0 in (0..height).step_by(TILE as usize) {
-            for x0 in (0..width).step_by(TILE as usize) {
-                let (w, h) = (TILE.min(width - x0), TILE.min(height - y0));
-                tiles.push(Tile { x0, y0, width: w, height: h, sums: vec![[0.0; 4]; (w * h) as usize] });
-            }
-        }
-        Film { width, height, tiles }
+        Film::with_crop(width, height, Crop::full(width, height))
     }
 
-    /// Per-pixel averages `sums / spp` as `f32` RGBA, row-major.
+    /// An empty film holding the pixels of `crop` of a `width × height` image, cut into
+    /// [`TILE`]-sized tiles.
+    ///
+    /// # Panics
+    /// If `crop` does not fit the image.
+    #[must_use]
+    pub fn with_crop(width: u32, height: u32, crop: Crop) -> Film {
+        assert!(crop.fits(width, height), "crop {crop} outside the {width}x{height} image");
+        let mut tiles = Vec::new();
+        for y0 in (crop.y0..crop.y1).step_by(TILE as usize) {
+            for x0 in (crop.x0..crop.x1).step_by(TILE as usize) {
+                let (w, h) = (TILE.min(crop.x1 - x0), TILE.min(crop.y1 - y0));
+                tiles.push(Tile { x0, y0, width: w, height: h, sums: vec![[0; 4]; (w * h) as usize], saturated: 0, underflowed: 0 });
+            }
+        }
+        Film { width, height, crop, tiles }
+    }
+
+    /// Per-pixel values `sums / spp` ([`pixel_value`]) as `f32` RGBA, row-major over
+    /// `crop`.
     #[must_use]
     pub fn average(&self, spp: u64) -> Vec<[f32; 4]> {
-        let inv = if spp > 0 { 1.0 / spp as f64 } else { 0.0 };
-        let mut out = vec![[0.0f32; 4]; (self.width * self.height) as usize];
+        self.sums().iter().map(|s| s.map(|v| pixel_value(v, spp))).collect()
+    }
+
+    /// The exact sums, row-major over `crop`.
+    #[must_use]
+    pub fn sums(&self) -> Vec<[i128; 4]> {
+        let cw = self.crop.width() as usize;
+        let mut out = vec![[0i128; 4]; self.crop.area() as usize];
         for t in &self.tiles {
             for ty in 0..t.height {
-                for tx in 0..t.width {
-                    let s = t.sums[(ty * t.width + tx) as usize];
-                    out[((t.y0 + ty) * self.width + t.x0 + tx) as usize] = s.map(|v| (v * inv) as f32);
-                }
+                let row = (t.y0 - self.crop.y0 + ty) as usize * cw + (t.x0 - self.crop.x0) as usize;
+                let src = (ty * t.width) as usize;
+                out[row..row + t.width as usize].copy_from_slice(&t.sums[src..src + t.width as usize]);
             }
         }
         out
+    }
+
+    /// Replace the sums by `sums` (row-major over `crop`), e.g. to resume a render.
+    ///
+    /// # Panics
+    /// If `sums` does not have one entry per pixel of `crop`.
+    pub fn set_sums(&mut self, sums: &[[i128; 4]]) {
+        assert_eq!(sums.len() as u64, self.crop.area(), "one sum per pixel of the crop");
+        let cw = self.crop.width() as usize;
+        let crop = self.crop;
+        for t in &mut self.tiles {
+            for ty in 0..t.height {
+                let row = (t.y0 - crop.y0 + ty) as usize * cw + (t.x0 - crop.x0) as usize;
+                let dst = (ty * t.width) as usize;
+                t.sums[dst..dst + t.width as usize].copy_from_slice(&sums[row..row + t.width as usize]);
+            }
+        }
+    }
+
+    /// Clamped (saturated) sample values and sums over all tiles.
+    #[must_use]
+    pub fn saturated(&self) -> u64 {
+        self.tiles.iter().map(|t| t.saturated).sum()
+    }
+
+    /// Non-zero sample values too small for the fixed-point unit, over all tiles.
+    #[must_use]
+    pub fn underflowed(&self) -> u64 {
+        self.tiles.iter().map(|t| t.underflowed).sum()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fixed_point_is_exact_and_saturates() {
+        assert_eq!(to_fixed(1.0), Some(1i128 << 64));
+        assert_eq!(to_fixed(0.75), Some(3i128 << 62));
+        assert_eq!(to_fixed(2f64.powi(-65)), Some(1), "ties round away from zero");
+        assert_eq!(to_fixed(2f64.powi(-66)), Some(0));
+        assert_eq!(to_fixed(1e11), Some((1e11f64 as i128) << 64));
+        assert_eq!(to_fixed(2f64.powi(63)), None);
+        assert_eq!(to_fixed(f64::INFINITY), None);
+        assert!(to_fixed(2f64.powi(63) * (1.0 - f64::EPSILON)).is_some());
+        for v in [1e-9, 0.3, 1.0 / 3.0, 12345.678, 1e11] {
+            let back = pixel_value(to_fixed(v).unwrap(), 1);
+            assert!((f64::from(back) - v).abs() <= v * 1e-7, "{v} → {back}");
+        }
+        // Below 2^-40 the unit 2^-64 shows: the error is at most half a unit per sample
+        let tiny = 1e-19;
+        assert!((tiny - to_fixed(tiny).unwrap() as f64 * INV_SCALE).abs() <= 0.5 * INV_SCALE);
+        assert_eq!(pixel_value(123, 0), 0.0);
+    }
+
+    #[test]
+    fn sums_are_independent_of_split_and_order() {
+        let values: Vec<f64> = (0..200).map(|i| ((i * 7919) % 1000) as f64 * 1.37e-3 + 1e-9 * f64::from(i)).collect();
+        let sum_of = |vs: &[f64]| vs.iter().map(|&v| to_fixed(v).unwrap()).sum::<i128>();
+        let whole = sum_of(&values);
+        let (a, b) = values.split_at(77);
+        assert_eq!(sum_of(a) + sum_of(b), whole);
+        let mut rev = values.clone();
+        rev.reverse();
+        assert_eq!(sum_of(&rev), whole);
+    }
+
+    #[test]
+    fn tile_counts_saturation_and_underflow() {
+        let mut f = Film::new(2, 1);
+        f.tiles[0].add_sample(0, [1e300, 1e-30, 0.0, 1.0]);
+        f.tiles[0].add_sample(0, [1e18, 0.0, 0.0, 1.0]);
+        assert_eq!(f.saturated(), 2, "one sample clamped, then one sum");
+        assert_eq!(f.underflowed(), 1);
+        assert_eq!(f.sums()[0][0], i128::MAX);
+        assert!(f.average(2)[0][0].is_finite());
+    }
+
+    #[test]
+    fn crop_film_round_trips_sums() {
+        let crop = Crop { x0: 3, y0: 5, x1: 40, y1: 23 };
+        let mut f = Film::with_crop(50, 30, crop);
+        assert_eq!(f.tiles.iter().map(|t| u64::from(t.width * t.height)).sum::<u64>(), crop.area());
+        let sums: Vec<[i128; 4]> = (0..crop.area() as i128).map(|i| [i, 2 * i, 3 * i, 4 * i]).collect();
+        f.set_sums(&sums);
+        assert_eq!(f.sums(), sums);
+        assert_eq!("3,5,40,23".parse::<Crop>().unwrap(), crop);
+        assert_eq!(crop.to_string(), "3,5,40,23");
+        assert!("3,5,3,23".parse::<Crop>().is_err());
+        assert_eq!(crop.intersection(&Crop { x0: 39, y0: 0, x1: 60, y1: 6 }), Some(Crop { x0: 39, y0: 5, x1: 40, y1: 6 }));
+        assert_eq!(crop.intersection(&Crop { x0: 40, y0: 0, x1: 60, y1: 6 }), None);
     }
 }

@@ -14,6 +14,7 @@ pub mod camera;
 pub mod cli;
 pub mod color;
 pub mod error;
+pub mod farm;
 pub mod film;
 pub mod info;
 pub mod integrator;

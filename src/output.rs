@@ -1,12 +1,14 @@
-//! Image outputs: float EXR with metadata and a tone-mapped PNG preview, both written
-//! atomically (temporary file in the same directory, then rename), so a reader never
-//! sees a half-written file, even if plume is killed mid-write.
+//! Image outputs: float EXR with metadata (and, for parts of a split frame, the exact
+//! sample sums as `u32` channels) and a tone-mapped PNG preview, all written atomically
+//! (temporary file in the same directory, synced, then renamed), so a reader never sees
+//! a half-written file, even if plume is killed mid-write.
 
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
 use crate::error::{Error, Result};
+use crate::film::Crop;
 
 /// Write a file atomically: `write` fills a temporary file beside `path`, which is
 /// synced and renamed over `path` only if everything succeeded.
@@ -15,15 +17,10 @@ use crate::error::{Error, Result};
 /// [`Error::Write`] naming `path` if the directory is not writable or writing fails;
 /// the temporary file is removed.
 pub fn write_atomic(path: &Path, write: impl FnOnce(&mut BufWriter<File>) -> std::io::Result<()>) -> Result<()> {
-    let dir = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    let name = path.file_name().ok_or_else(|| Error::Write {
-        path: path.to_path_buf(),
-        source: std::io::Error::new(std::io::ErrorKind::InvalidInput, "not a file name"),
-    })?;
-    let tmp = dir.join(format!(".{}.{}.tmp", name.to_string_lossy(), std::process::id()));
+    if path.file_name().is_none() {
+        return Err(Error::Write { path: path.to_path_buf(), source: std::io::Error::new(std::io::ErrorKind::InvalidInput, "not a file name") });
+    }
+    let tmp = temporary_path(path);
     let result = (|| {
         let file = File::create(&tmp)?;
         let mut w = BufWriter::new(file);
@@ -31,7 +28,12 @@ pub fn write_atomic(path: &Path, write: impl FnOnce(&mut BufWriter<File>) -> std
         w.flush()?;
         w.get_ref().sync_all()?;
         drop(w);
-        std::fs::rename(&tmp, path)
+        std::fs::rename(&tmp, path)?;
+        // Make the rename itself durable (a crash of the machine, not only of plume)
+        if let Ok(d) = File::open(parent_dir(path)) {
+            let _ = d.sync_all();
+        }
+        Ok(())
     })();
     result.map_err(|source| {
         let _ = std::fs::remove_file(&tmp);
@@ -39,20 +41,37 @@ pub fn write_atomic(path: &Path, write: impl FnOnce(&mut BufWriter<File>) -> std
     })
 }
 
+/// Append `line` and a newline to `path` (created if missing) with one `write`, so that
+/// lines of processes appending to the same local file do not interleave, and a killed
+/// process leaves whole lines. (On NFS, `O_APPEND` is not atomic between hosts: give
+/// each task its own file, e.g. with a frame token.)
+///
+/// # Errors
+/// [`Error::Write`] naming `path`.
+pub fn append_line(path: &Path, line: &str) -> Result<()> {
+    use std::io::Write as _;
+    let mut text = String::with_capacity(line.len() + 1);
+    text.push_str(line);
+    text.push('\n');
+    std::fs::OpenOptions::new()
+        .create(true)
+        .append(true)
+        .open(path)
+        .and_then(|mut f| f.write_all(text.as_bytes()).and_then(|()| f.sync_data()))
+        .map_err(|source| Error::Write { path: path.to_path_buf(), source })
+}
+
 /// Check, before any expensive work, that `path` can be written: its directory exists and
-/// accepts a new file. Creates and removes a probe file.
+/// accepts a new file. Creates and removes a probe file named like the temporaries, so a
+/// probe left by a killed process is cleaned up by [`remove_stale_temporaries`].
 ///
 /// # Errors
 /// [`Error::Write`] naming `path`.
 pub fn check_writable(path: &Path) -> Result<()> {
-    let name = path.file_name().map_or_else(|| "out".into(), |n| n.to_string_lossy().into_owned());
-    let probe = path.with_file_name(format!(".{name}.probe"));
-    write_atomic(&probe, |_| Ok(()))
-        .and_then(|()| std::fs::remove_file(&probe).map_err(|source| Error::Write { path: probe.clone(), source }))
-        .map_err(|e| match e {
-            Error::Write { source, .. } => Error::Write { path: path.to_path_buf(), source },
-            other => other,
-        })
+    let probe = temporary_path(path);
+    File::create(&probe)
+        .and_then(|_| std::fs::remove_file(&probe))
+        .map_err(|source| Error::Write { path: path.to_path_buf(), source })
 }
 
 /// Write `pixels` (row-major RGBA, linear) as a 32-bit float EXR with text attributes
@@ -61,23 +80,233 @@ pub fn check_writable(path: &Path) -> Result<()> {
 /// # Errors
 /// [`Error::Write`] naming `path`.
 pub fn write_exr(path: &Path, width: u32, height: u32, pixels: &[[f32; 4]], metadata: &[(String, String)]) -> Result<()> {
+    write_exr_image(path, &ExrImage { width, height, crop: Crop::full(width, height), pixels, sums: None, metadata })
+}
+
+/// Names of the 16 `u32` channels that hold a pixel's exact `i128` sums: `sum.{R,G,B,A}.w{0..3}`,
+/// 32-bit words, least significant first (two's complement).
+#[must_use]
+pub fn sum_channel_names() -> Vec<String> {
+    let mut names = Vec::with_capacity(16);
+    for c in ["R", "G", "B", "A"] {
+        for w in 0..4 {
+            names.push(format!("sum.{c}.w{w}"));
+        }
+    }
+    names
+}
+
+/// An image to write: RGBA for the pixels of `crop` of a `width × height` image (the EXR
+/// data window is the crop, the display window the image), optionally with exact sums.
+pub struct ExrImage<'a> {
+    /// Full image width (display window).
+    pub width: u32,
+    /// Full image height (display window).
+    pub height: u32,
+    /// The pixels present (data window).
+    pub crop: Crop,
+    /// Row-major RGBA over `crop`.
+    pub pixels: &'a [[f32; 4]],
+    /// Exact fixed-point sums over `crop` (`film.rs`), stored as 16 `u32` channels.
+    pub sums: Option<&'a [[i128; 4]]>,
+    /// Text attributes (name, value); non-ASCII characters become `?`.
+    pub metadata: &'a [(String, String)],
+}
+
+/// Write `image` as an EXR, atomically.
+///
+/// # Errors
+/// [`Error::Write`] naming `path`.
+///
+/// # Panics
+/// If the pixel or sum count does not match the crop.
+pub fn write_exr_image(path: &Path, image: &ExrImage<'_>) -> Result<()> {
     use exr::prelude::*;
-    let w = width as usize;
-    let channels = SpecificChannels::rgba(|Vec2(x, y): Vec2<usize>| {
-        let p = pixels[y * w + x];
-        (p[0], p[1], p[2], p[3])
-    });
-    let mut image = Image::from_channels((width as usize, height as usize), channels);
-    for (k, v) in metadata {
+    let n = image.crop.area() as usize;
+    assert_eq!(image.pixels.len(), n, "invariant: one pixel per crop pixel");
+    let mut list: Vec<AnyChannel<FlatSamples>> = Vec::new();
+    for (c, name) in ["R", "G", "B", "A"].iter().enumerate() {
+        list.push(AnyChannel::new(*name, FlatSamples::F32(image.pixels.iter().map(|p| p[c]).collect())));
+    }
+    if let Some(sums) = image.sums {
+        assert_eq!(sums.len(), n, "invariant: one sum per crop pixel");
+        let names = sum_channel_names();
+        for c in 0..4 {
+            for w in 0..4 {
+                let words = sums.iter().map(|s| ((s[c] as u128) >> (32 * w)) as u32).collect();
+                list.push(AnyChannel::new(names[c * 4 + w].as_str(), FlatSamples::U32(words)));
+            }
+        }
+    }
+    let mut attributes = LayerAttributes { layer_position: Vec2(image.crop.x0 as i32, image.crop.y0 as i32), ..LayerAttributes::default() };
+    for (k, v) in image.metadata {
         let key = Text::new_or_none(k).unwrap_or_else(|| Text::new_or_panic("plume:invalid"));
         let ascii: String = v.chars().map(|c| if c.is_ascii() { c } else { '?' }).collect();
         if let Some(val) = Text::new_or_none(&ascii) {
-            image.attributes.other.insert(key, AttributeValue::Text(val));
+            attributes.other.insert(key, AttributeValue::Text(val));
         }
     }
+    let size = (image.crop.width() as usize, image.crop.height() as usize);
+    let layer = Layer::new(size, attributes, Encoding::FAST_LOSSLESS, AnyChannels::sort(list.into()));
+    let display = IntegerBounds::new(Vec2(0, 0), Vec2(image.width as usize, image.height as usize));
+    let exr_image = Image::new(ImageAttributes::new(display), layer);
     write_atomic(path, |out| {
-        image.write().non_parallel().to_buffered(out).map_err(|e| std::io::Error::other(e.to_string()))
+        exr_image.write().non_parallel().to_buffered(out).map_err(|e| std::io::Error::other(e.to_string()))
     })
+}
+
+/// Everything [`write_exr_image`] stores, read back and decoded.
+#[derive(Clone, Debug)]
+pub struct ExrContents {
+    /// Full image width (display window).
+    pub width: u32,
+    /// Full image height (display window).
+    pub height: u32,
+    /// The pixels present (data window).
+    pub crop: Crop,
+    /// Row-major RGBA over `crop`.
+    pub pixels: Vec<[f32; 4]>,
+    /// Exact sums, when the file has all 16 sum channels.
+    pub sums: Option<Vec<[i128; 4]>>,
+    /// Text attributes.
+    pub metadata: std::collections::BTreeMap<String, String>,
+}
+
+/// Read and decode a whole single-layer EXR: every channel, so a truncated or corrupt
+/// file is an error, not a partial image.
+///
+/// # Errors
+/// [`Error::Scene`] naming the file if it cannot be read or decoded, or lacks RGBA.
+pub fn read_exr_contents(path: &Path) -> Result<ExrContents> {
+    use crate::error::Error;
+    use crate::film::Crop;
+    use exr::prelude::*;
+    let bad = |m: String| Error::Scene(format!("cannot read EXR {}: {m}", path.display()));
+    let image = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .non_parallel()
+        .from_file(path)
+        .map_err(|e| bad(e.to_string()))?;
+    let layer = &image.layer_data;
+    let display = image.attributes.display_window;
+    let pos = layer.attributes.layer_position;
+    let (w, h) = (layer.size.0, layer.size.1);
+    let crop = Crop {
+        x0: u32::try_from(pos.0 - display.position.0).map_err(|_| bad("data window outside the display window".into()))?,
+        y0: u32::try_from(pos.1 - display.position.1).map_err(|_| bad("data window outside the display window".into()))?,
+        x1: 0,
+        y1: 0,
+    };
+    let crop = Crop { x1: crop.x0 + w as u32, y1: crop.y0 + h as u32, ..crop };
+    let channel = |name: &str| layer.channel_data.list.iter().find(|c| c.name.to_string() == name);
+    let mut pixels = vec![[0.0f32, 0.0, 0.0, 1.0]; w * h];
+    for (c, name) in ["R", "G", "B", "A"].iter().enumerate() {
+        match channel(name) {
+            Some(ch) => {
+                for (p, v) in pixels.iter_mut().zip(ch.sample_data.values_as_f32()) {
+                    p[c] = v;
+                }
+            }
+            None if *name == "A" => {}
+            None => return Err(bad(format!("no {name} channel"))),
+        }
+    }
+    let names = sum_channel_names();
+    let words: Option<Vec<&Vec<u32>>> = names
+        .iter()
+        .map(|n| match channel(n).map(|c| &c.sample_data) {
+            Some(FlatSamples::U32(v)) if v.len() == w * h => Some(v),
+            _ => None,
+        })
+        .collect();
+    let sums = words.map(|words| {
+        (0..w * h)
+            .map(|i| {
+                let mut s = [0i128; 4];
+                for (c, v) in s.iter_mut().enumerate() {
+                    let u = (0..4).fold(0u128, |acc, k| acc | (u128::from(words[c * 4 + k][i]) << (32 * k)));
+                    *v = u as i128;
+                }
+                s
+            })
+            .collect()
+    });
+    let metadata = layer
+        .attributes
+        .other
+        .iter()
+        .chain(image.attributes.other.iter())
+        .filter_map(|(k, v)| match v {
+            AttributeValue::Text(t) => Some((k.to_string(), t.to_string())),
+            _ => None,
+        })
+        .collect();
+    let (width, height) = (display.size.0 as u32, display.size.1 as u32);
+    if !crop.fits(width, height) {
+        return Err(bad(format!("data window {crop} outside the {width}x{height} display window")));
+    }
+    Ok(ExrContents { width, height, crop, pixels, sums, metadata })
+}
+
+/// Remove temporary files that an earlier, killed plume on this host left beside `path`
+/// (`.NAME.HOST.PID.tmp` whose process no longer exists). Best effort: errors are
+/// ignored, files of live processes and of other hosts are kept.
+pub fn remove_stale_temporaries(path: &Path) {
+    let (Some(name), dir) = (path.file_name(), parent_dir(path)) else { return };
+    let prefix = format!(".{}.{}.", name.to_string_lossy(), temporary_host());
+    let Ok(entries) = std::fs::read_dir(&dir) else { return };
+    for e in entries.flatten() {
+        let file = e.file_name().to_string_lossy().into_owned();
+        let Some(pid) = file.strip_prefix(&prefix).and_then(|r| r.strip_suffix(".tmp")) else { continue };
+        let Ok(pid) = pid.parse::<i32>() else { continue };
+        if pid != std::process::id() as i32 && !process_alive(pid) {
+            let _ = std::fs::remove_file(e.path());
+        }
+    }
+}
+
+fn process_alive(pid: i32) -> bool {
+    // SAFETY: kill with signal 0 sends nothing; it only checks that the process exists.
+    let r = unsafe { libc::kill(pid, 0) };
+    r == 0 || std::io::Error::last_os_error().raw_os_error() != Some(libc::ESRCH)
+}
+
+/// This machine's host name ("unknown" if it cannot be read).
+#[must_use]
+pub fn host_name() -> String {
+    let mut buf = [0u8; 256];
+    // SAFETY: gethostname writes at most buf.len() bytes into buf.
+    let r = unsafe { libc::gethostname(buf.as_mut_ptr().cast(), buf.len()) };
+    if r != 0 {
+        return "unknown".into();
+    }
+    let end = buf.iter().position(|&b| b == 0).unwrap_or(buf.len());
+    let h = String::from_utf8_lossy(&buf[..end]).into_owned();
+    if h.is_empty() { "unknown".into() } else { h }
+}
+
+/// The temporary file beside `path`: `.NAME.HOST.PID.tmp`. Named after host and
+/// process, so that a rerun can tell a killed run's leftovers from files being written
+/// right now ([`remove_stale_temporaries`]).
+fn temporary_path(path: &Path) -> PathBuf {
+    let name = path.file_name().map_or_else(|| "out".into(), |n| n.to_string_lossy().into_owned());
+    parent_dir(path).join(format!(".{name}.{}.{}.tmp", temporary_host(), std::process::id()))
+}
+
+/// The host name as used in temporary file names (no dots or slashes).
+fn temporary_host() -> String {
+    host_name().replace(['/', '.'], "_")
+}
+
+fn parent_dir(path: &Path) -> PathBuf {
+    match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    }
 }
 
 /// Read the first RGBA layer of an EXR as row-major `[r, g, b, a]` (alpha 1 if absent).

@@ -1,15 +1,21 @@
 //! The render loop: passes of samples over tiles on a rayon pool.
 //!
 //! Pixel sample `s` of pixel `(x, y)` uses `Sampler::new(seed, y·width + x, s)`, so every
-//! sample is a pure function of its key. Tiles are rendered in parallel, but each tile's
-//! pixels accumulate their samples in order, and counters are merged in tile order:
-//! the same seed gives the same bytes for any thread count.
+//! sample is a pure function of its key, whatever crop or sample range is rendered.
+//! Tiles are rendered in parallel; each pixel's samples are added as exact fixed-point
+//! integers (`film.rs`), and counters are integers merged in tile order: the same seed
+//! gives the same bytes for any thread count, any pass size, any split into crops and
+//! sample ranges, and across an interruption and resume.
+//!
+//! Passes are sized from measured time (about [`PASS_SECONDS`] each) so that a stop
+//! request (`SIGTERM`), a `--time-limit` or a `--time` budget is honoured between passes
+//! without overshooting by much; since sums are exact, pass sizes never change the image.
 
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 use rayon::prelude::*;
 
-use crate::film::{Film, Tile};
+use crate::film::{Crop, Film, Tile};
 use crate::integrator::{Counters, Integrator, NoTrace, Scene};
 use crate::sampling::Sampler;
 use crate::volume::field::Field;
@@ -21,8 +27,8 @@ pub enum SampleBudget {
     Spp(u32),
     /// Whole 1-spp passes until this many seconds are spent (at least one pass).
     Time(f64),
-    /// Whole 1-spp passes until the process has used this many CPU seconds more (at least
-    /// one pass): equal-CPU-time comparisons on a shared machine.
+    /// Passes until the process has used this many CPU seconds more (at least one pass):
+    /// equal-CPU-time comparisons on a shared machine.
     CpuTime(f64),
 }
 
@@ -52,6 +58,38 @@ pub struct RenderResult {
     pub counters: Counters,
     /// Wall time spent rendering, seconds.
     pub render_seconds: f64,
+    /// Why the loop ended.
+    pub stopped: StopReason,
+}
+
+/// Why a render loop ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StopReason {
+    /// The sample budget was spent.
+    Finished,
+    /// A stop was requested (a signal); the last pass was completed.
+    Interrupted,
+    /// The deadline came before the budget was spent.
+    TimeLimit,
+}
+
+/// Wall seconds a pass aims at: the longest wait between a stop request and the image.
+pub const PASS_SECONDS: f64 = 1.0;
+
+/// What `render_with` renders besides the settings: which pixels, from which sums, and
+/// when to stop early.
+#[derive(Default)]
+pub struct RenderControl<'a> {
+    /// Pixels to render (default: the whole image).
+    pub crop: Option<Crop>,
+    /// Sums to continue from (a resumed render), with the same crop; samples are added
+    /// from `settings.first_sample` on.
+    pub film: Option<Film>,
+    /// Checked between passes; `true` ends the render after the current pass.
+    pub stop: Option<&'a (dyn Fn() -> bool + Sync)>,
+    /// No pass is started that is predicted to end after this instant (at least one pass
+    /// is always rendered).
+    pub deadline: Option<Instant>,
 }
 
 /// The camera ray and sampler state of one pixel sample, as the render loop makes them
@@ -63,20 +101,19 @@ pub fn pixel_sample<F: Field>(scene: &Scene<F>, seed: u64, x: u32, y: u32, s: u6
     (scene.camera.ray(f64::from(x) + jx, f64::from(y) + jy), sampler)
 }
 
+
 fn render_tile<F: Field>(scene: &Scene<F>, integ: &Integrator, seed: u64, samples: std::ops::Range<u64>, tile: &mut Tile) -> Counters {
     let mut counters = Counters::default();
     for ty in 0..tile.height {
         for tx in 0..tile.width {
             let (x, y) = (tile.x0 + tx, tile.y0 + ty);
-            let sum = &mut tile.sums[(ty * tile.width + tx) as usize];
+            let index = (ty * tile.width + tx) as usize;
             for s in samples.clone() {
                 let (ray, mut sampler) = pixel_sample(scene, seed, x, y, s);
                 let l = integ.li(scene, &ray, &mut sampler, &mut counters, &mut NoTrace);
                 counters.samples += 1;
                 if l.iter().all(|v| v.is_finite()) {
-                    for (a, v) in sum.iter_mut().zip(l) {
-                        *a += v;
-                    }
+                    tile.add_sample(index, l);
                 } else {
                     // Drop and count non-finite samples; report the first for replay
                     counters.nonfinite_samples += 1;
@@ -88,17 +125,34 @@ fn render_tile<F: Field>(scene: &Scene<F>, integ: &Integrator, seed: u64, sample
     counters
 }
 
-/// Render `scene`. `on_pass(done_spp, total_spp_or_0)` is called after every pass.
+/// Render the whole image of `scene`. `on_pass(done_spp, total_spp_or_0)` is called after
+/// every pass.
 ///
 /// # Panics
 /// If the rayon pool cannot be built (out of threads).
 pub fn render<F: Field>(scene: &Scene<F>, settings: &RenderSettings, on_pass: &(dyn Fn(u64, u64) + Sync)) -> RenderResult {
+    render_with(scene, settings, RenderControl::default(), on_pass)
+}
+
+/// Render the pixels and samples described by `settings` and `control`: samples
+/// `first_sample..` of the pixels of `control.crop`, added to `control.film` if given.
+/// `RenderResult::spp` counts the samples added by this call.
+///
+/// # Panics
+/// If the rayon pool cannot be built, or `control.film` does not match the crop.
+pub fn render_with<F: Field>(scene: &Scene<F>, settings: &RenderSettings, control: RenderControl<'_>, on_pass: &(dyn Fn(u64, u64) + Sync)) -> RenderResult {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(settings.threads)
         .build()
         .expect("invariant: a rayon pool can be built");
-    let mut film = Film::new(scene.camera.width, scene.camera.height);
+    let (width, height) = (scene.camera.width, scene.camera.height);
+    let crop = control.crop.unwrap_or(Crop::full(width, height));
+    let mut film = control.film.unwrap_or_else(|| Film::with_crop(width, height, crop));
+    assert!(film.crop == crop && film.width == width && film.height == height, "invariant: resumed film matches the crop");
     let mut counters = Counters::default();
+    // The first non-finite sample in (row, column, sample) order: each tile reports its
+    // first in that order, so the minimum over tiles and passes does not depend on them
+    let mut first_nonfinite: Option<(u32, u32, u64)> = None;
     let start = Instant::now();
     let mut done: u64 = 0;
     let total = match settings.budget {
@@ -106,35 +160,54 @@ pub fn render<F: Field>(scene: &Scene<F>, settings: &RenderSettings, on_pass: &(
         SampleBudget::Time(_) | SampleBudget::CpuTime(_) => 0,
     };
     let cpu_start = crate::stats::cpu_seconds();
-    let mut last_pass_cpu = 0.0;
-    let mut last_pass = Duration::ZERO;
-    loop {
-        let pass = match settings.budget {
-            SampleBudget::Spp(_) => {
-                if done >= total {
-                    break;
-                }
-                // About 32 passes for progress reporting; sums do not depend on it.
-                (total / 32).clamp(1, total - done)
-            }
-            SampleBudget::Time(limit) => {
-                let elapsed = start.elapsed();
-                if done > 0 && (elapsed + last_pass).as_secs_f64() > limit {
-                    break;
-                }
-                1
-            }
-            SampleBudget::CpuTime(limit) => {
-                if done > 0 && crate::stats::cpu_seconds() - cpu_start + last_pass_cpu > limit {
-                    break;
-                }
-                1
-            }
+    let mut cpu_per_spp: Option<f64> = None;
+    let mut seconds_per_spp: Option<f64> = None;
+    let mut last_pass: u64 = 0;
+    let stopped = loop {
+        let remaining = match settings.budget {
+            SampleBudget::Spp(_) => total - done,
+            SampleBudget::Time(_) | SampleBudget::CpuTime(_) => u64::MAX,
         };
-        let pass_cpu_start = crate::stats::cpu_seconds();
+        if remaining == 0 {
+            break StopReason::Finished;
+        }
+        if control.stop.is_some_and(|stop| stop()) {
+            break StopReason::Interrupted;
+        }
+        // Size the pass from the measured time per spp: ≈ PASS_SECONDS, growing at most 4×
+        let mut pass = match seconds_per_spp {
+            None => 1,
+            Some(t) => ((PASS_SECONDS / t.max(1e-9)) as u64).clamp(1, last_pass.saturating_mul(4).max(1)),
+        };
+        pass = pass.min(remaining);
+        if let (Some(t), true) = (seconds_per_spp, done > 0) {
+            // Budget and deadline: only passes predicted to end in time
+            if let SampleBudget::Time(limit) = settings.budget {
+                let left = limit - start.elapsed().as_secs_f64();
+                if left < t {
+                    break StopReason::Finished;
+                }
+                pass = pass.min((left / t) as u64).max(1);
+            }
+            if let (SampleBudget::CpuTime(limit), Some(c)) = (settings.budget, cpu_per_spp) {
+                let left = limit - (crate::stats::cpu_seconds() - cpu_start);
+                if left < c {
+                    break StopReason::Finished;
+                }
+                pass = pass.min((left / c) as u64).max(1);
+            }
+            if let Some(deadline) = control.deadline {
+                let left = deadline.saturating_duration_since(Instant::now()).as_secs_f64();
+                if left < t {
+                    break StopReason::TimeLimit;
+                }
+                pass = pass.min((left / t) as u64).max(1);
+            }
+        }
         let first = settings.first_sample + done;
         let range = first..first + pass;
         let pass_start = Instant::now();
+        let pass_cpu_start = crate::stats::cpu_seconds();
         let tile_counters: Vec<Counters> = pool.install(|| {
             film.tiles
                 .par_iter_mut()
@@ -143,11 +216,19 @@ pub fn render<F: Field>(scene: &Scene<F>, settings: &RenderSettings, on_pass: &(
         });
         for c in &tile_counters {
             counters.merge(c);
+            if let Some((x, y, s)) = c.first_nonfinite {
+                if first_nonfinite.map_or(true, |(fx, fy, fs)| (y, x, s) < (fy, fx, fs)) {
+                    first_nonfinite = Some((x, y, s));
+                }
+            }
         }
-        last_pass = pass_start.elapsed();
-        last_pass_cpu = crate::stats::cpu_seconds() - pass_cpu_start;
+        let elapsed = pass_start.elapsed().as_secs_f64();
+        seconds_per_spp = Some(elapsed / pass as f64);
+        cpu_per_spp = Some((crate::stats::cpu_seconds() - pass_cpu_start) / pass as f64);
+        last_pass = pass;
         done += pass;
         on_pass(done, total);
-    }
-    RenderResult { film, spp: done, counters, render_seconds: start.elapsed().as_secs_f64() }
+    };
+    counters.first_nonfinite = first_nonfinite;
+    RenderResult { film, spp: done, counters, render_seconds: start.elapsed().as_secs_f64(), stopped }
 }

@@ -1,0 +1,15 @@
+//! Render-farm behaviour of `plume render` and `plume merge`: frame sequences and
+//! patterns, skip/continue/overwrite of outputs, splitting a frame into tiles and sample
+//! ranges and merging them exactly, signals, time limits, exit codes, progress lines and
+//! per-frame cost records. See the README's "Render farms" and `ARCHITECTURE.md`.
+
+pub mod fingerprint;
+pub mod frame;
+pub mod frames;
+pub mod job;
+pub mod merge;
+pub mod part;
+pub mod pattern;
+pub mod progress;
+pub mod signals;
+pub mod split;

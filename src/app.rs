@@ -264,7 +264,8 @@ pub fn load_scene(args: &RenderArgs) -> Result<LoadedScene> {
     // Light-sampling structures, only for the technique in use and only when paths scatter
     let (_, light_sampling) = method(args);
     let lights = if args.albedo() > 0.0 && args.max_depth > 0 {
-        Lights::build(&volume, &emission, light_sampling, args.proxy_resolution)?
+        let proxy_resolution = crate::volume::proxy::ProxyGrid::resolution_for(&volume, args.proxy_resolution);
+        Lights::build(&volume, &emission, light_sampling, proxy_resolution)?
     } else {
         Lights::default()
     };

@@ -320,9 +320,9 @@ pub struct RenderArgs {
     #[arg(long, value_enum, default_value_t = MisArg::Power)]
     pub mis: MisArg,
     /// FNEE proxy grid resolution (cells along the longest axis; a power of two, 8 up to
-    /// the data resolution).
-    #[arg(long, default_value_t = 64)]
-    pub proxy_resolution: u32,
+    /// the data resolution). Default 64, or the data resolution if that is smaller.
+    #[arg(long)]
+    pub proxy_resolution: Option<u32>,
     /// Single-scattering albedo in [0, 1] (0: emission–absorption only). With
     /// --albedo-grid it multiplies the grid (default 1 then).
     #[arg(long)]

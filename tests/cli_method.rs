@@ -94,3 +94,21 @@ fn scattering_flags_are_validated() {
         assert!(!out.exists());
     }
 }
+
+#[test]
+fn default_proxy_resolution_adapts_to_small_volumes() {
+    // A 24³ volume cannot hold a 64³ proxy: the default shrinks to the data resolution,
+    // while an explicit 64 is refused naming the flag.
+    let d = tmpdir("proxy");
+    let ex = d.join("small.vdb");
+    assert!(plume(&["synth", "explosion", "--resolution", "24", "-o", s(&ex)]).status.success());
+    let out = d.join("o.exr");
+    let base = ["render", s(&ex), "-o", s(&out), "--albedo", "0.7", "--spp", "1", "--width", "12", "--height", "8", "-q"];
+    let o = plume(&base);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let mut explicit = base.to_vec();
+    explicit.extend_from_slice(&["--proxy-resolution", "64", "--overwrite"]);
+    let o = plume(&explicit);
+    assert_eq!(o.status.code(), Some(2), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--proxy-resolution"));
+}

@@ -116,6 +116,26 @@ pub struct ProxyGrid {
     total_power: f64,
 }
 
+/// The paper's proxy resolution (64³), used when the user gives none.
+pub const DEFAULT_RESOLUTION: u32 = 64;
+
+impl ProxyGrid {
+    /// The largest valid resolution for `volume`: the smallest power of two ≥ its longest
+    /// axis in voxels (one cell per voxel), at least 8.
+    #[must_use]
+    pub fn max_resolution(volume: &Volume) -> u32 {
+        let longest = (volume.dims * BRICK).max_element().max(8);
+        (longest as u32).next_power_of_two()
+    }
+
+    /// `--proxy-resolution` when given, else [`DEFAULT_RESOLUTION`] capped at
+    /// [`ProxyGrid::max_resolution`] (so small volumes work without the flag).
+    #[must_use]
+    pub fn resolution_for(volume: &Volume, requested: Option<u32>) -> u32 {
+        requested.unwrap_or_else(|| DEFAULT_RESOLUTION.min(Self::max_resolution(volume)))
+    }
+}
+
 /// Check `resolution` against the data: a power of two from 8 up to the smallest power of
 /// two ≥ the longest axis in voxels (which gives one cell per voxel). An empty volume
 /// (`None`) only needs a power of two ≥ 8.

@@ -89,7 +89,9 @@ public:
 // past the end of the file, so a lying header can never size an allocation.
 class BoundedReader {
 public:
-    BoundedReader(std::istream& is, std::uint64_t size) : is_(is), size_(size) {}
+    // Reads must end at or before byte `size`; `bound` says what that byte is.
+    BoundedReader(std::istream& is, std::uint64_t size, const char* bound = "the file has")
+        : is_(is), size_(size), bound_(bound) {}
 
     std::uint64_t position() {
         const std::streamoff p = is_.tellg();
@@ -101,7 +103,7 @@ public:
         if (bytes > size_ || p > size_ - bytes) {
             std::ostringstream msg;
             msg << "truncated or corrupt file: " << what << " at byte " << p << " needs "
-                << bytes << " bytes, but the file has " << size_ << " bytes";
+                << bytes << " bytes, but " << bound_ << " " << size_ << " bytes";
             throw std::runtime_error(msg.str());
         }
     }
@@ -123,12 +125,15 @@ public:
         require(bytes, what);
         is_.seekg(static_cast<std::streamoff>(bytes), std::ios_base::cur);
     }
+    // Skips a length-prefixed string without allocating it.
+    void skip_string(const char* what) { skip(read<std::uint32_t>(what), what); }
     void seek(std::uint64_t pos) { is_.seekg(static_cast<std::streamoff>(pos)); }
     std::uint64_t size() const { return size_; }
 
 private:
     std::istream& is_;
     std::uint64_t size_;
+    const char* bound_;
 };
 
 struct Entry {
@@ -140,6 +145,31 @@ struct Scan {
     bool has_grid_offsets = true;
     std::vector<Entry> entries;  // file order; empty when !has_grid_offsets
 };
+
+// Walks the start of one grid the way Archive::readGrid reads it (compression flags, the
+// grid's metadata, the transform's map type name), with every length checked against the
+// start of the grid's leaf data. OpenVDB sizes a std::string or a metadata value from
+// each of these lengths and zero-fills it before reading, and loops over the metadata
+// count even past the end of the stream: a single smashed field made it allocate 11 GB or
+// spin for minutes (found by tests/fuzz_mutants.rs). Metadata values are framed by their
+// byte count, which is exact for every file OpenVDB writes.
+void scan_grid_prefix(std::istream& is, std::uint32_t version, std::uint64_t grid_pos,
+                      std::uint64_t block_pos) {
+    is.seekg(static_cast<std::streamoff>(grid_pos));
+    BoundedReader in(is, block_pos, "the grid's leaf data starts after");
+    if (version >= vdb::OPENVDB_FILE_VERSION_NODE_MASK_COMPRESSION) {
+        in.read<std::uint32_t>("grid compression flags");
+    }
+    const auto meta_count = in.read<std::uint32_t>("grid metadata count");
+    for (std::uint32_t i = 0; i < meta_count; ++i) {
+        in.skip_string("grid metadata name");
+        in.skip_string("grid metadata type");
+        in.skip(in.read<std::uint32_t>("grid metadata size"), "grid metadata value");
+    }
+    if (version >= vdb::OPENVDB_FILE_VERSION_GRID_INSTANCING) {
+        in.skip_string("grid transform type");
+    }
+}
 
 // Walks the header, the file-level metadata and the grid descriptors the way
 // io::File::open does, with every length checked against the file size.
@@ -162,8 +192,8 @@ Scan scan_descriptors(const std::string& path) {
     // File metadata (MetaMap::readMeta): count, then (name, type name, byte size, bytes).
     const auto meta_count = in.read<std::uint32_t>("file metadata count");
     for (std::uint32_t i = 0; i < meta_count; ++i) {
-        in.read_string("file metadata name");
-        in.read_string("file metadata type");
+        in.skip_string("file metadata name");
+        in.skip_string("file metadata type");
         in.skip(in.read<std::uint32_t>("file metadata size"), "file metadata value");
     }
 
@@ -192,6 +222,12 @@ Scan scan_descriptors(const std::string& path) {
                 << "\" claims data in bytes " << grid_pos << ".." << end_pos
                 << ", but the file has " << size << " bytes";
             throw std::runtime_error(msg.str());
+        }
+        try {
+            scan_grid_prefix(is, version, static_cast<std::uint64_t>(grid_pos),
+                             static_cast<std::uint64_t>(block_pos));
+        } catch (const std::runtime_error& e) {
+            throw std::runtime_error("grid \"" + printable(name) + "\": " + e.what());
         }
         scan.entries.push_back({name, vdb::io::GridDescriptor::nameAsString(unique_name)});
         in.seek(static_cast<std::uint64_t>(end_pos));

@@ -2,8 +2,7 @@
 //! `farm/`), `merge`, `info`, `synth`. `main.rs` only parses arguments, calls [`run`] and
 //! turns an error into a one-line message and exit code.
 
-use std::path::Path;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use glam::DVec3;
 
@@ -16,7 +15,7 @@ use crate::color::Rgb;
 use crate::error::{Error, Result};
 use crate::integrator::{Integrator, LightSampling, Lights, MisHeuristic, Scene};
 use crate::medium::{Convention, Emission, EmissionKind, Estimator, Medium, TemperatureMap};
-use crate::vdb::{self, FloatGrid, GridSelector, ReadLimits};
+use crate::vdb::{self, GridRequest, GridSelector, ReadIsolation, ReadLimits};
 use crate::volume::{Field, Volume};
 
 /// Emission grid names tried, in order, by `--emission auto` and by `--emission grid`
@@ -80,7 +79,7 @@ pub fn run(cli: Cli, command_line: &str) -> Result<()> {
 }
 
 fn info_command(args: &InfoArgs) -> Result<()> {
-    let grids = vdb::list_grids(&args.file)?;
+    let grids = read_isolation(args.no_isolation, args.read_timeout, &ReadLimits::default())?.list_grids(&args.file)?;
     if args.json {
         println!("{}", crate::info::to_json(&grids));
     } else {
@@ -93,13 +92,13 @@ fn selector(flag: &str, s: &str) -> Result<GridSelector> {
     s.parse::<GridSelector>().map_err(|_| Error::invalid(flag, format!("{s:?} is not a grid name or name[N]")))
 }
 
-/// Read a grid, mapping "not found" to `Ok(None)`.
-fn read_optional(path: &Path, sel: &GridSelector, limits: &ReadLimits) -> Result<Option<FloatGrid>> {
-    match vdb::read_float_grid(path, sel, limits) {
-        Ok(g) => Ok(Some(g)),
-        Err(Error::GridNotFound { .. }) => Ok(None),
-        Err(e) => Err(e),
-    }
+/// Where to read VDB files: in an isolated child unless `--no-isolation`.
+fn read_isolation(no_isolation: bool, timeout: f64, limits: &ReadLimits) -> Result<ReadIsolation> {
+    let timeout = Duration::try_from_secs_f64(timeout)
+        .ok()
+        .filter(|t| !t.is_zero())
+        .ok_or_else(|| Error::invalid("--read-timeout", format!("{timeout} is not a positive number of seconds")))?;
+    Ok(ReadIsolation::from_flags(no_isolation, limits, timeout))
 }
 
 fn check_finite_nonneg(flag: &str, v: f64) -> Result<()> {
@@ -179,50 +178,37 @@ pub fn load_scene(args: &RenderArgs) -> Result<LoadedScene> {
     validate(args)?;
     let limits = ReadLimits { max_bytes: args.max_input_memory.unwrap_or(ReadLimits::default().max_bytes) };
     let temperature_map: TemperatureMap = args.temperature_map.parse()?;
-    let density = vdb::read_float_grid(&args.file, &selector("--density-grid", &args.density_grid)?, &limits)?;
-    let temperature_sel = selector("--temperature-grid", &args.temperature_grid)?;
-    let (kind, source) = match args.emission {
-        EmissionArg::None => (EmissionKind::None, None),
-        EmissionArg::Blackbody => (EmissionKind::Blackbody, Some(vdb::read_float_grid(&args.file, &temperature_sel, &limits)?)),
-        EmissionArg::Grid => {
-            let names: Vec<String> = match &args.emission_grid {
-                Some(n) => vec![n.clone()],
-                None => EMISSION_GRID_CANDIDATES.iter().map(|s| (*s).to_string()).collect(),
-            };
-            let mut found = None;
-            for n in &names {
-                if let Some(g) = read_optional(&args.file, &selector("--emission-grid", n)?, &limits)? {
-                    found = Some(g);
-                    break;
-                }
-            }
-            match found {
-                Some(g) => (EmissionKind::Grid, Some(g)),
-                None => {
-                    // Report the first candidate as missing, listing what exists
-                    vdb::read_float_grid(&args.file, &selector("--emission-grid", &names[0])?, &limits)?;
-                    unreachable!("invariant: the grid was just not found");
-                }
-            }
-        }
-        EmissionArg::Auto => {
-            if let Some(t) = read_optional(&args.file, &temperature_sel, &limits)? {
-                (EmissionKind::Blackbody, Some(t))
-            } else {
-                let mut found = None;
-                for n in EMISSION_GRID_CANDIDATES {
-                    if let Some(g) = read_optional(&args.file, &selector("--emission-grid", n)?, &limits)? {
-                        found = Some(g);
-                        break;
-                    }
-                }
-                match found {
-                    Some(g) => (EmissionKind::Grid, Some(g)),
-                    None => (EmissionKind::None, None),
-                }
-            }
+    // Every grid the render needs, in one read (one reader process when isolated)
+    let emission_sels = || -> Result<Vec<GridSelector>> {
+        match &args.emission_grid {
+            Some(n) => Ok(vec![selector("--emission-grid", n)?]),
+            None => EMISSION_GRID_CANDIDATES.iter().map(|n| selector("--emission-grid", n)).collect(),
         }
     };
+    let temperature_sel = selector("--temperature-grid", &args.temperature_grid)?;
+    let mut requests = vec![GridRequest::required(selector("--density-grid", &args.density_grid)?)];
+    match args.emission {
+        EmissionArg::None => {}
+        EmissionArg::Blackbody => requests.push(GridRequest::required(temperature_sel)),
+        EmissionArg::Grid => requests.push(GridRequest { alternatives: emission_sels()?, required: true }),
+        EmissionArg::Auto => {
+            let candidates = EMISSION_GRID_CANDIDATES.iter().map(|n| selector("--emission-grid", n));
+            let alternatives = std::iter::once(Ok(temperature_sel)).chain(candidates).collect::<Result<_>>()?;
+            requests.push(GridRequest { alternatives, required: false });
+        }
+    }
+    let isolation = read_isolation(args.no_isolation, args.read_timeout, &limits)?;
+    let mut found = isolation.read_grids(&args.file, &requests, &limits)?.into_iter();
+    let density = found.next().flatten().expect("invariant: the density request is required").grid;
+    let source = found.next().flatten();
+    let kind = match (args.emission, &source) {
+        (EmissionArg::None, _) | (EmissionArg::Auto, None) => EmissionKind::None,
+        (EmissionArg::Blackbody, _) => EmissionKind::Blackbody,
+        (EmissionArg::Grid, _) => EmissionKind::Grid,
+        (EmissionArg::Auto, Some(f)) if f.alternative == 0 => EmissionKind::Blackbody,
+        (EmissionArg::Auto, Some(_)) => EmissionKind::Grid,
+    };
+    let source = source.map(|f| f.grid);
     let c = args.emission_color.as_vec3();
     let emission = Emission {
         kind,

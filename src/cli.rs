@@ -150,6 +150,12 @@ pub struct InfoArgs {
     /// Print a JSON array instead of text.
     #[arg(long)]
     pub json: bool,
+    /// Seconds the isolated VDB reader may take before it is killed.
+    #[arg(long, default_value_t = 120.0)]
+    pub read_timeout: f64,
+    /// Read the file in this process, not in an isolated child (trusted files only).
+    #[arg(long)]
+    pub no_isolation: bool,
 }
 
 /// `plume synth …`.
@@ -389,6 +395,13 @@ pub struct RenderArgs {
     /// Largest input a grid read may allocate, e.g. `8GiB`, `512MiB` (default: half of RAM).
     #[arg(long, value_parser = parse_bytes)]
     pub max_input_memory: Option<u64>,
+    /// Seconds the isolated VDB reader may take before it is killed.
+    #[arg(long, default_value_t = 120.0)]
+    pub read_timeout: f64,
+    /// Read the file in this process, not in an isolated child that limits memory and
+    /// time and survives crashes (saves a few ms; trusted files only).
+    #[arg(long)]
+    pub no_isolation: bool,
     /// No progress bar or summary.
     #[arg(long, short)]
     pub quiet: bool,

@@ -58,6 +58,28 @@ pub enum Error {
         /// Limit in force.
         limit: u64,
     },
+    /// The isolated reader process (see `vdb::isolate`) failed on this file: it crashed,
+    /// hung, ran out of its memory or CPU limit, or replied with garbage. plume itself is
+    /// unharmed; the file is treated as unreadable.
+    #[error("corrupt or hostile VDB {}: {what}{}", .path.display(), reading_context(.grid))]
+    ReaderFailed {
+        /// File being read.
+        path: PathBuf,
+        /// Selector of the grid being read when it failed; `None` while listing grids.
+        grid: Option<String>,
+        /// What happened, e.g. "reader crashed with SIGSEGV".
+        what: String,
+    },
+    /// The isolated reader process could not be started (plume's own installation or
+    /// the system is at fault, not the input).
+    #[error("cannot start the isolated VDB reader {}: {source} (--no-isolation reads in-process)", .exe.display())]
+    ReaderSpawn {
+        /// Executable that serves the reader (the `plume` binary).
+        exe: PathBuf,
+        /// OS error.
+        #[source]
+        source: std::io::Error,
+    },
     /// A flag has a value plume cannot use.
     #[error("invalid value for {flag}: {message}")]
     InvalidArgument {
@@ -141,8 +163,9 @@ impl Error {
             | Error::GridNotFound { .. }
             | Error::UnsupportedGrid { .. }
             | Error::TooLarge { .. }
+            | Error::ReaderFailed { .. }
             | Error::Scene(_) => 3,
-            Error::Write { .. } => 4,
+            Error::Write { .. } | Error::ReaderSpawn { .. } => 4,
             Error::InvalidPart { .. } => exit::INPUT,
             Error::Interrupted { .. } => exit::INTERRUPTED,
             Error::TimeLimit { .. } => exit::TIME_LIMIT,
@@ -153,6 +176,14 @@ impl Error {
     /// Shorthand for [`Error::InvalidArgument`].
     pub fn invalid(flag: &str, message: impl Into<String>) -> Error {
         Error::InvalidArgument { flag: flag.to_string(), message: message.into() }
+    }
+}
+
+/// " while reading grid \"density\"", or " while listing grids" for `plume info`.
+fn reading_context(grid: &Option<String>) -> String {
+    match grid {
+        Some(selector) => format!(" while reading grid {selector:?}"),
+        None => " while listing grids".to_string(),
     }
 }
 

@@ -3,7 +3,18 @@
 
 use clap::Parser;
 
+use plume::vdb::isolate;
+
 fn main() {
+    // The isolated VDB reader is this same binary: `plume __read-grids …` (hidden, see
+    // vdb::isolate). It is dispatched before clap so that it stays out of --help.
+    let mut args = std::env::args_os().skip(1);
+    if args.next().is_some_and(|a| a == isolate::READER_SUBCOMMAND) {
+        isolate::reader_main(&args.collect::<Vec<_>>());
+    }
+    if let Ok(exe) = std::env::current_exe() {
+        isolate::set_reader_exe(exe);
+    }
     let command_line = std::env::args().collect::<Vec<_>>().join(" ");
     let cli = plume::cli::Cli::parse();
     if let Err(e) = plume::app::run(cli, &command_line) {

@@ -52,6 +52,8 @@ pub fn settings_hash(args: &RenderArgs, seed: u64) -> String {
     a.exposure = None;
     a.stats = None;
     a.max_input_memory = None;
+    a.read_timeout = 0.0;
+    a.no_isolation = false;
     a.quiet = false;
     a.frames = None;
     a.overwrite = false;

@@ -32,14 +32,24 @@
 //!   an error rather than silently missing data (OpenVDB 10 itself reads a truncated file
 //!   without complaint and fills the missing leaves with garbage). Values that come out
 //!   NaN or infinite are rejected as corrupt.
+//! - **Untrusted files** are read in a child process ([`isolate`]): a crash, hang or
+//!   runaway allocation in OpenVDB becomes [`Error::ReaderFailed`](crate::Error::ReaderFailed)
+//!   instead of taking plume down. The CLI reads this way by default.
 //! - **Writing** is atomic: a temp file in the target directory, then a rename.
 
 mod ffi;
+pub mod isolate;
 mod read;
 mod selector;
+#[doc(hidden)]
+pub mod wire;
 mod write;
 
-pub use read::{list_grids, read_float_grid, ReadLimits};
+pub use isolate::{
+    list_grids_isolated, read_float_grids_isolated, read_grids_isolated, IsolationLimits,
+    ReadIsolation,
+};
+pub use read::{list_grids, read_float_grid, read_grids, FoundGrid, GridRequest, ReadLimits};
 pub use selector::GridSelector;
 pub use write::write_float_grids;
 

@@ -20,7 +20,7 @@ const OPENVDB_MAGIC: [u8; 8] = [0x20, 0x42, 0x44, 0x56, 0, 0, 0, 0];
 const NANOVDB_MAGIC_PREFIX: &[u8] = b"NanoVDB";
 
 /// Output bytes per leaf: 512 `f32` values plus an `i32` origin triple.
-const BYTES_PER_LEAF: u64 = (LEAF_VOXELS * 4 + 3 * 4) as u64;
+pub(crate) const BYTES_PER_LEAF: u64 = (LEAF_VOXELS * 4 + 3 * 4) as u64;
 
 /// Used when the OS does not report its physical memory.
 const FALLBACK_MAX_BYTES: u64 = 4 << 30;
@@ -184,6 +184,11 @@ fn zeroed_vec<T: Default + Clone>(len: usize) -> Option<Vec<T>> {
 
 /// Selectors of every grid in the file, for [`Error::GridNotFound`].
 fn available_selectors(path: &Path, path_str: &str) -> Result<Vec<String>> {
+    Ok(file_selectors(path, path_str)?.iter().map(GridSelector::to_string).collect())
+}
+
+/// One selector per grid of the file, in file order.
+fn file_selectors(path: &Path, path_str: &str) -> Result<Vec<GridSelector>> {
     let names = ffi::grid_names(path_str).map_err(|e| vdb_error(path, &e))?;
     let mut occurrences: HashMap<String, usize> = HashMap::new();
     Ok(names
@@ -192,13 +197,100 @@ fn available_selectors(path: &Path, path_str: &str) -> Result<Vec<String>> {
             let occurrence = occurrences.entry(name.clone()).or_insert(0);
             let selector = GridSelector { name, occurrence: *occurrence };
             *occurrence += 1;
-            selector.to_string()
+            selector
         })
         .collect())
 }
 
+/// One grid a caller needs: the first of several selectors that the file holds.
+///
+/// `plume render --emission auto` asks for `temperature`, else `emission`, else `flame`,
+/// … in one request, so that the file is opened once and only the grid used is read.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct GridRequest {
+    /// Selectors tried in order; the first one that exists is read. Not empty.
+    pub alternatives: Vec<GridSelector>,
+    /// When none exists: `true` gives [`Error::GridNotFound`] for the first alternative,
+    /// `false` gives `None`.
+    pub required: bool,
+}
+
+impl GridRequest {
+    /// Exactly this grid; its absence is an error.
+    #[must_use]
+    pub fn required(selector: GridSelector) -> GridRequest {
+        GridRequest { alternatives: vec![selector], required: true }
+    }
+}
+
+/// The grid read for a [`GridRequest`].
+#[derive(Clone, Debug)]
+pub struct FoundGrid {
+    /// Index into the request's `alternatives` of the grid that was read.
+    pub alternative: usize,
+    /// The grid.
+    pub grid: FloatGrid,
+}
+
+/// Reads the grids of several requests from one file, in this process.
+///
+/// Returns one entry per request: the grid read, or `None` for an optional request none
+/// of whose alternatives exists. [`crate::vdb::isolate`] does the same in a child process.
+///
+/// # Errors
+/// As [`read_float_grid`]; [`Error::GridNotFound`] names a required request's first
+/// alternative.
+pub fn read_grids(
+    path: &Path,
+    requests: &[GridRequest],
+    limits: &ReadLimits,
+) -> Result<Vec<Option<FoundGrid>>> {
+    plan_requests(path, requests)?
+        .into_iter()
+        .zip(requests)
+        .map(|(choice, request)| {
+            choice
+                .map(|alternative| {
+                    let grid = read_float_grid(path, &request.alternatives[alternative], limits)?;
+                    Ok(FoundGrid { alternative, grid })
+                })
+                .transpose()
+        })
+        .collect()
+}
+
+/// For each request, the index of the first alternative the file holds (`None` for an
+/// optional request with none). Reads the grid descriptors only.
+///
+/// # Errors
+/// A file that cannot be opened or parsed; [`Error::GridNotFound`] for a required request
+/// with no alternative in the file; [`Error::InvalidArgument`] for a request without
+/// alternatives.
+pub(crate) fn plan_requests(path: &Path, requests: &[GridRequest]) -> Result<Vec<Option<usize>>> {
+    let path_str = check_file(path)?;
+    let in_file = file_selectors(path, path_str)?;
+    requests
+        .iter()
+        .map(|request| {
+            let first = request
+                .alternatives
+                .first()
+                .ok_or_else(|| Error::invalid("grid request", "no grid selector given"))?;
+            let choice = request.alternatives.iter().position(|a| in_file.contains(a));
+            if choice.is_none() && request.required {
+                return Err(Error::GridNotFound {
+                    path: path.to_path_buf(),
+                    name: first.to_string(),
+                    available: in_file.iter().map(GridSelector::to_string).collect(),
+                });
+            }
+            Ok(choice)
+        })
+        .collect()
+}
+
 /// Checks that `path` is a regular OpenVDB file and returns it as UTF-8 for the shim.
-fn check_file(path: &Path) -> Result<&str> {
+pub(crate) fn check_file(path: &Path) -> Result<&str> {
     let open_error = |source: io::Error| Error::Open { path: path.to_path_buf(), source };
     let metadata = fs::metadata(path).map_err(open_error)?;
     if !metadata.is_file() {

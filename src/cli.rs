@@ -69,7 +69,7 @@ pub struct BenchMethodsArgs {
     /// CPU seconds per method (equal CPU time).
     #[arg(long, default_value_t = 10.0)]
     pub time: f64,
-    /// Seconds for each reference render.
+    /// CPU seconds for each reference render.
     #[arg(long, default_value_t = 120.0)]
     pub reference_time: f64,
     /// MIS heuristic of the compared methods.

@@ -1,7 +1,8 @@
 //! `plume bench methods`: the paper's equal-time comparison (METHOD.md §9) on generated
 //! explosions, "thin" and "dense".
 //!
-//! For each regime: a converged reference (a long `line-fnee` render with its own seed),
+//! For each regime: a converged reference (a long `line-fnee` render with its own seed and
+//! a CPU-time budget),
 //! then every method for the same CPU time (`SampleBudget::CpuTime`, so a loaded machine
 //! does not favour one method),
 //! reporting RMSE against the reference (over all RGB values), spp reached, samples per
@@ -24,11 +25,13 @@ use crate::synth::{explosion, ExplosionParams};
 use crate::volume::{Field, Volume};
 
 /// The methods compared, as (name, estimator, light sampling).
-pub const METHODS: [(&str, Estimator, LightSampling); 4] = [
+pub const METHODS: [(&str, Estimator, LightSampling); 5] = [
     ("point-nee", Estimator::Point, LightSampling::Nee),
     ("line-nee", Estimator::Line, LightSampling::Nee),
     ("line-fnee", Estimator::Line, LightSampling::Fnee),
     ("ray-march", Estimator::RayMarch, LightSampling::None),
+    // METHOD §4's extension beyond the paper, measured beside it
+    ("blend-fnee", Estimator::Blend { kappa: 4.0 }, LightSampling::Fnee),
 ];
 
 /// One method's result in one regime.
@@ -98,7 +101,7 @@ pub fn run(resolution: u32, width: u32, height: u32, seconds: f64, reference_sec
     for &(regime, sigma_t) in regimes {
         let s = scene(resolution, sigma_t, LightSampling::Fnee, width, height, 64)?;
         let t = Instant::now();
-        let reference = render(&s, &RenderSettings { budget: SampleBudget::Time(reference_seconds), seed: 1_000_003, threads, first_sample: 0, integrator: integrator(Estimator::Line, LightSampling::Fnee, MisHeuristic::Power) }, &|_, _| {});
+        let reference = render(&s, &RenderSettings { budget: SampleBudget::CpuTime(reference_seconds), seed: 1_000_003, threads, first_sample: 0, integrator: integrator(Estimator::Line, LightSampling::Fnee, MisHeuristic::Power) }, &|_, _| {});
         on_line(&format!("{regime}: reference line-fnee {} spp in {:.0} s", reference.spp, t.elapsed().as_secs_f64()));
         reference_spp.push((regime.to_string(), reference.spp));
         let ref_px = reference.film.average(reference.spp);

@@ -271,6 +271,12 @@ pub fn compare(scene: &mut BenchScene, reference: &Reference, cfg: &CompareConfi
             }
             runs.push(res);
         }
+        let image = std::mem::take(&mut runs[0].image);
+        for r in &mut runs {
+            // Keep only the figures: the next method's peak RSS should not carry these
+            r.sums = Vec::new();
+            r.image = Vec::new();
+        }
         let uses_proxy = m.light_sampling == LightSampling::Fnee && !emission_only(scene);
         let result = MethodResult {
             method: m.name.clone(),
@@ -286,7 +292,7 @@ pub fn compare(scene: &mut BenchScene, reference: &Reference, cfg: &CompareConfi
             peak_rss_bytes: peak_rss_bytes(),
             peak_rss_per_method: per_method,
             nonfinite_samples: runs.iter().map(|r| r.counters.nonfinite_samples).sum(),
-            image: runs[0].image.clone(),
+            image,
         };
         raw.push((result, runs));
     }

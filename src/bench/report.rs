@@ -230,7 +230,7 @@ pub fn run(args: &ReportArgs) -> Result<()> {
     write_document(args, &suite.md, &regimes, start.elapsed().as_secs_f64(), &load_start)
 }
 
-const EXTREMES_INTRO: &str = "Boxes of constant density and emission seen head-on, where `L = L_e (1 − e^{−μd})/μ` (METHOD.md §11.1), and the generated explosion at voxel sizes from 1e-4 to 1e4. \
+const EXTREMES_INTRO: &str = "Boxes of constant density and emission seen head-on, where `L = L_e (1 − e^{−μd})/μ` (METHOD.md §11.1), and the generated explosion at voxel sizes from 1e-4 to 1e4.\n\n\
 - *density*: σ_t from 1e-6 to 1e6 per metre in a 1 m box (optical depth 1e-6 … 1e6), emission 1 per metre; with scattering (albedo 0.5, line-fnee) the mean must lie between the emission-only value and `L_e/μ_a`.\n\
 - *temperature*: blackbody box via `--temperature-map linear:0,T` up to 1e7 K (solar-flare plasma), against the f64 Planck × CIE integral; 300 K is below the 500 K cutoff and must be black.\n\
 - *voxel size*: the explosion with voxel edge `h` = 1e-4 … 1e4 (its `world_from_index` scaled), **σ_t and the emission scale both multiplied by h₀/h** so optical depth and radiance do not change: images must match the generator's own voxel size `h₀` to float rounding, 1e-5 (ray-march: largest pixel difference; point/line: image mean, since a near-tie can flip one collision).\n\

@@ -138,7 +138,7 @@ fn compare_measures_every_method_and_writes_all_outputs() {
         assert!(m.equal_time.bias.mean.abs() < 0.5 * report.reference_mean, "{}: bias {}", m.method, m.equal_time.bias.mean);
     }
     assert_eq!(report.methods[1].proxy_resolution, Some(8));
-    let files = report.write(&dir.join("out"), "t").unwrap();
+    let files = report.write(&dir.join("out"), "t", true).unwrap();
     for f in &files {
         assert!(std::fs::metadata(f).unwrap().len() > 100, "{}", f.display());
     }

@@ -109,7 +109,7 @@ impl CompareArgs {
         let report = compare(&mut scene, &reference, &cfg, &log)?;
         print!("{report}");
         if let Some(dir) = &self.out {
-            for p in report.write(dir, &self.name)? {
+            for p in report.write(dir, &self.name, true)? {
                 log(&format!("wrote {}", p.display()));
             }
         }

@@ -194,12 +194,12 @@ impl CompareReport {
         s
     }
 
-    /// Write `NAME.csv`, `NAME.json`, `NAME-error.png` (error vs CPU time) and
-    /// `NAME-crops.png` (crop montage) into `dir`; returns the paths written.
+    /// Write `NAME.csv`, `NAME.json`, `NAME-error.png` (error vs CPU time) and, with
+    /// `crops`, `NAME-crops.png` (crop montage) into `dir`; returns the paths written.
     ///
     /// # Errors
     /// A file cannot be written.
-    pub fn write(&self, dir: &Path, name: &str) -> Result<Vec<PathBuf>> {
+    pub fn write(&self, dir: &Path, name: &str, crops: bool) -> Result<Vec<PathBuf>> {
         std::fs::create_dir_all(dir).map_err(|source| Error::Write { path: dir.to_path_buf(), source })?;
         let csv = dir.join(format!("{name}.csv"));
         crate::output::write_atomic(&csv, |w| std::io::Write::write_all(w, self.to_csv().as_bytes()))?;
@@ -208,9 +208,13 @@ impl CompareReport {
         crate::output::write_atomic(&json, |w| std::io::Write::write_all(w, text.as_bytes()))?;
         let plot = dir.join(format!("{name}-error.png"));
         super::plot::error_vs_time(self, &plot)?;
-        let crops = dir.join(format!("{name}-crops.png"));
-        super::plot::crop_montage(self, &crops)?;
-        Ok(vec![csv, json, plot, crops])
+        let mut files = vec![csv, json, plot];
+        if crops {
+            let path = dir.join(format!("{name}-crops.png"));
+            super::plot::crop_montage(self, &path)?;
+            files.push(path);
+        }
+        Ok(files)
     }
 }
 

@@ -80,7 +80,8 @@ impl Suite<'_> {
         let report = compare(scene, reference, &cfg, self.log)?;
         let wall = wall.elapsed().as_secs_f64();
         let out = &self.args.out;
-        let files = report.write(&out.join("bench"), name)?;
+        let crops = name != "proxy"; // every proxy variant looks alike
+        let files = report.write(&out.join("bench"), name, crops)?;
         // Plots live in img/, tables in bench/
         let img = out.join("img");
         std::fs::create_dir_all(&img).map_err(|source| Error::Write { path: img.clone(), source })?;
@@ -96,7 +97,27 @@ impl Suite<'_> {
         let _ = writeln!(md, "**Equal CPU time** ({} CPU s per run, mean ± std over {} seeds):\n\n{}", num(report.cpu_seconds_per_run), report.runs, report.equal_time_table());
         let _ = writeln!(md, "**Equal spp** ({} spp, the largest power of two every run reached):\n\n{}", report.equal_spp, report.equal_spp_table());
         let _ = writeln!(md, "**Cost of the light structures** (built once per method, outside the render budget):\n\n{}", report.cost_table());
-        let _ = writeln!(md, "![error vs CPU time, {name}](img/{name}-error.png)\n\n![equal-time crops, {name}](img/{name}-crops.png)\n");
+        let best = report.methods.iter().max_by(|a, b| report.efficiency(a).total_cmp(&report.efficiency(b)));
+        if let Some(b) = best {
+            let _ = writeln!(md, "Most efficient at equal CPU time: `{}` ({:.2}× the efficiency of `{}`).\n", b.method, report.efficiency(b), report.methods[0].method);
+        }
+        let growing: Vec<&str> = report
+            .methods
+            .iter()
+            .filter(|m| m.curve.len() > 1 && m.curve[m.curve.len() - 1].relmse.mean > m.curve[0].relmse.mean)
+            .map(|m| m.method.as_str())
+            .collect();
+        if !growing.is_empty() {
+            let _ = writeln!(
+                md,
+                "Note: relMSE *grows* with CPU time here for {}. The reference is noisiest, relative to its value, in dark pixels, where (x − ref)²/(ref² + ε) weighs most; a method converging to the true image moves away from the reference's noise there. For these, read RMSE; the relMSE columns still rank methods at one budget, loosely.\n",
+                growing.iter().map(|m| format!("`{m}`")).collect::<Vec<_>>().join(", ")
+            );
+        }
+        let _ = writeln!(md, "![error vs CPU time, {name}](img/{name}-error.png)\n");
+        if crops {
+            let _ = writeln!(md, "![equal-time crops, {name}](img/{name}-crops.png)\n");
+        }
         let _ = writeln!(md, "Data: [`bench/{name}.csv`](bench/{name}.csv), [`bench/{name}.json`](bench/{name}.json). Section wall time {wall:.0} s.\n");
         Ok(report)
     }

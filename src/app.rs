@@ -31,35 +31,7 @@ pub fn run(cli: Cli, command_line: &str) -> Result<()> {
         Command::Render(args) => crate::farm::job::render_command(&args, command_line),
         Command::Merge(args) => crate::farm::merge::merge_command(&args, command_line),
         Command::Info(args) => info_command(&args),
-        Command::Bench(crate::cli::BenchCommand::Methods(args)) => {
-            let mut regimes = Vec::new();
-            for part in args.regimes.split(',') {
-                let (name, v) = part.split_once('=').ok_or_else(|| Error::invalid("--regimes", format!("{part:?} is not NAME=DENSITY_SCALE")))?;
-                let v: f64 = v.parse().map_err(|_| Error::invalid("--regimes", format!("{v:?} is not a number")))?;
-                regimes.push((name.to_string(), v));
-            }
-            let regimes: Vec<(&str, f64)> = regimes.iter().map(|(n, v)| (n.as_str(), *v)).collect();
-            let mis = match args.mis {
-                MisArg::Balance => MisHeuristic::Balance,
-                MisArg::Power => MisHeuristic::Power,
-            };
-            let report = crate::bench::methods::run(args.resolution, args.width, args.height, args.time, args.reference_time, args.threads, mis, args.proxy_resolution, &regimes, &|l| eprintln!("plume: {l}"))?;
-            print!("{report}");
-            if let Some(p) = &args.json {
-                let json = serde_json::to_string_pretty(&report).map_err(|e| Error::Scene(e.to_string()))?;
-                crate::output::write_atomic(p, |w| std::io::Write::write_all(w, json.as_bytes()))?;
-            }
-            Ok(())
-        }
-        Command::Bench(crate::cli::BenchCommand::Core(args)) => {
-            let report = crate::bench::core::run(args.resolution, args.threads, &args.ttfs_file)?;
-            print!("{report}");
-            if let Some(p) = &args.json {
-                let json = serde_json::to_string_pretty(&report).map_err(|e| Error::Scene(e.to_string()))?;
-                crate::output::write_atomic(p, |w| std::io::Write::write_all(w, json.as_bytes()))?;
-            }
-            Ok(())
-        }
+        Command::Bench(command) => crate::bench::run(command),
         Command::Synth(SynthCommand::Explosion(args)) => {
             let t = Instant::now();
             let params = crate::synth::ExplosionParams { resolution: args.resolution, seed: args.seed, ..Default::default() };

@@ -52,6 +52,15 @@ pub enum BenchCommand {
     /// The paper's equal-time comparison of methods on thin and dense generated
     /// explosions: RMSE against a converged reference, spp, core-hours.
     Methods(BenchMethodsArgs),
+    /// Methods at equal CPU time and equal spp against a given or computed reference,
+    /// several seeds: RMSE, relMSE, bias, spp, samples per CPU second, core-hours, peak
+    /// memory; as a table, CSV, JSON and PNG plots.
+    Compare(Box<crate::bench::args::CompareArgs>),
+    /// Numerical extremes: density scales, temperatures, voxel sizes and NaN/inf/negative
+    /// voxels, checked against closed forms.
+    Extremes(crate::bench::args::ExtremesArgs),
+    /// The whole benchmark suite behind docs/BENCHMARKS.md (tables and plots).
+    Report(crate::bench::args::ReportArgs),
 }
 
 /// `plume bench methods`.

@@ -9,7 +9,7 @@
 //!   for a given file, best of several runs;
 //! - **brick memory**: heap bytes of the [`Volume`] against the raw f32 leaf data read.
 
-use std::path::PathBuf;
+use std::path::Path;
 use std::time::Instant;
 
 use glam::DVec3;
@@ -75,7 +75,7 @@ fn emission() -> Emission {
 ///
 /// # Errors
 /// If the time-to-first-sample file cannot be loaded.
-pub fn run(resolution: u32, threads: usize, ttfs_file: &PathBuf) -> Result<CoreReport> {
+pub fn run(resolution: u32, threads: usize, ttfs_file: &Path) -> Result<CoreReport> {
     let ex = explosion(&ExplosionParams { resolution, ..Default::default() });
     let raw_bytes = ((ex.density.leaf_count() + ex.temperature.leaf_count()) * LEAF_VOXELS * 4) as u64;
     let em = emission();

@@ -8,6 +8,9 @@
 //! reporting RMSE against the reference (over all RGB values), spp reached, samples per
 //! CPU second and core-hours. The ratio `RMSE(line-fnee) / RMSE(point-nee)` is the
 //! paper's figure (0.76 thin, 0.64 dense in the authors' slides).
+//!
+//! `plume bench compare` measures the same on any scene, with several seeds, CPU-time
+//! budgets, relMSE and bias; this command is kept for its fixed, quick setup.
 
 use std::time::Instant;
 
@@ -82,13 +85,7 @@ fn integrator(estimator: Estimator, light_sampling: LightSampling, mis: MisHeuri
     Integrator { estimator, light_sampling, mis, max_depth: 64, environment: None }
 }
 
-/// RMSE between two images over all RGB values.
-#[must_use]
-pub fn rmse(a: &[[f32; 4]], b: &[[f32; 4]]) -> f64 {
-    let n = (a.len() * 3) as f64;
-    let s: f64 = a.iter().zip(b).flat_map(|(p, q)| (0..3).map(move |c| (f64::from(p[c]) - f64::from(q[c])).powi(2))).sum();
-    (s / n).sqrt()
-}
+pub use super::metrics::rmse;
 
 /// Run the comparison.
 ///

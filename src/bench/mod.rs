@@ -1,5 +1,108 @@
-//! Benchmarks (`plume bench …`): speed and memory figures are measured here, never in
-//! timed tests (STYLE.md §8). Each prints a table and can write JSON.
+//! Benchmarks (`plume bench …`): speed, memory and accuracy figures are measured here,
+//! never in timed tests (STYLE.md §8). Each prints a table and can write JSON.
+//!
+//! - `core`: DDA throughput, parallel speed-up, time to first sample, brick memory;
+//! - `methods`: the paper's equal-time table on generated explosions (kept for
+//!   continuity; `compare` measures the same and more);
+//! - `compare`: any scene and flags, any methods, equal CPU time and equal spp against a
+//!   given or computed reference, several seeds, RMSE / relMSE / bias, CSV, JSON, plots;
+//! - `extremes`: the numerical-extremes sweep with closed forms;
+//! - `report`: the whole suite behind `docs/BENCHMARKS.md`.
 
+pub mod args;
+pub mod compare;
 pub mod core;
+pub mod extremes;
 pub mod methods;
+pub mod metrics;
+pub mod outputs;
+pub mod plot;
+pub mod progressive;
+pub mod report;
+pub mod spec;
+
+use crate::cli::{BenchCommand, MisArg};
+use crate::error::{Error, Result};
+use crate::integrator::MisHeuristic;
+
+/// Run one `plume bench …` command.
+///
+/// # Errors
+/// Bad flags, unreadable inputs, unwritable outputs, failed extremes checks.
+pub fn run(command: BenchCommand) -> Result<()> {
+    match command {
+        BenchCommand::Methods(args) => {
+            let mut regimes = Vec::new();
+            for part in args.regimes.split(',') {
+                let (name, v) = part.split_once('=').ok_or_else(|| Error::invalid("--regimes", format!("{part:?} is not NAME=DENSITY_SCALE")))?;
+                let v: f64 = v.parse().map_err(|_| Error::invalid("--regimes", format!("{v:?} is not a number")))?;
+                regimes.push((name.to_string(), v));
+            }
+            let regimes: Vec<(&str, f64)> = regimes.iter().map(|(n, v)| (n.as_str(), *v)).collect();
+            let mis = match args.mis {
+                MisArg::Balance => MisHeuristic::Balance,
+                MisArg::Power => MisHeuristic::Power,
+            };
+            let report = methods::run(args.resolution, args.width, args.height, args.time, args.reference_time, args.threads, mis, args.proxy_resolution, &regimes, &|l| eprintln!("plume: {l}"))?;
+            print!("{report}");
+            write_json(&args.json, &report)
+        }
+        BenchCommand::Core(args) => {
+            let report = core::run(args.resolution, args.threads, &args.ttfs_file)?;
+            print!("{report}");
+            write_json(&args.json, &report)
+        }
+        BenchCommand::Compare(args) => args.run(),
+        BenchCommand::Extremes(args) => args.run(),
+        BenchCommand::Report(args) => args.run(),
+    }
+}
+
+/// Write `value` as pretty JSON to `path`, if given.
+fn write_json<T: serde::Serialize>(path: &Option<std::path::PathBuf>, value: &T) -> Result<()> {
+    if let Some(p) = path {
+        let json = serde_json::to_string_pretty(value).map_err(|e| Error::Scene(e.to_string()))?;
+        crate::output::write_atomic(p, |w| std::io::Write::write_all(w, json.as_bytes()))?;
+    }
+    Ok(())
+}
+
+/// Reset the kernel's peak-RSS mark (`VmHWM`) of this process to its current RSS, so that
+/// the next [`peak_rss_bytes`] is the peak since now. Returns false where that is not
+/// supported (then the peak is the process's peak so far).
+pub fn reset_peak_rss() -> bool {
+    // Linux ≥ 4.0: writing 5 to clear_refs resets the peak RSS (proc(5))
+    std::fs::write("/proc/self/clear_refs", "5").is_ok()
+}
+
+/// Peak resident set size in bytes since the last [`reset_peak_rss`] (`VmHWM`), or the
+/// process's peak from `getrusage` where `/proc` is not available.
+#[must_use]
+pub fn peak_rss_bytes() -> u64 {
+    let from_proc = std::fs::read_to_string("/proc/self/status").ok().and_then(|s| {
+        let line = s.lines().find(|l| l.starts_with("VmHWM:"))?;
+        let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+        Some(kib * 1024)
+    });
+    from_proc.unwrap_or_else(crate::stats::peak_rss_bytes)
+}
+
+/// The machine, for reports: `(logical CPUs, CPU model)`.
+#[must_use]
+pub fn machine() -> (usize, String) {
+    let n = std::thread::available_parallelism().map_or(1, std::num::NonZero::get);
+    let model = std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|s| s.lines().find(|l| l.starts_with("model name")).and_then(|l| l.split_once(':')).map(|(_, m)| m.trim().to_string()))
+        .unwrap_or_else(|| "unknown CPU".into());
+    (n, model)
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn peak_rss_is_positive_after_reset() {
+        super::reset_peak_rss();
+        assert!(super::peak_rss_bytes() > 0);
+    }
+}

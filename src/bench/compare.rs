@@ -1,0 +1,347 @@
+//! `plume bench compare`: methods at equal CPU time and at equal spp against a reference,
+//! with several seeds per point.
+//!
+//! For each method: build its light-sampling structures (timed, not part of the render
+//! budget), then `runs` progressive runs with seeds `seed, seed + 1, …`, each lasting
+//! `--time` CPU seconds (and at least `--spp` spp when given). Every run records the
+//! error curve at `T/2^k` and the errors at each power-of-two spp ([`super::progressive`]).
+//! Figures are reported as mean ± sample std over the runs.
+//!
+//! **Reference.** Either given (`--reference REF.exr`) or computed (`--make-reference`):
+//! for emission-only scenes (albedo 0 or `--max-depth 0`) the expected-value estimator
+//! (ray-march, forward only), otherwise a long `line-fnee` run, each with seeds no method
+//! run uses. A computed reference is rendered as two independent halves; their difference
+//! estimates the reference's own noise: with `n_a`, `n_b` spp,
+//! `RMSE_ref ≈ RMSE(a, b) · √(n_a n_b) / (n_a + n_b)`. Measured RMSEs include it
+//! (`E[RMSE²] = MSE_method + MSE_ref`), so it is reported beside them.
+
+use std::time::Instant;
+
+use serde::Serialize;
+
+use super::metrics::{mean_rgb, Errors, Spread, RELMSE_TRIM};
+use super::progressive::{self, RunPlan, RunResult, Snapshot};
+use super::spec::{BenchScene, MethodSpec};
+use super::{peak_rss_bytes, reset_peak_rss};
+use crate::app::integrator;
+use crate::error::{Error, Result};
+use crate::integrator::{Integrator, LightSampling, Lights};
+use crate::medium::Estimator;
+
+/// Seeds of the two reference halves (no method run uses seeds this large).
+const REFERENCE_SEEDS: [u64; 2] = [0x7265_6600_0000_0001, 0x7265_6600_0000_0002];
+
+/// A reference image and how it was made.
+#[derive(Clone, Debug, Serialize)]
+pub struct Reference {
+    /// Row-major RGBA.
+    #[serde(skip)]
+    pub pixels: Vec<[f32; 4]>,
+    /// Image size.
+    pub width: u32,
+    /// Image size.
+    pub height: u32,
+    /// How it was made, in words.
+    pub description: String,
+    /// Method used (`given` for a file).
+    pub method: String,
+    /// Samples per pixel (0 for a file).
+    pub spp: u64,
+    /// CPU seconds spent (0 for a file).
+    pub cpu_seconds: f64,
+    /// Wall seconds spent (0 for a file).
+    pub wall_seconds: f64,
+    /// Estimated RMSE of the reference itself (computed references only).
+    pub noise_rmse: Option<f64>,
+}
+
+/// True when the scene's paths never scatter (emission–absorption only).
+#[must_use]
+pub fn emission_only(scene: &BenchScene) -> bool {
+    !(scene.args.albedo() > 0.0 && scene.args.max_depth > 0)
+}
+
+/// Build the light structures of `light_sampling` into the scene (nothing when paths do
+/// not scatter); returns their heap bytes.
+fn install_lights(scene: &mut BenchScene, light_sampling: LightSampling, proxy_resolution: u32) -> Result<u64> {
+    let only = emission_only(scene);
+    let s = &mut scene.loaded.scene;
+    s.lights = if only { Lights::default() } else { Lights::build(&s.field, &s.medium.emission, light_sampling, proxy_resolution)? };
+    let s = &scene.loaded.scene;
+    Ok((s.lights.nee.as_ref().map_or(0, |n| n.memory_bytes()) + s.lights.proxy.as_ref().map_or(0, |p| p.memory_bytes())) as u64)
+}
+
+fn integrator_for(scene: &BenchScene, estimator: Estimator, light_sampling: LightSampling) -> Integrator {
+    Integrator { estimator, light_sampling, ..integrator(&scene.args) }
+}
+
+/// Read a reference EXR and check its size against the scene's.
+///
+/// # Errors
+/// An unreadable file, or a size other than `--width`×`--height`.
+pub fn read_reference(path: &std::path::Path, scene: &BenchScene) -> Result<Reference> {
+    let (w, h, pixels) = crate::output::read_exr(path)?;
+    if (w, h) != (scene.args.width, scene.args.height) {
+        return Err(Error::invalid("--reference", format!("{} is {w}x{h}, the scene renders {}x{}", path.display(), scene.args.width, scene.args.height)));
+    }
+    Ok(Reference { pixels, width: w, height: h, description: format!("given: {}", path.display()), method: "given".into(), spp: 0, cpu_seconds: 0.0, wall_seconds: 0.0, noise_rmse: None })
+}
+
+/// Compute a reference with `cpu_seconds` CPU seconds (see the module docs).
+///
+/// # Errors
+/// Light structures cannot be built (an invalid `--proxy-resolution`).
+pub fn make_reference(scene: &mut BenchScene, cpu_seconds: f64, on_line: &dyn Fn(&str)) -> Result<Reference> {
+    let (method, estimator, ls, why) = if emission_only(scene) {
+        ("ray-march", Estimator::RayMarch, LightSampling::None, "expected-value estimator (ray-march, forward only): the scene is emission-only")
+    } else {
+        ("line-fnee", Estimator::Line, LightSampling::Fnee, "long line-fnee run: the scene scatters")
+    };
+    install_lights(scene, ls, crate::volume::proxy::ProxyGrid::resolution_for(&scene.loaded.scene.field, scene.args.proxy_resolution))?;
+    let integ = integrator_for(scene, estimator, ls);
+    let wall = Instant::now();
+    let halves: Vec<RunResult> = REFERENCE_SEEDS
+        .iter()
+        .map(|&seed| {
+            let plan = RunPlan { cpu_checkpoints: vec![0.5 * cpu_seconds], min_spp: 1, seed, threads: scene.args.threads };
+            progressive::run(&scene.loaded.scene, &integ, &plan, None, 0.0)
+        })
+        .collect();
+    let (a, b) = (&halves[0], &halves[1]);
+    let (na, nb) = (a.spp as f64, b.spp as f64);
+    let sums: Vec<[f64; 4]> = a.sums.iter().zip(&b.sums).map(|(x, y)| [x[0] + y[0], x[1] + y[1], x[2] + y[2], x[3] + y[3]]).collect();
+    let pixels = progressive::average(&sums, a.spp + b.spp);
+    let noise = super::metrics::rmse(&a.image, &b.image) * (na * nb).sqrt() / (na + nb);
+    let spp = a.spp + b.spp;
+    let cpu = a.cpu_seconds + b.cpu_seconds;
+    let wall = wall.elapsed().as_secs_f64();
+    let description = format!("computed: {why}; {spp} spp in {cpu:.1} CPU s ({wall:.1} s wall), two halves with seeds unused by the runs");
+    on_line(&format!("reference: {description}; estimated own RMSE {noise:.4e}"));
+    Ok(Reference { pixels, width: scene.args.width, height: scene.args.height, description, method: method.into(), spp, cpu_seconds: cpu, wall_seconds: wall, noise_rmse: Some(noise) })
+}
+
+/// Settings of a comparison.
+#[derive(Clone, Debug)]
+pub struct CompareConfig {
+    /// The methods, the first being the baseline of ratios.
+    pub methods: Vec<MethodSpec>,
+    /// CPU seconds per run (equal-time budget).
+    pub cpu_seconds: f64,
+    /// Equal-spp point; `None`: the largest power of two every run reaches.
+    pub spp: Option<u32>,
+    /// Runs (seeds) per method.
+    pub runs: u32,
+    /// relMSE ε.
+    pub epsilon: f64,
+    /// Points of the error-vs-time curve: `T/2^k`, `k < curve_points`.
+    pub curve_points: u32,
+}
+
+/// Statistics of one checkpoint over runs.
+#[derive(Clone, Copy, Debug, Default, Serialize)]
+pub struct Point {
+    /// CPU seconds spent.
+    pub cpu_seconds: Spread,
+    /// Wall seconds spent.
+    pub wall_seconds: Spread,
+    /// Samples per pixel.
+    pub spp: Spread,
+    /// RMSE.
+    pub rmse: Spread,
+    /// relMSE (trimmed).
+    pub relmse: Spread,
+    /// Bias `mean(x) − mean(ref)`.
+    pub bias: Spread,
+}
+
+impl Point {
+    fn of(snaps: &[Snapshot]) -> Point {
+        let f = |g: &dyn Fn(&Snapshot) -> f64| Spread::of(&snaps.iter().map(g).collect::<Vec<_>>());
+        Point {
+            cpu_seconds: f(&|s| s.cpu_seconds),
+            wall_seconds: f(&|s| s.wall_seconds),
+            spp: f(&|s| s.spp as f64),
+            rmse: f(&|s| s.errors.rmse),
+            relmse: f(&|s| s.errors.relmse),
+            bias: f(&|s| s.errors.bias),
+        }
+    }
+}
+
+/// One method's results.
+#[derive(Clone, Debug, Serialize)]
+pub struct MethodResult {
+    /// Method name as given.
+    pub method: String,
+    /// Estimator.
+    pub estimator: String,
+    /// Light sampling.
+    pub light_sampling: String,
+    /// FNEE proxy resolution used (FNEE methods on scattering scenes).
+    pub proxy_resolution: Option<u32>,
+    /// At the CPU-time budget.
+    pub equal_time: Point,
+    /// At the equal-spp point.
+    pub equal_spp: Point,
+    /// The error-vs-CPU-time curve, ascending.
+    pub curve: Vec<Point>,
+    /// Camera samples per CPU second over the whole run.
+    pub samples_per_cpu_second: Spread,
+    /// Seconds to build the light-sampling structures (not in the render budget).
+    pub light_build_seconds: f64,
+    /// Heap bytes of the volume plus light-sampling structures.
+    pub scene_bytes: u64,
+    /// Peak resident set size while this method was built and run (bytes).
+    pub peak_rss_bytes: u64,
+    /// Whether `peak_rss_bytes` is this method's own peak (`/proc/self/clear_refs`), or the
+    /// process's peak so far.
+    pub peak_rss_per_method: bool,
+    /// Non-finite samples dropped over all runs.
+    pub nonfinite_samples: u64,
+    /// Final image of the first run.
+    #[serde(skip)]
+    pub image: Vec<[f32; 4]>,
+}
+
+/// Everything one comparison measured.
+#[derive(Clone, Debug, Serialize)]
+pub struct CompareReport {
+    /// Scene spec.
+    pub scene: String,
+    /// Render flags.
+    pub flags: Vec<String>,
+    /// Image size.
+    pub width: u32,
+    /// Image size.
+    pub height: u32,
+    /// Worker threads.
+    pub threads: usize,
+    /// Paths do not scatter.
+    pub emission_only: bool,
+    /// Seconds to generate and load the scene.
+    pub load_seconds: f64,
+    /// The reference.
+    pub reference: Reference,
+    /// Mean over all RGB values of the reference.
+    pub reference_mean: f64,
+    /// CPU seconds per run.
+    pub cpu_seconds_per_run: f64,
+    /// Runs per method.
+    pub runs: u32,
+    /// CPU-time checkpoints of the curve.
+    pub curve_cpu_seconds: Vec<f64>,
+    /// The equal-spp point.
+    pub equal_spp: u64,
+    /// relMSE ε.
+    pub relmse_epsilon: f64,
+    /// relMSE trim fraction.
+    pub relmse_trim: f64,
+    /// Per method, in the order given.
+    pub methods: Vec<MethodResult>,
+}
+
+/// Run the comparison on `scene` (whose light structures it replaces) against `reference`.
+///
+/// # Errors
+/// A reference of the wrong size, or light structures that cannot be built.
+pub fn compare(scene: &mut BenchScene, reference: &Reference, cfg: &CompareConfig, on_line: &dyn Fn(&str)) -> Result<CompareReport> {
+    let (w, h) = (scene.args.width, scene.args.height);
+    if (reference.width, reference.height) != (w, h) {
+        return Err(Error::invalid("--reference", format!("reference is {}x{}, the scene renders {w}x{h}", reference.width, reference.height)));
+    }
+    if !(cfg.cpu_seconds.is_finite() && cfg.cpu_seconds > 0.0) || cfg.runs == 0 {
+        return Err(Error::invalid("--time/--runs", "need a positive CPU time and at least one run"));
+    }
+    let curve: Vec<f64> = (0..cfg.curve_points.max(1)).rev().map(|k| cfg.cpu_seconds / f64::from(1u32 << k)).collect();
+    let mut raw: Vec<(MethodResult, Vec<RunResult>)> = Vec::new();
+    for m in &cfg.methods {
+        let per_method = reset_peak_rss();
+        let proxy = crate::volume::proxy::ProxyGrid::resolution_for(&scene.loaded.scene.field, m.proxy_resolution.or(scene.args.proxy_resolution));
+        let t = Instant::now();
+        let light_bytes = install_lights(scene, m.light_sampling, proxy)?;
+        let light_build_seconds = t.elapsed().as_secs_f64();
+        let integ = integrator_for(scene, m.estimator, m.light_sampling);
+        let mut runs = Vec::new();
+        for r in 0..cfg.runs {
+            let plan = RunPlan { cpu_checkpoints: curve.clone(), min_spp: cfg.spp.map_or(1, u64::from), seed: scene.args.seed.unwrap_or(0) + u64::from(r), threads: scene.args.threads };
+            let res = progressive::run(&scene.loaded.scene, &integ, &plan, Some(&reference.pixels), cfg.epsilon);
+            let last = res.time_points.last().copied();
+            if let Some(s) = last {
+                on_line(&format!("{}: run {}: {} spp in {:.1} CPU s, RMSE {:.4e}", m.name, r + 1, s.spp, s.cpu_seconds, s.errors.rmse));
+            }
+            runs.push(res);
+        }
+        let image = std::mem::take(&mut runs[0].image);
+        for r in &mut runs {
+            // Keep only the figures: the next method's peak RSS should not carry these
+            r.sums = Vec::new();
+            r.image = Vec::new();
+        }
+        let uses_proxy = m.light_sampling == LightSampling::Fnee && !emission_only(scene);
+        let result = MethodResult {
+            method: m.name.clone(),
+            estimator: format!("{:?}", m.estimator),
+            light_sampling: format!("{:?}", m.light_sampling),
+            proxy_resolution: uses_proxy.then_some(proxy),
+            equal_time: Point::of(&runs.iter().filter_map(|r| r.time_points.last().copied()).collect::<Vec<_>>()),
+            equal_spp: Point::default(),
+            curve: (0..curve.len()).map(|k| Point::of(&runs.iter().map(|r| r.time_points[k]).collect::<Vec<_>>())).collect(),
+            samples_per_cpu_second: Spread::of(&runs.iter().map(|r| r.counters.samples as f64 / r.cpu_seconds.max(1e-9)).collect::<Vec<_>>()),
+            light_build_seconds,
+            scene_bytes: scene.loaded.scene.field.memory_bytes() as u64 + light_bytes,
+            peak_rss_bytes: peak_rss_bytes(),
+            peak_rss_per_method: per_method,
+            nonfinite_samples: runs.iter().map(|r| r.counters.nonfinite_samples).sum(),
+            image,
+        };
+        raw.push((result, runs));
+    }
+    // Equal spp: as asked, or the largest power of two every run reached
+    let equal_spp = match cfg.spp {
+        Some(n) => u64::from(n),
+        None => {
+            let reached = raw.iter().flat_map(|(_, runs)| runs.iter().map(|r| r.spp)).min().unwrap_or(1).max(1);
+            1u64 << (63 - reached.leading_zeros())
+        }
+    };
+    let mut methods = Vec::new();
+    for (mut result, runs) in raw {
+        let snaps: Vec<Snapshot> = runs.iter().filter_map(|r| r.spp_points.iter().find(|s| s.spp == equal_spp).copied()).collect();
+        result.equal_spp = Point::of(&snaps);
+        methods.push(result);
+    }
+    Ok(CompareReport {
+        scene: scene.spec.clone(),
+        flags: scene.flags.clone(),
+        width: w,
+        height: h,
+        threads: if scene.args.threads == 0 { rayon::current_num_threads() } else { scene.args.threads },
+        emission_only: emission_only(scene),
+        load_seconds: scene.load_seconds,
+        reference: reference.clone(),
+        reference_mean: mean_rgb(&reference.pixels),
+        cpu_seconds_per_run: cfg.cpu_seconds,
+        runs: cfg.runs,
+        curve_cpu_seconds: curve,
+        equal_spp,
+        relmse_epsilon: cfg.epsilon,
+        relmse_trim: RELMSE_TRIM,
+        methods,
+    })
+}
+
+impl CompareReport {
+    /// Efficiency `1/(RMSE² · CPU s)` of `m` at equal time relative to the first method.
+    #[must_use]
+    pub fn efficiency(&self, m: &MethodResult) -> f64 {
+        let base = &self.methods[0].equal_time;
+        let e = &m.equal_time;
+        (base.rmse.mean.powi(2) * base.cpu_seconds.mean) / (e.rmse.mean.powi(2) * e.cpu_seconds.mean)
+    }
+
+    /// Errors of a method's equal-time images as [`Errors`] means (for summaries).
+    #[must_use]
+    pub fn equal_time_errors(&self, method: &str) -> Option<Errors> {
+        self.methods.iter().find(|m| m.method == method).map(|m| Errors { rmse: m.equal_time.rmse.mean, relmse: m.equal_time.relmse.mean, bias: m.equal_time.bias.mean })
+    }
+}

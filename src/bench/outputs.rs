@@ -1,0 +1,258 @@
+//! How a [`CompareReport`] is shown and stored: Markdown tables (the terminal and
+//! `docs/BENCHMARKS.md` print the same), a long-format CSV, JSON, and PNG plots.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use super::compare::{CompareReport, Point};
+use super::metrics::Spread;
+use crate::error::{Error, Result};
+
+/// A number with 4 significant digits, in `e` notation when tiny or huge.
+#[must_use]
+pub fn num(v: f64) -> String {
+    let a = v.abs();
+    if v == 0.0 {
+        "0".into()
+    } else if !v.is_finite() {
+        format!("{v}")
+    } else if !(1e-3..1e5).contains(&a) {
+        format!("{v:.3e}")
+    } else {
+        let decimals = (3 - a.log10().floor() as i32).max(0) as usize;
+        format!("{v:.decimals$}")
+    }
+}
+
+/// A short axis label: 3 significant digits, trailing zeros dropped.
+#[must_use]
+pub fn label(v: f64) -> String {
+    let a = v.abs();
+    if v == 0.0 || !v.is_finite() {
+        return format!("{v}");
+    }
+    if !(1e-3..1e5).contains(&a) {
+        let s = format!("{v:.1e}");
+        return s.replace(".0e", "e");
+    }
+    let decimals = (2 - a.log10().floor() as i32).max(0) as usize;
+    let s = format!("{v:.decimals$}");
+    if s.contains('.') { s.trim_end_matches('0').trim_end_matches('.').to_string() } else { s }
+}
+
+/// `mean ± std` with [`num`].
+#[must_use]
+pub fn pm(s: &Spread) -> String {
+    if s.n > 1 {
+        format!("{} ± {}", num(s.mean), num(s.std))
+    } else {
+        num(s.mean)
+    }
+}
+
+/// `mean ± std` of a count: whole numbers when every run agrees.
+#[must_use]
+pub fn pm_count(s: &Spread) -> String {
+    if s.std == 0.0 && s.mean.fract() == 0.0 {
+        format!("{:.0}", s.mean)
+    } else {
+        format!("{:.1} ± {:.1}", s.mean, s.std)
+    }
+}
+
+fn mib(b: u64) -> String {
+    format!("{:.0}", b as f64 / 1048576.0)
+}
+
+impl CompareReport {
+    /// The equal-time table (Markdown).
+    #[must_use]
+    pub fn equal_time_table(&self) -> String {
+        let mut s = String::new();
+        let base = &self.methods[0];
+        let _ = writeln!(s, "| method | CPU s | spp | RMSE | RMSE / {} | relMSE | bias | samples / CPU s | core-h | efficiency vs {} | peak RSS MiB |", base.method, base.method);
+        let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|---|");
+        for m in &self.methods {
+            let e = &m.equal_time;
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {} | {:.3} | {} | {} | {} | {} | {:.2}× | {} |",
+                m.method,
+                pm(&e.cpu_seconds),
+                pm_count(&e.spp),
+                pm(&e.rmse),
+                e.rmse.mean / base.equal_time.rmse.mean,
+                pm(&e.relmse),
+                pm(&e.bias),
+                num(m.samples_per_cpu_second.mean),
+                num(e.cpu_seconds.mean / 3600.0),
+                self.efficiency(m),
+                mib(m.peak_rss_bytes),
+            );
+        }
+        s
+    }
+
+    /// The equal-spp table (Markdown).
+    #[must_use]
+    pub fn equal_spp_table(&self) -> String {
+        let mut s = String::new();
+        let base = &self.methods[0];
+        let _ = writeln!(s, "| method | spp | CPU s | core-h | RMSE | RMSE / {} | relMSE | bias |", base.method);
+        let _ = writeln!(s, "|---|---|---|---|---|---|---|---|");
+        for m in &self.methods {
+            let e = &m.equal_spp;
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {} | {} | {:.3} | {} | {} |",
+                m.method,
+                self.equal_spp,
+                pm(&e.cpu_seconds),
+                num(e.cpu_seconds.mean / 3600.0),
+                pm(&e.rmse),
+                e.rmse.mean / base.equal_spp.rmse.mean,
+                pm(&e.relmse),
+                pm(&e.bias),
+            );
+        }
+        s
+    }
+
+    /// Cost of the light structures per method (Markdown).
+    #[must_use]
+    pub fn cost_table(&self) -> String {
+        let mut s = String::new();
+        let _ = writeln!(s, "| method | proxy | light build s | scene heap MiB | peak RSS MiB | non-finite samples |");
+        let _ = writeln!(s, "|---|---|---|---|---|---|");
+        for m in &self.methods {
+            let proxy = m.proxy_resolution.map_or("–".into(), |p| format!("{p}³"));
+            let _ = writeln!(s, "| {} | {} | {:.3} | {} | {} | {} |", m.method, proxy, m.light_build_seconds, mib(m.scene_bytes), mib(m.peak_rss_bytes), m.nonfinite_samples);
+        }
+        s
+    }
+
+    /// One paragraph on the setup: scene, flags, reference, budgets, ε.
+    #[must_use]
+    pub fn setup(&self) -> String {
+        let r = &self.reference;
+        let noise = r.noise_rmse.map_or(String::new(), |n| format!(" Its own estimated RMSE is {} ({:.1} % of the smallest method RMSE at equal time; included in every RMSE below).", num(n), 100.0 * n / self.methods.iter().map(|m| m.equal_time.rmse.mean).fold(f64::INFINITY, f64::min)));
+        format!(
+            "Scene `{}` with `{}`, {}x{}, {} threads, {}. {} runs (seeds) per method of {} CPU s each; equal spp = {}. \
+             Reference: {}.{} relMSE: ε = {}, top {} % of pixel errors trimmed. Mean reference value {}.",
+            self.scene,
+            self.flags.join(" "),
+            self.width,
+            self.height,
+            self.threads,
+            if self.emission_only { "emission–absorption only" } else { "scattering" },
+            self.runs,
+            num(self.cpu_seconds_per_run),
+            self.equal_spp,
+            r.description,
+            noise,
+            self.relmse_epsilon,
+            self.relmse_trim * 100.0,
+            num(self.reference_mean),
+        )
+    }
+
+    /// Long-format CSV: one row per method and point (`equal-time`, `equal-spp`,
+    /// `curve`).
+    #[must_use]
+    pub fn to_csv(&self) -> String {
+        let mut s = String::from("scene,method,point,target,cpu_s_mean,cpu_s_std,spp_mean,spp_std,rmse_mean,rmse_std,relmse_mean,relmse_std,bias_mean,bias_std,samples_per_cpu_s,core_hours,light_build_s,peak_rss_bytes,runs\n");
+        for m in &self.methods {
+            let mut row = |point: &str, target: f64, p: &Point| {
+                let _ = writeln!(
+                    s,
+                    "{},{},{point},{target},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+                    csv_field(&self.scene),
+                    csv_field(&m.method),
+                    p.cpu_seconds.mean,
+                    p.cpu_seconds.std,
+                    p.spp.mean,
+                    p.spp.std,
+                    p.rmse.mean,
+                    p.rmse.std,
+                    p.relmse.mean,
+                    p.relmse.std,
+                    p.bias.mean,
+                    p.bias.std,
+                    m.samples_per_cpu_second.mean,
+                    p.cpu_seconds.mean / 3600.0,
+                    m.light_build_seconds,
+                    m.peak_rss_bytes,
+                    self.runs
+                );
+            };
+            row("equal-time", self.cpu_seconds_per_run, &m.equal_time);
+            row("equal-spp", self.equal_spp as f64, &m.equal_spp);
+            for (t, p) in self.curve_cpu_seconds.iter().zip(&m.curve) {
+                row("curve", *t, p);
+            }
+        }
+        s
+    }
+
+    /// Write `NAME.csv`, `NAME.json`, `NAME-error.png` (error vs CPU time) and, with
+    /// `crops`, `NAME-crops.png` (crop montage) into `dir`; returns the paths written.
+    ///
+    /// # Errors
+    /// A file cannot be written.
+    pub fn write(&self, dir: &Path, name: &str, crops: bool) -> Result<Vec<PathBuf>> {
+        std::fs::create_dir_all(dir).map_err(|source| Error::Write { path: dir.to_path_buf(), source })?;
+        let csv = dir.join(format!("{name}.csv"));
+        crate::output::write_atomic(&csv, |w| std::io::Write::write_all(w, self.to_csv().as_bytes()))?;
+        let json = dir.join(format!("{name}.json"));
+        let text = serde_json::to_string_pretty(self).map_err(|e| Error::Scene(e.to_string()))?;
+        crate::output::write_atomic(&json, |w| std::io::Write::write_all(w, text.as_bytes()))?;
+        let plot = dir.join(format!("{name}-error.png"));
+        super::plot::error_vs_time(self, &plot)?;
+        let mut files = vec![csv, json, plot];
+        if crops {
+            let path = dir.join(format!("{name}-crops.png"));
+            super::plot::crop_montage(self, &path)?;
+            files.push(path);
+        }
+        Ok(files)
+    }
+}
+
+impl std::fmt::Display for CompareReport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        writeln!(f, "{}\n", self.setup())?;
+        writeln!(f, "Equal CPU time ({} CPU s per run):\n", num(self.cpu_seconds_per_run))?;
+        writeln!(f, "{}", self.equal_time_table())?;
+        writeln!(f, "Equal spp ({} spp):\n", self.equal_spp)?;
+        writeln!(f, "{}", self.equal_spp_table())?;
+        write!(f, "{}", self.cost_table())
+    }
+}
+
+/// Quote a CSV field when it holds a comma or quote.
+fn csv_field(s: &str) -> String {
+    if s.contains([',', '"', '\n']) {
+        format!("\"{}\"", s.replace('"', "\"\""))
+    } else {
+        s.to_string()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn numbers_keep_four_digits() {
+        assert_eq!(num(0.0), "0");
+        assert_eq!(num(0.012345), "0.01235");
+        assert_eq!(num(12.3456), "12.35");
+        assert_eq!(num(1234.56), "1235");
+        assert_eq!(num(1.5e-7), "1.500e-7");
+        assert_eq!(label(50.0), "50");
+        assert_eq!(label(0.125), "0.125");
+        assert_eq!(label(2e-5), "2e-5");
+        assert_eq!(pm_count(&Spread { mean: 75.0, std: 0.0, n: 3 }), "75");
+        assert_eq!(csv_field("a,b"), "\"a,b\"");
+    }
+}

@@ -1,0 +1,200 @@
+//! What `plume bench compare` renders: methods (`--methods`) and scenes (`SCENE` plus
+//! `plume render` flags).
+//!
+//! **Methods** are comma-separated. Each is a preset of `--method` (`point-nee`,
+//! `line-nee`, `line-fnee`, `ray-march`) or `ESTIMATOR+LIGHTS` with `ESTIMATOR` one of
+//! `point`, `line`, `ray-march`, `blend` (κ from `--kappa`) and `LIGHTS` one of `none`,
+//! `nee`, `fnee` (e.g. `line+none`, `blend+fnee`), optionally followed by `@N` for an FNEE
+//! proxy of `N` cells (`line-fnee@16`); without `@N` the scene's `--proxy-resolution`.
+//!
+//! **Scenes** are a `.vdb` file or `explosion:RES[:SEED]`, a generated explosion (written
+//! once per process to a work directory so that it goes through the same
+//! [`load_scene`] as any file). The render flags are parsed by the `plume render` parser,
+//! so every flag and every validation of `render` applies.
+
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+
+use crate::app::{load_scene, LoadedScene};
+use crate::cli::{Cli, Command, RenderArgs};
+use crate::error::{Error, Result};
+use crate::integrator::LightSampling;
+use crate::medium::Estimator;
+
+/// One method of a comparison.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MethodSpec {
+    /// Name as given (`line-fnee@16`).
+    pub name: String,
+    /// Emission estimator.
+    pub estimator: Estimator,
+    /// Next event technique.
+    pub light_sampling: LightSampling,
+    /// FNEE proxy resolution, if given with `@N`.
+    pub proxy_resolution: Option<u32>,
+}
+
+/// Parse a `--methods` list; `kappa` is the blend estimator's κ.
+///
+/// # Errors
+/// [`Error::InvalidArgument`] for `--methods` naming the bad entry and the accepted forms.
+pub fn parse_methods(list: &str, kappa: f64) -> Result<Vec<MethodSpec>> {
+    let mut out: Vec<MethodSpec> = Vec::new();
+    for raw in list.split(',').map(str::trim).filter(|s| !s.is_empty()) {
+        let m = parse_method(raw, kappa)?;
+        if out.iter().any(|o| o.name == m.name) {
+            return Err(Error::invalid("--methods", format!("{raw:?} is listed twice")));
+        }
+        out.push(m);
+    }
+    if out.is_empty() {
+        return Err(Error::invalid("--methods", "no method given"));
+    }
+    Ok(out)
+}
+
+fn parse_method(raw: &str, kappa: f64) -> Result<MethodSpec> {
+    let bad = || {
+        Error::invalid(
+            "--methods",
+            format!(
+                "{raw:?}: expected a preset (point-nee, line-nee, line-fnee, ray-march) or ESTIMATOR+LIGHTS \
+                 (point|line|ray-march|blend + none|nee|fnee), optionally @PROXY_RESOLUTION"
+            ),
+        )
+    };
+    let (body, proxy) = match raw.split_once('@') {
+        Some((b, p)) => (b, Some(p.parse::<u32>().map_err(|_| bad())?)),
+        None => (raw, None),
+    };
+    let estimator_of = |s: &str| match s {
+        "point" => Some(Estimator::Point),
+        "line" => Some(Estimator::Line),
+        "ray-march" => Some(Estimator::RayMarch),
+        "blend" => Some(Estimator::Blend { kappa }),
+        _ => None,
+    };
+    let (estimator, light_sampling) = match body {
+        "point-nee" => (Estimator::Point, LightSampling::Nee),
+        "line-nee" => (Estimator::Line, LightSampling::Nee),
+        "line-fnee" => (Estimator::Line, LightSampling::Fnee),
+        "ray-march" => (Estimator::RayMarch, LightSampling::None),
+        _ => {
+            let (e, l) = body.split_once('+').ok_or_else(bad)?;
+            let ls = match l {
+                "none" => LightSampling::None,
+                "nee" => LightSampling::Nee,
+                "fnee" => LightSampling::Fnee,
+                _ => return Err(bad()),
+            };
+            (estimator_of(e).ok_or_else(bad)?, ls)
+        }
+    };
+    if proxy.is_some() && light_sampling != LightSampling::Fnee {
+        return Err(Error::invalid("--methods", format!("{raw:?}: @PROXY applies to FNEE methods only")));
+    }
+    Ok(MethodSpec { name: raw.to_string(), estimator, light_sampling, proxy_resolution: proxy })
+}
+
+/// A scene ready to render, with the flags that built it.
+pub struct BenchScene {
+    /// The parsed `plume render` flags (their `-o` is a placeholder, never written).
+    pub args: RenderArgs,
+    /// The loaded scene.
+    pub loaded: LoadedScene,
+    /// The scene as given (`explosion:256` or the file path).
+    pub spec: String,
+    /// The render flags as given.
+    pub flags: Vec<String>,
+    /// Seconds spent generating (explosions) and loading.
+    pub load_seconds: f64,
+}
+
+/// Generated files of this process (regenerated once per process, then reused).
+static GENERATED: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+/// The `.vdb` behind a scene spec: the file itself, or a generated explosion written to
+/// `work_dir` (once per process).
+///
+/// # Errors
+/// A malformed `explosion:` spec, or the explosion cannot be written.
+pub fn scene_file(spec: &str, work_dir: &Path) -> Result<PathBuf> {
+    let Some(rest) = spec.strip_prefix("explosion:") else { return Ok(PathBuf::from(spec)) };
+    let bad = || Error::invalid("SCENE", format!("{spec:?}: expected explosion:RESOLUTION[:SEED], e.g. explosion:256"));
+    let mut parts = rest.split(':');
+    let resolution: u32 = parts.next().ok_or_else(bad)?.parse().map_err(|_| bad())?;
+    let seed: u64 = match parts.next() {
+        Some(s) => s.parse().map_err(|_| bad())?,
+        None => 1,
+    };
+    if parts.next().is_some() || !(8..=4096).contains(&resolution) {
+        return Err(bad());
+    }
+    let path = work_dir.join(format!("explosion-{resolution}-seed{seed}.vdb"));
+    let mut done = GENERATED.lock().map_err(|_| Error::Scene("bench: generator lock poisoned".into()))?;
+    if !done.contains(&path) {
+        std::fs::create_dir_all(work_dir).map_err(|source| Error::Write { path: work_dir.to_path_buf(), source })?;
+        let ex = crate::synth::explosion(&crate::synth::ExplosionParams { resolution, seed, ..Default::default() });
+        crate::vdb::write_float_grids(&path, &[&ex.density, &ex.temperature])?;
+        done.push(path.clone());
+    }
+    Ok(path)
+}
+
+/// Parse `flags` with the `plume render` parser for `file`.
+///
+/// # Errors
+/// [`Error::InvalidArgument`] with clap's message when a flag is unknown or malformed.
+pub fn render_args(file: &Path, flags: &[String]) -> Result<RenderArgs> {
+    let placeholder = std::env::temp_dir().join("plume-bench-unused.exr");
+    let mut argv: Vec<String> = vec!["plume".into(), "render".into(), file.display().to_string(), "-o".into(), placeholder.display().to_string()];
+    argv.extend(flags.iter().cloned());
+    let cli = <Cli as clap::Parser>::try_parse_from(&argv).map_err(|e| {
+        let msg = e.to_string();
+        let first = msg.lines().next().unwrap_or_default().trim_start_matches("error: ").to_string();
+        Error::invalid("render flags", first)
+    })?;
+    match cli.command {
+        Command::Render(args) => Ok(*args),
+        _ => unreachable!("invariant: parsed a render command"),
+    }
+}
+
+/// Load a scene spec with render flags.
+///
+/// # Errors
+/// See [`scene_file`], [`render_args`] and [`load_scene`].
+pub fn load(spec: &str, flags: &[String], work_dir: &Path) -> Result<BenchScene> {
+    let t = std::time::Instant::now();
+    let file = scene_file(spec, work_dir)?;
+    let args = render_args(&file, flags)?;
+    let loaded = load_scene(&args)?;
+    Ok(BenchScene { args, loaded, spec: spec.to_string(), flags: flags.to_vec(), load_seconds: t.elapsed().as_secs_f64() })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn methods_parse_presets_combinations_and_proxies() {
+        let m = parse_methods("point-nee, line+none,blend+fnee,line-fnee@16", 4.0).unwrap();
+        assert_eq!(m.len(), 4);
+        assert_eq!((m[0].estimator, m[0].light_sampling), (Estimator::Point, LightSampling::Nee));
+        assert_eq!((m[1].estimator, m[1].light_sampling), (Estimator::Line, LightSampling::None));
+        assert_eq!(m[2].estimator, Estimator::Blend { kappa: 4.0 });
+        assert_eq!(m[3].proxy_resolution, Some(16));
+        for bad in ["", "line", "line+sun", "fast", "point-nee@16", "line-fnee@x", "line-fnee,line-fnee"] {
+            assert!(parse_methods(bad, 4.0).is_err(), "{bad:?}");
+        }
+    }
+
+    #[test]
+    fn render_flags_go_through_the_render_parser() {
+        let a = render_args(Path::new("x.vdb"), &["--density-scale".into(), "20".into(), "--albedo".into(), "0.8".into()]).unwrap();
+        assert_eq!(a.density_scale, 20.0);
+        assert_eq!(a.albedo(), 0.8);
+        let e = render_args(Path::new("x.vdb"), &["--no-such-flag".into()]).unwrap_err();
+        assert!(e.to_string().contains("no-such-flag"), "{e}");
+    }
+}

@@ -89,8 +89,11 @@ public:
 // past the end of the file, so a lying header can never size an allocation.
 class BoundedReader {
 public:
-    // Reads must end at or before byte `size`; `bound` says what that byte is.
-    BoundedReader(std::istream& is, std::uint64_t size, const char* bound = "the file has")
+    // What limits the reads: the end of the file, or the start of a grid's leaf data.
+    enum class Bound { FileSize, LeafData };
+
+    // Reads must end at or before byte `size`.
+    BoundedReader(std::istream& is, std::uint64_t size, Bound bound = Bound::FileSize)
         : is_(is), size_(size), bound_(bound) {}
 
     std::uint64_t position() {
@@ -103,7 +106,12 @@ public:
         if (bytes > size_ || p > size_ - bytes) {
             std::ostringstream msg;
             msg << "truncated or corrupt file: " << what << " at byte " << p << " needs "
-                << bytes << " bytes, but " << bound_ << " " << size_ << " bytes";
+                << bytes << " bytes, but ";
+            if (bound_ == Bound::FileSize) {
+                msg << "the file has " << size_ << " bytes";
+            } else {
+                msg << "the grid's leaf data starts at byte " << size_;
+            }
             throw std::runtime_error(msg.str());
         }
     }
@@ -133,7 +141,7 @@ public:
 private:
     std::istream& is_;
     std::uint64_t size_;
-    const char* bound_;
+    Bound bound_;
 };
 
 struct Entry {
@@ -156,7 +164,7 @@ struct Scan {
 void scan_grid_prefix(std::istream& is, std::uint32_t version, std::uint64_t grid_pos,
                       std::uint64_t block_pos) {
     is.seekg(static_cast<std::streamoff>(grid_pos));
-    BoundedReader in(is, block_pos, "the grid's leaf data starts after");
+    BoundedReader in(is, block_pos, BoundedReader::Bound::LeafData);
     if (version >= vdb::OPENVDB_FILE_VERSION_NODE_MASK_COMPRESSION) {
         in.read<std::uint32_t>("grid compression flags");
     }

@@ -9,7 +9,8 @@
 //! - `RLIMIT_DATA` = [`IsolationLimits::memory_bytes`]: an allocation sized by a lying
 //!   header fails (`std::bad_alloc` → a clean "out of memory" reply, or an abort);
 //! - `RLIMIT_CPU` = [`IsolationLimits::cpu_seconds`], `RLIMIT_CORE` = 0, no core dumps
-//!   (`PR_SET_DUMPABLE` 0), and `PR_SET_PDEATHSIG` so that it dies with its parent;
+//!   (`PR_SET_DUMPABLE` 0), `PR_SET_PDEATHSIG` so that it dies with its parent, and
+//!   `oom_score_adj` 1000 so that the kernel's OOM killer takes it first;
 //! - a wall-clock deadline ([`IsolationLimits::timeout`]) enforced by the parent, which
 //!   `poll`s the pipes and kills the child when it passes.
 //!
@@ -642,6 +643,17 @@ fn limit_this_process(memory_bytes: u64, cpu_seconds: u64) -> io::Result<()> {
     if unsafe { libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGKILL as libc::c_ulong, 0, 0, 0) } != 0
     {
         return Err(io::Error::last_os_error());
+    }
+    // First in line for the kernel's OOM killer, should the machine run short before the
+    // reader reaches its own limit (best effort: /proc may be missing).
+    // SAFETY: open/write/close on a static NUL-terminated path and a static buffer;
+    // raising one's own oom_score_adj needs no privilege.
+    unsafe {
+        let fd = libc::open(c"/proc/self/oom_score_adj".as_ptr(), libc::O_WRONLY | libc::O_CLOEXEC);
+        if fd >= 0 {
+            libc::write(fd, b"1000".as_ptr().cast(), 4);
+            libc::close(fd);
+        }
     }
     Ok(())
 }

@@ -154,15 +154,71 @@ struct Scan {
     std::vector<Entry> entries;  // file order; empty when !has_grid_offsets
 };
 
-// Walks the start of one grid the way Archive::readGrid reads it (compression flags, the
-// grid's metadata, the transform's map type name), with every length checked against the
-// start of the grid's leaf data. OpenVDB sizes a std::string or a metadata value from
-// each of these lengths and zero-fills it before reading, and loops over the metadata
-// count even past the end of the stream: a single smashed field made it allocate 11 GB or
-// spin for minutes (found by tests/fuzz_mutants.rs). Metadata values are framed by their
-// byte count, which is exact for every file OpenVDB writes.
+// Skips a serialized map after its type name, the bytes the map's read() consumes (see
+// openvdb/math/Maps.h). Returns false for a map this scan does not know; the caller then
+// stops walking (OpenVDB itself refuses unregistered maps).
+bool skip_map(BoundedReader& in, const std::string& type, std::uint32_t version) {
+    const std::uint64_t vec3d = 3 * sizeof(double);
+    if (type == "AffineMap" || type == "UnitaryMap") {
+        in.skip(16 * sizeof(double), "affine map");  // Mat4d
+    } else if (type == "ScaleMap" || type == "UniformScaleMap") {
+        in.skip(5 * vec3d, "scale map");  // scale, voxel size, inverse, 1/s^2, 1/2s
+    } else if (type == "ScaleTranslateMap" || type == "UniformScaleTranslateMap") {
+        in.skip(6 * vec3d, "scale-translate map");  // translation + the scale map's five
+    } else if (type == "TranslationMap") {
+        in.skip(vec3d, "translation map");
+    } else if (type == "NonlinearFrustumMap") {
+        const bool float_bbox = version >= vdb::OPENVDB_FILE_VERSION_FLOAT_FRUSTUM_BBOX;
+        in.skip(float_bbox ? 2 * vec3d : 6 * sizeof(std::int32_t), "frustum bounding box");
+        in.skip(2 * sizeof(double), "frustum taper and depth");
+        const std::string second = in.read_string("frustum second map type");
+        // The second map is affine; a nested frustum is left to OpenVDB to refuse
+        if (second == "NonlinearFrustumMap") return false;
+        return skip_map(in, second, version);
+    } else {
+        return false;
+    }
+    return true;
+}
+
+// Bytes of one value of the tree type named in a grid descriptor ("Tree_float_5_4_3",
+// optionally "_HalfFloat"), for the standard 5-4-3 trees; 0 for anything else.
+std::uint64_t tree_value_bytes(std::string type) {
+    const std::string half = "_HalfFloat";
+    if (type.size() > half.size() &&
+        type.compare(type.size() - half.size(), half.size(), half) == 0) {
+        type.erase(type.size() - half.size());
+    }
+    static const std::pair<const char*, std::uint64_t> sizes[] = {
+        {"Tree_float_5_4_3", 4},        {"Tree_double_5_4_3", 8},
+        {"Tree_int32_5_4_3", 4},        {"Tree_int64_5_4_3", 8},
+        {"Tree_bool_5_4_3", 1},         {"Tree_mask_5_4_3", 1},
+        {"Tree_vec3s_5_4_3", 12},       {"Tree_vec3d_5_4_3", 24},
+        {"Tree_vec3i_5_4_3", 12},       {"Tree_ptidx32_5_4_3", 4},
+        {"Tree_ptidx64_5_4_3", 8},      {"Tree_ptdataidx32_5_4_3", 4},
+        {"Tree_ptdataidx64_5_4_3", 8},
+    };
+    for (const auto& [name, bytes] : sizes) {
+        if (type == name) return bytes;
+    }
+    return 0;
+}
+
+// Walks the start of one grid the way Archive::readGrid reads it, with every length
+// checked against the start of the grid's leaf data (found by tests/fuzz_mutants.rs and
+// cargo fuzz, see data/regressions/):
+// - compression flags and the grid's metadata: OpenVDB sizes a std::string or metadata
+//   value from each length and zero-fills it before reading, and loops over the metadata
+//   count even past the end of the stream (one smashed field: 11 GB, or minutes). Values
+//   are framed by their byte count, which is exact for every file OpenVDB writes;
+// - the transform, then the root node's tile and child counts: RootNode::readTopology
+//   loops over them on a failed stream, allocating a 270 KB node per child, so a smashed
+//   count hangs the reader. Each tile takes at least 13 bytes and each child at least
+//   8204 (origin + two 4096-byte masks) before the leaf data, which bounds both counts.
+//   The walk stops early, checking nothing more, where the layout is not one it knows
+//   (old formats, unknown maps or tree types, instanced grids).
 void scan_grid_prefix(std::istream& is, std::uint32_t version, std::uint64_t grid_pos,
-                      std::uint64_t block_pos) {
+                      std::uint64_t block_pos, const std::string& grid_type, bool instance) {
     is.seekg(static_cast<std::streamoff>(grid_pos));
     BoundedReader in(is, block_pos, BoundedReader::Bound::LeafData);
     if (version >= vdb::OPENVDB_FILE_VERSION_NODE_MASK_COMPRESSION) {
@@ -174,9 +230,19 @@ void scan_grid_prefix(std::istream& is, std::uint32_t version, std::uint64_t gri
         in.skip_string("grid metadata type");
         in.skip(in.read<std::uint32_t>("grid metadata size"), "grid metadata value");
     }
-    if (version >= vdb::OPENVDB_FILE_VERSION_GRID_INSTANCING) {
-        in.skip_string("grid transform type");
+    if (version < vdb::OPENVDB_FILE_VERSION_GRID_INSTANCING) return;  // topology came first
+    const std::string map_type = in.read_string("grid transform type");
+    const std::uint64_t value_bytes = tree_value_bytes(grid_type);
+    if (version < vdb::OPENVDB_FILE_VERSION_NEW_TRANSFORM || instance || value_bytes == 0 ||
+        !skip_map(in, map_type, version)) {
+        return;
     }
+    in.read<std::int32_t>("tree buffer count");
+    in.skip(value_bytes, "root background value");
+    const auto tiles = in.read<std::uint32_t>("root tile count");
+    const auto children = in.read<std::uint32_t>("root child count");
+    in.require(tiles * (12 + value_bytes + 1) + children * std::uint64_t{12 + 2 * 4096},
+               "root tiles and children");
 }
 
 // Walks the header, the file-level metadata and the grid descriptors the way
@@ -213,9 +279,10 @@ Scan scan_descriptors(const std::string& path) {
     if (grid_count < 0) throw std::runtime_error("corrupt file: negative grid count");
     for (std::int32_t i = 0; i < grid_count; ++i) {
         const std::string unique_name = in.read_string("grid name");
-        in.read_string("grid type");
+        const std::string grid_type = in.read_string("grid type");
+        std::string instance_parent;
         if (version >= vdb::OPENVDB_FILE_VERSION_GRID_INSTANCING) {
-            in.read_string("grid instance parent");
+            instance_parent = in.read_string("grid instance parent");
         }
         const auto grid_pos = in.read<std::int64_t>("grid offset");
         const auto block_pos = in.read<std::int64_t>("grid block offset");
@@ -233,7 +300,8 @@ Scan scan_descriptors(const std::string& path) {
         }
         try {
             scan_grid_prefix(is, version, static_cast<std::uint64_t>(grid_pos),
-                             static_cast<std::uint64_t>(block_pos));
+                             static_cast<std::uint64_t>(block_pos), grid_type,
+                             !instance_parent.empty());
         } catch (const std::runtime_error& e) {
             throw std::runtime_error("grid \"" + printable(name) + "\": " + e.what());
         }

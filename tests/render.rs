@@ -1,30 +1,17 @@
 //! Render-level checks: determinism across thread counts, the image of a voxel-aligned
 //! emissive box against its closed form, and atomic EXR/PNG output.
 
+mod common;
+
+use common::{grid};
 use glam::{DAffine3, DMat3, DVec3, IVec3};
 use plume::camera::Camera;
 use plume::color::Rgb;
 use plume::integrator::{Integrator, Scene};
 use plume::medium::{Convention, Emission, EmissionKind, Estimator, Medium, TemperatureMap};
 use plume::render::{render, RenderSettings, SampleBudget};
-use plume::vdb::{leaf_offset, FloatGrid, LEAF_VOXELS};
 use plume::volume::Volume;
 
-fn grid(name: &str, xf: DAffine3, leaves: &[IVec3], f: impl Fn(IVec3) -> f32) -> FloatGrid {
-    let mut values = Vec::with_capacity(leaves.len() * LEAF_VOXELS);
-    for &o in leaves {
-        let mut block = vec![0.0f32; LEAF_VOXELS];
-        for x in 0..8 {
-            for y in 0..8 {
-                for z in 0..8 {
-                    block[leaf_offset(x, y, z)] = f(o + IVec3::new(x, y, z));
-                }
-            }
-        }
-        values.extend(block);
-    }
-    FloatGrid { name: name.into(), world_from_index: xf, background: 0.0, origins: leaves.to_vec(), values }
-}
 
 fn blob_scene(estimator: Estimator) -> (Scene<Volume>, Integrator) {
     let xf = DAffine3::from_mat3(DMat3::from_diagonal(DVec3::splat(0.1)));

@@ -1,35 +1,15 @@
 //! Volume data tier: DDA segment invariants (proptest), pyramid bounds, voxel-centre
 //! convention, constant tiles and extreme rays.
 
+mod common;
+
+use common::{grid, hash};
 use glam::{DAffine3, DMat3, DVec3, IVec3};
-use plume::vdb::{leaf_offset, FloatGrid, LEAF_VOXELS};
 use plume::volume::field::Ray;
 use plume::volume::{Field, Volume};
 use proptest::prelude::*;
 
-/// A grid with the given leaves; each leaf's values from `f(voxel ijk)`.
-fn grid(name: &str, xf: DAffine3, leaves: &[IVec3], f: impl Fn(IVec3) -> f32) -> FloatGrid {
-    let mut values = Vec::with_capacity(leaves.len() * LEAF_VOXELS);
-    for &o in leaves {
-        let mut block = vec![0.0f32; LEAF_VOXELS];
-        for x in 0..8 {
-            for y in 0..8 {
-                for z in 0..8 {
-                    block[leaf_offset(x, y, z)] = f(o + IVec3::new(x, y, z));
-                }
-            }
-        }
-        values.extend(block);
-    }
-    FloatGrid { name: name.into(), world_from_index: xf, background: 0.0, origins: leaves.to_vec(), values }
-}
 
-fn hash(p: IVec3, seed: u32) -> u32 {
-    let mut h = (p.x as u32).wrapping_mul(0x8da6_b343) ^ (p.y as u32).wrapping_mul(0xd816_3841) ^ (p.z as u32).wrapping_mul(0xcb1a_b31f) ^ seed.wrapping_mul(0x9e37_79b9);
-    h ^= h >> 15;
-    h = h.wrapping_mul(0x2c1b_3c6d);
-    h ^ (h >> 12)
-}
 
 /// Random volume: some dense leaves, some constant, some with zeros.
 fn random_volume(seed: u32, xf: DAffine3) -> Volume {

@@ -7,14 +7,15 @@ use std::time::{Duration, Instant};
 use glam::DVec3;
 
 use crate::camera::Camera;
+use crate::cache::CacheCheck;
 use crate::cli::{
-    Cli, Command, ConventionArg, EmissionArg, EstimatorArg, InfoArgs, LightSamplingArg, MethodArg, MisArg, RenderArgs,
-    SynthCommand, UpAxis,
+    Cli, Command, ConventionArg, EmissionArg, EstimatorArg, GridArgs, InfoArgs, LightSamplingArg, MethodArg, MisArg,
+    RenderArgs, SynthCommand, UpAxis,
 };
 use crate::color::Rgb;
 use crate::error::{Error, Result};
 use crate::integrator::{Integrator, LightSampling, Lights, MisHeuristic, Scene};
-use crate::medium::{Convention, Emission, EmissionKind, Estimator, Medium, TemperatureMap};
+use crate::medium::{Convention, Emission, EmissionKind, Estimator, Medium};
 use crate::vdb::{self, GridRequest, GridSelector, ReadIsolation, ReadLimits};
 use crate::volume::{Field, Volume};
 
@@ -31,6 +32,7 @@ pub fn run(cli: Cli, command_line: &str) -> Result<()> {
         Command::Render(args) => crate::farm::job::render_command(&args, command_line),
         Command::Merge(args) => crate::farm::merge::merge_command(&args, command_line),
         Command::Info(args) => info_command(&args),
+        Command::Prepare(args) => crate::cache::convert::prepare_command(&args),
         Command::Bench(command) => crate::bench::run(command),
         Command::Synth(SynthCommand::Explosion(args)) => {
             let t = Instant::now();
@@ -100,7 +102,7 @@ pub fn validate(args: &RenderArgs) -> Result<()> {
     check_finite_nonneg("--density-scale", args.density_scale)?;
     check_finite_nonneg("--emission-scale", f64::from(args.emission_scale))?;
     check_finite_nonneg("--kappa", args.kappa)?;
-    check_finite_nonneg("--temperature-cutoff", f64::from(args.temperature_cutoff))?;
+    check_finite_nonneg("--temperature-cutoff", f64::from(args.grids.temperature_cutoff))?;
     if args.emission_color.min_element() < 0.0 {
         return Err(Error::invalid("--emission-color", "components must be ≥ 0"));
     }
@@ -140,26 +142,27 @@ pub struct LoadedScene {
     pub emission_kind: EmissionKind,
     /// Name of the source grid used, if any.
     pub source_grid: Option<String>,
+    /// When the volume is mapped from a brick cache: its background checksum check, which
+    /// must pass before any output is written ([`CacheCheck::verified`]).
+    pub cache: Option<CacheCheck>,
 }
 
-/// Load the grids named by `args` and build the scene (volume, medium, camera).
+/// The grids a volume is built from, as read requests: density, then the source
+/// (temperature or emission grid, per `--emission`; none for `--emission none`), then the
+/// albedo grid if any. See [`split_found`].
 ///
 /// # Errors
-/// Missing or unreadable file or grid, invalid flags, incompatible grids.
-pub fn load_scene(args: &RenderArgs) -> Result<LoadedScene> {
-    validate(args)?;
-    let limits = ReadLimits { max_bytes: args.max_input_memory.unwrap_or(ReadLimits::default().max_bytes) };
-    let temperature_map: TemperatureMap = args.temperature_map.parse()?;
-    // Every grid the render needs, in one read (one reader process when isolated)
+/// A selector that does not parse.
+pub(crate) fn grid_requests(grids: &GridArgs) -> Result<Vec<GridRequest>> {
     let emission_sels = || -> Result<Vec<GridSelector>> {
-        match &args.emission_grid {
+        match &grids.emission_grid {
             Some(n) => Ok(vec![selector("--emission-grid", n)?]),
             None => EMISSION_GRID_CANDIDATES.iter().map(|n| selector("--emission-grid", n)).collect(),
         }
     };
-    let temperature_sel = selector("--temperature-grid", &args.temperature_grid)?;
-    let mut requests = vec![GridRequest::required(selector("--density-grid", &args.density_grid)?)];
-    match args.emission {
+    let temperature_sel = selector("--temperature-grid", &grids.temperature_grid)?;
+    let mut requests = vec![GridRequest::required(selector("--density-grid", &grids.density_grid)?)];
+    match grids.emission {
         EmissionArg::None => {}
         EmissionArg::Blackbody => requests.push(GridRequest::required(temperature_sel)),
         EmissionArg::Grid => requests.push(GridRequest { alternatives: emission_sels()?, required: true }),
@@ -169,35 +172,121 @@ pub fn load_scene(args: &RenderArgs) -> Result<LoadedScene> {
             requests.push(GridRequest { alternatives, required: false });
         }
     }
-    let isolation = read_isolation(args.no_isolation, args.read_timeout, &limits)?;
-    let mut found = isolation.read_grids(&args.file, &requests, &limits)?.into_iter();
+    if let Some(name) = &grids.albedo_grid {
+        requests.push(GridRequest::required(selector("--albedo-grid", name)?));
+    }
+    Ok(requests)
+}
+
+/// The density, source and albedo grids of what [`grid_requests`] read.
+pub(crate) fn split_found(
+    grids: &GridArgs,
+    found: Vec<Option<vdb::FoundGrid>>,
+) -> (vdb::FloatGrid, Option<vdb::FoundGrid>, Option<vdb::FloatGrid>) {
+    let mut found = found.into_iter();
     let density = found.next().flatten().expect("invariant: the density request is required").grid;
-    let source = found.next().flatten();
-    let kind = match (args.emission, &source) {
+    let source = if grids.emission == EmissionArg::None { None } else { found.next().flatten() };
+    let albedo = found.next().flatten().map(|f| f.grid);
+    (density, source, albedo)
+}
+
+/// The emission kind `--emission` resolves to, given which source alternative was found.
+pub(crate) fn emission_kind(arg: EmissionArg, found_alternative: Option<usize>) -> EmissionKind {
+    match (arg, found_alternative) {
         (EmissionArg::None, _) | (EmissionArg::Auto, None) => EmissionKind::None,
         (EmissionArg::Blackbody, _) => EmissionKind::Blackbody,
         (EmissionArg::Grid, _) => EmissionKind::Grid,
-        (EmissionArg::Auto, Some(f)) if f.alternative == 0 => EmissionKind::Blackbody,
+        (EmissionArg::Auto, Some(0)) => EmissionKind::Blackbody,
         (EmissionArg::Auto, Some(_)) => EmissionKind::Grid,
-    };
-    let source = source.map(|f| f.grid);
-    let c = args.emission_color.as_vec3();
-    let emission = Emission {
+    }
+}
+
+/// The emission model of the grid flags with `kind`, scale and tint.
+///
+/// # Errors
+/// An unparsable `--temperature-map`.
+pub(crate) fn emission(grids: &GridArgs, kind: EmissionKind, scale: f32, color: Rgb) -> Result<Emission> {
+    Ok(Emission {
         kind,
-        convention: match args.convention {
+        convention: match grids.convention {
             ConventionArg::Physical => Convention::Physical,
             ConventionArg::Cycles => Convention::Cycles,
         },
-        scale: args.emission_scale,
-        color: Rgb([c.x, c.y, c.z]),
-        temperature_map,
-        cutoff_kelvin: args.temperature_cutoff,
+        scale,
+        color,
+        temperature_map: grids.temperature_map.parse()?,
+        cutoff_kelvin: grids.temperature_cutoff,
+    })
+}
+
+/// Read limits and reader isolation of the grid flags.
+pub(crate) fn reading(grids: &GridArgs) -> Result<(ReadLimits, ReadIsolation)> {
+    let limits = ReadLimits { max_bytes: grids.max_input_memory.unwrap_or(ReadLimits::default().max_bytes) };
+    let isolation = read_isolation(grids.no_isolation, grids.read_timeout, &limits)?;
+    Ok((limits, isolation))
+}
+
+/// `--memory-budget`, or half of physical memory.
+#[must_use]
+pub fn memory_budget(args: &RenderArgs) -> u64 {
+    args.memory_budget.unwrap_or_else(|| ReadLimits::default().max_bytes)
+}
+
+/// The volume of a render and what it was built with.
+struct LoadedVolume {
+    volume: Volume,
+    emission: Emission,
+    source_grid: Option<String>,
+    /// From a cache: the stored proxy power and its key.
+    proxy_power: Option<(crate::volume::proxy::CellPower, String)>,
+    cache: Option<CacheCheck>,
+}
+
+/// Read a .vdb's grids into memory and build the volume.
+fn load_vdb(args: &RenderArgs, color: Rgb) -> Result<LoadedVolume> {
+    let (limits, isolation) = reading(&args.grids)?;
+    // Validate the flags before any reading
+    emission(&args.grids, EmissionKind::None, args.emission_scale, color)?;
+    let requests = grid_requests(&args.grids)?;
+    let found = isolation.read_grids(&args.file, &requests, &limits)?;
+    let (density, source, albedo) = split_found(&args.grids, found);
+    let kind = emission_kind(args.grids.emission, source.as_ref().map(|f| f.alternative));
+    let emission = emission(&args.grids, kind, args.emission_scale, color)?;
+    let source = source.map(|f| f.grid);
+    let volume = Volume::build_with_albedo(&density, source.as_ref(), |v| emission.map_source(v), albedo.as_ref())?;
+    Ok(LoadedVolume { volume, emission, source_grid: source.map(|g| g.name), proxy_power: None, cache: None })
+}
+
+/// Open a brick cache and check it against the render's flags.
+fn load_cache(args: &RenderArgs, cache: crate::cache::Cache, color: Rgb) -> Result<LoadedVolume> {
+    let kind = crate::cache::convert::check_flags(&cache, &args.grids)?;
+    let emission = emission(&args.grids, kind, args.emission_scale, color)?;
+    crate::cache::convert::check_source_key(&cache, &emission)?;
+    crate::cache::convert::check_not_stale(&cache)?;
+    let proxy_power = cache.proxy_power.zip(cache.meta.proxy.map(|p| p.power_key));
+    Ok(LoadedVolume { volume: cache.volume, emission, source_grid: cache.meta.source_grid, proxy_power, cache: Some(cache.check) })
+}
+
+/// Load the grids named by `args` and build the scene (volume, medium, camera).
+///
+/// A `.plume` input is mapped; a `.vdb` larger than a quarter of the memory budget goes
+/// through an automatic brick cache (`cache::convert`); any other is read into memory.
+///
+/// # Errors
+/// Missing or unreadable file or grid, invalid flags, incompatible grids, a stale or
+/// damaged cache, or light-sampling tables beyond `--memory-budget`.
+pub fn load_scene(args: &RenderArgs) -> Result<LoadedScene> {
+    validate(args)?;
+    let c = args.emission_color.as_vec3();
+    let color = Rgb([c.x, c.y, c.z]);
+    let loaded = if crate::cache::is_cache_path(&args.file) {
+        load_cache(args, crate::cache::Cache::open(&args.file)?, color)?
+    } else if let Some(cache) = crate::cache::convert::auto_cache(args)? {
+        load_cache(args, cache, color)?
+    } else {
+        load_vdb(args, color)?
     };
-    let albedo_grid = match &args.albedo_grid {
-        Some(name) => Some(vdb::read_float_grid(&args.file, &selector("--albedo-grid", name)?, &limits)?),
-        None => None,
-    };
-    let volume = Volume::build_with_albedo(&density, source.as_ref(), |v| emission.map_source(v), albedo_grid.as_ref())?;
+    let LoadedVolume { volume, emission, source_grid, proxy_power, cache } = loaded;
     let up = args.camera_up.unwrap_or(match args.up_axis {
         UpAxis::Y => DVec3::Y,
         UpAxis::Z => DVec3::Z,
@@ -223,15 +312,17 @@ pub fn load_scene(args: &RenderArgs) -> Result<LoadedScene> {
     let (_, light_sampling) = method(args);
     let lights = if args.albedo() > 0.0 && args.max_depth > 0 {
         let proxy_resolution = crate::volume::proxy::ProxyGrid::resolution_for(&volume, args.proxy_resolution);
-        Lights::build(&volume, &emission, light_sampling, proxy_resolution)?
+        crate::cache::convert::check_light_budget(&volume, light_sampling, memory_budget(args))?;
+        match proxy_power {
+            Some((power, key)) if light_sampling == LightSampling::Fnee && power.resolution == proxy_resolution && key == emission.light_key() => {
+                Lights { nee: None, proxy: crate::volume::proxy::ProxyGrid::from_cell_power(&volume, &power)? }
+            }
+            _ => Lights::build(&volume, &emission, light_sampling, proxy_resolution)?,
+        }
     } else {
         Lights::default()
     };
-    Ok(LoadedScene {
-        scene: Scene { field: volume, medium, camera, lights },
-        emission_kind: kind,
-        source_grid: source.map(|g| g.name),
-    })
+    Ok(LoadedScene { scene: Scene { field: volume, medium, camera, lights }, emission_kind: emission.kind, source_grid, cache })
 }
 
 /// The estimator and light sampling of `--method`, overridden by `--estimator` and

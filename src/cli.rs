@@ -35,6 +35,9 @@ pub enum Command {
     /// Print every grid of a VDB file: name, type, class, voxels, bounds, transform,
     /// value range, memory.
     Info(InfoArgs),
+    /// Convert a .vdb into a brick cache file (.plume) that renders out of core: bricks,
+    /// pyramid and FNEE proxy, memory-mapped by `plume render OUT.plume`.
+    Prepare(PrepareArgs),
     /// Generate procedural volumes.
     #[command(subcommand)]
     Synth(SynthCommand),
@@ -188,6 +191,66 @@ pub struct SynthExplosionArgs {
     pub seed: u64,
 }
 
+/// Which grids make the volume and how they are read: shared by `render` and `prepare`,
+/// because a brick cache stores exactly what these flags select.
+#[derive(Clone, Debug, Args)]
+pub struct GridArgs {
+    /// Density grid name (`name[N]` for the N-th duplicate).
+    #[arg(long, default_value = "density")]
+    pub density_grid: String,
+    /// What drives emission.
+    #[arg(long, value_enum, default_value_t = EmissionArg::Auto)]
+    pub emission: EmissionArg,
+    /// Temperature grid name (blackbody).
+    #[arg(long, default_value = "temperature")]
+    pub temperature_grid: String,
+    /// Temperature grid values to Kelvin: `kelvin` or `linear:OFFSET,SCALE`.
+    #[arg(long, default_value = "kelvin")]
+    pub temperature_map: String,
+    /// Physical blackbody: temperatures below this (Kelvin) emit nothing.
+    #[arg(long, default_value_t = 500.0)]
+    pub temperature_cutoff: f32,
+    /// Emission grid name (`--emission grid`).
+    #[arg(long)]
+    pub emission_grid: Option<String>,
+    /// Physical, or Blender Cycles' Principled Volume convention.
+    #[arg(long, value_enum, default_value_t = ConventionArg::Physical)]
+    pub convention: ConventionArg,
+    /// Per-voxel albedo grid (values clamped to [0, 1]), times --albedo.
+    #[arg(long)]
+    pub albedo_grid: Option<String>,
+    /// Largest input a grid read may allocate, e.g. `8GiB`, `512MiB` (default: half of RAM).
+    #[arg(long, value_parser = parse_bytes)]
+    pub max_input_memory: Option<u64>,
+    /// Seconds the isolated VDB reader may take before it is killed.
+    #[arg(long, default_value_t = 120.0)]
+    pub read_timeout: f64,
+    /// Read the file in this process, not in an isolated child that limits memory and
+    /// time and survives crashes (saves a few ms; trusted files only).
+    #[arg(long)]
+    pub no_isolation: bool,
+}
+
+/// `plume prepare`.
+#[derive(Clone, Debug, Args)]
+pub struct PrepareArgs {
+    /// The .vdb file to convert.
+    pub file: PathBuf,
+    /// The cache file to write (`.plume`); written atomically.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// FNEE proxy resolution to store (default 64, or the data resolution if smaller); a
+    /// render asking for another one builds its own from the bricks.
+    #[arg(long)]
+    pub proxy_resolution: Option<u32>,
+    /// Which grids, and how the source maps (a render from the cache must agree).
+    #[command(flatten)]
+    pub grids: GridArgs,
+    /// No summary line.
+    #[arg(long, short)]
+    pub quiet: bool,
+}
+
 /// Emission estimator along free-path segments.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum EstimatorArg {
@@ -270,7 +333,7 @@ impl RenderArgs {
     /// The albedo scale: `--albedo`, else 1 with an albedo grid, else 0.
     #[must_use]
     pub fn albedo(&self) -> f32 {
-        self.albedo.unwrap_or(if self.albedo_grid.is_some() { 1.0 } else { 0.0 })
+        self.albedo.unwrap_or(if self.grids.albedo_grid.is_some() { 1.0 } else { 0.0 })
     }
 }
 
@@ -342,9 +405,6 @@ pub struct RenderArgs {
     /// --albedo-grid it multiplies the grid (default 1 then).
     #[arg(long)]
     pub albedo: Option<f32>,
-    /// Per-voxel albedo grid (values clamped to [0, 1]), times --albedo.
-    #[arg(long)]
-    pub albedo_grid: Option<String>,
     /// Henyey–Greenstein asymmetry g in (−1, 1).
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     pub g: f64,
@@ -360,36 +420,18 @@ pub struct RenderArgs {
     /// κ of the blend estimator: α = 1/(1 + κ μ Δ) per voxel.
     #[arg(long, default_value_t = 4.0)]
     pub kappa: f64,
-    /// Density grid name (`name[N]` for the N-th duplicate).
-    #[arg(long, default_value = "density")]
-    pub density_grid: String,
+    /// Which grids make the volume, how the source maps, and how files are read.
+    #[command(flatten)]
+    pub grids: GridArgs,
     /// σ_t: extinction per world unit per unit density.
     #[arg(long, default_value_t = 1.0)]
     pub density_scale: f64,
-    /// What drives emission.
-    #[arg(long, value_enum, default_value_t = EmissionArg::Auto)]
-    pub emission: EmissionArg,
-    /// Temperature grid name (blackbody).
-    #[arg(long, default_value = "temperature")]
-    pub temperature_grid: String,
-    /// Temperature grid values to Kelvin: `kelvin` or `linear:OFFSET,SCALE`.
-    #[arg(long, default_value = "kelvin")]
-    pub temperature_map: String,
-    /// Physical blackbody: temperatures below this (Kelvin) emit nothing.
-    #[arg(long, default_value_t = 500.0)]
-    pub temperature_cutoff: f32,
-    /// Emission grid name (`--emission grid`).
-    #[arg(long)]
-    pub emission_grid: Option<String>,
     /// Emission scale s_e.
     #[arg(long, default_value_t = 1.0)]
     pub emission_scale: f32,
     /// Emission colour r,g,b (a tint for blackbody).
     #[arg(long, value_parser = parse_vec3, default_value = "1,1,1")]
     pub emission_color: DVec3,
-    /// Physical, or Blender Cycles' Principled Volume convention.
-    #[arg(long, value_enum, default_value_t = ConventionArg::Physical)]
-    pub convention: ConventionArg,
     /// Write a tone-mapped sRGB PNG preview here (a pattern with --frames).
     #[arg(long)]
     pub preview: Option<PathBuf>,
@@ -401,16 +443,16 @@ pub struct RenderArgs {
     /// command line. May hold a frame token.
     #[arg(long)]
     pub stats: Option<PathBuf>,
-    /// Largest input a grid read may allocate, e.g. `8GiB`, `512MiB` (default: half of RAM).
+    /// Bound on resident anonymous memory, e.g. `4GiB` (default: half of RAM). A .vdb
+    /// larger than a quarter of it on disk renders through a brick cache (mapped; the OS
+    /// page cache may hold its pages), and a render whose own tables would exceed it is
+    /// refused.
     #[arg(long, value_parser = parse_bytes)]
-    pub max_input_memory: Option<u64>,
-    /// Seconds the isolated VDB reader may take before it is killed.
-    #[arg(long, default_value_t = 120.0)]
-    pub read_timeout: f64,
-    /// Read the file in this process, not in an isolated child that limits memory and
-    /// time and survives crashes (saves a few ms; trusted files only).
+    pub memory_budget: Option<u64>,
+    /// Where automatic brick caches of large .vdb inputs go (default: beside the input,
+    /// or `$XDG_CACHE_HOME/plume` when that directory is not writable).
     #[arg(long)]
-    pub no_isolation: bool,
+    pub cache_dir: Option<PathBuf>,
     /// No progress bar or summary.
     #[arg(long, short)]
     pub quiet: bool,

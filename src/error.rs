@@ -80,6 +80,16 @@ pub enum Error {
         #[source]
         source: std::io::Error,
     },
+    /// A brick cache file (`plume prepare`) is not one, has another format version, fails
+    /// a checksum, or no longer matches its source or the render's flags. It is never
+    /// rendered from; an automatic cache is rebuilt instead.
+    #[error("brick cache {}: {what}", .path.display())]
+    Cache {
+        /// The cache file.
+        path: PathBuf,
+        /// What is wrong and what to do.
+        what: String,
+    },
     /// A flag has a value plume cannot use.
     #[error("invalid value for {flag}: {message}")]
     InvalidArgument {
@@ -164,6 +174,7 @@ impl Error {
             | Error::UnsupportedGrid { .. }
             | Error::TooLarge { .. }
             | Error::ReaderFailed { .. }
+            | Error::Cache { .. }
             | Error::Scene(_) => 3,
             Error::Write { .. } | Error::ReaderSpawn { .. } => 4,
             Error::InvalidPart { .. } => exit::INPUT,

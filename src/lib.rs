@@ -10,6 +10,7 @@
 
 pub mod app;
 pub mod bench;
+pub mod cache;
 pub mod camera;
 pub mod cli;
 pub mod color;

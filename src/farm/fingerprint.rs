@@ -14,10 +14,21 @@ use crate::error::{Error, Result};
 ///
 /// # Errors
 /// [`Error::Open`] naming the file.
+///
+/// A brick cache file (`.plume`) is identified by its header page instead: the header
+/// holds the hash of the chunk checksums, which cover every other byte, so hashing 4 KiB
+/// identifies a file of tens of GB (its size is still the file's).
 pub fn file_sha256(path: &Path) -> Result<(String, u64)> {
     let open = |source| Error::Open { path: path.to_path_buf(), source };
     let mut file = std::fs::File::open(path).map_err(open)?;
     let mut hasher = Sha256::new();
+    if crate::cache::is_cache_path(path) {
+        let size = file.metadata().map_err(open)?.len();
+        let mut page = vec![0u8; crate::cache::format::PAGE as usize];
+        let n = file.read(&mut page).map_err(open)?;
+        hasher.update(&page[..n]);
+        return Ok((hex(&hasher.finalize()), size));
+    }
     let mut buf = vec![0u8; 1 << 20];
     let mut bytes = 0u64;
     loop {
@@ -51,9 +62,11 @@ pub fn settings_hash(args: &RenderArgs, seed: u64) -> String {
     a.preview = None;
     a.exposure = None;
     a.stats = None;
-    a.max_input_memory = None;
-    a.read_timeout = 0.0;
-    a.no_isolation = false;
+    a.grids.max_input_memory = None;
+    a.memory_budget = None;
+    a.cache_dir = None;
+    a.grids.read_timeout = 0.0;
+    a.grids.no_isolation = false;
     a.quiet = false;
     a.frames = None;
     a.overwrite = false;

@@ -118,9 +118,9 @@ pub fn render_frame(job: &Job<'_>, index: usize, frame: Option<i64>, command_lin
         warn(format!("{}: {} emission-source voxels were NaN, infinite or negative and were set to 0", input.display(), volume.report.source_invalid));
     }
     if volume.is_empty() {
-        warn(format!("{}: grid {:?} is empty; the image will be transparent black", input.display(), args.density_grid));
+        warn(format!("{}: grid {:?} is empty; the image will be transparent black", input.display(), args.grids.density_grid));
     }
-    if loaded.emission_kind == EmissionKind::None && args.emission == EmissionArg::Auto {
+    if loaded.emission_kind == EmissionKind::None && args.grids.emission == EmissionArg::Auto {
         warn(format!("{}: no temperature or emission grid found; rendering absorption only", input.display()));
     }
     let integ = integrator(args);
@@ -254,6 +254,10 @@ pub fn render_frame(job: &Job<'_>, index: usize, frame: Option<i64>, command_lin
 
     // Outputs: EXR (with exact sums for parts and partial images, so they can be merged
     // or continued), preview, stats line
+    // Nothing computed from a brick cache is saved before its checksums have all passed
+    if let Some(check) = &loaded.cache {
+        check.verified()?;
+    }
     let pixels = result.film.average(spp);
     let sums = (job.write_sums || status != Completion::Complete).then(|| result.film.sums());
     let metadata = stats_metadata(&record);

@@ -11,7 +11,7 @@ use crate::camera::Camera;
 use crate::medium::Medium;
 use crate::volume::field::Field;
 
-pub use volpath::{Integrator, LightSampling, Lights, MisHeuristic};
+pub use volpath::{light_power, Integrator, LightSampling, Lights, MisHeuristic};
 
 /// Everything a render reads: immutable and `Sync`, built once.
 #[derive(Debug)]

@@ -101,13 +101,24 @@ impl Lights {
         light_sampling: LightSampling,
         proxy_resolution: u32,
     ) -> crate::error::Result<Lights> {
-        let power = |d: f32, s: f32| f64::from(emission.le(d, s).luminance().max(0.0));
+        let power = light_power(emission);
         Ok(match light_sampling {
             LightSampling::None => Lights::default(),
             LightSampling::Nee => Lights { nee: EmitterDistribution::build(volume, power)?, proxy: None },
             LightSampling::Fnee => Lights { nee: None, proxy: ProxyGrid::build(volume, proxy_resolution, power)? },
         })
     }
+}
+
+/// Power that light sampling distributes by: the luminance `Y(L_e)` of the emission
+/// density with unit `--emission-scale` and white `--emission-color`. The scale only
+/// multiplies every voxel's power, and the tint is a mild reweighting that any valid pdf
+/// absorbs, so leaving both out keeps the estimators unbiased while letting a brick cache
+/// store the FNEE proxy's cell sums once for any scale or tint.
+#[must_use]
+pub fn light_power(emission: &crate::medium::Emission) -> impl Fn(f32, f32) -> f64 + Sync {
+    let unit = crate::medium::Emission { scale: 1.0, color: crate::color::Rgb([1.0; 3]), ..*emission };
+    move |d: f32, s: f32| f64::from(unit.le(d, s).luminance().max(0.0))
 }
 
 /// The path integrator and its settings.

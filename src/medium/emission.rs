@@ -140,6 +140,30 @@ impl Emission {
         }
     }
 
+    /// What [`Emission::map_source`] depends on, as text: a brick cache stores sources
+    /// mapped with one key and may only be rendered with the same.
+    #[must_use]
+    pub fn source_key(&self) -> String {
+        match self.kind {
+            EmissionKind::None => "none".into(),
+            EmissionKind::Grid => "grid".into(),
+            EmissionKind::Blackbody => {
+                let cut = match self.convention {
+                    Convention::Physical => self.cutoff_kelvin,
+                    Convention::Cycles => 0.0,
+                };
+                format!("blackbody map={:?} cutoff={cut}K", self.temperature_map)
+            }
+        }
+    }
+
+    /// What light sampling's power (`integrator::light_power`) depends on: the source key
+    /// and the convention (never the scale or tint).
+    #[must_use]
+    pub fn light_key(&self) -> String {
+        format!("{} convention={:?}", self.source_key(), self.convention)
+    }
+
     /// Emission density `L_e` for density `density` and stored source `source`.
     #[inline]
     #[must_use]

@@ -13,7 +13,8 @@
 
 use glam::{DAffine3, DVec3, IVec3};
 
-use super::pyramid::Pyramid;
+use super::pyramid::{NodeBounds, Pyramid};
+use super::storage::Buffer;
 use crate::error::{Error, Result};
 use crate::vdb::{leaf_offset, FloatGrid, LEAF_VOXELS};
 
@@ -42,31 +43,75 @@ pub fn brick_offset(x: i32, y: i32, z: i32) -> usize {
 }
 
 /// Marker for "no brick here" in the brick table.
-const NO_BRICK: u32 = u32::MAX;
+pub(crate) const NO_BRICK: u32 = u32::MAX;
 
-/// One channel of one brick: either a constant or an offset into the channel's value array.
+/// One channel of one brick, decoded: a constant or a block of the value array.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Slot {
     /// All 512 voxels hold this value.
     Constant(f32),
-    /// Values at `offset .. offset + 512` of the channel array, in [`brick_offset`] order.
+    /// Values at `512·block .. 512·(block + 1)` of the value array, in [`brick_offset`] order.
     Dense(u32),
 }
 
-/// Both channels of one brick.
-#[derive(Clone, Copy, Debug)]
+/// A [`Slot`] as stored (in memory and in cache files): a tag and 32 bits of payload.
+/// Plain old data, so brick records can be mapped straight from a cache file; any bit
+/// pattern decodes to *some* slot (unknown tags read as constants), so a damaged file
+/// cannot make decoding undefined.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct PackedSlot {
+    tag: u32,
+    bits: u32,
+}
+
+const TAG_CONSTANT: u32 = 0;
+const TAG_DENSE: u32 = 1;
+/// Only while building: the channel has not been given for this brick yet.
+const TAG_UNSET: u32 = 2;
+
+impl PackedSlot {
+    /// A constant slot.
+    #[must_use]
+    pub const fn constant(v: f32) -> PackedSlot {
+        PackedSlot { tag: TAG_CONSTANT, bits: v.to_bits() }
+    }
+
+    /// A dense slot holding value block `block`.
+    #[must_use]
+    pub const fn dense(block: u32) -> PackedSlot {
+        PackedSlot { tag: TAG_DENSE, bits: block }
+    }
+
+    const UNSET: PackedSlot = PackedSlot { tag: TAG_UNSET, bits: 0 };
+
+    /// The decoded slot.
+    #[inline]
+    #[must_use]
+    pub fn get(self) -> Slot {
+        if self.tag == TAG_DENSE {
+            Slot::Dense(self.bits)
+        } else {
+            Slot::Constant(f32::from_bits(self.bits))
+        }
+    }
+}
+
+/// The three channels of one brick.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct Brick {
     /// Density channel.
-    pub density: Slot,
+    pub density: PackedSlot,
     /// Emission source channel.
-    pub source: Slot,
+    pub source: PackedSlot,
     /// Albedo-factor channel (`Constant(1.0)` without an albedo grid).
-    pub albedo: Slot,
+    pub albedo: PackedSlot,
 }
 
 /// How input values were cleaned while building (METHOD policy: NaN, ±inf and negative
 /// voxels are clamped to 0 and counted, never passed on as NaN).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct BuildReport {
     /// Density voxels that were NaN, infinite or negative, set to 0.
     pub density_clamped: u64,
@@ -78,6 +123,9 @@ pub struct BuildReport {
 }
 
 /// A sparse brick volume in index space with its `world_from_index` transform.
+///
+/// Its arrays are [`Buffer`]s: on the heap when built from grids, or views of a mapped
+/// brick cache file (`crate::cache`); everything downstream reads them alike.
 #[derive(Debug)]
 pub struct Volume {
     pub(crate) world_from_index: DAffine3,
@@ -87,11 +135,10 @@ pub struct Volume {
     /// Table size in bricks.
     pub(crate) dims: IVec3,
     /// Brick index per table cell (x fastest), or [`NO_BRICK`].
-    pub(crate) table: Vec<u32>,
-    pub(crate) bricks: Vec<Brick>,
-    pub(crate) density_values: Vec<f32>,
-    pub(crate) source_values: Vec<f32>,
-    pub(crate) albedo_values: Vec<f32>,
+    pub(crate) table: Buffer<u32>,
+    pub(crate) bricks: Buffer<Brick>,
+    /// Dense value blocks of all channels, 512 values each, in [`brick_offset`] order.
+    pub(crate) values: Buffer<f32>,
     pub(crate) pyramid: Pyramid,
     /// Input clean-up counts.
     pub report: BuildReport,
@@ -99,6 +146,323 @@ pub struct Volume {
 
 fn floor_div(a: i32, b: i32) -> i32 {
     a.div_euclid(b)
+}
+
+/// Brick coordinate of a voxel or leaf origin.
+#[must_use]
+pub fn brick_of(o: IVec3) -> IVec3 {
+    IVec3::new(floor_div(o.x, BRICK), floor_div(o.y, BRICK), floor_div(o.z, BRICK))
+}
+
+/// Where built value blocks go: the heap ([`Vec`]) or a cache file being written.
+pub trait BlockSink {
+    /// Append one block of 512 values (brick order); returns its block index.
+    ///
+    /// # Errors
+    /// An I/O error of the sink, or more than `u32::MAX` blocks.
+    fn append(&mut self, block: &[f32; LEAF_VOXELS]) -> Result<u32>;
+
+    /// The values appended so far (used once at the end, for albedo bounds).
+    ///
+    /// # Errors
+    /// An I/O error reading them back.
+    fn appended(&mut self) -> Result<&[f32]>;
+}
+
+impl BlockSink for Vec<f32> {
+    fn append(&mut self, block: &[f32; LEAF_VOXELS]) -> Result<u32> {
+        let index = u32::try_from(self.len() / LEAF_VOXELS)
+            .map_err(|_| Error::Scene("the volume has more than 2³² dense bricks".into()))?;
+        self.extend_from_slice(block);
+        Ok(index)
+    }
+
+    fn appended(&mut self) -> Result<&[f32]> {
+        Ok(self)
+    }
+}
+
+/// A channel of the volume, as given to [`BrickTableBuilder::put`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Channel {
+    /// Density ρ; NaN, ±inf and negative values become 0 (counted).
+    Density,
+    /// Emission source, already mapped (0 = emits nothing); invalid values become 0.
+    Source,
+    /// Albedo factor; clamped to `[0, 1]`, NaN becomes 1 (counted).
+    Albedo,
+}
+
+/// Builds the brick table from 8³ blocks given channel by channel, in any order (grid
+/// by grid and leaf by leaf when streaming). Shared by the in-core build and the cache
+/// writer, so both store the same slots, bounds and clean-up counts for the same data.
+#[derive(Debug)]
+pub struct BrickTableBuilder {
+    brick_lo: IVec3,
+    dims: IVec3,
+    table: Vec<u32>,
+    bricks: Vec<Brick>,
+    bounds: Vec<NodeBounds>,
+    report: BuildReport,
+}
+
+/// What [`BrickTableBuilder::finish`] returns.
+#[derive(Debug)]
+pub struct BuiltTable {
+    /// Brick coordinate of table cell (0,0,0).
+    pub brick_lo: IVec3,
+    /// Table size in bricks.
+    pub dims: IVec3,
+    /// Brick index per table cell, or [`NO_BRICK`].
+    pub table: Vec<u32>,
+    /// Brick records.
+    pub bricks: Vec<Brick>,
+    /// The finest pyramid level's bounds, per brick.
+    pub bounds: Vec<NodeBounds>,
+    /// Clean-up counts.
+    pub report: BuildReport,
+}
+
+impl BrickTableBuilder {
+    /// A builder for bricks `brick_lo .. brick_lo + dims`.
+    ///
+    /// # Errors
+    /// A table larger than [`MAX_TABLE_ENTRIES`] (`what` names the grid in the message).
+    pub fn new(brick_lo: IVec3, dims: IVec3, what: &str) -> Result<BrickTableBuilder> {
+        let entries = table_entries(dims.as_i64vec3(), what)?;
+        Ok(BrickTableBuilder {
+            brick_lo,
+            dims,
+            table: vec![NO_BRICK; entries],
+            bricks: Vec::new(),
+            bounds: Vec::new(),
+            report: BuildReport::default(),
+        })
+    }
+
+    /// Store channel `channel` of brick `b` from 512 raw values in OpenVDB leaf order,
+    /// cleaned by the channel's rule; a uniform block becomes a constant slot.
+    ///
+    /// # Errors
+    /// `b` outside the table, or the sink's error.
+    pub fn put(&mut self, sink: &mut impl BlockSink, b: IVec3, channel: Channel, raw: &[f32]) -> Result<()> {
+        let mut block = [0.0f32; LEAF_VOXELS];
+        let count = match channel {
+            Channel::Density | Channel::Source => {
+                let count = match channel {
+                    Channel::Density => &mut self.report.density_clamped,
+                    _ => &mut self.report.source_invalid,
+                };
+                for x in 0..8 {
+                    for y in 0..8 {
+                        for z in 0..8 {
+                            block[brick_offset(x, y, z)] = clean(raw[leaf_offset(x, y, z)], count);
+                        }
+                    }
+                }
+                None
+            }
+            Channel::Albedo => {
+                let mut count = 0;
+                for x in 0..8 {
+                    for y in 0..8 {
+                        for z in 0..8 {
+                            block[brick_offset(x, y, z)] = clean_albedo(raw[leaf_offset(x, y, z)], &mut count);
+                        }
+                    }
+                }
+                Some(count)
+            }
+        };
+        if let Some(c) = count {
+            self.report.albedo_clamped += c;
+        }
+        self.put_block(sink, b, channel, &block)
+    }
+
+    /// Store channel `channel` of brick `b` as the constant `value` (cleaned), e.g. a
+    /// voxelized active tile.
+    ///
+    /// # Errors
+    /// `b` outside the table.
+    pub fn put_constant(&mut self, b: IVec3, channel: Channel, value: f32) -> Result<()> {
+        let v = match channel {
+            Channel::Density => clean_n(value, &mut self.report.density_clamped, LEAF_VOXELS as u64),
+            Channel::Source => clean_n(value, &mut self.report.source_invalid, LEAF_VOXELS as u64),
+            Channel::Albedo => {
+                let mut c = 0;
+                let v = clean_albedo(value, &mut c);
+                self.report.albedo_clamped += c * LEAF_VOXELS as u64;
+                v
+            }
+        };
+        let index = self.brick_index(b)?;
+        self.set(index, channel, PackedSlot::constant(v), (v, v));
+        Ok(())
+    }
+
+    /// Store an already cleaned block in brick order.
+    fn put_block(&mut self, sink: &mut impl BlockSink, b: IVec3, channel: Channel, block: &[f32; LEAF_VOXELS]) -> Result<()> {
+        let index = self.brick_index(b)?;
+        let first = block[0];
+        let (slot, bounds) = if block.iter().all(|v| v.to_bits() == first.to_bits()) {
+            (PackedSlot::constant(first), (first, first))
+        } else {
+            let lohi = block.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| (lo.min(v), hi.max(v)));
+            (PackedSlot::dense(sink.append(block)?), lohi)
+        };
+        self.set(index, channel, slot, bounds);
+        Ok(())
+    }
+
+    fn set(&mut self, index: usize, channel: Channel, slot: PackedSlot, (lo, hi): (f32, f32)) {
+        let (brick, bounds) = (&mut self.bricks[index], &mut self.bounds[index]);
+        match channel {
+            Channel::Density => {
+                brick.density = slot;
+                (bounds.density_min, bounds.density_max) = (lo, hi);
+            }
+            Channel::Source => {
+                brick.source = slot;
+                (bounds.source_min, bounds.source_max) = (lo, hi);
+            }
+            // Albedo bounds depend on density; set in `finish`
+            Channel::Albedo => brick.albedo = slot,
+        }
+    }
+
+    /// Index of brick `b`, creating its record (all channels unset) on first use.
+    fn brick_index(&mut self, b: IVec3) -> Result<usize> {
+        let r = b - self.brick_lo;
+        if r.cmplt(IVec3::ZERO).any() || r.cmpge(self.dims).any() {
+            return Err(Error::Scene(format!(
+                "leaf at voxel {} lies outside the grid's announced bounding box",
+                b * BRICK
+            )));
+        }
+        let cell = r.x as usize + self.dims.x as usize * (r.y as usize + self.dims.y as usize * r.z as usize);
+        if self.table[cell] == NO_BRICK {
+            self.table[cell] = self.bricks.len() as u32;
+            self.bricks.push(Brick { density: PackedSlot::UNSET, source: PackedSlot::UNSET, albedo: PackedSlot::UNSET });
+            self.bounds.push(NodeBounds::ZERO);
+        }
+        Ok(self.table[cell] as usize)
+    }
+
+    /// Fill channels never given with the grids' backgrounds (cleaned; `None` for a channel
+    /// without a grid: density and source 0, albedo 1) and compute albedo bounds.
+    ///
+    /// # Errors
+    /// The sink's error reading values back (only with dense albedo bricks).
+    pub fn finish(mut self, sink: &mut impl BlockSink, backgrounds: [Option<f32>; 3]) -> Result<BuiltTable> {
+        let density_bg = clean(backgrounds[0].unwrap_or(0.0), &mut 0);
+        let source_bg = clean(backgrounds[1].unwrap_or(0.0), &mut 0);
+        let albedo_bg = backgrounds[2].map_or(1.0, |a| clean_albedo(a, &mut 0));
+        let mut dense_albedo = false;
+        for (brick, bounds) in self.bricks.iter_mut().zip(&mut self.bounds) {
+            if brick.density == PackedSlot::UNSET {
+                brick.density = PackedSlot::constant(density_bg);
+                (bounds.density_min, bounds.density_max) = (density_bg, density_bg);
+            }
+            if brick.source == PackedSlot::UNSET {
+                brick.source = PackedSlot::constant(source_bg);
+                (bounds.source_min, bounds.source_max) = (source_bg, source_bg);
+            }
+            if brick.albedo == PackedSlot::UNSET {
+                brick.albedo = PackedSlot::constant(albedo_bg);
+            }
+            match brick.albedo.get() {
+                Slot::Constant(a) => {
+                    let a = if bounds.density_max > 0.0 { a } else { 1.0 };
+                    (bounds.albedo_min, bounds.albedo_max) = (a, a);
+                }
+                Slot::Dense(_) => dense_albedo = true,
+            }
+        }
+        if dense_albedo {
+            let values = sink.appended()?;
+            for (brick, bounds) in self.bricks.iter().zip(&mut self.bounds) {
+                if matches!(brick.albedo.get(), Slot::Dense(_)) {
+                    (bounds.albedo_min, bounds.albedo_max) = albedo_bounds(values, brick);
+                }
+            }
+        }
+        Ok(BuiltTable {
+            brick_lo: self.brick_lo,
+            dims: self.dims,
+            table: self.table,
+            bricks: self.bricks,
+            bounds: self.bounds,
+            report: self.report,
+        })
+    }
+}
+
+/// Check that two grids share one voxel grid (transforms equal to 1e-6 of the scale).
+///
+/// # Errors
+/// [`Error::Scene`] naming both grids.
+pub fn check_same_transform((a_name, a): (&str, DAffine3), (b_name, b): (&str, DAffine3)) -> Result<()> {
+    let scale = a.matrix3.abs().to_cols_array().iter().fold(0.0f64, |m, v| m.max(*v));
+    let close = a.matrix3.abs_diff_eq(b.matrix3, 1e-6 * scale.max(1e-30))
+        && a.translation.abs_diff_eq(b.translation, 1e-6 * scale.max(1e-30));
+    if close {
+        Ok(())
+    } else {
+        Err(Error::Scene(format!("grids {a_name:?} and {b_name:?} have different transforms; plume needs them on one voxel grid")))
+    }
+}
+
+/// Table size for bricks `lo ..= hi`, refused beyond [`MAX_TABLE_ENTRIES`].
+///
+/// # Errors
+/// An empty or too large box (`what` names the grid).
+pub fn table_dims(lo: IVec3, hi: IVec3, what: &str) -> Result<IVec3> {
+    let d = (hi.as_i64vec3() - lo.as_i64vec3()) + 1;
+    if d.cmple(glam::I64Vec3::ZERO).any() {
+        return Err(Error::Scene(format!("grid {what:?} has an empty bounding box")));
+    }
+    table_entries(d, what)?;
+    Ok(d.as_ivec3())
+}
+
+/// Table entries for `d` bricks, refused beyond [`MAX_TABLE_ENTRIES`].
+fn table_entries(d: glam::I64Vec3, what: &str) -> Result<usize> {
+    if d.cmplt(glam::I64Vec3::ZERO).any() {
+        return Err(Error::Scene(format!("grid {what:?} has a negative bounding box")));
+    }
+    let entries = d.x as u64 * d.y as u64 * d.z as u64;
+    if entries > MAX_TABLE_ENTRIES {
+        return Err(Error::Scene(format!(
+            "grid {what:?} spans {}x{}x{} bricks ({} voxels across); plume's brick table is limited to {} bricks",
+            d.x, d.y, d.z, d.max_element() * 8, MAX_TABLE_ENTRIES
+        )));
+    }
+    Ok(entries as usize)
+}
+
+/// Albedo bounds of a brick over its voxels with density > 0 (`(1, 1)` if none).
+fn albedo_bounds(values: &[f32], b: &Brick) -> (f32, f32) {
+    let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+    for i in 0..LEAF_VOXELS {
+        let d = slot_at(values, b.density, i);
+        if d > 0.0 {
+            let a = slot_at(values, b.albedo, i);
+            lo = lo.min(a);
+            hi = hi.max(a);
+        }
+    }
+    if lo > hi { (1.0, 1.0) } else { (lo, hi) }
+}
+
+/// Value `i` (brick order) of a slot; 0 for a block beyond the value array (only a
+/// damaged cache file can say so, and its checksums fail the render).
+#[inline]
+fn slot_at(values: &[f32], slot: PackedSlot, i: usize) -> f32 {
+    match slot.get() {
+        Slot::Constant(v) => v,
+        Slot::Dense(block) => values.get(block as usize * LEAF_VOXELS + i).copied().unwrap_or(0.0),
+    }
 }
 
 impl Volume {
@@ -131,149 +495,91 @@ impl Volume {
         albedo: Option<&FloatGrid>,
     ) -> Result<Volume> {
         for s in source.iter().chain(albedo.iter()) {
-            let a = density.world_from_index;
-            let b = s.world_from_index;
-            let scale = a.matrix3.abs().to_cols_array().iter().fold(0.0f64, |m, v| m.max(*v));
-            let close = a.matrix3.abs_diff_eq(b.matrix3, 1e-6 * scale.max(1e-30))
-                && a.translation.abs_diff_eq(b.translation, 1e-6 * scale.max(1e-30));
-            if !close {
-                return Err(Error::Scene(format!(
-                    "grids {:?} and {:?} have different transforms; plume needs them on one voxel grid",
-                    density.name, s.name
-                )));
-            }
-        }
-        let mut origins: Vec<IVec3> = density.origins.clone();
-        if let Some(s) = source {
-            origins.extend_from_slice(&s.origins);
-        }
-        if let Some(a) = albedo {
-            origins.extend_from_slice(&a.origins);
+            check_same_transform((&density.name, density.world_from_index), (&s.name, s.world_from_index))?;
         }
         let index_from_world = density.world_from_index.inverse();
         if !index_from_world.is_finite() || density.world_from_index.matrix3.determinant() == 0.0 {
             return Err(Error::Scene(format!("grid {:?} has a singular transform", density.name)));
         }
-        if origins.is_empty() {
+        let grids = [Some(density), source, albedo];
+        let (mut lo, mut hi) = (IVec3::MAX, IVec3::MIN);
+        for o in grids.iter().flatten().flat_map(|g| &g.origins) {
+            lo = lo.min(brick_of(*o));
+            hi = hi.max(brick_of(*o));
+        }
+        if lo.x > hi.x {
             return Ok(Volume::empty(density.world_from_index, index_from_world));
         }
-        let brick_of = |o: IVec3| IVec3::new(floor_div(o.x, BRICK), floor_div(o.y, BRICK), floor_div(o.z, BRICK));
-        let mut lo = IVec3::MAX;
-        let mut hi = IVec3::MIN;
-        for &o in &origins {
-            let b = brick_of(o);
-            lo = lo.min(b);
-            hi = hi.max(b);
-        }
-        let dims64 = (hi.as_i64vec3() - lo.as_i64vec3()) + 1;
-        let entries = dims64.x as u64 * dims64.y as u64 * dims64.z as u64;
-        if entries > MAX_TABLE_ENTRIES {
-            return Err(Error::Scene(format!(
-                "grid {:?} spans {}x{}x{} bricks ({} voxels across); plume's brick table is limited to {} bricks",
-                density.name, dims64.x, dims64.y, dims64.z, dims64.max_element() * 8, MAX_TABLE_ENTRIES
-            )));
-        }
-        let dims = dims64.as_ivec3();
-        let cell = |b: IVec3| -> usize {
-            let r = b - lo;
-            (r.x as usize) + dims.x as usize * (r.y as usize + dims.y as usize * r.z as usize)
-        };
-        // Leaf lookup per table cell for both grids.
-        let mut dens_leaf = vec![NO_BRICK; entries as usize];
-        for (i, &o) in density.origins.iter().enumerate() {
-            dens_leaf[cell(brick_of(o))] = i as u32;
-        }
-        let mut src_leaf = vec![NO_BRICK; if source.is_some() { entries as usize } else { 0 }];
-        if let Some(s) = source {
-            for (i, &o) in s.origins.iter().enumerate() {
-                src_leaf[cell(brick_of(o))] = i as u32;
-            }
-        }
-        let mut albedo_leaf = vec![NO_BRICK; if albedo.is_some() { entries as usize } else { 0 }];
-        if let Some(a) = albedo {
-            for (i, &o) in a.origins.iter().enumerate() {
-                albedo_leaf[cell(brick_of(o))] = i as u32;
-            }
-        }
-        let mut table = vec![NO_BRICK; entries as usize];
-        let mut bricks = Vec::new();
-        let mut density_values = Vec::new();
-        let mut source_values = Vec::new();
-        let mut albedo_values = Vec::new();
-        let mut report = BuildReport::default();
-        let mut scratch = [0.0f32; LEAF_VOXELS];
-        let density_background = clean(density.background, &mut 0);
-        let source_background = source.map_or(0.0, |s| clean(source_map(s.background), &mut 0));
-        for idx in 0..entries as usize {
-            let dl = dens_leaf[idx];
-            let sl = src_leaf.get(idx).copied().unwrap_or(NO_BRICK);
-            let al = albedo_leaf.get(idx).copied().unwrap_or(NO_BRICK);
-            if dl == NO_BRICK && sl == NO_BRICK && al == NO_BRICK {
-                continue;
-            }
-            let density_slot = if dl == NO_BRICK {
-                Slot::Constant(density_background)
-            } else {
-                for (d, &v) in scratch.iter_mut().zip(density.leaf_values(dl as usize)) {
-                    *d = clean(v, &mut report.density_clamped);
-                }
-                store(&scratch, &mut density_values)
-            };
-            let source_slot = match source {
-                Some(s) if sl != NO_BRICK => {
-                    for (d, &v) in scratch.iter_mut().zip(s.leaf_values(sl as usize)) {
-                        *d = clean(source_map(v), &mut report.source_invalid);
+        let dims = table_dims(lo, hi, &density.name)?;
+        let mut builder = BrickTableBuilder::new(lo, dims, &density.name)?;
+        let mut values: Vec<f32> = Vec::new();
+        let mut mapped = [0.0f32; LEAF_VOXELS];
+        for (channel, grid) in [(Channel::Density, Some(density)), (Channel::Source, source), (Channel::Albedo, albedo)] {
+            let Some(grid) = grid else { continue };
+            for (i, &o) in grid.origins.iter().enumerate() {
+                let raw = grid.leaf_values(i);
+                if channel == Channel::Source {
+                    for (m, &v) in mapped.iter_mut().zip(raw) {
+                        *m = source_map(v);
                     }
-                    store(&scratch, &mut source_values)
+                    builder.put(&mut values, brick_of(o), channel, &mapped)?;
+                } else {
+                    builder.put(&mut values, brick_of(o), channel, raw)?;
                 }
-                _ => Slot::Constant(source_background),
-            };
-            let albedo_slot = match albedo {
-                Some(a) if al != NO_BRICK => {
-                    for (d, &v) in scratch.iter_mut().zip(a.leaf_values(al as usize)) {
-                        *d = clean_albedo(v, &mut report.albedo_clamped);
-                    }
-                    store(&scratch, &mut albedo_values)
-                }
-                Some(a) => Slot::Constant(clean_albedo(a.background, &mut 0)),
-                None => Slot::Constant(1.0),
-            };
-            table[idx] = bricks.len() as u32;
-            bricks.push(Brick { density: density_slot, source: source_slot, albedo: albedo_slot });
+            }
         }
-        let mut volume = Volume {
-            world_from_index: density.world_from_index,
-            index_from_world,
-            brick_lo: lo,
-            dims,
-            table,
-            bricks,
-            density_values,
-            source_values,
-            albedo_values,
-            pyramid: Pyramid::default(),
-            report,
-        };
-        volume.pyramid = Pyramid::build(&volume);
-        Ok(volume)
+        let backgrounds = [Some(density.background), Some(source.map_or(0.0, |s| source_map(s.background))), albedo.map(|a| a.background)];
+        let built = builder.finish(&mut values, backgrounds)?;
+        Ok(Volume::from_table(density.world_from_index, built, Buffer::from_vec(values)))
+    }
+
+    /// Assemble a volume from a finished brick table and its value blocks (heap or mapped),
+    /// building the pyramid from the per-brick bounds.
+    #[must_use]
+    pub fn from_table(world_from_index: DAffine3, built: BuiltTable, values: Buffer<f32>) -> Volume {
+        let pyramid = Pyramid::from_brick_bounds(built.dims, &built.table, &built.bounds);
+        Volume {
+            world_from_index,
+            index_from_world: world_from_index.inverse(),
+            brick_lo: built.brick_lo,
+            dims: built.dims,
+            table: Buffer::from_vec(built.table),
+            bricks: Buffer::from_vec(built.bricks),
+            values,
+            pyramid,
+            report: built.report,
+        }
+    }
+
+    /// Assemble a volume from parts read from a cache file (`crate::cache`), which has
+    /// checked that the arrays are consistent with `dims` and each other.
+    #[allow(clippy::too_many_arguments)]
+    #[must_use]
+    pub(crate) fn from_parts(
+        world_from_index: DAffine3,
+        brick_lo: IVec3,
+        dims: IVec3,
+        table: Buffer<u32>,
+        bricks: Buffer<Brick>,
+        values: Buffer<f32>,
+        pyramid: Pyramid,
+        report: BuildReport,
+    ) -> Volume {
+        Volume { world_from_index, index_from_world: world_from_index.inverse(), brick_lo, dims, table, bricks, values, pyramid, report }
     }
 
     fn empty(world_from_index: DAffine3, index_from_world: DAffine3) -> Volume {
-        let mut v = Volume {
+        Volume {
             world_from_index,
             index_from_world,
             brick_lo: IVec3::ZERO,
             dims: IVec3::ZERO,
-            table: Vec::new(),
-            bricks: Vec::new(),
-            density_values: Vec::new(),
-            source_values: Vec::new(),
-            albedo_values: Vec::new(),
+            table: Buffer::default(),
+            bricks: Buffer::default(),
+            values: Buffer::default(),
             pyramid: Pyramid::default(),
             report: BuildReport::default(),
-        };
-        v.pyramid = Pyramid::build(&v);
-        v
+        }
     }
 
     /// True when the volume holds no bricks.
@@ -313,17 +619,26 @@ impl Volume {
     pub fn dense_brick_count(&self) -> usize {
         self.bricks
             .iter()
-            .filter(|b| matches!(b.density, Slot::Dense(_)) || matches!(b.source, Slot::Dense(_)))
+            .filter(|b| matches!(b.density.get(), Slot::Dense(_)) || matches!(b.source.get(), Slot::Dense(_)))
             .count()
     }
 
-    /// Heap bytes held by bricks, table and pyramid.
+    /// Bytes of bricks, table, values and pyramid, wherever they live (heap or mapped).
     #[must_use]
     pub fn memory_bytes(&self) -> usize {
-        self.table.len() * 4
-            + self.bricks.len() * std::mem::size_of::<Brick>()
-            + (self.density_values.len() + self.source_values.len() + self.albedo_values.len()) * 4
-            + self.pyramid.memory_bytes()
+        self.table.byte_len() + self.bricks.byte_len() + self.values.byte_len() + self.pyramid.memory_bytes()
+    }
+
+    /// Heap bytes held (0 for the arrays of a mapped cache file).
+    #[must_use]
+    pub fn heap_bytes(&self) -> usize {
+        self.table.heap_bytes() + self.bricks.heap_bytes() + self.values.heap_bytes() + self.pyramid.heap_bytes()
+    }
+
+    /// True when the volume's arrays are mapped from a cache file.
+    #[must_use]
+    pub fn is_mapped(&self) -> bool {
+        self.values.is_mapped() || self.bricks.is_mapped()
     }
 
     /// Table cell of brick coordinate `b`, or `None` outside the table.
@@ -340,16 +655,13 @@ impl Volume {
     #[inline]
     pub(crate) fn brick(&self, b: IVec3) -> Option<&Brick> {
         let i = *self.table.get(self.cell(b)?)?;
-        (i != NO_BRICK).then(|| &self.bricks[i as usize])
+        self.bricks.get(i as usize)
     }
 
     /// Value of a slot at local voxel `(x,y,z)`.
     #[inline]
-    pub(crate) fn slot_value(values: &[f32], slot: Slot, x: i32, y: i32, z: i32) -> f32 {
-        match slot {
-            Slot::Constant(v) => v,
-            Slot::Dense(off) => values[off as usize + brick_offset(x, y, z)],
-        }
+    pub(crate) fn slot_value(&self, slot: PackedSlot, x: i32, y: i32, z: i32) -> f32 {
+        slot_at(&self.values, slot, brick_offset(x, y, z))
     }
 
     /// `(density, source)` of voxel `ijk` (nearest-voxel lookup; 0 outside all bricks).
@@ -360,10 +672,7 @@ impl Volume {
             None => (0.0, 0.0),
             Some(br) => {
                 let l = ijk - b * BRICK;
-                (
-                    Self::slot_value(&self.density_values, br.density, l.x, l.y, l.z),
-                    Self::slot_value(&self.source_values, br.source, l.x, l.y, l.z),
-                )
+                (self.slot_value(br.density, l.x, l.y, l.z), self.slot_value(br.source, l.x, l.y, l.z))
             }
         }
     }
@@ -374,7 +683,7 @@ impl Volume {
         let b = IVec3::new(floor_div(ijk.x, BRICK), floor_div(ijk.y, BRICK), floor_div(ijk.z, BRICK));
         self.brick(b).map_or(1.0, |br| {
             let l = ijk - b * BRICK;
-            Self::slot_value(&self.albedo_values, br.albedo, l.x, l.y, l.z)
+            self.slot_value(br.albedo, l.x, l.y, l.z)
         })
     }
 
@@ -397,13 +706,20 @@ impl Volume {
     }
 }
 
-/// NaN, ±inf and negative values become 0 and are counted.
+/// NaN, ±inf and negative values become 0 and are counted; −0 becomes +0 (so bounds and
+/// uniformity never depend on the order values are seen in).
 #[inline]
 fn clean(v: f32, count: &mut u64) -> f32 {
+    clean_n(v, count, 1)
+}
+
+/// [`clean`] for a value standing for `n` voxels.
+#[inline]
+fn clean_n(v: f32, count: &mut u64, n: u64) -> f32 {
     if v.is_finite() && v >= 0.0 {
-        v
+        v + 0.0
     } else {
-        *count += 1;
+        *count += n;
         0.0
     }
 }
@@ -416,27 +732,6 @@ fn clean_albedo(v: f32, count: &mut u64) -> f32 {
     } else {
         *count += 1;
         if v.is_nan() { 1.0 } else { v.clamp(0.0, 1.0) }
-    }
-}
-
-/// Store 512 values given in OpenVDB leaf order as a constant slot when uniform, else
-/// append them in [`brick_offset`] order.
-fn store(values: &[f32; LEAF_VOXELS], out: &mut Vec<f32>) -> Slot {
-    let first = values[0];
-    if values.iter().all(|&v| v.to_bits() == first.to_bits()) {
-        Slot::Constant(first)
-    } else {
-        let off = out.len();
-        out.resize(off + LEAF_VOXELS, 0.0);
-        let brick = &mut out[off..];
-        for x in 0..8 {
-            for y in 0..8 {
-                for z in 0..8 {
-                    brick[brick_offset(x, y, z)] = values[leaf_offset(x, y, z)];
-                }
-            }
-        }
-        Slot::Dense(off as u32)
     }
 }
 
@@ -461,17 +756,14 @@ impl Volume {
     #[inline]
     #[must_use]
     pub(crate) fn brick_voxel(&self, brick: &Brick, l: IVec3) -> (f32, f32) {
-        (
-            Self::slot_value(&self.density_values, brick.density, l.x, l.y, l.z),
-            Self::slot_value(&self.source_values, brick.source, l.x, l.y, l.z),
-        )
+        (self.slot_value(brick.density, l.x, l.y, l.z), self.slot_value(brick.source, l.x, l.y, l.z))
     }
 
     /// `Some((density, source))` when both channels of `brick` are constant.
     #[inline]
     #[must_use]
     pub(crate) fn brick_constant(brick: &Brick) -> Option<(f32, f32)> {
-        match (brick.density, brick.source) {
+        match (brick.density.get(), brick.source.get()) {
             (Slot::Constant(d), Slot::Constant(s)) => Some((d, s)),
             _ => None,
         }

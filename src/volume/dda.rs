@@ -171,9 +171,9 @@ impl<'a> VolumeSegments<'a> {
             if let Some((brick, origin)) = self.brick {
                 // Step one voxel of a dense brick
                 let l = self.ijk - origin;
-                density = Volume::slot_value(&self.volume.density_values, brick.density, l.x, l.y, l.z);
-                source = Volume::slot_value(&self.volume.source_values, brick.source, l.x, l.y, l.z);
-                albedo = if density > 0.0 { Volume::slot_value(&self.volume.albedo_values, brick.albedo, l.x, l.y, l.z) } else { 1.0 };
+                density = self.volume.slot_value(brick.density, l.x, l.y, l.z);
+                source = self.volume.slot_value(brick.source, l.x, l.y, l.z);
+                albedo = if density > 0.0 { self.volume.slot_value(brick.albedo, l.x, l.y, l.z) } else { 1.0 };
                 t_exit = self.t_next.x.min(self.t_next.y).min(self.t_next.z);
                 for a in 0..3 {
                     if self.t_next[a] == t_exit {
@@ -222,12 +222,19 @@ impl<'a> VolumeSegments<'a> {
                         albedo = av;
                         t_exit = self.exit_box(lo, size);
                     }
-                    None => {
-                        let brick = *self.volume.brick(bc).expect("invariant: non-uniform cell has a brick");
-                        self.brick = Some((brick, bc * BRICK));
-                        self.t_next = DVec3::new(self.face_crossing(0), self.face_crossing(1), self.face_crossing(2));
-                        continue;
-                    }
+                    None => match self.volume.brick(bc) {
+                        Some(&brick) => {
+                            self.brick = Some((brick, bc * BRICK));
+                            self.t_next = DVec3::new(self.face_crossing(0), self.face_crossing(1), self.face_crossing(2));
+                            continue;
+                        }
+                        None => {
+                            // A non-uniform node without a brick: only a damaged cache file
+                            // says so (its checksums fail the render); cross it as empty.
+                            (density, source, albedo) = (0.0, 0.0, 1.0);
+                            t_exit = self.exit_box(bc * BRICK, BRICK);
+                        }
+                    },
                 }
             }
             let t1 = t_exit.min(self.t_end);

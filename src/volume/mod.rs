@@ -10,6 +10,7 @@ pub mod dda;
 pub mod field;
 pub mod proxy;
 pub mod pyramid;
+pub mod storage;
 
 pub use brick::Volume;
 pub use field::{Field, Segment};

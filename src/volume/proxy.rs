@@ -163,6 +163,64 @@ fn shell(t0: f64, t1: f64) -> f64 {
     (t1 - t0) * (t1 * t1 + t1 * t0 + t0 * t0) * (1.0 / 3.0)
 }
 
+/// Emitted power summed per proxy cell, before normalisation: what a brick cache stores
+/// so that opening it does not need a pass over every voxel.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CellPower {
+    /// Cells along the longest axis.
+    pub resolution: u32,
+    /// `Σ_{voxels in cell} power(ρ, s)` per cell (x fastest), without the voxel volume.
+    pub sums: Vec<f64>,
+}
+
+/// Cell edge (voxels) and cells per axis for `resolution`, or `None` for an empty volume.
+fn cell_layout(volume: &Volume, resolution: u32) -> Result<Option<(i32, IVec3)>> {
+    let (_, brick_dims) = volume.brick_range();
+    if volume.is_empty() {
+        validate_resolution(resolution, None)?;
+        return Ok(None);
+    }
+    let extent = brick_dims * BRICK;
+    let longest = extent.max_element();
+    validate_resolution(resolution, Some(longest))?;
+    let edge = (longest as u32).div_ceil(resolution) as i32;
+    let dims = (extent + (edge - 1)) / edge;
+    let count = dims.x as u64 * dims.y as u64 * dims.z as u64;
+    if count >= u64::from(u32::MAX) {
+        return Err(Error::invalid(
+            RESOLUTION_FLAG,
+            format!("{resolution} needs {count} proxy cells, more than plume supports; choose a smaller resolution"),
+        ));
+    }
+    Ok(Some((edge, dims)))
+}
+
+impl CellPower {
+    /// Sum `power(density, source)` over every emitting voxel of `volume` into the cells
+    /// of a proxy of `resolution`, one z-layer of cells per task (a fixed order, so the
+    /// sums do not depend on the thread count). `Ok(None)` for an empty volume.
+    ///
+    /// # Errors
+    /// As [`ProxyGrid::build`].
+    pub fn sum(volume: &Volume, resolution: u32, power: impl Fn(f32, f32) -> f64 + Sync) -> Result<Option<CellPower>> {
+        let Some((edge, dims)) = cell_layout(volume, resolution)? else { return Ok(None) };
+        let (brick_lo, brick_dims) = volume.brick_range();
+        let extent = brick_dims * BRICK;
+        let voxel_lo = brick_lo * BRICK;
+        let layers: Vec<(Vec<f64>, Option<BadPower>)> = (0..dims.z)
+            .into_par_iter()
+            .map(|cz| layer_power(volume, &power, voxel_lo, extent, edge, dims, cz))
+            .collect();
+        if let Some(bad) = layers.iter().find_map(|l| l.1) {
+            return Err(Error::Scene(format!(
+                "emitted power {} at voxel {} (density {}, source {}) is negative or not finite",
+                bad.power, bad.voxel, bad.density, bad.source
+            )));
+        }
+        Ok(Some(CellPower { resolution, sums: layers.into_iter().flat_map(|l| l.0).collect() }))
+    }
+}
+
 /// What goes wrong while summing power (reported after the parallel pass).
 #[derive(Clone, Copy, Debug)]
 struct BadPower {
@@ -187,44 +245,44 @@ impl ProxyGrid {
     /// `u32::MAX` cells; [`Error::Scene`] when `power` returns a negative or non-finite value
     /// or the total power overflows.
     pub fn build(volume: &Volume, resolution: u32, power: impl Fn(f32, f32) -> f64 + Sync) -> Result<Option<ProxyGrid>> {
-        let (brick_lo, brick_dims) = volume.brick_range();
-        if volume.is_empty() {
-            validate_resolution(resolution, None)?;
-            return Ok(None);
+        match CellPower::sum(volume, resolution, power)? {
+            Some(cells) => ProxyGrid::from_cell_power(volume, &cells),
+            None => Ok(None),
         }
-        let extent = brick_dims * BRICK;
-        let longest = extent.max_element();
-        validate_resolution(resolution, Some(longest))?;
-        let edge = (longest as u32).div_ceil(resolution) as i32;
-        let dims = (extent + (edge - 1)) / edge;
-        let count = dims.x as u64 * dims.y as u64 * dims.z as u64;
-        if count >= u64::from(u32::MAX) {
-            return Err(Error::invalid(
-                RESOLUTION_FLAG,
-                format!("{resolution} needs {count} proxy cells, more than plume supports; choose a smaller resolution"),
-            ));
-        }
-        let voxel_lo = brick_lo * BRICK;
+    }
 
-        // Sum voxel power per cell, one z-layer of cells per task (deterministic order)
-        let layers: Vec<(Vec<f64>, Option<BadPower>)> = (0..dims.z)
-            .into_par_iter()
-            .map(|cz| layer_power(volume, &power, voxel_lo, extent, edge, dims, cz))
-            .collect();
-        if let Some(bad) = layers.iter().find_map(|l| l.1) {
+    /// The proxy from per-cell power sums (from [`CellPower::sum`], or stored in a brick
+    /// cache file): bit-identical to [`ProxyGrid::build`] for the same sums.
+    ///
+    /// Returns `Ok(None)` when nothing emits.
+    ///
+    /// # Errors
+    /// Sums that do not fit `volume` at their resolution, or a non-finite total.
+    pub fn from_cell_power(volume: &Volume, power: &CellPower) -> Result<Option<ProxyGrid>> {
+        let Some((edge, dims)) = cell_layout(volume, power.resolution)? else { return Ok(None) };
+        if power.sums.len() != dims.x as usize * dims.y as usize * dims.z as usize {
             return Err(Error::Scene(format!(
-                "emitted power {} at voxel {} (density {}, source {}) is negative or not finite",
-                bad.power, bad.voxel, bad.density, bad.source
+                "proxy power holds {} cells, but resolution {} needs {}x{}x{}",
+                power.sums.len(),
+                power.resolution,
+                dims.x,
+                dims.y,
+                dims.z
             )));
         }
+        let resolution = power.resolution;
+        let layer_len = dims.x as usize * dims.y as usize;
         let voxel_volume = volume.voxel_volume();
-        let mut entry = vec![EMPTY; count as usize];
+        let mut entry = vec![EMPTY; power.sums.len()];
         let mut cells = Vec::new();
         let mut weights = Vec::new();
         let mut occupied_lo = IVec3::MAX;
         let mut occupied_hi = IVec3::MIN;
-        for (cz, (layer, _)) in layers.iter().enumerate() {
+        for (cz, layer) in power.sums.chunks(layer_len).enumerate() {
             for (k, &sum) in layer.iter().enumerate() {
+                if !(sum >= 0.0 && sum.is_finite()) {
+                    return Err(Error::Scene(format!("proxy cell power {sum} is negative or not finite")));
+                }
                 if sum > 0.0 {
                     let cell = k + cz * layer.len();
                     let c = IVec3::new((k % dims.x as usize) as i32, (k / dims.x as usize) as i32, cz as i32);

@@ -10,11 +10,12 @@
 
 use glam::IVec3;
 
-use super::brick::{Slot, Volume, BRICK};
-use crate::vdb::LEAF_VOXELS;
+use super::brick::{BRICK, NO_BRICK};
+use super::storage::Buffer;
 
 /// Value bounds of one pyramid node.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct NodeBounds {
     /// Smallest density beneath.
     pub density_min: f32,
@@ -31,7 +32,8 @@ pub struct NodeBounds {
 }
 
 impl NodeBounds {
-    const ZERO: NodeBounds =
+    /// Bounds of empty space (no brick): density and source 0, albedo 1.
+    pub const ZERO: NodeBounds =
         NodeBounds { density_min: 0.0, density_max: 0.0, source_min: 0.0, source_max: 0.0, albedo_min: 1.0, albedo_max: 1.0 };
 
     /// True when the node is constant in every channel that matters: density, source,
@@ -64,12 +66,12 @@ impl NodeBounds {
 }
 
 /// One level of the pyramid.
-#[derive(Clone, Debug, Default)]
+#[derive(Debug, Default)]
 pub struct Level {
     /// Nodes per axis.
     pub dims: IVec3,
     /// Nodes, x fastest.
-    pub nodes: Vec<NodeBounds>,
+    pub nodes: Buffer<NodeBounds>,
 }
 
 impl Level {
@@ -82,66 +84,41 @@ impl Level {
 }
 
 /// The min/max pyramid: `levels[0]` per brick, the last level a single node.
-#[derive(Clone, Debug, Default)]
+#[derive(Debug, Default)]
 pub struct Pyramid {
     /// Levels from finest (bricks) to coarsest (root).
     pub levels: Vec<Level>,
 }
 
-fn slot_bounds(values: &[f32], slot: Slot) -> (f32, f32) {
-    match slot {
-        Slot::Constant(v) => (v, v),
-        Slot::Dense(off) => values[off as usize..off as usize + LEAF_VOXELS]
-            .iter()
-            .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| (lo.min(v), hi.max(v))),
+/// Node counts per axis of every level for a brick table of `dims`: level 0 is `dims`,
+/// each next level halves (rounding up) until a single node.
+#[must_use]
+pub fn level_dims(dims: IVec3) -> Vec<IVec3> {
+    if dims.cmple(IVec3::ZERO).any() {
+        return Vec::new();
     }
-}
-
-/// Albedo bounds of a brick over its voxels with density > 0 (`(1, 1)` if none).
-fn albedo_bounds(volume: &Volume, b: &super::brick::Brick) -> (f32, f32) {
-    if let Slot::Constant(a) = b.albedo {
-        let (_, dmax) = slot_bounds(&volume.density_values, b.density);
-        return if dmax > 0.0 { (a, a) } else { (1.0, 1.0) };
+    let mut out = vec![dims];
+    while let Some(&d) = out.last().filter(|d| d.cmpgt(IVec3::ONE).any()) {
+        out.push((d + 1) / 2);
     }
-    let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-    for i in 0..LEAF_VOXELS {
-        let d = match b.density {
-            Slot::Constant(v) => v,
-            Slot::Dense(off) => volume.density_values[off as usize + i],
-        };
-        if d > 0.0 {
-            let a = match b.albedo {
-                Slot::Constant(v) => v,
-                Slot::Dense(off) => volume.albedo_values[off as usize + i],
-            };
-            lo = lo.min(a);
-            hi = hi.max(a);
-        }
-    }
-    if lo > hi { (1.0, 1.0) } else { (lo, hi) }
+    out
 }
 
 impl Pyramid {
-    /// Build all levels of `volume`'s pyramid.
+    /// Build all levels over a brick table of `dims`, where `bounds[i]` are the bounds of
+    /// brick `i` (`table` maps cells to bricks; cells without a brick count as
+    /// [`NodeBounds::ZERO`]).
     #[must_use]
-    pub fn build(volume: &Volume) -> Pyramid {
-        if volume.dims.cmple(IVec3::ZERO).any() {
+    pub fn from_brick_bounds(dims: IVec3, table: &[u32], bounds: &[NodeBounds]) -> Pyramid {
+        let all = level_dims(dims);
+        if all.is_empty() {
             return Pyramid::default();
         }
-        let dims = volume.dims;
-        let mut base = Level { dims, nodes: vec![NodeBounds::ZERO; volume.table.len()] };
-        for (node, &bi) in base.nodes.iter_mut().zip(&volume.table) {
-            if let Some(b) = volume.bricks.get(bi as usize) {
-                let (dmin, dmax) = slot_bounds(&volume.density_values, b.density);
-                let (smin, smax) = slot_bounds(&volume.source_values, b.source);
-                let (amin, amax) = albedo_bounds(volume, b);
-                *node = NodeBounds { density_min: dmin, density_max: dmax, source_min: smin, source_max: smax, albedo_min: amin, albedo_max: amax };
-            }
-        }
-        let mut levels = vec![base];
-        while levels.last().is_some_and(|l| l.dims.cmpgt(IVec3::ONE).any()) {
+        let base: Vec<NodeBounds> =
+            table.iter().map(|&bi| if bi == NO_BRICK { NodeBounds::ZERO } else { bounds[bi as usize] }).collect();
+        let mut levels = vec![Level { dims, nodes: Buffer::from_vec(base) }];
+        for &nd in &all[1..] {
             let prev = levels.last().expect("invariant: at least one level");
-            let nd = (prev.dims + 1) / 2;
             let mut nodes = Vec::with_capacity((nd.x * nd.y * nd.z) as usize);
             for z in 0..nd.z {
                 for y in 0..nd.y {
@@ -161,15 +138,21 @@ impl Pyramid {
                     }
                 }
             }
-            levels.push(Level { dims: nd, nodes });
+            levels.push(Level { dims: nd, nodes: Buffer::from_vec(nodes) });
         }
         Pyramid { levels }
     }
 
-    /// Heap bytes.
+    /// Bytes of all levels, wherever they live.
     #[must_use]
     pub fn memory_bytes(&self) -> usize {
-        self.levels.iter().map(|l| l.nodes.len() * std::mem::size_of::<NodeBounds>()).sum()
+        self.levels.iter().map(|l| l.nodes.byte_len()).sum()
+    }
+
+    /// Heap bytes of all levels (0 when mapped).
+    #[must_use]
+    pub fn heap_bytes(&self) -> usize {
+        self.levels.iter().map(|l| l.nodes.heap_bytes()).sum()
     }
 
     /// Edge of a level-`k` node in voxels.

@@ -6,7 +6,7 @@
 #![allow(dead_code)]
 
 use std::fmt::Write as _;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use glam::{DAffine3, IVec3};
 use plume::vdb::{leaf_offset, FloatGrid, LEAF_VOXELS};
@@ -136,4 +136,25 @@ pub fn hash(p: IVec3, seed: u32) -> u32 {
     h ^= h >> 15;
     h = h.wrapping_mul(0x2c1b_3c6d);
     h ^ (h >> 12)
+}
+
+/// Run the `plume` binary under test.
+#[allow(dead_code)]
+pub fn plume(args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_plume")).args(args).output().expect("run plume")
+}
+
+/// A fresh temporary directory for one test.
+#[allow(dead_code)]
+pub fn tmpdir(tier: &str, name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("plume-{tier}-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// A path as `&str` (test paths are UTF-8).
+#[allow(dead_code)]
+pub fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
 }

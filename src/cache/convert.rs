@@ -1,0 +1,338 @@
+//! `.vdb` → brick cache conversion (`plume prepare`, and the automatic cache `plume
+//! render` makes for a .vdb too large for its memory budget), and the checks that decide
+//! whether a cache may be rendered with a given set of flags.
+//!
+//! A cache is **stale** when its format version differs, when the .vdb it was converted
+//! from has changed size or modification time since, or (for an automatic cache) when it
+//! fails any check; stale automatic caches are rebuilt, an explicit `.plume` input is
+//! refused with the command that fixes it. A cache is **incompatible** with the render's
+//! flags when they select other grids or map the source differently (the stored source
+//! is already mapped): refused, naming the flag.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use glam::IVec3;
+
+use super::format::InputFingerprint;
+use super::reader::Cache;
+use super::writer::{CacheInfo, CacheWriter, ProxySpec};
+use crate::app::{emission, emission_kind, grid_requests, memory_budget, reading, split_found};
+use crate::cli::{EmissionArg, GridArgs, PrepareArgs, RenderArgs};
+use crate::color::Rgb;
+use crate::error::{Error, Result};
+use crate::integrator::{light_power, LightSampling};
+use crate::medium::EmissionKind;
+use crate::volume::brick::{brick_of, check_same_transform, table_dims, Channel, Slot};
+use crate::volume::Volume;
+
+/// What a conversion wrote.
+#[derive(Clone, Debug)]
+pub struct Converted {
+    /// The cache file.
+    pub path: PathBuf,
+    /// Its size in bytes.
+    pub bytes: u64,
+    /// Seconds taken.
+    pub seconds: f64,
+}
+
+/// Name of an emission kind as stored in cache metadata.
+#[must_use]
+pub fn kind_name(kind: EmissionKind) -> &'static str {
+    match kind {
+        EmissionKind::None => "none",
+        EmissionKind::Blackbody => "blackbody",
+        EmissionKind::Grid => "grid",
+    }
+}
+
+/// The input's identity for staleness checks.
+///
+/// # Errors
+/// The file cannot be examined.
+pub fn fingerprint(path: &Path) -> Result<InputFingerprint> {
+    let open = |e| Error::Open { path: path.to_path_buf(), source: e };
+    let meta = std::fs::metadata(path).map_err(open)?;
+    let mtime = meta.modified().map_err(open)?;
+    let mtime_ns = match mtime.duration_since(std::time::UNIX_EPOCH) {
+        Ok(d) => d.as_nanos() as i128,
+        Err(e) => -(e.duration().as_nanos() as i128),
+    };
+    let abs = std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf());
+    Ok(InputFingerprint { path: abs.to_string_lossy().into_owned(), size: meta.len(), mtime_ns })
+}
+
+/// Convert the grids of `file` selected by `grids` into the cache file `out`, storing a
+/// proxy of `proxy_resolution` (default for the volume's size when `None`).
+///
+/// # Errors
+/// Unreadable input or grids, incompatible transforms, write errors.
+pub fn convert(file: &Path, grids: &GridArgs, proxy_resolution: Option<u32>, out: &Path) -> Result<Converted> {
+    let start = Instant::now();
+    let input = fingerprint(file)?;
+    let (limits, isolation) = reading(grids)?;
+    let requests = grid_requests(grids)?;
+    let found = isolation.read_grids(file, &requests, &limits)?;
+    let (density, source, albedo) = split_found(grids, found);
+    let kind = emission_kind(grids.emission, source.as_ref().map(|f| f.alternative));
+    let emission = emission(grids, kind, 1.0, Rgb([1.0; 3]))?;
+    let source = source.map(|f| f.grid);
+    let w = density.world_from_index;
+    if !w.inverse().is_finite() || w.matrix3.determinant() == 0.0 {
+        return Err(Error::Scene(format!("grid {:?} has a singular transform", density.name)));
+    }
+    for g in source.iter().chain(albedo.iter()) {
+        check_same_transform((&density.name, w), (&g.name, g.world_from_index))?;
+    }
+    let channels = [(Channel::Density, Some(&density)), (Channel::Source, source.as_ref()), (Channel::Albedo, albedo.as_ref())];
+    let (mut lo, mut hi) = (IVec3::MAX, IVec3::MIN);
+    for o in channels.iter().filter_map(|c| c.1).flat_map(|g| &g.origins) {
+        lo = lo.min(brick_of(*o));
+        hi = hi.max(brick_of(*o));
+    }
+    let (lo, dims) = if lo.x > hi.x { (IVec3::ZERO, IVec3::ZERO) } else { (lo, table_dims(lo, hi, &density.name)?) };
+    let mut writer = CacheWriter::create(out, w, lo, dims, &density.name)?;
+    let mut mapped = [0.0f32; crate::vdb::LEAF_VOXELS];
+    for (channel, grid) in channels {
+        let Some(grid) = grid else { continue };
+        for (i, &o) in grid.origins.iter().enumerate() {
+            let raw = grid.leaf_values(i);
+            if channel == Channel::Source {
+                for (m, &v) in mapped.iter_mut().zip(raw) {
+                    *m = emission.map_source(v);
+                }
+                writer.put(brick_of(o), channel, &mapped)?;
+            } else {
+                writer.put(brick_of(o), channel, raw)?;
+            }
+        }
+    }
+    let info = CacheInfo {
+        density_grid: density.name.clone(),
+        source_grid: source.as_ref().map(|s| s.name.clone()),
+        albedo_grid: albedo.as_ref().map(|a| a.name.clone()),
+        source_key: emission.source_key(),
+        emission_kind: kind_name(kind).into(),
+        input: Some(input),
+        backgrounds: [Some(density.background), Some(source.as_ref().map_or(0.0, |s| emission.map_source(s.background))), albedo.as_ref().map(|a| a.background)],
+    };
+    drop((density, source, albedo));
+    let power = light_power(&emission);
+    let proxy = (kind != EmissionKind::None).then(|| ProxySpec { resolution: proxy_resolution, power_key: emission.light_key(), power: &power });
+    let path = writer.finish(&info, proxy)?;
+    let bytes = std::fs::metadata(&path).map(|m| m.len()).unwrap_or(0);
+    Ok(Converted { path, bytes, seconds: start.elapsed().as_secs_f64() })
+}
+
+/// `plume prepare`.
+///
+/// # Errors
+/// As [`convert`]; an output not ending in `.plume`.
+pub fn prepare_command(args: &PrepareArgs) -> Result<()> {
+    if !super::is_cache_path(&args.output) {
+        return Err(Error::invalid("--output", format!("{} must end in .{}", args.output.display(), super::EXTENSION)));
+    }
+    let input_bytes = std::fs::metadata(&args.file).map(|m| m.len()).unwrap_or(0);
+    let c = convert(&args.file, &args.grids, args.proxy_resolution, &args.output)?;
+    if !args.quiet {
+        eprintln!(
+            "plume: wrote {} ({:.1} MiB) from {} ({:.1} MiB) in {:.2} s",
+            c.path.display(),
+            c.bytes as f64 / 1048576.0,
+            args.file.display(),
+            input_bytes as f64 / 1048576.0,
+            c.seconds
+        );
+    }
+    Ok(())
+}
+
+/// The emission kind a render from `cache` uses, after checking that the grid flags do
+/// not ask for other grids or another kind.
+///
+/// # Errors
+/// [`Error::InvalidArgument`] naming the flag that disagrees with the cache.
+pub fn check_flags(cache: &Cache, grids: &GridArgs) -> Result<EmissionKind> {
+    let meta = &cache.meta;
+    let stored = match meta.emission_kind.as_str() {
+        "blackbody" => EmissionKind::Blackbody,
+        "grid" => EmissionKind::Grid,
+        _ => EmissionKind::None,
+    };
+    let path = cache.path.display();
+    let asked = match grids.emission {
+        EmissionArg::Auto => stored,
+        EmissionArg::None => EmissionKind::None,
+        EmissionArg::Blackbody => EmissionKind::Blackbody,
+        EmissionArg::Grid => EmissionKind::Grid,
+    };
+    if asked != stored && asked != EmissionKind::None {
+        return Err(Error::invalid(
+            "--emission",
+            format!("{path} was prepared with {} emission; prepare it again with the --emission you render with", meta.emission_kind),
+        ));
+    }
+    if grids.density_grid != "density" && grids.density_grid != meta.density_grid {
+        return Err(Error::invalid(
+            "--density-grid",
+            format!("{path} holds density grid {:?}, not {:?}; prepare it again with this --density-grid", meta.density_grid, grids.density_grid),
+        ));
+    }
+    if let Some(a) = &grids.albedo_grid {
+        if meta.albedo_grid.as_deref() != Some(a.as_str()) {
+            return Err(Error::invalid(
+                "--albedo-grid",
+                format!("{path} holds albedo grid {:?}, not {a:?}; prepare it again with this --albedo-grid", meta.albedo_grid),
+            ));
+        }
+    }
+    Ok(asked)
+}
+
+/// Check that the render maps sources as the cache stored them.
+///
+/// # Errors
+/// [`Error::InvalidArgument`] naming the mapping flags.
+pub fn check_source_key(cache: &Cache, emission: &crate::medium::Emission) -> Result<()> {
+    if emission.kind == EmissionKind::None || emission.source_key() == cache.meta.source_key {
+        return Ok(());
+    }
+    Err(Error::invalid(
+        "--temperature-map/--temperature-cutoff/--convention",
+        format!(
+            "{} stores sources mapped as \"{}\", these flags give \"{}\"; prepare it again with the flags you render with",
+            cache.path.display(),
+            cache.meta.source_key,
+            emission.source_key()
+        ),
+    ))
+}
+
+/// Refuse a cache whose source file has changed since it was prepared (a source that no
+/// longer exists is fine: a cache stands on its own).
+///
+/// # Errors
+/// [`Error::Cache`] saying what changed.
+pub fn check_not_stale(cache: &Cache) -> Result<()> {
+    let Some(input) = &cache.meta.input else { return Ok(()) };
+    let Ok(now) = fingerprint(Path::new(&input.path)) else { return Ok(()) };
+    if now.size != input.size || now.mtime_ns != input.mtime_ns {
+        return Err(Error::Cache {
+            path: cache.path.clone(),
+            what: format!("stale: {} changed since it was prepared; run `plume prepare` again", input.path),
+        });
+    }
+    Ok(())
+}
+
+/// Refuse light-sampling tables that would not fit `budget` bytes of anonymous memory.
+///
+/// # Errors
+/// [`Error::InvalidArgument`] for `--memory-budget`, with the way out.
+pub fn check_light_budget(volume: &Volume, light_sampling: LightSampling, budget: u64) -> Result<()> {
+    if light_sampling != LightSampling::Nee {
+        return Ok(());
+    }
+    // Classic NEE: an alias slot and index per emitting voxel, a record per brick, a table
+    let emitting_voxels: u64 = volume
+        .bricks
+        .iter()
+        .map(|b| match b.source.get() {
+            Slot::Dense(_) => 512,
+            Slot::Constant(s) if s != 0.0 => 512,
+            Slot::Constant(_) => 0,
+        })
+        .sum();
+    let needed = emitting_voxels * 24 + volume.table.len() as u64 * 4 + volume.bricks.len() as u64 * 16;
+    if needed > budget {
+        return Err(Error::invalid(
+            "--memory-budget",
+            format!(
+                "classic NEE would need about {:.2} GiB for its table of up to {emitting_voxels} emitting voxels, more than the budget of {:.2} GiB; \
+                 use --method line-fnee (its proxy needs a few MiB) or raise --memory-budget",
+                needed as f64 / GIB,
+                budget as f64 / GIB
+            ),
+        ));
+    }
+    Ok(())
+}
+
+const GIB: f64 = 1024.0 * 1024.0 * 1024.0;
+
+/// Where the automatic cache of `args.file` lives: `--cache-dir`, else beside the input,
+/// else `$XDG_CACHE_HOME/plume` (or `~/.cache/plume`). The name carries a hash of the
+/// grid flags, so renders with different grids or mappings keep separate caches.
+fn auto_cache_path(args: &RenderArgs) -> PathBuf {
+    use sha2::{Digest, Sha256};
+    let g = &args.grids;
+    let key = format!(
+        "{}|{:?}|{}|{:?}|{}|{}|{:?}|{:?}|{:?}",
+        g.density_grid, g.emission, g.temperature_grid, g.emission_grid, g.temperature_map, g.temperature_cutoff, g.convention,
+        g.albedo_grid, args.proxy_resolution
+    );
+    let hash = Sha256::digest(key.as_bytes());
+    let tag: String = hash[..6].iter().map(|b| format!("{b:02x}")).collect();
+    let name = format!("{}.{tag}.{}", args.file.file_name().map_or_else(|| "input".into(), |n| n.to_string_lossy()), super::EXTENSION);
+    let writable = |d: &Path| {
+        let probe = d.join(format!(".plume-probe-{}", std::process::id()));
+        let ok = std::fs::File::create(&probe).is_ok();
+        let _ = std::fs::remove_file(&probe);
+        ok
+    };
+    if let Some(dir) = &args.cache_dir {
+        return dir.join(name);
+    }
+    let beside = args.file.parent().map_or_else(|| PathBuf::from("."), |p| if p.as_os_str().is_empty() { PathBuf::from(".") } else { p.to_path_buf() });
+    if writable(&beside) {
+        return beside.join(name);
+    }
+    let base = std::env::var_os("XDG_CACHE_HOME")
+        .map(PathBuf::from)
+        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache")))
+        .unwrap_or_else(std::env::temp_dir);
+    base.join("plume").join(name)
+}
+
+/// For a .vdb larger on disk than a quarter of the memory budget: its automatic cache,
+/// converted now if missing, stale or damaged. `None` for smaller files (read in core).
+///
+/// # Errors
+/// As [`convert`]; an unusable `--cache-dir`.
+pub fn auto_cache(args: &RenderArgs) -> Result<Option<Cache>> {
+    let Ok(meta) = std::fs::metadata(&args.file) else { return Ok(None) };
+    let budget = memory_budget(args);
+    if meta.len().saturating_mul(4) <= budget {
+        return Ok(None);
+    }
+    let path = auto_cache_path(args);
+    if path.exists() {
+        match Cache::open(&path).and_then(|c| check_not_stale(&c).map(|()| c)) {
+            Ok(mut cache) => {
+                cache.check.remove_on_failure();
+                return Ok(Some(cache));
+            }
+            Err(e) => {
+                eprintln!("plume: rebuilding the automatic cache ({e})");
+                let _ = std::fs::remove_file(&path);
+            }
+        }
+    }
+    if let Some(dir) = path.parent() {
+        std::fs::create_dir_all(dir).map_err(|e| Error::Write { path: dir.to_path_buf(), source: e })?;
+    }
+    eprintln!(
+        "plume: {} is {:.2} GiB on disk, more than a quarter of the memory budget ({:.2} GiB, --memory-budget); \
+         converting it once to the brick cache {}",
+        args.file.display(),
+        meta.len() as f64 / GIB,
+        budget as f64 / GIB,
+        path.display()
+    );
+    let c = convert(&args.file, &args.grids, args.proxy_resolution, &path)?;
+    eprintln!("plume: wrote {} ({:.2} GiB) in {:.1} s", c.path.display(), c.bytes as f64 / GIB, c.seconds);
+    let mut cache = Cache::open(&c.path)?;
+    cache.check.remove_on_failure();
+    Ok(Some(cache))
+}

@@ -1,0 +1,290 @@
+//! [`Cache::open`]: map a brick cache file and hand out a [`Volume`] whose arrays are views
+//! of the mapping, after checking everything that decides how the file is read.
+//!
+//! At open: the header (magic, version, byte order, checksum), the section table (every
+//! section present once, page-aligned, inside the file, not overlapping), the CHUNKS
+//! section's hash, and the chunk checksums of the metadata and of every section up to
+//! [`EAGER_BYTES`]; then the metadata's sizes against the section lengths. Larger
+//! sections (the values, and the table and pyramid of huge volumes) are checked by a
+//! background thread while rendering starts ([`Verification`]); a render waits for it
+//! before writing any output, so nothing computed from a damaged file is ever saved.
+//! Until then, every index read from the file is bounds-checked with a harmless
+//! fallback (`volume::brick`), so a damaged file cannot crash plume.
+
+use std::fs::File;
+use std::io::Read;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex, OnceLock};
+use std::thread::JoinHandle;
+
+use glam::{DAffine3, DMat3, DVec3, IVec3};
+use memmap2::Mmap;
+use rayon::prelude::*;
+
+use super::format::{Header, Meta, SectionEntry, SectionKind, BYTE_ORDER, CHUNK, MAGIC, PAGE, VERSION};
+use crate::error::{Error, Result};
+use crate::volume::brick::Brick;
+use crate::volume::proxy::CellPower;
+use crate::volume::pyramid::{level_dims, Level, NodeBounds, Pyramid};
+use crate::volume::storage::Buffer;
+use crate::volume::Volume;
+use crate::vdb::LEAF_VOXELS;
+
+/// Sections up to this size are verified before [`Cache::open`] returns.
+pub const EAGER_BYTES: u64 = 64 << 20;
+
+/// The outcome of checking a cache's large sections in the background.
+#[derive(Debug)]
+pub struct Verification {
+    thread: Mutex<Option<JoinHandle<std::result::Result<(), String>>>>,
+    outcome: OnceLock<std::result::Result<(), String>>,
+}
+
+impl Verification {
+    fn done() -> Verification {
+        let v = Verification { thread: Mutex::new(None), outcome: OnceLock::new() };
+        let _ = v.outcome.set(Ok(()));
+        v
+    }
+
+    /// Wait for the check to finish; `Err(what)` when a chunk failed its checksum.
+    ///
+    /// # Errors
+    /// The first failing chunk, described.
+    pub fn wait(&self) -> std::result::Result<(), String> {
+        self.outcome
+            .get_or_init(|| {
+                let handle = self.thread.lock().map(|mut t| t.take()).ok().flatten();
+                match handle {
+                    Some(h) => h.join().unwrap_or_else(|_| Err("the verifier thread panicked".into())),
+                    None => Ok(()),
+                }
+            })
+            .clone()
+    }
+}
+
+/// An opened brick cache. See the module docs.
+#[derive(Debug)]
+pub struct Cache {
+    /// The file.
+    pub path: PathBuf,
+    /// Its metadata.
+    pub meta: Meta,
+    /// The volume, mapped.
+    pub volume: Volume,
+    /// The stored FNEE proxy power, if any.
+    pub proxy_power: Option<CellPower>,
+    /// File size in bytes.
+    pub file_bytes: u64,
+    /// The background check; outlives the volume's use (see [`CacheCheck::verified`]).
+    pub check: CacheCheck,
+}
+
+/// The background check of a cache's large sections, kept by whoever renders from it.
+#[derive(Debug)]
+pub struct CacheCheck {
+    path: PathBuf,
+    verification: Verification,
+    remove_on_failure: bool,
+}
+
+impl CacheCheck {
+    /// Wait for the background check of the large sections.
+    ///
+    /// # Errors
+    /// [`Error::Cache`] naming the first chunk that failed (an automatic cache is then
+    /// deleted, so the next run rebuilds it).
+    pub fn verified(&self) -> Result<()> {
+        self.verification.wait().map_err(|what| {
+            if self.remove_on_failure && std::fs::remove_file(&self.path).is_ok() {
+                corrupt(&self.path, format!("{what}; removed this automatic cache, the next run rebuilds it"))
+            } else {
+                corrupt(&self.path, what)
+            }
+        })
+    }
+
+    /// Delete the file if the check fails (for automatic caches, which plume owns).
+    pub fn remove_on_failure(&mut self) {
+        self.remove_on_failure = true;
+    }
+}
+
+fn corrupt(path: &Path, what: impl std::fmt::Display) -> Error {
+    Error::Cache {
+        path: path.to_path_buf(),
+        what: format!("{what}; the file is damaged or not a plume cache (run `plume prepare` again)"),
+    }
+}
+
+/// Check the chunk sums of `entry` over `map`.
+fn check_section(map: &[u8], entry: &SectionEntry, sums: &[u64], parallel: bool) -> std::result::Result<(), String> {
+    let kind = SectionKind::ALL.iter().find(|k| **k as u32 == entry.kind).map_or("unknown", |k| k.name());
+    let first = entry.first_chunk as usize;
+    let count = entry.chunk_count() as usize;
+    let Some(expected) = sums.get(first..first + count) else {
+        return Err(format!("the {kind} section's chunk checksums are missing"));
+    };
+    let check = |i: usize| -> std::result::Result<(), String> {
+        let start = entry.offset + i as u64 * CHUNK;
+        let end = (start + CHUNK).min(entry.offset + entry.len);
+        let bytes = &map[start as usize..end as usize];
+        if xxhash_rust::xxh3::xxh3_64(bytes) == expected[i] {
+            Ok(())
+        } else {
+            Err(format!("the {kind} section fails its checksum at bytes {start}..{end}"))
+        }
+    };
+    if parallel {
+        (0..count).into_par_iter().try_for_each(check)
+    } else {
+        (0..count).try_for_each(check)
+    }
+}
+
+impl Cache {
+    /// Open and check `path`. See the module docs.
+    ///
+    /// # Errors
+    /// [`Error::Open`] when it cannot be opened; [`Error::Cache`] when it is not a cache,
+    /// has another version, or fails a check.
+    pub fn open(path: &Path) -> Result<Cache> {
+        let mut file = File::open(path).map_err(|e| Error::Open { path: path.to_path_buf(), source: e })?;
+        let file_bytes = file.metadata().map_err(|e| Error::Open { path: path.to_path_buf(), source: e })?.len();
+        let mut page = vec![0u8; PAGE as usize];
+        let header_len = std::mem::size_of::<Header>();
+        if file_bytes < PAGE || file.read_exact(&mut page).is_err() {
+            return Err(corrupt(path, format!("{file_bytes} bytes is too short for a cache header")));
+        }
+        let header: Header = bytemuck::pod_read_unaligned(&page[..header_len]);
+        if header.magic != MAGIC {
+            return Err(corrupt(path, "no plume cache magic at the start"));
+        }
+        if header.byte_order != BYTE_ORDER {
+            return Err(corrupt(path, "written with another byte order"));
+        }
+        if header.version != VERSION {
+            return Err(Error::Cache {
+                path: path.to_path_buf(),
+                what: format!(
+                    "format version {} is stale (this plume reads version {VERSION}); run `plume prepare` again",
+                    header.version
+                ),
+            });
+        }
+        if header.compute_checksum() != header.checksum {
+            return Err(corrupt(path, "the header fails its checksum"));
+        }
+        let mut entries = Vec::new();
+        for kind in SectionKind::ALL {
+            let e = *header.section(kind).ok_or_else(|| corrupt(path, format!("no {} section", kind.name())))?;
+            let end = e.offset.checked_add(e.len);
+            if e.offset % PAGE != 0 || e.offset < PAGE || end.is_none_or(|end| end > file_bytes) {
+                return Err(corrupt(path, format!("the {} section lies outside the file ({} bytes)", kind.name(), file_bytes)));
+            }
+            entries.push(e);
+        }
+        let mut sorted = entries.clone();
+        sorted.sort_by_key(|e| e.offset);
+        if sorted.windows(2).any(|w| w[0].offset + w[0].len > w[1].offset) {
+            return Err(corrupt(path, "sections overlap"));
+        }
+        let section = |k: SectionKind| entries[SectionKind::ALL.iter().position(|x| *x == k).expect("invariant: all kinds")];
+        // SAFETY: the file is mapped read-only. plume never writes a cache in place (it
+        // writes a new file and renames it), so the mapping changes only if someone else
+        // truncates or rewrites the file while it is open, which the OS turns into
+        // SIGBUS; caches are plume's own private files, as with any mmap-based reader.
+        let map = Arc::new(unsafe { Mmap::map(&file) }.map_err(|e| Error::Open { path: path.to_path_buf(), source: e })?);
+        let chunks = section(SectionKind::Chunks);
+        let chunk_bytes = &map[chunks.offset as usize..(chunks.offset + chunks.len) as usize];
+        if xxhash_rust::xxh3::xxh3_64(chunk_bytes) != chunks.checksum || chunks.len % 8 != 0 {
+            return Err(corrupt(path, "the chunk checksum section fails its checksum"));
+        }
+        let sums: Arc<Vec<u64>> = Arc::new(bytemuck::pod_collect_to_vec(chunk_bytes));
+        // Metadata and small sections now; large ones in the background
+        let mut deferred = Vec::new();
+        for e in entries.iter().filter(|e| e.kind != SectionKind::Chunks as u32) {
+            if e.len <= EAGER_BYTES || e.kind == SectionKind::Meta as u32 {
+                check_section(&map, e, &sums, true).map_err(|what| corrupt(path, what))?;
+            } else {
+                deferred.push(*e);
+            }
+        }
+        let meta_entry = section(SectionKind::Meta);
+        let meta: Meta = serde_json::from_slice(&map[meta_entry.offset as usize..(meta_entry.offset + meta_entry.len) as usize])
+            .map_err(|e| corrupt(path, format!("unreadable metadata ({e})")))?;
+        let (volume, proxy_power) = Self::assemble(path, &map, &meta, &section)?;
+        let verification = if deferred.is_empty() {
+            Verification::done()
+        } else {
+            let (map, sums) = (Arc::clone(&map), Arc::clone(&sums));
+            let handle = std::thread::Builder::new()
+                .name("plume-cache-verify".into())
+                .spawn(move || deferred.iter().try_for_each(|e| check_section(&map, e, &sums, false)))
+                .map_err(|e| Error::Open { path: path.to_path_buf(), source: e })?;
+            Verification { thread: Mutex::new(Some(handle)), outcome: OnceLock::new() }
+        };
+        let check = CacheCheck { path: path.to_path_buf(), verification, remove_on_failure: false };
+        Ok(Cache { path: path.to_path_buf(), meta, volume, proxy_power, file_bytes, check })
+    }
+
+    /// Build the mapped volume after checking the metadata against the section sizes.
+    fn assemble(
+        path: &Path,
+        map: &Arc<Mmap>,
+        meta: &Meta,
+        section: &dyn Fn(SectionKind) -> SectionEntry,
+    ) -> Result<(Volume, Option<CellPower>)> {
+        let w = meta.world_from_index;
+        let world_from_index = DAffine3::from_mat3_translation(
+            DMat3::from_cols_array(&[w[0], w[1], w[2], w[3], w[4], w[5], w[6], w[7], w[8]]),
+            DVec3::new(w[9], w[10], w[11]),
+        );
+        if !world_from_index.is_finite() || world_from_index.matrix3.determinant() == 0.0 {
+            return Err(corrupt(path, "its transform is singular or not finite"));
+        }
+        let dims = IVec3::from_array(meta.dims);
+        let brick_lo = IVec3::from_array(meta.brick_lo);
+        if dims.cmplt(IVec3::ZERO).any() || (brick_lo.as_i64vec3() + dims.as_i64vec3()).max_element() > i64::from(i32::MAX / 8) {
+            return Err(corrupt(path, format!("its brick table {dims} at {brick_lo} is invalid")));
+        }
+        let cells = dims.x as u64 * dims.y as u64 * dims.z as u64;
+        let nodes: u64 = level_dims(dims).iter().map(|d| d.x as u64 * d.y as u64 * d.z as u64).sum();
+        let expect = [
+            (SectionKind::Table, cells * 4),
+            (SectionKind::Bricks, meta.brick_count * std::mem::size_of::<Brick>() as u64),
+            (SectionKind::Values, meta.value_blocks * LEAF_VOXELS as u64 * 4),
+            (SectionKind::Pyramid, nodes * std::mem::size_of::<NodeBounds>() as u64),
+        ];
+        for (kind, bytes) in expect {
+            if section(kind).len != bytes {
+                return Err(corrupt(path, format!("the {} section holds {} bytes, its metadata says {bytes}", kind.name(), section(kind).len)));
+            }
+        }
+        let view = |kind: SectionKind| (section(kind).offset as usize, section(kind).len as usize);
+        let bad = |kind: SectionKind| corrupt(path, format!("the {} section is misaligned", kind.name()));
+        let (o, n) = view(SectionKind::Table);
+        let table = Buffer::<u32>::mapped(map, o, n).ok_or_else(|| bad(SectionKind::Table))?;
+        let (o, n) = view(SectionKind::Bricks);
+        let bricks = Buffer::<Brick>::mapped(map, o, n).ok_or_else(|| bad(SectionKind::Bricks))?;
+        let (o, n) = view(SectionKind::Values);
+        let values = Buffer::<f32>::mapped(map, o, n).ok_or_else(|| bad(SectionKind::Values))?;
+        let (mut o, _) = view(SectionKind::Pyramid);
+        let mut levels = Vec::new();
+        for d in level_dims(dims) {
+            let n = d.x as usize * d.y as usize * d.z as usize * std::mem::size_of::<NodeBounds>();
+            let nodes = Buffer::<NodeBounds>::mapped(map, o, n).ok_or_else(|| bad(SectionKind::Pyramid))?;
+            levels.push(Level { dims: d, nodes });
+            o += n;
+        }
+        let (o, n) = view(SectionKind::Proxy);
+        let proxy_power = match &meta.proxy {
+            Some(p) if n % 8 == 0 => Some(CellPower { resolution: p.resolution, sums: bytemuck::pod_collect_to_vec(&map[o..o + n]) }),
+            Some(_) => return Err(corrupt(path, "the proxy section is not whole f64s")),
+            None => None,
+        };
+        let volume = Volume::from_parts(world_from_index, brick_lo, dims, table, bricks, values, Pyramid { levels }, meta.report);
+        Ok((volume, proxy_power))
+    }
+}

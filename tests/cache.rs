@@ -1,0 +1,232 @@
+//! Brick cache files (`plume prepare`, `.plume` inputs, automatic caches): bit-identical
+//! renders to in-core ones, and damaged, truncated, stale or mismatched caches detected.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+
+use common::{grid, hash, plume, s, tmpdir};
+use glam::{DAffine3, DVec3, IVec3};
+use plume::cache::format::{Header, PAGE};
+use plume::cache::{write_volume, Cache, CacheInfo};
+use plume::output::read_exr;
+use plume::volume::field::Ray;
+use plume::volume::{Field, Volume};
+
+fn explosion(dir: &Path, resolution: u32) -> PathBuf {
+    let p = dir.join("ex.vdb");
+    let o = plume(&["synth", "explosion", "--resolution", &resolution.to_string(), "--seed", "5", "-o", s(&p)]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    p
+}
+
+fn stderr(o: &std::process::Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// Render `input` with `extra` flags; returns the pixels.
+fn render(input: &Path, out: &Path, extra: &[&str]) -> Vec<[f32; 4]> {
+    let mut args = vec!["render", s(input), "-o", s(out), "--spp", "3", "--width", "40", "--height", "30", "--seed", "11", "-q"];
+    args.extend_from_slice(extra);
+    let o = plume(&args);
+    assert!(o.status.success(), "render {}: {}", input.display(), stderr(&o));
+    read_exr(out).unwrap().2
+}
+
+fn assert_bitwise(a: &[[f32; 4]], b: &[[f32; 4]], what: &str) {
+    assert_eq!(a.len(), b.len());
+    let same = a.iter().zip(b).all(|(p, q)| p.iter().zip(q).all(|(x, y)| x.to_bits() == y.to_bits()));
+    assert!(same, "{what}: pixels differ");
+    assert!(a.iter().any(|p| p[0] > 0.0), "{what}: the image is black, the test proves nothing");
+}
+
+#[test]
+fn cached_renders_are_bit_identical_to_in_core_renders() {
+    let dir = tmpdir("cache", "roundtrip");
+    let vdb = explosion(&dir, 64);
+    let cache = dir.join("ex.plume");
+    let o = plume(&["prepare", s(&vdb), "-o", s(&cache)]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // Every estimator and light sampling; FNEE uses the stored proxy power
+    for (name, flags) in [
+        ("line-fnee", &["--albedo", "0.8", "--g", "0.3"][..]),
+        ("point-nee", &["--method", "point-nee", "--albedo", "0.8"]),
+        ("ray-march", &["--method", "ray-march"]),
+        ("fnee proxy 16 (rebuilt from bricks)", &["--albedo", "0.5", "--proxy-resolution", "16"]),
+        ("scaled and tinted", &["--albedo", "0.7", "--emission-scale", "3", "--emission-color", "1,0.5,0.25", "--density-scale", "4"]),
+    ] {
+        let a = render(&vdb, &dir.join("a.exr"), flags);
+        let b = render(&cache, &dir.join("b.exr"), flags);
+        assert_bitwise(&a, &b, name);
+    }
+}
+
+/// A volume with dense, constant, albedo and empty bricks, built in memory.
+fn test_volume() -> Volume {
+    let xf = DAffine3::from_scale_rotation_translation(DVec3::new(0.1, 0.12, 0.09), glam::DQuat::from_rotation_y(0.3), DVec3::new(1.0, -2.0, 0.5));
+    let leaves: Vec<IVec3> = (0..5).flat_map(|x| (0..4).map(move |y| IVec3::new(8 * x, 8 * y, 8 * ((x + y) % 3)))).collect();
+    let density = grid("density", xf, &leaves, |p| if p.x < 16 { 0.5 } else { (hash(p, 1) % 100) as f32 * 0.03 });
+    let temp = grid("temperature", xf, &leaves[3..], |p| if (hash(p, 2) % 4) == 0 { 0.0 } else { 1500.0 + (hash(p, 3) % 2000) as f32 });
+    let albedo = grid("albedo", xf, &leaves[..7], |p| (hash(p, 4) % 100) as f32 * 0.011);
+    Volume::build_with_albedo(&density, Some(&temp), |v| v, Some(&albedo)).unwrap()
+}
+
+fn info() -> CacheInfo {
+    CacheInfo {
+        density_grid: "density".into(),
+        source_grid: Some("temperature".into()),
+        albedo_grid: Some("albedo".into()),
+        source_key: "grid".into(),
+        emission_kind: "grid".into(),
+        input: None,
+        backgrounds: [Some(0.0), Some(0.0), Some(1.0)],
+    }
+}
+
+#[test]
+fn a_mapped_volume_gives_the_same_segments_bit_for_bit() {
+    let dir = tmpdir("cache", "segments");
+    let volume = test_volume();
+    let path = write_volume(&dir.join("v.plume"), &volume, &info(), None).unwrap();
+    let cache = Cache::open(&path).unwrap();
+    cache.check.verified().unwrap();
+    let mapped = &cache.volume;
+    assert!(mapped.is_mapped() && mapped.heap_bytes() < volume.heap_bytes() / 4);
+    assert_eq!(mapped.brick_count(), volume.brick_count());
+    assert_eq!(mapped.report, volume.report);
+    let (lo, hi) = volume.world_bounds();
+    let mut rays = 0;
+    for i in 0..2000u32 {
+        let h = |k| f64::from(hash(IVec3::new(i as i32, k, 7), 9) % 10_000) / 10_000.0;
+        let o = lo - (hi - lo) * 0.2 + (hi - lo) * 1.4 * DVec3::new(h(0), h(1), h(2));
+        let d = DVec3::new(h(3) - 0.5, h(4) - 0.5, h(5) - 0.5).normalize();
+        let ray = Ray { origin: o, direction: d };
+        let a: Vec<_> = volume.segments(&ray, 0.0, 100.0).collect();
+        let b: Vec<_> = mapped.segments(&ray, 0.0, 100.0).collect();
+        assert_eq!(a.len(), b.len());
+        for (x, y) in a.iter().zip(&b) {
+            assert_eq!(
+                [x.t0.to_bits(), x.t1.to_bits(), u64::from(x.density.to_bits()), u64::from(x.source.to_bits()), u64::from(x.albedo.to_bits())],
+                [y.t0.to_bits(), y.t1.to_bits(), u64::from(y.density.to_bits()), u64::from(y.source.to_bits()), u64::from(y.albedo.to_bits())]
+            );
+        }
+        rays += usize::from(a.len() > 1);
+    }
+    assert!(rays > 500, "only {rays} rays hit the volume");
+}
+
+/// Prepare a small cache; returns (vdb, cache).
+fn prepared(dir: &Path) -> (PathBuf, PathBuf) {
+    let vdb = explosion(dir, 48);
+    let cache = dir.join("ex.plume");
+    let o = plume(&["prepare", s(&vdb), "-o", s(&cache)]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    (vdb, cache)
+}
+
+/// Render `input`, expecting failure with exit `code`, a one-line message containing
+/// every one of `needles`, and no output file.
+fn refused(input: &Path, dir: &Path, code: i32, needles: &[&str], extra: &[&str]) {
+    let out = dir.join("refused.exr");
+    let mut args = vec!["render", s(input), "-o", s(&out), "--spp", "1", "--width", "8", "--height", "8", "-q"];
+    args.extend_from_slice(extra);
+    let o = plume(&args);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(code), "{err}");
+    for n in needles {
+        assert!(err.contains(n), "expected {n:?} in {err:?}");
+    }
+    assert_eq!(err.lines().filter(|l| l.starts_with("plume: error")).count(), 1, "{err}");
+    assert!(!out.exists(), "an output was written from a bad cache");
+}
+
+fn section(cache: &Path, kind: plume::cache::format::SectionKind) -> (u64, u64) {
+    let bytes = std::fs::read(cache).unwrap();
+    let header: Header = bytemuck::pod_read_unaligned(&bytes[..std::mem::size_of::<Header>()]);
+    let e = header.section(kind).unwrap();
+    (e.offset, e.len)
+}
+
+fn flip(path: &Path, at: u64) {
+    let mut bytes = std::fs::read(path).unwrap();
+    bytes[at as usize] ^= 0x20;
+    std::fs::write(path, bytes).unwrap();
+}
+
+#[test]
+fn damaged_truncated_and_foreign_caches_are_refused() {
+    use plume::cache::format::SectionKind;
+    let dir = tmpdir("cache", "damaged");
+    let (_, good) = prepared(&dir);
+    let copy = |name: &str| {
+        let p = dir.join(name);
+        std::fs::copy(&good, &p).unwrap();
+        p
+    };
+    // A bit flipped in each section, in the header, and the section table
+    for kind in [SectionKind::Values, SectionKind::Table, SectionKind::Bricks, SectionKind::Pyramid, SectionKind::Proxy, SectionKind::Meta, SectionKind::Chunks] {
+        let p = copy(&format!("flip-{}.plume", kind as u32));
+        let (offset, len) = section(&p, kind);
+        flip(&p, offset + len / 2);
+        refused(&p, &dir, 3, &["brick cache", s(&p), "checksum"], &["--albedo", "0.5"]);
+    }
+    let p = copy("flip-header.plume");
+    flip(&p, 20);
+    refused(&p, &dir, 3, &["brick cache", "header"], &[]);
+    // Truncated: at a section boundary, mid-values, and to less than a header
+    let len = std::fs::metadata(&good).unwrap().len();
+    for (i, keep) in [len - 1, len / 2, PAGE + 100, 100, 0].into_iter().enumerate() {
+        let p = copy(&format!("trunc-{i}.plume"));
+        std::fs::OpenOptions::new().write(true).open(&p).unwrap().set_len(keep).unwrap();
+        refused(&p, &dir, 3, &["brick cache", s(&p)], &[]);
+    }
+    // Not a cache at all
+    let p = dir.join("text.plume");
+    std::fs::write(&p, vec![b'x'; 10_000]).unwrap();
+    refused(&p, &dir, 3, &["brick cache", "magic"], &[]);
+    // Another format version: refused as stale, with the fix
+    let p = copy("old.plume");
+    let mut bytes = std::fs::read(&p).unwrap();
+    let mut header: Header = bytemuck::pod_read_unaligned(&bytes[..std::mem::size_of::<Header>()]);
+    header.version += 1;
+    header.checksum = header.compute_checksum();
+    bytes[..std::mem::size_of::<Header>()].copy_from_slice(bytemuck::bytes_of(&header));
+    std::fs::write(&p, bytes).unwrap();
+    refused(&p, &dir, 3, &["brick cache", "version", "stale", "plume prepare"], &[]);
+}
+
+#[test]
+fn stale_and_mismatched_caches_are_refused_and_automatic_caches_rebuilt() {
+    let dir = tmpdir("cache", "stale");
+    let (vdb, cache) = prepared(&dir);
+    // Flags that map the source differently, or select other grids
+    refused(&cache, &dir, 2, &["--temperature-map/--temperature-cutoff/--convention", "prepare"], &["--temperature-cutoff", "900"]);
+    refused(&cache, &dir, 2, &["--density-grid"], &["--density-grid", "smoke"]);
+    refused(&cache, &dir, 2, &["--emission"], &["--emission", "grid"]);
+    // The source changed after prepare: stale
+    let bytes = std::fs::read(&vdb).unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(20));
+    std::fs::write(&vdb, &bytes).unwrap();
+    let later = std::time::SystemTime::now() + std::time::Duration::from_secs(5);
+    std::fs::File::options().write(true).open(&vdb).unwrap().set_modified(later).unwrap();
+    refused(&cache, &dir, 3, &["stale", "plume prepare"], &[]);
+
+    // Automatic cache: a .vdb above a quarter of --memory-budget renders through one,
+    // bit-identically; a damaged one is rebuilt
+    let cache_dir = dir.join("auto");
+    let flags = ["--albedo", "0.6", "--memory-budget", "64KiB", "--cache-dir", s(&cache_dir)];
+    let in_core = render(&vdb, &dir.join("core.exr"), &["--albedo", "0.6"]);
+    let auto = render(&vdb, &dir.join("auto.exr"), &flags);
+    assert_bitwise(&in_core, &auto, "automatic cache");
+    let made: Vec<_> = std::fs::read_dir(&cache_dir).unwrap().map(|e| e.unwrap().path()).collect();
+    assert_eq!(made.len(), 1, "{made:?}");
+    let (offset, len) = section(&made[0], plume::cache::format::SectionKind::Meta);
+    flip(&made[0], offset + len / 3);
+    let again = dir.join("again.exr");
+    let mut args = vec!["render", s(&vdb), "-o", s(&again), "--spp", "3", "--width", "40", "--height", "30", "--seed", "11", "-q"];
+    args.extend_from_slice(&flags);
+    let o = plume(&args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("rebuilding the automatic cache"), "{}", stderr(&o));
+    assert_bitwise(&in_core, &read_exr(&dir.join("again.exr")).unwrap().2, "rebuilt automatic cache");
+}

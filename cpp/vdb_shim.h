@@ -19,6 +19,8 @@ namespace shim {
 // Shared structs, defined by the cxx-generated header (src/vdb/ffi.rs.h).
 struct GridSummary;
 struct FloatGridHeader;
+struct LeafStreamHeader;
+struct ActiveTile;
 
 // One float or double grid, read into memory and ready to be copied out leaf by leaf.
 class FloatGridReader {
@@ -34,6 +36,29 @@ public:
     // Fills 3 origin components and 512 values per output leaf; the slices must have
     // exactly the sizes announced by header().
     void copy_leaves(rust::Slice<std::int32_t> origins, rust::Slice<float> values) const;
+
+private:
+    std::unique_ptr<Impl> impl_;
+};
+
+// One float or double grid opened with delayed loading: its topology is in memory, its
+// leaf buffers stay in the (memory-mapped) file until next_leaves() copies them out, one
+// batch at a time, and frees each leaf once copied.
+class LeafStream {
+public:
+    struct Impl;
+    explicit LeafStream(std::unique_ptr<Impl> impl);
+    ~LeafStream();
+    LeafStream(const LeafStream&) = delete;
+    LeafStream& operator=(const LeafStream&) = delete;
+
+    // Status, transform, background, leaf count, bounding box and resident bytes.
+    LeafStreamHeader stream_header() const;
+    // The active tiles above leaf level, in tree order.
+    rust::Vec<ActiveTile> stream_tiles() const;
+    // Copies the next leaves (3 origin components and 512 values each) into the slices,
+    // as many as fit, then frees them; returns how many were copied, 0 at the end.
+    std::size_t next_leaves(rust::Slice<std::int32_t> origins, rust::Slice<float> values);
 
 private:
     std::unique_ptr<Impl> impl_;
@@ -65,6 +90,10 @@ rust::Vec<GridSummary> list_grids(rust::Str path);
 // type or a non-linear transform is reported through header().status, not thrown.
 std::unique_ptr<FloatGridReader> open_float_grid(rust::Str path, rust::Str name,
                                                  std::size_t occurrence);
+// Opens the `occurrence`-th grid named `name` (file order) for streaming, reading its
+// topology only; outcomes as for open_float_grid.
+std::unique_ptr<LeafStream> open_leaf_stream(rust::Str path, rust::Str name,
+                                             std::size_t occurrence);
 std::unique_ptr<GridWriter> new_grid_writer();
 
 }  // namespace shim

@@ -61,6 +61,34 @@ mod bridge {
         active_tiles: u64,
     }
 
+    /// What a [`LeafStream`] holds after reading a grid's topology, before any leaf
+    /// buffer is loaded.
+    struct LeafStreamHeader {
+        status: ReadStatus,
+        /// As in [`FloatGridHeader`].
+        value_type: String,
+        transform: String,
+        world_from_index: [f64; 12],
+        background: f32,
+        /// Leaves stored in the file (the leaves `next_leaves()` will copy).
+        leaf_count: u64,
+        /// False when the grid has neither leaves nor active tiles.
+        has_bbox: bool,
+        /// Inclusive index bounds of every leaf and active tile.
+        bbox_min: [i32; 3],
+        bbox_max: [i32; 3],
+        /// Bytes the stream holds while open: OpenVDB's tree without leaf buffers, the
+        /// list of leaf origins and the tiles.
+        resident_bytes: u64,
+    }
+
+    /// An active tile above leaf level: a constant, inclusive box of voxels.
+    struct ActiveTile {
+        min: [i32; 3],
+        max: [i32; 3],
+        value: f32,
+    }
+
     unsafe extern "C++" {
         include!("plume/cpp/vdb_shim.h");
 
@@ -68,6 +96,8 @@ mod bridge {
         type FloatGridReader;
         /// Collects float grids and writes them to a file (opaque, owned by C++).
         type GridWriter;
+        /// One float or double grid's topology, its leaves still in the file (opaque).
+        type LeafStream;
 
         /// Grid names in file order, duplicates repeated; reads no tree.
         fn grid_names(path: &str) -> Result<Vec<String>>;
@@ -89,6 +119,27 @@ mod bridge {
             origins: &mut [i32],
             values: &mut [f32],
         ) -> Result<()>;
+
+        /// Opens the `occurrence`-th grid named `name` (file order) with delayed loading
+        /// and reads its topology, unless its type or transform is unusable; the outcome
+        /// is in `stream_header().status`.
+        fn open_leaf_stream(
+            path: &str,
+            name: &str,
+            occurrence: usize,
+        ) -> Result<UniquePtr<LeafStream>>;
+        /// Status, transform, leaf count, bounds and memory of an opened stream.
+        fn stream_header(self: &LeafStream) -> Result<LeafStreamHeader>;
+        /// Active tiles above leaf level, in tree order.
+        fn stream_tiles(self: &LeafStream) -> Result<Vec<ActiveTile>>;
+        /// Copies the next leaves in tree order into the slices (3 origin components and
+        /// 512 values each, as many whole leaves as both hold), loading each from the file
+        /// and freeing it once copied. Returns the number copied; 0 at the end.
+        fn next_leaves(
+            self: Pin<&mut LeafStream>,
+            origins: &mut [i32],
+            values: &mut [f32],
+        ) -> Result<usize>;
 
         /// An empty writer.
         fn new_grid_writer() -> Result<UniquePtr<GridWriter>>;

@@ -28,11 +28,13 @@
 //! ```text
 //! plume __read-grids list FILE
 //! plume __read-grids read FILE MAX_BYTES (need|want) N SEL_1 … SEL_N  [(need|want) N …]
+//! plume __read-grids stream FILE MAX_BYTES SEL
 //! ```
 //!
 //! `need` is a required [`GridRequest`], `want` an optional one; `MAX_BYTES` is
-//! [`ReadLimits::max_bytes`]. The command can be run by hand to replay a failure (the reply
-//! is binary: pipe it into `xxd`).
+//! [`ReadLimits::max_bytes`]; `stream` sends one grid batch by batch of leaves
+//! ([`super::stream_float_grid_isolated`]). The command can be run by hand to replay a
+//! failure (the reply is binary: pipe it into `xxd`).
 
 use std::ffi::OsString;
 use std::io::{self, BufReader, BufWriter, Read, Write};
@@ -44,6 +46,7 @@ use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 
 use super::read::{check_file, plan_requests};
+use super::stream::serve_stream;
 use super::wire::{ChildError, Decoder, Encoder, Record, WireError};
 use super::{list_grids, read_float_grid, FloatGrid, FoundGrid, GridInfo, GridRequest};
 use super::{read_grids, GridSelector, ReadLimits};
@@ -300,11 +303,11 @@ fn parse_read_reply<R: Read>(
     }
 }
 
-fn malformed_reply(message: &str) -> WireError {
+pub(super) fn malformed_reply(message: &str) -> WireError {
     WireError::Malformed(message.to_string())
 }
 
-fn unexpected(record: &Record) -> WireError {
+pub(super) fn unexpected(record: &Record) -> WireError {
     let name = match record {
         Record::Begin { .. } => "BEGIN",
         Record::Grid { .. } => "GRID",
@@ -312,12 +315,15 @@ fn unexpected(record: &Record) -> WireError {
         Record::Infos(_) => "INFOS",
         Record::Failed(_) => "FAILED",
         Record::End => "END",
+        Record::Stream(_) => "STREAM",
+        Record::Leaves => "LEAVES",
+        Record::Tiles => "TILES",
     };
     WireError::Malformed(format!("unexpected {name} record"))
 }
 
 /// The error the child reported cleanly, as the in-process reader would have returned it.
-fn child_error(
+pub(super) fn child_error(
     path: &Path,
     error: ChildError,
     grid: Option<String>,
@@ -343,7 +349,7 @@ fn child_error(
 }
 
 /// One running reader process and its pipes.
-struct ReaderRun {
+pub(super) struct ReaderRun {
     child: Child,
     pipes: BufReader<ChildPipes>,
     /// Set when the parent killed the child because its deadline passed.
@@ -351,10 +357,14 @@ struct ReaderRun {
 }
 
 /// A reply parsed to the end (or a clean failure), or why it could not be.
-type Parsed<T> = std::result::Result<std::result::Result<T, ChildError>, WireError>;
+pub(super) type Parsed<T> = std::result::Result<std::result::Result<T, ChildError>, WireError>;
 
 impl ReaderRun {
-    fn spawn(exe: &Path, args: &[OsString], limits: &IsolationLimits) -> Result<ReaderRun> {
+    pub(super) fn spawn(
+        exe: &Path,
+        args: &[OsString],
+        limits: &IsolationLimits,
+    ) -> Result<ReaderRun> {
         let deadline = Instant::now() + limits.timeout;
         let mut command = Command::new(exe);
         command
@@ -390,7 +400,7 @@ impl ReaderRun {
     }
 
     /// Runs `body` on the reply.
-    fn parse<T>(
+    pub(super) fn parse<T>(
         &mut self,
         max_grid_bytes: u64,
         body: impl FnOnce(&mut Decoder<&mut BufReader<ChildPipes>>) -> Parsed<T>,
@@ -409,7 +419,7 @@ impl ReaderRun {
     /// turns the exit status and parse outcome into the result. A child that dies by a
     /// signal or exits non-zero fails the read even after a complete reply: its memory
     /// may have been corrupt while it wrote.
-    fn finish<T>(
+    pub(super) fn finish<T>(
         mut self,
         path: &Path,
         outcome: Parsed<T>,
@@ -508,7 +518,7 @@ impl ReaderRun {
 }
 
 /// The child's stdout (the reply) and stderr (kept for messages), read under one deadline.
-struct ChildPipes {
+pub(super) struct ChildPipes {
     stdout: ChildStdout,
     /// `None` once it reached end of file.
     stderr: Option<ChildStderr>,
@@ -517,6 +527,12 @@ struct ChildPipes {
 }
 
 impl ChildPipes {
+    /// Moves the deadline later by `by`: a streaming parent does not count the time its
+    /// visitor takes against the reader.
+    pub(super) fn extend_deadline(&mut self, by: Duration) {
+        self.deadline += by;
+    }
+
     /// Milliseconds left, or `TimedOut`.
     fn remaining_ms(&self) -> io::Result<i32> {
         let left = self.deadline.saturating_duration_since(Instant::now());
@@ -697,13 +713,15 @@ pub fn reader_main(args: &[OsString]) -> ! {
 enum ReaderCommand {
     List { path: PathBuf },
     Read { path: PathBuf, limits: ReadLimits, requests: Vec<GridRequest> },
+    Stream { path: PathBuf, limits: ReadLimits, selector: GridSelector },
 }
 
 impl ReaderCommand {
     fn parse(args: &[OsString]) -> std::result::Result<ReaderCommand, String> {
         let usage = || {
             format!(
-                "usage: plume {READER_SUBCOMMAND} list FILE | read FILE MAX_BYTES (need|want) N SEL... ..."
+                "usage: plume {READER_SUBCOMMAND} list FILE | read FILE MAX_BYTES (need|want) N SEL... ... \
+                 | stream FILE MAX_BYTES SEL"
             )
         };
         let mut it = args.iter();
@@ -741,6 +759,11 @@ impl ReaderCommand {
                 }
                 Ok(ReaderCommand::Read { path, limits: ReadLimits { max_bytes }, requests })
             }
+            "stream" if it.len() == 2 => {
+                let max_bytes = text(it.next(), usage)?.parse().map_err(|_| usage())?;
+                let selector = text(it.next(), usage)?.parse().map_err(|e: Error| e.to_string())?;
+                Ok(ReaderCommand::Stream { path, limits: ReadLimits { max_bytes }, selector })
+            }
             _ => Err(usage()),
         }
     }
@@ -762,6 +785,9 @@ fn serve(command: &ReaderCommand) -> io::Result<()> {
         },
         ReaderCommand::Read { path, limits, requests } => {
             serve_read(&mut out, path, limits, requests)?;
+        }
+        ReaderCommand::Stream { path, limits, selector } => {
+            serve_stream(&mut out, path, limits, selector)?;
         }
     }
     out.end()?;

@@ -35,12 +35,16 @@
 //! - **Untrusted files** are read in a child process ([`isolate`]): a crash, hang or
 //!   runaway allocation in OpenVDB becomes [`Error::ReaderFailed`](crate::Error::ReaderFailed)
 //!   instead of taking plume down. The CLI reads this way by default.
+//! - **Streaming**: [`stream_float_grid`] (and [`ReadIsolation::stream_float_grid`]) visit
+//!   one grid block by block in bounded memory, with OpenVDB's delayed loading; the blocks
+//!   and values are exactly those of [`read_float_grid`], tiles as constant blocks.
 //! - **Writing** is atomic: a temp file in the target directory, then a rename.
 
 mod ffi;
 pub mod isolate;
 mod read;
 mod selector;
+mod stream;
 #[doc(hidden)]
 pub mod wire;
 mod write;
@@ -51,6 +55,10 @@ pub use isolate::{
 };
 pub use read::{list_grids, read_float_grid, read_grids, FoundGrid, GridRequest, ReadLimits};
 pub use selector::GridSelector;
+pub use stream::{
+    stream_float_grid, stream_float_grid_isolated, HeaderVisitor, LeafData, LeafVisitor,
+    StreamedGrid,
+};
 pub use write::write_float_grids;
 
 use glam::{DAffine3, IVec3};

@@ -103,39 +103,7 @@ pub fn read_float_grid(
     let reader = ffi::open_float_grid(path_str, &selector.name, selector.occurrence)
         .map_err(|e| vdb_error(path, &e))?;
     let header = reader.header().map_err(|e| vdb_error(path, &e))?;
-    let unsupported = |message: String| Error::UnsupportedGrid {
-        path: path.to_path_buf(),
-        grid: selector.to_string(),
-        message,
-    };
-    match header.status {
-        ffi::ReadStatus::Ready => {}
-        ffi::ReadStatus::NotFound => {
-            return Err(Error::GridNotFound {
-                path: path.to_path_buf(),
-                name: selector.to_string(),
-                available: available_selectors(path, path_str)?,
-            });
-        }
-        ffi::ReadStatus::NotScalar => {
-            return Err(unsupported(format!(
-                "value type {} is not a scalar grid (plume reads float and double grids)",
-                header.value_type
-            )));
-        }
-        ffi::ReadStatus::NonLinearTransform => {
-            return Err(unsupported(format!(
-                "transform {} is not affine (plume needs a linear index-to-world map)",
-                header.transform
-            )));
-        }
-        _ => {
-            return Err(vdb_message(
-                path,
-                format!("shim returned an unknown status for {selector}"),
-            ));
-        }
-    }
+    check_status(path, path_str, selector, header.status, &header.value_type, &header.transform)?;
 
     // Size the output from the tree (leaves + tiles), never from header metadata.
     let leaves = header.leaf_count.saturating_add(header.tile_leaf_count);
@@ -172,6 +140,41 @@ pub fn read_float_grid(
         origins: origins.chunks_exact(3).map(IVec3::from_slice).collect(),
         values,
     })
+}
+
+/// The error for a grid the shim opened but cannot read, `Ok` for [`ffi::ReadStatus::Ready`].
+///
+/// # Errors
+/// [`Error::GridNotFound`] (listing the selectors the file holds),
+/// [`Error::UnsupportedGrid`] for a non-scalar type or a non-affine transform.
+pub(crate) fn check_status(
+    path: &Path,
+    path_str: &str,
+    selector: &GridSelector,
+    status: ffi::ReadStatus,
+    value_type: &str,
+    transform: &str,
+) -> Result<()> {
+    let unsupported = |message: String| Error::UnsupportedGrid {
+        path: path.to_path_buf(),
+        grid: selector.to_string(),
+        message,
+    };
+    match status {
+        ffi::ReadStatus::Ready => Ok(()),
+        ffi::ReadStatus::NotFound => Err(Error::GridNotFound {
+            path: path.to_path_buf(),
+            name: selector.to_string(),
+            available: available_selectors(path, path_str)?,
+        }),
+        ffi::ReadStatus::NotScalar => Err(unsupported(format!(
+            "value type {value_type} is not a scalar grid (plume reads float and double grids)"
+        ))),
+        ffi::ReadStatus::NonLinearTransform => Err(unsupported(format!(
+            "transform {transform} is not affine (plume needs a linear index-to-world map)"
+        ))),
+        _ => Err(vdb_message(path, format!("shim returned an unknown status for {selector}"))),
+    }
 }
 
 /// A zero-filled vector, or `None` if the allocation fails.
@@ -321,10 +324,10 @@ pub(crate) fn check_file(path: &Path) -> Result<&str> {
     })
 }
 
-fn vdb_error(path: &Path, error: &cxx::Exception) -> Error {
+pub(crate) fn vdb_error(path: &Path, error: &cxx::Exception) -> Error {
     vdb_message(path, error.what().to_string())
 }
 
-fn vdb_message(path: &Path, message: String) -> Error {
+pub(crate) fn vdb_message(path: &Path, message: String) -> Error {
     Error::Vdb { path: path.to_path_buf(), message }
 }

@@ -19,18 +19,24 @@
 //!   0x04 INFOS   count u32, count × grid info        the reply to a listing
 //!   0x05 FAILED  error                               the read failed cleanly; END follows
 //!   0x06 END                                         nothing follows
+//!   0x07 STREAM, 0x08 LEAVES, 0x09 TILES             a streamed grid (`wire/stream.rs`)
 //! str     := length u32, UTF-8 bytes
 //! error   := kind u8, fields (see `ChildError`)
 //! ```
 //!
 //! Records answer the requests in order: each request gets BEGIN then GRID, or ABSENT, or
 //! the stream fails. A grid's bulk data goes out as whole slices, not value by value.
+//! A `stream` command is answered by BEGIN, STREAM, LEAVES…, TILES…, END instead.
+
+mod stream;
 
 use std::io::{self, Read, Write};
 
 use glam::{DAffine3, IVec3};
 
+use self::stream::{Batch, TAG_LEAVES, TAG_STREAM, TAG_TILES};
 use super::read::BYTES_PER_LEAF;
+use super::stream::StreamedGrid;
 use super::{FloatGrid, GridInfo, LEAF_DIM, LEAF_VOXELS};
 use crate::error::Error;
 
@@ -261,7 +267,8 @@ fn len_u32(len: usize) -> u32 {
     u32::try_from(len).unwrap_or(u32::MAX)
 }
 
-/// One parsed record.
+/// One parsed record. `Leaves` and `Tiles` leave their batch in
+/// [`Decoder::leaf_batch`] and [`Decoder::tile_batch`].
 #[derive(Debug)]
 pub(crate) enum Record {
     Begin { request: u32, alternative: u32 },
@@ -270,6 +277,9 @@ pub(crate) enum Record {
     Infos(Vec<GridInfo>),
     Failed(ChildError),
     End,
+    Stream(StreamedGrid),
+    Leaves,
+    Tiles,
 }
 
 /// Why a reply could not be parsed.
@@ -300,6 +310,8 @@ pub(crate) struct Decoder<R: Read> {
     /// What strings and lists may still allocate.
     metadata_budget: usize,
     scratch: Vec<u8>,
+    /// The last LEAVES or TILES record.
+    batch: Batch,
 }
 
 impl<R: Read> Decoder<R> {
@@ -323,6 +335,7 @@ impl<R: Read> Decoder<R> {
             max_grid_bytes,
             metadata_budget: MAX_METADATA_BYTES,
             scratch: Vec::new(),
+            batch: Batch::default(),
         })
     }
 
@@ -350,6 +363,15 @@ impl<R: Read> Decoder<R> {
             }
             TAG_FAILED => Ok(Record::Failed(self.error()?)),
             TAG_END => Ok(Record::End),
+            TAG_STREAM => Ok(Record::Stream(self.stream_head()?)),
+            TAG_LEAVES => {
+                self.leaves_record()?;
+                Ok(Record::Leaves)
+            }
+            TAG_TILES => {
+                self.tiles_record()?;
+                Ok(Record::Tiles)
+            }
             tag => malformed(format!("unknown record tag 0x{tag:02x}")),
         }
     }

@@ -17,12 +17,13 @@ use glam::IVec3;
 use super::format::InputFingerprint;
 use super::reader::Cache;
 use super::writer::{CacheInfo, CacheWriter, ProxySpec};
-use crate::app::{emission, emission_kind, grid_requests, memory_budget, reading, split_found};
+use crate::app::{emission, emission_kind, grid_requests, memory_budget, reading};
 use crate::cli::{EmissionArg, GridArgs, PrepareArgs, RenderArgs};
 use crate::color::Rgb;
 use crate::error::{Error, Result};
 use crate::integrator::{light_power, LightSampling};
 use crate::medium::EmissionKind;
+use crate::vdb::{GridSelector, LeafData, ReadIsolation, ReadLimits, StreamedGrid};
 use crate::volume::brick::{brick_of, check_same_transform, table_dims, Channel, Slot};
 use crate::volume::Volume;
 
@@ -63,8 +64,37 @@ pub fn fingerprint(path: &Path) -> Result<InputFingerprint> {
     Ok(InputFingerprint { path: abs.to_string_lossy().into_owned(), size: meta.len(), mtime_ns })
 }
 
+/// Message of the error a header visitor returns to stop a stream after its header.
+const HEADER_ONLY: &str = "plume: header probe";
+
+/// The header of grid `selector` in `file` (its topology is read, no values), or `None`
+/// when the file has no such grid.
+fn probe(isolation: &ReadIsolation, file: &Path, selector: &GridSelector, limits: &ReadLimits) -> Result<Option<StreamedGrid>> {
+    let mut header = None;
+    let result = isolation.stream_float_grid(
+        file,
+        selector,
+        limits,
+        &mut |h| {
+            header = Some(h.clone());
+            Err(Error::Scene(HEADER_ONLY.into()))
+        },
+        &mut |_, _| Ok(()),
+    );
+    match result {
+        Ok(h) => Ok(Some(h)),
+        Err(Error::Scene(m)) if m == HEADER_ONLY => Ok(header),
+        Err(Error::GridNotFound { .. }) => Ok(None),
+        Err(e) => Err(e),
+    }
+}
+
 /// Convert the grids of `file` selected by `grids` into the cache file `out`, storing a
 /// proxy of `proxy_resolution` (default for the volume's size when `None`).
+///
+/// Streams: each grid's header first (topology only, for the table's box and the
+/// transform checks), then each grid leaf by leaf into the writer, so neither plume nor
+/// the reader ever holds a grid's values (`vdb::stream`).
 ///
 /// # Errors
 /// Unreadable input or grids, incompatible transforms, write errors.
@@ -72,52 +102,77 @@ pub fn convert(file: &Path, grids: &GridArgs, proxy_resolution: Option<u32>, out
     let start = Instant::now();
     let input = fingerprint(file)?;
     let (limits, isolation) = reading(grids)?;
-    let requests = grid_requests(grids)?;
-    let found = isolation.read_grids(file, &requests, &limits)?;
-    let (density, source, albedo) = split_found(grids, found);
-    let kind = emission_kind(grids.emission, source.as_ref().map(|f| f.alternative));
+    // Resolve every request to one grid, by its header
+    let mut chosen: Vec<Option<(usize, GridSelector, StreamedGrid)>> = Vec::new();
+    for request in grid_requests(grids)? {
+        let mut found = None;
+        for (k, sel) in request.alternatives.iter().enumerate() {
+            if let Some(h) = probe(&isolation, file, sel, &limits)? {
+                found = Some((k, sel.clone(), h));
+                break;
+            }
+        }
+        if found.is_none() && request.required {
+            // The reader's own "no grid …; available: …" error
+            let sel = &request.alternatives[0];
+            isolation.stream_float_grid(file, sel, &limits, &mut |_| Ok(()), &mut |_, _| Ok(()))?;
+        }
+        chosen.push(found);
+    }
+    let mut chosen = chosen.into_iter();
+    let (_, density_sel, density) = chosen.next().flatten().expect("invariant: the density request is required");
+    let source = if grids.emission == EmissionArg::None { None } else { chosen.next().flatten() };
+    let albedo = chosen.next().flatten();
+    let kind = emission_kind(grids.emission, source.as_ref().map(|f| f.0));
     let emission = emission(grids, kind, 1.0, Rgb([1.0; 3]))?;
-    let source = source.map(|f| f.grid);
     let w = density.world_from_index;
     if !w.inverse().is_finite() || w.matrix3.determinant() == 0.0 {
         return Err(Error::Scene(format!("grid {:?} has a singular transform", density.name)));
     }
-    for g in source.iter().chain(albedo.iter()) {
-        check_same_transform((&density.name, w), (&g.name, g.world_from_index))?;
-    }
-    let channels = [(Channel::Density, Some(&density)), (Channel::Source, source.as_ref()), (Channel::Albedo, albedo.as_ref())];
+    let channels = [
+        (Channel::Density, Some((density_sel, density.clone()))),
+        (Channel::Source, source.map(|(_, sel, h)| (sel, h))),
+        (Channel::Albedo, albedo.map(|(_, sel, h)| (sel, h))),
+    ];
     let (mut lo, mut hi) = (IVec3::MAX, IVec3::MIN);
-    for o in channels.iter().filter_map(|c| c.1).flat_map(|g| &g.origins) {
-        lo = lo.min(brick_of(*o));
-        hi = hi.max(brick_of(*o));
+    for (_, (_, h)) in channels.iter().filter_map(|(c, g)| Some((c, g.as_ref()?))) {
+        check_same_transform((&density.name, w), (&h.name, h.world_from_index))?;
+        if let Some((a, b)) = h.index_bbox {
+            lo = lo.min(brick_of(a));
+            hi = hi.max(brick_of(b));
+        }
     }
     let (lo, dims) = if lo.x > hi.x { (IVec3::ZERO, IVec3::ZERO) } else { (lo, table_dims(lo, hi, &density.name)?) };
     let mut writer = CacheWriter::create(out, w, lo, dims, &density.name)?;
     let mut mapped = [0.0f32; crate::vdb::LEAF_VOXELS];
-    for (channel, grid) in channels {
-        let Some(grid) = grid else { continue };
-        for (i, &o) in grid.origins.iter().enumerate() {
-            let raw = grid.leaf_values(i);
-            if channel == Channel::Source {
-                for (m, &v) in mapped.iter_mut().zip(raw) {
+    let mut backgrounds = [None; 3];
+    let mut names: [Option<String>; 3] = Default::default();
+    for (i, (channel, grid)) in channels.into_iter().enumerate() {
+        let Some((sel, header)) = grid else { continue };
+        let map = |v: f32| if channel == Channel::Source { emission.map_source(v) } else { v };
+        backgrounds[i] = Some(map(header.background));
+        names[i] = Some(header.name.clone());
+        isolation.stream_float_grid(file, &sel, &limits, &mut |_| Ok(()), &mut |origin, data| match data {
+            LeafData::Values(values) if channel == Channel::Source => {
+                for (m, &v) in mapped.iter_mut().zip(values.iter()) {
                     *m = emission.map_source(v);
                 }
-                writer.put(brick_of(o), channel, &mapped)?;
-            } else {
-                writer.put(brick_of(o), channel, raw)?;
+                writer.put(brick_of(origin), channel, &mapped)
             }
-        }
+            LeafData::Values(values) => writer.put(brick_of(origin), channel, values),
+            LeafData::Constant(v) => writer.put_constant(brick_of(origin), channel, map(v)),
+        })?;
     }
+    let [density_grid, source_grid, albedo_grid] = names;
     let info = CacheInfo {
-        density_grid: density.name.clone(),
-        source_grid: source.as_ref().map(|s| s.name.clone()),
-        albedo_grid: albedo.as_ref().map(|a| a.name.clone()),
+        density_grid: density_grid.unwrap_or_default(),
+        source_grid,
+        albedo_grid,
         source_key: emission.source_key(),
         emission_kind: kind_name(kind).into(),
         input: Some(input),
-        backgrounds: [Some(density.background), Some(source.as_ref().map_or(0.0, |s| emission.map_source(s.background))), albedo.as_ref().map(|a| a.background)],
+        backgrounds: [backgrounds[0], Some(backgrounds[1].unwrap_or(0.0)), backgrounds[2]],
     };
-    drop((density, source, albedo));
     let power = light_power(&emission);
     let proxy = (kind != EmissionKind::None).then(|| ProxySpec { resolution: proxy_resolution, power_key: emission.light_key(), power: &power });
     let path = writer.finish(&info, proxy)?;

@@ -53,11 +53,49 @@ pub fn run(cli: Cli, command_line: &str) -> Result<()> {
 }
 
 fn info_command(args: &InfoArgs) -> Result<()> {
+    if crate::cache::is_cache_path(&args.file) {
+        return cache_info(args);
+    }
     let grids = read_isolation(args.no_isolation, args.read_timeout, &ReadLimits::default())?.list_grids(&args.file)?;
     if args.json {
         println!("{}", crate::info::to_json(&grids));
     } else {
         print!("{}", crate::info::format_table(&args.file, &grids));
+    }
+    Ok(())
+}
+
+/// `plume info X.plume`: the cache's metadata, after checking every checksum.
+fn cache_info(args: &InfoArgs) -> Result<()> {
+    let cache = crate::cache::Cache::open(&args.file)?;
+    cache.check.verified()?;
+    let v = &cache.volume;
+    if args.json {
+        let json = serde_json::json!({
+            "file": args.file,
+            "bytes": cache.file_bytes,
+            "checksums": "ok",
+            "bricks": v.brick_count(),
+            "dense_bricks": v.dense_brick_count(),
+            "meta": cache.meta,
+        });
+        println!("{json:#}");
+    } else {
+        let m = &cache.meta;
+        println!("{}: plume brick cache, {:.1} MiB, checksums ok", args.file.display(), cache.file_bytes as f64 / 1048576.0);
+        println!("  written by        {}", m.writer);
+        println!("  grids             density {:?}, source {:?}, albedo {:?}", m.density_grid, m.source_grid, m.albedo_grid);
+        println!("  source            {} ({})", m.emission_kind, m.source_key);
+        println!("  bricks            {} ({} dense), table {:?} from brick {:?}", v.brick_count(), v.dense_brick_count(), m.dims, m.brick_lo);
+        println!("  value blocks      {} ({:.1} MiB)", m.value_blocks, (m.value_blocks * 2048) as f64 / 1048576.0);
+        match &m.proxy {
+            Some(p) => println!("  FNEE proxy        {}³ ({})", p.resolution, p.power_key),
+            None => println!("  FNEE proxy        none"),
+        }
+        match &m.input {
+            Some(i) => println!("  converted from    {} ({} bytes)", i.path, i.size),
+            None => println!("  converted from    (generated)"),
+        }
     }
     Ok(())
 }

@@ -157,7 +157,8 @@ pub enum ProgressArg {
 /// `plume info`.
 #[derive(Debug, Args)]
 pub struct InfoArgs {
-    /// The .vdb file.
+    /// The .vdb file, or a .plume brick cache (its metadata, after checking every
+    /// checksum).
     pub file: PathBuf,
     /// Print a JSON array instead of text.
     #[arg(long)]
@@ -229,6 +230,18 @@ pub struct GridArgs {
     /// time and survives crashes (saves a few ms; trusted files only).
     #[arg(long)]
     pub no_isolation: bool,
+}
+
+impl Default for GridArgs {
+    /// The flags' defaults, as `plume render` and `plume prepare` take them.
+    fn default() -> Self {
+        #[derive(Parser)]
+        struct Defaults {
+            #[command(flatten)]
+            grids: GridArgs,
+        }
+        Defaults::parse_from(["plume"]).grids
+    }
 }
 
 /// `plume prepare`.
@@ -342,7 +355,8 @@ impl RenderArgs {
 // Negative numbers reach our validation, which names the flag and the allowed range.
 #[command(allow_negative_numbers = true)]
 pub struct RenderArgs {
-    /// The .vdb file, or with --frames a pattern with a frame token: `fire.####.vdb`
+    /// The .vdb file or .plume brick cache (`plume prepare`), or with --frames a
+    /// pattern with a frame token: `fire.####.vdb`
     /// (one `#` per digit), `fire.%04d.vdb` or `fire.$F4.vdb`. Numbers wider than the
     /// padding are printed in full.
     pub file: PathBuf,

@@ -47,7 +47,48 @@ pub fn run(cli: Cli, command_line: &str) -> Result<()> {
             );
             Ok(())
         }
+        Command::Synth(SynthCommand::Flare(args)) => synth_flare_command(&args),
     }
+}
+
+/// Largest estimated in-core size for `plume synth flare -o x.vdb`.
+const FLARE_VDB_LIMIT_BYTES: u64 = 8 << 30;
+
+/// `plume synth flare`: build in memory and write a .vdb, refusing flares too large for that.
+fn synth_flare_command(args: &crate::cli::SynthFlareArgs) -> Result<()> {
+    let t = Instant::now();
+    let is_vdb = args.output.extension().is_some_and(|e| e.eq_ignore_ascii_case("vdb"));
+    if !is_vdb {
+        return Err(Error::invalid(
+            "--output",
+            format!("{}: plume synth flare writes only .vdb files (no streamed .plume cache yet)", args.output.display()),
+        ));
+    }
+    let params = crate::synth::FlareParams { resolution: args.resolution, seed: args.seed, ..Default::default() };
+    let flare = crate::synth::Flare::new(&params);
+    let bytes = flare.estimated_bytes();
+    if bytes > FLARE_VDB_LIMIT_BYTES {
+        return Err(Error::invalid(
+            "--resolution",
+            format!(
+                "a {0}³ flare is up to about {1:.1} GiB of voxel data, more than the {2} GiB a .vdb may be built from \
+                 in memory; lower --resolution or write a streamed .plume cache instead",
+                args.resolution,
+                bytes as f64 / f64::from(1u32 << 30),
+                FLARE_VDB_LIMIT_BYTES >> 30
+            ),
+        ));
+    }
+    let (density, temperature) = flare.to_float_grids();
+    vdb::write_float_grids(&args.output, &[&density, &temperature])?;
+    eprintln!(
+        "plume: wrote {} ({}³ flare, {} leaves) in {:.2} s",
+        args.output.display(),
+        args.resolution,
+        density.leaf_count(),
+        t.elapsed().as_secs_f64()
+    );
+    Ok(())
 }
 
 fn info_command(args: &InfoArgs) -> Result<()> {

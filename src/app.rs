@@ -49,7 +49,66 @@ pub fn run(cli: Cli, command_line: &str) -> Result<()> {
             );
             Ok(())
         }
+        Command::Synth(SynthCommand::Flare(args)) => synth_flare_command(&args),
     }
+}
+
+const GIB: f64 = 1024.0 * 1024.0 * 1024.0;
+
+/// Largest estimated in-core size for `plume synth flare -o x.vdb`.
+const FLARE_VDB_LIMIT_BYTES: u64 = 8 << 30;
+
+/// `plume synth flare`: build in memory and write a .vdb, refusing flares too large for that.
+fn synth_flare_command(args: &crate::cli::SynthFlareArgs) -> Result<()> {
+    let t = Instant::now();
+    let params = crate::synth::FlareParams { resolution: args.resolution, seed: args.seed, ..Default::default() };
+    if crate::cache::is_cache_path(&args.output) {
+        let flare = crate::synth::Flare::new(&params);
+        let estimate = flare.estimated_bytes();
+        let progress = |bytes: u64, done: i32, slabs: i32| {
+            if done % 64 == 0 || done == slabs {
+                eprintln!("plume: {done}/{slabs} slabs, {:.2} GiB of {:.2} GiB estimated", bytes as f64 / GIB, estimate as f64 / GIB);
+            }
+        };
+        let c = crate::cache::generate::write_flare(&flare, &args.output, None, &progress)?;
+        eprintln!(
+            "plume: wrote {} ({}³ flare, {:.2} GiB) in {:.1} s ({:.0} MB/s)",
+            c.path.display(),
+            args.resolution,
+            c.bytes as f64 / GIB,
+            c.seconds,
+            c.bytes as f64 / 1e6 / c.seconds.max(1e-9)
+        );
+        return Ok(());
+    }
+    let is_vdb = args.output.extension().is_some_and(|e| e.eq_ignore_ascii_case("vdb"));
+    if !is_vdb {
+        return Err(Error::invalid("--output", format!("{} must end in .vdb or .plume", args.output.display())));
+    }
+    let flare = crate::synth::Flare::new(&params);
+    let bytes = flare.estimated_bytes();
+    if bytes > FLARE_VDB_LIMIT_BYTES {
+        return Err(Error::invalid(
+            "--resolution",
+            format!(
+                "a {0}³ flare is up to about {1:.1} GiB of voxel data, more than the {2} GiB a .vdb may be built from \
+                 in memory; lower --resolution or write a streamed .plume cache instead",
+                args.resolution,
+                bytes as f64 / f64::from(1u32 << 30),
+                FLARE_VDB_LIMIT_BYTES >> 30
+            ),
+        ));
+    }
+    let (density, temperature) = flare.to_float_grids();
+    vdb::write_float_grids(&args.output, &[&density, &temperature])?;
+    eprintln!(
+        "plume: wrote {} ({}³ flare, {} leaves) in {:.2} s",
+        args.output.display(),
+        args.resolution,
+        density.leaf_count(),
+        t.elapsed().as_secs_f64()
+    );
+    Ok(())
 }
 
 fn info_command(args: &InfoArgs) -> Result<()> {

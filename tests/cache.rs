@@ -84,6 +84,20 @@ fn real_files_convert_by_streaming_and_render_identically() {
     }
 }
 
+#[test]
+fn a_flare_generated_straight_to_a_cache_renders_like_its_vdb() {
+    let dir = tmpdir("cache", "flare");
+    let (vdb, cache) = (dir.join("f.vdb"), dir.join("f.plume"));
+    for out in [&vdb, &cache] {
+        let o = plume(&["synth", "flare", "--resolution", "160", "--seed", "4", "-o", s(out)]);
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    let flags = ["--albedo", "0.6", "--spp", "2"];
+    let a = render(&vdb, &dir.join("a.exr"), &flags);
+    let b = render(&cache, &dir.join("b.exr"), &flags);
+    assert_bitwise(&a, &b, "flare streamed to a cache vs its .vdb");
+}
+
 /// A volume with dense, constant, albedo and empty bricks, built in memory.
 fn test_volume() -> Volume {
     let xf = DAffine3::from_scale_rotation_translation(DVec3::new(0.1, 0.12, 0.09), glam::DQuat::from_rotation_y(0.3), DVec3::new(1.0, -2.0, 0.5));
@@ -252,4 +266,49 @@ fn stale_and_mismatched_caches_are_refused_and_automatic_caches_rebuilt() {
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(stderr(&o).contains("rebuilding the automatic cache"), "{}", stderr(&o));
     assert_bitwise(&in_core, &read_exr(&dir.join("again.exr")).unwrap().2, "rebuilt automatic cache");
+}
+
+/// `(RssAnon, RssFile)` of process `pid` in bytes, from /proc.
+fn rss(pid: u32) -> Option<(u64, u64)> {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
+    let field = |name: &str| -> Option<u64> {
+        let line = status.lines().find(|l| l.starts_with(name))?;
+        Some(line.split_whitespace().nth(1)?.parse::<u64>().ok()? * 1024)
+    };
+    Some((field("RssAnon:")?, field("RssFile:")?))
+}
+
+#[test]
+fn a_1_gib_cache_renders_within_a_256_mib_budget() {
+    const BUDGET: u64 = 256 << 20;
+    let dir = tmpdir("cache", "budget");
+    let cache = dir.join("flare.plume");
+    // ≈1.1 GiB of dense bricks, written by streaming (never in memory)
+    let o = plume(&["synth", "flare", "--resolution", "1344", "--seed", "2", "-o", s(&cache)]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let bytes = std::fs::metadata(&cache).unwrap().len();
+    assert!(bytes > 4 * BUDGET, "the dataset ({bytes} bytes) must dwarf the budget");
+    let out = dir.join("flare.exr");
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_plume"))
+        .args(["render", s(&cache), "-o", s(&out), "--spp", "2", "--width", "96", "--height", "72", "--albedo", "0.5"])
+        .args(["--memory-budget", "256MiB", "--threads", "2", "-q"])
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let (mut peak_anon, mut peak_file) = (0, 0);
+    while child.try_wait().unwrap().is_none() {
+        if let Some((anon, file)) = rss(child.id()) {
+            peak_anon = peak_anon.max(anon);
+            peak_file = peak_file.max(file);
+        }
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    let o = child.wait_with_output().unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    eprintln!("dataset {:.2} GiB, peak RssAnon {:.1} MiB, peak RssFile {:.1} MiB", bytes as f64 / 1073741824.0, peak_anon as f64 / 1048576.0, peak_file as f64 / 1048576.0);
+    assert!(peak_anon > 0, "never sampled the render's memory");
+    assert!(peak_anon < BUDGET, "peak anonymous RSS {peak_anon} exceeds the 256 MiB budget");
+    let pixels = read_exr(&out).unwrap().2;
+    assert!(pixels.iter().any(|p| p[0] > 0.0), "the flare rendered black");
+    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -14,6 +14,7 @@
 
 pub mod convert;
 pub mod format;
+pub mod generate;
 pub mod reader;
 pub mod writer;
 

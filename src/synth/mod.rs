@@ -43,6 +43,7 @@
 //! evaluated in parallel one x-slab at a time and collected in order, and leaves appear in
 //! lexicographic `(x, y, z)` order of their origins (x slowest, like voxels inside a leaf).
 
+mod flare;
 mod noise;
 
 use glam::{DAffine3, DVec3, IVec3, Vec3};
@@ -50,6 +51,11 @@ use rayon::prelude::*;
 
 use crate::vdb::{leaf_offset, FloatGrid, LEAF_DIM, LEAF_VOXELS};
 use noise::{stream_seed, Fractal, FractalCache};
+
+pub use flare::{
+    Flare, FlareParams, BYTES_PER_BRICK, FLARE_SIZE, FOOT_TEMPERATURE, MAX_FLARE_RESOLUTION, MIN_TUBE_RADIUS,
+    PEAK_TEMPERATURE,
+};
 
 /// Edge length of the world cube holding the explosion, in metres, at every resolution.
 pub const WORLD_SIZE: f64 = 4.0;

@@ -387,15 +387,37 @@ impl BrickTableBuilder {
                 }
             }
         }
-        Ok(BuiltTable {
-            brick_lo: self.brick_lo,
-            dims: self.dims,
-            table: self.table,
-            bricks: self.bricks,
-            bounds: self.bounds,
-            report: self.report,
-        })
+        let (brick_lo, dims, table) = shrink_to_occupied(self.brick_lo, self.dims, self.table);
+        Ok(BuiltTable { brick_lo, dims, table, bricks: self.bricks, bounds: self.bounds, report: self.report })
     }
+}
+
+/// The table cut down to the bounding box of its bricks, so a volume's layout (and what
+/// depends on it: pyramid levels, proxy cells) depends on its bricks only, not on the
+/// box announced up front (a generator's whole domain, a header's bounds).
+fn shrink_to_occupied(lo: IVec3, dims: IVec3, table: Vec<u32>) -> (IVec3, IVec3, Vec<u32>) {
+    let (nx, ny) = (dims.x.max(0) as usize, dims.y.max(0) as usize);
+    let (mut min, mut max) = (IVec3::MAX, IVec3::MIN);
+    for (i, _) in table.iter().enumerate().filter(|(_, &b)| b != NO_BRICK) {
+        let c = IVec3::new((i % nx) as i32, ((i / nx) % ny) as i32, (i / (nx * ny)) as i32);
+        min = min.min(c);
+        max = max.max(c);
+    }
+    if min.x > max.x {
+        return (IVec3::ZERO, IVec3::ZERO, Vec::new());
+    }
+    if min == IVec3::ZERO && max == dims - 1 {
+        return (lo, dims, table);
+    }
+    let new_dims = max - min + 1;
+    let mut out = Vec::with_capacity(new_dims.x as usize * new_dims.y as usize * new_dims.z as usize);
+    for z in min.z..=max.z {
+        for y in min.y..=max.y {
+            let row = (z as usize * ny + y as usize) * nx;
+            out.extend_from_slice(&table[row + min.x as usize..=row + max.x as usize]);
+        }
+    }
+    (lo + min, new_dims, out)
 }
 
 /// Check that two grids share one voxel grid (transforms equal to 1e-6 of the scale).

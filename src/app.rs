@@ -397,7 +397,17 @@ pub fn load_scene(args: &RenderArgs) -> Result<LoadedScene> {
                 UpAxis::Y => DVec3::new(0.35, 0.25, 1.0),
                 UpAxis::Z => DVec3::new(0.35, -1.0, 0.25),
             };
-            let mut cam = Camera::frame_bounds(lo, hi, view, up, args.fov, args.width, args.height)?;
+            // Bounds too far out for f64 rays come from a corrupt transform, not from flags
+            let mut cam = Camera::frame_bounds(lo, hi, view, up, args.fov, args.width, args.height).map_err(|_| {
+                let v = |p: DVec3| format!("({:.3e}, {:.3e}, {:.3e})", p.x, p.y, p.z);
+                Error::Scene(format!(
+                    "{}: grid {:?} lies at world coordinates {} .. {}, too far out to frame a camera; its transform is probably corrupt",
+                    args.file.display(),
+                    args.grids.density_grid,
+                    v(lo),
+                    v(hi)
+                ))
+            })?;
             if let Some(at) = args.camera_at {
                 cam = Camera::look_at(cam.origin, at, up, args.fov, args.width, args.height)?;
             }

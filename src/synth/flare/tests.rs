@@ -289,3 +289,39 @@ fn thread_cpu_seconds() -> f64 {
     unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut t) };
     t.tv_sec as f64 + 1e-9 * t.tv_nsec as f64
 }
+
+#[test]
+fn synth_flare_listing_is_conservative_on_sampled_high_resolution_slabs() {
+    // Every brick of a few slabs, at resolutions where tubes are many voxels thick
+    for (resolution, slabs) in [(512u32, vec![18, 30, 44]), (4096, vec![150])] {
+        let f = flare(resolution, 1);
+        let dims = f.brick_dims();
+        for bz in slabs {
+            let listed: HashSet<IVec3> = f.bricks_in_slab(bz).into_iter().collect();
+            let occupied: Vec<IVec3> = (0..dims.y)
+                .into_par_iter()
+                .flat_map_iter(|y| (0..dims.x).map(move |x| IVec3::new(x, y, bz)))
+                .filter(|&b| fill(&f, b).0)
+                .collect();
+            assert!(occupied.len() > 50, "{resolution}³ slab {bz}: {} occupied", occupied.len());
+            for b in occupied {
+                assert!(listed.contains(&b), "{resolution}³: occupied brick {b} not listed");
+            }
+        }
+    }
+}
+
+/// Costs at the largest resolution: `new`, one slab's listing, `estimated_bytes`
+/// (`cargo test --lib synth_flare_huge -- --ignored --nocapture`).
+#[test]
+#[ignore]
+fn synth_flare_huge_resolution_costs() {
+    let t = Instant::now();
+    let f = flare(65536, 1);
+    println!("65536³: new {:.2} s", t.elapsed().as_secs_f64());
+    let t = Instant::now();
+    let n = f.bricks_in_slab(2000).len();
+    println!("one slab: {n} bricks in {:.2} s", t.elapsed().as_secs_f64());
+    let t = Instant::now();
+    println!("estimate {:.1} TB in {:.2} s", f.estimated_bytes() as f64 / 1e12, t.elapsed().as_secs_f64());
+}

@@ -264,9 +264,9 @@ impl Flare {
     }
 
     /// Fills brick `b`'s density (unitless) and temperature (Kelvin) in OpenVDB leaf order
-    /// ([`leaf_offset`](crate::vdb::leaf_offset)); voxels outside `[0, resolution)³` are 0. Returns false, with
-    /// both arrays all zero, when no voxel has density (always for `b` outside
-    /// `[0, brick_dims)`).
+    /// ([`leaf_offset`](crate::vdb::leaf_offset)); voxels outside `[0, resolution)³` are 0.
+    /// Returns false, with both arrays all zero, when no voxel has density (always for `b`
+    /// outside `[0, brick_dims)`). A pure function of the parameters and `b`.
     pub fn fill_brick(&self, b: IVec3, density: &mut [f32; 512], temperature: &mut [f32; 512]) -> bool {
         density.fill(0.0);
         temperature.fill(0.0);

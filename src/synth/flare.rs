@@ -41,10 +41,10 @@
 //! Inside a brick, a loop's distance is computed for every voxel (rows of 8 that the
 //! compiler vectorises) against a reach bounded locally from the loop's along-arc profile
 //! table (`flare/tube.rs`), and only voxels within reach pay for an `atan2` and a table
-//! lookup. NOTE: 4096³ with the defaults: 37 k listed bricks/s per core, ≈ 144 MB/s of
-//! occupied output (thread CPU time, one thread, test profile, a shared 2-core Xeon at
-//! 2.5 GHz under load ≈ 7), so ≈ 110 s for the whole dataset on 2 cores; listing all 512
-//! slabs takes 1.3–3.2 s on 2 threads.
+//! lookup. NOTE: 4096³ with the defaults, test profile, a shared 2-core Xeon at 2.5 GHz
+//! under load ≈ 5–7: 32–41 k listed bricks/s per CPU second (≈ 125–150 MB/s of occupied
+//! output); the whole dataset took 224 s of CPU and 226 s of wall time on 2 threads
+//! (`synth_flare_full_4096`); listing all 512 slabs takes 1.3–3.2 s on 2 threads.
 //!
 //! # Determinism
 //! Same [`FlareParams`] ⇒ bit-identical values at any thread count and in any slab order:
@@ -88,10 +88,11 @@ const CHUNK: usize = 32;
 ///
 /// # Size
 /// With the default loop counts (seed 1), the fraction of bricks that hold density falls
-/// with resolution as the tubes get thicker in voxels relative to the bricks: 13.3 % at
-/// 256³, 10.4 % at 512³, 8.1 % at 1024³, ≈ 5.8 % at 4096³ (7.7 M bricks, ≈ 31.6 GB of
-/// dense `f32`, density and temperature; [`Flare::bricks_in_slab`] lists 6.06 %). Other
-/// seeds differ by a few per cent; the tests hold 256³ to 11–16 %.
+/// with resolution as the tubes get thicker in voxels relative to the bricks: 13.7 % at
+/// 256³, 10.7 % at 512³, 8.3 % at 1024³, 5.87 % at 4096³ (7.88 M bricks, 32.3 GB =
+/// 30.0 GiB of dense `f32`, density and temperature; [`Flare::bricks_in_slab`] lists
+/// 6.23 %). Seeds 1–5 list 6.2–7.2 % at 4096³ (the active-region radii are normalised per
+/// seed) and occupy 13.7–18.5 % at 256³; the tests hold seed 1 at 256³ to 11–16 %.
 #[derive(Clone, Debug, PartialEq)]
 pub struct FlareParams {
     /// Voxels per edge of the cube, 1 to [`MAX_FLARE_RESOLUTION`] (any value, not only
@@ -183,7 +184,7 @@ impl Flare {
     /// outside `[0, brick_dims.z)`.
     ///
     /// Conservative: every brick with a voxel of density > 0 is listed; a listed brick
-    /// may be all zero (with the defaults 13 % of listed bricks at 256³, 5.5 % at 4096³).
+    /// may be all zero (with the defaults 12 % of listed bricks at 256³, 6 % at 4096³).
     /// Costs no voxel evaluation: each loop's circle is sampled every few voxels and the
     /// bricks near each sample that pass the brick test of `fill_brick` (bounding sphere
     /// against the tube radius bounded locally) are marked in a bitmap of
@@ -263,9 +264,9 @@ impl Flare {
     }
 
     /// Fills brick `b`'s density (unitless) and temperature (Kelvin) in OpenVDB leaf order
-    /// ([`leaf_offset`](crate::vdb::leaf_offset)); voxels outside `[0, resolution)³` are 0. Returns false, with
-    /// both arrays all zero, when no voxel has density (always for `b` outside
-    /// `[0, brick_dims)`).
+    /// ([`leaf_offset`](crate::vdb::leaf_offset)); voxels outside `[0, resolution)³` are 0.
+    /// Returns false, with both arrays all zero, when no voxel has density (always for `b`
+    /// outside `[0, brick_dims)`). A pure function of the parameters and `b`.
     pub fn fill_brick(&self, b: IVec3, density: &mut [f32; 512], temperature: &mut [f32; 512]) -> bool {
         density.fill(0.0);
         temperature.fill(0.0);
@@ -300,14 +301,17 @@ impl Flare {
     }
 
     /// Estimated bytes of dense `f32` data, both channels: [`BYTES_PER_BRICK`] per brick
-    /// listed by [`Flare::bricks_in_slab`] (so an upper estimate: listed bricks may be
-    /// empty). Exact count up to 64 slabs; above, 64 evenly spaced slabs are counted and
-    /// scaled (within a few per cent). Computed once, on first call (≈ 0.1 s at 4096³).
+    /// listed by [`Flare::bricks_in_slab`] (so an upper estimate: 5–15 % of listed bricks
+    /// are empty). Exact up to 64 slabs (512³); above, evenly spaced slabs are counted and
+    /// scaled: 64 up to 4096³ (within a few per cent), then fewer as slabs get costlier,
+    /// `64·(4096/resolution)²` but at least 8. Computed once, on first call: ≈ 0.2 s at
+    /// 4096³, ≈ 12 s at 65536³ (2 threads).
     #[must_use]
     pub fn estimated_bytes(&self) -> u64 {
         let bricks = *self.estimated_bricks.get_or_init(|| {
             let slabs = self.brick_dims.z as u64;
-            let sampled = slabs.min(64);
+            let affordable = (64.0 * (4096.0 / f64::from(self.resolution)).powi(2)).clamp(8.0, 64.0) as u64;
+            let sampled = slabs.min(affordable);
             let counted: u64 = (0..sampled)
                 .into_par_iter()
                 .map(|i| self.bricks_in_slab(((2 * i + 1) * slabs / (2 * sampled)) as i32).len() as u64)

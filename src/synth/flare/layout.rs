@@ -124,10 +124,32 @@ pub fn loops(seed: u64, counts: LayoutCounts) -> Vec<LoopSpec> {
     let arcade = (0..counts.arcade)
         .map(|i| arcade_loop(&pil, &mut SplitMix64::new(seed, 1, u64::from(i)), counts.knot_fraction));
     let spots = Spots::new(&pil, &mut SplitMix64::new(seed, 0, 1));
-    let active =
-        (0..counts.active_region).map(|i| active_region_loop(&spots, &mut SplitMix64::new(seed, 2, u64::from(i))));
+    let mut active: Vec<LoopSpec> = (0..counts.active_region)
+        .map(|i| active_region_loop(&spots, &mut SplitMix64::new(seed, 2, u64::from(i))))
+        .collect();
+    // Normalise Σ arc·(radius + D)², the active-region loops' volume dilated by about
+    // the reach of a brick at 4096³ (D = 5/4096), which sets the data size: seeds would
+    // otherwise differ by ±25 % with the patches' spacing. Solve for one common radius
+    // scale k: A·k² + 2B·k + C = target.
+    const D: f64 = 5.0 / 4096.0;
+    let (mut a, mut b, mut c) = (0.0, 0.0, 0.0);
+    for spec in &active {
+        let circle = spec.circle();
+        let arc = 2.0 * circle.half_angle * circle.radius;
+        (a, b, c) = (a + arc * spec.radius * spec.radius, b + arc * spec.radius * D, c + arc * D * D);
+    }
+    let target = ACTIVE_REGION_VOLUME_PER_LOOP * active.len() as f64;
+    if a > 0.0 && target > c {
+        let scale = (-b + (b * b + a * (target - c)).sqrt()) / a;
+        for spec in &mut active {
+            spec.radius *= scale;
+        }
+    }
     arcade.chain(active).collect()
 }
+
+/// Target of Σ arc·(radius + D)² per active-region loop, normalised units (see [`loops`]).
+const ACTIVE_REGION_VOLUME_PER_LOOP: f64 = 4.4e-5;
 
 /// The polarity inversion line: a gentle S curve in the (x, z) plane,
 /// `c(t) = start + t·(end − start) + bend·sin(2πt + phase)·normal`, `t ∈ [0, 1]`.
@@ -220,7 +242,7 @@ impl Spots {
         let middle = pil.point(0.5);
         let mut patch = |side: f64, i: usize| {
             let offset = along * (0.45 * ((i as f64 + rng.uniform(0.2, 0.8)) / SPOTS as f64 - 0.5) * 2.0);
-            let centre = middle + offset + side * rng.uniform(0.12, 0.36) * normal;
+            let centre = middle + offset + side * rng.uniform(0.16, 0.3) * normal;
             (clamp_inside(centre), rng.uniform(0.05, 0.1))
         };
         let positive = std::array::from_fn(|i| patch(-1.0, i));

@@ -143,7 +143,7 @@ fn synth_flare_grids_hold_exactly_the_occupied_bricks() {
 #[test]
 fn synth_flare_occupied_fraction_is_in_band() {
     // Documented on FlareParams: 11–16 % of bricks occupied at 256³ with the defaults
-    // (13.3 % for seed 1; ≈ 5.8 % at 4096³, see synth_flare_report); listed bricks are
+    // (13.7 % for seed 1; 5.87 % at 4096³, see synth_flare_full_4096); listed bricks are
     // at most 1.3× the occupied ones.
     let f = flare(256, 1);
     let listed: Vec<IVec3> = (0..f.brick_dims().z).flat_map(|bz| f.bricks_in_slab(bz)).collect();
@@ -288,4 +288,90 @@ fn thread_cpu_seconds() -> f64 {
     // SAFETY: `t` is a valid, writable timespec for the duration of the call.
     unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut t) };
     t.tv_sec as f64 + 1e-9 * t.tv_nsec as f64
+}
+
+#[test]
+fn synth_flare_listing_is_conservative_on_sampled_high_resolution_slabs() {
+    // Every brick of a few slabs, at resolutions where tubes are many voxels thick
+    for (resolution, slabs) in [(512u32, vec![18, 30, 44]), (4096, vec![150])] {
+        let f = flare(resolution, 1);
+        let dims = f.brick_dims();
+        for bz in slabs {
+            let listed: HashSet<IVec3> = f.bricks_in_slab(bz).into_iter().collect();
+            let occupied: Vec<IVec3> = (0..dims.y)
+                .into_par_iter()
+                .flat_map_iter(|y| (0..dims.x).map(move |x| IVec3::new(x, y, bz)))
+                .filter(|&b| fill(&f, b).0)
+                .collect();
+            assert!(occupied.len() > 50, "{resolution}³ slab {bz}: {} occupied", occupied.len());
+            for b in occupied {
+                assert!(listed.contains(&b), "{resolution}³: occupied brick {b} not listed");
+            }
+        }
+    }
+}
+
+/// Costs at the largest resolution: `new`, one slab's listing, `estimated_bytes`
+/// (`cargo test --lib synth_flare_huge -- --ignored --nocapture`).
+#[test]
+#[ignore]
+fn synth_flare_huge_resolution_costs() {
+    let t = Instant::now();
+    let f = flare(65536, 1);
+    println!("65536³: new {:.2} s", t.elapsed().as_secs_f64());
+    let t = Instant::now();
+    let n = f.bricks_in_slab(2000).len();
+    println!("one slab: {n} bricks in {:.2} s", t.elapsed().as_secs_f64());
+    let t = Instant::now();
+    println!("estimate {:.1} TB in {:.2} s", f.estimated_bytes() as f64 / 1e12, t.elapsed().as_secs_f64());
+}
+
+/// The whole 4096³ dataset, filled and dropped, in parallel over slabs like a writer:
+/// exact occupied bricks, wall time (`cargo test --lib synth_flare_full_4096 -- --ignored
+/// --nocapture`; minutes).
+#[test]
+#[ignore]
+fn synth_flare_full_4096() {
+    let t = Instant::now();
+    let f = flare(4096, 1);
+    let (listed, occupied, cpu) = (0..f.brick_dims().z)
+        .into_par_iter()
+        .map(|bz| {
+            let start = thread_cpu_seconds();
+            let bricks = f.bricks_in_slab(bz);
+            let (mut density, mut temperature) = ([0.0; 512], [0.0; 512]);
+            let occupied = bricks.iter().filter(|&&b| f.fill_brick(b, &mut density, &mut temperature)).count();
+            (bricks.len(), occupied, thread_cpu_seconds() - start)
+        })
+        .reduce(|| (0, 0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1, a.2 + b.2));
+    let total = f.brick_dims().as_dvec3().element_product();
+    println!(
+        "4096³ full: {listed} listed, {occupied} occupied ({:.2} %, {:.2} GB = {:.2} GiB) in {:.0} s wall on {} threads, {:.0} s CPU ({:.0} MB/s per CPU second)",
+        100.0 * occupied as f64 / total,
+        occupied as f64 * BYTES_PER_BRICK as f64 / 1e9,
+        occupied as f64 * BYTES_PER_BRICK as f64 / f64::from(1u32 << 30),
+        t.elapsed().as_secs_f64(),
+        rayon::current_num_threads(),
+        cpu,
+        occupied as f64 * BYTES_PER_BRICK as f64 / cpu / 1e6
+    );
+}
+
+/// Size across seeds: bricks listed at 4096³ and occupied at 256³ for seeds 1–5
+/// (`cargo test --lib synth_flare_seed_spread -- --ignored --nocapture`).
+#[test]
+#[ignore]
+fn synth_flare_seed_spread() {
+    for seed in 1..=5 {
+        let f = flare(4096, seed);
+        let listed: usize = (0..f.brick_dims().z).into_par_iter().map(|bz| f.bricks_in_slab(bz).len()).sum();
+        let small = flare(256, seed);
+        let occupied =
+            (0..small.brick_dims().z).flat_map(|bz| small.bricks_in_slab(bz)).filter(|&b| fill(&small, b).0).count();
+        println!(
+            "seed {seed}: 4096³ {:.2} % listed, 256³ {:.2} % occupied",
+            100.0 * listed as f64 / 512f64.powi(3),
+            100.0 * occupied as f64 / 32f64.powi(3)
+        );
+    }
 }

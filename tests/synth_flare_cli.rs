@@ -43,8 +43,8 @@ fn synth_flare_refuses_a_vdb_too_large_for_memory() {
 
 #[test]
 fn synth_flare_refuses_other_outputs() {
-    let o = plume(&["synth", "flare", "--resolution", "16", "-o", "/nonexistent/flare.plume"]);
-    assert!(!o.status.success());
+    let o = plume(&["synth", "flare", "--resolution", "16", "-o", "/nonexistent/flare.raw"]);
+    assert_eq!(o.status.code(), Some(2));
     let message = String::from_utf8_lossy(&o.stderr);
-    assert!(message.contains("--output"), "{message}");
+    assert!(message.contains("--output") && message.contains(".plume"), "{message}");
 }

@@ -318,7 +318,8 @@ fn campaign_of(indices: &[usize]) -> Tally {
     let count = indices.len();
     let sources: Vec<(PathBuf, Vec<u8>)> =
         SOURCES.iter().map(|s| (PathBuf::from(s), fs::read(s).expect("source file"))).collect();
-    let root = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("fuzz-mutants");
+    // Per process: two campaigns (debug suite, release figures) may run at once
+    let root = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("fuzz-mutants-{}", std::process::id()));
     let findings_dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("fuzz-findings");
     let _ = fs::remove_dir_all(&root);
     fs::create_dir_all(&findings_dir).unwrap();
@@ -406,6 +407,7 @@ fn campaign_of(indices: &[usize]) -> Tally {
         }
     });
     let tally = tally.into_inner().unwrap();
+    let _ = fs::remove_dir_all(&root);
     report(&tally, count, start.elapsed());
     tally
 }

@@ -376,7 +376,9 @@ impl<R: Read> Decoder<R> {
         }
     }
 
-    fn grid(&mut self) -> Result<FloatGrid, WireError> {
+    /// A grid's name, finite transform and finite background: how both a whole grid and a
+    /// stream begin.
+    pub(super) fn grid_head(&mut self) -> Result<(String, DAffine3, f32), WireError> {
         let name = self.str()?;
         let mut cols = [0.0f64; 12];
         for c in &mut cols {
@@ -389,6 +391,11 @@ impl<R: Read> Decoder<R> {
         if !background.is_finite() {
             return malformed(format!("grid {name:?}: non-finite background"));
         }
+        Ok((name, DAffine3::from_cols_array(&cols), background))
+    }
+
+    fn grid(&mut self) -> Result<FloatGrid, WireError> {
+        let (name, world_from_index, background) = self.grid_head()?;
         let leaf_count = self.u64()?;
         let bytes = leaf_count.checked_mul(BYTES_PER_LEAF);
         let leaves = match (bytes, usize::try_from(leaf_count)) {
@@ -435,7 +442,7 @@ impl<R: Read> Decoder<R> {
         }
         Ok(FloatGrid {
             name,
-            world_from_index: DAffine3::from_cols_array(&cols),
+            world_from_index,
             background,
             origins,
             values,

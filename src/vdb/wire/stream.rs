@@ -15,7 +15,7 @@
 
 use std::io::{self, Read, Write};
 
-use glam::{DAffine3, IVec3};
+use glam::IVec3;
 
 use super::{malformed, Decoder, Encoder, WireError};
 use crate::vdb::stream::{StreamedGrid, Tile, STREAM_BATCH};
@@ -105,18 +105,7 @@ impl<R: Read> Decoder<R> {
     }
 
     pub(super) fn stream_head(&mut self) -> Result<StreamedGrid, WireError> {
-        let name = self.str()?;
-        let mut cols = [0.0f64; 12];
-        for c in &mut cols {
-            *c = self.f64()?;
-        }
-        if cols.iter().any(|c| !c.is_finite()) {
-            return malformed(format!("grid {name:?}: non-finite transform"));
-        }
-        let background = self.f32()?;
-        if !background.is_finite() {
-            return malformed(format!("grid {name:?}: non-finite background"));
-        }
+        let (name, world_from_index, background) = self.grid_head()?;
         let leaf_count = self.u64()?;
         let tile_blocks = self.u64()?;
         let has_bbox = self.flag()?;
@@ -131,7 +120,7 @@ impl<R: Read> Decoder<R> {
         }
         Ok(StreamedGrid {
             name,
-            world_from_index: DAffine3::from_cols_array(&cols),
+            world_from_index,
             background,
             leaf_count,
             tile_blocks,
@@ -199,7 +188,7 @@ mod tests {
     fn grid() -> StreamedGrid {
         StreamedGrid {
             name: "density".into(),
-            world_from_index: DAffine3::from_scale(glam::DVec3::new(0.5, 0.25, 2.0)),
+            world_from_index: glam::DAffine3::from_scale(glam::DVec3::new(0.5, 0.25, 2.0)),
             background: 0.125,
             leaf_count: 3,
             tile_blocks: 4097,

@@ -143,6 +143,36 @@ fn check_section(map: &[u8], entry: &SectionEntry, sums: &[u64], parallel: bool)
     }
 }
 
+/// [`check_section`] for the background: reads the file (not the mapping) one chunk at a
+/// time and then tells the kernel it may drop those pages (`POSIX_FADV_DONTNEED`), which
+/// it does only for pages the render has not mapped. So checking a cache larger than
+/// memory does not push the render's working set out of the page cache.
+fn check_section_by_reading(file: &File, entry: &SectionEntry, sums: &[u64]) -> std::result::Result<(), String> {
+    use std::os::fd::AsRawFd;
+    use std::os::unix::fs::FileExt;
+    let kind = SectionKind::ALL.iter().find(|k| **k as u32 == entry.kind).map_or("unknown", |k| k.name());
+    let first = entry.first_chunk as usize;
+    let count = entry.chunk_count() as usize;
+    let Some(expected) = sums.get(first..first + count) else {
+        return Err(format!("the {kind} section's chunk checksums are missing"));
+    };
+    let mut buf = vec![0u8; CHUNK as usize];
+    for (i, &sum) in expected.iter().enumerate() {
+        let start = entry.offset + i as u64 * CHUNK;
+        let end = (start + CHUNK).min(entry.offset + entry.len);
+        let bytes = &mut buf[..(end - start) as usize];
+        file.read_exact_at(bytes, start).map_err(|e| format!("the {kind} section cannot be read at byte {start}: {e}"))?;
+        if xxhash_rust::xxh3::xxh3_64(bytes) != sum {
+            return Err(format!("the {kind} section fails its checksum at bytes {start}..{end}"));
+        }
+        // SAFETY: posix_fadvise only advises the kernel about this open descriptor's pages.
+        unsafe {
+            libc::posix_fadvise(file.as_raw_fd(), start as libc::off_t, (end - start) as libc::off_t, libc::POSIX_FADV_DONTNEED);
+        }
+    }
+    Ok(())
+}
+
 impl Cache {
     /// Open and check `path`. See the module docs.
     ///
@@ -218,10 +248,10 @@ impl Cache {
         let verification = if deferred.is_empty() {
             Verification::done()
         } else {
-            let (map, sums) = (Arc::clone(&map), Arc::clone(&sums));
+            let sums = Arc::clone(&sums);
             let handle = std::thread::Builder::new()
                 .name("plume-cache-verify".into())
-                .spawn(move || deferred.iter().try_for_each(|e| check_section(&map, e, &sums, false)))
+                .spawn(move || deferred.iter().try_for_each(|e| check_section_by_reading(&file, e, &sums)))
                 .map_err(|e| Error::Open { path: path.to_path_buf(), source: e })?;
             Verification { thread: Mutex::new(Some(handle)), outcome: OnceLock::new() }
         };

@@ -283,8 +283,8 @@ fn a_1_gib_cache_renders_within_a_256_mib_budget() {
     const BUDGET: u64 = 256 << 20;
     let dir = tmpdir("cache", "budget");
     let cache = dir.join("flare.plume");
-    // ≈1.1 GiB of bricks, written by streaming (never in memory)
-    let o = plume(&["synth", "flare", "--resolution", "1088", "--seed", "2", "-o", s(&cache)]);
+    // ≈1.2 GB of bricks, written by streaming (never in memory)
+    let o = plume(&["synth", "flare", "--resolution", "1152", "--seed", "2", "-o", s(&cache)]);
     assert!(o.status.success(), "{}", stderr(&o));
     let bytes = std::fs::metadata(&cache).unwrap().len();
     assert!(bytes > 4 * BUDGET, "the dataset ({bytes} bytes) must dwarf the budget");

@@ -318,8 +318,11 @@ fn campaign_of(indices: &[usize]) -> Tally {
     let count = indices.len();
     let sources: Vec<(PathBuf, Vec<u8>)> =
         SOURCES.iter().map(|s| (PathBuf::from(s), fs::read(s).expect("source file"))).collect();
-    // Per process: two campaigns (debug suite, release figures) may run at once
-    let root = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("fuzz-mutants-{}", std::process::id()));
+    // Per process and per campaign: campaigns run at once (debug suite and release
+    // figures; tests of one binary in parallel)
+    static CAMPAIGNS: AtomicUsize = AtomicUsize::new(0);
+    let nth = CAMPAIGNS.fetch_add(1, Ordering::Relaxed);
+    let root = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("fuzz-mutants-{}-{nth}", std::process::id()));
     let findings_dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("fuzz-findings");
     let _ = fs::remove_dir_all(&root);
     fs::create_dir_all(&findings_dir).unwrap();

@@ -6,6 +6,7 @@
 //! of the ray. Nothing downstream indexes a voxel.
 
 pub mod brick;
+pub mod builder;
 pub mod dda;
 pub mod field;
 pub mod proxy;

@@ -144,7 +144,6 @@ pub fn convert(file: &Path, grids: &GridArgs, proxy_resolution: Option<u32>, out
     }
     let (lo, dims) = if lo.x > hi.x { (IVec3::ZERO, IVec3::ZERO) } else { (lo, table_dims(lo, hi, &density.name)?) };
     let mut writer = CacheWriter::create(out, w, lo, dims, &density.name)?;
-    let mut mapped = [0.0f32; crate::vdb::LEAF_VOXELS];
     let mut backgrounds = [None; 3];
     let mut names: [Option<String>; 3] = Default::default();
     for (i, (channel, grid)) in channels.into_iter().enumerate() {
@@ -153,13 +152,7 @@ pub fn convert(file: &Path, grids: &GridArgs, proxy_resolution: Option<u32>, out
         backgrounds[i] = Some(map(header.background));
         names[i] = Some(header.name.clone());
         isolation.stream_float_grid(file, &sel, &limits, &mut |_| Ok(()), &mut |origin, data| match data {
-            LeafData::Values(values) if channel == Channel::Source => {
-                for (m, &v) in mapped.iter_mut().zip(values.iter()) {
-                    *m = emission.map_source(v);
-                }
-                writer.put(brick_of(origin), channel, &mapped)
-            }
-            LeafData::Values(values) => writer.put(brick_of(origin), channel, values),
+            LeafData::Values(values) => writer.put(brick_of(origin), channel, values, map),
             LeafData::Constant(v) => writer.put_constant(brick_of(origin), channel, map(v)),
         })?;
     }

@@ -35,7 +35,6 @@ pub fn write_flare(flare: &Flare, out: &Path, proxy_resolution: Option<u32>, pro
     let emission = emission(&grids, EmissionKind::Blackbody, 1.0, Rgb([1.0; 3]))?;
     let dims = flare.brick_dims();
     let mut writer = CacheWriter::create(out, flare.world_from_index(), glam::IVec3::ZERO, dims, "density")?;
-    let mut source = [0.0f32; LEAF_VOXELS];
     for bz in 0..dims.z {
         let bricks: Vec<GeneratedBrick> = flare
             .bricks_in_slab(bz)
@@ -46,11 +45,8 @@ pub fn write_flare(flare: &Flare, out: &Path, proxy_resolution: Option<u32>, pro
             })
             .collect();
         for (b, density, temperature) in &bricks {
-            writer.put(*b, Channel::Density, &density[..])?;
-            for (s, &t) in source.iter_mut().zip(temperature.iter()) {
-                *s = emission.map_source(t);
-            }
-            writer.put(*b, Channel::Source, &source)?;
+            writer.put(*b, Channel::Density, &density[..], |v| v)?;
+            writer.put(*b, Channel::Source, &temperature[..], |t| emission.map_source(t))?;
         }
         progress(writer.bytes_written(), bz + 1, dims.z);
     }

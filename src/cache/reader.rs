@@ -118,14 +118,19 @@ fn corrupt(path: &Path, what: impl std::fmt::Display) -> Error {
     }
 }
 
-/// Check the chunk sums of `entry` over `map`.
-fn check_section(map: &[u8], entry: &SectionEntry, sums: &[u64], parallel: bool) -> std::result::Result<(), String> {
+/// The name of `entry`'s section and its expected chunk sums.
+fn section_sums<'s>(entry: &SectionEntry, sums: &'s [u64]) -> std::result::Result<(&'static str, &'s [u64]), String> {
     let kind = SectionKind::ALL.iter().find(|k| **k as u32 == entry.kind).map_or("unknown", |k| k.name());
     let first = entry.first_chunk as usize;
-    let count = entry.chunk_count() as usize;
-    let Some(expected) = sums.get(first..first + count) else {
-        return Err(format!("the {kind} section's chunk checksums are missing"));
-    };
+    match sums.get(first..first + entry.chunk_count() as usize) {
+        Some(expected) => Ok((kind, expected)),
+        None => Err(format!("the {kind} section's chunk checksums are missing")),
+    }
+}
+
+/// Check the chunk sums of `entry` over `map`, chunks in parallel (at open).
+fn check_section(map: &[u8], entry: &SectionEntry, sums: &[u64]) -> std::result::Result<(), String> {
+    let (kind, expected) = section_sums(entry, sums)?;
     let check = |i: usize| -> std::result::Result<(), String> {
         let start = entry.offset + i as u64 * CHUNK;
         let end = (start + CHUNK).min(entry.offset + entry.len);
@@ -136,11 +141,7 @@ fn check_section(map: &[u8], entry: &SectionEntry, sums: &[u64], parallel: bool)
             Err(format!("the {kind} section fails its checksum at bytes {start}..{end}"))
         }
     };
-    if parallel {
-        (0..count).into_par_iter().try_for_each(check)
-    } else {
-        (0..count).try_for_each(check)
-    }
+    (0..expected.len()).into_par_iter().try_for_each(check)
 }
 
 /// [`check_section`] for the background: reads the file (not the mapping) one chunk at a
@@ -150,12 +151,7 @@ fn check_section(map: &[u8], entry: &SectionEntry, sums: &[u64], parallel: bool)
 fn check_section_by_reading(file: &File, entry: &SectionEntry, sums: &[u64]) -> std::result::Result<(), String> {
     use std::os::fd::AsRawFd;
     use std::os::unix::fs::FileExt;
-    let kind = SectionKind::ALL.iter().find(|k| **k as u32 == entry.kind).map_or("unknown", |k| k.name());
-    let first = entry.first_chunk as usize;
-    let count = entry.chunk_count() as usize;
-    let Some(expected) = sums.get(first..first + count) else {
-        return Err(format!("the {kind} section's chunk checksums are missing"));
-    };
+    let (kind, expected) = section_sums(entry, sums)?;
     let mut buf = vec![0u8; CHUNK as usize];
     for (i, &sum) in expected.iter().enumerate() {
         let start = entry.offset + i as u64 * CHUNK;
@@ -236,7 +232,7 @@ impl Cache {
         let mut deferred = Vec::new();
         for e in entries.iter().filter(|e| e.kind != SectionKind::Chunks as u32) {
             if e.len <= EAGER_BYTES || e.kind == SectionKind::Meta as u32 {
-                check_section(&map, e, &sums, true).map_err(|what| corrupt(path, what))?;
+                check_section(&map, e, &sums).map_err(|what| corrupt(path, what))?;
             } else {
                 deferred.push(*e);
             }

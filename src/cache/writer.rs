@@ -207,13 +207,14 @@ impl CacheWriter {
         Ok(CacheWriter { final_path: path.to_path_buf(), out, builder, world_from_index, report_base: Default::default() })
     }
 
-    /// Store channel `channel` of brick `b` from 512 values in OpenVDB leaf order (the
-    /// source already mapped); cleaned exactly as an in-core build cleans them.
+    /// Store channel `channel` of brick `b` from 512 values in OpenVDB leaf order, each
+    /// passed through `map` (the source mapping; identity otherwise) and cleaned exactly
+    /// as an in-core build cleans them.
     ///
     /// # Errors
     /// `b` outside the announced box, or a write error.
-    pub fn put(&mut self, b: IVec3, channel: Channel, leaf_values: &[f32]) -> Result<()> {
-        self.builder.put(&mut self.out, b, channel, leaf_values)
+    pub fn put(&mut self, b: IVec3, channel: Channel, leaf_values: &[f32], map: impl Fn(f32) -> f32) -> Result<()> {
+        self.builder.put(&mut self.out, b, channel, leaf_values, map)
     }
 
     /// Store channel `channel` of brick `b` as a constant (a voxelized tile).
@@ -364,7 +365,7 @@ pub fn write_volume(path: &Path, volume: &Volume, info: &CacheInfo, proxy: Optio
                                     }
                                 }
                             }
-                            w.put(b, channel, &leaf)?;
+                            w.put(b, channel, &leaf, |v| v)?;
                         }
                     }
                 }

@@ -648,7 +648,8 @@ mod tests {
         }
     }
 
-    fn encode(f: impl FnOnce(&mut Encoder<&mut Vec<u8>>)) -> Vec<u8> {
+    /// A reply written by `f`, ended (shared with the stream records' tests).
+    pub(super) fn encode(f: impl FnOnce(&mut Encoder<&mut Vec<u8>>)) -> Vec<u8> {
         let mut bytes = Vec::new();
         let mut e = Encoder::new(&mut bytes).unwrap();
         f(&mut e);

@@ -18,7 +18,7 @@ use super::builder::slot_at;
 use super::pyramid::Pyramid;
 use super::storage::Buffer;
 use crate::error::{Error, Result};
-use crate::vdb::{FloatGrid, LEAF_VOXELS};
+use crate::vdb::FloatGrid;
 
 /// Brick edge in voxels.
 pub const BRICK: i32 = 8;
@@ -204,19 +204,11 @@ impl Volume {
         let dims = table_dims(lo, hi, &density.name)?;
         let mut builder = BrickTableBuilder::new(lo, dims, &density.name)?;
         let mut values: Vec<f32> = Vec::new();
-        let mut mapped = [0.0f32; LEAF_VOXELS];
         for (channel, grid) in [(Channel::Density, Some(density)), (Channel::Source, source), (Channel::Albedo, albedo)] {
             let Some(grid) = grid else { continue };
+            let map = |v: f32| if channel == Channel::Source { source_map(v) } else { v };
             for (i, &o) in grid.origins.iter().enumerate() {
-                let raw = grid.leaf_values(i);
-                if channel == Channel::Source {
-                    for (m, &v) in mapped.iter_mut().zip(raw) {
-                        *m = source_map(v);
-                    }
-                    builder.put(&mut values, brick_of(o), channel, &mapped)?;
-                } else {
-                    builder.put(&mut values, brick_of(o), channel, raw)?;
-                }
+                builder.put(&mut values, brick_of(o), channel, grid.leaf_values(i), map)?;
             }
         }
         let backgrounds = [Some(density.background), Some(source.map_or(0.0, |s| source_map(s.background))), albedo.map(|a| a.background)];

@@ -98,64 +98,43 @@ impl BrickTableBuilder {
     }
 
     /// Store channel `channel` of brick `b` from 512 raw values in OpenVDB leaf order,
+    /// each passed through `map` (the source mapping; identity for other channels) and
     /// cleaned by the channel's rule; a uniform block becomes a constant slot.
     ///
     /// # Errors
     /// `b` outside the table, or the sink's error.
-    pub fn put(&mut self, sink: &mut impl BlockSink, b: IVec3, channel: Channel, raw: &[f32]) -> Result<()> {
+    pub fn put(&mut self, sink: &mut impl BlockSink, b: IVec3, channel: Channel, raw: &[f32], map: impl Fn(f32) -> f32) -> Result<()> {
         let mut block = [0.0f32; LEAF_VOXELS];
-        let count = match channel {
-            Channel::Density | Channel::Source => {
-                let count = match channel {
-                    Channel::Density => &mut self.report.density_clamped,
-                    _ => &mut self.report.source_invalid,
-                };
-                for x in 0..8 {
-                    for y in 0..8 {
-                        for z in 0..8 {
-                            block[brick_offset(x, y, z)] = clean(raw[leaf_offset(x, y, z)], count);
-                        }
-                    }
+        for x in 0..8 {
+            for y in 0..8 {
+                for z in 0..8 {
+                    block[brick_offset(x, y, z)] = self.clean(channel, map(raw[leaf_offset(x, y, z)]), 1);
                 }
-                None
             }
-            Channel::Albedo => {
-                let mut count = 0;
-                for x in 0..8 {
-                    for y in 0..8 {
-                        for z in 0..8 {
-                            block[brick_offset(x, y, z)] = clean_albedo(raw[leaf_offset(x, y, z)], &mut count);
-                        }
-                    }
-                }
-                Some(count)
-            }
-        };
-        if let Some(c) = count {
-            self.report.albedo_clamped += c;
         }
         self.put_block(sink, b, channel, &block)
     }
 
-    /// Store channel `channel` of brick `b` as the constant `value` (cleaned), e.g. a
-    /// voxelized active tile.
+    /// Store channel `channel` of brick `b` as the constant `value` (already mapped,
+    /// cleaned here), e.g. a voxelized active tile.
     ///
     /// # Errors
     /// `b` outside the table.
     pub fn put_constant(&mut self, b: IVec3, channel: Channel, value: f32) -> Result<()> {
-        let v = match channel {
-            Channel::Density => clean_n(value, &mut self.report.density_clamped, LEAF_VOXELS as u64),
-            Channel::Source => clean_n(value, &mut self.report.source_invalid, LEAF_VOXELS as u64),
-            Channel::Albedo => {
-                let mut c = 0;
-                let v = clean_albedo(value, &mut c);
-                self.report.albedo_clamped += c * LEAF_VOXELS as u64;
-                v
-            }
-        };
+        let v = self.clean(channel, value, LEAF_VOXELS as u64);
         let index = self.brick_index(b)?;
         self.set(index, channel, PackedSlot::constant(v), (v, v));
         Ok(())
+    }
+
+    /// `v` cleaned by `channel`'s rule, counting `n` voxels in the report if it changed.
+    #[inline]
+    fn clean(&mut self, channel: Channel, v: f32, n: u64) -> f32 {
+        match channel {
+            Channel::Density => clean_n(v, &mut self.report.density_clamped, n),
+            Channel::Source => clean_n(v, &mut self.report.source_invalid, n),
+            Channel::Albedo => clean_albedo_n(v, &mut self.report.albedo_clamped, n),
+        }
     }
 
     /// Store an already cleaned block in brick order.
@@ -365,10 +344,16 @@ pub(crate) fn clean_n(v: f32, count: &mut u64, n: u64) -> f32 {
 /// Albedo factor: clamped to `[0, 1]`, NaN → 1; changed values are counted.
 #[inline]
 pub(crate) fn clean_albedo(v: f32, count: &mut u64) -> f32 {
+    clean_albedo_n(v, count, 1)
+}
+
+/// [`clean_albedo`] for a value standing for `n` voxels.
+#[inline]
+fn clean_albedo_n(v: f32, count: &mut u64, n: u64) -> f32 {
     if (0.0..=1.0).contains(&v) {
         v
     } else {
-        *count += 1;
+        *count += n;
         if v.is_nan() { 1.0 } else { v.clamp(0.0, 1.0) }
     }
 }

@@ -182,6 +182,7 @@ impl<R: Read> Decoder<R> {
 
 #[cfg(test)]
 mod tests {
+    use super::super::tests::encode;
     use super::super::{Record, MAGIC, TAG_END, VERSION};
     use super::*;
 
@@ -207,14 +208,6 @@ mod tests {
             Tile { min: IVec3::new(-8, 0, 0), max: IVec3::new(-1, 7, 7), value: 2.5 },
             Tile { min: IVec3::new(0, 0, 0), max: IVec3::new(127, 127, 127), value: -1.0 },
         ]
-    }
-
-    fn encode(f: impl FnOnce(&mut Encoder<&mut Vec<u8>>)) -> Vec<u8> {
-        let mut bytes = Vec::new();
-        let mut e = Encoder::new(&mut bytes).unwrap();
-        f(&mut e);
-        e.end().unwrap();
-        bytes
     }
 
     /// Decodes every record, recording what the batch records held.

@@ -365,6 +365,18 @@ pub enum ConventionArg {
     Cycles,
 }
 
+/// `--sample-order`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum SampleOrderArg {
+    /// Tile-major when the volume is a mapped cache larger than available memory and the
+    /// render has a fixed spp and no time limit; progressive otherwise.
+    Auto,
+    /// Passes over the whole image.
+    Progressive,
+    /// Each tile's samples together, tiles in order, bricks read ahead.
+    TileMajor,
+}
+
 /// Up axis used when the camera is framed automatically.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum UpAxis {
@@ -499,6 +511,14 @@ pub struct RenderArgs {
     /// or `$XDG_CACHE_HOME/plume` when that directory is not writable).
     #[arg(long)]
     pub cache_dir: Option<PathBuf>,
+    /// Order of the samples (the image is the same): `progressive` passes over the whole
+    /// image, or `tile-major`, every sample of a tile before the next, with the next
+    /// tiles' bricks read ahead, so a volume larger than memory is read from disk about
+    /// once. `auto`: tile-major for a brick cache larger than the memory available to
+    /// the page cache, with --spp and no --time-limit. In tile-major order a stop signal
+    /// or time limit abandons the frame (nothing of it is written).
+    #[arg(long, value_enum, default_value_t = SampleOrderArg::Auto)]
+    pub sample_order: SampleOrderArg,
     /// No progress bar or summary.
     #[arg(long, short)]
     pub quiet: bool,

@@ -10,8 +10,16 @@
 //! Passes are sized from measured time (about [`PASS_SECONDS`] each) so that a stop
 //! request (`SIGTERM`), a `--time-limit` or a `--time` budget is honoured between passes
 //! without overshooting by much; since sums are exact, pass sizes never change the image.
+//!
+//! A volume larger than memory changes the trade ([`SampleOrder`]): every progressive
+//! pass sends rays through all of it, so the page cache cycles and each pass rereads
+//! the file. [`SampleOrder::TileMajor`] renders each tile's samples together, tiles in
+//! raster order, and prefetches the camera rays' bricks of the tiles just ahead
+//! (`Field::prefetch`), so each brick is read from disk about once. Same bytes either way.
 
-use std::time::Instant;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::Mutex;
+use std::time::{Duration, Instant};
 
 use rayon::prelude::*;
 
@@ -73,6 +81,23 @@ pub enum StopReason {
     TimeLimit,
 }
 
+/// The order in which a render visits its samples. The image is the same either way.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum SampleOrder {
+    /// Passes over the whole image of a few samples per pixel each (about
+    /// [`PASS_SECONDS`]): progress, stop requests and time budgets act between passes.
+    #[default]
+    Progressive,
+    /// For a fixed sample count (with a time budget the render stays progressive): one
+    /// pass taking every sample of a tile before the next, tiles in raster order, the
+    /// tiles just ahead of the workers prefetched. For volumes larger than memory. A stop
+    /// request or the deadline abandons the pass between tiles and keeps nothing of it.
+    TileMajor,
+}
+
+/// Tiles beyond those being rendered whose camera rays are prefetched.
+const PREFETCH_AHEAD: usize = 4;
+
 /// Wall seconds a pass aims at: the longest wait between a stop request and the image.
 pub const PASS_SECONDS: f64 = 1.0;
 
@@ -88,8 +113,10 @@ pub struct RenderControl<'a> {
     /// Checked between passes; `true` ends the render after the current pass.
     pub stop: Option<&'a (dyn Fn() -> bool + Sync)>,
     /// No pass is started that is predicted to end after this instant (at least one pass
-    /// is always rendered).
+    /// is always rendered, except in tile-major order, which abandons it at the deadline).
     pub deadline: Option<Instant>,
+    /// Sample order.
+    pub order: SampleOrder,
 }
 
 /// The camera ray and sampler state of one pixel sample, as the render loop makes them
@@ -179,6 +206,10 @@ pub fn render_with<F: Field>(scene: &Scene<F>, settings: &RenderSettings, contro
             None => 1,
             Some(t) => ((PASS_SECONDS / t.max(1e-9)) as u64).clamp(1, last_pass.saturating_mul(4).max(1)),
         };
+        let tile_major = control.order == SampleOrder::TileMajor && matches!(settings.budget, SampleBudget::Spp(_));
+        if tile_major {
+            pass = remaining;
+        }
         pass = pass.min(remaining);
         if let (Some(t), true) = (seconds_per_spp, done > 0) {
             // Budget and deadline: only passes predicted to end in time
@@ -208,12 +239,21 @@ pub fn render_with<F: Field>(scene: &Scene<F>, settings: &RenderSettings, contro
         let range = first..first + pass;
         let pass_start = Instant::now();
         let pass_cpu_start = crate::stats::cpu_seconds();
-        let tile_counters: Vec<Counters> = pool.install(|| {
-            film.tiles
-                .par_iter_mut()
-                .map(|tile| render_tile(scene, &settings.integrator, settings.seed, range.clone(), tile))
-                .collect()
-        });
+        let tile_counters: Vec<Counters> = if tile_major {
+            let abandon = || control.stop.is_some_and(|stop| stop()) || control.deadline.is_some_and(|d| Instant::now() >= d);
+            match tile_major_pass(scene, settings, &pool, &mut film, &range, &abandon) {
+                Some(c) => c,
+                None if control.deadline.is_some_and(|d| Instant::now() >= d) => break StopReason::TimeLimit,
+                None => break StopReason::Interrupted,
+            }
+        } else {
+            pool.install(|| {
+                film.tiles
+                    .par_iter_mut()
+                    .map(|tile| render_tile(scene, &settings.integrator, settings.seed, range.clone(), tile))
+                    .collect()
+            })
+        };
         for c in &tile_counters {
             counters.merge(c);
             if let Some((x, y, s)) = c.first_nonfinite {
@@ -231,4 +271,77 @@ pub fn render_with<F: Field>(scene: &Scene<F>, settings: &RenderSettings, contro
     };
     counters.first_nonfinite = first_nonfinite;
     RenderResult { film, spp: done, counters, render_seconds: start.elapsed().as_secs_f64(), stopped }
+}
+
+/// One tile-major pass of `samples` over `film` (see [`SampleOrder::TileMajor`]): the
+/// workers take tiles in raster order from a shared queue while a prefetch thread walks
+/// the camera rays of the next tiles through `scene.field`. Returns the tiles' counters
+/// in tile order, or `None` with `film` unchanged when `abandon` said so between tiles.
+fn tile_major_pass<F: Field>(
+    scene: &Scene<F>,
+    settings: &RenderSettings,
+    pool: &rayon::ThreadPool,
+    film: &mut Film,
+    samples: &std::ops::Range<u64>,
+    abandon: &(dyn Fn() -> bool + Sync),
+) -> Option<Vec<Counters>> {
+    let before = film.clone();
+    let rects: Vec<(u32, u32, u32, u32)> = film.tiles.iter().map(|t| (t.x0, t.y0, t.width, t.height)).collect();
+    let taken = AtomicUsize::new(0);
+    let finished = AtomicBool::new(false);
+    let abandoned = AtomicBool::new(false);
+    let queue = Mutex::new(film.tiles.iter_mut().enumerate());
+    let results: Mutex<Vec<(usize, Counters)>> = Mutex::new(Vec::with_capacity(rects.len()));
+    let ahead = pool.current_num_threads() + PREFETCH_AHEAD;
+    std::thread::scope(|s| {
+        if scene.field.is_mapped() {
+            s.spawn(|| prefetch_tiles(scene, &rects, &taken, &finished, ahead));
+        }
+        pool.broadcast(|_| loop {
+            if abandoned.load(Ordering::Relaxed) {
+                return;
+            }
+            if abandon() {
+                abandoned.store(true, Ordering::Relaxed);
+                return;
+            }
+            let next = queue.lock().unwrap_or_else(std::sync::PoisonError::into_inner).next();
+            let Some((i, tile)) = next else { return };
+            taken.fetch_max(i + 1, Ordering::Relaxed);
+            let c = render_tile(scene, &settings.integrator, settings.seed, samples.clone(), tile);
+            results.lock().unwrap_or_else(std::sync::PoisonError::into_inner).push((i, c));
+        });
+        finished.store(true, Ordering::Relaxed);
+    });
+    if abandoned.load(Ordering::Relaxed) {
+        *film = before;
+        return None;
+    }
+    let mut results = results.into_inner().unwrap_or_else(std::sync::PoisonError::into_inner);
+    results.sort_unstable_by_key(|&(i, _)| i);
+    Some(results.into_iter().map(|(_, c)| c).collect())
+}
+
+/// The prefetch thread of a tile-major pass: keeps the pixel-centre camera rays of the
+/// tiles up to `ahead` beyond the last one taken handed to `Field::prefetch`.
+fn prefetch_tiles<F: Field>(scene: &Scene<F>, rects: &[(u32, u32, u32, u32)], taken: &AtomicUsize, finished: &AtomicBool, ahead: usize) {
+    let mut rays = Vec::new();
+    for (i, &(x0, y0, w, h)) in rects.iter().enumerate() {
+        while i >= taken.load(Ordering::Relaxed) + ahead {
+            if finished.load(Ordering::Relaxed) {
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(2));
+        }
+        if finished.load(Ordering::Relaxed) {
+            return;
+        }
+        rays.clear();
+        for y in y0..y0 + h {
+            for x in x0..x0 + w {
+                rays.push(scene.camera.ray(f64::from(x) + 0.5, f64::from(y) + 0.5));
+            }
+        }
+        scene.field.prefetch(&rays);
+    }
 }

@@ -59,6 +59,11 @@ fn cached_renders_are_bit_identical_to_in_core_renders() {
         let b = render(&cache, &dir.join("b.exr"), flags);
         assert_bitwise(&a, &b, name);
     }
+    // Tile-major order with read-ahead from the mapped cache, against progressive in core
+    let flags = ["--albedo", "0.8", "--g", "0.3"];
+    let a = render(&vdb, &dir.join("a.exr"), &flags);
+    let b = render(&cache, &dir.join("b.exr"), &[&flags[..], &["--sample-order", "tile-major"]].concat());
+    assert_bitwise(&a, &b, "tile-major from the cache");
 }
 
 #[test]
@@ -291,7 +296,7 @@ fn a_1_gib_cache_renders_within_a_256_mib_budget() {
     let out = dir.join("flare.exr");
     let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_plume"))
         .args(["render", s(&cache), "-o", s(&out), "--spp", "2", "--width", "96", "--height", "72", "--albedo", "0.5"])
-        .args(["--memory-budget", "256MiB", "--threads", "2", "-q"])
+        .args(["--memory-budget", "256MiB", "--threads", "2", "--sample-order", "tile-major", "-q"])
         .stderr(std::process::Stdio::piped())
         .spawn()
         .unwrap();

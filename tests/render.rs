@@ -9,7 +9,7 @@ use plume::camera::Camera;
 use plume::color::Rgb;
 use plume::integrator::{Integrator, Scene};
 use plume::medium::{Convention, Emission, EmissionKind, Estimator, Medium, TemperatureMap};
-use plume::render::{render, RenderSettings, SampleBudget};
+use plume::render::{render, render_with, RenderControl, RenderSettings, SampleBudget, SampleOrder, StopReason};
 use plume::volume::Volume;
 
 
@@ -53,6 +53,38 @@ fn same_seed_gives_identical_images_for_any_thread_count() {
         let other = render(&scene, &RenderSettings { budget: SampleBudget::Spp(6), seed: 43, threads: 2, first_sample: 0, integrator }, &|_, _| {});
         assert_ne!(pa, other.film.average(other.spp), "a different seed changes the image");
     }
+}
+
+fn bits(film: &plume::film::Film, spp: u64) -> Vec<u32> {
+    film.average(spp).iter().flatten().map(|v| v.to_bits()).collect()
+}
+
+#[test]
+fn tile_major_order_gives_the_same_image_and_a_stop_keeps_nothing_of_the_pass() {
+    let (scene, integrator) = blob_scene(Estimator::Line);
+    let settings = RenderSettings { budget: SampleBudget::Spp(5), seed: 42, threads: 2, first_sample: 0, integrator };
+    let progressive = render(&scene, &settings, &|_, _| {});
+    let tile_major = render_with(&scene, &settings, RenderControl { order: SampleOrder::TileMajor, ..Default::default() }, &|_, _| {});
+    assert_eq!((tile_major.spp, tile_major.stopped), (5, StopReason::Finished));
+    assert_eq!(bits(&progressive.film, 5), bits(&tile_major.film, 5), "same image in either order");
+    assert_eq!(progressive.counters, tile_major.counters);
+
+    // Continue that image by 3 spp, stopped after two tiles (the 24×20 image has four):
+    // the pass is abandoned and the film handed back exactly as it came in
+    let calls = std::sync::atomic::AtomicUsize::new(0);
+    let stop = || calls.fetch_add(1, std::sync::atomic::Ordering::SeqCst) >= 3;
+    let continued = RenderSettings { budget: SampleBudget::Spp(3), first_sample: 5, ..settings };
+    let control = RenderControl { film: Some(progressive.film.clone()), stop: Some(&stop), order: SampleOrder::TileMajor, ..Default::default() };
+    let stopped = render_with(&scene, &continued, control, &|_, _| {});
+    assert_eq!((stopped.spp, stopped.stopped), (0, StopReason::Interrupted));
+    assert!(calls.load(std::sync::atomic::Ordering::SeqCst) > 3, "tiles were rendered before the stop");
+    assert_eq!(bits(&stopped.film, 5), bits(&progressive.film, 5), "nothing of the abandoned pass is kept");
+
+    // Unstopped, the continuation equals 8 spp rendered at once
+    let control = RenderControl { film: Some(progressive.film.clone()), order: SampleOrder::TileMajor, ..Default::default() };
+    let resumed = render_with(&scene, &continued, control, &|_, _| {});
+    let whole = render(&scene, &RenderSettings { budget: SampleBudget::Spp(8), ..settings }, &|_, _| {});
+    assert_eq!(bits(&resumed.film, 8), bits(&whole.film, 8));
 }
 
 #[test]

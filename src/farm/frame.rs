@@ -18,7 +18,8 @@ use std::time::{Duration, Instant};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::app::{integrator, load_scene};
-use crate::cli::EmissionArg;
+use crate::cli::{EmissionArg, RenderArgs, SampleOrderArg};
+use crate::volume::Volume;
 use crate::error::{Error, Result};
 use crate::farm::fingerprint::{file_sha256, settings_hash};
 use crate::farm::job::Job;
@@ -30,7 +31,7 @@ use crate::film::{Crop, Film, FIXED_POINT_BITS};
 use crate::integrator::LineTrace;
 use crate::medium::{EmissionKind, Estimator};
 use crate::output::{write_exr_image, ExrImage};
-use crate::render::{render_with, RenderControl, RenderSettings, SampleBudget, StopReason};
+use crate::render::{render_with, RenderControl, RenderSettings, SampleBudget, SampleOrder, StopReason};
 use crate::stats::{cpu_seconds, peak_rss_since_reset_bytes, reset_peak_rss, RenderStats};
 
 /// What became of a frame.
@@ -170,11 +171,20 @@ pub fn render_frame(job: &Job<'_>, index: usize, frame: Option<i64>, command_lin
         film
     });
     let stop = || signals::stop_requested().is_some();
+    let order = sample_order(args, volume, matches!(budget, SampleBudget::Spp(_)));
+    if order == SampleOrder::TileMajor && args.sample_order == SampleOrderArg::Auto && !quiet {
+        eprintln!(
+            "plume: {}: {:.1} GB of bricks, more than the memory available; rendering tile by tile (--sample-order)",
+            input.display(),
+            volume.memory_bytes() as f64 / 1e9
+        );
+    }
     let control = RenderControl {
         crop: job.crop,
         film,
         stop: Some(&stop),
         deadline: args.time_limit.map(|t| start + Duration::from_secs_f64(t)),
+        order,
     };
     let render_start = Instant::now();
     let time_to_first_sample = start.elapsed().as_secs_f64();
@@ -286,4 +296,24 @@ pub fn render_frame(job: &Job<'_>, index: usize, frame: Option<i64>, command_lin
     }
     progress.frame_done(index, frame, status.as_str(), json);
     Ok(FrameOutcome::Written { status, output, spp })
+}
+
+/// `--sample-order` for this frame: `auto` is tile-major for a mapped volume larger than
+/// the memory available now (its pages could not all stay in the page cache), when the
+/// render has a fixed spp and no time limit (which tile-major order cannot honour
+/// without abandoning the frame).
+fn sample_order(args: &RenderArgs, volume: &Volume, fixed_spp: bool) -> SampleOrder {
+    match args.sample_order {
+        SampleOrderArg::Progressive => SampleOrder::Progressive,
+        SampleOrderArg::TileMajor => SampleOrder::TileMajor,
+        SampleOrderArg::Auto => {
+            let available = crate::stats::available_memory_bytes().unwrap_or(u64::MAX);
+            let larger = volume.is_mapped() && volume.memory_bytes() as u64 > available;
+            if larger && fixed_spp && args.time_limit.is_none() {
+                SampleOrder::TileMajor
+            } else {
+                SampleOrder::Progressive
+            }
+        }
+    }
 }

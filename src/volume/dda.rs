@@ -308,4 +308,16 @@ impl Field for Volume {
     fn values_at(&self, p_world: DVec3) -> (f32, f32) {
         self.lookup_world(p_world)
     }
+
+    fn prefetch(&self, rays: &[Ray]) {
+        self.read_ahead(rays);
+    }
+
+    fn is_mapped(&self) -> bool {
+        Volume::is_mapped(self)
+    }
+
+    fn data_bytes(&self) -> usize {
+        self.memory_bytes()
+    }
 }

@@ -107,6 +107,20 @@ pub trait Field: Sync {
 
     /// `(density, source)` at a world point (for next-event sampling of a chosen point).
     fn values_at(&self, p_world: DVec3) -> (f32, f32);
+
+    /// `rays` will be traced soon: a field paged from disk may start reading what they
+    /// cross (`volume::prefetch`). A hint that never changes a result; nothing by default.
+    fn prefetch(&self, _rays: &[Ray]) {}
+
+    /// True when the field's data are paged from a file rather than held in memory.
+    fn is_mapped(&self) -> bool {
+        false
+    }
+
+    /// Bytes of data the field reads (held in memory or mapped).
+    fn data_bytes(&self) -> usize {
+        0
+    }
 }
 
 fn inside(p: DVec3, lo: DVec3, hi: DVec3) -> bool {

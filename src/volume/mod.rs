@@ -10,6 +10,7 @@ pub mod builder;
 pub mod dda;
 pub mod field;
 pub mod proxy;
+pub mod prefetch;
 pub mod pyramid;
 pub mod storage;
 

@@ -77,6 +77,24 @@ impl<T: Pod> Buffer<T> {
     }
 }
 
+impl<T: Pod> Buffer<T> {
+    /// Ask the OS to start reading the elements in `ranges` (ascending, in bounds) from
+    /// the file, without waiting (`madvise(MADV_WILLNEED)`). A hint: nothing for a heap
+    /// buffer, and failures are ignored; what is read never changes.
+    pub fn will_need(&self, ranges: impl Iterator<Item = std::ops::Range<usize>>) {
+        let Owner::Map(map) = &self.owner else { return };
+        let size = std::mem::size_of::<T>();
+        // Offset of element 0 in the mapping (the buffer is a checked range of it)
+        let base = self.ptr as usize - map.as_ptr() as usize;
+        for r in ranges {
+            let (start, end) = (r.start.min(self.len), r.end.min(self.len));
+            if start < end {
+                let _ = map.advise_range(memmap2::Advice::WillNeed, base + start * size, (end - start) * size);
+            }
+        }
+    }
+}
+
 impl<T: Pod> Default for Buffer<T> {
     fn default() -> Self {
         Buffer::from_vec(Vec::new())

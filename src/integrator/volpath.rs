@@ -114,11 +114,12 @@ impl Lights {
 /// density with unit `--emission-scale` and white `--emission-color`. The scale only
 /// multiplies every voxel's power, and the tint is a mild reweighting that any valid pdf
 /// absorbs, so leaving both out keeps the estimators unbiased while letting a brick cache
-/// store the FNEE proxy's cell sums once for any scale or tint.
+/// store the FNEE proxy's cell sums once for any scale or tint. Blackbody luminance is
+/// tabulated (`light::power`).
 #[must_use]
 pub fn light_power(emission: &crate::medium::Emission) -> impl Fn(f32, f32) -> f64 + Sync {
-    let unit = crate::medium::Emission { scale: 1.0, color: crate::color::Rgb([1.0; 3]), ..*emission };
-    move |d: f32, s: f32| f64::from(unit.le(d, s).luminance().max(0.0))
+    let power = crate::light::LightPower::new(emission);
+    move |d: f32, s: f32| power.power(d, s)
 }
 
 /// The path integrator and its settings.

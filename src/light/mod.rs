@@ -12,5 +12,7 @@
 //! `power(density, source) = Y(L_e)`, keeping the data side free of optics.
 
 pub mod nee;
+pub mod power;
 
 pub use nee::{EmitterDistribution, VoxelSample};
+pub use power::LightPower;

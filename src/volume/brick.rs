@@ -40,8 +40,17 @@ const fn spread3(v: i32) -> usize {
 /// chords through a 256³ explosion: see `plume bench core` in the README.
 #[inline]
 #[must_use]
-pub fn brick_offset(x: i32, y: i32, z: i32) -> usize {
+pub const fn brick_offset(x: i32, y: i32, z: i32) -> usize {
     (spread3(x & 7) << 2) | (spread3(y & 7) << 1) | spread3(z & 7)
+}
+
+/// Local voxel `(x, y, z)` at brick-order offset `i` (the inverse of [`brick_offset`]).
+#[must_use]
+pub const fn brick_local(i: usize) -> IVec3 {
+    const fn compact3(v: usize) -> i32 {
+        ((v & 1) | ((v >> 2) & 2) | ((v >> 4) & 4)) as i32
+    }
+    IVec3::new(compact3(i >> 2), compact3(i >> 1), compact3(i))
 }
 
 /// Marker for "no brick here" in the brick table.
@@ -413,6 +422,16 @@ impl Volume {
         (self.slot_value(brick.density, l.x, l.y, l.z), self.slot_value(brick.source, l.x, l.y, l.z))
     }
 
+    /// The 512 values of a dense slot in brick order ([`brick_offset`]); `None` for a
+    /// constant slot, or a block index outside the value array (a damaged cache).
+    #[inline]
+    pub(crate) fn slot_block(&self, slot: PackedSlot) -> Option<&[f32; 512]> {
+        match slot.get() {
+            Slot::Constant(_) => None,
+            Slot::Dense(block) => self.values.get(block as usize * 512..(block as usize + 1) * 512)?.try_into().ok(),
+        }
+    }
+
     /// `Some((density, source))` when both channels of `brick` are constant.
     #[inline]
     #[must_use]
@@ -427,6 +446,14 @@ impl Volume {
 #[cfg(test)]
 mod tests {
     use super::brick_offset;
+
+    #[test]
+    fn brick_local_inverts_brick_offset() {
+        for i in 0..512 {
+            let l = super::brick_local(i);
+            assert_eq!(brick_offset(l.x, l.y, l.z), i);
+        }
+    }
 
     #[test]
     fn brick_offset_is_a_bijection_with_cache_line_blocks() {

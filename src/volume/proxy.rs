@@ -49,7 +49,7 @@
 use glam::{DAffine3, DVec3, IVec3};
 use rayon::prelude::*;
 
-use super::brick::{Volume, BRICK};
+use super::brick::{brick_local, PackedSlot, Slot, Volume, BRICK};
 use super::field::clip_to_box;
 use crate::error::{Error, Result};
 use crate::sampling::alias::AliasTable;
@@ -608,6 +608,28 @@ fn layer_power(
                     }
                     continue;
                 }
+                if edge % BRICK == 0 {
+                    // Cells are whole bricks (they start at the table's first brick): the
+                    // brick's voxels, in storage order, all go to one cell
+                    let k = cell_of(origin.x, 0) + cell_of(origin.y, 1) * dims.x as usize;
+                    let channel = |slot| (volume.slot_block(slot), slot_constant(slot));
+                    let ((dense_d, const_d), (dense_s, const_s)) = (channel(brick.density), channel(brick.source));
+                    let mut sum = 0.0;
+                    for i in 0..BRICK_VOXELS {
+                        let source = dense_s.map_or(const_s, |b| b[i]);
+                        if source == 0.0 {
+                            continue;
+                        }
+                        let density = dense_d.map_or(const_d, |b| b[i]);
+                        let p = power(density, source);
+                        if !(p >= 0.0 && p.is_finite()) {
+                            check(p, origin + brick_local(i), density, source);
+                        }
+                        sum += p;
+                    }
+                    acc[k] += sum;
+                    continue;
+                }
                 for lx in 0..BRICK {
                     let cx = cell_of(origin.x + lx, 0);
                     for ly in 0..BRICK {
@@ -628,4 +650,15 @@ fn layer_power(
         }
     }
     (acc, bad)
+}
+
+/// Voxels per brick.
+const BRICK_VOXELS: usize = (BRICK * BRICK * BRICK) as usize;
+
+/// The value of a constant slot (0 for a dense one, whose values are read instead).
+fn slot_constant(slot: PackedSlot) -> f32 {
+    match slot.get() {
+        Slot::Constant(v) => v,
+        Slot::Dense(_) => 0.0,
+    }
 }

@@ -395,6 +395,12 @@ impl ReaderRun {
                 });
             }
         };
+        // A larger pipe lets the child decode the next batch while the parent consumes
+        // this one (the default 64 KiB holds an eighth of a leaf batch). Best effort.
+        // SAFETY: fcntl on a pipe descriptor we own; F_SETPIPE_SZ only resizes its buffer.
+        unsafe {
+            libc::fcntl(std::os::fd::AsRawFd::as_raw_fd(&stdout), libc::F_SETPIPE_SZ, PIPE_BYTES);
+        }
         let pipes = ChildPipes { stdout, stderr: Some(stderr), stderr_tail: Vec::new(), deadline };
         Ok(ReaderRun { child, pipes: BufReader::with_capacity(1 << 20, pipes), timed_out: false })
     }
@@ -518,6 +524,9 @@ impl ReaderRun {
 }
 
 /// The child's stdout (the reply) and stderr (kept for messages), read under one deadline.
+/// Buffer size asked for the reply pipe (the default `pipe-max-size` allows 1 MiB).
+const PIPE_BYTES: libc::c_int = 1 << 20;
+
 pub(super) struct ChildPipes {
     stdout: ChildStdout,
     /// `None` once it reached end of file.

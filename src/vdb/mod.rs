@@ -74,7 +74,7 @@ pub const LEAF_VOXELS: usize = 512;
 /// Same order as OpenVDB's `LeafNode::coordToOffset`: x-major, `(x << 6) | (y << 3) | z`.
 #[inline]
 #[must_use]
-pub fn leaf_offset(x: i32, y: i32, z: i32) -> usize {
+pub const fn leaf_offset(x: i32, y: i32, z: i32) -> usize {
     (((x & 7) << 6) | ((y & 7) << 3) | (z & 7)) as usize
 }
 

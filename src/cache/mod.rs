@@ -5,6 +5,7 @@
 //! - [`format`]: the layout (sections, checksums, metadata).
 //! - [`writer`]: [`CacheWriter`], streaming bricks in and writing the derived sections.
 //! - [`reader`]: [`Cache::open`], checks and a mapped [`crate::volume::Volume`].
+//! - [`verify`]: the background checksum pass over the large sections.
 //! - [`convert`]: `.vdb` → cache (`plume prepare`, and the automatic cache of `plume
 //!   render` for inputs too large for `--memory-budget`), staleness and flag checks.
 //!
@@ -16,6 +17,7 @@ pub mod convert;
 pub mod format;
 pub mod generate;
 pub mod reader;
+pub mod verify;
 pub mod writer;
 
 pub use format::{InputFingerprint, Meta};

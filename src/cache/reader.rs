@@ -14,14 +14,14 @@
 use std::fs::File;
 use std::io::Read;
 use std::path::{Path, PathBuf};
-use std::sync::{Arc, Mutex, OnceLock};
-use std::thread::JoinHandle;
+use std::sync::Arc;
 
 use glam::{DAffine3, DMat3, DVec3, IVec3};
 use memmap2::Mmap;
 use rayon::prelude::*;
 
 use super::format::{Header, Meta, SectionEntry, SectionKind, BYTE_ORDER, CHUNK, MAGIC, PAGE, VERSION};
+use super::verify::{section_sums, Verification};
 use crate::error::{Error, Result};
 use crate::volume::brick::Brick;
 use crate::volume::proxy::CellPower;
@@ -32,37 +32,6 @@ use crate::vdb::LEAF_VOXELS;
 
 /// Sections up to this size are verified before [`Cache::open`] returns.
 pub const EAGER_BYTES: u64 = 64 << 20;
-
-/// The outcome of checking a cache's large sections in the background.
-#[derive(Debug)]
-pub struct Verification {
-    thread: Mutex<Option<JoinHandle<std::result::Result<(), String>>>>,
-    outcome: OnceLock<std::result::Result<(), String>>,
-}
-
-impl Verification {
-    fn done() -> Verification {
-        let v = Verification { thread: Mutex::new(None), outcome: OnceLock::new() };
-        let _ = v.outcome.set(Ok(()));
-        v
-    }
-
-    /// Wait for the check to finish; `Err(what)` when a chunk failed its checksum.
-    ///
-    /// # Errors
-    /// The first failing chunk, described.
-    pub fn wait(&self) -> std::result::Result<(), String> {
-        self.outcome
-            .get_or_init(|| {
-                let handle = self.thread.lock().map(|mut t| t.take()).ok().flatten();
-                match handle {
-                    Some(h) => h.join().unwrap_or_else(|_| Err("the verifier thread panicked".into())),
-                    None => Ok(()),
-                }
-            })
-            .clone()
-    }
-}
 
 /// An opened brick cache. See the module docs.
 #[derive(Debug)]
@@ -118,16 +87,6 @@ fn corrupt(path: &Path, what: impl std::fmt::Display) -> Error {
     }
 }
 
-/// The name of `entry`'s section and its expected chunk sums.
-fn section_sums<'s>(entry: &SectionEntry, sums: &'s [u64]) -> std::result::Result<(&'static str, &'s [u64]), String> {
-    let kind = SectionKind::ALL.iter().find(|k| **k as u32 == entry.kind).map_or("unknown", |k| k.name());
-    let first = entry.first_chunk as usize;
-    match sums.get(first..first + entry.chunk_count() as usize) {
-        Some(expected) => Ok((kind, expected)),
-        None => Err(format!("the {kind} section's chunk checksums are missing")),
-    }
-}
-
 /// Check the chunk sums of `entry` over `map`, chunks in parallel (at open).
 fn check_section(map: &[u8], entry: &SectionEntry, sums: &[u64]) -> std::result::Result<(), String> {
     let (kind, expected) = section_sums(entry, sums)?;
@@ -142,31 +101,6 @@ fn check_section(map: &[u8], entry: &SectionEntry, sums: &[u64]) -> std::result:
         }
     };
     (0..expected.len()).into_par_iter().try_for_each(check)
-}
-
-/// [`check_section`] for the background: reads the file (not the mapping) one chunk at a
-/// time and then tells the kernel it may drop those pages (`POSIX_FADV_DONTNEED`), which
-/// it does only for pages the render has not mapped. So checking a cache larger than
-/// memory does not push the render's working set out of the page cache.
-fn check_section_by_reading(file: &File, entry: &SectionEntry, sums: &[u64]) -> std::result::Result<(), String> {
-    use std::os::fd::AsRawFd;
-    use std::os::unix::fs::FileExt;
-    let (kind, expected) = section_sums(entry, sums)?;
-    let mut buf = vec![0u8; CHUNK as usize];
-    for (i, &sum) in expected.iter().enumerate() {
-        let start = entry.offset + i as u64 * CHUNK;
-        let end = (start + CHUNK).min(entry.offset + entry.len);
-        let bytes = &mut buf[..(end - start) as usize];
-        file.read_exact_at(bytes, start).map_err(|e| format!("the {kind} section cannot be read at byte {start}: {e}"))?;
-        if xxhash_rust::xxh3::xxh3_64(bytes) != sum {
-            return Err(format!("the {kind} section fails its checksum at bytes {start}..{end}"));
-        }
-        // SAFETY: posix_fadvise only advises the kernel about this open descriptor's pages.
-        unsafe {
-            libc::posix_fadvise(file.as_raw_fd(), start as libc::off_t, (end - start) as libc::off_t, libc::POSIX_FADV_DONTNEED);
-        }
-    }
-    Ok(())
 }
 
 impl Cache {
@@ -244,12 +178,7 @@ impl Cache {
         let verification = if deferred.is_empty() {
             Verification::done()
         } else {
-            let sums = Arc::clone(&sums);
-            let handle = std::thread::Builder::new()
-                .name("plume-cache-verify".into())
-                .spawn(move || deferred.iter().try_for_each(|e| check_section_by_reading(&file, e, &sums)))
-                .map_err(|e| Error::Open { path: path.to_path_buf(), source: e })?;
-            Verification { thread: Mutex::new(Some(handle)), outcome: OnceLock::new() }
+            Verification::start(file, Arc::clone(&map), &deferred, &sums).map_err(|e| Error::Open { path: path.to_path_buf(), source: e })?
         };
         let check = CacheCheck { path: path.to_path_buf(), verification, remove_on_failure: false };
         Ok(Cache { path: path.to_path_buf(), meta, volume, proxy_power, file_bytes, check })

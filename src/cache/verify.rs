@@ -1,0 +1,227 @@
+//! The background check of a cache's large sections ([`Verification`]): every 1 MiB chunk
+//! hashed with xxh3 against the CHUNKS section before a render may save anything.
+//!
+//! A render of a cache larger than memory reads the file from disk once at best, and a
+//! check that read it all again would double the disk traffic and take CPU from the
+//! render. So the check runs in two phases, at low CPU priority (`nice` 10):
+//!
+//! 1. **While rendering**, in sweeps a few times a second, it hashes only the chunks that
+//!    are wholly in the page cache (`mincore`), straight from the mapping: no disk read,
+//!    no copy, and nothing evicted. The render's own reads are what brings them in.
+//! 2. **When the render asks for the outcome** ([`Verification::wait`]), it reads the
+//!    chunks still unchecked from the file (`pread`) and lets the kernel drop those pages
+//!    again (`POSIX_FADV_DONTNEED`), so it does not push the render's working set out.
+//!
+//! Every chunk is checked either way; only the order and the I/O differ.
+
+use std::fs::File;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex, OnceLock};
+use std::thread::JoinHandle;
+use std::time::Duration;
+
+use memmap2::Mmap;
+
+use super::format::{SectionEntry, SectionKind, CHUNK};
+
+/// Time between two sweeps of phase 1.
+const SWEEP_INTERVAL: Duration = Duration::from_millis(250);
+/// CPU niceness of the checking thread.
+const NICENESS: libc::c_int = 10;
+
+/// The outcome of checking a cache's large sections in the background.
+#[derive(Debug)]
+pub struct Verification {
+    thread: Mutex<Option<JoinHandle<std::result::Result<(), String>>>>,
+    /// Set by [`Verification::wait`]: check the rest now, reading the file.
+    finish: Arc<AtomicBool>,
+    outcome: OnceLock<std::result::Result<(), String>>,
+}
+
+/// One chunk to check: its bytes in the file, the expected sum, and its section's name.
+#[derive(Clone, Copy, Debug)]
+struct Chunk {
+    start: u64,
+    end: u64,
+    sum: u64,
+    kind: &'static str,
+}
+
+impl Chunk {
+    fn failed(&self) -> String {
+        format!("the {} section fails its checksum at bytes {}..{}", self.kind, self.start, self.end)
+    }
+}
+
+/// The name of `entry`'s section and its expected chunk sums.
+pub(super) fn section_sums<'s>(entry: &SectionEntry, sums: &'s [u64]) -> std::result::Result<(&'static str, &'s [u64]), String> {
+    let kind = SectionKind::ALL.iter().find(|k| **k as u32 == entry.kind).map_or("unknown", |k| k.name());
+    let first = entry.first_chunk as usize;
+    match sums.get(first..first + entry.chunk_count() as usize) {
+        Some(expected) => Ok((kind, expected)),
+        None => Err(format!("the {kind} section's chunk checksums are missing")),
+    }
+}
+
+impl Verification {
+    /// Nothing to check.
+    pub(super) fn done() -> Verification {
+        Verification::finished(Ok(()))
+    }
+
+    fn finished(outcome: std::result::Result<(), String>) -> Verification {
+        Verification { thread: Mutex::new(None), finish: Arc::new(AtomicBool::new(true)), outcome: OnceLock::from(outcome) }
+    }
+
+    /// Start checking `sections` of the file behind `map` against `sums`.
+    ///
+    /// # Errors
+    /// The thread cannot be started.
+    pub(super) fn start(file: File, map: Arc<Mmap>, sections: &[SectionEntry], sums: &[u64]) -> std::io::Result<Verification> {
+        let mut chunks = Vec::new();
+        for entry in sections {
+            match section_sums(entry, sums) {
+                Ok((kind, expected)) => chunks.extend(expected.iter().enumerate().map(|(i, &sum)| {
+                    let start = entry.offset + i as u64 * CHUNK;
+                    Chunk { start, end: (start + CHUNK).min(entry.offset + entry.len), sum, kind }
+                })),
+                Err(what) => return Ok(Verification::finished(Err(what))),
+            }
+        }
+        let finish = Arc::new(AtomicBool::new(false));
+        let flag = Arc::clone(&finish);
+        let handle = std::thread::Builder::new().name("plume-cache-verify".into()).spawn(move || {
+            // SAFETY: setpriority on this thread's own id only lowers its CPU priority.
+            unsafe {
+                libc::setpriority(libc::PRIO_PROCESS, libc::gettid() as libc::id_t, NICENESS);
+            }
+            check(&file, &map, chunks, &flag)
+        })?;
+        Ok(Verification { thread: Mutex::new(Some(handle)), finish, outcome: OnceLock::new() })
+    }
+
+    /// Finish the check (reading what the render did not bring into memory) and return
+    /// its outcome; `Err(what)` names the first chunk that failed.
+    ///
+    /// # Errors
+    /// The first failing chunk, described.
+    pub fn wait(&self) -> std::result::Result<(), String> {
+        self.outcome
+            .get_or_init(|| {
+                self.finish.store(true, Ordering::Relaxed);
+                let handle = self.thread.lock().map(|mut t| t.take()).ok().flatten();
+                match handle {
+                    Some(h) => {
+                        h.thread().unpark();
+                        h.join().unwrap_or_else(|_| Err("the verifier thread panicked".into()))
+                    }
+                    None => Ok(()),
+                }
+            })
+            .clone()
+    }
+}
+
+/// The checking thread: resident chunks from the mapping until `finish`, then the rest
+/// from the file. See the module docs.
+fn check(file: &File, map: &Mmap, mut pending: Vec<Chunk>, finish: &AtomicBool) -> std::result::Result<(), String> {
+    let mut residency = Vec::new();
+    while !pending.is_empty() && !finish.load(Ordering::Relaxed) {
+        let mut failed = None;
+        pending.retain(|c| {
+            if failed.is_some() || !resident(map, c, &mut residency) {
+                return true;
+            }
+            if xxhash_rust::xxh3::xxh3_64(&map[c.start as usize..c.end as usize]) != c.sum {
+                failed = Some(c.failed());
+            }
+            false
+        });
+        if let Some(what) = failed {
+            return Err(what);
+        }
+        std::thread::park_timeout(SWEEP_INTERVAL);
+    }
+    let mut buf = vec![0u8; CHUNK as usize];
+    pending.iter().try_for_each(|c| check_by_reading(file, c, &mut buf))
+}
+
+/// True when every page of chunk `c` is in memory (`mincore`; false if it cannot tell).
+fn resident(map: &Mmap, c: &Chunk, scratch: &mut Vec<u8>) -> bool {
+    let page = 4096usize;
+    let (start, len) = (c.start as usize, (c.end - c.start) as usize);
+    scratch.clear();
+    scratch.resize(len.div_ceil(page), 0);
+    // SAFETY: the range lies inside the mapping (section bounds were checked at open) and
+    // starts on a page boundary (sections are page-aligned, chunks a multiple of pages);
+    // mincore writes one byte per page into `scratch`, which has room for all of them.
+    let r = unsafe { libc::mincore(map.as_ptr().add(start) as *mut libc::c_void, len, scratch.as_mut_ptr()) };
+    r == 0 && scratch.iter().all(|&b| b & 1 == 1)
+}
+
+/// Check chunk `c` by reading the file, then let the kernel drop those pages (it does so
+/// only for pages nobody has mapped), so the check does not evict the render's pages.
+fn check_by_reading(file: &File, c: &Chunk, buf: &mut [u8]) -> std::result::Result<(), String> {
+    use std::os::fd::AsRawFd;
+    use std::os::unix::fs::FileExt;
+    let bytes = &mut buf[..(c.end - c.start) as usize];
+    file.read_exact_at(bytes, c.start).map_err(|e| format!("the {} section cannot be read at byte {}: {e}", c.kind, c.start))?;
+    if xxhash_rust::xxh3::xxh3_64(bytes) != c.sum {
+        return Err(c.failed());
+    }
+    // SAFETY: posix_fadvise only advises the kernel about this open descriptor's pages.
+    unsafe {
+        libc::posix_fadvise(file.as_raw_fd(), c.start as libc::off_t, (c.end - c.start) as libc::off_t, libc::POSIX_FADV_DONTNEED);
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::io::Write;
+
+    /// A file of `n` chunks of distinct bytes and their chunk records.
+    fn chunked_file(name: &str, n: u64) -> (std::path::PathBuf, Vec<Chunk>) {
+        let path = std::env::temp_dir().join(format!("plume-verify-{name}-{}", std::process::id()));
+        let mut f = File::create(&path).unwrap();
+        let mut chunks = Vec::new();
+        for i in 0..n {
+            let bytes: Vec<u8> = (0..CHUNK).map(|b| (b as u8).wrapping_mul(31).wrapping_add(i as u8)).collect();
+            f.write_all(&bytes).unwrap();
+            let start = i * CHUNK;
+            chunks.push(Chunk { start, end: start + CHUNK, sum: xxhash_rust::xxh3::xxh3_64(&bytes), kind: "values" });
+        }
+        f.sync_all().unwrap();
+        (path, chunks)
+    }
+
+    /// Both phases check every chunk and report a bad one: phase 1 from the mapping (the
+    /// freshly written file is in the page cache), phase 2 by reading (asked to finish
+    /// at once).
+    #[test]
+    fn both_phases_check_every_chunk() {
+        let (path, mut chunks) = chunked_file("phases", 6);
+        let file = File::open(&path).unwrap();
+        // SAFETY: a private temporary file nobody else writes.
+        let map = unsafe { Mmap::map(&file) }.unwrap();
+        assert!(chunks.iter().all(|c| resident(&map, c, &mut Vec::new())), "a file just written is resident");
+        for finish_at_once in [false, true] {
+            let flag = AtomicBool::new(finish_at_once);
+            assert_eq!(check(&file, &map, chunks.clone(), &flag), Ok(()));
+            let mut bad = chunks.clone();
+            bad[4].sum ^= 1;
+            let err = check(&file, &map, bad, &AtomicBool::new(finish_at_once)).unwrap_err();
+            assert!(err.contains(&format!("{}..{}", 4 * CHUNK, 5 * CHUNK)), "{err}");
+        }
+        // Through the thread: a damaged sum is reported by wait()
+        chunks[2].sum ^= 1;
+        let entry_sums: Vec<u64> = chunks.iter().map(|c| c.sum).collect();
+        let entry = SectionEntry { kind: SectionKind::Values as u32, offset: 0, len: 6 * CHUNK, first_chunk: 0, checksum: 0 };
+        let v = Verification::start(File::open(&path).unwrap(), Arc::new(map), &[entry], &entry_sums).unwrap();
+        let err = v.wait().unwrap_err();
+        assert!(err.contains(&format!("{}..{}", 2 * CHUNK, 3 * CHUNK)), "{err}");
+        assert_eq!(v.wait().unwrap_err(), err, "the outcome is kept");
+        let _ = std::fs::remove_file(&path);
+    }
+}

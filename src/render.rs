@@ -26,7 +26,7 @@ use rayon::prelude::*;
 use crate::film::{Crop, Film, Tile};
 use crate::integrator::{Counters, Integrator, NoTrace, Scene};
 use crate::sampling::Sampler;
-use crate::volume::field::Field;
+use crate::volume::field::{Field, RayGrid};
 
 /// How many samples to take.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -295,6 +295,7 @@ fn tile_major_pass<F: Field>(
     let ahead = pool.current_num_threads() + PREFETCH_AHEAD;
     std::thread::scope(|s| {
         if scene.field.is_mapped() {
+            scene.field.expect_prefetch();
             s.spawn(|| prefetch_tiles(scene, &rects, &taken, &finished, ahead));
         }
         pool.broadcast(|_| loop {
@@ -322,10 +323,10 @@ fn tile_major_pass<F: Field>(
     Some(results.into_iter().map(|(_, c)| c).collect())
 }
 
-/// The prefetch thread of a tile-major pass: keeps the pixel-centre camera rays of the
-/// tiles up to `ahead` beyond the last one taken handed to `Field::prefetch`.
+/// The prefetch thread of a tile-major pass: hands the rays through the pixel corners of
+/// the tiles up to `ahead` beyond the last one taken to `Field::prefetch`.
 fn prefetch_tiles<F: Field>(scene: &Scene<F>, rects: &[(u32, u32, u32, u32)], taken: &AtomicUsize, finished: &AtomicBool, ahead: usize) {
-    let mut rays = Vec::new();
+    let mut grid = RayGrid::default();
     for (i, &(x0, y0, w, h)) in rects.iter().enumerate() {
         while i >= taken.load(Ordering::Relaxed) + ahead {
             if finished.load(Ordering::Relaxed) {
@@ -336,12 +337,13 @@ fn prefetch_tiles<F: Field>(scene: &Scene<F>, rects: &[(u32, u32, u32, u32)], ta
         if finished.load(Ordering::Relaxed) {
             return;
         }
-        rays.clear();
-        for y in y0..y0 + h {
-            for x in x0..x0 + w {
-                rays.push(scene.camera.ray(f64::from(x) + 0.5, f64::from(y) + 0.5));
+        grid.rays.clear();
+        (grid.cells_x, grid.cells_y) = (w as usize, h as usize);
+        for y in y0..=y0 + h {
+            for x in x0..=x0 + w {
+                grid.rays.push(scene.camera.ray(f64::from(x), f64::from(y)));
             }
         }
-        scene.field.prefetch(&rays);
+        scene.field.prefetch(&grid);
     }
 }

@@ -153,6 +153,9 @@ pub struct Volume {
     pub(crate) pyramid: Pyramid,
     /// Input clean-up counts.
     pub report: BuildReport,
+    /// Read-ahead only (`volume::prefetch`): one bit per table cell, set where a brick
+    /// is; built on first use.
+    pub(crate) occupancy: std::sync::OnceLock<Vec<u64>>,
 }
 
 fn floor_div(a: i32, b: i32) -> i32 {
@@ -240,6 +243,7 @@ impl Volume {
             values,
             pyramid,
             report: built.report,
+            occupancy: std::sync::OnceLock::new(),
         }
     }
 
@@ -257,7 +261,7 @@ impl Volume {
         pyramid: Pyramid,
         report: BuildReport,
     ) -> Volume {
-        Volume { world_from_index, index_from_world: world_from_index.inverse(), brick_lo, dims, table, bricks, values, pyramid, report }
+        Volume { world_from_index, index_from_world: world_from_index.inverse(), brick_lo, dims, table, bricks, values, pyramid, report, occupancy: std::sync::OnceLock::new() }
     }
 
     fn empty(world_from_index: DAffine3, index_from_world: DAffine3) -> Volume {
@@ -271,6 +275,7 @@ impl Volume {
             values: Buffer::default(),
             pyramid: Pyramid::default(),
             report: BuildReport::default(),
+            occupancy: std::sync::OnceLock::new(),
         }
     }
 

@@ -23,7 +23,7 @@
 use glam::{DVec3, IVec3};
 
 use super::brick::{Brick, Volume, BRICK};
-use super::field::{clip_to_box, Field, Ray, Segment, SegmentIter};
+use super::field::{clip_to_box, Field, Ray, RayGrid, Segment, SegmentIter};
 
 /// Voxel containing coordinate `p` along an axis moving in direction `d`; on a boundary,
 /// the voxel being entered.
@@ -309,8 +309,12 @@ impl Field for Volume {
         self.lookup_world(p_world)
     }
 
-    fn prefetch(&self, rays: &[Ray]) {
-        self.read_ahead(rays);
+    fn prefetch(&self, grid: &RayGrid) {
+        self.read_ahead(grid);
+    }
+
+    fn expect_prefetch(&self) {
+        self.expect_read_ahead();
     }
 
     fn is_mapped(&self) -> bool {

@@ -91,6 +91,43 @@ impl SegmentIter for VecSegments {
     }
 }
 
+/// The rays through the corners of a grid of image cells, e.g. the pixel corners of a
+/// tile: `(cells_x + 1) × (cells_y + 1)` rays, row by row. Every camera ray of the tile
+/// lies between four of them.
+#[derive(Clone, Debug, Default)]
+pub struct RayGrid {
+    /// Corner rays, x fastest.
+    pub rays: Vec<Ray>,
+    /// Cells across.
+    pub cells_x: usize,
+    /// Cells down.
+    pub cells_y: usize,
+}
+
+impl RayGrid {
+    /// Corner ray `(i, j)`, `i ≤ cells_x`, `j ≤ cells_y`.
+    #[must_use]
+    pub fn corner(&self, i: usize, j: usize) -> &Ray {
+        &self.rays[j * (self.cells_x + 1) + i]
+    }
+
+    /// The ray at fractional corner coordinates `(u, v)`: origins and directions
+    /// interpolated bilinearly in the cell around it (not normalized). For a pinhole
+    /// camera this is the ray through the same image-plane point, bent only by the
+    /// corner directions having been normalized (under 10⁻⁴ across a pixel).
+    #[must_use]
+    pub fn at(&self, u: f64, v: f64) -> Ray {
+        let (i, j) = ((u.floor() as usize).min(self.cells_x.saturating_sub(1)), (v.floor() as usize).min(self.cells_y.saturating_sub(1)));
+        let (fu, fv) = (u - i as f64, v - j as f64);
+        let lerp = |a: DVec3, b: DVec3, f: f64| a + (b - a) * f;
+        let (r00, r10, r01, r11) = (self.corner(i, j), self.corner(i + 1, j), self.corner(i, j + 1), self.corner(i + 1, j + 1));
+        Ray {
+            origin: lerp(lerp(r00.origin, r10.origin, fu), lerp(r01.origin, r11.origin, fu), fv),
+            direction: lerp(lerp(r00.direction, r10.direction, fu), lerp(r01.direction, r11.direction, fu), fv),
+        }
+    }
+}
+
 /// A piecewise-constant scalar volume that can be traversed along rays.
 pub trait Field: Sync {
     /// Iterator type returned by [`Field::segments`].
@@ -108,9 +145,14 @@ pub trait Field: Sync {
     /// `(density, source)` at a world point (for next-event sampling of a chosen point).
     fn values_at(&self, p_world: DVec3) -> (f32, f32);
 
-    /// `rays` will be traced soon: a field paged from disk may start reading what they
-    /// cross (`volume::prefetch`). A hint that never changes a result; nothing by default.
-    fn prefetch(&self, _rays: &[Ray]) {}
+    /// Rays through `grid` will be traced soon: a field paged from disk may start reading
+    /// what they cross (`volume::prefetch`). A hint that never changes a result; nothing
+    /// by default.
+    fn prefetch(&self, _grid: &RayGrid) {}
+
+    /// The render will [`Field::prefetch`] ahead of its rays from now on (a field paged
+    /// from disk may then stop reading ahead on its own). Nothing by default.
+    fn expect_prefetch(&self) {}
 
     /// True when the field's data are paged from a file rather than held in memory.
     fn is_mapped(&self) -> bool {
@@ -252,5 +294,31 @@ impl Field for Strip {
         let n = self.cells.len();
         let width = (self.hi.x - self.lo.x) / n as f64;
         self.cells[(((p.x - self.lo.x) / width) as usize).min(n - 1)]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Between corner rays of a pinhole grid, `RayGrid::at` gives the ray through the
+    /// image-plane point the camera would use, to within the bend of interpolating unit
+    /// directions.
+    #[test]
+    fn ray_grid_interpolates_between_pinhole_corner_rays() {
+        let eye = DVec3::new(1.0, -2.0, 3.0);
+        let plane = |x: f64, y: f64| DVec3::new(0.3 * x - 1.0, 0.2 * y + 0.5, -1.0);
+        let ray = |x: f64, y: f64| Ray { origin: eye, direction: plane(x, y).normalize() };
+        let (cx, cy) = (4, 3);
+        let rays = (0..=cy).flat_map(|j| (0..=cx).map(move |i| (i, j))).map(|(i, j)| ray(f64::from(i), f64::from(j))).collect();
+        let grid = RayGrid { rays, cells_x: cx as usize, cells_y: cy as usize };
+        for (u, v) in [(0.0, 0.0), (4.0, 3.0), (1.25, 2.5), (3.9, 0.1)] {
+            let r = grid.at(u, v);
+            assert_eq!(r.origin, eye);
+            let want = plane(u, v).normalize();
+            // Directions are interpolated unnormalized: same line, within the cell's curvature
+            assert!(r.direction.normalize().dot(want) > 1.0 - 1e-4, "({u}, {v})");
+        }
+        assert_eq!(grid.at(2.0, 1.0).direction, grid.corner(2, 1).direction);
     }
 }

@@ -93,6 +93,18 @@ impl<T: Pod> Buffer<T> {
             }
         }
     }
+
+    /// Tell the OS that page faults on this buffer come at random (`MADV_RANDOM`): a fault
+    /// then reads its page, not the read-around window (`read_ahead_kb`, up to megabytes),
+    /// for a reader that asks for what it needs with [`Buffer::will_need`]. A hint:
+    /// nothing for a heap buffer.
+    pub fn fault_pages_only(&self) {
+        let Owner::Map(map) = &self.owner else { return };
+        if self.len > 0 {
+            let base = self.ptr as usize - map.as_ptr() as usize;
+            let _ = map.advise_range(memmap2::Advice::Random, base, self.byte_len());
+        }
+    }
 }
 
 impl<T: Pod> Default for Buffer<T> {

@@ -418,7 +418,8 @@ pub struct RenderArgs {
     /// Seed of the sample streams (default: the frame number with --frames, else 0).
     #[arg(long)]
     pub seed: Option<u64>,
-    /// Worker threads (0 = all cores). The image does not depend on it.
+    /// Worker threads (0 = all cores, and one more when rendering tile by tile from a
+    /// brick cache, where workers wait for the disk). The image does not depend on it.
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
     /// Image width in pixels.

@@ -292,7 +292,7 @@ pub fn host_name() -> String {
 /// The temporary file beside `path`: `.NAME.HOST.PID.tmp`. Named after host and
 /// process, so that a rerun can tell a killed run's leftovers from files being written
 /// right now ([`remove_stale_temporaries`]).
-fn temporary_path(path: &Path) -> PathBuf {
+pub(crate) fn temporary_path(path: &Path) -> PathBuf {
     let name = path.file_name().map_or_else(|| "out".into(), |n| n.to_string_lossy().into_owned());
     parent_dir(path).join(format!(".{name}.{}.{}.tmp", temporary_host(), std::process::id()))
 }

@@ -47,7 +47,8 @@ pub struct RenderSettings {
     pub budget: SampleBudget,
     /// Seed of every sample stream.
     pub seed: u64,
-    /// Worker threads (0 = all cores).
+    /// Worker threads (0 = all cores, and one more in tile-major order from a mapped
+    /// volume, where workers wait on page faults).
     pub threads: usize,
     /// First sample index (sample ranges; 0 normally).
     pub first_sample: u64,
@@ -168,8 +169,15 @@ pub fn render<F: Field>(scene: &Scene<F>, settings: &RenderSettings, on_pass: &(
 /// # Panics
 /// If the rayon pool cannot be built, or `control.film` does not match the crop.
 pub fn render_with<F: Field>(scene: &Scene<F>, settings: &RenderSettings, control: RenderControl<'_>, on_pass: &(dyn Fn(u64, u64) + Sync)) -> RenderResult {
+    // Out of core, a worker waiting on a page fault leaves its core idle: by default one
+    // worker more than cores keeps them busy (measured: +8 % on the 33 GB flare, 2 cores)
+    let out_of_core = control.order == SampleOrder::TileMajor && scene.field.is_mapped();
+    let threads = match settings.threads {
+        0 if out_of_core => std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get) + 1,
+        n => n,
+    };
     let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(settings.threads)
+        .num_threads(threads)
         .build()
         .expect("invariant: a rayon pool can be built");
     let (width, height) = (scene.camera.width, scene.camera.height);

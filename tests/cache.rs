@@ -45,8 +45,16 @@ fn cached_renders_are_bit_identical_to_in_core_renders() {
     let dir = tmpdir("cache", "roundtrip");
     let vdb = explosion(&dir, 64);
     let cache = dir.join("ex.plume");
+    // The temporary a killed conversion left (a process that has exited) is removed
+    let dead = std::process::Command::new("true").spawn().unwrap();
+    let pid = dead.id();
+    let _ = dead.wait_with_output();
+    let host = std::fs::read_to_string("/proc/sys/kernel/hostname").unwrap().trim().replace(['/', '.'], "_");
+    let stale = dir.join(format!(".ex.plume.{host}.{pid}.tmp"));
+    std::fs::write(&stale, b"half a cache").unwrap();
     let o = plume(&["prepare", s(&vdb), "-o", s(&cache)]);
     assert!(o.status.success(), "{}", stderr(&o));
+    assert!(!stale.exists(), "a dead conversion's temporary is removed");
     // Every estimator and light sampling; FNEE uses the stored proxy power
     for (name, flags) in [
         ("line-fnee", &["--albedo", "0.8", "--g", "0.3"][..]),

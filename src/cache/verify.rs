@@ -3,7 +3,7 @@
 //!
 //! A render of a cache larger than memory reads the file from disk once at best, and a
 //! check that read it all again would double the disk traffic and take CPU from the
-//! render. So the check runs in two phases, at low CPU priority (`nice` 10):
+//! render. So the check runs in two phases, at the lowest CPU priority (`nice` 19):
 //!
 //! 1. **While rendering**, in a sweep every second, it hashes only the chunks that
 //!    are wholly in the page cache (`mincore`), straight from the mapping: no disk read,
@@ -27,7 +27,7 @@ use super::format::{SectionEntry, SectionKind, CHUNK};
 /// Time between two sweeps of phase 1.
 const SWEEP_INTERVAL: Duration = Duration::from_secs(1);
 /// CPU niceness of the checking thread.
-const NICENESS: libc::c_int = 10;
+const NICENESS: libc::c_int = 19;
 
 /// The outcome of checking a cache's large sections in the background.
 #[derive(Debug)]

@@ -180,8 +180,10 @@ impl CacheWriter {
     /// A table too large, or the file cannot be created.
     pub fn create(path: &Path, world_from_index: DAffine3, brick_lo: IVec3, dims: IVec3, what: &str) -> Result<CacheWriter> {
         let builder = BrickTableBuilder::new(brick_lo, dims, what)?;
-        let name = path.file_name().map_or_else(|| "cache".into(), |n| n.to_string_lossy().into_owned());
-        let tmp = path.with_file_name(format!(".{name}.tmp-{}", std::process::id()));
+        // A killed conversion leaves its temporary (tens of GB at scale): remove those of
+        // dead processes, as renders do for their outputs
+        crate::output::remove_stale_temporaries(path);
+        let tmp = crate::output::temporary_path(path);
         // Read access too: `finish` maps the values written so far
         let file = File::options()
             .read(true)
@@ -331,7 +333,9 @@ impl CacheWriter {
         let io = |e| Error::Write { path: tmp.clone(), source: e };
         file.seek(SeekFrom::Start(0)).map_err(io)?;
         file.write_all(bytemuck::bytes_of(&header)).map_err(io)?;
-        file.sync_all().map_err(io)?;
+        // No fsync: the kernel writes the pages back in its own time. A cache torn by a
+        // crash before that fails its checksums when opened and is rebuilt or refused,
+        // never trusted, so waiting here for gigabytes to reach the disk buys nothing.
         drop(file);
         std::fs::rename(&tmp, &final_path).map_err(|e| Error::Write { path: final_path.clone(), source: e })?;
         Ok(final_path)

@@ -124,7 +124,7 @@ impl Volume {
             for i in 0..=grid.cells_x * n {
                 let ray = grid.at(i as f64 / n as f64, j as f64 / n as f64);
                 cells_along(&self.index_from_world, self.brick_lo, self.dims, &ray, 0.0, f64::INFINITY, |cell| {
-                    if occupied[cell / 64] & (1 << (cell % 64)) == 0 || !seen.insert(cell) {
+                    if occupied.get(cell / 64).map_or(true, |w| w & (1 << (cell % 64)) == 0) || !seen.insert(cell) {
                         return;
                     }
                     let Some(brick) = self.table.get(cell).and_then(|&i| self.bricks.get(i as usize)) else { return };
@@ -142,15 +142,20 @@ impl Volume {
     }
 
     /// Sub-rays per cell edge so that neighbouring walked rays are at most
-    /// [`RAY_SPACING_VOXELS`] apart where they leave the volume (the widest point of a
-    /// perspective frustum inside it), judged at the grid's two extreme cells.
+    /// [`RAY_SPACING_VOXELS`] apart anywhere in the volume: judged at the grid's two
+    /// extreme cells, at the parameter of the volume's farthest corner (a perspective
+    /// frustum is widest there).
     fn subdivision(&self, grid: &RayGrid) -> usize {
         let (lo, hi) = self.world_bounds();
         let a = self.index_from_world.matrix3;
         let mut widest: f64 = 0.0;
         for (i, j) in [(0, 0), (grid.cells_x - 1, grid.cells_y - 1)] {
             let r = grid.corner(i, j);
-            let Some((_, t_far)) = clip_to_box(r.origin, r.direction, lo, hi, 0.0, f64::INFINITY) else { continue };
+            let far = (0..8)
+                .map(|k| DVec3::new(if k & 1 == 0 { lo.x } else { hi.x }, if k & 2 == 0 { lo.y } else { hi.y }, if k & 4 == 0 { lo.z } else { hi.z }))
+                .map(|c| (c - r.origin).length())
+                .fold(0.0, f64::max);
+            let t_far = far / r.direction.length().max(f64::MIN_POSITIVE);
             for other in [grid.corner(i + 1, j), grid.corner(i, j + 1), grid.corner(i + 1, j + 1)] {
                 let apart = (r.origin - other.origin) + (r.direction - other.direction) * t_far;
                 widest = widest.max((a * apart).length());

@@ -53,7 +53,8 @@ pub fn run(cli: Cli, command_line: &str) -> Result<()> {
     }
 }
 
-const GIB: f64 = 1024.0 * 1024.0 * 1024.0;
+/// Bytes per GiB, for messages.
+pub(crate) const GIB: f64 = 1024.0 * 1024.0 * 1024.0;
 
 /// Largest estimated in-core size for `plume synth flare -o x.vdb`.
 const FLARE_VDB_LIMIT_BYTES: u64 = 8 << 30;

@@ -17,7 +17,7 @@ use glam::IVec3;
 use super::format::InputFingerprint;
 use super::reader::Cache;
 use super::writer::{CacheInfo, CacheWriter, ProxySpec};
-use crate::app::{emission, emission_kind, grid_requests, memory_budget, reading};
+use crate::app::{emission, emission_kind, grid_requests, memory_budget, reading, GIB};
 use crate::cli::{EmissionArg, GridArgs, PrepareArgs, RenderArgs};
 use crate::color::Rgb;
 use crate::error::{Error, Result};
@@ -307,8 +307,6 @@ pub fn check_light_budget(volume: &Volume, light_sampling: LightSampling, budget
     Ok(())
 }
 
-const GIB: f64 = 1024.0 * 1024.0 * 1024.0;
-
 /// Where the automatic cache of `args.file` lives: `--cache-dir`, else beside the input,
 /// else `$XDG_CACHE_HOME/plume` (or `~/.cache/plume`). The name carries a hash of the
 /// grid flags, so renders with different grids or mappings keep separate caches.
@@ -332,7 +330,7 @@ fn auto_cache_path(args: &RenderArgs) -> PathBuf {
     if let Some(dir) = &args.cache_dir {
         return dir.join(name);
     }
-    let beside = args.file.parent().map_or_else(|| PathBuf::from("."), |p| if p.as_os_str().is_empty() { PathBuf::from(".") } else { p.to_path_buf() });
+    let beside = crate::output::parent_dir(&args.file);
     if writable(&beside) {
         return beside.join(name);
     }

@@ -349,7 +349,7 @@ impl CacheWriter {
 /// As [`CacheWriter::finish`].
 pub fn write_volume(path: &Path, volume: &Volume, info: &CacheInfo, proxy: Option<ProxySpec<'_>>) -> Result<PathBuf> {
     use crate::volume::brick::Slot;
-    use crate::vdb::leaf_offset;
+    use crate::volume::builder::{slot_at, LEAF_TO_BRICK};
     let mut w = CacheWriter::create(path, volume.world_from_index(), volume.brick_lo, volume.dims, &info.density_grid)?;
     let mut leaf = [0.0f32; LEAF_VOXELS];
     let (lo, dims) = (volume.brick_lo, volume.dims);
@@ -362,12 +362,8 @@ pub fn write_volume(path: &Path, volume: &Volume, info: &CacheInfo, proxy: Optio
                     match slot.get() {
                         Slot::Constant(v) => w.put_constant(b, channel, v)?,
                         Slot::Dense(_) => {
-                            for lx in 0..8 {
-                                for ly in 0..8 {
-                                    for lz in 0..8 {
-                                        leaf[leaf_offset(lx, ly, lz)] = volume.slot_value(slot, lx, ly, lz);
-                                    }
-                                }
+                            for (v, &at) in leaf.iter_mut().zip(LEAF_TO_BRICK.iter()) {
+                                *v = slot_at(&volume.values, slot, usize::from(at));
                             }
                             w.put(b, channel, &leaf, |v| v)?;
                         }

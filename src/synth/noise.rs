@@ -44,11 +44,7 @@ fn fmix32(mut h: u32) -> u32 {
 /// streams from the user's 64-bit seed and a stream number.
 #[must_use]
 pub(crate) fn stream_seed(seed: u64, stream: u64) -> u32 {
-    let mut z = seed ^ stream.wrapping_mul(0x9e37_79b9_7f4a_7c15);
-    z = z.wrapping_add(0x9e37_79b9_7f4a_7c15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-    z ^= z >> 31;
+    let z = crate::sampling::mix64((seed ^ stream.wrapping_mul(0x9e37_79b9_7f4a_7c15)).wrapping_add(0x9e37_79b9_7f4a_7c15));
     (z ^ (z >> 32)) as u32
 }
 

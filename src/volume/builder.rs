@@ -12,7 +12,7 @@ use crate::error::{Error, Result};
 use crate::vdb::{leaf_offset, LEAF_VOXELS};
 
 /// Brick-order offset ([`brick_offset`]) of each leaf-order offset ([`leaf_offset`]).
-static LEAF_TO_BRICK: [u16; LEAF_VOXELS] = {
+pub(crate) static LEAF_TO_BRICK: [u16; LEAF_VOXELS] = {
     let mut table = [0u16; LEAF_VOXELS];
     let mut i = 0;
     while i < LEAF_VOXELS {

@@ -124,7 +124,7 @@ impl Volume {
             for i in 0..=grid.cells_x * n {
                 let ray = grid.at(i as f64 / n as f64, j as f64 / n as f64);
                 cells_along(&self.index_from_world, self.brick_lo, self.dims, &ray, 0.0, f64::INFINITY, |cell| {
-                    if occupied.get(cell / 64).map_or(true, |w| w & (1 << (cell % 64)) == 0) || !seen.insert(cell) {
+                    if occupied.get(cell / 64).is_none_or(|w| w & (1 << (cell % 64)) == 0) || !seen.insert(cell) {
                         return;
                     }
                     let Some(brick) = self.table.get(cell).and_then(|&i| self.bricks.get(i as usize)) else { return };

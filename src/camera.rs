@@ -33,19 +33,19 @@ impl Camera {
     /// outside (0, 180) degrees, or a zero image size.
     pub fn look_at(from: DVec3, at: DVec3, up: DVec3, fov_degrees: f64, width: u32, height: u32) -> Result<Camera> {
         if !(from.is_finite() && at.is_finite() && up.is_finite()) {
-            return Err(Error::invalid("--camera-from/--camera-at/--camera-up", "components must be finite"));
+            return Err(Error::invalid("camera.from/camera.at/camera.up", "components must be finite"));
         }
         let forward = (at - from).try_normalize().ok_or_else(|| {
-            Error::invalid("--camera-at", "must differ from --camera-from")
+            Error::invalid("camera.at", "must differ from camera.from")
         })?;
         let right = forward.cross(up).try_normalize().ok_or_else(|| {
-            Error::invalid("--camera-up", "must not be zero or parallel to the view direction")
+            Error::invalid("camera.up", "must not be zero or parallel to the view direction")
         })?;
         if !(fov_degrees > 0.0 && fov_degrees < 180.0) {
-            return Err(Error::invalid("--fov", format!("{fov_degrees} is not in (0, 180) degrees")));
+            return Err(Error::invalid("camera.fov", format!("{fov_degrees} is not in (0, 180) degrees")));
         }
         if width == 0 || height == 0 {
-            return Err(Error::invalid("--width/--height", "image size must be at least 1x1"));
+            return Err(Error::invalid("camera.width/camera.height", "image size must be at least 1x1"));
         }
         let tan_half_x = (fov_degrees.to_radians() * 0.5).tan();
         let tan_half_y = tan_half_x * f64::from(height) / f64::from(width);

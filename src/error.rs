@@ -98,6 +98,19 @@ pub enum Error {
         /// Why.
         message: String,
     },
+    /// A scene file (`plume render shot.toml`) does not parse, has an unknown key or a
+    /// value of the wrong type or out of range.
+    #[error("{}{}: {}{message}", .path.display(), .line.map(|l| format!(":{l}")).unwrap_or_default(), .key.as_ref().map(|k| format!("key `{k}`: ")).unwrap_or_default())]
+    SceneFile {
+        /// The scene file.
+        path: PathBuf,
+        /// 1-based line, where known.
+        line: Option<usize>,
+        /// The dotted key (`camera.width`), where known.
+        key: Option<String>,
+        /// What is wrong.
+        message: String,
+    },
     /// Writing an output failed (nothing is left half-written).
     #[error("cannot write {}: {source}", .path.display())]
     Write {
@@ -167,7 +180,7 @@ impl Error {
     #[must_use]
     pub fn exit_code(&self) -> i32 {
         match self {
-            Error::InvalidArgument { .. } => 2,
+            Error::InvalidArgument { .. } | Error::SceneFile { .. } => 2,
             Error::Open { .. }
             | Error::Vdb { .. }
             | Error::GridNotFound { .. }

@@ -6,13 +6,15 @@
 //! `../shared/METHOD.md` for the maths.
 //!
 //! Data flows one way:
-//! `.vdb → vdb (shim) → volume (bricks + pyramid) → medium → integrator → film → EXR`.
+//! `scene description → load (vdb shim or brick cache → volume: bricks + pyramid) → medium
+//! → integrator → render → film → EXR`.
+//!
+//! The library has no command-line types: the `plume` binary turns flags and scene files
+//! into a [`scene::Shot`], validates it once, and hands it to `farm::job`.
 
-pub mod app;
 pub mod bench;
 pub mod cache;
 pub mod camera;
-pub mod cli;
 pub mod color;
 pub mod error;
 pub mod farm;
@@ -20,10 +22,12 @@ pub mod film;
 pub mod info;
 pub mod integrator;
 pub mod light;
+pub mod load;
 pub mod medium;
 pub mod output;
 pub mod render;
 pub mod sampling;
+pub mod scene;
 pub mod stats;
 pub mod synth;
 pub mod vdb;

@@ -1,7 +1,10 @@
-//! The `plume` command-line tool: parses arguments, runs the library, and turns an error
-//! into a one-line message on stderr and a non-zero exit code.
+//! The `plume` command-line tool: parses arguments into the library's types, runs the
+//! library, and turns an error into a one-line message on stderr and a non-zero exit
+//! code. The command line (clap) lives here, in `cli/`, and nowhere in the library.
 
-use clap::Parser;
+mod cli;
+
+use clap::{CommandFactory, FromArgMatches};
 
 use plume::vdb::isolate;
 
@@ -16,8 +19,9 @@ fn main() {
         isolate::set_reader_exe(exe);
     }
     let command_line = std::env::args().collect::<Vec<_>>().join(" ");
-    let cli = plume::cli::Cli::parse();
-    if let Err(e) = plume::app::run(cli, &command_line) {
+    let matches = cli::Cli::command().get_matches();
+    let parsed = cli::Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
+    if let Err(e) = cli::commands::run(parsed, &matches, &command_line) {
         // Messages already carry their cause; one line, naming the file/grid/flag.
         eprintln!("plume: error: {e}");
         std::process::exit(e.exit_code());

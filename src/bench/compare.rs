@@ -23,7 +23,6 @@ use super::metrics::{mean_rgb, Errors, Spread, RELMSE_TRIM};
 use super::progressive::{self, RunPlan, RunResult, Snapshot};
 use super::spec::{BenchScene, MethodSpec};
 use super::{peak_rss_bytes, reset_peak_rss};
-use crate::app::integrator;
 use crate::error::{Error, Result};
 use crate::integrator::{Integrator, LightSampling, Lights};
 use crate::medium::Estimator;
@@ -58,7 +57,7 @@ pub struct Reference {
 /// True when the scene's paths never scatter (emission–absorption only).
 #[must_use]
 pub fn emission_only(scene: &BenchScene) -> bool {
-    !(scene.args.albedo() > 0.0 && scene.args.max_depth > 0)
+    !scene.shot.scene.scatters()
 }
 
 /// Build the light structures of `light_sampling` into the scene (nothing when paths do
@@ -72,7 +71,7 @@ fn install_lights(scene: &mut BenchScene, light_sampling: LightSampling, proxy_r
 }
 
 fn integrator_for(scene: &BenchScene, estimator: Estimator, light_sampling: LightSampling) -> Integrator {
-    Integrator { estimator, light_sampling, ..integrator(&scene.args) }
+    Integrator { estimator, light_sampling, ..scene.shot.scene.integrator() }
 }
 
 /// Read a reference EXR and check its size against the scene's.
@@ -81,8 +80,8 @@ fn integrator_for(scene: &BenchScene, estimator: Estimator, light_sampling: Ligh
 /// An unreadable file, or a size other than `--width`×`--height`.
 pub fn read_reference(path: &std::path::Path, scene: &BenchScene) -> Result<Reference> {
     let (w, h, pixels) = crate::output::read_exr(path)?;
-    if (w, h) != (scene.args.width, scene.args.height) {
-        return Err(Error::invalid("--reference", format!("{} is {w}x{h}, the scene renders {}x{}", path.display(), scene.args.width, scene.args.height)));
+    if (w, h) != (scene.shot.scene.camera.width, scene.shot.scene.camera.height) {
+        return Err(Error::invalid("--reference", format!("{} is {w}x{h}, the scene renders {}x{}", path.display(), scene.shot.scene.camera.width, scene.shot.scene.camera.height)));
     }
     Ok(Reference { pixels, width: w, height: h, description: format!("given: {}", path.display()), method: "given".into(), spp: 0, cpu_seconds: 0.0, wall_seconds: 0.0, noise_rmse: None })
 }
@@ -97,13 +96,13 @@ pub fn make_reference(scene: &mut BenchScene, cpu_seconds: f64, on_line: &dyn Fn
     } else {
         ("line-fnee", Estimator::Line, LightSampling::Fnee, "long line-fnee run: the scene scatters")
     };
-    install_lights(scene, ls, crate::volume::proxy::ProxyGrid::resolution_for(&scene.loaded.scene.field, scene.args.proxy_resolution))?;
+    install_lights(scene, ls, crate::volume::proxy::ProxyGrid::resolution_for(&scene.loaded.scene.field, scene.shot.scene.integrator.proxy_resolution))?;
     let integ = integrator_for(scene, estimator, ls);
     let wall = Instant::now();
     let halves: Vec<RunResult> = REFERENCE_SEEDS
         .iter()
         .map(|&seed| {
-            let plan = RunPlan { cpu_checkpoints: vec![0.5 * cpu_seconds], min_spp: 1, seed, threads: scene.args.threads };
+            let plan = RunPlan { cpu_checkpoints: vec![0.5 * cpu_seconds], min_spp: 1, seed, threads: scene.shot.settings.render.threads };
             progressive::run(&scene.loaded.scene, &integ, &plan, None, 0.0)
         })
         .collect();
@@ -117,7 +116,7 @@ pub fn make_reference(scene: &mut BenchScene, cpu_seconds: f64, on_line: &dyn Fn
     let wall = wall.elapsed().as_secs_f64();
     let description = format!("computed: {why}; {spp} spp in {cpu:.1} CPU s ({wall:.1} s wall), two halves with seeds unused by the runs");
     on_line(&format!("reference: {description}; estimated own RMSE {noise:.4e}"));
-    Ok(Reference { pixels, width: scene.args.width, height: scene.args.height, description, method: method.into(), spp, cpu_seconds: cpu, wall_seconds: wall, noise_rmse: Some(noise) })
+    Ok(Reference { pixels, width: scene.shot.scene.camera.width, height: scene.shot.scene.camera.height, description, method: method.into(), spp, cpu_seconds: cpu, wall_seconds: wall, noise_rmse: Some(noise) })
 }
 
 /// Settings of a comparison.
@@ -208,7 +207,7 @@ pub struct MethodResult {
 pub struct CompareReport {
     /// Scene spec.
     pub scene: String,
-    /// Render flags.
+    /// How the scene was given besides its spec (render flags or a scene file).
     pub flags: Vec<String>,
     /// Image size.
     pub width: u32,
@@ -245,7 +244,7 @@ pub struct CompareReport {
 /// # Errors
 /// A reference of the wrong size, or light structures that cannot be built.
 pub fn compare(scene: &mut BenchScene, reference: &Reference, cfg: &CompareConfig, on_line: &dyn Fn(&str)) -> Result<CompareReport> {
-    let (w, h) = (scene.args.width, scene.args.height);
+    let (w, h) = (scene.shot.scene.camera.width, scene.shot.scene.camera.height);
     if (reference.width, reference.height) != (w, h) {
         return Err(Error::invalid("--reference", format!("reference is {}x{}, the scene renders {w}x{h}", reference.width, reference.height)));
     }
@@ -256,14 +255,14 @@ pub fn compare(scene: &mut BenchScene, reference: &Reference, cfg: &CompareConfi
     let mut raw: Vec<(MethodResult, Vec<RunResult>)> = Vec::new();
     for m in &cfg.methods {
         let per_method = reset_peak_rss();
-        let proxy = crate::volume::proxy::ProxyGrid::resolution_for(&scene.loaded.scene.field, m.proxy_resolution.or(scene.args.proxy_resolution));
+        let proxy = crate::volume::proxy::ProxyGrid::resolution_for(&scene.loaded.scene.field, m.proxy_resolution.or(scene.shot.scene.integrator.proxy_resolution));
         let t = Instant::now();
         let light_bytes = install_lights(scene, m.light_sampling, proxy)?;
         let light_build_seconds = t.elapsed().as_secs_f64();
         let integ = integrator_for(scene, m.estimator, m.light_sampling);
         let mut runs = Vec::new();
         for r in 0..cfg.runs {
-            let plan = RunPlan { cpu_checkpoints: curve.clone(), min_spp: cfg.spp.map_or(1, u64::from), seed: scene.args.seed.unwrap_or(0) + u64::from(r), threads: scene.args.threads };
+            let plan = RunPlan { cpu_checkpoints: curve.clone(), min_spp: cfg.spp.map_or(1, u64::from), seed: scene.shot.settings.render.seed.unwrap_or(0) + u64::from(r), threads: scene.shot.settings.render.threads };
             let res = progressive::run(&scene.loaded.scene, &integ, &plan, Some(&reference.pixels), cfg.epsilon);
             let last = res.time_points.last().copied();
             if let Some(s) = last {
@@ -315,7 +314,7 @@ pub fn compare(scene: &mut BenchScene, reference: &Reference, cfg: &CompareConfi
         flags: scene.flags.clone(),
         width: w,
         height: h,
-        threads: if scene.args.threads == 0 { rayon::current_num_threads() } else { scene.args.threads },
+        threads: if scene.shot.settings.render.threads == 0 { rayon::current_num_threads() } else { scene.shot.settings.render.threads },
         emission_only: emission_only(scene),
         load_seconds: scene.load_seconds,
         reference: reference.clone(),

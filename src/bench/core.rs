@@ -15,11 +15,11 @@ use std::time::Instant;
 use glam::DVec3;
 use serde::Serialize;
 
-use crate::app::load_scene;
+use crate::load::load_scene;
 use crate::camera::Camera;
-use crate::cli::{Cli, Command};
+use crate::scene::Shot;
 use crate::color::Rgb;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::integrator::{Integrator, Scene};
 use crate::medium::{Convention, Emission, EmissionKind, Estimator, Medium, TemperatureMap};
 use crate::render::{render, RenderSettings, SampleBudget};
@@ -149,20 +149,13 @@ pub fn run(resolution: u32, threads: usize, ttfs_file: &Path) -> Result<CoreRepo
 
     // Time to first sample on a real file.
     let ttfs_out = std::env::temp_dir().join("plume-bench-ttfs.exr");
-    let cli = <Cli as clap::Parser>::try_parse_from([
-        "plume",
-        "render",
-        ttfs_file.to_str().unwrap_or_default(),
-        "-o",
-        ttfs_out.to_str().unwrap_or_default(),
-        "-q",
-    ])
-    .map_err(|e| Error::Scene(e.to_string()))?;
-    let Command::Render(args) = cli.command else { unreachable!("invariant: parsed a render command") };
+    let mut shot = Shot::new(ttfs_file, ttfs_out);
+    shot.settings.render.quiet = true;
+    let shot = shot.validate()?;
     let mut ttfs = f64::INFINITY;
     for _ in 0..5 {
         let t = Instant::now();
-        let loaded = load_scene(&args)?;
+        let loaded = load_scene(&shot.scene, ttfs_file, &shot.settings)?;
         std::hint::black_box(&loaded.scene.camera);
         ttfs = ttfs.min(t.elapsed().as_secs_f64());
     }

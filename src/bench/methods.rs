@@ -87,6 +87,21 @@ fn integrator(estimator: Estimator, light_sampling: LightSampling, mis: MisHeuri
 
 pub use super::metrics::rmse;
 
+/// Parse `NAME=DENSITY_SCALE,…` (the regimes of the comparison).
+///
+/// # Errors
+/// [`crate::Error::InvalidArgument`] for `regimes` naming the bad item.
+pub fn parse_regimes(list: &str) -> Result<Vec<(String, f64)>> {
+    let mut regimes = Vec::new();
+    for part in list.split(',') {
+        let bad = |m: String| crate::Error::invalid("regimes", m);
+        let (name, v) = part.split_once('=').ok_or_else(|| bad(format!("{part:?} is not NAME=DENSITY_SCALE")))?;
+        let v: f64 = v.parse().map_err(|_| bad(format!("{v:?} is not a number")))?;
+        regimes.push((name.to_string(), v));
+    }
+    Ok(regimes)
+}
+
 /// Run the comparison.
 ///
 /// # Errors

@@ -9,57 +9,25 @@
 //! - `extremes`: the numerical-extremes sweep with closed forms;
 //! - `report`: the whole suite behind `docs/BENCHMARKS.md`.
 
-pub mod args;
 pub mod compare;
 pub mod core;
 pub mod extremes;
 pub mod methods;
 pub mod metrics;
+pub mod options;
 pub mod outputs;
 pub mod plot;
 pub mod progressive;
 pub mod report;
 pub mod spec;
 
-use crate::cli::{BenchCommand, MisArg};
 use crate::error::{Error, Result};
-use crate::integrator::MisHeuristic;
-
-/// Run one `plume bench …` command.
-///
-/// # Errors
-/// Bad flags, unreadable inputs, unwritable outputs, failed extremes checks.
-pub fn run(command: BenchCommand) -> Result<()> {
-    match command {
-        BenchCommand::Methods(args) => {
-            let mut regimes = Vec::new();
-            for part in args.regimes.split(',') {
-                let (name, v) = part.split_once('=').ok_or_else(|| Error::invalid("--regimes", format!("{part:?} is not NAME=DENSITY_SCALE")))?;
-                let v: f64 = v.parse().map_err(|_| Error::invalid("--regimes", format!("{v:?} is not a number")))?;
-                regimes.push((name.to_string(), v));
-            }
-            let regimes: Vec<(&str, f64)> = regimes.iter().map(|(n, v)| (n.as_str(), *v)).collect();
-            let mis = match args.mis {
-                MisArg::Balance => MisHeuristic::Balance,
-                MisArg::Power => MisHeuristic::Power,
-            };
-            let report = methods::run(args.resolution, args.width, args.height, args.time, args.reference_time, args.threads, mis, args.proxy_resolution, &regimes, &|l| eprintln!("plume: {l}"))?;
-            print!("{report}");
-            write_json(&args.json, &report)
-        }
-        BenchCommand::Core(args) => {
-            let report = core::run(args.resolution, args.threads, &args.ttfs_file)?;
-            print!("{report}");
-            write_json(&args.json, &report)
-        }
-        BenchCommand::Compare(args) => args.run(),
-        BenchCommand::Extremes(args) => args.run(),
-        BenchCommand::Report(args) => args.run(),
-    }
-}
 
 /// Write `value` as pretty JSON to `path`, if given.
-fn write_json<T: serde::Serialize>(path: &Option<std::path::PathBuf>, value: &T) -> Result<()> {
+///
+/// # Errors
+/// [`Error::Write`].
+pub fn write_json<T: serde::Serialize>(path: &Option<std::path::PathBuf>, value: &T) -> Result<()> {
     if let Some(p) = path {
         let json = serde_json::to_string_pretty(value).map_err(|e| Error::Scene(e.to_string()))?;
         crate::output::write_atomic(p, |w| std::io::Write::write_all(w, json.as_bytes()))?;

@@ -15,12 +15,13 @@
 use std::fmt::Write as _;
 use std::time::Instant;
 
-use super::args::ReportArgs;
+use super::options::ReportOptions;
 use super::compare::{compare, make_reference, CompareConfig, CompareReport, Reference};
 use super::outputs::num;
 use super::plot::{loglog_panels, Series};
-use super::spec::{load, parse_methods, BenchScene};
+use super::spec::{bench_shot, load, parse_methods, BenchScene};
 use crate::error::{Error, Result};
+use crate::scene::file::{to_toml_as_is, with_keys};
 
 /// Methods of the explosion, smoke and cloud sections; the first is the baseline.
 const METHODS: &str = "point-nee,line-nee,line-fnee,ray-march,line+none,blend+fnee";
@@ -44,7 +45,9 @@ fn load_average() -> String {
 }
 
 struct Suite<'a> {
-    args: &'a ReportArgs,
+    args: &'a ReportOptions,
+    /// The scene file of the scene loaded last ([`Suite::scene`]).
+    scene_file: std::path::PathBuf,
     md: String,
     log: &'a dyn Fn(&str),
 }
@@ -56,12 +59,32 @@ impl Suite<'_> {
 
     fn compare_command(&self, report: &CompareReport, methods: &str, name: &str) -> String {
         format!(
-            "plume bench compare {} --methods {methods} --time {} --runs {RUNS} --make-reference --reference-time {} -o docs/bench --name {name} -- {}",
-            report.scene,
+            "plume bench compare {} --methods {methods} --time {} --runs {RUNS} --make-reference --reference-time {} -o docs/bench --name {name}",
+            self.scene_file.display(),
             num(self.seconds(RUN_SECONDS)),
             num(report.reference.cpu_seconds.round()),
-            report.flags.join(" ")
         )
+    }
+
+    /// The scene `spec` with `keys` (a scene-file fragment), loaded, and written as the
+    /// scene file `DIR/bench/NAME.toml` that the section's command reproduces it from.
+    fn scene(&mut self, name: &str, spec: &str, keys: &str) -> Result<BenchScene> {
+        let shot = with_keys(&bench_shot(spec), keys)?;
+        let dir = self.args.out.join("bench");
+        // The spec as seen from the scene file's directory (relative paths in a scene
+        // file are relative to it)
+        let mut written = shot.clone();
+        let up: std::path::PathBuf = dir.components().map(|_| "..").collect();
+        if !spec.starts_with("explosion:") && std::path::Path::new(spec).is_relative() && dir.is_relative() {
+            written.scene.volume.file = up.join(spec);
+        }
+        std::fs::create_dir_all(&dir).map_err(|source| Error::Write { path: dir.clone(), source })?;
+        let text = to_toml_as_is(&written)?;
+        let path = dir.join(format!("{name}.toml"));
+        crate::output::write_atomic(&path, |w| std::io::Write::write_all(w, text.as_bytes()))?;
+        self.scene_file = path;
+        let summary = keys.lines().map(str::trim).filter(|l| !l.is_empty()).collect::<Vec<_>>().join(" ");
+        load(shot, vec![summary], &self.args.work_dir)
     }
 
     /// Run one comparison and append its section; returns the report.
@@ -69,7 +92,7 @@ impl Suite<'_> {
     fn section(&mut self, title: &str, name: &str, intro: &str, scene: &mut BenchScene, reference: &Reference, methods: &str) -> Result<CompareReport> {
         (self.log)(&format!("== {title}"));
         let cfg = CompareConfig {
-            methods: parse_methods(methods, scene.args.kappa)?,
+            methods: parse_methods(methods, scene.shot.scene.integrator.kappa)?,
             cpu_seconds: self.seconds(RUN_SECONDS),
             spp: None,
             runs: RUNS,
@@ -152,22 +175,20 @@ fn ratio_line(regime: &str, r: &CompareReport) -> String {
 /// # Errors
 /// Missing data files, unwritable outputs, failed extremes checks are *reported* in the
 /// document, not errors.
-pub fn run(args: &ReportArgs) -> Result<()> {
+pub fn run(args: &ReportOptions) -> Result<()> {
     let start = Instant::now();
     let load_start = load_average();
     let log = |l: &str| eprintln!("plume: {l}");
-    let mut suite = Suite { args, md: String::new(), log: &log };
+    let mut suite = Suite { args, scene_file: Default::default(), md: String::new(), log: &log };
     let res = args.resolution;
     let explosion = format!("explosion:{res}");
-    let flags = |extra: &str| -> Vec<String> { extra.split_whitespace().map(String::from).collect() };
-    let common = "--albedo 0.8 --g 0.3 --width 200 --height 150";
+    let common = "albedo = 0.8\ng = 0.3\n[camera]\nwidth = 200\nheight = 150";
     let mut regimes = Vec::new();
     for (regime, sigma, intro) in [
         ("thin", 1.0, "Optical depth across the fireball ≈ 1: most paths escape, the point estimator scores rarely, line integration collects emission along every segment (the paper's thin explosion)."),
         ("dense", 20.0, "Optical depth ≈ 20: free paths are short, NEE shadow rays toward a bright core behind soot are long and mostly blocked; FNEE's free path stops after about one mean free path (the paper's dense explosion)."),
     ] {
-        let f = flags(&format!("--density-scale {sigma} {common}"));
-        let mut scene = load(&explosion, &f, &args.work_dir)?;
+        let mut scene = suite.scene(regime, &explosion, &format!("[medium]\ndensity_scale = {sigma:?}\n{common}"))?;
         let reference = make_reference(&mut scene, suite.seconds(REFERENCE_SECONDS), &log)?;
         let title = format!("Generated explosion {res}³, {regime} (σ_t = {sigma})");
         let report = suite.section(&title, regime, intro, &mut scene, &reference, METHODS)?;
@@ -215,13 +236,13 @@ pub fn run(args: &ReportArgs) -> Result<()> {
         (
             "smoke",
             "smoke/openvdb_org_smoke1.vdb",
-            "--emission grid --emission-grid density --emission-color 1,0.45,0.15 --emission-scale 1 --density-scale 0.5 --albedo 0.7 --g 0.2 --width 150 --height 200",
+            "[volume]\nemission_grid = \"density\"\n[emission]\nsource = \"grid\"\ncolor = [1, 0.45, 0.15]\nscale = 1\n[medium]\ndensity_scale = 0.5\nalbedo = 0.7\ng = 0.2\n[camera]\nwidth = 150\nheight = 200",
             "The openvdb.org smoke plume (111×222×112 voxels of 0.48 units), glowing where it is dense: emission density `L_e = s_e c ρ²` (its own density as the emission grid, physical convention), σ_t = 0.5, albedo 0.7. We light each file by its own density rather than by a generated fireball because plume renders one volume per scene; this keeps the comparison a property of the data.",
         ),
         (
             "cloud",
             "cloud/wdas_cloud_sixteenth.vdb",
-            "--emission grid --emission-grid density --emission-color 1,0.6,0.3 --emission-scale 0.05 --density-scale 0.02 --albedo 0.8 --g 0.5 --width 200 --height 150",
+            "[volume]\nemission_grid = \"density\"\n[emission]\nsource = \"grid\"\ncolor = [1, 0.6, 0.3]\nscale = 0.05\n[medium]\ndensity_scale = 0.02\nalbedo = 0.8\ng = 0.5\n[camera]\nwidth = 200\nheight = 150",
             "The Disney cloud at 1/16 resolution (126×86×154 voxels of 3.3 units), self-luminous with `L_e = s_e c ρ²`, σ_t = 0.02 per unit (optical depth ≈ 4 across), albedo 0.8, forward scattering g = 0.5.",
         ),
     ] {
@@ -230,9 +251,8 @@ pub fn run(args: &ReportArgs) -> Result<()> {
             let _ = writeln!(suite.md, "## {name}\n\nSkipped: {} not found.\n", path.display());
             continue;
         }
-        let f = flags(extra);
         let spec = path.display().to_string();
-        let mut scene = load(&spec, &f, &args.work_dir)?;
+        let mut scene = suite.scene(name, &spec, extra)?;
         let reference = make_reference(&mut scene, suite.seconds(REFERENCE_SECONDS) / 2.0, &log)?;
         let title = format!("{} ({})", if name == "smoke" { "openvdb.org smoke" } else { "Disney cloud, 1/16" }, file);
         suite.section(&title, name, intro, &mut scene, &reference, METHODS)?;
@@ -258,7 +278,7 @@ const EXTREMES_INTRO: &str = "Boxes of constant density and emission seen head-o
 - *invalid voxels*: NaN, ±inf and negative density and emission voxels must be clamped to 0 by the volume builder and counted exactly, and the image must be bit-identical to the box with zeros there. Through `plume render`, negative voxels in a file are clamped with a warning that gives the exact count (checked through the binary in `tests/bench.rs`); NaN and ±inf in a *file* are currently refused earlier, by the VDB reader, as a corrupt file (exit 3, naming the file and the count), so they never reach the clamp.\n\
 Stochastic tolerances are 5 standard errors (the larger of the pixel spread and METHOD.md §4's variance for a homogeneous segment); ray-march 1e-4 relative (2e-3 for blackbody: the table's accuracy).";
 
-fn write_document(args: &ReportArgs, body: &str, regimes: &[(&str, CompareReport)], seconds: f64, load_start: &str) -> Result<()> {
+fn write_document(args: &ReportOptions, body: &str, regimes: &[(&str, CompareReport)], seconds: f64, load_start: &str) -> Result<()> {
     let (cpus, model) = super::machine();
     let commit = git(&["rev-parse", "HEAD"]).unwrap_or_else(|| "unknown".into());
     let dirty = git(&["status", "--porcelain", "--untracked-files=no"]).is_some_and(|s| !s.is_empty());

@@ -7,17 +7,17 @@
 //! `nee`, `fnee` (e.g. `line+none`, `blend+fnee`), optionally followed by `@N` for an FNEE
 //! proxy of `N` cells (`line-fnee@16`); without `@N` the scene's `--proxy-resolution`.
 //!
-//! **Scenes** are a `.vdb` file or `explosion:RES[:SEED]`, a generated explosion (written
-//! once per process to a work directory so that it goes through the same
-//! [`load_scene`] as any file). The render flags are parsed by the `plume render` parser,
-//! so every flag and every validation of `render` applies.
+//! **Scenes** are a [`Shot`] whose volume file is a `.vdb`, or `explosion:RES[:SEED]`, a
+//! generated explosion (written once per process to a work directory so that it goes
+//! through the same [`load_scene`] as any file). The shot is validated like any render's
+//! (`plume bench compare` builds it from `plume render` flags or a scene file).
 
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
-use crate::app::{load_scene, LoadedScene};
-use crate::cli::{Cli, Command, RenderArgs};
 use crate::error::{Error, Result};
+use crate::load::{load_scene, LoadedScene};
+use crate::scene::Shot;
 use crate::integrator::LightSampling;
 use crate::medium::Estimator;
 
@@ -96,15 +96,16 @@ fn parse_method(raw: &str, kappa: f64) -> Result<MethodSpec> {
     Ok(MethodSpec { name: raw.to_string(), estimator, light_sampling, proxy_resolution: proxy })
 }
 
-/// A scene ready to render, with the flags that built it.
+/// A scene ready to render, with the shot that built it.
 pub struct BenchScene {
-    /// The parsed `plume render` flags (their `-o` is a placeholder, never written).
-    pub args: RenderArgs,
+    /// The shot (its output is a placeholder, never written).
+    pub shot: Shot,
     /// The loaded scene.
     pub loaded: LoadedScene,
     /// The scene as given (`explosion:256` or the file path).
     pub spec: String,
-    /// The render flags as given.
+    /// How the scene was given besides its spec, for reports: render flags or a scene
+    /// file.
     pub flags: Vec<String>,
     /// Seconds spent generating (explosions) and loading.
     pub load_seconds: f64,
@@ -119,7 +120,9 @@ static GENERATED: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
 /// # Errors
 /// A malformed `explosion:` spec, or the explosion cannot be written.
 pub fn scene_file(spec: &str, work_dir: &Path) -> Result<PathBuf> {
-    let Some(rest) = spec.strip_prefix("explosion:") else { return Ok(PathBuf::from(spec)) };
+    // A spec read from a scene file has that file's directory in front
+    let name = Path::new(spec).file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let Some(rest) = name.strip_prefix("explosion:") else { return Ok(PathBuf::from(spec)) };
     let bad = || Error::invalid("SCENE", format!("{spec:?}: expected explosion:RESOLUTION[:SEED], e.g. explosion:256"));
     let mut parts = rest.split(':');
     let resolution: u32 = parts.next().ok_or_else(bad)?.parse().map_err(|_| bad())?;
@@ -141,35 +144,23 @@ pub fn scene_file(spec: &str, work_dir: &Path) -> Result<PathBuf> {
     Ok(path)
 }
 
-/// Parse `flags` with the `plume render` parser for `file`.
+/// Load `shot`, whose volume file is a scene spec (a file or `explosion:RES[:SEED]`).
 ///
 /// # Errors
-/// [`Error::InvalidArgument`] with clap's message when a flag is unknown or malformed.
-pub fn render_args(file: &Path, flags: &[String]) -> Result<RenderArgs> {
-    let placeholder = std::env::temp_dir().join("plume-bench-unused.exr");
-    let mut argv: Vec<String> = vec!["plume".into(), "render".into(), file.display().to_string(), "-o".into(), placeholder.display().to_string()];
-    argv.extend(flags.iter().cloned());
-    let cli = <Cli as clap::Parser>::try_parse_from(&argv).map_err(|e| {
-        let msg = e.to_string();
-        let first = msg.lines().next().unwrap_or_default().trim_start_matches("error: ").to_string();
-        Error::invalid("render flags", first)
-    })?;
-    match cli.command {
-        Command::Render(args) => Ok(*args),
-        _ => unreachable!("invariant: parsed a render command"),
-    }
+/// See [`scene_file`], [`Shot::validate`] and [`load_scene`].
+pub fn load(mut shot: Shot, flags: Vec<String>, work_dir: &Path) -> Result<BenchScene> {
+    let t = std::time::Instant::now();
+    let spec = shot.scene.volume.file.display().to_string();
+    shot.scene.volume.file = scene_file(&spec, work_dir)?;
+    let shot = shot.validate()?.into_inner();
+    let loaded = load_scene(&shot.scene, &shot.scene.volume.file, &shot.settings)?;
+    Ok(BenchScene { shot, loaded, spec, flags, load_seconds: t.elapsed().as_secs_f64() })
 }
 
-/// Load a scene spec with render flags.
-///
-/// # Errors
-/// See [`scene_file`], [`render_args`] and [`load_scene`].
-pub fn load(spec: &str, flags: &[String], work_dir: &Path) -> Result<BenchScene> {
-    let t = std::time::Instant::now();
-    let file = scene_file(spec, work_dir)?;
-    let args = render_args(&file, flags)?;
-    let loaded = load_scene(&args)?;
-    Ok(BenchScene { args, loaded, spec: spec.to_string(), flags: flags.to_vec(), load_seconds: t.elapsed().as_secs_f64() })
+/// A shot of `spec` for a benchmark: its output is a placeholder that is never written.
+#[must_use]
+pub fn bench_shot(spec: &str) -> Shot {
+    Shot::new(spec, std::env::temp_dir().join("plume-bench-unused.exr"))
 }
 
 #[cfg(test)]
@@ -190,11 +181,13 @@ mod tests {
     }
 
     #[test]
-    fn render_flags_go_through_the_render_parser() {
-        let a = render_args(Path::new("x.vdb"), &["--density-scale".into(), "20".into(), "--albedo".into(), "0.8".into()]).unwrap();
-        assert_eq!(a.density_scale, 20.0);
-        assert_eq!(a.albedo(), 0.8);
-        let e = render_args(Path::new("x.vdb"), &["--no-such-flag".into()]).unwrap_err();
-        assert!(e.to_string().contains("no-such-flag"), "{e}");
+    fn explosion_specs_are_found_behind_a_directory() {
+        let dir = std::env::temp_dir().join(format!("plume-spec-test-{}", std::process::id()));
+        let p = scene_file("docs/bench/explosion:16:3", &dir).unwrap();
+        assert_eq!(p, dir.join("explosion-16-seed3.vdb"));
+        assert!(p.exists());
+        assert_eq!(scene_file("a/b.vdb", &dir).unwrap(), PathBuf::from("a/b.vdb"));
+        assert!(scene_file("explosion:x", &dir).is_err());
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }

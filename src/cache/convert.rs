@@ -17,10 +17,9 @@ use glam::IVec3;
 use super::format::InputFingerprint;
 use super::reader::Cache;
 use super::writer::{CacheInfo, CacheWriter, ProxySpec};
-use crate::app::{emission, emission_kind, grid_requests, memory_budget, reading, GIB};
-use crate::cli::{EmissionArg, GridArgs, PrepareArgs, RenderArgs};
-use crate::color::Rgb;
 use crate::error::{Error, Result};
+use crate::load::{emission_kind, grid_requests, memory_budget, reader, unit_emission_model, GIB};
+use crate::scene::{EmissionSettings, EmissionSource, JobSettings, ReadSettings, SceneDescription, VolumeInput};
 use crate::integrator::{light_power, LightSampling};
 use crate::medium::EmissionKind;
 use crate::vdb::{GridSelector, LeafData, ReadIsolation, ReadLimits, StreamedGrid};
@@ -89,8 +88,9 @@ fn probe(isolation: &ReadIsolation, file: &Path, selector: &GridSelector, limits
     }
 }
 
-/// Convert the grids of `file` selected by `grids` into the cache file `out`, storing a
-/// proxy of `proxy_resolution` (default for the volume's size when `None`).
+/// Convert the grids of `file` that `volume` selects (its `file` is not used), with
+/// sources mapped as `emission` says, into the cache file `out`, storing a proxy of
+/// `proxy_resolution` (default for the volume's size when `None`).
 ///
 /// Streams: each grid's header first (topology only, for the table's box and the
 /// transform checks), then each grid leaf by leaf into the writer, so neither plume nor
@@ -98,13 +98,21 @@ fn probe(isolation: &ReadIsolation, file: &Path, selector: &GridSelector, limits
 ///
 /// # Errors
 /// Unreadable input or grids, incompatible transforms, write errors.
-pub fn convert(file: &Path, grids: &GridArgs, proxy_resolution: Option<u32>, out: &Path) -> Result<Converted> {
+pub fn convert(
+    file: &Path,
+    volume: &VolumeInput,
+    emission: &EmissionSettings,
+    reading: &ReadSettings,
+    proxy_resolution: Option<u32>,
+    out: &Path,
+) -> Result<Converted> {
     let start = Instant::now();
     let input = fingerprint(file)?;
-    let (limits, isolation) = reading(grids)?;
+    let (limits, isolation) = reader(reading)?;
+    let source_kind = emission.source;
     // Resolve every request to one grid, by its header
     let mut chosen: Vec<Option<(usize, GridSelector, StreamedGrid)>> = Vec::new();
-    for request in grid_requests(grids)? {
+    for request in grid_requests(volume, source_kind)? {
         let mut found = None;
         for (k, sel) in request.alternatives.iter().enumerate() {
             if let Some(h) = probe(&isolation, file, sel, &limits)? {
@@ -121,10 +129,10 @@ pub fn convert(file: &Path, grids: &GridArgs, proxy_resolution: Option<u32>, out
     }
     let mut chosen = chosen.into_iter();
     let (_, density_sel, density) = chosen.next().flatten().expect("invariant: the density request is required");
-    let source = if grids.emission == EmissionArg::None { None } else { chosen.next().flatten() };
+    let source = if source_kind == EmissionSource::None { None } else { chosen.next().flatten() };
     let albedo = chosen.next().flatten();
-    let kind = emission_kind(grids.emission, source.as_ref().map(|f| f.0));
-    let emission = emission(grids, kind, 1.0, Rgb([1.0; 3]))?;
+    let kind = emission_kind(source_kind, source.as_ref().map(|f| f.0));
+    let emission = unit_emission_model(emission, kind)?;
     let w = density.world_from_index;
     if !w.inverse().is_finite() || w.matrix3.determinant() == 0.0 {
         return Err(Error::Scene(format!("grid {:?} has a singular transform", density.name)));
@@ -173,35 +181,12 @@ pub fn convert(file: &Path, grids: &GridArgs, proxy_resolution: Option<u32>, out
     Ok(Converted { path, bytes, seconds: start.elapsed().as_secs_f64() })
 }
 
-/// `plume prepare`.
+/// The emission kind a render from `cache` uses, after checking that the description
+/// does not ask for other grids or another kind.
 ///
 /// # Errors
-/// As [`convert`]; an output not ending in `.plume`.
-pub fn prepare_command(args: &PrepareArgs) -> Result<()> {
-    if !super::is_cache_path(&args.output) {
-        return Err(Error::invalid("--output", format!("{} must end in .{}", args.output.display(), super::EXTENSION)));
-    }
-    let input_bytes = std::fs::metadata(&args.file).map(|m| m.len()).unwrap_or(0);
-    let c = convert(&args.file, &args.grids, args.proxy_resolution, &args.output)?;
-    if !args.quiet {
-        eprintln!(
-            "plume: wrote {} ({:.1} MiB) from {} ({:.1} MiB) in {:.2} s",
-            c.path.display(),
-            c.bytes as f64 / 1048576.0,
-            args.file.display(),
-            input_bytes as f64 / 1048576.0,
-            c.seconds
-        );
-    }
-    Ok(())
-}
-
-/// The emission kind a render from `cache` uses, after checking that the grid flags do
-/// not ask for other grids or another kind.
-///
-/// # Errors
-/// [`Error::InvalidArgument`] naming the flag that disagrees with the cache.
-pub fn check_flags(cache: &Cache, grids: &GridArgs) -> Result<EmissionKind> {
+/// [`Error::InvalidArgument`] naming the key that disagrees with the cache.
+pub fn check_description(cache: &Cache, grids: &VolumeInput, source: EmissionSource) -> Result<EmissionKind> {
     let meta = &cache.meta;
     let stored = match meta.emission_kind.as_str() {
         "blackbody" => EmissionKind::Blackbody,
@@ -209,29 +194,29 @@ pub fn check_flags(cache: &Cache, grids: &GridArgs) -> Result<EmissionKind> {
         _ => EmissionKind::None,
     };
     let path = cache.path.display();
-    let asked = match grids.emission {
-        EmissionArg::Auto => stored,
-        EmissionArg::None => EmissionKind::None,
-        EmissionArg::Blackbody => EmissionKind::Blackbody,
-        EmissionArg::Grid => EmissionKind::Grid,
+    let asked = match source {
+        EmissionSource::Auto => stored,
+        EmissionSource::None => EmissionKind::None,
+        EmissionSource::Blackbody => EmissionKind::Blackbody,
+        EmissionSource::Grid => EmissionKind::Grid,
     };
     if asked != stored && asked != EmissionKind::None {
         return Err(Error::invalid(
-            "--emission",
-            format!("{path} was prepared with {} emission; prepare it again with the --emission you render with", meta.emission_kind),
+            "emission.source",
+            format!("{path} was prepared with {} emission; prepare it again with the emission source you render with", meta.emission_kind),
         ));
     }
     if grids.density_grid != "density" && grids.density_grid != meta.density_grid {
         return Err(Error::invalid(
-            "--density-grid",
-            format!("{path} holds density grid {:?}, not {:?}; prepare it again with this --density-grid", meta.density_grid, grids.density_grid),
+            "volume.density_grid",
+            format!("{path} holds density grid {:?}, not {:?}; prepare it again with this density grid", meta.density_grid, grids.density_grid),
         ));
     }
     if let Some(a) = &grids.albedo_grid {
         if meta.albedo_grid.as_deref() != Some(a.as_str()) {
             return Err(Error::invalid(
-                "--albedo-grid",
-                format!("{path} holds albedo grid {:?}, not {a:?}; prepare it again with this --albedo-grid", meta.albedo_grid),
+                "volume.albedo_grid",
+                format!("{path} holds albedo grid {:?}, not {a:?}; prepare it again with this albedo grid", meta.albedo_grid),
             ));
         }
     }
@@ -247,9 +232,9 @@ pub fn check_source_key(cache: &Cache, emission: &crate::medium::Emission) -> Re
         return Ok(());
     }
     Err(Error::invalid(
-        "--temperature-map/--temperature-cutoff/--convention",
+        "emission.temperature_map/emission.temperature_cutoff/emission.convention",
         format!(
-            "{} stores sources mapped as \"{}\", these flags give \"{}\"; prepare it again with the flags you render with",
+            "{} stores sources mapped as \"{}\", the render maps them as \"{}\"; prepare it again with the mapping you render with",
             cache.path.display(),
             cache.meta.source_key,
             emission.source_key()
@@ -295,10 +280,10 @@ pub fn check_light_budget(volume: &Volume, light_sampling: LightSampling, budget
     let needed = emitting_voxels * 24 + volume.table.len() as u64 * 4 + volume.bricks.len() as u64 * 16;
     if needed > budget {
         return Err(Error::invalid(
-            "--memory-budget",
+            "render.memory_budget",
             format!(
                 "classic NEE would need about {:.2} GiB for its table of up to {emitting_voxels} emitting voxels, more than the budget of {:.2} GiB; \
-                 use --method line-fnee (its proxy needs a few MiB) or raise --memory-budget",
+                 use the line-fnee method (its proxy needs a few MiB) or raise the memory budget",
                 needed as f64 / GIB,
                 budget as f64 / GIB
             ),
@@ -307,30 +292,33 @@ pub fn check_light_budget(volume: &Volume, light_sampling: LightSampling, budget
     Ok(())
 }
 
-/// Where the automatic cache of `args.file` lives: `--cache-dir`, else beside the input,
+/// Where the automatic cache of `input` lives: `render.cache_dir`, else beside the input,
 /// else `$XDG_CACHE_HOME/plume` (or `~/.cache/plume`). The name carries a hash of the
-/// grid flags, so renders with different grids or mappings keep separate caches.
-fn auto_cache_path(args: &RenderArgs) -> PathBuf {
+/// grid bindings and source mapping, so renders with different grids or mappings keep
+/// separate caches.
+fn auto_cache_path(scene: &SceneDescription, input: &Path, settings: &JobSettings) -> PathBuf {
     use sha2::{Digest, Sha256};
-    let g = &args.grids;
+    let (v, e) = (&scene.volume, &scene.emission);
+    // The Debug texts are those of the flag enums before the scene description existed,
+    // so caches made then are still found
     let key = format!(
         "{}|{:?}|{}|{:?}|{}|{}|{:?}|{:?}|{:?}",
-        g.density_grid, g.emission, g.temperature_grid, g.emission_grid, g.temperature_map, g.temperature_cutoff, g.convention,
-        g.albedo_grid, args.proxy_resolution
+        v.density_grid, e.source, v.temperature_grid, v.emission_grid, e.temperature_map, e.temperature_cutoff, e.convention,
+        v.albedo_grid, scene.integrator.proxy_resolution
     );
     let hash = Sha256::digest(key.as_bytes());
     let tag: String = hash[..6].iter().map(|b| format!("{b:02x}")).collect();
-    let name = format!("{}.{tag}.{}", args.file.file_name().map_or_else(|| "input".into(), |n| n.to_string_lossy()), super::EXTENSION);
+    let name = format!("{}.{tag}.{}", input.file_name().map_or_else(|| "input".into(), |n| n.to_string_lossy()), super::EXTENSION);
     let writable = |d: &Path| {
         let probe = d.join(format!(".plume-probe-{}", std::process::id()));
         let ok = std::fs::File::create(&probe).is_ok();
         let _ = std::fs::remove_file(&probe);
         ok
     };
-    if let Some(dir) = &args.cache_dir {
+    if let Some(dir) = &settings.render.cache_dir {
         return dir.join(name);
     }
-    let beside = crate::output::parent_dir(&args.file);
+    let beside = crate::output::parent_dir(input);
     if writable(&beside) {
         return beside.join(name);
     }
@@ -345,14 +333,14 @@ fn auto_cache_path(args: &RenderArgs) -> PathBuf {
 /// converted now if missing, stale or damaged. `None` for smaller files (read in core).
 ///
 /// # Errors
-/// As [`convert`]; an unusable `--cache-dir`.
-pub fn auto_cache(args: &RenderArgs) -> Result<Option<Cache>> {
-    let Ok(meta) = std::fs::metadata(&args.file) else { return Ok(None) };
-    let budget = memory_budget(args);
+/// As [`convert`]; an unusable cache directory.
+pub fn auto_cache(scene: &SceneDescription, input: &Path, settings: &JobSettings) -> Result<Option<Cache>> {
+    let Ok(meta) = std::fs::metadata(input) else { return Ok(None) };
+    let budget = memory_budget(settings);
     if meta.len().saturating_mul(4) <= budget {
         return Ok(None);
     }
-    let path = auto_cache_path(args);
+    let path = auto_cache_path(scene, input, settings);
     if path.exists() {
         match Cache::open(&path).and_then(|c| check_not_stale(&c).map(|()| c)) {
             Ok(mut cache) => {
@@ -371,12 +359,12 @@ pub fn auto_cache(args: &RenderArgs) -> Result<Option<Cache>> {
     eprintln!(
         "plume: {} is {:.2} GiB on disk, more than a quarter of the memory budget ({:.2} GiB, --memory-budget); \
          converting it once to the brick cache {}",
-        args.file.display(),
+        input.display(),
         meta.len() as f64 / GIB,
         budget as f64 / GIB,
         path.display()
     );
-    let c = convert(&args.file, &args.grids, args.proxy_resolution, &path)?;
+    let c = convert(input, &scene.volume, &scene.emission, &settings.reading, scene.integrator.proxy_resolution, &path)?;
     eprintln!("plume: wrote {} ({:.2} GiB) in {:.1} s", c.path.display(), c.bytes as f64 / GIB, c.seconds);
     let mut cache = Cache::open(&c.path)?;
     cache.check.remove_on_failure();

@@ -10,10 +10,9 @@ use rayon::prelude::*;
 
 use super::convert::{kind_name, Converted};
 use super::writer::{CacheInfo, CacheWriter, ProxySpec};
-use crate::app::emission;
-use crate::cli::GridArgs;
-use crate::color::Rgb;
 use crate::error::Result;
+use crate::load::unit_emission_model;
+use crate::scene::EmissionSettings;
 use crate::integrator::light_power;
 use crate::medium::EmissionKind;
 use crate::synth::Flare;
@@ -31,8 +30,7 @@ type GeneratedBrick = (glam::IVec3, Box<[f32; LEAF_VOXELS]>, Box<[f32; LEAF_VOXE
 /// Write errors.
 pub fn write_flare(flare: &Flare, out: &Path, proxy_resolution: Option<u32>, progress: &dyn Fn(u64, i32, i32)) -> Result<Converted> {
     let start = Instant::now();
-    let grids = GridArgs::default();
-    let emission = emission(&grids, EmissionKind::Blackbody, 1.0, Rgb([1.0; 3]))?;
+    let emission = unit_emission_model(&EmissionSettings::default(), EmissionKind::Blackbody)?;
     let dims = flare.brick_dims();
     let mut writer = CacheWriter::create(out, flare.world_from_index(), glam::IVec3::ZERO, dims, "density")?;
     for bz in 0..dims.z {

@@ -7,8 +7,11 @@ use std::path::Path;
 
 use sha2::{Digest, Sha256};
 
-use crate::cli::RenderArgs;
 use crate::error::{Error, Result};
+use crate::scene::{
+    CameraSettings, EmissionSettings, FarmOptions, IntegratorSettings, JobSettings, LightSettings, MediumSettings, OutputSettings, ReadSettings,
+    RenderOptions, SceneDescription, Shot, VolumeInput,
+};
 
 /// Hex SHA-256 of a file's bytes and its size.
 ///
@@ -42,41 +45,40 @@ pub fn file_sha256(path: &Path) -> Result<(String, u64)> {
     Ok((hex(&hasher.finalize()), bytes))
 }
 
-/// Hash (32 hex digits) of the plume version, the seed and every render flag that can
-/// change pixels.
+/// Hash (32 hex digits) of the plume version, the seed and every value of the shot that
+/// can change pixels.
 ///
-/// Fail-safe by construction: it hashes the `Debug` text of all of [`RenderArgs`] after
-/// blanking the fields known not to change pixels values (paths, threads, sample budget
-/// and range, crop, progress, logging, limits), so a flag added later counts until it is
-/// listed here.
+/// Fail-safe by construction: the shot is taken apart field by field with exhaustive
+/// patterns (no `..`), so a field added to the description does not compile until it is
+/// either hashed here or listed as one that cannot change pixels (paths, threads, sample
+/// budget and range, crop, progress, logging, limits).
 #[must_use]
-pub fn settings_hash(args: &RenderArgs, seed: u64) -> String {
-    let mut a = args.clone();
-    a.file = Default::default();
-    a.output = Default::default();
-    a.spp = None;
-    a.time = None;
-    a.seed = None;
-    a.threads = 0;
-    a.debug_pixel = None;
-    a.preview = None;
-    a.exposure = None;
-    a.stats = None;
-    a.grids.max_input_memory = None;
-    a.memory_budget = None;
-    a.cache_dir = None;
-    a.grids.read_timeout = 0.0;
-    a.grids.no_isolation = false;
-    a.quiet = false;
-    a.frames = None;
-    a.overwrite = false;
-    a.time_limit = None;
-    a.crop = None;
-    a.tile = None;
-    a.sample_range = None;
-    a.sums = false;
-    a.progress = crate::cli::ProgressArg::None;
-    let text = format!("plume {}\nseed {seed}\nfixed point {}\n{a:?}", env!("CARGO_PKG_VERSION"), crate::film::FIXED_POINT_BITS);
+pub fn settings_hash(shot: &Shot, seed: u64) -> String {
+    let Shot { scene, settings } = shot;
+    let SceneDescription { volume, emission, medium, camera, lights, integrator } = scene;
+    let VolumeInput { file: _, density_grid, temperature_grid, emission_grid, albedo_grid } = volume;
+    let EmissionSettings { source, convention, temperature_map, temperature_cutoff, scale, color } = emission;
+    let MediumSettings { density_scale, albedo, g } = medium;
+    let CameraSettings { from, at, up, fov, width, height, up_axis } = camera;
+    let LightSettings { environment } = lights;
+    let IntegratorSettings { method, estimator, light_sampling, mis, proxy_resolution, max_depth, kappa } = integrator;
+    // None of the job's settings changes a pixel
+    let JobSettings { render, farm, output, reading } = settings;
+    let RenderOptions { spp: _, time: _, seed: _, threads: _, sample_order: _, memory_budget: _, cache_dir: _, debug_pixel: _, quiet: _, progress: _ } = render;
+    let FarmOptions { frames: _, overwrite: _, time_limit: _, crop: _, tile: _, sample_range: _ } = farm;
+    let OutputSettings { image: _, preview: _, exposure: _, stats: _, sums: _ } = output;
+    let ReadSettings { max_input_memory: _, read_timeout: _, no_isolation: _ } = reading;
+    let text = format!(
+        "plume {}\nseed {seed}\nfixed point {}\n\
+         volume {density_grid:?} {temperature_grid:?} {emission_grid:?} {albedo_grid:?}\n\
+         emission {source} {convention} {temperature_map:?} {temperature_cutoff:?} {scale:?} {color:?}\n\
+         medium {density_scale:?} {albedo:?} {g:?}\n\
+         camera {from:?} {at:?} {up:?} {fov:?} {width} {height} {up_axis}\n\
+         lights {environment:?}\n\
+         integrator {method} {estimator:?} {light_sampling:?} {mis} {proxy_resolution:?} {max_depth} {kappa:?}",
+        env!("CARGO_PKG_VERSION"),
+        crate::film::FIXED_POINT_BITS
+    );
     hex(&Sha256::digest(text.as_bytes())[..16])
 }
 
@@ -87,25 +89,31 @@ fn hex(bytes: &[u8]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use clap::Parser;
-
-    fn args(extra: &[&str]) -> RenderArgs {
-        let mut v = vec!["plume", "render", "in.vdb", "-o", "out.exr"];
-        v.extend_from_slice(extra);
-        match crate::cli::Cli::parse_from(v).command {
-            crate::cli::Command::Render(a) => *a,
-            _ => unreachable!(),
-        }
-    }
+    use crate::scene::TileIndex;
 
     #[test]
     fn settings_hash_ignores_what_does_not_change_pixels() {
-        let base = settings_hash(&args(&[]), 1);
+        let shot = Shot::new("in.vdb", "out.exr");
+        let base = settings_hash(&shot, 1);
         assert_eq!(base.len(), 32);
-        assert_eq!(settings_hash(&args(&["--threads", "3", "--spp", "9", "--tile", "1/4", "-q"]), 1), base);
-        assert_eq!(settings_hash(&args(&["--sample-range", "0..4", "--stats", "s.json", "--progress", "openjd"]), 1), base);
-        assert_ne!(settings_hash(&args(&["--density-scale", "2"]), 1), base);
-        assert_ne!(settings_hash(&args(&["--width", "20"]), 1), base);
-        assert_ne!(settings_hash(&args(&[]), 2), base);
+        let mut same = Shot::new("other.vdb", "other.exr");
+        same.settings.render.threads = 3;
+        same.settings.render.spp = Some(9);
+        same.settings.render.quiet = true;
+        same.settings.farm.tile = Some(TileIndex { index: 1, count: 4 });
+        same.settings.farm.sample_range = Some(0..4);
+        same.settings.output.stats = Some("s.json".into());
+        same.settings.render.progress = crate::scene::ProgressFormat::Openjd;
+        assert_eq!(settings_hash(&same, 1), base);
+        let mut denser = shot.clone();
+        denser.scene.medium.density_scale = 2.0;
+        assert_ne!(settings_hash(&denser, 1), base);
+        let mut narrower = shot.clone();
+        narrower.scene.camera.width = 20;
+        assert_ne!(settings_hash(&narrower, 1), base);
+        let mut tinted = shot.clone();
+        tinted.scene.emission.color = [1.0, 0.5, 0.5];
+        assert_ne!(settings_hash(&tinted, 1), base);
+        assert_ne!(settings_hash(&shot, 2), base);
     }
 }

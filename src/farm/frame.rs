@@ -11,28 +11,32 @@
 //!
 //! Outputs are written atomically, so SIGKILL at any moment leaves either the previous
 //! file or the new one, and stale temporaries are removed by the next run.
+//!
+//! [`render_frame`] runs the steps in order: [`FramePaths::resolve`], [`decide`],
+//! loading ([`crate::load::load_scene`]) and [`warn_about`], [`SamplePlan::new`],
+//! [`replay`] (debug pixel) or [`run_passes`], [`stats_record`], [`write_outputs`].
 
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use indicatif::{ProgressBar, ProgressStyle};
 
-use crate::app::{integrator, load_scene};
-use crate::cli::{EmissionArg, RenderArgs, SampleOrderArg};
-use crate::volume::Volume;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::farm::fingerprint::{file_sha256, settings_hash};
 use crate::farm::job::Job;
-use crate::farm::part::{assess, stats_metadata, Completion, Existing, Expected};
+use crate::farm::part::{assess, stats_metadata, Completion, Existing, Expected, PartInfo};
 use crate::farm::progress::Progress;
 use crate::farm::signals;
 use crate::farm::split::format_range;
 use crate::film::{Crop, Film, FIXED_POINT_BITS};
 use crate::integrator::LineTrace;
+use crate::load::{load_scene, LoadedScene};
 use crate::medium::{EmissionKind, Estimator};
 use crate::output::{write_exr_image, ExrImage};
-use crate::render::{render_with, RenderControl, RenderSettings, SampleBudget, SampleOrder, StopReason};
+use crate::render::{render_with, RenderControl, RenderResult, RenderSettings, SampleBudget, SampleOrder, StopReason};
+use crate::scene::{DebugPixel, EmissionSource, SampleOrderChoice};
 use crate::stats::{cpu_seconds, peak_rss_since_reset_bytes, reset_peak_rss, RenderStats};
+use crate::volume::Volume;
 
 /// What became of a frame.
 #[derive(Debug)]
@@ -54,154 +58,82 @@ pub enum FrameOutcome {
     },
 }
 
+/// The files of one frame, frame tokens resolved.
+pub struct FramePaths {
+    /// The volume file.
+    pub input: PathBuf,
+    /// The EXR.
+    pub output: PathBuf,
+    /// The PNG preview.
+    pub preview: Option<PathBuf>,
+    /// The statistics file.
+    pub stats: Option<PathBuf>,
+}
+
+impl FramePaths {
+    /// The paths of `frame`.
+    #[must_use]
+    pub fn resolve(job: &Job<'_>, frame: Option<i64>) -> FramePaths {
+        FramePaths {
+            input: job.input.resolve(frame),
+            output: job.output.resolve(frame),
+            preview: job.preview.as_ref().map(|p| p.resolve(frame)),
+            stats: job.stats.as_ref().map(|p| p.resolve(frame)),
+        }
+    }
+}
+
+/// An output to continue: what it holds and its exact sums.
+type Resume = (PartInfo, Vec<[i128; 4]>);
+
 /// Render frame `frame` (the `index`-th of the run).
 ///
 /// # Errors
-/// Input missing or unreadable (code 3), bad flags found while loading (2), an output
+/// Input missing or unreadable (code 3), bad values found while loading (2), an output
 /// that cannot be written (4).
 pub fn render_frame(job: &Job<'_>, index: usize, frame: Option<i64>, command_line: &str, progress: &Progress) -> Result<FrameOutcome> {
-    let args = job.args;
+    let settings = &job.shot.settings;
     let start = Instant::now();
     let cpu_at_start = cpu_seconds();
     reset_peak_rss();
-    let input = job.input.resolve(frame);
-    let output = job.output.resolve(frame);
-    let preview = job.preview.as_ref().map(|p| p.resolve(frame));
-    let stats_path = job.stats.as_ref().map(|p| p.resolve(frame));
+    let paths = FramePaths::resolve(job, frame);
     // Default seed: the frame number (two's complement for negative frames)
-    let seed = args.seed.unwrap_or(frame.map_or(0, |f| f as u64));
-    let (width, height) = (args.width, args.height);
-    let crop = job.crop.unwrap_or(Crop::full(width, height));
-    let hash = settings_hash(args, seed);
-    let quiet = args.quiet;
+    let seed = settings.render.seed.unwrap_or(frame.map_or(0, |f| f as u64));
+    let hash = settings_hash(job.shot, seed);
 
-    // Skip, continue or render anew
-    crate::output::remove_stale_temporaries(&output);
-    let mut resume = None;
-    if !args.overwrite && args.debug_pixel.is_none() {
-        let expected = Expected { settings_hash: hash.clone(), width, height, crop, samples: job.samples.clone() };
-        match assess(&output, &expected) {
-            Existing::Missing => {}
-            Existing::Complete(info) => {
-                // Decisions about existing outputs are always logged, also with --quiet
-                eprintln!("plume: {}: already complete ({} spp), skipped (--overwrite renders it again)", output.display(), info.samples.end - info.samples.start);
-                progress.frame_skipped(index, frame, &output.display().to_string());
-                return Ok(FrameOutcome::Skipped);
-            }
-            Existing::Resumable(info, sums) => resume = Some((info, sums)),
-            Existing::Stale(reason) => eprintln!("plume: {}: {reason}; rendering it again", output.display()),
-        }
-    }
-    progress.frame_start(index, frame, &output.display().to_string());
-    for path in std::iter::once(&output).chain(preview.iter()).chain(stats_path.iter()) {
+    let Some(mut resume) = decide(job, &paths, &hash, index, frame, progress)? else { return Ok(FrameOutcome::Skipped) };
+    progress.frame_start(index, frame, &paths.output.display().to_string());
+    for path in std::iter::once(&paths.output).chain(paths.preview.iter()).chain(paths.stats.iter()) {
         crate::output::check_writable(path)?;
     }
-    let (input_sha256, input_bytes) = file_sha256(&input)?;
+    let (input_sha256, input_bytes) = file_sha256(&paths.input)?;
     if resume.as_ref().is_some_and(|(info, _)| info.input_sha256 != input_sha256) {
-        eprintln!("plume: {}: the input changed since it was started; rendering it again", output.display());
+        eprintln!("plume: {}: the input changed since it was started; rendering it again", paths.output.display());
         resume = None;
     }
 
     // Load the frame's grids once and build the scene
-    let mut frame_args = args.clone();
-    frame_args.file = input.clone();
-    let loaded = load_scene(&frame_args)?;
-    let scene = &loaded.scene;
-    let volume = &scene.field;
-    let warn = |msg: String| eprintln!("plume: warning: {msg}");
-    if volume.report.density_clamped > 0 {
-        warn(format!("{}: {} density voxels were NaN, infinite or negative and were set to 0", input.display(), volume.report.density_clamped));
-    }
-    if volume.report.albedo_clamped > 0 {
-        warn(format!("{}: {} albedo voxels were outside [0, 1] or NaN and were clamped", input.display(), volume.report.albedo_clamped));
-    }
-    if volume.report.source_invalid > 0 {
-        warn(format!("{}: {} emission-source voxels were NaN, infinite or negative and were set to 0", input.display(), volume.report.source_invalid));
-    }
-    if volume.is_empty() {
-        warn(format!("{}: grid {:?} is empty; the image will be transparent black", input.display(), args.grids.density_grid));
-    }
-    if loaded.emission_kind == EmissionKind::None && args.grids.emission == EmissionArg::Auto {
-        warn(format!("{}: no temperature or emission grid found; rendering absorption only", input.display()));
-    }
-    let integ = integrator(args);
-    if integ.estimator == Estimator::Point && scene.medium.emission.emits_without_density() {
-        warn("--estimator point scores only at collisions: emission where density is 0 (allowed by --convention cycles) is not rendered".into());
-    }
-
-    // Samples: the asked range, minus what a resumed image holds
-    let (budget, first_sample, resumed_spp) = match &job.samples {
-        Some(r) => {
-            let from = resume.as_ref().map_or(r.start, |(info, _)| info.samples.end);
-            let n = u32::try_from(r.end - from).expect("invariant: checked by Job::new");
-            (SampleBudget::Spp(n), from, from - r.start)
-        }
-        None => (SampleBudget::Time(args.time.expect("invariant: no sample range means --time")), 0, 0),
-    };
-    let settings = RenderSettings { budget, seed, threads: args.threads, first_sample, integrator: integ };
-    if let Some(dp) = &args.debug_pixel {
-        // Replay one pixel sample and print its path
-        let (x, y, s) = crate::cli::parse_debug_pixel(dp).map_err(|m| Error::invalid("--debug-pixel", m))?;
-        let (ray, mut sampler) = crate::render::pixel_sample(scene, seed, x, y, s);
-        let mut trace = LineTrace::default();
-        let mut counters = crate::integrator::Counters::default();
-        let l = settings.integrator.li(scene, &ray, &mut sampler, &mut counters, &mut trace);
-        for line in &trace.0 {
-            eprintln!("plume: debug {x},{y},{s}: {line}");
-        }
-        println!("{l:?}");
+    let loaded = load_scene(job.scene(), &paths.input, settings)?;
+    warn_about(job, &paths, &loaded);
+    let plan = SamplePlan::new(job, resume.as_ref());
+    let render_settings = RenderSettings { budget: plan.budget, seed, threads: settings.render.threads, first_sample: plan.first_sample, integrator: job.scene().integrator() };
+    if let Some(dp) = settings.render.debug_pixel {
+        replay(&loaded, &render_settings, dp);
         return Ok(FrameOutcome::Replayed);
     }
     if let Some((info, _)) = &resume {
-        eprintln!("plume: {}: continuing from samples {} ({})", output.display(), format_range(&info.samples), info.status.as_str());
+        eprintln!("plume: {}: continuing from samples {} ({})", paths.output.display(), format_range(&info.samples), info.status.as_str());
     }
-
-    let target = match budget {
-        SampleBudget::Spp(n) => u64::from(n),
-        SampleBudget::Time(_) | SampleBudget::CpuTime(_) => 0,
-    };
-    let bar = (!quiet && std::io::IsTerminal::is_terminal(&std::io::stderr())).then(|| {
-        let pb = if target > 0 { ProgressBar::new(target) } else { ProgressBar::new_spinner() };
-        pb.set_style(ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} spp {msg}").unwrap_or_else(|_| ProgressStyle::default_bar()));
-        pb
-    });
-    let film = resume.as_ref().map(|(_, sums)| {
-        let mut film = Film::with_crop(width, height, crop);
-        film.set_sums(sums);
-        film
-    });
-    let stop = || signals::stop_requested().is_some();
-    let order = sample_order(args, volume, matches!(budget, SampleBudget::Spp(_)));
-    if order == SampleOrder::TileMajor && args.sample_order == SampleOrderArg::Auto && !quiet {
-        eprintln!(
-            "plume: {}: {:.1} GB of bricks, more than the memory available; rendering tile by tile (--sample-order)",
-            input.display(),
-            volume.memory_bytes() as f64 / 1e9
-        );
-    }
-    let control = RenderControl {
-        crop: job.crop,
-        film,
-        stop: Some(&stop),
-        deadline: args.time_limit.map(|t| start + Duration::from_secs_f64(t)),
-        order,
-    };
     let render_start = Instant::now();
     let time_to_first_sample = start.elapsed().as_secs_f64();
-    let result = render_with(scene, &settings, control, &|done, total| {
-        if let Some(pb) = &bar {
-            pb.set_position(done);
-        }
-        let fraction = match settings.budget {
-            SampleBudget::Spp(_) => (resumed_spp + done) as f64 / (resumed_spp + total).max(1) as f64,
+    let result = run_passes(job, &paths, &loaded, &render_settings, &plan, resume, start, &|done, total| {
+        let fraction = match plan.budget {
+            SampleBudget::Spp(_) => (plan.resumed_spp + done) as f64 / (plan.resumed_spp + total).max(1) as f64,
             SampleBudget::Time(t) | SampleBudget::CpuTime(t) => render_start.elapsed().as_secs_f64() / t,
         };
-        progress.pass(index, frame, resumed_spp + done, resumed_spp + total, fraction);
+        progress.pass(index, frame, plan.resumed_spp + done, plan.resumed_spp + total, fraction);
     });
-    if let Some(pb) = &bar {
-        pb.finish_and_clear();
-    }
-    let spp = resumed_spp + result.spp;
+    let spp = plan.resumed_spp + result.spp;
     if spp == 0 {
         return Ok(FrameOutcome::NotStarted);
     }
@@ -210,106 +142,313 @@ pub fn render_frame(job: &Job<'_>, index: usize, frame: Option<i64>, command_lin
         StopReason::Interrupted => Completion::Interrupted,
         StopReason::TimeLimit => Completion::TimeLimit,
     };
+    let timing = Timing { wall: start.elapsed().as_secs_f64(), cpu: cpu_seconds() - cpu_at_start, time_to_first_sample };
+    let input = InputId { sha256: input_sha256, bytes: input_bytes };
+    let frame_id = FrameId { frame, seed, settings_hash: hash, command_line };
+    let record = stats_record(job, &paths, &loaded, &result, &frame_id, input, status, spp, &timing);
+    write_outputs(job, &paths, &loaded, &result, &record, status)?;
+    if !settings.render.quiet {
+        let state = if status == Completion::Complete { String::new() } else { format!(", {}", status.as_str()) };
+        let crop = job.crop.unwrap_or(Crop::full(job.scene().camera.width, job.scene().camera.height));
+        eprintln!(
+            "plume: {} ({}x{}, {} spp{state}, {}) in {:.2} s ({:.2} s to first sample, {:.3} core-h)",
+            paths.output.display(),
+            crop.width(),
+            crop.height(),
+            spp,
+            record.estimator,
+            timing.wall,
+            time_to_first_sample,
+            timing.cpu / 3600.0
+        );
+    }
+    progress.frame_done(index, frame, status.as_str(), serde_json::to_value(&record).expect("invariant: stats serialize"));
+    Ok(FrameOutcome::Written { status, output: paths.output, spp })
+}
+
+/// Skip, continue or render anew: `None` when the output is complete (skip), else the
+/// output to continue, if any.
+///
+/// # Errors
+/// None today; kept fallible for the outputs' checks.
+fn decide(job: &Job<'_>, paths: &FramePaths, hash: &str, index: usize, frame: Option<i64>, progress: &Progress) -> Result<Option<Option<Resume>>> {
+    let settings = &job.shot.settings;
+    crate::output::remove_stale_temporaries(&paths.output);
+    if settings.farm.overwrite || settings.render.debug_pixel.is_some() {
+        return Ok(Some(None));
+    }
+    let (width, height) = (job.scene().camera.width, job.scene().camera.height);
+    let crop = job.crop.unwrap_or(Crop::full(width, height));
+    let expected = Expected { settings_hash: hash.to_string(), width, height, crop, samples: job.samples.clone() };
+    Ok(match assess(&paths.output, &expected) {
+        Existing::Missing => Some(None),
+        Existing::Complete(info) => {
+            // Decisions about existing outputs are always logged, also with --quiet
+            eprintln!("plume: {}: already complete ({} spp), skipped (--overwrite renders it again)", paths.output.display(), info.samples.end - info.samples.start);
+            progress.frame_skipped(index, frame, &paths.output.display().to_string());
+            None
+        }
+        Existing::Resumable(info, sums) => Some(Some((info, sums))),
+        Existing::Stale(reason) => {
+            eprintln!("plume: {}: {reason}; rendering it again", paths.output.display());
+            Some(None)
+        }
+    })
+}
+
+/// Warnings about the loaded data: clamped voxels, an empty volume, no emission, an
+/// estimator that cannot see part of it.
+fn warn_about(job: &Job<'_>, paths: &FramePaths, loaded: &LoadedScene) {
+    let input = paths.input.display();
+    let volume = &loaded.scene.field;
+    let warn = |msg: String| eprintln!("plume: warning: {msg}");
+    if volume.report.density_clamped > 0 {
+        warn(format!("{input}: {} density voxels were NaN, infinite or negative and were set to 0", volume.report.density_clamped));
+    }
+    if volume.report.albedo_clamped > 0 {
+        warn(format!("{input}: {} albedo voxels were outside [0, 1] or NaN and were clamped", volume.report.albedo_clamped));
+    }
+    if volume.report.source_invalid > 0 {
+        warn(format!("{input}: {} emission-source voxels were NaN, infinite or negative and were set to 0", volume.report.source_invalid));
+    }
+    if volume.is_empty() {
+        warn(format!("{input}: grid {:?} is empty; the image will be transparent black", job.scene().volume.density_grid));
+    }
+    if loaded.emission_kind == EmissionKind::None && job.scene().emission.source == EmissionSource::Auto {
+        warn(format!("{input}: no temperature or emission grid found; rendering absorption only"));
+    }
+    if job.scene().integrator().estimator == Estimator::Point && loaded.scene.medium.emission.emits_without_density() {
+        warn("--estimator point scores only at collisions: emission where density is 0 (allowed by --convention cycles) is not rendered".into());
+    }
+}
+
+/// The samples this run renders: the asked range, minus what a resumed image holds.
+struct SamplePlan {
+    budget: SampleBudget,
+    first_sample: u64,
+    resumed_spp: u64,
+}
+
+impl SamplePlan {
+    fn new(job: &Job<'_>, resume: Option<&Resume>) -> SamplePlan {
+        match &job.samples {
+            Some(r) => {
+                let from = resume.map_or(r.start, |(info, _)| info.samples.end);
+                let n = u32::try_from(r.end - from).expect("invariant: checked by Shot::validate");
+                SamplePlan { budget: SampleBudget::Spp(n), first_sample: from, resumed_spp: from - r.start }
+            }
+            None => {
+                let t = job.shot.settings.render.time.expect("invariant: no sample range means a time budget");
+                SamplePlan { budget: SampleBudget::Time(t), first_sample: 0, resumed_spp: 0 }
+            }
+        }
+    }
+}
+
+/// Replay one pixel sample and print its path.
+fn replay(loaded: &LoadedScene, settings: &RenderSettings, dp: DebugPixel) {
+    let scene = &loaded.scene;
+    let (x, y, s) = (dp.x, dp.y, dp.sample);
+    let (ray, mut sampler) = crate::render::pixel_sample(scene, settings.seed, x, y, s);
+    let mut trace = LineTrace::default();
+    let mut counters = crate::integrator::Counters::default();
+    let l = settings.integrator.li(scene, &ray, &mut sampler, &mut counters, &mut trace);
+    for line in &trace.0 {
+        eprintln!("plume: debug {x},{y},{s}: {line}");
+    }
+    println!("{l:?}");
+}
+
+/// Render the frame's passes with a progress bar on a terminal, continuing `resume`.
+#[allow(clippy::too_many_arguments)]
+fn run_passes(
+    job: &Job<'_>,
+    paths: &FramePaths,
+    loaded: &LoadedScene,
+    settings: &RenderSettings,
+    plan: &SamplePlan,
+    resume: Option<Resume>,
+    start: Instant,
+    on_pass: &(dyn Fn(u64, u64) + Sync),
+) -> RenderResult {
+    let job_settings = &job.shot.settings;
+    let (width, height) = (job.scene().camera.width, job.scene().camera.height);
+    let target = match plan.budget {
+        SampleBudget::Spp(n) => u64::from(n),
+        SampleBudget::Time(_) | SampleBudget::CpuTime(_) => 0,
+    };
+    let bar = (!job_settings.render.quiet && std::io::IsTerminal::is_terminal(&std::io::stderr())).then(|| {
+        let pb = if target > 0 { ProgressBar::new(target) } else { ProgressBar::new_spinner() };
+        pb.set_style(ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} spp {msg}").unwrap_or_else(|_| ProgressStyle::default_bar()));
+        pb
+    });
+    let film = resume.map(|(_, sums)| {
+        let mut film = Film::with_crop(width, height, job.crop.unwrap_or(Crop::full(width, height)));
+        film.set_sums(&sums);
+        film
+    });
+    let stop = || signals::stop_requested().is_some();
+    let volume = &loaded.scene.field;
+    let order = sample_order(job, volume, matches!(plan.budget, SampleBudget::Spp(_)));
+    if order == SampleOrder::TileMajor && job_settings.render.sample_order == SampleOrderChoice::Auto && !job_settings.render.quiet {
+        eprintln!(
+            "plume: {}: {:.1} GB of bricks, more than the memory available; rendering tile by tile (--sample-order)",
+            paths.input.display(),
+            volume.memory_bytes() as f64 / 1e9
+        );
+    }
+    let control = RenderControl {
+        crop: job.crop,
+        film,
+        stop: Some(&stop),
+        deadline: job_settings.farm.time_limit.map(|t| start + Duration::from_secs_f64(t)),
+        order,
+    };
+    let result = render_with(&loaded.scene, settings, control, &|done, total| {
+        if let Some(pb) = &bar {
+            pb.set_position(done);
+        }
+        on_pass(done, total);
+    });
+    if let Some(pb) = &bar {
+        pb.finish_and_clear();
+    }
+    result
+}
+
+/// Seconds a frame took.
+struct Timing {
+    wall: f64,
+    cpu: f64,
+    time_to_first_sample: f64,
+}
+
+/// The input file's identity.
+struct InputId {
+    sha256: String,
+    bytes: u64,
+}
+
+/// What identifies the frame's pixels and how it was asked for.
+struct FrameId<'a> {
+    frame: Option<i64>,
+    seed: u64,
+    settings_hash: String,
+    command_line: &'a str,
+}
+
+/// The frame's record: EXR header and stats line.
+#[allow(clippy::too_many_arguments)]
+fn stats_record(
+    job: &Job<'_>,
+    paths: &FramePaths,
+    loaded: &LoadedScene,
+    result: &RenderResult,
+    id: &FrameId<'_>,
+    input: InputId,
+    status: Completion,
+    spp: u64,
+    timing: &Timing,
+) -> RenderStats {
+    let settings = &job.shot.settings;
+    let (width, height) = (job.scene().camera.width, job.scene().camera.height);
+    let crop = job.crop.unwrap_or(Crop::full(width, height));
     let range_start = job.samples.as_ref().map_or(0, |r| r.start);
     let sample_range = range_start..range_start + spp;
-
-    // The record: EXR header and stats line
-    let wall = start.elapsed().as_secs_f64();
-    let cpu = cpu_seconds() - cpu_at_start;
-    let threads = if args.threads == 0 { rayon::current_num_threads() } else { args.threads };
+    let threads = if settings.render.threads == 0 { rayon::current_num_threads() } else { settings.render.threads };
     let samples = result.counters.samples as f64;
-    let record = RenderStats {
+    let volume = &loaded.scene.field;
+    RenderStats {
         plume_version: env!("CARGO_PKG_VERSION").into(),
-        command_line: command_line.into(),
+        command_line: id.command_line.into(),
         host: crate::output::host_name(),
-        frame,
-        input: input.display().to_string(),
-        input_bytes,
-        input_sha256,
-        output: output.display().to_string(),
+        frame: id.frame,
+        input: paths.input.display().to_string(),
+        input_bytes: input.bytes,
+        input_sha256: input.sha256,
+        output: paths.output.display().to_string(),
         status: status.as_str().into(),
         spp,
         sample_range: format_range(&sample_range),
-        resumed_from_spp: resumed_spp,
-        seed,
-        settings_hash: hash,
+        resumed_from_spp: spp - result.spp,
+        seed: id.seed,
+        settings_hash: id.settings_hash.clone(),
         width,
         height,
         crop: crop.to_string(),
         fixed_point_bits: FIXED_POINT_BITS,
-        wall_seconds: wall,
+        wall_seconds: timing.wall,
         render_seconds: result.render_seconds,
-        time_to_first_sample_seconds: time_to_first_sample,
-        cpu_seconds: cpu,
-        core_hours: cpu / 3600.0,
-        allocated_core_hours: wall * threads as f64 / 3600.0,
+        time_to_first_sample_seconds: timing.time_to_first_sample,
+        cpu_seconds: timing.cpu,
+        core_hours: timing.cpu / 3600.0,
+        allocated_core_hours: timing.wall * threads as f64 / 3600.0,
         samples_per_second: samples / result.render_seconds.max(1e-9),
-        samples_per_cpu_second: samples / cpu.max(1e-9),
+        samples_per_cpu_second: samples / timing.cpu.max(1e-9),
         peak_rss_bytes: peak_rss_since_reset_bytes(),
         threads,
-        estimator: format!("{:?}", settings.integrator.estimator),
+        estimator: format!("{:?}", job.scene().integrator().estimator),
         volume_bytes: volume.memory_bytes() as u64,
         counters: result.counters,
         saturated_samples: result.film.saturated(),
         underflowed_samples: result.film.underflowed(),
         density_voxels_clamped: volume.report.density_clamped,
         source_voxels_clamped: volume.report.source_invalid,
-    };
+    }
+}
+
+/// Write the EXR (with exact sums for parts and partial images, so they can be merged or
+/// continued, and the resolved scene description), the preview and the stats line.
+/// Nothing computed from a brick cache is saved before its checksums have all passed.
+///
+/// # Errors
+/// A failed cache check; an output that cannot be written.
+fn write_outputs(job: &Job<'_>, paths: &FramePaths, loaded: &LoadedScene, result: &RenderResult, record: &RenderStats, status: Completion) -> Result<()> {
+    let settings = &job.shot.settings;
+    let warn = |msg: String| eprintln!("plume: warning: {msg}");
     if let Some(c) = result.counters.first_nonfinite {
         warn(format!("{} non-finite samples dropped; first at --debug-pixel {},{},{}", result.counters.nonfinite_samples, c.0, c.1, c.2));
     }
     if record.saturated_samples > 0 {
         warn(format!("{} sample values exceeded the fixed-point range (2^63) and were clamped", record.saturated_samples));
     }
-
-    // Outputs: EXR (with exact sums for parts and partial images, so they can be merged
-    // or continued), preview, stats line
-    // Nothing computed from a brick cache is saved before its checksums have all passed
     if let Some(check) = &loaded.cache {
         check.verified()?;
     }
-    let pixels = result.film.average(spp);
+    let (width, height) = (record.width, record.height);
+    let crop = job.crop.unwrap_or(Crop::full(width, height));
+    let pixels = result.film.average(record.spp);
     let sums = (job.write_sums || status != Completion::Complete).then(|| result.film.sums());
-    let metadata = stats_metadata(&record);
-    write_exr_image(&output, &ExrImage { width, height, crop, pixels: &pixels, sums: sums.as_deref(), metadata: &metadata })?;
-    if let Some(p) = &preview {
-        let exposure = args.exposure.map_or_else(|| crate::output::auto_exposure(&pixels), |ev| 2f32.powf(ev));
+    let mut metadata = stats_metadata(record);
+    match crate::scene::file::to_toml(job.shot) {
+        Ok(text) => metadata.push(("plume:scene".into(), text)),
+        Err(e) => warn(format!("the scene description is not recorded in {}: {e}", paths.output.display())),
+    }
+    write_exr_image(&paths.output, &ExrImage { width, height, crop, pixels: &pixels, sums: sums.as_deref(), metadata: &metadata })?;
+    if let Some(p) = &paths.preview {
+        let exposure = settings.output.exposure.map_or_else(|| crate::output::auto_exposure(&pixels), |ev| 2f32.powf(ev));
         crate::output::write_png(p, crop.width(), crop.height(), &pixels, exposure)?;
     }
-    let json = serde_json::to_value(&record).expect("invariant: stats serialize");
-    if let Some(p) = &stats_path {
+    if let Some(p) = &paths.stats {
+        let json = serde_json::to_value(record).expect("invariant: stats serialize");
         crate::output::append_line(p, &json.to_string())?;
     }
-    if !quiet {
-        let state = if status == Completion::Complete { String::new() } else { format!(", {}", status.as_str()) };
-        eprintln!(
-            "plume: {} ({}x{}, {} spp{state}, {}) in {:.2} s ({:.2} s to first sample, {:.3} core-h)",
-            output.display(),
-            crop.width(),
-            crop.height(),
-            spp,
-            record.estimator,
-            wall,
-            time_to_first_sample,
-            cpu / 3600.0
-        );
-    }
-    progress.frame_done(index, frame, status.as_str(), json);
-    Ok(FrameOutcome::Written { status, output, spp })
+    Ok(())
 }
 
-/// `--sample-order` for this frame: `auto` is tile-major for a mapped volume larger than
+/// The sample order for this frame: `auto` is tile-major for a mapped volume larger than
 /// the memory available now (its pages could not all stay in the page cache), when the
 /// render has a fixed spp and no time limit (which tile-major order cannot honour
 /// without abandoning the frame).
-fn sample_order(args: &RenderArgs, volume: &Volume, fixed_spp: bool) -> SampleOrder {
-    match args.sample_order {
-        SampleOrderArg::Progressive => SampleOrder::Progressive,
-        SampleOrderArg::TileMajor => SampleOrder::TileMajor,
-        SampleOrderArg::Auto => {
+fn sample_order(job: &Job<'_>, volume: &Volume, fixed_spp: bool) -> SampleOrder {
+    let settings = &job.shot.settings;
+    match settings.render.sample_order {
+        SampleOrderChoice::Progressive => SampleOrder::Progressive,
+        SampleOrderChoice::TileMajor => SampleOrder::TileMajor,
+        SampleOrderChoice::Auto => {
             let available = crate::stats::available_memory_bytes().unwrap_or(u64::MAX);
             let larger = volume.is_mapped() && volume.memory_bytes() as u64 > available;
-            if larger && fixed_spp && args.time_limit.is_none() {
+            if larger && fixed_spp && settings.farm.time_limit.is_none() {
                 SampleOrder::TileMajor
             } else {
                 SampleOrder::Progressive

@@ -16,7 +16,6 @@ use std::ops::Range;
 use std::path::Path;
 use std::time::Instant;
 
-use crate::cli::MergeArgs;
 use crate::error::{Error, Result};
 use crate::farm::part::{read_part, Completion, PartInfo};
 use crate::farm::split::format_range;
@@ -177,11 +176,28 @@ const PER_PROCESS_KEYS: [&str; 9] = [
     "plume:volumeBytes",
 ];
 
+/// What `plume merge` is asked to do.
+#[derive(Clone, Debug)]
+pub struct MergeOptions {
+    /// Parts of one frame (EXRs with exact sums).
+    pub parts: Vec<std::path::PathBuf>,
+    /// The merged EXR.
+    pub output: std::path::PathBuf,
+    /// Keep the exact sums in the output.
+    pub sums: bool,
+    /// A tone-mapped sRGB PNG preview.
+    pub preview: Option<std::path::PathBuf>,
+    /// Preview exposure in stops (default: automatic).
+    pub exposure: Option<f32>,
+    /// No summary.
+    pub quiet: bool,
+}
+
 /// Run `plume merge`.
 ///
 /// # Errors
 /// A missing part ([`Error::Open`]), an invalid or inconsistent one, or the output.
-pub fn merge_command(args: &MergeArgs, command_line: &str) -> Result<()> {
+pub fn merge_command(args: &MergeOptions, command_line: &str) -> Result<()> {
     let start = Instant::now();
     if !args.output.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr")) {
         return Err(Error::invalid("--output", format!("{} must end in .exr", args.output.display())));

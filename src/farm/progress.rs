@@ -16,14 +16,14 @@ use std::time::{Duration, Instant};
 
 use serde_json::{json, Value};
 
-use crate::cli::ProgressArg;
+use crate::scene::ProgressFormat;
 
 /// Least time between two `progress` lines.
 const THROTTLE: Duration = Duration::from_secs(1);
 
 /// The progress reporter of one run.
 pub struct Progress {
-    mode: ProgressArg,
+    mode: ProgressFormat,
     frames: usize,
     last: Mutex<Option<Instant>>,
 }
@@ -31,7 +31,7 @@ pub struct Progress {
 impl Progress {
     /// A reporter for a run of `frames` frames.
     #[must_use]
-    pub fn new(mode: ProgressArg, frames: usize) -> Progress {
+    pub fn new(mode: ProgressFormat, frames: usize) -> Progress {
         Progress { mode, frames: frames.max(1), last: Mutex::new(None) }
     }
 
@@ -51,19 +51,19 @@ impl Progress {
     /// Frame `frame` (the `index`-th of the run, from 0) starts.
     pub fn frame_start(&self, index: usize, frame: Option<i64>, output: &str) {
         match self.mode {
-            ProgressArg::None => {}
-            ProgressArg::Openjd => self.emit(&[
+            ProgressFormat::None => {}
+            ProgressFormat::Openjd => self.emit(&[
                 format!("openjd_status: {} ({}/{}): rendering", name(frame), index + 1, self.frames),
                 format!("openjd_progress: {:.2}", self.percent(index, 0.0)),
             ]),
-            ProgressArg::Json => self.emit(&[json!({"event": "frame_start", "frame": frame, "index": index, "frames": self.frames, "output": output}).to_string()]),
+            ProgressFormat::Json => self.emit(&[json!({"event": "frame_start", "frame": frame, "index": index, "frames": self.frames, "output": output}).to_string()]),
         }
     }
 
     /// A pass of the `index`-th frame ended: `done` spp of `target` (0 when the budget
     /// is time), `fraction` of the frame done.
     pub fn pass(&self, index: usize, frame: Option<i64>, done: u64, target: u64, fraction: f64) {
-        if self.mode == ProgressArg::None {
+        if self.mode == ProgressFormat::None {
             return;
         }
         {
@@ -75,9 +75,9 @@ impl Progress {
         }
         let percent = self.percent(index, fraction);
         match self.mode {
-            ProgressArg::None => {}
-            ProgressArg::Openjd => self.emit(&[format!("openjd_progress: {percent:.2}")]),
-            ProgressArg::Json => self.emit(&[json!({"event": "progress", "frame": frame, "spp": done, "target_spp": target, "percent": percent}).to_string()]),
+            ProgressFormat::None => {}
+            ProgressFormat::Openjd => self.emit(&[format!("openjd_progress: {percent:.2}")]),
+            ProgressFormat::Json => self.emit(&[json!({"event": "progress", "frame": frame, "spp": done, "target_spp": target, "percent": percent}).to_string()]),
         }
     }
 
@@ -85,12 +85,12 @@ impl Progress {
     pub fn frame_done(&self, index: usize, frame: Option<i64>, status: &str, record: Value) {
         let percent = self.percent(index, 1.0);
         match self.mode {
-            ProgressArg::None => {}
-            ProgressArg::Openjd => self.emit(&[
+            ProgressFormat::None => {}
+            ProgressFormat::Openjd => self.emit(&[
                 format!("openjd_status: {} ({}/{}): {status}", name(frame), index + 1, self.frames),
                 format!("openjd_progress: {percent:.2}"),
             ]),
-            ProgressArg::Json => self.emit(&[json!({"event": "frame_done", "frame": frame, "status": status, "percent": percent, "stats": record}).to_string()]),
+            ProgressFormat::Json => self.emit(&[json!({"event": "frame_done", "frame": frame, "status": status, "percent": percent, "stats": record}).to_string()]),
         }
     }
 
@@ -98,29 +98,29 @@ impl Progress {
     pub fn frame_skipped(&self, index: usize, frame: Option<i64>, output: &str) {
         let percent = self.percent(index, 1.0);
         match self.mode {
-            ProgressArg::None => {}
-            ProgressArg::Openjd => self.emit(&[
+            ProgressFormat::None => {}
+            ProgressFormat::Openjd => self.emit(&[
                 format!("openjd_status: {} ({}/{}): already complete, skipped", name(frame), index + 1, self.frames),
                 format!("openjd_progress: {percent:.2}"),
             ]),
-            ProgressArg::Json => self.emit(&[json!({"event": "frame_skipped", "frame": frame, "output": output, "percent": percent}).to_string()]),
+            ProgressFormat::Json => self.emit(&[json!({"event": "frame_skipped", "frame": frame, "output": output, "percent": percent}).to_string()]),
         }
     }
 
     /// The `index`-th frame failed with `error` (exit code `code`).
     pub fn frame_failed(&self, index: usize, frame: Option<i64>, code: i32, error: &str) {
         match self.mode {
-            ProgressArg::None => {}
-            ProgressArg::Openjd => self.emit(&[format!("openjd_status: {} ({}/{}): failed: {}", name(frame), index + 1, self.frames, one_line(error))]),
-            ProgressArg::Json => self.emit(&[json!({"event": "frame_failed", "frame": frame, "exit_code": code, "error": error}).to_string()]),
+            ProgressFormat::None => {}
+            ProgressFormat::Openjd => self.emit(&[format!("openjd_status: {} ({}/{}): failed: {}", name(frame), index + 1, self.frames, one_line(error))]),
+            ProgressFormat::Json => self.emit(&[json!({"event": "frame_failed", "frame": frame, "exit_code": code, "error": error}).to_string()]),
         }
     }
 
     /// The run ends with exit code `code` (`message` says why when it is not 0).
     pub fn done(&self, code: i32, message: Option<&str>) {
         match self.mode {
-            ProgressArg::None => {}
-            ProgressArg::Openjd => {
+            ProgressFormat::None => {}
+            ProgressFormat::Openjd => {
                 let mut lines = Vec::new();
                 if code == 0 {
                     lines.push("openjd_progress: 100.00".to_string());
@@ -129,7 +129,7 @@ impl Progress {
                 }
                 self.emit(&lines);
             }
-            ProgressArg::Json => self.emit(&[json!({"event": "done", "exit_code": code, "error": message}).to_string()]),
+            ProgressFormat::Json => self.emit(&[json!({"event": "done", "exit_code": code, "error": message}).to_string()]),
         }
     }
 }

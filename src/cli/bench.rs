@@ -1,0 +1,290 @@
+//! `plume bench …`: flags of the benchmarks, turned into the library's options. The
+//! render flags of `plume bench compare` (after `--`) go through the `plume render`
+//! conversion, so every render flag, scene file and validation applies.
+
+use std::path::PathBuf;
+
+use clap::{ArgMatches, Args, CommandFactory, FromArgMatches, Subcommand};
+use plume::bench::metrics::RELMSE_EPSILON;
+use plume::bench::options::{default_work_dir, CompareOptions, ExtremesOptions, ReportOptions};
+use plume::bench::write_json;
+use plume::error::{Error, Result};
+use plume::integrator::MisHeuristic;
+
+use super::flags::choice;
+use super::render::RenderRequest;
+use super::{Cli, Command};
+
+/// `plume bench …`.
+#[derive(Debug, Subcommand)]
+pub enum BenchCommand {
+    /// Core renderer figures: DDA voxel steps/s per core, parallel speed-up, time to first
+    /// sample, brick memory vs raw voxel data.
+    Core(BenchCoreArgs),
+    /// The paper's equal-time comparison of methods on thin and dense generated
+    /// explosions: RMSE against a converged reference, spp, core-hours.
+    Methods(BenchMethodsArgs),
+    /// Methods at equal CPU time and equal spp against a given or computed reference,
+    /// several seeds: RMSE, relMSE, bias, spp, samples per CPU second, core-hours, peak
+    /// memory; as a table, CSV, JSON and PNG plots.
+    Compare(Box<CompareArgs>),
+    /// Numerical extremes: density scales, temperatures, voxel sizes and NaN/inf/negative
+    /// voxels, checked against closed forms.
+    Extremes(ExtremesArgs),
+    /// The whole benchmark suite behind docs/BENCHMARKS.md (tables and plots).
+    Report(ReportArgs),
+}
+
+/// `plume bench methods`.
+#[derive(Debug, Args)]
+pub struct BenchMethodsArgs {
+    /// Explosion resolution.
+    #[arg(long, default_value_t = 64)]
+    pub resolution: u32,
+    /// Image width.
+    #[arg(long, default_value_t = 160)]
+    pub width: u32,
+    /// Image height.
+    #[arg(long, default_value_t = 120)]
+    pub height: u32,
+    /// CPU seconds per method (equal CPU time).
+    #[arg(long, default_value_t = 10.0)]
+    pub time: f64,
+    /// CPU seconds for each reference render.
+    #[arg(long, default_value_t = 120.0)]
+    pub reference_time: f64,
+    /// MIS heuristic of the compared methods.
+    #[arg(long, value_parser = choice::<MisHeuristic>(), default_value_t = MisHeuristic::Power)]
+    pub mis: MisHeuristic,
+    /// FNEE proxy resolution of the compared methods.
+    #[arg(long, default_value_t = 64)]
+    pub proxy_resolution: u32,
+    /// Regimes as NAME=DENSITY_SCALE, comma-separated.
+    #[arg(long, default_value = "thin=1,dense=20")]
+    pub regimes: String,
+    /// Threads (0 = all cores).
+    #[arg(long, default_value_t = 0)]
+    pub threads: usize,
+    /// Also write the results as JSON here.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+}
+
+/// `plume bench core`.
+#[derive(Debug, Args)]
+pub struct BenchCoreArgs {
+    /// Resolution of the generated explosion.
+    #[arg(long, default_value_t = 256)]
+    pub resolution: u32,
+    /// Threads for the parallel run (0 = all cores).
+    #[arg(long, default_value_t = 0)]
+    pub threads: usize,
+    /// File whose time to first sample is measured.
+    #[arg(long, default_value = "../shared/data/smoke/openvdb_org_smoke1.vdb")]
+    pub ttfs_file: PathBuf,
+    /// Also write the figures as JSON here.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+}
+
+/// `plume bench compare`.
+#[derive(Debug, Args)]
+#[command(allow_negative_numbers = true)]
+pub struct CompareArgs {
+    /// The scene: a .vdb file, `explosion:RES[:SEED]` (a generated explosion), or a
+    /// scene file (.toml; its volume file may be such a spec).
+    pub scene: String,
+    /// Methods, comma-separated: presets (point-nee, line-nee, line-fnee, ray-march) or
+    /// ESTIMATOR+LIGHTS (point|line|ray-march|blend + none|nee|fnee, e.g. line+none,
+    /// blend+fnee), each optionally @N for an N³ FNEE proxy (line-fnee@16). The first is
+    /// the baseline of ratios.
+    #[arg(long, default_value = "point-nee,line-nee,line-fnee,ray-march")]
+    pub methods: String,
+    /// CPU seconds per method and run (the equal-time budget; user + system time of all
+    /// threads).
+    #[arg(long, default_value_t = 8.0)]
+    pub time: f64,
+    /// Equal-spp point: runs continue to at least this spp. Default: the largest power of
+    /// two that every run reaches within --time.
+    #[arg(long)]
+    pub spp: Option<u32>,
+    /// Runs (seeds) per method; figures are mean ± std over runs.
+    #[arg(long, default_value_t = 3)]
+    pub runs: u32,
+    /// Reference image (EXR of the same size, e.g. a long `plume render`).
+    #[arg(long, conflicts_with = "make_reference")]
+    pub reference: Option<PathBuf>,
+    /// Compute the reference: ray-march (expected value, forward only) for emission-only
+    /// scenes, a long line-fnee run otherwise.
+    #[arg(long)]
+    pub make_reference: bool,
+    /// CPU seconds for --make-reference (default: 16 × --time).
+    #[arg(long)]
+    pub reference_time: Option<f64>,
+    /// Also save the computed reference as EXR here.
+    #[arg(long)]
+    pub save_reference: Option<PathBuf>,
+    /// ε of relMSE, (x − ref)²/(ref² + ε), an absolute radiance².
+    #[arg(long, default_value_t = RELMSE_EPSILON)]
+    pub epsilon: f64,
+    /// Points on the error-vs-time curve (at T/2^k).
+    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(1..=12))]
+    pub curve_points: u32,
+    /// Write NAME.csv, NAME.json, NAME-error.png and NAME-crops.png here.
+    #[arg(long, short)]
+    pub out: Option<PathBuf>,
+    /// NAME of the output files (default: `compare`).
+    #[arg(long, default_value = "compare")]
+    pub name: String,
+    /// Where generated explosions are written.
+    #[arg(long, default_value_os_t = default_work_dir())]
+    pub work_dir: PathBuf,
+    /// `plume render` flags after `--`, e.g. `-- --density-scale 20 --albedo 0.8 --width
+    /// 320 --height 240 --threads 2`. --method, --spp, --time and -o are not used here.
+    #[arg(last = true)]
+    pub render_flags: Vec<String>,
+}
+
+/// `plume bench extremes`.
+#[derive(Debug, Args)]
+pub struct ExtremesArgs {
+    /// Voxels along each edge of the test boxes (a multiple of 8).
+    #[arg(long, default_value_t = 32)]
+    pub box_voxels: u32,
+    /// Resolution of the generated explosion of the voxel-size sweep.
+    #[arg(long, default_value_t = 64)]
+    pub explosion_resolution: u32,
+    /// Image width and height.
+    #[arg(long, default_value_t = 48)]
+    pub size: u32,
+    /// Samples per pixel.
+    #[arg(long, default_value_t = 16)]
+    pub spp: u32,
+    /// Also write the rows as JSON here.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+}
+
+/// `plume bench report`.
+#[derive(Debug, Args)]
+pub struct ReportArgs {
+    /// Directory of BENCHMARKS.md; plots go to DIR/img, CSV and JSON to DIR/bench.
+    #[arg(long, short, default_value = "docs")]
+    pub out: PathBuf,
+    /// Multiply every CPU-time budget by this (e.g. 0.05 for a smoke test).
+    #[arg(long, default_value_t = 1.0)]
+    pub time_scale: f64,
+    /// Explosion resolution of the thin/dense scenes.
+    #[arg(long, default_value_t = 256)]
+    pub resolution: u32,
+    /// Directory of the shared data (smoke and cloud files).
+    #[arg(long, default_value = "../shared/data")]
+    pub data: PathBuf,
+    /// Where generated explosions are written.
+    #[arg(long, default_value_os_t = default_work_dir())]
+    pub work_dir: PathBuf,
+}
+
+/// Run one `plume bench …` command.
+///
+/// # Errors
+/// Bad flags, unreadable inputs, unwritable outputs, failed extremes checks.
+pub fn run(command: BenchCommand, _matches: Option<&ArgMatches>) -> Result<()> {
+    match command {
+        BenchCommand::Methods(args) => {
+            let regimes = plume::bench::methods::parse_regimes(&args.regimes).map_err(|e| rename(e, "regimes", "--regimes"))?;
+            let regimes: Vec<(&str, f64)> = regimes.iter().map(|(n, v)| (n.as_str(), *v)).collect();
+            let report = plume::bench::methods::run(
+                args.resolution,
+                args.width,
+                args.height,
+                args.time,
+                args.reference_time,
+                args.threads,
+                args.mis,
+                args.proxy_resolution,
+                &regimes,
+                &|l| eprintln!("plume: {l}"),
+            )?;
+            print!("{report}");
+            write_json(&args.json, &report)
+        }
+        BenchCommand::Core(args) => {
+            let report = plume::bench::core::run(args.resolution, args.threads, &args.ttfs_file)?;
+            print!("{report}");
+            write_json(&args.json, &report)
+        }
+        BenchCommand::Compare(args) => {
+            let scene = compare_scene(&args)?;
+            let options = CompareOptions {
+                methods: args.methods.clone(),
+                time: args.time,
+                spp: args.spp,
+                runs: args.runs,
+                reference: args.reference.clone(),
+                make_reference: args.make_reference,
+                reference_time: args.reference_time,
+                save_reference: args.save_reference.clone(),
+                epsilon: args.epsilon,
+                curve_points: args.curve_points,
+                out: args.out.clone(),
+                name: args.name.clone(),
+            };
+            options.run(scene)
+        }
+        BenchCommand::Extremes(args) => {
+            ExtremesOptions { box_voxels: args.box_voxels, explosion_resolution: args.explosion_resolution, size: args.size, spp: args.spp, json: args.json }.run()
+        }
+        BenchCommand::Report(args) => {
+            ReportOptions { out: args.out, time_scale: args.time_scale, resolution: args.resolution, data: args.data, work_dir: args.work_dir }.run()
+        }
+    }
+}
+
+/// An error's key renamed to the flag.
+fn rename(e: Error, key: &str, flag: &str) -> Error {
+    match e {
+        Error::InvalidArgument { flag: k, message } if k == key => Error::invalid(flag, message),
+        e => e,
+    }
+}
+
+/// The scene of `plume bench compare`: SCENE and the render flags after `--`, through
+/// the `plume render` conversion (the output is a placeholder, never written).
+fn compare_scene(args: &CompareArgs) -> Result<plume::bench::spec::BenchScene> {
+    let placeholder = std::env::temp_dir().join("plume-bench-unused.exr");
+    let mut argv: Vec<String> = vec!["plume".into(), "render".into(), args.scene.clone(), "-o".into(), placeholder.display().to_string()];
+    argv.extend(args.render_flags.iter().cloned());
+    let bad = |e: clap::Error| {
+        let msg = e.to_string();
+        Error::invalid("render flags", msg.lines().next().unwrap_or_default().trim_start_matches("error: ").to_string())
+    };
+    let matches = Cli::command().try_get_matches_from(&argv).map_err(bad)?;
+    let cli = Cli::from_arg_matches(&matches).map_err(bad)?;
+    let Command::Render(render) = cli.command else { unreachable!("invariant: parsed a render command") };
+    let sub = matches.subcommand().map(|(_, m)| m).expect("invariant: a render subcommand");
+    let request = RenderRequest::new(&render, sub)?;
+    plume::bench::spec::load(request.shot.clone().into_inner(), args.render_flags.clone(), &args.work_dir).map_err(|e| request.origin.explain(e))
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::Parser;
+
+    use super::*;
+
+    #[test]
+    fn render_flags_go_through_the_render_parser() {
+        let args = |flags: &[&str]| -> CompareArgs {
+            let argv = ["plume", "bench", "compare", "x.vdb", "--make-reference", "--"].into_iter().chain(flags.iter().copied());
+            match Cli::try_parse_from(argv).unwrap().command {
+                Command::Bench(BenchCommand::Compare(a)) => *a,
+                _ => unreachable!(),
+            }
+        };
+        let e = compare_scene(&args(&["--no-such-flag"])).err().unwrap();
+        assert!(e.to_string().contains("no-such-flag"), "{e}");
+        let e = compare_scene(&args(&["--albedo", "3"])).err().unwrap();
+        assert!(e.to_string().contains("--albedo"), "{e}");
+    }
+}

@@ -1,0 +1,52 @@
+//! Value parsers shared by the commands: `x,y,z` vectors, byte sizes, and the library's
+//! named choices ([`Choice`]) with their help texts.
+
+use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
+use glam::DVec3;
+use plume::scene::Choice;
+
+/// A value parser for a library [`Choice`]: its names as possible values, with help.
+pub fn choice<T: Choice + Clone + Send + Sync>() -> impl TypedValueParser<Value = T> {
+    PossibleValuesParser::new(T::CHOICES.iter().map(|&(name, _, help)| PossibleValue::new(name).help(help)))
+        .map(|s| T::from_name(&s).expect("invariant: clap checked the possible values"))
+}
+
+/// Parse `x,y,z`.
+///
+/// # Errors
+/// A message for clap when the text is not three finite numbers.
+pub fn parse_vec3(s: &str) -> Result<DVec3, String> {
+    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+    if parts.len() != 3 {
+        return Err(format!("expected x,y,z, got {s:?}"));
+    }
+    let mut v = [0.0; 3];
+    for (d, p) in v.iter_mut().zip(&parts) {
+        *d = p.parse::<f64>().map_err(|_| format!("{p:?} is not a number"))?;
+        if !d.is_finite() {
+            return Err(format!("{p:?} is not finite"));
+        }
+    }
+    Ok(DVec3::from_array(v))
+}
+
+/// Parse a byte size (`512MiB`, `8GiB`).
+///
+/// # Errors
+/// A message for clap on a malformed size.
+pub fn parse_size(s: &str) -> Result<plume::scene::ByteSize, String> {
+    s.parse()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_vectors() {
+        assert_eq!(parse_vec3("1, -2,3.5").unwrap(), DVec3::new(1.0, -2.0, 3.5));
+        assert!(parse_vec3("1,2").is_err());
+        assert!(parse_vec3("1,2,nan").is_err());
+        assert_eq!(parse_size("512MiB").unwrap().0, 512 << 20);
+    }
+}

@@ -1,0 +1,61 @@
+//! The `plume` binary's command line (clap derive; doc comments are the `--help` text).
+//! Nothing here is part of the library: flags become library types
+//! ([`plume::scene::Shot`], `bench` and `merge` options) in one conversion per command,
+//! and the library never sees a clap type.
+//!
+//! | file | command |
+//! |---|---|
+//! | `render.rs` | `plume render` flags → [`plume::scene::Shot`] (with scene files and `--write-scene`) |
+//! | `flags.rs` | value parsers shared by the commands (vectors, sizes, named choices) |
+//! | `bench.rs` | `plume bench …` |
+//! | `files.rs` | `plume info`, `plume prepare`, `plume merge`, `plume synth …` |
+//! | `commands.rs` | dispatch |
+
+pub mod bench;
+pub mod commands;
+pub mod files;
+pub mod flags;
+pub mod render;
+
+use clap::{Parser, Subcommand};
+
+/// plume: a renderer for emissive heterogeneous volumes (OpenVDB), with line
+/// integration and forward next-event estimation.
+///
+/// Exit codes: 0 success (also when every output was already complete and skipped);
+/// 2 bad arguments or scene file; 3 input missing, unreadable or invalid (VDB file,
+/// grid, merge part); 4 render or output failure; 5 interrupted by SIGTERM/SIGINT (the
+/// image so far was written with its real spp; a rerun continues it); 6 --time-limit
+/// reached (likewise); 7 a run of several frames in which some frames failed or stopped
+/// early (each is reported; the others were rendered). A run of one frame exits with
+/// that frame's code. 101 is a bug (a panic): please report it.
+#[derive(Debug, Parser)]
+#[command(name = "plume", version, about, long_about)]
+pub struct Cli {
+    /// What to do.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// Subcommands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Render a VDB file, a sequence of them, or a scene file (.toml), to float EXRs (and
+    /// optionally PNG previews).
+    Render(Box<render::RenderArgs>),
+    /// Assemble parts of a frame rendered as tiles (--crop, --tile) and sample ranges
+    /// (--sample-range) into one EXR, bit-identical to rendering it in one process.
+    Merge(files::MergeArgs),
+    /// Print every grid of a VDB file: name, type, class, voxels, bounds, transform,
+    /// value range, memory.
+    Info(files::InfoArgs),
+    /// Convert a .vdb into a brick cache file (.plume) that renders out of core: bricks,
+    /// pyramid and FNEE proxy, memory-mapped by `plume render OUT.plume`.
+    Prepare(files::PrepareArgs),
+    /// Generate procedural volumes.
+    #[command(subcommand)]
+    Synth(files::SynthCommand),
+    /// Benchmarks: speed and memory figures.
+    #[command(subcommand)]
+    Bench(bench::BenchCommand),
+}

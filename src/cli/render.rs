@@ -1,0 +1,477 @@
+//! `plume render`: its flags, and the one conversion of flags (and a scene file) into a
+//! validated [`Shot`].
+//!
+//! Without a scene file every flag, defaults included, gives its key. With one
+//! (`plume render shot.toml`), the file gives the keys and only the flags typed on the
+//! command line override them. [`RENDER_FLAGS`] is the one table of flag → key; it also
+//! turns the keys that library errors name back into the flags a user typed, or into
+//! the scene file's line.
+
+use std::path::PathBuf;
+
+use clap::{ArgMatches, Args};
+use glam::DVec3;
+use plume::error::{Error, Result};
+use plume::film::Crop;
+use plume::integrator::{LightSampling, MisHeuristic};
+use plume::medium::Convention;
+use plume::scene::file::{is_scene_file, SceneFile};
+use plume::scene::{
+    ByteSize, CameraSettings, DebugPixel, EmissionSettings, EmissionSource, EstimatorKind, IntegratorSettings, MediumSettings, Method, ProgressFormat,
+    ReadSettings, RenderOptions, SampleOrderChoice, Shot, TileIndex, UpAxis, ValidShot, VolumeInput,
+};
+
+use super::flags::{choice, parse_size, parse_vec3};
+
+/// `plume render`.
+#[derive(Clone, Debug, Args)]
+// Negative numbers reach our validation, which names the flag and the allowed range.
+#[command(allow_negative_numbers = true)]
+pub struct RenderArgs {
+    /// The .vdb file or .plume brick cache (`plume prepare`), or with --frames a
+    /// pattern with a frame token: `fire.####.vdb`
+    /// (one `#` per digit), `fire.%04d.vdb` or `fire.$F4.vdb`. Numbers wider than the
+    /// padding are printed in full. Or a scene file (`shot.toml`, README "Scene
+    /// files"): flags given beside it override its keys.
+    pub file: PathBuf,
+    /// Output EXR (32-bit float RGBA; alpha = 1 − transmittance); with --frames a
+    /// pattern like FILE's. Required unless a scene file gives `[output] image`. Written atomically; an output that is already complete is
+    /// skipped unless --overwrite, and one left by an interrupted render is continued.
+    #[arg(short, long)]
+    pub output: Option<PathBuf>,
+    /// Samples per pixel.
+    #[arg(long, conflicts_with = "time")]
+    pub spp: Option<u32>,
+    /// Render whole 1-spp passes until this many seconds are spent.
+    #[arg(long)]
+    pub time: Option<f64>,
+    /// Seed of the sample streams (default: the frame number with --frames, else 0).
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Worker threads (0 = all cores, and one more when rendering tile by tile from a
+    /// brick cache, where workers wait for the disk). The image does not depend on it.
+    #[arg(long, default_value_t = RenderOptions::default().threads)]
+    pub threads: usize,
+    /// Image width in pixels.
+    #[arg(long, default_value_t = CameraSettings::default().width)]
+    pub width: u32,
+    /// Image height in pixels.
+    #[arg(long, default_value_t = CameraSettings::default().height)]
+    pub height: u32,
+    /// Camera position x,y,z (world). Without it the volume is framed automatically.
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub camera_from: Option<DVec3>,
+    /// Point looked at x,y,z (default: the volume's centre).
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub camera_at: Option<DVec3>,
+    /// Up vector x,y,z (default: from --up-axis).
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub camera_up: Option<DVec3>,
+    /// Horizontal field of view in degrees.
+    #[arg(long, default_value_t = CameraSettings::default().fov)]
+    pub fov: f64,
+    /// Up axis for automatic framing and the default --camera-up.
+    #[arg(long, value_parser = choice::<UpAxis>(), default_value_t = CameraSettings::default().up_axis)]
+    pub up_axis: UpAxis,
+    /// The paper's methods as presets: estimator + light sampling. `--estimator` and
+    /// `--light-sampling` override the preset's parts.
+    #[arg(long, value_parser = choice::<Method>(), default_value_t = IntegratorSettings::default().method)]
+    pub method: Method,
+    /// Emission estimator (default: from --method).
+    #[arg(long, value_parser = choice::<EstimatorKind>())]
+    pub estimator: Option<EstimatorKind>,
+    /// Next event technique at scattering vertices (default: from --method).
+    #[arg(long, value_parser = choice::<LightSampling>())]
+    pub light_sampling: Option<LightSampling>,
+    /// MIS heuristic between forward sampling and NEE/FNEE.
+    #[arg(long, value_parser = choice::<MisHeuristic>(), default_value_t = IntegratorSettings::default().mis)]
+    pub mis: MisHeuristic,
+    /// FNEE proxy grid resolution (cells along the longest axis; a power of two, 8 up to
+    /// the data resolution). Default 64, or the data resolution if that is smaller.
+    #[arg(long)]
+    pub proxy_resolution: Option<u32>,
+    /// Single-scattering albedo in [0, 1] (0: emission–absorption only). With
+    /// --albedo-grid it multiplies the grid (default 1 then).
+    #[arg(long)]
+    pub albedo: Option<f32>,
+    /// Henyey–Greenstein asymmetry g in (−1, 1).
+    #[arg(long, default_value_t = MediumSettings::default().g, allow_hyphen_values = true)]
+    pub g: f64,
+    /// Largest number of scattering events per path.
+    #[arg(long, default_value_t = IntegratorSettings::default().max_depth)]
+    pub max_depth: u32,
+    /// Constant environment radiance r,g,b seen by escaping paths (default: none).
+    #[arg(long, value_parser = parse_vec3)]
+    pub environment: Option<DVec3>,
+    /// Render only sample S of pixel (X, Y) and print its path: X,Y,S.
+    #[arg(long)]
+    pub debug_pixel: Option<DebugPixel>,
+    /// κ of the blend estimator: α = 1/(1 + κ μ Δ) per voxel.
+    #[arg(long, default_value_t = IntegratorSettings::default().kappa)]
+    pub kappa: f64,
+    /// Which grids make the volume, how the source maps, and how files are read.
+    #[command(flatten)]
+    pub grids: GridArgs,
+    /// σ_t: extinction per world unit per unit density.
+    #[arg(long, default_value_t = MediumSettings::default().density_scale)]
+    pub density_scale: f64,
+    /// Emission scale s_e.
+    #[arg(long, default_value_t = EmissionSettings::default().scale)]
+    pub emission_scale: f32,
+    /// Emission colour r,g,b (a tint for blackbody).
+    #[arg(long, value_parser = parse_vec3, default_value = "1,1,1")]
+    pub emission_color: DVec3,
+    /// Write a tone-mapped sRGB PNG preview here (a pattern with --frames).
+    #[arg(long)]
+    pub preview: Option<PathBuf>,
+    /// Preview exposure in stops (default: automatic).
+    #[arg(long, allow_hyphen_values = true)]
+    pub exposure: Option<f32>,
+    /// Append render statistics here, one JSON object per frame and line (JSON Lines):
+    /// wall and CPU seconds, core-hours, spp, samples/s, peak RSS, input SHA-256, host,
+    /// command line. May hold a frame token.
+    #[arg(long)]
+    pub stats: Option<PathBuf>,
+    /// Bound on resident anonymous memory, e.g. `4GiB` (default: half of RAM). A .vdb
+    /// larger than a quarter of it on disk renders through a brick cache (mapped; the OS
+    /// page cache may hold its pages), and a render whose own tables would exceed it is
+    /// refused.
+    #[arg(long, value_parser = parse_size)]
+    pub memory_budget: Option<ByteSize>,
+    /// Where automatic brick caches of large .vdb inputs go (default: beside the input,
+    /// or `$XDG_CACHE_HOME/plume` when that directory is not writable).
+    #[arg(long)]
+    pub cache_dir: Option<PathBuf>,
+    /// Order of the samples (the image is the same): `progressive` passes over the whole
+    /// image, or `tile-major`, every sample of a tile before the next, with the next
+    /// tiles' bricks read ahead, so a volume larger than memory is read from disk about
+    /// once. `auto`: tile-major for a brick cache larger than the memory available to
+    /// the page cache, with --spp and no --time-limit. In tile-major order a stop signal
+    /// or time limit abandons the frame (nothing of it is written).
+    #[arg(long, value_parser = choice::<SampleOrderChoice>(), default_value_t = RenderOptions::default().sample_order)]
+    pub sample_order: SampleOrderChoice,
+    /// No progress bar or summary.
+    #[arg(long, short)]
+    pub quiet: bool,
+    /// Frames to render: `1-100`, `1-100x2` (or `1-100:2`), `1,5,10-20`. One process
+    /// renders them in order, each frame's grids loaded once; a frame that fails is
+    /// reported and the others go on (exit code 7).
+    #[arg(long, allow_hyphen_values = true)]
+    pub frames: Option<String>,
+    /// Render frames even when their output is already complete (default: skip them).
+    #[arg(long)]
+    pub overwrite: bool,
+    /// Per-frame wall-clock limit in seconds (loading included): the frame stops between
+    /// passes and its image is written with the spp reached (exit code 6); a rerun
+    /// continues it.
+    #[arg(long)]
+    pub time_limit: Option<f64>,
+    /// Render only these pixels: x0,y0,x1,y1 (columns x0..x1−1, rows y0..y1−1). Writes a
+    /// part for `plume merge`.
+    #[arg(long, conflicts_with = "tile")]
+    pub crop: Option<Crop>,
+    /// Render only tile i of n (0-based; a near-square grid, row by row). Writes a part
+    /// for `plume merge`.
+    #[arg(long)]
+    pub tile: Option<TileIndex>,
+    /// Render only samples a..b−1 of every pixel (instead of --spp/--time). Writes a part
+    /// for `plume merge`.
+    #[arg(long, value_parser = plume::farm::split::parse_sample_range, conflicts_with_all = ["spp", "time"])]
+    pub sample_range: Option<std::ops::Range<u64>>,
+    /// Also store the exact sample sums in the EXR (implied by --crop, --tile and
+    /// --sample-range), so that it can be merged with more samples later.
+    #[arg(long)]
+    pub sums: bool,
+    /// Write the fully resolved scene (FILE and every flag, defaults included) as a
+    /// scene file here, and exit without rendering.
+    #[arg(long)]
+    pub write_scene: Option<PathBuf>,
+    /// Machine-readable progress on stdout (logs stay on stderr).
+    #[arg(long, value_parser = choice::<ProgressFormat>(), default_value_t = RenderOptions::default().progress)]
+    pub progress: ProgressFormat,
+}
+
+
+/// Which grids make the volume and how they are read: shared by `render` and `prepare`,
+/// because a brick cache stores exactly what these flags select.
+#[derive(Clone, Debug, Args)]
+pub struct GridArgs {
+    /// Density grid name (`name[N]` for the N-th duplicate).
+    #[arg(long, default_value_t = VolumeInput::new("").density_grid)]
+    pub density_grid: String,
+    /// What drives emission.
+    #[arg(long, value_parser = choice::<EmissionSource>(), default_value_t = EmissionSettings::default().source)]
+    pub emission: EmissionSource,
+    /// Temperature grid name (blackbody).
+    #[arg(long, default_value_t = VolumeInput::new("").temperature_grid)]
+    pub temperature_grid: String,
+    /// Temperature grid values to Kelvin: `kelvin` or `linear:OFFSET,SCALE`.
+    #[arg(long, default_value_t = EmissionSettings::default().temperature_map)]
+    pub temperature_map: String,
+    /// Physical blackbody: temperatures below this (Kelvin) emit nothing.
+    #[arg(long, default_value_t = EmissionSettings::default().temperature_cutoff)]
+    pub temperature_cutoff: f32,
+    /// Emission grid name (`--emission grid`).
+    #[arg(long)]
+    pub emission_grid: Option<String>,
+    /// Physical, or Blender Cycles' Principled Volume convention.
+    #[arg(long, value_parser = choice::<Convention>(), default_value_t = EmissionSettings::default().convention)]
+    pub convention: Convention,
+    /// Per-voxel albedo grid (values clamped to [0, 1]), times --albedo.
+    #[arg(long)]
+    pub albedo_grid: Option<String>,
+    /// Largest input a grid read may allocate, e.g. `8GiB`, `512MiB` (default: half of RAM).
+    #[arg(long, value_parser = parse_size)]
+    pub max_input_memory: Option<ByteSize>,
+    /// Seconds the isolated VDB reader may take before it is killed.
+    #[arg(long, default_value_t = ReadSettings::default().read_timeout)]
+    pub read_timeout: f64,
+    /// Read the file in this process, not in an isolated child that limits memory and
+    /// time and survives crashes (saves a few ms; trusted files only).
+    #[arg(long)]
+    pub no_isolation: bool,
+}
+
+
+impl GridArgs {
+    /// The grid bindings, source mapping and reading these flags give (`plume prepare`).
+    #[must_use]
+    pub fn description(&self) -> (VolumeInput, EmissionSettings, ReadSettings) {
+        let volume = VolumeInput {
+            file: PathBuf::new(),
+            density_grid: self.density_grid.clone(),
+            temperature_grid: self.temperature_grid.clone(),
+            emission_grid: self.emission_grid.clone(),
+            albedo_grid: self.albedo_grid.clone(),
+        };
+        let emission = EmissionSettings {
+            source: self.emission,
+            convention: self.convention,
+            temperature_map: self.temperature_map.clone(),
+            temperature_cutoff: self.temperature_cutoff,
+            ..EmissionSettings::default()
+        };
+        (volume, emission, ReadSettings { max_input_memory: self.max_input_memory, read_timeout: self.read_timeout, no_isolation: self.no_isolation })
+    }
+}
+
+/// Flag id (clap's, the field name) → scene key, and how the flag sets the key. The
+/// positional FILE sets `volume.file` (unless it is a scene file); `-o` sets
+/// `output.image`.
+macro_rules! render_flags {
+    ($s:ident, $a:ident; $($id:literal => $key:literal: $target:expr => $value:expr;)*) => {
+        /// Every render flag's id and key.
+        pub const RENDER_FLAGS: &[(&str, &str)] = &[$(($id, $key)),*];
+
+        /// Set the key of every flag that `given` says counts.
+        fn apply($s: &mut Shot, $a: &RenderArgs, given: &dyn Fn(&str) -> bool) {
+            $(if given($id) {
+                $target = $value;
+            })*
+        }
+    };
+}
+
+render_flags! { s, a;
+    "output" => "output.image": s.settings.output.image => a.output.clone().unwrap_or_default();
+    "spp" => "render.spp": s.settings.render.spp => a.spp;
+    "time" => "render.time": s.settings.render.time => a.time;
+    "seed" => "render.seed": s.settings.render.seed => a.seed;
+    "threads" => "render.threads": s.settings.render.threads => a.threads;
+    "width" => "camera.width": s.scene.camera.width => a.width;
+    "height" => "camera.height": s.scene.camera.height => a.height;
+    "camera_from" => "camera.from": s.scene.camera.from => a.camera_from;
+    "camera_at" => "camera.at": s.scene.camera.at => a.camera_at;
+    "camera_up" => "camera.up": s.scene.camera.up => a.camera_up;
+    "fov" => "camera.fov": s.scene.camera.fov => a.fov;
+    "up_axis" => "camera.up_axis": s.scene.camera.up_axis => a.up_axis;
+    "method" => "integrator.method": s.scene.integrator.method => a.method;
+    "estimator" => "integrator.estimator": s.scene.integrator.estimator => a.estimator;
+    "light_sampling" => "integrator.light_sampling": s.scene.integrator.light_sampling => a.light_sampling;
+    "mis" => "integrator.mis": s.scene.integrator.mis => a.mis;
+    "proxy_resolution" => "integrator.proxy_resolution": s.scene.integrator.proxy_resolution => a.proxy_resolution;
+    "albedo" => "medium.albedo": s.scene.medium.albedo => a.albedo;
+    "g" => "medium.g": s.scene.medium.g => a.g;
+    "max_depth" => "integrator.max_depth": s.scene.integrator.max_depth => a.max_depth;
+    "environment" => "lights.environment": s.scene.lights.environment => a.environment;
+    "debug_pixel" => "render.debug_pixel": s.settings.render.debug_pixel => a.debug_pixel;
+    "kappa" => "integrator.kappa": s.scene.integrator.kappa => a.kappa;
+    "density_grid" => "volume.density_grid": s.scene.volume.density_grid => a.grids.density_grid.clone();
+    "emission" => "emission.source": s.scene.emission.source => a.grids.emission;
+    "temperature_grid" => "volume.temperature_grid": s.scene.volume.temperature_grid => a.grids.temperature_grid.clone();
+    "temperature_map" => "emission.temperature_map": s.scene.emission.temperature_map => a.grids.temperature_map.clone();
+    "temperature_cutoff" => "emission.temperature_cutoff": s.scene.emission.temperature_cutoff => a.grids.temperature_cutoff;
+    "emission_grid" => "volume.emission_grid": s.scene.volume.emission_grid => a.grids.emission_grid.clone();
+    "convention" => "emission.convention": s.scene.emission.convention => a.grids.convention;
+    "albedo_grid" => "volume.albedo_grid": s.scene.volume.albedo_grid => a.grids.albedo_grid.clone();
+    "max_input_memory" => "reading.max_input_memory": s.settings.reading.max_input_memory => a.grids.max_input_memory;
+    "read_timeout" => "reading.read_timeout": s.settings.reading.read_timeout => a.grids.read_timeout;
+    "no_isolation" => "reading.no_isolation": s.settings.reading.no_isolation => a.grids.no_isolation;
+    "density_scale" => "medium.density_scale": s.scene.medium.density_scale => a.density_scale;
+    "emission_scale" => "emission.scale": s.scene.emission.scale => a.emission_scale;
+    "emission_color" => "emission.color": s.scene.emission.color => a.emission_color.as_vec3().to_array();
+    "preview" => "output.preview": s.settings.output.preview => a.preview.clone();
+    "exposure" => "output.exposure": s.settings.output.exposure => a.exposure;
+    "stats" => "output.stats": s.settings.output.stats => a.stats.clone();
+    "memory_budget" => "render.memory_budget": s.settings.render.memory_budget => a.memory_budget;
+    "cache_dir" => "render.cache_dir": s.settings.render.cache_dir => a.cache_dir.clone();
+    "sample_order" => "render.sample_order": s.settings.render.sample_order => a.sample_order;
+    "quiet" => "render.quiet": s.settings.render.quiet => a.quiet;
+    "frames" => "farm.frames": s.settings.farm.frames => a.frames.clone();
+    "overwrite" => "farm.overwrite": s.settings.farm.overwrite => a.overwrite;
+    "time_limit" => "farm.time_limit": s.settings.farm.time_limit => a.time_limit;
+    "crop" => "farm.crop": s.settings.farm.crop => a.crop;
+    "tile" => "farm.tile": s.settings.farm.tile => a.tile;
+    "sample_range" => "farm.sample_range": s.settings.farm.sample_range => a.sample_range.clone();
+    "sums" => "output.sums": s.settings.output.sums => a.sums;
+    "progress" => "render.progress": s.settings.render.progress => a.progress;
+}
+
+/// `--flag-name` of a flag id (`FILE` for the positional).
+fn flag_name(id: &str) -> String {
+    if id == "file" {
+        "FILE".into()
+    } else {
+        format!("--{}", id.replace('_', "-"))
+    }
+}
+
+/// The flag that sets `key`, if one does.
+fn flag_of(key: &str) -> Option<&'static str> {
+    if key == "volume.file" {
+        return Some("file");
+    }
+    RENDER_FLAGS.iter().find(|(_, k)| *k == key).map(|(id, _)| *id)
+}
+
+/// A render command line as library types.
+pub struct RenderRequest {
+    /// The validated shot.
+    pub shot: ValidShot,
+    /// Where its values came from, to name them in errors.
+    pub origin: Origin,
+}
+
+/// Where a shot's values came from: flags, or a scene file and the flags typed beside it.
+pub struct Origin {
+    /// The scene file, if any.
+    pub scene_file: Option<SceneFile>,
+    /// Flag ids typed on the command line.
+    pub given: Vec<String>,
+}
+
+impl RenderRequest {
+    /// The one conversion: flags, or a scene file with flags overriding its keys, into a
+    /// validated shot.
+    ///
+    /// # Errors
+    /// A bad scene file, a missing output, or a value [`Shot::validate`] refuses; errors
+    /// name the flag or the file, line and key.
+    pub fn new(args: &RenderArgs, matches: &ArgMatches) -> Result<RenderRequest> {
+        let typed = |id: &str| matches.value_source(id) == Some(clap::parser::ValueSource::CommandLine);
+        let given: Vec<String> = RENDER_FLAGS.iter().map(|(id, _)| *id).filter(|id| typed(id)).map(String::from).collect();
+        let (shot, scene_file) = if is_scene_file(&args.file) {
+            let (mut shot, file) = SceneFile::read(&args.file)?;
+            // A flag overrides the keys it conflicts with, too
+            if typed("time") || typed("sample_range") {
+                shot.settings.render.spp = None;
+            }
+            if typed("spp") || typed("sample_range") {
+                shot.settings.render.time = None;
+            }
+            if typed("spp") || typed("time") {
+                shot.settings.farm.sample_range = None;
+            }
+            if typed("crop") {
+                shot.settings.farm.tile = None;
+            }
+            if typed("tile") {
+                shot.settings.farm.crop = None;
+            }
+            apply(&mut shot, args, &typed);
+            (shot, Some(file))
+        } else {
+            let output = args.output.clone().ok_or_else(|| Error::invalid("--output", "required (-o OUT.exr), unless FILE is a scene file that gives [output] image"))?;
+            let mut shot = Shot::new(&args.file, output);
+            apply(&mut shot, args, &|_| true);
+            (shot, None)
+        };
+        let origin = Origin { scene_file, given };
+        match shot.validate() {
+            Ok(shot) => Ok(RenderRequest { shot, origin }),
+            Err(e) => Err(origin.explain(e)),
+        }
+    }
+}
+
+impl Origin {
+    /// `e` as the user should read it: keys named by the flag that set them, or by the
+    /// scene file's line when the file did.
+    #[must_use]
+    pub fn explain(&self, e: Error) -> Error {
+        let Error::InvalidArgument { flag: field, message } = e else { return e };
+        let keys: Vec<&str> = field.split('/').collect();
+        let typed = |k: &str| flag_of(k).is_some_and(|id| self.given.iter().any(|g| g == id));
+        if let Some(file) = &self.scene_file {
+            if !keys.iter().any(|k| typed(k)) {
+                return file.error_at_key(keys[0], &message);
+            }
+        }
+        let named: Vec<String> = keys.iter().map(|k| flag_of(k).map_or_else(|| (*k).to_string(), flag_name)).collect();
+        // Keys named inside the message too, longest first
+        let mut message = message;
+        let mut all: Vec<(&str, &str)> = RENDER_FLAGS.to_vec();
+        all.sort_by_key(|(_, k)| std::cmp::Reverse(k.len()));
+        for (id, key) in all {
+            message = message.replace(key, &flag_name(id));
+        }
+        Error::InvalidArgument { flag: named.join("/"), message }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::{CommandFactory, FromArgMatches};
+
+    use super::*;
+    use crate::cli::{Cli, Command};
+
+    fn request(argv: &[&str]) -> Result<RenderRequest> {
+        let mut v = vec!["plume", "render"];
+        v.extend_from_slice(argv);
+        let matches = Cli::command().try_get_matches_from(v).unwrap();
+        let cli = Cli::from_arg_matches(&matches).unwrap();
+        let Command::Render(args) = cli.command else { unreachable!() };
+        let (_, sub) = matches.subcommand().unwrap();
+        RenderRequest::new(&args, sub)
+    }
+
+    #[test]
+    fn flag_defaults_are_the_library_defaults() {
+        let r = request(&["in.vdb", "-o", "out.exr"]).unwrap();
+        assert_eq!(*r.shot, Shot::new("in.vdb", "out.exr"));
+    }
+
+    #[test]
+    fn every_render_flag_has_a_key() {
+        let cmd = Cli::command();
+        let render = cmd.find_subcommand("render").unwrap();
+        for arg in render.get_arguments() {
+            let id = arg.get_id().as_str();
+            if ["file", "write_scene", "help"].contains(&id) {
+                continue;
+            }
+            assert!(RENDER_FLAGS.iter().any(|(f, _)| *f == id), "flag {id} sets no scene key");
+        }
+    }
+
+    #[test]
+    fn errors_name_the_flag() {
+        let e = request(&["in.vdb", "-o", "out.exr", "--albedo", "2"]).err().unwrap().to_string();
+        assert!(e.contains("--albedo"), "{e}");
+        let e = request(&["in.vdb", "-o", "out.exr", "--width", "0"]).err().unwrap().to_string();
+        assert!(e.contains("--width/--height"), "{e}");
+        let e = request(&["in.vdb"]).err().unwrap().to_string();
+        assert!(e.contains("--output"), "{e}");
+    }
+}

@@ -1,0 +1,247 @@
+//! Closed sets of named values that a scene description, a scene file and the command
+//! line all spell the same way (kebab-case names, one help line each).
+//!
+//! Each set is a plain `enum` with a [`Choice`] table. The table gives `FromStr` and
+//! `Display` (the names), serde (a scene file holds the names), and the command line's
+//! list of possible values with their help (the binary builds its value parsers from
+//! [`Choice::CHOICES`]), so a name is written once.
+
+use crate::integrator::{LightSampling, MisHeuristic};
+use crate::medium::{Convention, Estimator};
+
+/// A closed set of named values.
+pub trait Choice: Copy + PartialEq + Sized + 'static {
+    /// Every value: its name (kebab-case), the value and a one-line help text.
+    const CHOICES: &'static [(&'static str, Self, &'static str)];
+
+    /// The value's name.
+    #[must_use]
+    fn name(self) -> &'static str {
+        Self::CHOICES.iter().find(|c| c.1 == self).map_or("?", |c| c.0)
+    }
+
+    /// The value called `name`.
+    ///
+    /// # Errors
+    /// A message listing the names when `name` is none of them.
+    fn from_name(name: &str) -> Result<Self, String> {
+        Self::CHOICES.iter().find(|c| c.0 == name).map(|c| c.1).ok_or_else(|| {
+            let names: Vec<&str> = Self::CHOICES.iter().map(|c| c.0).collect();
+            format!("{name:?} is not one of {}", names.join(", "))
+        })
+    }
+}
+
+/// `Choice`, `FromStr`, `Display` and serde (as the name) for an enum.
+macro_rules! choice {
+    ($t:ty { $($name:literal => $v:expr, $help:literal;)* }) => {
+        impl Choice for $t {
+            const CHOICES: &'static [(&'static str, Self, &'static str)] = &[$(($name, $v, $help)),*];
+        }
+        impl std::str::FromStr for $t {
+            type Err = String;
+            fn from_str(s: &str) -> Result<Self, String> {
+                <$t as Choice>::from_name(s)
+            }
+        }
+        impl std::fmt::Display for $t {
+            fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.write_str(Choice::name(*self))
+            }
+        }
+        impl serde::Serialize for $t {
+            fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+                s.serialize_str(Choice::name(*self))
+            }
+        }
+        impl<'de> serde::Deserialize<'de> for $t {
+            fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+                let s = <std::borrow::Cow<'de, str> as serde::Deserialize>::deserialize(d)?;
+                <$t as Choice>::from_name(&s).map_err(serde::de::Error::custom)
+            }
+        }
+    };
+}
+
+/// The paper's methods (its conclusion table) as presets of estimator + light sampling.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Method {
+    /// Collision estimator + classic NEE with MIS in volume measure.
+    PointNee,
+    /// Line integration + classic NEE (no MIS partner).
+    LineNee,
+    /// Line integration + forward NEE with MIS (the paper's method).
+    LineFnee,
+    /// Expected-value (ray-marching) estimator, forward paths only.
+    RayMarch,
+}
+
+choice!(Method {
+    "point-nee" => Method::PointNee, "Collision estimator + classic NEE with MIS in volume measure";
+    "line-nee" => Method::LineNee, "Line integration + classic NEE (no MIS partner)";
+    "line-fnee" => Method::LineFnee, "Line integration + forward NEE with MIS (the paper's method)";
+    "ray-march" => Method::RayMarch, "Expected-value (ray-marching) estimator, forward paths only";
+});
+
+impl Method {
+    /// The preset's estimator and light sampling.
+    #[must_use]
+    pub fn parts(self) -> (EstimatorKind, LightSampling) {
+        match self {
+            Method::PointNee => (EstimatorKind::Point, LightSampling::Nee),
+            Method::LineNee => (EstimatorKind::Line, LightSampling::Nee),
+            Method::LineFnee => (EstimatorKind::Line, LightSampling::Fnee),
+            Method::RayMarch => (EstimatorKind::RayMarch, LightSampling::None),
+        }
+    }
+}
+
+/// An emission estimator by name; [`EstimatorKind::with_kappa`] makes the
+/// [`Estimator`] (the blend estimator carries its κ).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum EstimatorKind {
+    /// Collision estimator `L_e/μ_t` at sampled collisions.
+    Point,
+    /// Track-length estimator (line integration, the paper's).
+    Line,
+    /// Expected-value estimator (exact per-voxel closed form, deterministic).
+    RayMarch,
+    /// Per-voxel blend of line and point (κ).
+    Blend,
+}
+
+choice!(EstimatorKind {
+    "point" => EstimatorKind::Point, "Collision estimator L_e/μ_t at sampled collisions";
+    "line" => EstimatorKind::Line, "Track-length estimator (line integration, the paper's)";
+    "ray-march" => EstimatorKind::RayMarch, "Expected-value estimator (exact per-voxel closed form, deterministic)";
+    "blend" => EstimatorKind::Blend, "Per-voxel blend of line and point (kappa)";
+});
+
+impl EstimatorKind {
+    /// The estimator, with `kappa` for [`EstimatorKind::Blend`].
+    #[must_use]
+    pub fn with_kappa(self, kappa: f64) -> Estimator {
+        match self {
+            EstimatorKind::Point => Estimator::Point,
+            EstimatorKind::Line => Estimator::Line,
+            EstimatorKind::RayMarch => Estimator::RayMarch,
+            EstimatorKind::Blend => Estimator::Blend { kappa },
+        }
+    }
+}
+
+choice!(LightSampling {
+    "none" => LightSampling::None, "Forward (phase-sampled) paths only";
+    "nee" => LightSampling::Nee, "Classic NEE to emissive voxels (volume measure)";
+    "fnee" => LightSampling::Fnee, "Forward NEE: proxy direction + free path, MIS in solid angle";
+});
+
+choice!(MisHeuristic {
+    "balance" => MisHeuristic::Balance, "Balance heuristic";
+    "power" => MisHeuristic::Power, "Power heuristic (exponent 2)";
+});
+
+choice!(Convention {
+    "physical" => Convention::Physical, "Emission density ∝ density × source";
+    "cycles" => Convention::Cycles, "Blender Cycles' Principled Volume: emission not multiplied by density";
+});
+
+/// What drives emission, before the grids are read (`auto` is resolved against the file).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum EmissionSource {
+    /// Blackbody if the temperature grid exists, else the first emission grid found.
+    Auto,
+    /// Blackbody from the temperature grid.
+    Blackbody,
+    /// Scalar emission grid × colour × scale.
+    Grid,
+    /// No emission (absorption only).
+    None,
+}
+
+choice!(EmissionSource {
+    "auto" => EmissionSource::Auto, "Blackbody if the temperature grid exists, else an emission grid if one of `emission`, `flame`, `heat`, `flame_noise` exists, else none";
+    "blackbody" => EmissionSource::Blackbody, "Blackbody from the temperature grid";
+    "grid" => EmissionSource::Grid, "Scalar emission grid × colour × scale";
+    "none" => EmissionSource::None, "No emission (absorption only)";
+});
+
+/// The order in which samples are taken (the image is the same either way).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum SampleOrderChoice {
+    /// Tile-major for a mapped cache larger than the memory available, with a fixed spp
+    /// and no time limit; progressive otherwise.
+    #[default]
+    Auto,
+    /// Passes over the whole image.
+    Progressive,
+    /// Each tile's samples together, tiles in order, bricks read ahead.
+    TileMajor,
+}
+
+choice!(SampleOrderChoice {
+    "auto" => SampleOrderChoice::Auto, "Tile-major when the volume is a mapped cache larger than available memory and the render has a fixed spp and no time limit; progressive otherwise";
+    "progressive" => SampleOrderChoice::Progressive, "Passes over the whole image";
+    "tile-major" => SampleOrderChoice::TileMajor, "Each tile's samples together, tiles in order, bricks read ahead";
+});
+
+/// Up axis of automatic framing.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum UpAxis {
+    /// +y up (Houdini, OpenVDB samples).
+    Y,
+    /// +z up (Blender).
+    Z,
+}
+
+choice!(UpAxis {
+    "y" => UpAxis::Y, "+y up (Houdini, OpenVDB samples)";
+    "z" => UpAxis::Z, "+z up (Blender)";
+});
+
+/// Machine-readable progress on stdout.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ProgressFormat {
+    /// None (logs on stderr only).
+    #[default]
+    None,
+    /// Open Job Description: `openjd_progress: PERCENT` and `openjd_status: TEXT` lines.
+    Openjd,
+    /// One JSON object per line.
+    Json,
+}
+
+choice!(ProgressFormat {
+    "none" => ProgressFormat::None, "None (logs on stderr only)";
+    "openjd" => ProgressFormat::Openjd, "Open Job Description: `openjd_progress: PERCENT` and `openjd_status: TEXT` lines";
+    "json" => ProgressFormat::Json, "One JSON object per line (`event`: frame_start, progress, frame_done, frame_skipped, frame_failed, done)";
+});
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn round_trips<T: Choice + std::fmt::Debug + std::str::FromStr<Err = String> + std::fmt::Display>() {
+        for &(name, v, help) in T::CHOICES {
+            assert_eq!(v.name(), name);
+            assert_eq!(name.parse::<T>().unwrap(), v);
+            assert_eq!(v.to_string(), name);
+            assert!(!help.is_empty());
+        }
+        let e = "no-such-value".parse::<T>().unwrap_err();
+        assert!(e.contains(T::CHOICES[0].0), "{e}");
+    }
+
+    #[test]
+    fn names_round_trip() {
+        round_trips::<Method>();
+        round_trips::<EstimatorKind>();
+        round_trips::<LightSampling>();
+        round_trips::<MisHeuristic>();
+        round_trips::<Convention>();
+        round_trips::<EmissionSource>();
+        round_trips::<SampleOrderChoice>();
+        round_trips::<UpAxis>();
+        round_trips::<ProgressFormat>();
+    }
+}

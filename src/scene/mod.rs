@@ -1,0 +1,333 @@
+//! What a render is, as plain data: the [`SceneDescription`] (what is seen: volume and
+//! its grids, emission, medium, camera, lights, integrator) and the [`JobSettings`] (how
+//! the job runs: samples, seed, threads, frames, crops and sample ranges, outputs,
+//! memory, progress). Together they are a [`Shot`], the content of a scene file
+//! (`plume render shot.toml`, [`file`]).
+//!
+//! Everything here is `serde` data with the command line's defaults, and no command-line
+//! type: the `plume` binary turns flags into a [`Shot`] in one conversion, `bench` and
+//! library callers build one directly. [`Shot::validate`] is the one validation; it
+//! returns a [`ValidShot`], which is what renders take, so nothing is checked twice.
+//! Errors name the field by its key (`camera.width`); the binary translates keys back to
+//! the flags a user typed, or to the scene file's line.
+//!
+//! [`crate::load`] turns a description into a loaded scene.
+
+pub mod choice;
+pub mod file;
+mod settings;
+pub(crate) mod validate;
+mod values;
+
+use std::path::PathBuf;
+
+use glam::DVec3;
+use serde::{Deserialize, Serialize};
+
+pub use choice::{Choice, EmissionSource, EstimatorKind, Method, ProgressFormat, SampleOrderChoice, UpAxis};
+pub use settings::{FarmOptions, JobSettings, OutputSettings, ReadSettings, RenderOptions};
+pub use validate::ValidShot;
+pub use values::{parse_bytes, ByteSize, DebugPixel, TileIndex};
+
+use crate::integrator::{Integrator, LightSampling, MisHeuristic};
+use crate::medium::{Convention, Estimator};
+
+/// Everything a `plume render` command says: the scene and how the job runs.
+///
+/// As a scene file it is one table per part: `[volume]`, `[emission]`, `[medium]`,
+/// `[camera]`, `[lights]`, `[integrator]` (the scene) and `[render]`, `[farm]`,
+/// `[output]`, `[reading]` (the job).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(from = "ShotFile", into = "ShotFile")]
+pub struct Shot {
+    /// What is rendered.
+    pub scene: SceneDescription,
+    /// How the job runs.
+    pub settings: JobSettings,
+}
+
+/// A [`Shot`] as a scene file lays it out: every table at the top level.
+#[derive(Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ShotFile {
+    volume: VolumeInput,
+    #[serde(default)]
+    emission: EmissionSettings,
+    #[serde(default)]
+    medium: MediumSettings,
+    #[serde(default)]
+    camera: CameraSettings,
+    #[serde(default)]
+    lights: LightSettings,
+    #[serde(default)]
+    integrator: IntegratorSettings,
+    #[serde(default)]
+    render: settings::RenderOptions,
+    #[serde(default)]
+    farm: settings::FarmOptions,
+    output: OutputSettings,
+    #[serde(default)]
+    reading: ReadSettings,
+}
+
+impl From<ShotFile> for Shot {
+    fn from(f: ShotFile) -> Shot {
+        let ShotFile { volume, emission, medium, camera, lights, integrator, render, farm, output, reading } = f;
+        Shot {
+            scene: SceneDescription { volume, emission, medium, camera, lights, integrator },
+            settings: JobSettings { render, farm, output, reading },
+        }
+    }
+}
+
+impl From<Shot> for ShotFile {
+    fn from(s: Shot) -> ShotFile {
+        let Shot { scene: SceneDescription { volume, emission, medium, camera, lights, integrator }, settings: JobSettings { render, farm, output, reading } } = s;
+        ShotFile { volume, emission, medium, camera, lights, integrator, render, farm, output, reading }
+    }
+}
+
+impl Shot {
+    /// A shot of `file` to `output` with every other value at its default.
+    #[must_use]
+    pub fn new(file: impl Into<PathBuf>, output: impl Into<PathBuf>) -> Shot {
+        Shot { scene: SceneDescription::new(file), settings: JobSettings::new(output) }
+    }
+}
+
+/// What is rendered. The volume's file may hold a frame token (`fire.####.vdb`), resolved
+/// per frame by the job.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SceneDescription {
+    /// The volume and the grids that make it.
+    pub volume: VolumeInput,
+    /// What emits and how.
+    pub emission: EmissionSettings,
+    /// Extinction and scattering.
+    pub medium: MediumSettings,
+    /// The camera and the image size.
+    pub camera: CameraSettings,
+    /// Lights besides the volume's own emission.
+    pub lights: LightSettings,
+    /// Estimators and light sampling.
+    pub integrator: IntegratorSettings,
+}
+
+impl SceneDescription {
+    /// The default description of `file`.
+    #[must_use]
+    pub fn new(file: impl Into<PathBuf>) -> SceneDescription {
+        SceneDescription {
+            volume: VolumeInput::new(file),
+            emission: EmissionSettings::default(),
+            medium: MediumSettings::default(),
+            camera: CameraSettings::default(),
+            lights: LightSettings::default(),
+            integrator: IntegratorSettings::default(),
+        }
+    }
+
+    /// The albedo scale: `medium.albedo`, else 1 with an albedo grid, else 0.
+    #[must_use]
+    pub fn albedo(&self) -> f32 {
+        self.medium.albedo.unwrap_or(if self.volume.albedo_grid.is_some() { 1.0 } else { 0.0 })
+    }
+
+    /// Whether paths scatter (albedo above 0 and at least one bounce).
+    #[must_use]
+    pub fn scatters(&self) -> bool {
+        self.albedo() > 0.0 && self.integrator.max_depth > 0
+    }
+
+    /// The integrator this description asks for.
+    #[must_use]
+    pub fn integrator(&self) -> Integrator {
+        let (estimator, light_sampling) = self.integrator.parts();
+        Integrator {
+            estimator,
+            light_sampling,
+            mis: self.integrator.mis,
+            max_depth: if self.albedo() > 0.0 { self.integrator.max_depth } else { 0 },
+            environment: self.lights.environment.map(|e| crate::color::Rgb([e.x as f32, e.y as f32, e.z as f32])),
+        }
+    }
+}
+
+/// The volume file and the grids bound by name (`name[N]` for the N-th of a name).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct VolumeInput {
+    /// The .vdb file or .plume brick cache; with frames, a pattern with a frame token.
+    pub file: PathBuf,
+    /// Density grid.
+    #[serde(default = "defaults::density_grid")]
+    pub density_grid: String,
+    /// Temperature grid (blackbody).
+    #[serde(default = "defaults::temperature_grid")]
+    pub temperature_grid: String,
+    /// Emission grid (`emission.source = "grid"`); default: the first of the usual names.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub emission_grid: Option<String>,
+    /// Per-voxel albedo grid (values clamped to [0, 1]), times `medium.albedo`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub albedo_grid: Option<String>,
+}
+
+impl VolumeInput {
+    /// The default grids of `file`.
+    #[must_use]
+    pub fn new(file: impl Into<PathBuf>) -> VolumeInput {
+        VolumeInput {
+            file: file.into(),
+            density_grid: defaults::density_grid(),
+            temperature_grid: defaults::temperature_grid(),
+            emission_grid: None,
+            albedo_grid: None,
+        }
+    }
+}
+
+/// What emits and how (`medium::Emission` once the source grid is known).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct EmissionSettings {
+    /// What drives emission.
+    pub source: EmissionSource,
+    /// Physical, or Blender Cycles' Principled Volume convention.
+    pub convention: Convention,
+    /// Temperature grid values to Kelvin: `kelvin` or `linear:OFFSET,SCALE`.
+    pub temperature_map: String,
+    /// Physical blackbody: temperatures below this (Kelvin) emit nothing.
+    pub temperature_cutoff: f32,
+    /// Emission scale s_e.
+    pub scale: f32,
+    /// Emission colour (a tint for blackbody), linear Rec.709.
+    pub color: [f32; 3],
+}
+
+impl Default for EmissionSettings {
+    fn default() -> Self {
+        EmissionSettings {
+            source: EmissionSource::Auto,
+            convention: Convention::Physical,
+            temperature_map: "kelvin".into(),
+            temperature_cutoff: 500.0,
+            scale: 1.0,
+            color: [1.0; 3],
+        }
+    }
+}
+
+/// Extinction and scattering.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct MediumSettings {
+    /// σ_t: extinction per world unit (metre) per unit density.
+    pub density_scale: f64,
+    /// Single-scattering albedo in [0, 1]; default 0, or 1 with an albedo grid.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub albedo: Option<f32>,
+    /// Henyey–Greenstein asymmetry in (−1, 1).
+    pub g: f64,
+}
+
+impl Default for MediumSettings {
+    fn default() -> Self {
+        MediumSettings { density_scale: 1.0, albedo: None, g: 0.0 }
+    }
+}
+
+/// The camera and the image size. Without `from`, the volume is framed automatically.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct CameraSettings {
+    /// Position (world).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub from: Option<DVec3>,
+    /// Point looked at (default: the volume's centre).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub at: Option<DVec3>,
+    /// Up vector (default: from `up_axis`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub up: Option<DVec3>,
+    /// Horizontal field of view, degrees.
+    pub fov: f64,
+    /// Image width, pixels.
+    pub width: u32,
+    /// Image height, pixels.
+    pub height: u32,
+    /// Up axis of automatic framing and of the default `up`.
+    pub up_axis: UpAxis,
+}
+
+impl Default for CameraSettings {
+    fn default() -> Self {
+        CameraSettings { from: None, at: None, up: None, fov: 40.0, width: 640, height: 480, up_axis: UpAxis::Y }
+    }
+}
+
+/// Lights besides the volume's own emission.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct LightSettings {
+    /// Constant environment radiance (r, g, b) seen by escaping paths.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub environment: Option<DVec3>,
+}
+
+/// Estimators and light sampling.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct IntegratorSettings {
+    /// Preset of estimator + light sampling.
+    pub method: Method,
+    /// Overrides the preset's estimator.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub estimator: Option<EstimatorKind>,
+    /// Overrides the preset's light sampling.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub light_sampling: Option<LightSampling>,
+    /// MIS heuristic between forward sampling and NEE/FNEE.
+    pub mis: MisHeuristic,
+    /// FNEE proxy resolution (power of two); default 64 or the data resolution.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub proxy_resolution: Option<u32>,
+    /// Largest number of scattering events per path.
+    pub max_depth: u32,
+    /// κ of the blend estimator.
+    pub kappa: f64,
+}
+
+impl Default for IntegratorSettings {
+    fn default() -> Self {
+        IntegratorSettings {
+            method: Method::LineFnee,
+            estimator: None,
+            light_sampling: None,
+            mis: MisHeuristic::Power,
+            proxy_resolution: None,
+            max_depth: 64,
+            kappa: 4.0,
+        }
+    }
+}
+
+impl IntegratorSettings {
+    /// The estimator and light sampling: the preset's, overridden by `estimator` and
+    /// `light_sampling`.
+    #[must_use]
+    pub fn parts(&self) -> (Estimator, LightSampling) {
+        let (estimator, light_sampling) = self.method.parts();
+        (self.estimator.unwrap_or(estimator).with_kappa(self.kappa), self.light_sampling.unwrap_or(light_sampling))
+    }
+}
+
+/// Defaults that serde needs as functions.
+mod defaults {
+    pub(super) fn density_grid() -> String {
+        "density".into()
+    }
+    pub(super) fn temperature_grid() -> String {
+        "temperature".into()
+    }
+}

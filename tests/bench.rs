@@ -9,7 +9,7 @@ use glam::IVec3;
 use plume::bench::compare::{compare, make_reference, read_reference, CompareConfig};
 use plume::bench::extremes::{self, box_grid, ExtremesConfig};
 use plume::bench::metrics::{bias, mean_rgb, relmse, rmse, Errors, RELMSE_TRIM};
-use plume::bench::spec::{load, parse_methods};
+use plume::bench::spec::{bench_shot, load, parse_methods};
 
 fn px(v: &[[f32; 3]]) -> Vec<[f32; 4]> {
     v.iter().map(|p| [p[0], p[1], p[2], 1.0]).collect()
@@ -107,8 +107,9 @@ fn s(p: &Path) -> &str {
 #[test]
 fn compare_measures_every_method_and_writes_all_outputs() {
     let dir = tmpdir("lib");
-    let flags: Vec<String> = "--albedo 0.5 --width 24 --height 18 --threads 2 --proxy-resolution 8".split(' ').map(String::from).collect();
-    let mut scene = load("explosion:16", &flags, &dir).unwrap();
+    let keys = "[medium]\nalbedo = 0.5\n[camera]\nwidth = 24\nheight = 18\n[render]\nthreads = 2\n[integrator]\nproxy_resolution = 8";
+    let shot = plume::scene::file::with_keys(&bench_shot("explosion:16"), keys).unwrap();
+    let mut scene = load(shot, vec![keys.into()], &dir).unwrap();
     let reference = make_reference(&mut scene, 1.0, &|_| {}).unwrap();
     assert_eq!(reference.method, "line-fnee", "the scene scatters");
     assert!(reference.spp >= 2 && reference.noise_rmse.unwrap() > 0.0);

@@ -38,8 +38,10 @@ impl SceneFile {
         let file = SceneFile { path: path.to_path_buf(), text, doc };
         let mut shot: Shot = toml::from_str(&file.text).map_err(|e| {
             let span = e.span();
-            let key = span.as_ref().and_then(|s| file.key_at(s.start));
-            file.error(span.map(|s| s.start), key, e.message().trim())
+            let key = span.as_ref().and_then(|s| file.key_at(s.start).or_else(|| file.key_in_text(s.start)));
+            // One line: the parser's message may continue with what it expected
+            let message = e.message().trim().lines().map(str::trim).collect::<Vec<_>>().join("; ");
+            file.error(span.map(|s| s.start), key, &message)
         })?;
         let base = crate::output::parent_dir(path);
         resolve_paths(&mut shot, |p| if p.is_relative() && !base.as_os_str().is_empty() && base != Path::new(".") { base.join(p) } else { p.to_path_buf() });
@@ -85,6 +87,29 @@ impl SceneFile {
                 return k.span().or_else(|| item.span()).map(|s| s.start);
             }
             table = item.as_table()?;
+        }
+        None
+    }
+
+    /// The key on the line of byte `offset`, read from the text (for a file that does not
+    /// parse): the last `[table]` header above it, and the name before `=` on that line.
+    fn key_in_text(&self, offset: usize) -> Option<String> {
+        let line = self.line_at(offset);
+        let mut table = String::new();
+        for (i, text) in self.text.lines().enumerate() {
+            let t = text.trim();
+            if i + 1 == line {
+                let name = t.split_once('=').map(|(k, _)| k.trim().trim_matches('"').to_string());
+                return match (table.is_empty(), name) {
+                    (_, Some(n)) if n.is_empty() => None,
+                    (true, n) => n,
+                    (false, Some(n)) => Some(format!("{table}.{n}")),
+                    (false, None) => Some(table),
+                };
+            }
+            if t.starts_with('[') {
+                table = t.trim_matches(|c| c == '[' || c == ']').trim().to_string();
+            }
         }
         None
     }

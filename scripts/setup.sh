@@ -17,4 +17,4 @@ fi
 if ! command -v cargo >/dev/null 2>&1; then
     [ -x "$HOME/.cargo/bin/cargo" ] && export PATH="$HOME/.cargo/bin:$PATH"
 fi
-command -v cargo >/dev/null 2>&1 || { echo "setup: cargo not found; install a Rust toolchain (1.82 or newer)" >&2; exit 1; }
+command -v cargo >/dev/null 2>&1 || { echo "setup: cargo not found; install a Rust toolchain (1.83 or newer)" >&2; exit 1; }

@@ -2,9 +2,9 @@
 //! sweep at small sizes, and the comparison pipeline end to end (library and binary).
 //! Timings are never asserted (STYLE.md §8); only structure, finiteness and means.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
+mod common;
 
+use common::{exr_pixels, plume, s, tmpdir};
 use glam::IVec3;
 use plume::bench::compare::{compare, make_reference, read_reference, CompareConfig};
 use plume::bench::extremes::{self, box_grid, ExtremesConfig};
@@ -13,13 +13,6 @@ use plume::bench::spec::{bench_shot, load, parse_methods};
 
 fn px(v: &[[f32; 3]]) -> Vec<[f32; 4]> {
     v.iter().map(|p| [p[0], p[1], p[2], 1.0]).collect()
-}
-
-fn tmpdir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("plume-bench-test-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
 }
 
 #[test]
@@ -100,13 +93,9 @@ fn invalid_voxel_counts_are_exact() {
     assert_eq!(v.voxel(IVec3::new(5, 5, 5)).0, 1.0);
 }
 
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
-
 #[test]
 fn compare_measures_every_method_and_writes_all_outputs() {
-    let dir = tmpdir("lib");
+    let dir = tmpdir("bench-test", "lib");
     let keys = "[medium]\nalbedo = 0.5\n[camera]\nwidth = 24\nheight = 18\n[render]\nthreads = 2\n[integrator]\nproxy_resolution = 8";
     let shot = plume::scene::file::with_keys(&bench_shot("explosion:16"), keys).unwrap();
     let mut scene = load(shot, vec![keys.into()], &dir).unwrap();
@@ -160,13 +149,9 @@ fn compare_measures_every_method_and_writes_all_outputs() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-fn plume(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_plume")).args(args).output().expect("run plume")
-}
-
 #[test]
 fn compare_command_runs_end_to_end_and_refuses_bad_flags() {
-    let dir = tmpdir("cli");
+    let dir = tmpdir("bench-test", "cli");
     let work = dir.join("work");
     let out = dir.join("out");
     let o = plume(&[
@@ -196,7 +181,7 @@ fn compare_command_runs_end_to_end_and_refuses_bad_flags() {
 
 #[test]
 fn render_warns_with_the_exact_count_of_negative_voxels() {
-    let dir = tmpdir("warn");
+    let dir = tmpdir("bench-test", "warn");
     // Density: 2 negative columns of 8×8 (−2 and −1e-30); temperature: 1 negative column
     let d = box_grid("density", 8, 0.25, |p| match p.x {
         0 => -2.0,
@@ -212,7 +197,7 @@ fn render_warns_with_the_exact_count_of_negative_voxels() {
     assert!(o.status.success(), "{stderr}");
     assert!(stderr.contains("128 density voxels were NaN, infinite or negative and were set to 0"), "{stderr}");
     assert!(stderr.contains("64 emission-source voxels were NaN, infinite or negative and were set to 0"), "{stderr}");
-    let px = plume::output::read_exr(&exr).unwrap().2;
+    let px = exr_pixels(&exr);
     assert!(px.iter().flatten().all(|v| v.is_finite()));
     assert!(px.iter().any(|p| p[0] > 0.0));
     let _ = std::fs::remove_dir_all(&dir);
@@ -223,7 +208,7 @@ fn non_finite_voxels_in_a_file_are_clamped_and_counted_or_refused_by_name() {
     // The volume builder clamps NaN/±inf (tested above, in memory); the VDB reader
     // currently refuses such files as corrupt before the builder sees them. Either way the
     // user gets no NaN image: a warning with the exact count, or exit 3 naming the file.
-    let dir = tmpdir("nonfinite");
+    let dir = tmpdir("bench-test", "nonfinite");
     let d = box_grid("density", 8, 0.25, |p| match p.x {
         0 => f32::NAN,
         1 => f32::INFINITY,
@@ -238,7 +223,7 @@ fn non_finite_voxels_in_a_file_are_clamped_and_counted_or_refused_by_name() {
     match o.status.code() {
         Some(0) => {
             assert!(stderr.contains("192 density voxels were NaN, infinite or negative"), "{stderr}");
-            assert!(plume::output::read_exr(&exr).unwrap().2.iter().flatten().all(|v| v.is_finite()));
+            assert!(exr_pixels(&exr).iter().flatten().all(|v| v.is_finite()));
         }
         Some(3) => {
             assert!(stderr.contains("nan.vdb") && stderr.contains("192"), "{stderr}");

@@ -5,24 +5,12 @@ mod common;
 
 use std::path::{Path, PathBuf};
 
-use common::{grid, hash, plume, s, tmpdir};
+use common::{explosion, exr_pixels, grid, hash, plume, plume_exits, s, stderr, tmpdir, PLUME};
 use glam::{DAffine3, DVec3, IVec3};
 use plume::cache::format::{Header, PAGE};
 use plume::cache::{write_volume, Cache, CacheInfo};
-use plume::output::read_exr;
 use plume::volume::field::Ray;
 use plume::volume::{Field, Volume};
-
-fn explosion(dir: &Path, resolution: u32) -> PathBuf {
-    let p = dir.join("ex.vdb");
-    let o = plume(&["synth", "explosion", "--resolution", &resolution.to_string(), "--seed", "5", "-o", s(&p)]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    p
-}
-
-fn stderr(o: &std::process::Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
 
 /// Render `input` with `extra` flags; returns the pixels.
 fn render(input: &Path, out: &Path, extra: &[&str]) -> Vec<[f32; 4]> {
@@ -30,7 +18,7 @@ fn render(input: &Path, out: &Path, extra: &[&str]) -> Vec<[f32; 4]> {
     args.extend_from_slice(extra);
     let o = plume(&args);
     assert!(o.status.success(), "render {}: {}", input.display(), stderr(&o));
-    read_exr(out).unwrap().2
+    exr_pixels(out)
 }
 
 fn assert_bitwise(a: &[[f32; 4]], b: &[[f32; 4]], what: &str) {
@@ -43,7 +31,7 @@ fn assert_bitwise(a: &[[f32; 4]], b: &[[f32; 4]], what: &str) {
 #[test]
 fn cached_renders_are_bit_identical_to_in_core_renders() {
     let dir = tmpdir("cache", "roundtrip");
-    let vdb = explosion(&dir, 64);
+    let vdb = explosion(&dir, 64, Some(5));
     let cache = dir.join("ex.plume");
     // The temporary a killed conversion left (a process that has exited) is removed
     let dead = std::process::Command::new("true").spawn().unwrap();
@@ -167,7 +155,7 @@ fn a_mapped_volume_gives_the_same_segments_bit_for_bit() {
 
 /// Prepare a small cache; returns (vdb, cache).
 fn prepared(dir: &Path) -> (PathBuf, PathBuf) {
-    let vdb = explosion(dir, 48);
+    let vdb = explosion(dir, 48, Some(5));
     let cache = dir.join("ex.plume");
     let o = plume(&["prepare", s(&vdb), "-o", s(&cache)]);
     assert!(o.status.success(), "{}", stderr(&o));
@@ -180,12 +168,7 @@ fn refused(input: &Path, dir: &Path, code: i32, needles: &[&str], extra: &[&str]
     let out = dir.join("refused.exr");
     let mut args = vec!["render", s(input), "-o", s(&out), "--spp", "1", "--width", "8", "--height", "8", "-q"];
     args.extend_from_slice(extra);
-    let o = plume(&args);
-    let err = stderr(&o);
-    assert_eq!(o.status.code(), Some(code), "{err}");
-    for n in needles {
-        assert!(err.contains(n), "expected {n:?} in {err:?}");
-    }
+    let err = plume_exits(&args, code, needles);
     assert_eq!(err.lines().filter(|l| l.starts_with("plume: error")).count(), 1, "{err}");
     assert!(!out.exists(), "an output was written from a bad cache");
 }
@@ -278,7 +261,7 @@ fn stale_and_mismatched_caches_are_refused_and_automatic_caches_rebuilt() {
     let o = plume(&args);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(stderr(&o).contains("rebuilding the automatic cache"), "{}", stderr(&o));
-    assert_bitwise(&in_core, &read_exr(&dir.join("again.exr")).unwrap().2, "rebuilt automatic cache");
+    assert_bitwise(&in_core, &exr_pixels(&dir.join("again.exr")), "rebuilt automatic cache");
 }
 
 /// `(RssAnon, RssFile)` of process `pid` in bytes, from /proc.
@@ -302,7 +285,7 @@ fn a_1_gib_cache_renders_within_a_256_mib_budget() {
     let bytes = std::fs::metadata(&cache).unwrap().len();
     assert!(bytes > 4 * BUDGET, "the dataset ({bytes} bytes) must dwarf the budget");
     let out = dir.join("flare.exr");
-    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_plume"))
+    let mut child = std::process::Command::new(PLUME)
         .args(["render", s(&cache), "-o", s(&out), "--spp", "2", "--width", "96", "--height", "72", "--albedo", "0.5"])
         .args(["--memory-budget", "256MiB", "--threads", "2", "--sample-order", "tile-major", "-q"])
         .stderr(std::process::Stdio::piped())
@@ -321,7 +304,7 @@ fn a_1_gib_cache_renders_within_a_256_mib_budget() {
     eprintln!("dataset {:.2} GiB, peak RssAnon {:.1} MiB, peak RssFile {:.1} MiB", bytes as f64 / 1073741824.0, peak_anon as f64 / 1048576.0, peak_file as f64 / 1048576.0);
     assert!(peak_anon > 0, "never sampled the render's memory");
     assert!(peak_anon < BUDGET, "peak anonymous RSS {peak_anon} exceeds the 256 MiB budget");
-    let pixels = read_exr(&out).unwrap().2;
+    let pixels = exr_pixels(&out);
     assert!(pixels.iter().any(|p| p[0] > 0.0), "the flare rendered black");
     let _ = std::fs::remove_dir_all(&dir);
 }

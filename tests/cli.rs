@@ -1,41 +1,16 @@
 //! The `plume` binary as users and farms run it: real child processes, real files.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
-fn plume(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_plume")).args(args).output().expect("run plume")
-}
+use std::path::PathBuf;
 
-fn tmpdir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("plume-cli-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
-
-const SMOKE: &str = "../shared/data/smoke/openvdb_org_smoke1.vdb";
-
-/// Generated once per test that needs it (fast: 64³).
-fn explosion(dir: &Path) -> PathBuf {
-    let p = dir.join("ex.vdb");
-    let o = plume(&["synth", "explosion", "--resolution", "64", "--seed", "3", "-o", s(&p)]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    p
-}
-
-fn pixels(p: &Path) -> Vec<[f32; 4]> {
-    plume::output::read_exr(p).unwrap().2
-}
+use common::{explosion, exr_pixels, names_in, plume, plume_exits, s, tmpdir, SMOKE};
 
 #[test]
 fn render_is_bit_identical_for_1_and_2_threads_and_writes_all_outputs() {
-    let d = tmpdir("det");
-    let ex = explosion(&d);
+    let d = tmpdir("cli", "det");
+    // A 64³ explosion, generated per test that needs it (fast)
+    let ex = explosion(&d, 64, Some(3));
     let mut images = Vec::new();
     for threads in ["1", "2"] {
         let out = d.join(format!("t{threads}.exr"));
@@ -52,11 +27,11 @@ fn render_is_bit_identical_for_1_and_2_threads_and_writes_all_outputs() {
             assert!(st.get(key).is_some(), "stats lacks {key}");
         }
         assert_eq!(st["spp"], 4);
-        images.push(pixels(&out));
+        images.push(exr_pixels(&out));
     }
     assert!(images[0].iter().any(|p| p[0] > 0.0), "the explosion emits");
     assert_eq!(images[0], images[1]);
-    let leftovers: Vec<_> = std::fs::read_dir(&d).unwrap().filter_map(|e| e.ok()).filter(|e| e.file_name().to_string_lossy().contains(".tmp")).collect();
+    let leftovers = names_in(&d, |n| n.contains(".tmp"));
     assert!(leftovers.is_empty());
 }
 
@@ -79,7 +54,7 @@ fn info_json_has_the_documented_keys() {
 /// Every failure: non-zero exit with the documented code, one line naming the thing, no output.
 #[test]
 fn bad_input_gives_one_line_errors_and_exit_codes() {
-    let d = tmpdir("err");
+    let d = tmpdir("cli", "err");
     let out = d.join("o.exr");
     let o_s = s(&out).to_string();
     let png_s = s(&d.join("o.png")).to_string();
@@ -101,10 +76,7 @@ fn bad_input_gives_one_line_errors_and_exit_codes() {
         (vec!["render", SMOKE, "-o", &o_s, "--max-input-memory", "1KiB"], 3, "--max-input-memory"),
     ];
     for (args, code, needle) in cases {
-        let o = plume(&args);
-        let err = String::from_utf8_lossy(&o.stderr);
-        assert_eq!(o.status.code(), Some(code), "{args:?}: {err}");
-        assert!(err.contains(needle), "{args:?}: message {err:?} lacks {needle:?}");
+        let err = plume_exits(&args, code, &[needle]);
         let error_lines: Vec<_> = err.lines().filter(|l| l.contains("error")).collect();
         assert_eq!(error_lines.len(), 1, "{args:?}: one error line: {err}");
         assert!(!out.exists(), "{args:?}: no output written");
@@ -113,7 +85,7 @@ fn bad_input_gives_one_line_errors_and_exit_codes() {
 
 #[test]
 fn every_real_and_malformed_file_renders_or_is_refused_cleanly() {
-    let d = tmpdir("all");
+    let d = tmpdir("cli", "all");
     let mut files = Vec::new();
     let mut stack = vec![PathBuf::from("../shared/data")];
     while let Some(p) = stack.pop() {
@@ -135,7 +107,7 @@ fn every_real_and_malformed_file_renders_or_is_refused_cleanly() {
         let err = String::from_utf8_lossy(&o.stderr);
         assert!(code == Some(0) || code == Some(3), "{}: exit {code:?} {err}", f.display());
         if code == Some(0) {
-            assert!(pixels(&out).iter().flatten().all(|v| v.is_finite()), "{}", f.display());
+            assert!(exr_pixels(&out).iter().flatten().all(|v| v.is_finite()), "{}", f.display());
         } else {
             assert!(err.contains(f.file_name().unwrap().to_str().unwrap()), "{}: {err}", f.display());
             assert!(!out.exists());
@@ -145,8 +117,8 @@ fn every_real_and_malformed_file_renders_or_is_refused_cleanly() {
 
 #[test]
 fn numerical_extremes_give_finite_pixels() {
-    let d = tmpdir("ext");
-    let ex = explosion(&d);
+    let d = tmpdir("cli", "ext");
+    let ex = explosion(&d, 64, Some(3));
     // Density ×1e-6 … ×1e6; temperatures mapped up to 1e7 K (and down to 0 K).
     let cases: [&[&str]; 6] = [
         &["--density-scale", "1e-6"],
@@ -163,7 +135,7 @@ fn numerical_extremes_give_finite_pixels() {
             args.extend_from_slice(extra);
             let o = plume(&args);
             assert!(o.status.success(), "{args:?}: {}", String::from_utf8_lossy(&o.stderr));
-            let px = pixels(&out);
+            let px = exr_pixels(&out);
             assert!(px.iter().flatten().all(|v| v.is_finite()), "{args:?}");
         }
     }

@@ -1,34 +1,14 @@
 //! The scattering / light-sampling surface of `plume render`: presets, diagnostics in
 //! `--stats`, `--debug-pixel` replay, flag validation.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
-fn plume(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_plume")).args(args).output().expect("run plume")
-}
-
-fn tmpdir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("plume-clim-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
-
-fn explosion(dir: &Path) -> PathBuf {
-    let p = dir.join("ex.vdb");
-    assert!(plume(&["synth", "explosion", "--resolution", "48", "-o", s(&p)]).status.success());
-    p
-}
+use common::{explosion, exr_pixels, plume, s, synth_explosion, tmpdir};
 
 #[test]
 fn every_method_preset_renders_and_reports_its_counters() {
-    let d = tmpdir("presets");
-    let ex = explosion(&d);
+    let d = tmpdir("clim", "presets");
+    let ex = explosion(&d, 48, None);
     for method in ["point-nee", "line-nee", "line-fnee", "ray-march"] {
         let out = d.join(format!("{method}.exr"));
         let stats = d.join(format!("{method}.json"));
@@ -55,14 +35,14 @@ fn every_method_preset_renders_and_reports_its_counters() {
 #[test]
 fn debug_pixel_replays_the_rendered_sample() {
     // One sample per pixel: the replayed sample must equal the rendered pixel exactly.
-    let d = tmpdir("debug");
-    let ex = explosion(&d);
+    let d = tmpdir("clim", "debug");
+    let ex = explosion(&d, 48, None);
     let out = d.join("one.exr");
     let common = ["--albedo", "0.8", "--spp", "1", "--width", "20", "--height", "14", "--density-scale", "4", "--seed", "5", "-q"];
     let mut args = vec!["render", s(&ex), "-o", s(&out)];
     args.extend_from_slice(&common);
     assert!(plume(&args).status.success());
-    let px = plume::output::read_exr(&out).unwrap().2[7 * 20 + 10];
+    let px = exr_pixels(&out)[7 * 20 + 10];
     let mut args = vec!["render", s(&ex), "-o", s(&out), "--debug-pixel", "10,7,0"];
     args.extend_from_slice(&common);
     let o = plume(&args);
@@ -78,8 +58,8 @@ fn debug_pixel_replays_the_rendered_sample() {
 
 #[test]
 fn scattering_flags_are_validated() {
-    let d = tmpdir("flags");
-    let ex = explosion(&d);
+    let d = tmpdir("clim", "flags");
+    let ex = explosion(&d, 48, None);
     let out = d.join("o.exr");
     for (flag, value) in [("--albedo", "1.5"), ("--g", "1"), ("--g", "-1.2"), ("--proxy-resolution", "12"), ("--debug-pixel", "99,0,0"), ("--environment", "1,-1,0")] {
         let albedo = if flag == "--albedo" { value } else { "0.5" };
@@ -99,9 +79,9 @@ fn scattering_flags_are_validated() {
 fn default_proxy_resolution_adapts_to_small_volumes() {
     // A 24³ volume cannot hold a 64³ proxy: the default shrinks to the data resolution,
     // while an explicit 64 is refused naming the flag.
-    let d = tmpdir("proxy");
+    let d = tmpdir("clim", "proxy");
     let ex = d.join("small.vdb");
-    assert!(plume(&["synth", "explosion", "--resolution", "24", "-o", s(&ex)]).status.success());
+    synth_explosion(&ex, 24, None);
     let out = d.join("o.exr");
     let base = ["render", s(&ex), "-o", s(&out), "--albedo", "0.7", "--spp", "1", "--width", "12", "--height", "8", "-q"];
     let o = plume(&base);

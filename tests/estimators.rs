@@ -2,6 +2,9 @@
 //! (METHOD.md §3, §4, §11.1, §11.4) on analytic fields. Fixed seeds; Monte Carlo means are
 //! compared with k·σ tolerances using the sample standard error.
 
+mod common;
+
+use common::{grid_emission, mean_stderr_from_sums};
 use glam::DVec3;
 use plume::color::Rgb;
 use plume::medium::tracking::{phi, sample_exponential};
@@ -9,18 +12,6 @@ use plume::medium::{track, Convention, DistanceSample, Emission, EmissionKind, E
 use plume::sampling::Sampler;
 use plume::volume::field::{Constant, Ray, Strip};
 use plume::volume::Field;
-
-/// Grid emission in the Cycles convention: L_e = source (grey), independent of density.
-fn grid_emission(convention: Convention) -> Emission {
-    Emission {
-        kind: EmissionKind::Grid,
-        convention,
-        scale: 1.0,
-        color: Rgb::ONE,
-        temperature_map: TemperatureMap::Kelvin,
-        cutoff_kelvin: 0.0,
-    }
-}
 
 fn medium(sigma_t: f64, convention: Convention) -> Medium {
     Medium { sigma_t, albedo: 0.0, g: 0.0, emission: grid_emission(convention) }
@@ -39,9 +30,8 @@ fn mc_emission<F: Field>(field: &F, m: &Medium, ray: &Ray, est: Estimator, n: u6
         s2 += r.emission[0] * r.emission[0];
         tr += r.transmittance;
     }
-    let mean = s / n as f64;
-    let var = (s2 / n as f64 - mean * mean).max(0.0);
-    (mean, (var / n as f64).sqrt(), tr / n as f64)
+    let (mean, se) = mean_stderr_from_sums(s, s2, n);
+    (mean, se, tr / n as f64)
 }
 
 /// Exact `∫ τ L_e ds` and `τ(d)` along a ray, from its segments (METHOD §4 expected value).

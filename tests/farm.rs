@@ -2,51 +2,31 @@
 //! real files, real signals. Volumes are generated 32³ explosions and images are tiny, so
 //! the whole file runs in seconds.
 
+mod common;
+
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Output, Stdio};
+use std::process::{Child, Command, Stdio};
 use std::time::Instant;
 
+use common::{names_in, pixel_bits, plume, plume_exits, s, stderr, synth_explosion, tmpdir, PLUME};
 use plume::farm::part::{read_part, Completion};
 use plume::output::read_exr_contents;
-
-const PLUME: &str = env!("CARGO_BIN_EXE_plume");
-
-fn plume(args: &[&str]) -> Output {
-    Command::new(PLUME).args(args).output().expect("run plume")
-}
 
 fn spawn(args: &[&str]) -> Child {
     Command::new(PLUME).args(args).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().expect("spawn plume")
 }
 
-fn tmpdir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("plume-farm-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
 /// `dir/ex.NNNN.vdb` for each frame: 32³ explosions, noise seed = frame, so frames differ.
 fn sequence(dir: &Path, frames: &[i64]) {
     for f in frames {
-        let p = dir.join(format!("ex.{f:04}.vdb"));
-        let o = plume(&["synth", "explosion", "--resolution", "32", "--seed", &f.to_string(), "-o", s(&p)]);
-        assert!(o.status.success(), "{}", stderr(&o));
+        synth_explosion(&dir.join(format!("ex.{f:04}.vdb")), 32, Some(*f));
     }
 }
 
 /// Pixel bits of an EXR (the comparison for "bit-identical").
 fn bits(p: &Path) -> Vec<u32> {
-    read_exr_contents(p).unwrap().pixels.iter().flatten().map(|v| v.to_bits()).collect()
+    pixel_bits(&read_exr_contents(p).unwrap().pixels)
 }
 
 fn meta(p: &Path, key: &str) -> String {
@@ -58,7 +38,7 @@ fn stats_lines(p: &Path) -> Vec<serde_json::Value> {
 }
 
 fn temporaries(d: &Path) -> Vec<String> {
-    std::fs::read_dir(d).unwrap().filter_map(|e| e.ok()).map(|e| e.file_name().to_string_lossy().into_owned()).filter(|n| n.ends_with(".tmp")).collect()
+    names_in(d, |n| n.ends_with(".tmp"))
 }
 
 /// Small render settings shared by the tests.
@@ -66,7 +46,7 @@ const SMALL: [&str; 6] = ["--width", "24", "--height", "16", "--density-scale", 
 
 #[test]
 fn sequence_with_patterns_renders_each_frame_with_its_seed_and_skips_complete_outputs() {
-    let d = tmpdir("seq");
+    let d = tmpdir("farm", "seq");
     sequence(&d, &[1001, 1002, 1003]);
     let input = d.join("ex.$F4.vdb");
     let output = d.join("out.%04d.exr");
@@ -132,7 +112,7 @@ fn sequence_with_patterns_renders_each_frame_with_its_seed_and_skips_complete_ou
 
 #[test]
 fn frame_numbers_wider_than_the_padding_are_printed_in_full() {
-    let d = tmpdir("pad");
+    let d = tmpdir("farm", "pad");
     sequence(&d, &[1]);
     let out = d.join("o.##.exr");
     let mut args = vec!["render", "-q", "--spp", "1", "--frames", "99-100", "-o", s(&out)];
@@ -147,7 +127,7 @@ fn frame_numbers_wider_than_the_padding_are_printed_in_full() {
 /// Every documented exit code, each from a real failing invocation (5 is in the signal test).
 #[test]
 fn every_exit_code_comes_from_a_real_failure() {
-    let d = tmpdir("codes");
+    let d = tmpdir("farm", "codes");
     sequence(&d, &[1, 3]);
     let seq = d.join("ex.####.vdb");
     let out = d.join("o.####.exr");
@@ -176,10 +156,7 @@ fn every_exit_code_comes_from_a_real_failure() {
             args.extend(SMALL);
             args.push("-q");
         }
-        let o = plume(&args);
-        let err = stderr(&o);
-        assert_eq!(o.status.code(), Some(code), "{args:?}: {err}");
-        assert!(err.contains(needle), "{args:?}: {err:?} lacks {needle:?}");
+        plume_exits(&args, code, &[needle]);
     }
     // Exit 7: the other frames were rendered
     assert!(d.join("o.0001.exr").exists() && d.join("o.0003.exr").exists());
@@ -214,7 +191,7 @@ fn wait_for_progress(child: &mut Child) {
 
 #[test]
 fn sigterm_writes_a_valid_partial_image_and_the_rerun_finishes_it_bit_identically() {
-    let d = tmpdir("term");
+    let d = tmpdir("farm", "term");
     sequence(&d, &[1]);
     let input = d.join("ex.0001.vdb");
     let reference = d.join("ref.exr");
@@ -261,7 +238,7 @@ fn sigterm_writes_a_valid_partial_image_and_the_rerun_finishes_it_bit_identicall
 
 #[test]
 fn a_larger_budget_continues_an_image_rendered_with_sums() {
-    let d = tmpdir("more");
+    let d = tmpdir("farm", "more");
     sequence(&d, &[1]);
     let input = d.join("ex.0001.vdb");
     let (out, reference) = (d.join("o.exr"), d.join("ref.exr"));
@@ -286,7 +263,7 @@ fn a_larger_budget_continues_an_image_rendered_with_sums() {
 
 #[test]
 fn kill_9_at_any_moment_leaves_only_complete_outputs_and_the_rerun_finishes() {
-    let d = tmpdir("kill");
+    let d = tmpdir("farm", "kill");
     sequence(&d, &[1, 2, 3]);
     let input = d.join("ex.####.vdb");
     let out = d.join("o.####.exr");
@@ -326,7 +303,7 @@ fn kill_9_at_any_moment_leaves_only_complete_outputs_and_the_rerun_finishes() {
 
 #[test]
 fn four_tiles_times_two_sample_ranges_merge_bit_identical_to_one_render() {
-    let d = tmpdir("merge");
+    let d = tmpdir("farm", "merge");
     sequence(&d, &[5]);
     let input = d.join("ex.####.vdb");
     // Scattering paths with FNEE, an image size no tile divides evenly
@@ -394,7 +371,7 @@ fn four_tiles_times_two_sample_ranges_merge_bit_identical_to_one_render() {
 
 #[test]
 fn progress_lines_for_openjd_and_json() {
-    let d = tmpdir("progress");
+    let d = tmpdir("farm", "progress");
     sequence(&d, &[1, 2]);
     let input = d.join("ex.####.vdb");
     let out = d.join("o.####.exr");
@@ -454,7 +431,7 @@ fn openjd_template_validates_and_renders_a_sequence_with_openjd_run() {
     let template = Path::new(env!("CARGO_MANIFEST_DIR")).join("farm/openjd/plume-render.yaml");
     let o = Command::new(&openjd).args(["check", s(&template)]).output().unwrap();
     assert!(o.status.success(), "openjd check: {}{}", String::from_utf8_lossy(&o.stdout), stderr(&o));
-    let d = tmpdir("openjd");
+    let d = tmpdir("farm", "openjd");
     sequence(&d, &[1, 2, 3]);
     let stats = d.join("stats.jsonl");
     let params = [
@@ -493,7 +470,7 @@ fn openjd_template_validates_and_renders_a_sequence_with_openjd_run() {
 
 #[test]
 fn slurm_array_script_renders_tiles_and_sample_splits_then_merges_bit_identically() {
-    let d = tmpdir("slurm");
+    let d = tmpdir("farm", "slurm");
     sequence(&d, &[7]);
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("farm/slurm/plume-array.sh");
     // A stand-in sbatch that records its arguments and answers a job id

@@ -17,6 +17,8 @@
 //! cargo test --release --test fuzz_mutants -- --ignored --nocapture
 //! ```
 
+mod common;
+
 use std::fmt;
 use std::fs;
 use std::os::unix::process::ExitStatusExt;
@@ -25,6 +27,8 @@ use std::process::{Command, Stdio};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
+
+use common::PLUME;
 
 /// Seed of every campaign: mutant `i` is the same in the quick and the full run.
 const SEED: u64 = 0x5eed_0007;
@@ -207,7 +211,7 @@ struct Run {
 fn run_plume(args: &[&str], scratch: &Path) -> Option<Run> {
     let out_path = scratch.join("stdout");
     let err_path = scratch.join("stderr");
-    let mut child = Command::new(env!("CARGO_BIN_EXE_plume"))
+    let mut child = Command::new(PLUME)
         .args(args)
         .stdin(Stdio::null())
         .stdout(fs::File::create(&out_path).unwrap())
@@ -334,10 +338,7 @@ fn campaign_of(indices: &[usize]) -> Tally {
             scope.spawn(move || {
                 let scratch = root.join(format!("t{thread}"));
                 fs::create_dir_all(&scratch).unwrap();
-                loop {
-                    let Some(&index) = indices.get(next.fetch_add(1, Ordering::Relaxed)) else {
-                        break;
-                    };
+                while let Some(&index) = indices.get(next.fetch_add(1, Ordering::Relaxed)) {
                     let (source, bytes, what) = mutant(sources, index);
                     let file = scratch.join(format!("mutant_{index}.vdb"));
                     fs::write(&file, &bytes).unwrap();

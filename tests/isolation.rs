@@ -4,19 +4,19 @@
 //! [`Error::ReaderFailed`]. The failing children are small shell scripts standing in for
 //! a reader that OpenVDB has derailed.
 
+mod common;
+
 use std::fs;
-use std::os::unix::fs::PermissionsExt;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
+use common::{retry_while_busy, shell_script, PLUME, SMOKE};
 use plume::vdb::{
     list_grids, list_grids_isolated, read_float_grid, read_float_grids_isolated, read_grids,
     read_grids_isolated, GridRequest, GridSelector, IsolationLimits, ReadLimits,
 };
 use plume::Error;
 
-const PLUME: &str = env!("CARGO_BIN_EXE_plume");
-const SMOKE: &str = "../shared/data/smoke/openvdb_org_smoke1.vdb";
 const FIRE: &str = "../shared/data/fire/openusd_densityAndHeat.vdb";
 
 fn limits(timeout: Duration) -> IsolationLimits {
@@ -29,34 +29,21 @@ fn density() -> Vec<GridSelector> {
 
 /// A stand-in reader: a shell script in the test's scratch directory.
 fn script(name: &str, body: &str) -> PathBuf {
-    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("isolation");
-    fs::create_dir_all(&dir).unwrap();
-    let path = dir.join(name);
-    fs::write(&path, format!("#!/bin/sh\n{body}\n")).unwrap();
-    fs::set_permissions(&path, fs::Permissions::from_mode(0o755)).unwrap();
-    path
+    shell_script("isolation", name, body)
 }
 
 /// Reads SMOKE's density through `reader`, retrying the spawn while another test thread's
 /// fork still holds the freshly written script open for writing (ETXTBSY).
 fn read_with(reader: &Path, limits: &IsolationLimits) -> plume::Result<Vec<plume::vdb::FloatGrid>> {
-    for _ in 0..50 {
-        match read_float_grids_isolated(
+    retry_while_busy(reader, || {
+        read_float_grids_isolated(
             reader,
             Path::new(SMOKE),
             &density(),
             &ReadLimits::default(),
             limits,
-        ) {
-            Err(Error::ReaderSpawn { source, .. })
-                if source.raw_os_error() == Some(libc::ETXTBSY) =>
-            {
-                std::thread::sleep(Duration::from_millis(20));
-            }
-            other => return other,
-        }
-    }
-    panic!("{} stayed busy", reader.display());
+        )
+    })
 }
 
 /// The reply header and a BEGIN record for request 0, alternative 0, as `printf` text.

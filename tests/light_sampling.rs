@@ -15,7 +15,7 @@ mod common;
 
 use std::f64::consts::PI;
 
-use common::{chi2_test, grid, hash};
+use common::{chi2_test, grid, hash, mean_stderr};
 use glam::{DAffine3, DMat3, DVec3, IVec3};
 use plume::light::EmitterDistribution;
 use plume::sampling::alias::AliasTable;
@@ -413,10 +413,7 @@ fn sphere_integral(proxy: &ProxyGrid, x: DVec3, strata: usize, replicates: usize
             sum / (strata * strata) as f64
         })
         .collect();
-    let n = replicates as f64;
-    let mean = estimates.iter().sum::<f64>() / n;
-    let variance = estimates.iter().map(|e| (e - mean).powi(2)).sum::<f64>() / (n - 1.0);
-    (mean, (variance / n).sqrt())
+    mean_stderr(&estimates)
 }
 
 #[test]

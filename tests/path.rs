@@ -3,6 +3,9 @@
 //! the same image means on thin and dense explosions; the FNEE proxy resolution changes
 //! variance only; extremes stay finite. Fixed seeds; k·σ tolerances from independent runs.
 
+mod common;
+
+use common::{grid_emission, mean_stderr, mean_stderr_from_sums};
 use glam::{DAffine3, DMat3, DVec3, IVec3};
 use plume::camera::Camera;
 use plume::color::Rgb;
@@ -16,23 +19,12 @@ use plume::vdb::{FloatGrid, LEAF_VOXELS};
 use plume::volume::field::Ray;
 use plume::volume::Volume;
 
-fn grid_emission() -> Emission {
-    Emission {
-        kind: EmissionKind::Grid,
-        convention: Convention::Cycles,
-        scale: 1.0,
-        color: Rgb::ONE,
-        temperature_map: TemperatureMap::Kelvin,
-        cutoff_kelvin: 0.0,
-    }
-}
-
 /// A constant cube of `8n` voxels a side spanning `[0, size]³` metres.
 fn cube(n: i32, size: f64, density: f32, source: f32) -> Volume {
     let xf = DAffine3::from_mat3_translation(DMat3::from_diagonal(DVec3::splat(size / f64::from(8 * n))), DVec3::splat(size / f64::from(16 * n)));
     let origins: Vec<IVec3> = (0..n * n * n).map(|i| IVec3::new(i % n, (i / n) % n, i / (n * n)) * 8).collect();
     let g = |name: &str, v: f32| FloatGrid { name: name.into(), world_from_index: xf, background: 0.0, origins: origins.clone(), values: vec![v; origins.len() * LEAF_VOXELS] };
-    let e = grid_emission();
+    let e = grid_emission(Convention::Cycles);
     Volume::build(&g("density", density), Some(&g("emission", source)), |v| e.map_source(v)).unwrap()
 }
 
@@ -63,8 +55,7 @@ fn mean_from_inside(scene: &Scene<Volume>, integ: &Integrator, origin: DVec3, n:
         s += l;
         s2 += l * l;
     }
-    let m = s / n as f64;
-    (m, ((s2 / n as f64 - m * m).max(0.0) / n as f64).sqrt())
+    mean_stderr_from_sums(s, s2, n)
 }
 
 #[test]
@@ -73,7 +64,7 @@ fn infinite_medium_reaches_equilibrium_radiance_with_every_method() {
     // (μ_t R = 40, escape odds e^-40). With at most n bounces: L_n = L_e/μ_a (1 − a^{n+1}).
     let (sigma_t, albedo, le) = (40.0, 0.8f32, 2.0f32);
     let vol = cube(4, 2.0, 1.0, le);
-    let e = grid_emission();
+    let e = grid_emission(Convention::Cycles);
     let mu_a = sigma_t * f64::from(1.0 - albedo);
     for (est, ls) in COMBOS {
         let lights = Lights::build(&vol, &e, ls, 8).unwrap();
@@ -90,7 +81,7 @@ fn infinite_medium_reaches_equilibrium_radiance_with_every_method() {
 #[test]
 fn white_furnace_with_albedo_one_renders_the_environment() {
     // Albedo 1, unit environment, no emission: every path carries exactly 1.
-    let e = Emission { kind: EmissionKind::None, ..grid_emission() };
+    let e = Emission { kind: EmissionKind::None, ..grid_emission(Convention::Cycles) };
     let cam = Camera::look_at(DVec3::new(1.0, 1.0, -3.0), DVec3::ONE, DVec3::Y, 50.0, 8, 8).unwrap();
     for est in [Estimator::Line, Estimator::Point, Estimator::RayMarch] {
         for ls in [LightSampling::None, LightSampling::Fnee, LightSampling::Nee] {
@@ -131,14 +122,7 @@ fn region_means(scene: &Scene<Volume>, integ: Integrator, spp: u32, runs: u64, s
         }
         per_run.push(std::array::from_fn(|k| acc[k] / cnt[k]));
     }
-    (0..5)
-        .map(|k| {
-            let n = per_run.len() as f64;
-            let m = per_run.iter().map(|r| r[k]).sum::<f64>() / n;
-            let var = per_run.iter().map(|r| (r[k] - m).powi(2)).sum::<f64>() / (n - 1.0);
-            (m, (var / n).sqrt())
-        })
-        .collect()
+    (0..5).map(|k| mean_stderr(&per_run.iter().map(|r| r[k]).collect::<Vec<_>>())).collect()
 }
 
 fn explosion_scene(sigma_t: f64, ls: LightSampling, proxy_resolution: u32) -> Scene<Volume> {

@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{grid};
+use common::{grid, names_in, pixel_bits, tmpdir};
 use glam::{DAffine3, DMat3, DVec3, IVec3};
 use plume::camera::Camera;
 use plume::color::Rgb;
@@ -11,7 +11,6 @@ use plume::integrator::{Integrator, Scene};
 use plume::medium::{Convention, Emission, EmissionKind, Estimator, Medium, TemperatureMap};
 use plume::render::{render, render_with, RenderControl, RenderSettings, SampleBudget, SampleOrder, StopReason};
 use plume::volume::Volume;
-
 
 fn blob_scene(estimator: Estimator) -> (Scene<Volume>, Integrator) {
     let xf = DAffine3::from_mat3(DMat3::from_diagonal(DVec3::splat(0.1)));
@@ -44,11 +43,7 @@ fn same_seed_gives_identical_images_for_any_thread_count() {
         let (a, b) = (run(1), run(2));
         let (pa, pb) = (a.film.average(a.spp), b.film.average(b.spp));
         assert!(pa.iter().any(|p| p[0] > 0.0), "{est:?}: image not black");
-        assert_eq!(
-            pa.iter().flatten().map(|v| v.to_bits()).collect::<Vec<_>>(),
-            pb.iter().flatten().map(|v| v.to_bits()).collect::<Vec<_>>(),
-            "{est:?}: bit-identical across thread counts"
-        );
+        assert_eq!(pixel_bits(&pa), pixel_bits(&pb), "{est:?}: bit-identical across thread counts");
         assert_eq!(a.counters, b.counters);
         let other = render(&scene, &RenderSettings { budget: SampleBudget::Spp(6), seed: 43, threads: 2, first_sample: 0, integrator }, &|_, _| {});
         assert_ne!(pa, other.film.average(other.spp), "a different seed changes the image");
@@ -56,7 +51,7 @@ fn same_seed_gives_identical_images_for_any_thread_count() {
 }
 
 fn bits(film: &plume::film::Film, spp: u64) -> Vec<u32> {
-    film.average(spp).iter().flatten().map(|v| v.to_bits()).collect()
+    pixel_bits(&film.average(spp))
 }
 
 #[test]
@@ -124,15 +119,14 @@ fn voxel_aligned_box_image_matches_closed_form() {
 
 #[test]
 fn exr_roundtrip_keeps_pixels_and_metadata_and_writes_atomically() {
-    let dir = std::env::temp_dir().join(format!("plume-render-test-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = tmpdir("render-test", "exr");
     let path = dir.join("img.exr");
     let px: Vec<[f32; 4]> = (0..12).map(|i| [i as f32, 0.5, 1e9, 0.25]).collect();
     plume::output::write_exr(&path, 4, 3, &px, &[("plume:spp".into(), "7".into())]).unwrap();
     let (w, h, back) = plume::output::read_exr(&path).unwrap();
     assert_eq!((w, h), (4, 3));
     assert_eq!(back, px);
-    let leftovers: Vec<_> = std::fs::read_dir(&dir).unwrap().filter_map(|e| e.ok()).filter(|e| e.file_name().to_string_lossy().contains(".tmp")).collect();
+    let leftovers = names_in(&dir, |n| n.contains(".tmp"));
     assert!(leftovers.is_empty(), "temporary files left behind");
     // An unwritable destination is an error naming the file, and leaves nothing.
     let bad = dir.join("missing-dir").join("x.exr");

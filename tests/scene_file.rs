@@ -7,22 +7,15 @@ mod common;
 
 use std::path::{Path, PathBuf};
 
-use common::{plume, s, tmpdir};
+use common::{pixel_bits as bits, plume, s, tmpdir};
 
 /// The generated explosion every test renders (small and fast).
 fn explosion(dir: &Path) -> PathBuf {
-    let vdb = dir.join("ex.vdb");
-    let o = plume(&["synth", "explosion", "--resolution", "32", "-o", s(&vdb)]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    vdb
+    common::explosion(dir, 32, None)
 }
 
 fn pixels(path: &Path) -> Vec<[f32; 4]> {
-    plume::output::read_exr_contents(path).unwrap().pixels
-}
-
-fn bits(p: &[[f32; 4]]) -> Vec<u32> {
-    p.iter().flatten().map(|v| v.to_bits()).collect()
+    common::exr_pixels(path)
 }
 
 fn ok(o: &std::process::Output) {

@@ -3,12 +3,15 @@
 //! by the topology, hostile files and broken replies refused cleanly, visitor errors
 //! returned.
 
+mod common;
+
 use std::ffi::OsString;
 use std::fs;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
+use common::{data, fixture, retry_while_busy, scratch_dir, shell_script, PLUME};
 use glam::{DAffine3, DVec3, IVec3};
 use plume::vdb::{
     leaf_offset, list_grids, read_float_grid, read_grids_isolated, write_float_grids, FloatGrid,
@@ -16,23 +19,6 @@ use plume::vdb::{
     LEAF_VOXELS,
 };
 use plume::Error;
-
-const PLUME: &str = env!("CARGO_BIN_EXE_plume");
-
-fn data(relative: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data").join(relative)
-}
-
-fn fixture(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("data/fixtures").join(name)
-}
-
-fn scratch_dir(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("stream").join(name);
-    let _ = fs::remove_dir_all(&dir);
-    fs::create_dir_all(&dir).unwrap();
-    dir
-}
 
 fn child(limits: IsolationLimits) -> ReadIsolation {
     ReadIsolation::Child { reader_exe: PathBuf::from(PLUME), limits }
@@ -352,7 +338,7 @@ fn reader_peak_rss_kib(args: &[OsString]) -> Option<u64> {
 /// whose memory limit is below the grid's size (the whole read runs out of memory).
 #[test]
 fn streaming_memory_is_bounded_by_the_topology() {
-    let dir = scratch_dir("big");
+    let dir = scratch_dir("stream", "big");
     let path = big_grid(&dir);
     let selector = GridSelector::first("density");
     let leaves = 64_000u64;
@@ -507,11 +493,7 @@ fn replaying_reader(name: &str, reply: &[u8], exit: &str) -> PathBuf {
     fs::create_dir_all(&dir).unwrap();
     let data = dir.join(format!("{name}.bin"));
     fs::write(&data, reply).unwrap();
-    let script = dir.join(format!("{name}.sh"));
-    fs::write(&script, format!("#!/bin/sh\ncat '{}'\n{exit}\n", data.display())).unwrap();
-    use std::os::unix::fs::PermissionsExt;
-    fs::set_permissions(&script, fs::Permissions::from_mode(0o755)).unwrap();
-    script
+    shell_script("stream_replies", &format!("{name}.sh"), &format!("cat '{}'\n{exit}", data.display()))
 }
 
 /// Streams SMOKE through `reader`, retrying while another test thread's fork still holds
@@ -519,9 +501,10 @@ fn replaying_reader(name: &str, reply: &[u8], exit: &str) -> PathBuf {
 fn stream_with(reader: &Path) -> (plume::Result<StreamedGrid>, u64) {
     let path = data("smoke/openvdb_org_smoke1.vdb");
     let limits = IsolationLimits::new(&ReadLimits::default(), Duration::from_secs(30));
-    for _ in 0..50 {
-        let mut visited = 0u64;
-        let result = plume::vdb::stream_float_grid_isolated(
+    let mut visited = 0u64;
+    let result = retry_while_busy(reader, || {
+        visited = 0;
+        plume::vdb::stream_float_grid_isolated(
             reader,
             &path,
             &GridSelector::first("density"),
@@ -532,17 +515,9 @@ fn stream_with(reader: &Path) -> (plume::Result<StreamedGrid>, u64) {
                 visited += 1;
                 Ok(())
             },
-        );
-        match result {
-            Err(Error::ReaderSpawn { source, .. })
-                if source.raw_os_error() == Some(libc::ETXTBSY) =>
-            {
-                std::thread::sleep(Duration::from_millis(20));
-            }
-            other => return (other, visited),
-        }
-    }
-    panic!("{} stayed busy", reader.display());
+        )
+    });
+    (result, visited)
 }
 
 /// Broken replies after some good batches: cut short, a batch sent twice, a smashed batch

@@ -1,23 +1,13 @@
 //! `plume synth flare` as users run it: a small .vdb, and the refusals that point large
 //! flares elsewhere.
 
-use std::path::PathBuf;
-use std::process::{Command, Output};
+mod common;
 
-fn plume(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_plume")).args(args).output().expect("run plume")
-}
-
-fn tmpdir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("plume-flare-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).expect("temp dir");
-    d
-}
+use common::{plume, tmpdir};
 
 #[test]
 fn synth_flare_writes_a_vdb_with_density_and_temperature() {
-    let d = tmpdir("vdb");
+    let d = tmpdir("flare", "vdb");
     let p = d.join("flare.vdb");
     let o = plume(&["synth", "flare", "--resolution", "45", "--seed", "2", "-o", p.to_str().unwrap()]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -31,7 +21,7 @@ fn synth_flare_writes_a_vdb_with_density_and_temperature() {
 
 #[test]
 fn synth_flare_refuses_a_vdb_too_large_for_memory() {
-    let d = tmpdir("large");
+    let d = tmpdir("flare", "large");
     let p = d.join("big.vdb");
     let o = plume(&["synth", "flare", "--resolution", "4096", "-o", p.to_str().unwrap()]);
     assert!(!o.status.success());

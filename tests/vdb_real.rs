@@ -5,33 +5,19 @@
 //! `cbeginValueOn()` with tile voxel counts), not copied from file metadata. Where they
 //! differ from PROVENANCE.md the test says so.
 
+mod common;
+
 use std::collections::HashSet;
 use std::fs;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
+use common::{data, fixture, scratch_dir};
 use glam::{DAffine3, DMat3, DVec3, IVec3};
 use plume::vdb::{
     leaf_offset, list_grids, read_float_grid, write_float_grids, FloatGrid, GridInfo, GridSelector,
     ReadLimits, LEAF_VOXELS,
 };
 use plume::Error;
-
-fn data(relative: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data").join(relative)
-}
-
-/// plume's own tiny fixtures, written by OpenVDB (`data/fixtures/make_fixtures.cc`).
-fn fixture(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("data/fixtures").join(name)
-}
-
-/// A fresh, empty scratch directory under Cargo's per-target temp dir.
-fn scratch_dir(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("vdb_real").join(name);
-    let _ = fs::remove_dir_all(&dir);
-    fs::create_dir_all(&dir).expect("create scratch dir");
-    dir
-}
 
 fn read(relative: &str, selector: &str) -> plume::Result<FloatGrid> {
     read_float_grid(&data(relative), &selector.parse().unwrap(), &ReadLimits::default())
@@ -329,7 +315,7 @@ fn truncated_file_is_an_error() {
 /// checks each grid's end offset against the file size first.
 #[test]
 fn file_truncated_in_leaf_data_is_an_error() {
-    let dir = scratch_dir("truncated");
+    let dir = scratch_dir("vdb_real", "truncated");
     for source in ["smoke/openvdb_org_smoke1.vdb", "cloud/wdas_cloud_sixteenth.vdb"] {
         let bytes = fs::read(data(source)).unwrap();
         for percent in [30, 60, 99] {
@@ -485,7 +471,7 @@ fn leaves_by_origin(grid: &FloatGrid) -> std::collections::HashMap<IVec3, Vec<f3
 
 #[test]
 fn write_then_read_round_trips() {
-    let dir = scratch_dir("round_trip");
+    let dir = scratch_dir("vdb_real", "round_trip");
     let path = dir.join("two.vdb");
     let first = synthetic_grid("density", 0.25);
     let second = synthetic_grid("density", 0.0);
@@ -527,7 +513,7 @@ fn write_then_read_round_trips() {
 
 #[test]
 fn failed_writes_leave_no_file() {
-    let dir = scratch_dir("failed_writes");
+    let dir = scratch_dir("vdb_real", "failed_writes");
     let grid = synthetic_grid("density", 0.0);
 
     // The directory does not exist.
@@ -558,7 +544,7 @@ fn failed_writes_leave_no_file() {
 
 #[test]
 fn write_replaces_an_existing_file() {
-    let dir = scratch_dir("replace");
+    let dir = scratch_dir("vdb_real", "replace");
     let path = dir.join("out.vdb");
     fs::write(&path, b"old contents").unwrap();
     write_float_grids(&path, &[&synthetic_grid("a", 0.0)]).unwrap();

@@ -116,7 +116,6 @@ impl Lights {
 /// absorbs, so leaving both out keeps the estimators unbiased while letting a brick cache
 /// store the FNEE proxy's cell sums once for any scale or tint. Blackbody luminance is
 /// tabulated (`light::power`).
-#[must_use]
 pub fn light_power(emission: &crate::medium::Emission) -> impl Fn(f32, f32) -> f64 + Sync {
     let power = crate::light::LightPower::new(emission);
     move |d: f32, s: f32| power.power(d, s)

@@ -1,14 +1,22 @@
-//! Shared test harness: chi-square goodness of fit in the style of Mitsuba 3's `chi2.py`
-//! (cells pooled to ≥ 5 expected counts, `f64` statistics, Šidák correction for the number
-//! of tests, histograms dumped on failure) and synthetic grid builders.
+//! Shared test harness, `mod common;` in every test file: chi-square goodness of fit in the
+//! style of Mitsuba 3's `chi2.py` (cells pooled to ≥ 5 expected counts, `f64` statistics,
+//! Šidák correction for the number of tests, histograms dumped on failure), synthetic grid
+//! builders, the `plume` binary as a child process, scratch directories, data paths, EXR
+//! pixels and Monte Carlo statistics.
 //!
-//! Each test binary uses a subset of these helpers.
+//! Every test file compiles this module into its own crate and uses a different subset of
+//! it, so in any one test binary some helpers are unused; `dead_code` is allowed for the
+//! whole module rather than item by item.
 #![allow(dead_code)]
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
+use std::process::Output;
+use std::time::Duration;
 
 use glam::{DAffine3, IVec3};
+use plume::color::Rgb;
+use plume::medium::{Convention, Emission, EmissionKind, TemperatureMap};
 use plume::vdb::{leaf_offset, FloatGrid, LEAF_VOXELS};
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
@@ -138,23 +146,170 @@ pub fn hash(p: IVec3, seed: u32) -> u32 {
     h ^ (h >> 12)
 }
 
-/// Run the `plume` binary under test.
-#[allow(dead_code)]
-pub fn plume(args: &[&str]) -> std::process::Output {
-    std::process::Command::new(env!("CARGO_BIN_EXE_plume")).args(args).output().expect("run plume")
+/// Mean and standard error of the mean of `n` samples from their sum and sum of squares
+/// (the population variance, clamped at 0 against rounding).
+#[must_use]
+pub fn mean_stderr_from_sums(sum: f64, sum_sq: f64, n: u64) -> (f64, f64) {
+    let mean = sum / n as f64;
+    let var = (sum_sq / n as f64 - mean * mean).max(0.0);
+    (mean, (var / n as f64).sqrt())
 }
 
-/// A fresh temporary directory for one test.
-#[allow(dead_code)]
+/// Mean and standard error of the mean of independent estimates (the sample variance,
+/// divided by `n − 1`).
+#[must_use]
+pub fn mean_stderr(values: &[f64]) -> (f64, f64) {
+    let n = values.len() as f64;
+    let mean = values.iter().sum::<f64>() / n;
+    let variance = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
+    (mean, (variance / n).sqrt())
+}
+
+/// Grid emission in `convention`: `L_e` = source (grey), unscaled, no cutoff.
+#[must_use]
+pub fn grid_emission(convention: Convention) -> Emission {
+    Emission {
+        kind: EmissionKind::Grid,
+        convention,
+        scale: 1.0,
+        color: Rgb::ONE,
+        temperature_map: TemperatureMap::Kelvin,
+        cutoff_kelvin: 0.0,
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// The `plume` binary, files and directories
+
+/// The `plume` binary under test.
+pub const PLUME: &str = env!("CARGO_BIN_EXE_plume");
+
+/// The real-data smoke file (one half-float `density` grid), relative to the crate root.
+pub const SMOKE: &str = "../shared/data/smoke/openvdb_org_smoke1.vdb";
+
+/// Run the `plume` binary under test.
+pub fn plume(args: &[&str]) -> Output {
+    std::process::Command::new(PLUME).args(args).output().expect("run plume")
+}
+
+/// A run's stderr as text.
+pub fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// Run the `plume` binary with `args`, expecting exit `code` and every one of `needles` in
+/// its stderr; returns the stderr.
+#[track_caller]
+pub fn plume_exits(args: &[&str], code: i32, needles: &[&str]) -> String {
+    let o = plume(args);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(code), "{args:?}: {err}");
+    for needle in needles {
+        assert!(err.contains(needle), "{args:?}: {err:?} lacks {needle:?}");
+    }
+    err
+}
+
+/// A fresh, empty temporary directory `plume-<tier>-<name>-<pid>` for one test.
 pub fn tmpdir(tier: &str, name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("plume-{tier}-{name}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
+    std::fs::create_dir_all(&d).expect("create temp dir");
     d
 }
 
+/// A fresh, empty scratch directory `<tier>/<name>` under Cargo's per-target temp dir.
+pub fn scratch_dir(tier: &str, name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(tier).join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("create scratch dir");
+    dir
+}
+
 /// A path as `&str` (test paths are UTF-8).
-#[allow(dead_code)]
 pub fn s(p: &Path) -> &str {
     p.to_str().unwrap()
+}
+
+/// A file of the real data set (`../shared/data`, see its PROVENANCE.md), absolute.
+pub fn data(relative: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data").join(relative)
+}
+
+/// plume's own tiny fixtures, written by OpenVDB (`data/fixtures/make_fixtures.cc`).
+pub fn fixture(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("data/fixtures").join(name)
+}
+
+/// `plume synth explosion --resolution <resolution> [--seed <seed>] -o <path>`, which must
+/// succeed.
+#[track_caller]
+pub fn synth_explosion(path: &Path, resolution: u32, seed: Option<i64>) {
+    let resolution = resolution.to_string();
+    let seed = seed.map(|v| v.to_string());
+    let mut args = vec!["synth", "explosion", "--resolution", &resolution];
+    if let Some(seed) = &seed {
+        args.extend(["--seed", seed]);
+    }
+    args.extend(["-o", s(path)]);
+    let o = plume(&args);
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
+/// A generated explosion `dir/ex.vdb` (see [`synth_explosion`]).
+#[track_caller]
+pub fn explosion(dir: &Path, resolution: u32, seed: Option<i64>) -> PathBuf {
+    let p = dir.join("ex.vdb");
+    synth_explosion(&p, resolution, seed);
+    p
+}
+
+/// The RGBA pixels of an EXR file.
+pub fn exr_pixels(p: &Path) -> Vec<[f32; 4]> {
+    plume::output::read_exr(p).unwrap().2
+}
+
+/// The bits of every channel of every pixel (the comparison for "bit-identical").
+pub fn pixel_bits(pixels: &[[f32; 4]]) -> Vec<u32> {
+    pixels.iter().flatten().map(|v| v.to_bits()).collect()
+}
+
+/// Names of the entries of `dir` for which `keep` holds.
+pub fn names_in(dir: &Path, keep: impl Fn(&str) -> bool) -> Vec<String> {
+    std::fs::read_dir(dir)
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| keep(n))
+        .collect()
+}
+
+// ---------------------------------------------------------------------------------------
+// Stand-in VDB readers
+
+/// An executable `#!/bin/sh` script `name` running `body`, in `<tier>` under Cargo's
+/// per-target temp dir (created if missing, not emptied).
+pub fn shell_script(tier: &str, name: &str, body: &str) -> PathBuf {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(tier);
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join(name);
+    std::fs::write(&path, format!("#!/bin/sh\n{body}\n")).unwrap();
+    std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o755)).unwrap();
+    path
+}
+
+/// Runs `attempt`, which spawns `reader`, again while the spawn fails with ETXTBSY: another
+/// test thread's fork still holds the freshly written script open for writing. Up to 50
+/// tries, 20 ms apart.
+pub fn retry_while_busy<T>(reader: &Path, mut attempt: impl FnMut() -> plume::Result<T>) -> plume::Result<T> {
+    for _ in 0..50 {
+        match attempt() {
+            Err(plume::Error::ReaderSpawn { source, .. }) if source.raw_os_error() == Some(libc::ETXTBSY) => {
+                std::thread::sleep(Duration::from_millis(20));
+            }
+            other => return other,
+        }
+    }
+    panic!("{} stayed busy", reader.display());
 }

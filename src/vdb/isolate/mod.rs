@@ -14,7 +14,7 @@
 //! - a wall-clock deadline ([`IsolationLimits::timeout`]) enforced by the parent, which
 //!   `poll`s the pipes and kills the child when it passes.
 //!
-//! The child streams the grids back over its stdout in the format of `wire.rs` (magic,
+//! The child streams the grids back over its stdout in the format of `wire/` (magic,
 //! version, then one record per grid with bulk `f32` data); the parent parses it
 //! defensively, with every length checked before anything is sized from it. A `BEGIN`
 //! record is flushed before each grid is read, so a crash names the grid. Every failure

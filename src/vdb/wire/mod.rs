@@ -19,7 +19,7 @@
 //!   0x04 INFOS   count u32, count × grid info        the reply to a listing
 //!   0x05 FAILED  error                               the read failed cleanly; END follows
 //!   0x06 END                                         nothing follows
-//!   0x07 STREAM, 0x08 LEAVES, 0x09 TILES             a streamed grid (`wire/stream.rs`)
+//!   0x07 STREAM, 0x08 LEAVES, 0x09 TILES             a streamed grid (`wire/stream/`)
 //! str     := length u32, UTF-8 bytes
 //! error   := kind u8, fields (see `ChildError`)
 //! ```

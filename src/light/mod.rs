@@ -4,15 +4,17 @@
 //!
 //! - [`nee`]: volume-measure next-event estimation (Villemin & Hery 2013): a *point* `y`
 //!   drawn from the full-resolution emissive voxels ∝ power, density per unit world volume.
-//! - FNEE (`crate::volume::proxy`): a *direction* drawn through the coarse proxy grid,
-//!   density per unit solid angle.
+//! - [`fnee`]: a *direction* drawn through the coarse proxy grid
+//!   ([`crate::volume::proxy`]), density per unit solid angle.
 //!
 //! Both are pure: randomness enters as `u` arguments, so each sample/pdf pair is
 //! chi²-tested in `tests/light_sampling.rs`. Emission enters as a closure
 //! `power(density, source) = Y(L_e)`, keeping the data side free of optics.
 
+pub mod fnee;
 pub mod nee;
 pub mod power;
 
+pub use fnee::{DirectionSample, ProxyPoint};
 pub use nee::{EmitterDistribution, VoxelSample};
 pub use power::LightPower;

@@ -1,5 +1,5 @@
 //! The stream in a child process: `plume __read-grids stream FILE MAX_BYTES SEL` runs
-//! [`LocalStream`] and writes its batches to the pipe (`wire/stream.rs`); the parent
+//! [`LocalStream`] and writes its batches to the pipe (`wire/stream/`); the parent
 //! decodes one record at a time, checks it (`Delivery`) and visits it.
 //!
 //! - **Memory**: the child's `RLIMIT_DATA` is [`IsolationLimits::memory_bytes`], as for

@@ -12,14 +12,16 @@
 //! reading, so a batch never costs the parent more than 512 KiB, and reuses its buffers
 //! from batch to batch. It checks what one record can show (finite values, aligned
 //! origins); the checks against the header are `stream::Delivery`'s.
+//!
+//! The child writes these records with the [`Encoder`](super::Encoder) methods of `encode.rs`,
+//! the parent reads them with the [`Decoder`](super::Decoder) methods of `decode.rs`.
+//!
+//! [`STREAM_BATCH`]: crate::vdb::stream::STREAM_BATCH
 
-use std::io::{self, Read, Write};
+mod decode;
+mod encode;
 
-use glam::IVec3;
-
-use super::{malformed, Decoder, Encoder, WireError};
-use crate::vdb::stream::{StreamedGrid, Tile, STREAM_BATCH};
-use crate::vdb::{LEAF_DIM, LEAF_VOXELS};
+pub(super) use decode::Batch;
 
 pub(super) const TAG_STREAM: u8 = 0x07;
 pub(super) const TAG_LEAVES: u8 = 0x08;
@@ -28,163 +30,17 @@ pub(super) const TAG_TILES: u8 = 0x09;
 /// Bytes of one tile on the wire.
 const TILE_BYTES: usize = 7 * 4;
 
-/// The decoder's buffers for the last LEAVES or TILES record.
-#[derive(Debug, Default)]
-pub(super) struct Batch {
-    origins: Vec<IVec3>,
-    values: Vec<f32>,
-    tiles: Vec<Tile>,
-}
-
-impl<W: Write> Encoder<W> {
-    /// The header of a streamed grid.
-    pub(crate) fn stream(&mut self, grid: &StreamedGrid) -> io::Result<()> {
-        self.out.write_all(&[TAG_STREAM])?;
-        self.str(&grid.name)?;
-        for c in grid.world_from_index.to_cols_array() {
-            self.out.write_all(&c.to_le_bytes())?;
-        }
-        self.out.write_all(&grid.background.to_le_bytes())?;
-        self.u64(grid.leaf_count)?;
-        self.u64(grid.tile_blocks)?;
-        let (flag, lo, hi) = match grid.index_bbox {
-            Some((lo, hi)) => (1u8, lo, hi),
-            None => (0u8, IVec3::ZERO, IVec3::ZERO),
-        };
-        self.out.write_all(&[flag])?;
-        for c in lo.to_array().into_iter().chain(hi.to_array()) {
-            self.out.write_all(&c.to_le_bytes())?;
-        }
-        Ok(())
-    }
-
-    /// One batch of leaves: at most [`STREAM_BATCH`], 512 values each.
-    ///
-    /// # Panics
-    /// If the batch is empty, too long, or the values do not match the origins.
-    pub(crate) fn leaves(&mut self, origins: &[IVec3], values: &[f32]) -> io::Result<()> {
-        assert!((1..=STREAM_BATCH).contains(&origins.len()), "invariant: batch size");
-        assert_eq!(values.len(), origins.len() * LEAF_VOXELS, "invariant: 512 values per leaf");
-        self.out.write_all(&[TAG_LEAVES])?;
-        self.u32(origins.len() as u32)?;
-        self.scratch.clear();
-        self.scratch.extend(origins.iter().flat_map(|o| o.to_array()).flat_map(i32::to_le_bytes));
-        self.out.write_all(&self.scratch)?;
-        self.scratch.clear();
-        self.scratch.extend(values.iter().flat_map(|v| v.to_le_bytes()));
-        self.out.write_all(&self.scratch)
-    }
-
-    /// One batch of active tiles: at most [`STREAM_BATCH`].
-    ///
-    /// # Panics
-    /// If the batch is empty or too long.
-    pub(crate) fn tiles(&mut self, tiles: &[Tile]) -> io::Result<()> {
-        assert!((1..=STREAM_BATCH).contains(&tiles.len()), "invariant: batch size");
-        self.out.write_all(&[TAG_TILES])?;
-        self.u32(tiles.len() as u32)?;
-        self.scratch.clear();
-        for t in tiles {
-            let ints = t.min.to_array().into_iter().chain(t.max.to_array());
-            self.scratch.extend(ints.flat_map(i32::to_le_bytes));
-            self.scratch.extend(t.value.to_le_bytes());
-        }
-        self.out.write_all(&self.scratch)
-    }
-}
-
-impl<R: Read> Decoder<R> {
-    /// The origins and values of the last LEAVES record.
-    pub(crate) fn leaf_batch(&self) -> (&[IVec3], &[f32]) {
-        (&self.batch.origins, &self.batch.values)
-    }
-
-    /// The tiles of the last TILES record.
-    pub(crate) fn tile_batch(&self) -> &[Tile] {
-        &self.batch.tiles
-    }
-
-    pub(super) fn stream_head(&mut self) -> Result<StreamedGrid, WireError> {
-        let (name, world_from_index, background) = self.grid_head()?;
-        let leaf_count = self.u64()?;
-        let tile_blocks = self.u64()?;
-        let has_bbox = self.flag()?;
-        let mut bbox = [0i32; 6];
-        for c in &mut bbox {
-            *c = self.u32()? as i32;
-        }
-        let (lo, hi) =
-            (IVec3::new(bbox[0], bbox[1], bbox[2]), IVec3::new(bbox[3], bbox[4], bbox[5]));
-        if has_bbox && !lo.cmple(hi).all() {
-            return malformed(format!("grid {name:?}: inverted bounds {lo}..{hi}"));
-        }
-        Ok(StreamedGrid {
-            name,
-            world_from_index,
-            background,
-            leaf_count,
-            tile_blocks,
-            index_bbox: has_bbox.then_some((lo, hi)),
-        })
-    }
-
-    /// A batch count, refused before anything is read if it is 0 or above [`STREAM_BATCH`].
-    fn batch_count(&mut self, what: &str) -> Result<usize, WireError> {
-        let count = self.u32()? as usize;
-        if count == 0 || count > STREAM_BATCH {
-            return malformed(format!("{what} batch of {count} (1 to {STREAM_BATCH})"));
-        }
-        Ok(count)
-    }
-
-    pub(super) fn leaves_record(&mut self) -> Result<(), WireError> {
-        let count = self.batch_count("leaf")?;
-        self.fill_scratch(count * 12)?;
-        let origins = &mut self.batch.origins;
-        origins.clear();
-        origins.extend(self.scratch.chunks_exact(12).map(|b| {
-            let c = |k: usize| i32::from_le_bytes([b[k], b[k + 1], b[k + 2], b[k + 3]]);
-            IVec3::new(c(0), c(4), c(8))
-        }));
-        if let Some(o) = origins.iter().find(|o| (**o % LEAF_DIM) != IVec3::ZERO) {
-            return malformed(format!("leaf origin {o} is not a multiple of 8"));
-        }
-        self.fill_scratch(count * LEAF_VOXELS * 4)?;
-        let values = &mut self.batch.values;
-        values.clear();
-        values.extend(
-            self.scratch.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])),
-        );
-        if values.iter().any(|v| !v.is_finite()) {
-            return malformed("non-finite leaf values");
-        }
-        Ok(())
-    }
-
-    pub(super) fn tiles_record(&mut self) -> Result<(), WireError> {
-        let count = self.batch_count("tile")?;
-        self.fill_scratch(count * TILE_BYTES)?;
-        let tiles = &mut self.batch.tiles;
-        tiles.clear();
-        for b in self.scratch.chunks_exact(TILE_BYTES) {
-            let word = |k: usize| [b[4 * k], b[4 * k + 1], b[4 * k + 2], b[4 * k + 3]];
-            let int = |k: usize| i32::from_le_bytes(word(k));
-            tiles.push(Tile {
-                min: IVec3::new(int(0), int(1), int(2)),
-                max: IVec3::new(int(3), int(4), int(5)),
-                value: f32::from_le_bytes(word(6)),
-            });
-        }
-        // Shape and value are checked by Tile::blocks before a tile is visited
-        Ok(())
-    }
-}
-
 #[cfg(test)]
 mod tests {
+    use std::io;
+
+    use glam::IVec3;
+
     use super::super::tests::encode;
-    use super::super::{Record, MAGIC, TAG_END, VERSION};
+    use super::super::{Decoder, Record, WireError, MAGIC, TAG_END, VERSION};
     use super::*;
+    use crate::vdb::stream::{StreamedGrid, Tile, STREAM_BATCH};
+    use crate::vdb::LEAF_VOXELS;
 
     fn grid() -> StreamedGrid {
         StreamedGrid {

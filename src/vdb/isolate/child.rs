@@ -1,0 +1,163 @@
+//! The child side of an isolated read: [`reader_main`] runs inside
+//! `plume __read-grids …` (see the command line in [`super`]), reads with the in-process
+//! reader and writes the reply to its stdout in the format of `vdb/wire/`.
+
+use std::ffi::OsString;
+use std::io::{self, BufWriter, Write};
+use std::os::fd::AsFd;
+use std::path::{Path, PathBuf};
+
+use super::READER_SUBCOMMAND;
+use crate::error::Error;
+use crate::vdb::read::plan_requests;
+use crate::vdb::stream::serve_stream;
+use crate::vdb::wire::{ChildError, Encoder};
+use crate::vdb::{list_grids, read_float_grid, GridRequest, GridSelector, ReadLimits};
+
+/// Runs the reader subcommand (the arguments after [`READER_SUBCOMMAND`]) and ends the
+/// process: exit status 0 after a complete reply (which may report a clean failure), 1
+/// when the reply cannot be written, 2 on a malformed command line.
+///
+/// The process ends with `_exit`, skipping C++ static destructors: after a read of a
+/// hostile file the heap may be damaged, and a crash on the way out would turn a good
+/// reply into a failure.
+pub fn reader_main(args: &[OsString]) -> ! {
+    // SAFETY: prctl(PR_SET_DUMPABLE, 0) only changes this process's dumpable flag (no core
+    // dump of a crash on a hostile file). It is reset by exec, so it is set here.
+    unsafe {
+        libc::prctl(libc::PR_SET_DUMPABLE, 0, 0, 0, 0);
+    }
+    let code = match ReaderCommand::parse(args) {
+        Ok(command) => match serve(&command) {
+            Ok(()) => 0,
+            Err(e) => {
+                eprintln!("plume {READER_SUBCOMMAND}: cannot write the reply: {e}");
+                1
+            }
+        },
+        Err(message) => {
+            eprintln!("plume {READER_SUBCOMMAND}: {message}");
+            2
+        }
+    };
+    let _ = io::stderr().flush();
+    // SAFETY: _exit ends the process without running atexit handlers; every output
+    // stream was flushed above.
+    unsafe { libc::_exit(code) }
+}
+
+/// A parsed reader command line.
+enum ReaderCommand {
+    List { path: PathBuf },
+    Read { path: PathBuf, limits: ReadLimits, requests: Vec<GridRequest> },
+    Stream { path: PathBuf, limits: ReadLimits, selector: GridSelector },
+}
+
+impl ReaderCommand {
+    fn parse(args: &[OsString]) -> std::result::Result<ReaderCommand, String> {
+        let usage = || {
+            format!(
+                "usage: plume {READER_SUBCOMMAND} list FILE | read FILE MAX_BYTES (need|want) N SEL... ... \
+                 | stream FILE MAX_BYTES SEL"
+            )
+        };
+        let mut it = args.iter();
+        fn text(
+            arg: Option<&OsString>,
+            usage: impl Fn() -> String,
+        ) -> std::result::Result<&str, String> {
+            arg.and_then(|a| a.to_str()).ok_or_else(usage)
+        }
+        let mode = text(it.next(), usage)?;
+        let path = PathBuf::from(it.next().ok_or_else(usage)?);
+        match mode {
+            "list" if it.len() == 0 => Ok(ReaderCommand::List { path }),
+            "read" => {
+                let max_bytes = text(it.next(), usage)?.parse().map_err(|_| usage())?;
+                let mut requests = Vec::new();
+                while let Some(kind) = it.next() {
+                    let required = match kind.to_str() {
+                        Some("need") => true,
+                        Some("want") => false,
+                        _ => return Err(usage()),
+                    };
+                    let count: usize = text(it.next(), usage)?.parse().map_err(|_| usage())?;
+                    if count == 0 || count > it.len() {
+                        return Err(usage());
+                    }
+                    let alternatives = (0..count)
+                        .map(|_| {
+                            text(it.next(), usage)?
+                                .parse::<GridSelector>()
+                                .map_err(|e| e.to_string())
+                        })
+                        .collect::<std::result::Result<Vec<_>, _>>()?;
+                    requests.push(GridRequest { alternatives, required });
+                }
+                Ok(ReaderCommand::Read { path, limits: ReadLimits { max_bytes }, requests })
+            }
+            "stream" if it.len() == 2 => {
+                let max_bytes = text(it.next(), usage)?.parse().map_err(|_| usage())?;
+                let selector = text(it.next(), usage)?.parse().map_err(|e: Error| e.to_string())?;
+                Ok(ReaderCommand::Stream { path, limits: ReadLimits { max_bytes }, selector })
+            }
+            _ => Err(usage()),
+        }
+    }
+}
+
+/// Writes the reply to a duplicate of stdout, and points stdout at stderr so that nothing
+/// OpenVDB might print can corrupt the reply.
+fn serve(command: &ReaderCommand) -> io::Result<()> {
+    let reply = std::fs::File::from(io::stdout().as_fd().try_clone_to_owned()?);
+    // SAFETY: dup2 on two open descriptors of this process; fd 1 now refers to stderr.
+    if unsafe { libc::dup2(libc::STDERR_FILENO, libc::STDOUT_FILENO) } < 0 {
+        return Err(io::Error::last_os_error());
+    }
+    let mut out = Encoder::new(BufWriter::with_capacity(256 * 1024, reply))?;
+    match command {
+        ReaderCommand::List { path } => match list_grids(path) {
+            Ok(infos) => out.infos(&infos)?,
+            Err(e) => out.failed(&ChildError::from_error(&e))?,
+        },
+        ReaderCommand::Read { path, limits, requests } => {
+            serve_read(&mut out, path, limits, requests)?;
+        }
+        ReaderCommand::Stream { path, limits, selector } => {
+            serve_stream(&mut out, path, limits, selector)?;
+        }
+    }
+    out.end()?;
+    Ok(())
+}
+
+fn serve_read<W: Write>(
+    out: &mut Encoder<W>,
+    path: &Path,
+    limits: &ReadLimits,
+    requests: &[GridRequest],
+) -> io::Result<()> {
+    let plan = match plan_requests(path, requests) {
+        Ok(plan) => plan,
+        Err(e) => return out.failed(&ChildError::from_error(&e)),
+    };
+    for (index, (choice, request)) in plan.into_iter().zip(requests).enumerate() {
+        let index = wire_index(index);
+        let Some(alternative) = choice else {
+            out.absent(index)?;
+            continue;
+        };
+        out.begin(index, wire_index(alternative))?;
+        // Each grid is sent and freed before the next is read
+        match read_float_grid(path, &request.alternatives[alternative], limits) {
+            Ok(grid) => out.grid(index, wire_index(alternative), &grid)?,
+            Err(e) => return out.failed(&ChildError::from_error(&e)),
+        }
+    }
+    Ok(())
+}
+
+/// Request and alternative indices come from a command line, far below `u32::MAX`.
+fn wire_index(i: usize) -> u32 {
+    u32::try_from(i).expect("invariant: request indices come from a command line")
+}

@@ -1,0 +1,274 @@
+//! The parent side of an isolated read: [`ReadIsolation`] chooses where to read, the
+//! `read` and `list` requests are sent to a child (`process.rs`), and its replies are
+//! decoded and checked against the requests, a clean failure becoming the error the
+//! in-process reader would have returned.
+
+use std::ffi::OsString;
+use std::io::{self, Read};
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+use std::time::Duration;
+
+use super::{IsolationLimits, ReaderRun};
+use crate::error::{Error, Result};
+use crate::vdb::read::check_file;
+use crate::vdb::wire::{ChildError, Decoder, Record, WireError};
+use crate::vdb::{list_grids, read_grids, FloatGrid, FoundGrid, GridInfo, GridRequest};
+use crate::vdb::{GridSelector, ReadLimits};
+
+/// The executable registered by [`set_reader_exe`].
+static READER_EXE: OnceLock<PathBuf> = OnceLock::new();
+
+/// Registers the executable that serves [`READER_SUBCOMMAND`](super::READER_SUBCOMMAND);
+/// the `plume` binary registers itself at start-up. Only the first call has an effect.
+pub fn set_reader_exe(exe: PathBuf) {
+    let _ = READER_EXE.set(exe);
+}
+
+/// The executable registered by [`set_reader_exe`], if any.
+#[must_use]
+pub fn reader_exe() -> Option<&'static Path> {
+    READER_EXE.get().map(PathBuf::as_path)
+}
+
+/// Where VDB files are read.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum ReadIsolation {
+    /// In this process: fastest, but a malformed file can crash or hang plume.
+    InProcess,
+    /// In a child process of `reader_exe` (the `plume` binary) under `limits`.
+    Child {
+        /// Executable that serves [`READER_SUBCOMMAND`](super::READER_SUBCOMMAND).
+        reader_exe: PathBuf,
+        /// Limits of the child.
+        limits: IsolationLimits,
+    },
+}
+
+impl ReadIsolation {
+    /// The CLI's choice: a child of the registered executable unless `no_isolation`.
+    /// Without a registered executable (a library caller that has not called
+    /// [`set_reader_exe`]) reading stays in-process.
+    #[must_use]
+    pub fn from_flags(
+        no_isolation: bool,
+        read_limits: &ReadLimits,
+        timeout: Duration,
+    ) -> ReadIsolation {
+        match reader_exe() {
+            Some(exe) if !no_isolation => ReadIsolation::Child {
+                reader_exe: exe.to_path_buf(),
+                limits: IsolationLimits::new(read_limits, timeout),
+            },
+            _ => ReadIsolation::InProcess,
+        }
+    }
+
+    /// [`crate::vdb::list_grids`], here or in the child.
+    ///
+    /// # Errors
+    /// As [`crate::vdb::list_grids`], plus [`Error::ReaderFailed`] and [`Error::ReaderSpawn`].
+    pub fn list_grids(&self, path: &Path) -> Result<Vec<GridInfo>> {
+        match self {
+            ReadIsolation::InProcess => list_grids(path),
+            ReadIsolation::Child { reader_exe, limits } => {
+                list_grids_isolated(reader_exe, path, limits)
+            }
+        }
+    }
+
+    /// [`crate::vdb::read_grids`], here or in the child.
+    ///
+    /// # Errors
+    /// As [`crate::vdb::read_grids`], plus [`Error::ReaderFailed`] and [`Error::ReaderSpawn`].
+    pub fn read_grids(
+        &self,
+        path: &Path,
+        requests: &[GridRequest],
+        read_limits: &ReadLimits,
+    ) -> Result<Vec<Option<FoundGrid>>> {
+        match self {
+            ReadIsolation::InProcess => read_grids(path, requests, read_limits),
+            ReadIsolation::Child { reader_exe, limits } => {
+                read_grids_isolated(reader_exe, path, requests, read_limits, limits)
+            }
+        }
+    }
+}
+
+/// Reads the grids named by `selectors` (all required) in one child process of
+/// `reader_exe`.
+///
+/// # Errors
+/// As [`crate::vdb::read_float_grid`]; [`Error::ReaderFailed`] when the child crashes, hangs,
+/// exceeds a limit or replies with garbage; [`Error::ReaderSpawn`] when it cannot start.
+pub fn read_float_grids_isolated(
+    reader_exe: &Path,
+    path: &Path,
+    selectors: &[GridSelector],
+    read_limits: &ReadLimits,
+    limits: &IsolationLimits,
+) -> Result<Vec<FloatGrid>> {
+    let requests: Vec<GridRequest> = selectors.iter().cloned().map(GridRequest::required).collect();
+    let found = read_grids_isolated(reader_exe, path, &requests, read_limits, limits)?;
+    Ok(found
+        .into_iter()
+        .map(|f| {
+            f.expect("invariant: the reply parser accepts ABSENT only for optional requests").grid
+        })
+        .collect())
+}
+
+/// [`crate::vdb::read_grids`] in one child process of `reader_exe`.
+///
+/// # Errors
+/// As [`read_float_grids_isolated`].
+pub fn read_grids_isolated(
+    reader_exe: &Path,
+    path: &Path,
+    requests: &[GridRequest],
+    read_limits: &ReadLimits,
+    limits: &IsolationLimits,
+) -> Result<Vec<Option<FoundGrid>>> {
+    // Missing files, directories, NanoVDB and non-VDB files are refused here, by Rust code
+    check_file(path)?;
+    let mut args: Vec<OsString> =
+        vec!["read".into(), path.into(), read_limits.max_bytes.to_string().into()];
+    for request in requests {
+        if request.alternatives.is_empty() {
+            return Err(Error::invalid("grid request", "no grid selector given"));
+        }
+        args.push(if request.required { "need" } else { "want" }.into());
+        args.push(request.alternatives.len().to_string().into());
+        args.extend(request.alternatives.iter().map(|a| OsString::from(a.to_string())));
+    }
+    let mut run = ReaderRun::spawn(reader_exe, &args, limits)?;
+    let mut grid: Option<String> = None;
+    let outcome =
+        run.parse(read_limits.max_bytes, |decoder| parse_read_reply(decoder, requests, &mut grid));
+    run.finish(path, outcome, grid.clone(), limits)?.map_err(|e| child_error(path, e, grid, limits))
+}
+
+/// [`crate::vdb::list_grids`] in a child process of `reader_exe`.
+///
+/// # Errors
+/// As [`read_float_grids_isolated`].
+pub fn list_grids_isolated(
+    reader_exe: &Path,
+    path: &Path,
+    limits: &IsolationLimits,
+) -> Result<Vec<GridInfo>> {
+    check_file(path)?;
+    let args: Vec<OsString> = vec!["list".into(), path.into()];
+    let mut run = ReaderRun::spawn(reader_exe, &args, limits)?;
+    // Listing moves no bulk data
+    let outcome = run.parse(0, |decoder| {
+        let reply = match decoder.next()? {
+            Record::Infos(infos) => Ok(infos),
+            Record::Failed(e) => Err(e),
+            other => return Err(unexpected(&other)),
+        };
+        match decoder.next()? {
+            Record::End => Ok(reply),
+            other => Err(unexpected(&other)),
+        }
+    });
+    run.finish(path, outcome, None, limits)?.map_err(|e| child_error(path, e, None, limits))
+}
+
+/// The records of a `read` reply, checked against the requests: each request is answered
+/// in order, by BEGIN + GRID for the alternative announced, or by ABSENT if optional.
+/// `grid` tracks the selector being read, for crash messages.
+fn parse_read_reply<R: Read>(
+    decoder: &mut Decoder<R>,
+    requests: &[GridRequest],
+    grid: &mut Option<String>,
+) -> std::result::Result<std::result::Result<Vec<Option<FoundGrid>>, ChildError>, WireError> {
+    let mut found: Vec<Option<FoundGrid>> = Vec::with_capacity(requests.len());
+    let mut begun: Option<(usize, usize)> = None;
+    loop {
+        let next = requests.get(found.len());
+        match decoder.next()? {
+            Record::Begin { request, alternative } => {
+                let (request, alternative) = (request as usize, alternative as usize);
+                match next {
+                    Some(r) if request == found.len() && alternative < r.alternatives.len() => {
+                        *grid = Some(r.alternatives[alternative].to_string());
+                        begun = Some((request, alternative));
+                    }
+                    _ => return Err(malformed_reply("BEGIN out of order")),
+                }
+            }
+            Record::Grid { request, alternative, grid: g } => {
+                let (request, alternative) = (request as usize, alternative as usize);
+                if begun != Some((request, alternative))
+                    || !next.is_some_and(|r| r.alternatives[alternative].name == g.name)
+                {
+                    return Err(malformed_reply("GRID does not answer the grid begun"));
+                }
+                found.push(Some(FoundGrid { alternative, grid: g }));
+                begun = None;
+                *grid = None;
+            }
+            Record::Absent { request } => match next {
+                Some(r) if request as usize == found.len() && !r.required && begun.is_none() => {
+                    found.push(None);
+                }
+                _ => return Err(malformed_reply("ABSENT out of order")),
+            },
+            Record::Failed(e) => {
+                return match decoder.next()? {
+                    Record::End => Ok(Err(e)),
+                    other => Err(unexpected(&other)),
+                };
+            }
+            Record::End if found.len() == requests.len() => return Ok(Ok(found)),
+            other => return Err(unexpected(&other)),
+        }
+    }
+}
+
+pub(in crate::vdb) fn malformed_reply(message: &str) -> WireError {
+    WireError::Malformed(message.to_string())
+}
+
+pub(in crate::vdb) fn unexpected(record: &Record) -> WireError {
+    let name = match record {
+        Record::Begin { .. } => "BEGIN",
+        Record::Grid { .. } => "GRID",
+        Record::Absent { .. } => "ABSENT",
+        Record::Infos(_) => "INFOS",
+        Record::Failed(_) => "FAILED",
+        Record::End => "END",
+        Record::Stream(_) => "STREAM",
+        Record::Leaves => "LEAVES",
+        Record::Tiles => "TILES",
+    };
+    WireError::Malformed(format!("unexpected {name} record"))
+}
+
+/// The error the child reported cleanly, as the in-process reader would have returned it.
+pub(in crate::vdb) fn child_error(
+    path: &Path,
+    error: ChildError,
+    grid: Option<String>,
+    limits: &IsolationLimits,
+) -> Error {
+    let path = path.to_path_buf();
+    match error {
+        ChildError::Open { message } => Error::Open { path, source: io::Error::other(message) },
+        ChildError::Vdb { message } => Error::Vdb { path, message },
+        ChildError::GridNotFound { name, available } => {
+            Error::GridNotFound { path, name, available }
+        }
+        ChildError::Unsupported { grid, message } => Error::UnsupportedGrid { path, grid, message },
+        ChildError::TooLarge { grid, needed, limit } => {
+            Error::TooLarge { path, grid, needed, limit }
+        }
+        ChildError::OutOfMemory => Error::ReaderFailed {
+            path,
+            grid,
+            what: format!("reader ran out of memory at its limit of {} bytes", limits.memory_bytes),
+        },
+    }
+}

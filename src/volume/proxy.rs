@@ -35,8 +35,9 @@ pub(crate) const EMPTY: u32 = u32::MAX;
 /// step (1 byte per 64 cells).
 pub(crate) const BLOCK: i32 = 4;
 
-/// The command-line flag that sets the proxy resolution (named in errors).
-pub const RESOLUTION_FLAG: &str = "--proxy-resolution";
+/// The scene key that sets the proxy resolution (named in errors; the binary shows the
+/// flag `--proxy-resolution` when it was given as one).
+pub const RESOLUTION_KEY: &str = "integrator.proxy_resolution";
 
 /// The FNEE proxy: emitted power per coarse cell. See the module docs.
 ///
@@ -97,11 +98,11 @@ impl ProxyGrid {
 fn validate_resolution(resolution: u32, longest_voxels: Option<i32>) -> Result<()> {
     let power_of_two = resolution.is_power_of_two() && resolution >= 8;
     match longest_voxels {
-        None if !power_of_two => Err(Error::invalid(RESOLUTION_FLAG, format!("{resolution} is not a power of two ≥ 8"))),
+        None if !power_of_two => Err(Error::invalid(RESOLUTION_KEY, format!("{resolution} is not a power of two ≥ 8"))),
         Some(longest) if !power_of_two || resolution > (longest.max(8) as u32).next_power_of_two() => {
             let max = (longest.max(8) as u32).next_power_of_two();
             Err(Error::invalid(
-                RESOLUTION_FLAG,
+                RESOLUTION_KEY,
                 format!(
                     "{resolution} is not a power of two between 8 and {max} (the volume spans {longest} voxels \
                      along its longest axis; {max} gives one cell per voxel)"
@@ -137,7 +138,7 @@ fn cell_layout(volume: &Volume, resolution: u32) -> Result<Option<(i32, IVec3)>>
     let count = dims.x as u64 * dims.y as u64 * dims.z as u64;
     if count >= u64::from(u32::MAX) {
         return Err(Error::invalid(
-            RESOLUTION_FLAG,
+            RESOLUTION_KEY,
             format!("{resolution} needs {count} proxy cells, more than plume supports; choose a smaller resolution"),
         ));
     }

@@ -202,7 +202,7 @@ fn parse_read_reply<R: Read>(
             Record::Grid { request, alternative, grid: g } => {
                 let (request, alternative) = (request as usize, alternative as usize);
                 if begun != Some((request, alternative))
-                    || !next.is_some_and(|r| r.alternatives[alternative].name == g.name)
+                    || next.is_none_or(|r| r.alternatives[alternative].name != g.name)
                 {
                     return Err(malformed_reply("GRID does not answer the grid begun"));
                 }

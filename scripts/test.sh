@@ -13,4 +13,11 @@ if [ ! -x "$venv/bin/openjd" ]; then
         echo "test.sh: WARNING: cannot install openjd-cli into $venv; the OpenJD test will be SKIPPED" >&2
     fi
 fi
+# Style gates first (cheap, and a failure says exactly where): formatting per rustfmt.toml,
+# and clippy with every warning an error.
+if ! cargo fmt --version >/dev/null 2>&1 || ! cargo clippy --version >/dev/null 2>&1; then
+    command -v rustup >/dev/null 2>&1 && rustup component add rustfmt clippy
+fi
+cargo fmt --check
+cargo clippy --all-targets -- -D warnings
 cargo test --all-targets --no-fail-fast "$@"

@@ -143,9 +143,14 @@ pub fn prepare_command(args: &PrepareArgs) -> Result<()> {
     if !plume::cache::is_cache_path(&args.output) {
         return Err(Error::invalid("--output", format!("{} must end in .{}", args.output.display(), plume::cache::EXTENSION)));
     }
-    let (volume, emission, reading) = args.grids.description();
+    // The grid flags set the same keys as for `plume render`
+    let mut shot = plume::scene::Shot::new(&args.file, "");
+    super::render::apply_grids(&mut shot, &args.grids, &|_| true);
+    let (scene, reading) = (&shot.scene, &shot.settings.reading);
     let input_bytes = std::fs::metadata(&args.file).map(|m| m.len()).unwrap_or(0);
-    let c = plume::cache::convert::convert(&args.file, &volume, &emission, &reading, args.proxy_resolution, &args.output)?;
+    let flags = super::render::Origin { scene_file: None, given: Vec::new() };
+    let c = plume::cache::convert::convert(&args.file, &scene.volume, &scene.emission, reading, args.proxy_resolution, &args.output)
+        .map_err(|e| flags.explain(e))?;
     if !args.quiet {
         eprintln!(
             "plume: wrote {} ({:.1} MiB) from {} ({:.1} MiB) in {:.2} s",

@@ -3,7 +3,7 @@
 //!
 //! Without a scene file every flag, defaults included, gives its key. With one
 //! (`plume render shot.toml`), the file gives the keys and only the flags typed on the
-//! command line override them. [`RENDER_FLAGS`] is the one table of flag → key; it also
+//! command line override them. [`render_flags`] is the one table of flag → key; it also
 //! turns the keys that library errors name back into the flags a user typed, or into
 //! the scene file's line.
 
@@ -233,38 +233,16 @@ pub struct GridArgs {
 }
 
 
-impl GridArgs {
-    /// The grid bindings, source mapping and reading these flags give (`plume prepare`).
-    #[must_use]
-    pub fn description(&self) -> (VolumeInput, EmissionSettings, ReadSettings) {
-        let volume = VolumeInput {
-            file: PathBuf::new(),
-            density_grid: self.density_grid.clone(),
-            temperature_grid: self.temperature_grid.clone(),
-            emission_grid: self.emission_grid.clone(),
-            albedo_grid: self.albedo_grid.clone(),
-        };
-        let emission = EmissionSettings {
-            source: self.emission,
-            convention: self.convention,
-            temperature_map: self.temperature_map.clone(),
-            temperature_cutoff: self.temperature_cutoff,
-            ..EmissionSettings::default()
-        };
-        (volume, emission, ReadSettings { max_input_memory: self.max_input_memory, read_timeout: self.read_timeout, no_isolation: self.no_isolation })
-    }
-}
-
 /// Flag id (clap's, the field name) → scene key, and how the flag sets the key. The
 /// positional FILE sets `volume.file` (unless it is a scene file); `-o` sets
 /// `output.image`.
-macro_rules! render_flags {
-    ($s:ident, $a:ident; $($id:literal => $key:literal: $target:expr => $value:expr;)*) => {
-        /// Every render flag's id and key.
-        pub const RENDER_FLAGS: &[(&str, &str)] = &[$(($id, $key)),*];
+macro_rules! flags_to_keys {
+    ($table:ident, $apply:ident, $args:ty, $s:ident, $a:ident; $($id:literal => $key:literal: $target:expr => $value:expr;)*) => {
+        /// Flag ids and the keys they set.
+        pub const $table: &[(&str, &str)] = &[$(($id, $key)),*];
 
         /// Set the key of every flag that `given` says counts.
-        fn apply($s: &mut Shot, $a: &RenderArgs, given: &dyn Fn(&str) -> bool) {
+        pub fn $apply($s: &mut Shot, $a: &$args, given: &dyn Fn(&str) -> bool) {
             $(if given($id) {
                 $target = $value;
             })*
@@ -272,7 +250,7 @@ macro_rules! render_flags {
     };
 }
 
-render_flags! { s, a;
+flags_to_keys! { RENDER_ONLY_FLAGS, apply_render_only, RenderArgs, s, a;
     "output" => "output.image": s.settings.output.image => a.output.clone().unwrap_or_default();
     "spp" => "render.spp": s.settings.render.spp => a.spp;
     "time" => "render.time": s.settings.render.time => a.time;
@@ -296,17 +274,6 @@ render_flags! { s, a;
     "environment" => "lights.environment": s.scene.lights.environment => a.environment;
     "debug_pixel" => "render.debug_pixel": s.settings.render.debug_pixel => a.debug_pixel;
     "kappa" => "integrator.kappa": s.scene.integrator.kappa => a.kappa;
-    "density_grid" => "volume.density_grid": s.scene.volume.density_grid => a.grids.density_grid.clone();
-    "emission" => "emission.source": s.scene.emission.source => a.grids.emission;
-    "temperature_grid" => "volume.temperature_grid": s.scene.volume.temperature_grid => a.grids.temperature_grid.clone();
-    "temperature_map" => "emission.temperature_map": s.scene.emission.temperature_map => a.grids.temperature_map.clone();
-    "temperature_cutoff" => "emission.temperature_cutoff": s.scene.emission.temperature_cutoff => a.grids.temperature_cutoff;
-    "emission_grid" => "volume.emission_grid": s.scene.volume.emission_grid => a.grids.emission_grid.clone();
-    "convention" => "emission.convention": s.scene.emission.convention => a.grids.convention;
-    "albedo_grid" => "volume.albedo_grid": s.scene.volume.albedo_grid => a.grids.albedo_grid.clone();
-    "max_input_memory" => "reading.max_input_memory": s.settings.reading.max_input_memory => a.grids.max_input_memory;
-    "read_timeout" => "reading.read_timeout": s.settings.reading.read_timeout => a.grids.read_timeout;
-    "no_isolation" => "reading.no_isolation": s.settings.reading.no_isolation => a.grids.no_isolation;
     "density_scale" => "medium.density_scale": s.scene.medium.density_scale => a.density_scale;
     "emission_scale" => "emission.scale": s.scene.emission.scale => a.emission_scale;
     "emission_color" => "emission.color": s.scene.emission.color => a.emission_color.as_vec3().to_array();
@@ -327,6 +294,31 @@ render_flags! { s, a;
     "progress" => "render.progress": s.settings.render.progress => a.progress;
 }
 
+flags_to_keys! { GRID_FLAGS, apply_grids, GridArgs, s, a;
+    "density_grid" => "volume.density_grid": s.scene.volume.density_grid => a.density_grid.clone();
+    "emission" => "emission.source": s.scene.emission.source => a.emission;
+    "temperature_grid" => "volume.temperature_grid": s.scene.volume.temperature_grid => a.temperature_grid.clone();
+    "temperature_map" => "emission.temperature_map": s.scene.emission.temperature_map => a.temperature_map.clone();
+    "temperature_cutoff" => "emission.temperature_cutoff": s.scene.emission.temperature_cutoff => a.temperature_cutoff;
+    "emission_grid" => "volume.emission_grid": s.scene.volume.emission_grid => a.emission_grid.clone();
+    "convention" => "emission.convention": s.scene.emission.convention => a.convention;
+    "albedo_grid" => "volume.albedo_grid": s.scene.volume.albedo_grid => a.albedo_grid.clone();
+    "max_input_memory" => "reading.max_input_memory": s.settings.reading.max_input_memory => a.max_input_memory;
+    "read_timeout" => "reading.read_timeout": s.settings.reading.read_timeout => a.read_timeout;
+    "no_isolation" => "reading.no_isolation": s.settings.reading.no_isolation => a.no_isolation;
+}
+
+/// Every render flag's id and key.
+pub fn render_flags() -> impl Iterator<Item = &'static (&'static str, &'static str)> {
+    RENDER_ONLY_FLAGS.iter().chain(GRID_FLAGS)
+}
+
+/// Set the key of every render flag that `given` says counts.
+fn apply(shot: &mut Shot, args: &RenderArgs, given: &dyn Fn(&str) -> bool) {
+    apply_render_only(shot, args, given);
+    apply_grids(shot, &args.grids, given);
+}
+
 /// `--flag-name` of a flag id (`FILE` for the positional).
 fn flag_name(id: &str) -> String {
     if id == "file" {
@@ -341,7 +333,7 @@ fn flag_of(key: &str) -> Option<&'static str> {
     if key == "volume.file" {
         return Some("file");
     }
-    RENDER_FLAGS.iter().find(|(_, k)| *k == key).map(|(id, _)| *id)
+    render_flags().find(|(_, k)| *k == key).map(|(id, _)| *id)
 }
 
 /// A render command line as library types.
@@ -369,7 +361,7 @@ impl RenderRequest {
     /// name the flag or the file, line and key.
     pub fn new(args: &RenderArgs, matches: &ArgMatches) -> Result<RenderRequest> {
         let typed = |id: &str| matches.value_source(id) == Some(clap::parser::ValueSource::CommandLine);
-        let given: Vec<String> = RENDER_FLAGS.iter().map(|(id, _)| *id).filter(|id| typed(id)).map(String::from).collect();
+        let given: Vec<String> = render_flags().map(|(id, _)| *id).filter(|id| typed(id)).map(String::from).collect();
         let (shot, scene_file) = if is_scene_file(&args.file) {
             let (mut shot, file) = SceneFile::read(&args.file)?;
             // A flag overrides the keys it conflicts with, too
@@ -420,7 +412,7 @@ impl Origin {
         let named: Vec<String> = keys.iter().map(|k| flag_of(k).map_or_else(|| (*k).to_string(), flag_name)).collect();
         // Keys named inside the message too, longest first
         let mut message = message;
-        let mut all: Vec<(&str, &str)> = RENDER_FLAGS.to_vec();
+        let mut all: Vec<(&str, &str)> = render_flags().copied().collect();
         all.sort_by_key(|(_, k)| std::cmp::Reverse(k.len()));
         for (id, key) in all {
             message = message.replace(key, &flag_name(id));
@@ -461,7 +453,7 @@ mod tests {
             if ["file", "write_scene", "help"].contains(&id) {
                 continue;
             }
-            assert!(RENDER_FLAGS.iter().any(|(f, _)| *f == id), "flag {id} sets no scene key");
+            assert!(render_flags().any(|(f, _)| *f == id), "flag {id} sets no scene key");
         }
     }
 

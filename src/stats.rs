@@ -4,6 +4,9 @@ use serde::Serialize;
 
 use crate::integrator::Counters;
 
+/// Bytes per GiB, for messages.
+pub(crate) const GIB: f64 = 1024.0 * 1024.0 * 1024.0;
+
 /// CPU seconds (user + system) consumed by this process so far.
 #[must_use]
 pub fn cpu_seconds() -> f64 {

@@ -11,7 +11,7 @@ use rayon::prelude::*;
 use super::convert::{kind_name, Converted};
 use super::writer::{CacheInfo, CacheWriter, ProxySpec};
 use crate::error::Result;
-use crate::load::unit_emission_model;
+use crate::scene::bind::unit_emission_model;
 use crate::scene::EmissionSettings;
 use crate::integrator::light_power;
 use crate::medium::EmissionKind;

@@ -263,7 +263,7 @@ fn compare_scene(args: &CompareArgs) -> Result<plume::bench::spec::BenchScene> {
     let cli = Cli::from_arg_matches(&matches).map_err(bad)?;
     let Command::Render(render) = cli.command else { unreachable!("invariant: parsed a render command") };
     let sub = matches.subcommand().map(|(_, m)| m).expect("invariant: a render subcommand");
-    let request = RenderRequest::new(&render, sub)?;
+    let request = RenderRequest::try_from((&*render, sub))?;
     plume::bench::spec::load(request.shot.clone().into_inner(), args.render_flags.clone(), &args.work_dir).map_err(|e| request.origin.explain(e))
 }
 

@@ -17,7 +17,7 @@ pub fn run(cli: Cli, matches: &ArgMatches, command_line: &str) -> Result<()> {
     match cli.command {
         Command::Render(args) => {
             let sub = sub.expect("invariant: a subcommand was parsed");
-            let request = RenderRequest::new(&args, sub)?;
+            let request = RenderRequest::try_from((&*args, sub))?;
             if let Some(path) = &args.write_scene {
                 plume::scene::file::write(path, &request.shot)?;
                 eprintln!("plume: wrote {}", path.display());

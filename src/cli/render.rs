@@ -352,14 +352,16 @@ pub struct Origin {
     pub given: Vec<String>,
 }
 
-impl RenderRequest {
+impl TryFrom<(&RenderArgs, &ArgMatches)> for RenderRequest {
+    type Error = Error;
+
     /// The one conversion: flags, or a scene file with flags overriding its keys, into a
-    /// validated shot.
+    /// validated shot. `matches` says which flags were typed.
     ///
     /// # Errors
     /// A bad scene file, a missing output, or a value [`Shot::validate`] refuses; errors
     /// name the flag or the file, line and key.
-    pub fn new(args: &RenderArgs, matches: &ArgMatches) -> Result<RenderRequest> {
+    fn try_from((args, matches): (&RenderArgs, &ArgMatches)) -> Result<RenderRequest> {
         let typed = |id: &str| matches.value_source(id) == Some(clap::parser::ValueSource::CommandLine);
         let given: Vec<String> = render_flags().map(|(id, _)| *id).filter(|id| typed(id)).map(String::from).collect();
         let (shot, scene_file) = if is_scene_file(&args.file) {
@@ -435,7 +437,7 @@ mod tests {
         let cli = Cli::from_arg_matches(&matches).unwrap();
         let Command::Render(args) = cli.command else { unreachable!() };
         let (_, sub) = matches.subcommand().unwrap();
-        RenderRequest::new(&args, sub)
+        RenderRequest::try_from((&*args, sub))
     }
 
     #[test]

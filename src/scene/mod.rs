@@ -13,6 +13,7 @@
 //!
 //! [`crate::load`] turns a description into a loaded scene.
 
+pub mod bind;
 pub mod choice;
 pub mod file;
 mod settings;

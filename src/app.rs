@@ -389,7 +389,7 @@ pub fn load_scene(args: &RenderArgs) -> Result<LoadedScene> {
         UpAxis::Y => DVec3::Y,
         UpAxis::Z => DVec3::Z,
     });
-    let (lo, hi) = if volume.is_empty() { (DVec3::splat(-1.0), DVec3::splat(1.0)) } else { volume.world_bounds() };
+    let (lo, hi) = if volume.is_empty() { (DVec3::splat(-1.0), DVec3::splat(1.0)) } else { let b = volume.world_bounds(); (b.lo, b.hi) };
     let camera = match args.camera_from {
         Some(from) => Camera::look_at(from, args.camera_at.unwrap_or(0.5 * (lo + hi)), up, args.fov, args.width, args.height)?,
         None => {

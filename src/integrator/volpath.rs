@@ -34,7 +34,7 @@ use crate::medium::tracking::optical_depth;
 use crate::medium::{track, DistanceSample, Estimator};
 use crate::sampling::phase::{hg_pdf, sample_hg};
 use crate::sampling::Sampler;
-use crate::volume::field::{Field, Ray};
+use crate::volume::field::{Field, Ray, VoxelValues};
 use crate::volume::proxy::ProxyGrid;
 
 use super::{Counters, Scene, Trace};
@@ -266,7 +266,7 @@ impl Integrator {
                             c.voxel_steps += n;
                             let tau = (-od).exp();
                             if tau > 0.0 {
-                                let (dy, sy) = scene.field.values_at(vs.p_world);
+                                let VoxelValues { density: dy, source: sy } = scene.field.values_at(vs.p_world);
                                 let le = m.emission.le(dy, sy);
                                 let f = hg_pdf(m.g, ray.direction.dot(wi));
                                 let w_l = if point_nee { self.mis.weight(vs.pdf, f * m.mu_t(dy) * tau / r2) } else { 1.0 };

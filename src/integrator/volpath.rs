@@ -30,7 +30,7 @@
 
 use crate::color::Rgb;
 use crate::light::nee::EmitterDistribution;
-use crate::medium::tracking::optical_depth;
+use crate::medium::tracking::{optical_depth, OpticalDepth};
 use crate::medium::{track, DistanceSample, Estimator};
 use crate::sampling::phase::{hg_pdf, sample_hg};
 use crate::sampling::Sampler;
@@ -262,7 +262,7 @@ impl Integrator {
                             c.nee_samples += 1;
                             let dist = r2.sqrt();
                             let wi = d / dist;
-                            let (od, n) = optical_depth(&scene.field, m, &Ray { origin: x, direction: wi }, dist, 745.0);
+                            let OpticalDepth { optical_depth: od, voxel_steps: n } = optical_depth(&scene.field, m, &Ray { origin: x, direction: wi }, dist, 745.0);
                             c.voxel_steps += n;
                             let tau = (-od).exp();
                             if tau > 0.0 {

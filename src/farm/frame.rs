@@ -142,7 +142,7 @@ pub fn render_frame(job: &Job<'_>, index: usize, frame: Option<i64>, command_lin
     if let Some(dp) = &args.debug_pixel {
         // Replay one pixel sample and print its path
         let (x, y, s) = crate::cli::parse_debug_pixel(dp).map_err(|m| Error::invalid("--debug-pixel", m))?;
-        let (ray, mut sampler) = crate::render::pixel_sample(scene, seed, x, y, s);
+        let crate::render::PixelSample { ray, mut sampler } = crate::render::pixel_sample(scene, seed, x, y, s);
         let mut trace = LineTrace::default();
         let mut counters = crate::integrator::Counters::default();
         let l = settings.integrator.li(scene, &ray, &mut sampler, &mut counters, &mut trace);
@@ -256,7 +256,7 @@ pub fn render_frame(job: &Job<'_>, index: usize, frame: Option<i64>, command_lin
         source_voxels_clamped: volume.report.source_invalid,
     };
     if let Some(c) = result.counters.first_nonfinite {
-        warn(format!("{} non-finite samples dropped; first at --debug-pixel {},{},{}", result.counters.nonfinite_samples, c.0, c.1, c.2));
+        warn(format!("{} non-finite samples dropped; first at --debug-pixel {c}", result.counters.nonfinite_samples));
     }
     if record.saturated_samples > 0 {
         warn(format!("{} sample values exceeded the fixed-point range (2^63) and were clamped", record.saturated_samples));

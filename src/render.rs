@@ -383,3 +383,16 @@ fn prefetch_tiles<F: Field>(scene: &Scene<F>, rects: &[(u32, u32, u32, u32)], ta
         scene.field.prefetch(&grid);
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::SampleId;
+
+    /// `--debug-pixel` takes what warnings print; the stats JSON names the fields.
+    #[test]
+    fn sample_id_displays_as_debug_pixel_and_serializes_by_name() {
+        let id = SampleId { x: 10, y: 7, sample: 3 };
+        assert_eq!(id.to_string(), "10,7,3");
+        assert_eq!(serde_json::to_string(&id).unwrap(), r#"{"x":10,"y":7,"sample":3}"#);
+    }
+}

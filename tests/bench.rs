@@ -211,7 +211,7 @@ fn render_warns_with_the_exact_count_of_negative_voxels() {
     assert!(o.status.success(), "{stderr}");
     assert!(stderr.contains("128 density voxels were NaN, infinite or negative and were set to 0"), "{stderr}");
     assert!(stderr.contains("64 emission-source voxels were NaN, infinite or negative and were set to 0"), "{stderr}");
-    let px = plume::output::read_exr(&exr).unwrap().2;
+    let px = plume::output::read_exr(&exr).unwrap().pixels;
     assert!(px.iter().flatten().all(|v| v.is_finite()));
     assert!(px.iter().any(|p| p[0] > 0.0));
     let _ = std::fs::remove_dir_all(&dir);
@@ -237,7 +237,7 @@ fn non_finite_voxels_in_a_file_are_clamped_and_counted_or_refused_by_name() {
     match o.status.code() {
         Some(0) => {
             assert!(stderr.contains("192 density voxels were NaN, infinite or negative"), "{stderr}");
-            assert!(plume::output::read_exr(&exr).unwrap().2.iter().flatten().all(|v| v.is_finite()));
+            assert!(plume::output::read_exr(&exr).unwrap().pixels.iter().flatten().all(|v| v.is_finite()));
         }
         Some(3) => {
             assert!(stderr.contains("nan.vdb") && stderr.contains("192"), "{stderr}");

@@ -30,7 +30,7 @@ fn render(input: &Path, out: &Path, extra: &[&str]) -> Vec<[f32; 4]> {
     args.extend_from_slice(extra);
     let o = plume(&args);
     assert!(o.status.success(), "render {}: {}", input.display(), stderr(&o));
-    read_exr(out).unwrap().2
+    read_exr(out).unwrap().pixels
 }
 
 fn assert_bitwise(a: &[[f32; 4]], b: &[[f32; 4]], what: &str) {
@@ -278,7 +278,7 @@ fn stale_and_mismatched_caches_are_refused_and_automatic_caches_rebuilt() {
     let o = plume(&args);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(stderr(&o).contains("rebuilding the automatic cache"), "{}", stderr(&o));
-    assert_bitwise(&in_core, &read_exr(&dir.join("again.exr")).unwrap().2, "rebuilt automatic cache");
+    assert_bitwise(&in_core, &read_exr(&dir.join("again.exr")).unwrap().pixels, "rebuilt automatic cache");
 }
 
 /// `(RssAnon, RssFile)` of process `pid` in bytes, from /proc.
@@ -321,7 +321,7 @@ fn a_1_gib_cache_renders_within_a_256_mib_budget() {
     eprintln!("dataset {:.2} GiB, peak RssAnon {:.1} MiB, peak RssFile {:.1} MiB", bytes as f64 / 1073741824.0, peak_anon as f64 / 1048576.0, peak_file as f64 / 1048576.0);
     assert!(peak_anon > 0, "never sampled the render's memory");
     assert!(peak_anon < BUDGET, "peak anonymous RSS {peak_anon} exceeds the 256 MiB budget");
-    let pixels = read_exr(&out).unwrap().2;
+    let pixels = read_exr(&out).unwrap().pixels;
     assert!(pixels.iter().any(|p| p[0] > 0.0), "the flare rendered black");
     let _ = std::fs::remove_dir_all(&dir);
 }

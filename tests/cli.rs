@@ -29,7 +29,7 @@ fn explosion(dir: &Path) -> PathBuf {
 }
 
 fn pixels(p: &Path) -> Vec<[f32; 4]> {
-    plume::output::read_exr(p).unwrap().2
+    plume::output::read_exr(p).unwrap().pixels
 }
 
 #[test]

@@ -62,7 +62,7 @@ fn debug_pixel_replays_the_rendered_sample() {
     let mut args = vec!["render", s(&ex), "-o", s(&out)];
     args.extend_from_slice(&common);
     assert!(plume(&args).status.success());
-    let px = plume::output::read_exr(&out).unwrap().2[7 * 20 + 10];
+    let px = plume::output::read_exr(&out).unwrap().pixels[7 * 20 + 10];
     let mut args = vec!["render", s(&ex), "-o", s(&out), "--debug-pixel", "10,7,0"];
     args.extend_from_slice(&common);
     let o = plume(&args);

@@ -293,7 +293,7 @@ pub fn render_with<F: Field>(scene: &Scene<F>, settings: &RenderSettings, contro
         for c in &tile_counters {
             counters.merge(c);
             if let Some(id) = c.first_nonfinite {
-                if first_nonfinite.map_or(true, |f| (id.y, id.x, id.sample) < (f.y, f.x, f.sample)) {
+                if first_nonfinite.is_none_or(|f| (id.y, id.x, id.sample) < (f.y, f.x, f.sample)) {
                     first_nonfinite = Some(id);
                 }
             }

@@ -23,7 +23,7 @@ use crate::medium::{Emission, EmissionKind, Medium};
 use crate::scene::bind::{emission_kind, emission_model, grid_requests, memory_budget, reader, split_found};
 use crate::scene::{JobSettings, SceneDescription, UpAxis};
 use crate::volume::proxy::{CellPower, ProxyGrid};
-use crate::volume::{Field, Volume};
+use crate::volume::{Bounds3, Field, Volume};
 
 /// A scene ready to render, and what the outputs report about how it was loaded.
 pub struct LoadedScene {
@@ -118,7 +118,7 @@ fn camera(scene: &SceneDescription, input: &Path, volume: &Volume) -> Result<Cam
         UpAxis::Y => DVec3::Y,
         UpAxis::Z => DVec3::Z,
     });
-    let (lo, hi) = if volume.is_empty() { (DVec3::splat(-1.0), DVec3::splat(1.0)) } else { volume.world_bounds() };
+    let Bounds3 { lo, hi } = if volume.is_empty() { Bounds3 { lo: DVec3::splat(-1.0), hi: DVec3::splat(1.0) } } else { volume.world_bounds() };
     if let Some(from) = c.from {
         return Camera::look_at(from, c.at.unwrap_or(0.5 * (lo + hi)), up, c.fov, c.width, c.height);
     }

@@ -309,11 +309,23 @@ pub(crate) fn parent_dir(path: &Path) -> PathBuf {
     }
 }
 
+/// The first RGBA layer of an EXR, as [`read_exr`] returns it (for the full record of a
+/// plume EXR, with crop, sums and metadata, see [`ExrContents`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct RgbaImage {
+    /// Width of the layer (its data window), pixels.
+    pub width: u32,
+    /// Height of the layer (its data window), pixels.
+    pub height: u32,
+    /// Row-major `[r, g, b, a]`, `width × height` of them.
+    pub pixels: Vec<[f32; 4]>,
+}
+
 /// Read the first RGBA layer of an EXR as row-major `[r, g, b, a]` (alpha 1 if absent).
 ///
 /// # Errors
 /// [`Error::Scene`] naming the file if it is not a readable RGBA EXR.
-pub fn read_exr(path: &Path) -> Result<(u32, u32, Vec<[f32; 4]>)> {
+pub fn read_exr(path: &Path) -> Result<RgbaImage> {
     use exr::prelude::*;
     let image = read_first_rgba_layer_from_file(
         path,
@@ -324,7 +336,8 @@ pub fn read_exr(path: &Path) -> Result<(u32, u32, Vec<[f32; 4]>)> {
     )
     .map_err(|e| crate::error::Error::Scene(format!("cannot read EXR {}: {e}", path.display())))?;
     let size = image.layer_data.size;
-    Ok((size.0 as u32, size.1 as u32, image.layer_data.channel_data.pixels.1))
+    // `self::`: the exr prelude has an `RgbaImage` of its own
+    Ok(self::RgbaImage { width: size.0 as u32, height: size.1 as u32, pixels: image.layer_data.channel_data.pixels.1 })
 }
 
 /// sRGB transfer function of a linear value in `[0, 1]`.

@@ -120,13 +120,55 @@ pub struct RenderControl<'a> {
     pub order: SampleOrder,
 }
 
+/// The key of one pixel sample: sample `sample` of pixel `(x, y)` of the full image.
+/// Displayed as `x,y,sample`, the form `--debug-pixel` takes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
+pub struct SampleId {
+    /// Pixel column, from the left of the full image.
+    pub x: u32,
+    /// Pixel row, from the top of the full image.
+    pub y: u32,
+    /// Sample index within the pixel.
+    pub sample: u64,
+}
+
+impl std::fmt::Display for SampleId {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{},{},{}", self.x, self.y, self.sample)
+    }
+}
+
+impl std::str::FromStr for SampleId {
+    type Err = String;
+
+    /// Parse `x,y,s` (pixel column, row, sample index), the `--debug-pixel` syntax.
+    fn from_str(s: &str) -> Result<SampleId, String> {
+        let p: Vec<&str> = s.split(',').map(str::trim).collect();
+        let bad = || format!("expected X,Y,S (pixel column, row, sample index), got {s:?}");
+        if p.len() != 3 {
+            return Err(bad());
+        }
+        Ok(SampleId { x: p[0].parse().map_err(|_| bad())?, y: p[1].parse().map_err(|_| bad())?, sample: p[2].parse().map_err(|_| bad())? })
+    }
+}
+
+/// One pixel sample as the render loop starts it: what [`pixel_sample`] returns.
+#[derive(Clone, Debug)]
+#[must_use]
+pub struct PixelSample {
+    /// The camera ray through the jittered point of the pixel (world space).
+    pub ray: crate::volume::field::Ray,
+    /// The sample's random stream, after the two pixel-jitter draws.
+    pub sampler: Sampler,
+}
+
 /// The camera ray and sampler state of one pixel sample, as the render loop makes them
 /// (used by `--debug-pixel` to replay a sample exactly).
-pub fn pixel_sample<F: Field>(scene: &Scene<F>, seed: u64, x: u32, y: u32, s: u64) -> (crate::volume::field::Ray, Sampler) {
+pub fn pixel_sample<F: Field>(scene: &Scene<F>, seed: u64, x: u32, y: u32, s: u64) -> PixelSample {
     let pixel = u64::from(y) * u64::from(scene.camera.width) + u64::from(x);
     let mut sampler = Sampler::new(seed, pixel, s);
     let (jx, jy) = (sampler.next_f64(), sampler.next_f64());
-    (scene.camera.ray(f64::from(x) + jx, f64::from(y) + jy), sampler)
+    PixelSample { ray: scene.camera.ray(f64::from(x) + jx, f64::from(y) + jy), sampler }
 }
 
 
@@ -137,7 +179,7 @@ fn render_tile<F: Field>(scene: &Scene<F>, integ: &Integrator, seed: u64, sample
             let (x, y) = (tile.x0 + tx, tile.y0 + ty);
             let index = (ty * tile.width + tx) as usize;
             for s in samples.clone() {
-                let (ray, mut sampler) = pixel_sample(scene, seed, x, y, s);
+                let PixelSample { ray, mut sampler } = pixel_sample(scene, seed, x, y, s);
                 let l = integ.li(scene, &ray, &mut sampler, &mut counters, &mut NoTrace);
                 counters.samples += 1;
                 if l.iter().all(|v| v.is_finite()) {
@@ -145,7 +187,7 @@ fn render_tile<F: Field>(scene: &Scene<F>, integ: &Integrator, seed: u64, sample
                 } else {
                     // Drop and count non-finite samples; report the first for replay
                     counters.nonfinite_samples += 1;
-                    counters.first_nonfinite.get_or_insert((x, y, s));
+                    counters.first_nonfinite.get_or_insert(SampleId { x, y, sample: s });
                 }
             }
         }
@@ -187,7 +229,7 @@ pub fn render_with<F: Field>(scene: &Scene<F>, settings: &RenderSettings, contro
     let mut counters = Counters::default();
     // The first non-finite sample in (row, column, sample) order: each tile reports its
     // first in that order, so the minimum over tiles and passes does not depend on them
-    let mut first_nonfinite: Option<(u32, u32, u64)> = None;
+    let mut first_nonfinite: Option<SampleId> = None;
     let start = Instant::now();
     let mut done: u64 = 0;
     let total = match settings.budget {
@@ -264,9 +306,9 @@ pub fn render_with<F: Field>(scene: &Scene<F>, settings: &RenderSettings, contro
         };
         for c in &tile_counters {
             counters.merge(c);
-            if let Some((x, y, s)) = c.first_nonfinite {
-                if first_nonfinite.map_or(true, |(fx, fy, fs)| (y, x, s) < (fy, fx, fs)) {
-                    first_nonfinite = Some((x, y, s));
+            if let Some(id) = c.first_nonfinite {
+                if first_nonfinite.is_none_or(|f| (id.y, id.x, id.sample) < (f.y, f.x, f.sample)) {
+                    first_nonfinite = Some(id);
                 }
             }
         }
@@ -353,5 +395,18 @@ fn prefetch_tiles<F: Field>(scene: &Scene<F>, rects: &[(u32, u32, u32, u32)], ta
             }
         }
         scene.field.prefetch(&grid);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::SampleId;
+
+    /// `--debug-pixel` takes what warnings print; the stats JSON names the fields.
+    #[test]
+    fn sample_id_displays_as_debug_pixel_and_serializes_by_name() {
+        let id = SampleId { x: 10, y: 7, sample: 3 };
+        assert_eq!(id.to_string(), "10,7,3");
+        assert_eq!(serde_json::to_string(&id).unwrap(), r#"{"x":10,"y":7,"sample":3}"#);
     }
 }

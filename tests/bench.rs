@@ -89,8 +89,8 @@ fn invalid_voxel_counts_are_exact() {
     });
     let v = plume::volume::Volume::build(&g, None, |v| v).unwrap();
     assert_eq!(v.report.density_clamped, 4 * 4 * 8);
-    assert_eq!(v.voxel(IVec3::new(0, 0, 0)).0, 0.0);
-    assert_eq!(v.voxel(IVec3::new(5, 5, 5)).0, 1.0);
+    assert_eq!(v.voxel(IVec3::new(0, 0, 0)).density, 0.0);
+    assert_eq!(v.voxel(IVec3::new(5, 5, 5)).density, 1.0);
 }
 
 #[test]

@@ -132,7 +132,7 @@ fn a_mapped_volume_gives_the_same_segments_bit_for_bit() {
     assert!(mapped.is_mapped() && mapped.heap_bytes() < volume.heap_bytes() / 4);
     assert_eq!(mapped.brick_count(), volume.brick_count());
     assert_eq!(mapped.report, volume.report);
-    let (lo, hi) = volume.world_bounds();
+    let plume::volume::Bounds3 { lo, hi } = volume.world_bounds();
     let mut rays = 0;
     for i in 0..2000u32 {
         let h = |k| f64::from(hash(IVec3::new(i as i32, k, 7), 9) % 10_000) / 10_000.0;

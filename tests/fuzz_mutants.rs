@@ -250,7 +250,7 @@ fn judge(run: Option<Run>, file: &Path, image: Option<&Path>) -> Result<Outcome,
         if let Some(image) = image {
             let pixels = plume::output::read_exr(image)
                 .map_err(|e| format!("no image after success: {e}"))?
-                .2;
+                .pixels;
             if !pixels.iter().flatten().all(|v| v.is_finite()) {
                 return Err("non-finite pixels after success".into());
             }

@@ -232,7 +232,7 @@ fn brute_cell_probabilities(volume: &Volume, proxy: &ProxyGrid) -> (Vec<f64>, f6
         for y in vlo.y..vhi.y {
             for x in vlo.x..vhi.x {
                 let v = IVec3::new(x, y, z);
-                let (d, s) = volume.voxel(v);
+                let plume::volume::VoxelValues { density: d, source: s } = volume.voxel(v);
                 let c = (v - vlo) / e;
                 phi[(c.x + dims.x * (c.y + dims.y * c.z)) as usize] += volume.voxel_volume() * power(d, s);
             }
@@ -554,7 +554,7 @@ fn nee_voxel_pdfs_chi2_and_bitwise_agreement() {
         for y in vlo.y..vhi.y {
             for x in vlo.x..vhi.x {
                 let v = IVec3::new(x, y, z);
-                let (d, s) = volume.voxel(v);
+                let plume::volume::VoxelValues { density: d, source: s } = volume.voxel(v);
                 let p = power(d, s);
                 brute[slot(v)] = p;
                 let pdf = nee.pdf_voxel(v);

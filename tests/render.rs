@@ -123,7 +123,7 @@ fn exr_roundtrip_keeps_pixels_and_metadata_and_writes_atomically() {
     let path = dir.join("img.exr");
     let px: Vec<[f32; 4]> = (0..12).map(|i| [i as f32, 0.5, 1e9, 0.25]).collect();
     plume::output::write_exr(&path, 4, 3, &px, &[("plume:spp".into(), "7".into())]).unwrap();
-    let (w, h, back) = plume::output::read_exr(&path).unwrap();
+    let plume::output::RgbaImage { width: w, height: h, pixels: back } = plume::output::read_exr(&path).unwrap();
     assert_eq!((w, h), (4, 3));
     assert_eq!(back, px);
     let leftovers = names_in(&dir, |n| n.contains(".tmp"));

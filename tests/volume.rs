@@ -60,7 +60,7 @@ fn check_segments(vol: &Volume, ray: &Ray, t_min: f64, t_max: f64) -> Result<(),
                 // whose midpoint may round onto a face).
                 if s.t1 - s.t0 > 1e-6 * (1.0 + s.t1.abs()) {
                     let mid = ray.at(0.5 * (s.t0 + s.t1));
-                    let (dv, sv) = vol.lookup_world(mid);
+                    let plume::volume::VoxelValues { density: dv, source: sv } = vol.lookup_world(mid);
                     prop_assert_eq!((dv, sv), (s.density, s.source), "segment {:?}", s);
                     if dv > 0.0 {
                         let ijk = (vol.index_from_world().transform_point3(mid) + 0.5).floor().as_ivec3();
@@ -117,7 +117,7 @@ fn pyramid_bounds_cover_every_voxel() {
             for y in lo.y..hi.y {
                 for z in lo.z..hi.z {
                     let v = IVec3::new(x, y, z);
-                    let (d, s) = vol.voxel(v);
+                    let plume::volume::VoxelValues { density: d, source: s } = vol.voxel(v);
                     for (k, level) in levels.iter().enumerate() {
                         let node = level.get((v - lo).div_euclid(IVec3::splat(8 << k)));
                         assert!(node.density_max >= d && node.density_min <= d, "level {k} density at {v}");
@@ -135,9 +135,9 @@ fn voxel_centres_follow_openvdb() {
     // One leaf at the origin with value = x index: voxel i covers [i-½, i+½].
     let g = grid("density", DAffine3::IDENTITY, &[IVec3::ZERO], |p| p.x as f32 + 1.0);
     let vol = Volume::build(&g, None, |v| v).unwrap();
-    assert_eq!(vol.lookup_index(DVec3::new(2.49, 3.0, 3.0)).0, 3.0);
-    assert_eq!(vol.lookup_index(DVec3::new(2.51, 3.0, 3.0)).0, 4.0);
-    assert_eq!(vol.lookup_index(DVec3::new(-0.49, 3.0, 3.0)).0, 1.0);
+    assert_eq!(vol.lookup_index(DVec3::new(2.49, 3.0, 3.0)).density, 3.0);
+    assert_eq!(vol.lookup_index(DVec3::new(2.51, 3.0, 3.0)).density, 4.0);
+    assert_eq!(vol.lookup_index(DVec3::new(-0.49, 3.0, 3.0)).density, 1.0);
     let (lo, hi) = vol.index_bounds();
     assert_eq!(lo, DVec3::splat(-0.5));
     assert_eq!(hi, DVec3::splat(7.5));
@@ -192,6 +192,6 @@ fn nan_inf_negative_density_is_clamped_and_counted() {
     });
     let vol = Volume::build(&g, None, |v| v).unwrap();
     assert_eq!(vol.report.density_clamped, 3 * 64);
-    assert_eq!(vol.voxel(IVec3::new(0, 1, 1)).0, 0.0);
-    assert_eq!(vol.voxel(IVec3::new(3, 1, 1)).0, 1.0);
+    assert_eq!(vol.voxel(IVec3::new(0, 1, 1)).density, 0.0);
+    assert_eq!(vol.voxel(IVec3::new(3, 1, 1)).density, 1.0);
 }

@@ -79,7 +79,7 @@ fn integrator_for(scene: &BenchScene, estimator: Estimator, light_sampling: Ligh
 /// # Errors
 /// An unreadable file, or a size other than `--width`×`--height`.
 pub fn read_reference(path: &std::path::Path, scene: &BenchScene) -> Result<Reference> {
-    let (w, h, pixels) = crate::output::read_exr(path)?;
+    let crate::output::RgbaImage { width: w, height: h, pixels } = crate::output::read_exr(path)?;
     if (w, h) != (scene.shot.scene.camera.width, scene.shot.scene.camera.height) {
         return Err(Error::invalid("--reference", format!("{} is {w}x{h}, the scene renders {}x{}", path.display(), scene.shot.scene.camera.width, scene.shot.scene.camera.height)));
     }

@@ -83,7 +83,7 @@ pub fn run(resolution: u32, threads: usize, ttfs_file: &Path) -> Result<CoreRepo
     let volume_bytes = volume.memory_bytes() as u64;
 
     // DDA: random chords between points on a sphere around the volume and points inside.
-    let (lo, hi) = volume.world_bounds();
+    let crate::volume::Bounds3 { lo, hi } = volume.world_bounds();
     let centre = 0.5 * (lo + hi);
     let radius = 0.5 * (hi - lo).length();
     let mut sampler = Sampler::new(1, 0, 0);

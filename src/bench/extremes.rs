@@ -312,7 +312,7 @@ fn explosion_at(ex: &crate::synth::Explosion, h: f64, h0: f64, size: u32) -> Res
     let (d, t) = (rescale(&ex.density), rescale(&ex.temperature));
     let emission = Emission { kind: EmissionKind::Blackbody, convention: Convention::Physical, scale: (h0 / h) as f32, color: Rgb::ONE, temperature_map: TemperatureMap::Kelvin, cutoff_kelvin: 500.0 };
     let vol = Volume::build(&d, Some(&t), |v| emission.map_source(v))?;
-    let (lo, hi) = vol.world_bounds();
+    let crate::volume::Bounds3 { lo, hi } = vol.world_bounds();
     let camera = Camera::frame_bounds(lo, hi, DVec3::new(0.35, 0.25, 1.0), DVec3::Y, 40.0, size, size)?;
     Ok(Scene { field: vol, medium: Medium { sigma_t: 4.0 * h0 / h, albedo: 0.0, g: 0.0, emission }, camera, lights: Lights::default() })
 }

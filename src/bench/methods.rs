@@ -76,7 +76,7 @@ fn scene(resolution: u32, sigma_t: f64, ls: LightSampling, width: u32, height: u
     let e = Emission { kind: EmissionKind::Blackbody, convention: Convention::Physical, scale: 1.0, color: Rgb::ONE, temperature_map: TemperatureMap::Kelvin, cutoff_kelvin: 500.0 };
     let vol = Volume::build(&ex.density, Some(&ex.temperature), |v| e.map_source(v))?;
     let lights = Lights::build(&vol, &e, ls, proxy.min(resolution.next_power_of_two()))?;
-    let (lo, hi) = vol.world_bounds();
+    let crate::volume::Bounds3 { lo, hi } = vol.world_bounds();
     let camera = Camera::frame_bounds(lo, hi, DVec3::new(0.35, 0.25, 1.0), DVec3::Y, 40.0, width, height)?;
     Ok(Scene { field: vol, medium: Medium { sigma_t, albedo: 0.8, g: 0.3, emission: e }, camera, lights })
 }

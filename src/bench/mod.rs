@@ -55,15 +55,24 @@ pub fn peak_rss_bytes() -> u64 {
     from_proc.unwrap_or_else(crate::stats::peak_rss_bytes)
 }
 
-/// The machine, for reports: `(logical CPUs, CPU model)`.
+/// The machine a report was measured on: what [`machine`] returns.
+#[derive(Clone, Debug, PartialEq, Eq)]
 #[must_use]
-pub fn machine() -> (usize, String) {
+pub struct Machine {
+    /// Logical CPUs available to this process.
+    pub cpus: usize,
+    /// CPU model name (from `/proc/cpuinfo`), or `unknown CPU`.
+    pub model: String,
+}
+
+/// The machine, for reports.
+pub fn machine() -> Machine {
     let n = std::thread::available_parallelism().map_or(1, std::num::NonZero::get);
     let model = std::fs::read_to_string("/proc/cpuinfo")
         .ok()
         .and_then(|s| s.lines().find(|l| l.starts_with("model name")).and_then(|l| l.split_once(':')).map(|(_, m)| m.trim().to_string()))
         .unwrap_or_else(|| "unknown CPU".into());
-    (n, model)
+    Machine { cpus: n, model }
 }
 
 #[cfg(test)]

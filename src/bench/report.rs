@@ -279,7 +279,7 @@ const EXTREMES_INTRO: &str = "Boxes of constant density and emission seen head-o
 Stochastic tolerances are 5 standard errors (the larger of the pixel spread and METHOD.md §4's variance for a homogeneous segment); ray-march 1e-4 relative (2e-3 for blackbody: the table's accuracy).";
 
 fn write_document(args: &ReportOptions, body: &str, regimes: &[(&str, CompareReport)], seconds: f64, load_start: &str) -> Result<()> {
-    let (cpus, model) = super::machine();
+    let super::Machine { cpus, model } = super::machine();
     let commit = git(&["rev-parse", "HEAD"]).unwrap_or_else(|| "unknown".into());
     let dirty = git(&["status", "--porcelain", "--untracked-files=no"]).is_some_and(|s| !s.is_empty());
     let mut md = String::new();

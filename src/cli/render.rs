@@ -17,7 +17,7 @@ use plume::integrator::{LightSampling, MisHeuristic};
 use plume::medium::Convention;
 use plume::scene::file::{is_scene_file, SceneFile};
 use plume::scene::{
-    ByteSize, CameraSettings, DebugPixel, EmissionSettings, EmissionSource, EstimatorKind, IntegratorSettings, MediumSettings, Method, ProgressFormat,
+    ByteSize, CameraSettings, EmissionSettings, EmissionSource, EstimatorKind, IntegratorSettings, MediumSettings, Method, ProgressFormat,
     ReadSettings, RenderOptions, SampleOrderChoice, Shot, TileIndex, UpAxis, ValidShot, VolumeInput,
 };
 
@@ -105,7 +105,7 @@ pub struct RenderArgs {
     pub environment: Option<DVec3>,
     /// Render only sample S of pixel (X, Y) and print its path: X,Y,S.
     #[arg(long)]
-    pub debug_pixel: Option<DebugPixel>,
+    pub debug_pixel: Option<plume::render::SampleId>,
     /// κ of the blend estimator: α = 1/(1 + κ μ Δ) per voxel.
     #[arg(long, default_value_t = IntegratorSettings::default().kappa)]
     pub kappa: f64,

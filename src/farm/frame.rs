@@ -34,7 +34,7 @@ use crate::load::{load_scene, LoadedScene};
 use crate::medium::{EmissionKind, Estimator};
 use crate::output::{write_exr_image, ExrImage};
 use crate::render::{render_with, RenderControl, RenderResult, RenderSettings, SampleBudget, SampleOrder, StopReason};
-use crate::scene::{DebugPixel, EmissionSource, SampleOrderChoice};
+use crate::scene::{EmissionSource, SampleOrderChoice};
 use crate::stats::{cpu_seconds, peak_rss_since_reset_bytes, reset_peak_rss, RenderStats};
 use crate::volume::Volume;
 
@@ -246,10 +246,10 @@ impl SamplePlan {
 }
 
 /// Replay one pixel sample and print its path.
-fn replay(loaded: &LoadedScene, settings: &RenderSettings, dp: DebugPixel) {
+fn replay(loaded: &LoadedScene, settings: &RenderSettings, dp: crate::render::SampleId) {
     let scene = &loaded.scene;
     let (x, y, s) = (dp.x, dp.y, dp.sample);
-    let (ray, mut sampler) = crate::render::pixel_sample(scene, settings.seed, x, y, s);
+    let crate::render::PixelSample { ray, mut sampler } = crate::render::pixel_sample(scene, settings.seed, x, y, s);
     let mut trace = LineTrace::default();
     let mut counters = crate::integrator::Counters::default();
     let l = settings.integrator.li(scene, &ray, &mut sampler, &mut counters, &mut trace);
@@ -407,7 +407,7 @@ fn write_outputs(job: &Job<'_>, paths: &FramePaths, loaded: &LoadedScene, result
     let settings = &job.shot.settings;
     let warn = |msg: String| eprintln!("plume: warning: {msg}");
     if let Some(c) = result.counters.first_nonfinite {
-        warn(format!("{} non-finite samples dropped; first at --debug-pixel {},{},{}", result.counters.nonfinite_samples, c.0, c.1, c.2));
+        warn(format!("{} non-finite samples dropped; first at --debug-pixel {c}", result.counters.nonfinite_samples));
     }
     if record.saturated_samples > 0 {
         warn(format!("{} sample values exceeded the fixed-point range (2^63) and were clamped", record.saturated_samples));

@@ -43,8 +43,9 @@ pub struct Counters {
     pub nee_samples: u64,
     /// Samples dropped because they were NaN or infinite.
     pub nonfinite_samples: u64,
-    /// The first dropped sample as `(x, y, sample)`, for `--debug-pixel`.
-    pub first_nonfinite: Option<(u32, u32, u64)>,
+    /// The first dropped sample, for `--debug-pixel` (serialized as
+    /// `{"x": …, "y": …, "sample": …}`, or `null`).
+    pub first_nonfinite: Option<crate::render::SampleId>,
 }
 
 impl Counters {

@@ -30,11 +30,11 @@
 
 use crate::color::Rgb;
 use crate::light::nee::EmitterDistribution;
-use crate::medium::tracking::optical_depth;
+use crate::medium::tracking::{optical_depth, OpticalDepth};
 use crate::medium::{track, DistanceSample, Estimator};
 use crate::sampling::phase::{hg_pdf, sample_hg};
 use crate::sampling::Sampler;
-use crate::volume::field::{Field, Ray};
+use crate::volume::field::{Field, Ray, VoxelValues};
 use crate::volume::proxy::ProxyGrid;
 
 use super::{Counters, Scene, Trace};
@@ -261,11 +261,11 @@ impl Integrator {
                             c.nee_samples += 1;
                             let dist = r2.sqrt();
                             let wi = d / dist;
-                            let (od, n) = optical_depth(&scene.field, m, &Ray { origin: x, direction: wi }, dist, 745.0);
+                            let OpticalDepth { optical_depth: od, voxel_steps: n } = optical_depth(&scene.field, m, &Ray { origin: x, direction: wi }, dist, 745.0);
                             c.voxel_steps += n;
                             let tau = (-od).exp();
                             if tau > 0.0 {
-                                let (dy, sy) = scene.field.values_at(vs.p_world);
+                                let VoxelValues { density: dy, source: sy } = scene.field.values_at(vs.p_world);
                                 let le = m.emission.le(dy, sy);
                                 let f = hg_pdf(m.g, ray.direction.dot(wi));
                                 let w_l = if point_nee { self.mis.weight(vs.pdf, f * m.mu_t(dy) * tau / r2) } else { 1.0 };

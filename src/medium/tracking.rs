@@ -217,10 +217,20 @@ fn track_expected<F: Field>(
     TrackResult { event, emission: f, transmittance, optical_depth, segments, voxel_steps: it.voxel_steps() }
 }
 
+/// What [`optical_depth`] measured along a shadow ray.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[must_use]
+pub struct OpticalDepth {
+    /// Optical depth `OD = ∫ μ_t ds` (unitless; `τ = e^{−OD}`), possibly stopped early
+    /// once it exceeded `od_stop`.
+    pub optical_depth: f64,
+    /// Voxel steps of the traversal (see [`SegmentIter::voxel_steps`]).
+    pub voxel_steps: u64,
+}
+
 /// Exact optical depth along `ray` over `[0, t_max]` (for shadow rays: `τ = e^{−OD}`).
 /// Stops early once OD exceeds `od_stop` (then `τ` is negligible anyway).
-/// Returns `(OD, voxel steps)`.
-pub fn optical_depth<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, od_stop: f64) -> (f64, u64) {
+pub fn optical_depth<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, od_stop: f64) -> OpticalDepth {
     let mut od = 0.0;
     let mut it = field.segments(ray, 0.0, t_max);
     for seg in it.by_ref() {
@@ -229,5 +239,5 @@ pub fn optical_depth<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64
             break;
         }
     }
-    (od, it.voxel_steps())
+    OpticalDepth { optical_depth: od, voxel_steps: it.voxel_steps() }
 }

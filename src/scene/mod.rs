@@ -28,7 +28,7 @@ use serde::{Deserialize, Serialize};
 pub use choice::{Choice, EmissionSource, EstimatorKind, Method, ProgressFormat, SampleOrderChoice, UpAxis};
 pub use settings::{FarmOptions, JobSettings, OutputSettings, ReadSettings, RenderOptions};
 pub use validate::ValidShot;
-pub use values::{parse_bytes, ByteSize, DebugPixel, TileIndex};
+pub use values::{parse_bytes, ByteSize, TileIndex};
 
 use crate::integrator::{Integrator, LightSampling, MisHeuristic};
 use crate::medium::{Convention, Estimator};

@@ -9,8 +9,9 @@ use std::path::PathBuf;
 use serde::{Deserialize, Serialize};
 
 use super::choice::{ProgressFormat, SampleOrderChoice};
-use super::values::{sample_range_text, ByteSize, DebugPixel, TileIndex};
+use super::values::{sample_range_text, ByteSize, TileIndex};
 use crate::film::Crop;
+use crate::render::SampleId;
 
 /// How the job runs.
 #[derive(Clone, Debug, PartialEq)]
@@ -62,8 +63,8 @@ pub struct RenderOptions {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub cache_dir: Option<PathBuf>,
     /// Render only this pixel sample and print its path.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub debug_pixel: Option<DebugPixel>,
+    #[serde(skip_serializing_if = "Option::is_none", with = "super::values::opt_text")]
+    pub debug_pixel: Option<SampleId>,
     /// No progress bar or summary.
     pub quiet: bool,
     /// Machine-readable progress on stdout.

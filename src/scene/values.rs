@@ -1,6 +1,6 @@
 //! Values written as text on the command line and in scene files: byte sizes (`4GiB`),
 //! tiles (`i/n`), crops (`x0,y0,x1,y1`), sample ranges (`a..b`) and debug pixels
-//! (`x,y,s`). Each parses and prints one syntax, both places.
+//! (`x,y,s`, a [`crate::render::SampleId`]). Each parses and prints one syntax, both places.
 
 use std::fmt;
 use std::str::FromStr;
@@ -91,48 +91,6 @@ impl fmt::Display for TileIndex {
     }
 }
 
-/// One pixel sample to replay (`x,y,s`: column, row, sample index).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct DebugPixel {
-    /// Pixel column.
-    pub x: u32,
-    /// Pixel row.
-    pub y: u32,
-    /// Sample index.
-    pub sample: u64,
-}
-
-impl FromStr for DebugPixel {
-    type Err = String;
-    fn from_str(s: &str) -> Result<DebugPixel, String> {
-        let p: Vec<&str> = s.split(',').map(str::trim).collect();
-        let bad = || format!("expected X,Y,S (pixel column, row, sample index), got {s:?}");
-        if p.len() != 3 {
-            return Err(bad());
-        }
-        Ok(DebugPixel { x: p[0].parse().map_err(|_| bad())?, y: p[1].parse().map_err(|_| bad())?, sample: p[2].parse().map_err(|_| bad())? })
-    }
-}
-
-impl fmt::Display for DebugPixel {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{},{},{}", self.x, self.y, self.sample)
-    }
-}
-
-impl Serialize for DebugPixel {
-    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        s.collect_str(self)
-    }
-}
-
-impl<'de> Deserialize<'de> for DebugPixel {
-    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-        let s = String::deserialize(d)?;
-        s.parse().map_err(serde::de::Error::custom)
-    }
-}
-
 /// serde for an `Option<T>` written as `T`'s text (`FromStr` + `Display`).
 pub(super) mod opt_text {
     use std::fmt::Display;
@@ -190,9 +148,9 @@ mod tests {
         assert!(parse_bytes("0").is_err());
         assert_eq!("1/4".parse::<TileIndex>().unwrap(), TileIndex { index: 1, count: 4 });
         assert!("4/4".parse::<TileIndex>().is_err());
-        let d: DebugPixel = "3, 4,5".parse().unwrap();
+        let d: crate::render::SampleId = "3, 4,5".parse().unwrap();
         assert_eq!((d.x, d.y, d.sample), (3, 4, 5));
         assert_eq!(d.to_string(), "3,4,5");
-        assert!("1,2".parse::<DebugPixel>().is_err());
+        assert!("1,2".parse::<crate::render::SampleId>().is_err());
     }
 }

@@ -15,6 +15,7 @@ use glam::{DAffine3, DVec3, IVec3};
 
 pub use super::builder::{check_same_transform, table_dims, BlockSink, BrickTableBuilder, BuiltTable, Channel};
 use super::builder::slot_at;
+use super::field::VoxelValues;
 use super::pyramid::Pyramid;
 use super::storage::Buffer;
 use crate::error::{Error, Result};
@@ -361,15 +362,14 @@ impl Volume {
         slot_at(&self.values, slot, brick_offset(x, y, z))
     }
 
-    /// `(density, source)` of voxel `ijk` (nearest-voxel lookup; 0 outside all bricks).
-    #[must_use]
-    pub fn voxel(&self, ijk: IVec3) -> (f32, f32) {
+    /// Density and source of voxel `ijk` (nearest-voxel lookup; 0 outside all bricks).
+    pub fn voxel(&self, ijk: IVec3) -> VoxelValues {
         let b = IVec3::new(floor_div(ijk.x, BRICK), floor_div(ijk.y, BRICK), floor_div(ijk.z, BRICK));
         match self.brick(b) {
-            None => (0.0, 0.0),
+            None => VoxelValues::ZERO,
             Some(br) => {
                 let l = ijk - b * BRICK;
-                (self.slot_value(br.density, l.x, l.y, l.z), self.slot_value(br.source, l.x, l.y, l.z))
+                VoxelValues { density: self.slot_value(br.density, l.x, l.y, l.z), source: self.slot_value(br.source, l.x, l.y, l.z) }
             }
         }
     }
@@ -384,15 +384,13 @@ impl Volume {
         })
     }
 
-    /// `(density, source)` at an index-space point: the voxel `⌊p + ½⌋`.
-    #[must_use]
-    pub fn lookup_index(&self, p_index: DVec3) -> (f32, f32) {
+    /// Density and source at an index-space point: the voxel `⌊p + ½⌋`.
+    pub fn lookup_index(&self, p_index: DVec3) -> VoxelValues {
         self.voxel((p_index + 0.5).floor().as_ivec3())
     }
 
-    /// `(density, source)` at a world-space point.
-    #[must_use]
-    pub fn lookup_world(&self, p_world: DVec3) -> (f32, f32) {
+    /// Density and source at a world-space point.
+    pub fn lookup_world(&self, p_world: DVec3) -> VoxelValues {
         self.lookup_index(self.index_from_world.transform_point3(p_world))
     }
 

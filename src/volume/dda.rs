@@ -23,7 +23,7 @@
 use glam::{DVec3, IVec3};
 
 use super::brick::{Brick, Volume, BRICK};
-use super::field::{clip_to_box, Field, Ray, RayGrid, Segment, SegmentIter};
+use super::field::{clip_to_box, Bounds3, Field, Ray, RayGrid, Segment, SegmentIter, VoxelValues};
 
 /// Voxel containing coordinate `p` along an axis moving in direction `d`; on a boundary,
 /// the voxel being entered.
@@ -284,7 +284,7 @@ impl SegmentIter for VolumeSegments<'_> {
 impl Field for Volume {
     type Segments<'a> = VolumeSegments<'a>;
 
-    fn world_bounds(&self) -> (DVec3, DVec3) {
+    fn world_bounds(&self) -> Bounds3 {
         let (lo, hi) = self.index_bounds();
         let mut wlo = DVec3::splat(f64::INFINITY);
         let mut whi = DVec3::splat(f64::NEG_INFINITY);
@@ -298,14 +298,14 @@ impl Field for Volume {
             wlo = wlo.min(w);
             whi = whi.max(w);
         }
-        (wlo, whi)
+        Bounds3 { lo: wlo, hi: whi }
     }
 
     fn segments(&self, ray: &Ray, t_min: f64, t_max: f64) -> VolumeSegments<'_> {
         VolumeSegments::new(self, ray, t_min, t_max)
     }
 
-    fn values_at(&self, p_world: DVec3) -> (f32, f32) {
+    fn values_at(&self, p_world: DVec3) -> VoxelValues {
         self.lookup_world(p_world)
     }
 

@@ -1,5 +1,5 @@
 //! The [`Field`] trait and [`Segment`], the contract between volume data and estimators,
-//! plus analytic fields ([`Constant`], [`Strip`]) for tests.
+//! its records [`Bounds3`] and [`VoxelValues`], plus analytic fields ([`Constant`], [`Strip`]) for tests.
 //!
 //! A field is piecewise constant along any ray: it returns [`Segment`]s
 //! `[t0, t1)` with one `density` and one emission `source` value each. Segments are
@@ -37,6 +37,35 @@ impl Segment {
     pub fn length(&self) -> f64 {
         self.t1 - self.t0
     }
+}
+
+/// An axis-aligned box `[lo, hi]`, in the units of its space: world metres for
+/// [`Field::world_bounds`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[must_use]
+pub struct Bounds3 {
+    /// Minimum corner (componentwise smallest).
+    pub lo: DVec3,
+    /// Maximum corner (componentwise largest).
+    pub hi: DVec3,
+}
+
+/// The channel values of one voxel (for an analytic field, of the cell or box around a
+/// point): what [`Field::values_at`] and the nearest-voxel lookups of
+/// [`crate::volume::Volume`] return. Zero in empty space.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[must_use]
+pub struct VoxelValues {
+    /// Density ρ (unitless grid value; μ_t = σ_t ρ).
+    pub density: f32,
+    /// Emission source value: temperature in Kelvin after mapping and cutoff, or the
+    /// emission grid's value. Zero means "emits nothing".
+    pub source: f32,
+}
+
+impl VoxelValues {
+    /// Empty space: density and source 0.
+    pub const ZERO: VoxelValues = VoxelValues { density: 0.0, source: 0.0 };
 }
 
 /// A ray in world space for [`Field::segments`]. `direction` must be unit length.
@@ -135,15 +164,15 @@ pub trait Field: Sync {
     where
         Self: 'a;
 
-    /// World-space axis-aligned bounds `(min, max)` of everything that can be non-zero.
-    fn world_bounds(&self) -> (DVec3, DVec3);
+    /// World-space axis-aligned bounds of everything that can be non-zero.
+    fn world_bounds(&self) -> Bounds3;
 
     /// Segments of `ray` within `[t_min, t_max]`, clipped to the field's bounds, in order.
     /// An empty iterator when the ray misses.
     fn segments(&self, ray: &Ray, t_min: f64, t_max: f64) -> Self::Segments<'_>;
 
-    /// `(density, source)` at a world point (for next-event sampling of a chosen point).
-    fn values_at(&self, p_world: DVec3) -> (f32, f32);
+    /// Density and source at a world point (for next-event sampling of a chosen point).
+    fn values_at(&self, p_world: DVec3) -> VoxelValues;
 
     /// Rays through `grid` will be traced soon: a field paged from disk may start reading
     /// what they cross (`volume::prefetch`). A hint that never changes a result; nothing
@@ -220,8 +249,8 @@ pub struct Constant {
 impl Field for Constant {
     type Segments<'a> = VecSegments;
 
-    fn world_bounds(&self) -> (DVec3, DVec3) {
-        (self.lo, self.hi)
+    fn world_bounds(&self) -> Bounds3 {
+        Bounds3 { lo: self.lo, hi: self.hi }
     }
 
     fn segments(&self, ray: &Ray, t_min: f64, t_max: f64) -> Self::Segments<'_> {
@@ -232,8 +261,8 @@ impl Field for Constant {
             .into()
     }
 
-    fn values_at(&self, p: DVec3) -> (f32, f32) {
-        if inside(p, self.lo, self.hi) { (self.density, self.source) } else { (0.0, 0.0) }
+    fn values_at(&self, p: DVec3) -> VoxelValues {
+        if inside(p, self.lo, self.hi) { VoxelValues { density: self.density, source: self.source } } else { VoxelValues::ZERO }
     }
 }
 
@@ -252,8 +281,8 @@ pub struct Strip {
 impl Field for Strip {
     type Segments<'a> = VecSegments;
 
-    fn world_bounds(&self) -> (DVec3, DVec3) {
-        (self.lo, self.hi)
+    fn world_bounds(&self) -> Bounds3 {
+        Bounds3 { lo: self.lo, hi: self.hi }
     }
 
     fn segments(&self, ray: &Ray, t_min: f64, t_max: f64) -> Self::Segments<'_> {
@@ -287,13 +316,14 @@ impl Field for Strip {
         out.into()
     }
 
-    fn values_at(&self, p: DVec3) -> (f32, f32) {
+    fn values_at(&self, p: DVec3) -> VoxelValues {
         if !inside(p, self.lo, self.hi) {
-            return (0.0, 0.0);
+            return VoxelValues::ZERO;
         }
         let n = self.cells.len();
         let width = (self.hi.x - self.lo.x) / n as f64;
-        self.cells[(((p.x - self.lo.x) / width) as usize).min(n - 1)]
+        let (density, source) = self.cells[(((p.x - self.lo.x) / width) as usize).min(n - 1)];
+        VoxelValues { density, source }
     }
 }
 

@@ -15,4 +15,4 @@ pub mod pyramid;
 pub mod storage;
 
 pub use brick::Volume;
-pub use field::{Field, Segment};
+pub use field::{Bounds3, Field, Segment, VoxelValues};

@@ -32,7 +32,7 @@
 use glam::{DAffine3, DVec3, IVec3};
 
 use super::brick::{Brick, Slot, Volume, BRICK};
-use super::field::{clip_to_box, Field, Ray, RayGrid};
+use super::field::{clip_to_box, Bounds3, Field, Ray, RayGrid};
 
 /// Blocks closer than this (in blocks of 2 KiB) are read as one run: the gap costs less
 /// than another request.
@@ -146,7 +146,7 @@ impl Volume {
     /// extreme cells, at the parameter of the volume's farthest corner (a perspective
     /// frustum is widest there).
     fn subdivision(&self, grid: &RayGrid) -> usize {
-        let (lo, hi) = self.world_bounds();
+        let Bounds3 { lo, hi } = self.world_bounds();
         let a = self.index_from_world.matrix3;
         let mut widest: f64 = 0.0;
         for (i, j) in [(0, 0), (grid.cells_x - 1, grid.cells_y - 1)] {

@@ -266,7 +266,7 @@ pub fn explosion(dir: &Path, resolution: u32, seed: Option<i64>) -> PathBuf {
 
 /// The RGBA pixels of an EXR file.
 pub fn exr_pixels(p: &Path) -> Vec<[f32; 4]> {
-    plume::output::read_exr(p).unwrap().2
+    plume::output::read_exr(p).unwrap().pixels
 }
 
 /// The bits of every channel of every pixel (the comparison for "bit-identical").

@@ -1,8 +1,8 @@
 //! Shared test harness, `mod common;` in every test file: chi-square goodness of fit in the
 //! style of Mitsuba 3's `chi2.py` (cells pooled to ≥ 5 expected counts, `f64` statistics,
 //! Šidák correction for the number of tests, histograms dumped on failure), synthetic grid
-//! builders, the `plume` binary as a child process, scratch directories, data paths, EXR
-//! pixels and Monte Carlo statistics.
+//! builders, the `plume` binary as a child process, scratch directories, data paths, VDB
+//! grid reads, EXR pixels and Monte Carlo statistics.
 //!
 //! Every test file compiles this module into its own crate and uses a different subset of
 //! it, so in any one test binary some helpers are unused; `dead_code` is allowed for the
@@ -17,7 +17,7 @@ use std::time::Duration;
 use glam::{DAffine3, IVec3};
 use plume::color::Rgb;
 use plume::medium::{Convention, Emission, EmissionKind, TemperatureMap};
-use plume::vdb::{leaf_offset, FloatGrid, LEAF_VOXELS};
+use plume::vdb::{leaf_offset, read_float_grid, FloatGrid, ReadLimits, LEAF_VOXELS};
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
 /// Fewest expected counts a cell may have before it is pooled with others.
@@ -239,6 +239,16 @@ pub fn data(relative: &str) -> PathBuf {
 /// plume's own tiny fixtures, written by OpenVDB (`data/fixtures/make_fixtures.cc`).
 pub fn fixture(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("data/fixtures").join(name)
+}
+
+/// A grid of a real data file (`../shared/data/<relative>`) by selector, default limits.
+pub fn read(relative: &str, selector: &str) -> plume::Result<FloatGrid> {
+    read_float_grid(&data(relative), &selector.parse().unwrap(), &ReadLimits::default())
+}
+
+/// The leaves of `grid` keyed by origin.
+pub fn leaves_by_origin(grid: &FloatGrid) -> std::collections::HashMap<IVec3, Vec<f32>> {
+    (0..grid.leaf_count()).map(|i| (grid.origins[i], grid.leaf_values(i).to_vec())).collect()
 }
 
 /// `plume synth explosion --resolution <resolution> [--seed <seed>] -o <path>`, which must

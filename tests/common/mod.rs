@@ -1,22 +1,25 @@
 //! Shared test harness, `mod common;` in every test file: chi-square goodness of fit in the
 //! style of Mitsuba 3's `chi2.py` (cells pooled to ≥ 5 expected counts, `f64` statistics,
 //! Šidák correction for the number of tests, histograms dumped on failure), synthetic grid
-//! builders, the `plume` binary as a child process, scratch directories, data paths, VDB
-//! grid reads, EXR pixels and Monte Carlo statistics.
+//! builders, the sampling tier's chi² family and direction bins, the `plume` binary as a
+//! child process, scratch directories, data paths, VDB grid reads, EXR pixels and Monte
+//! Carlo statistics.
 //!
 //! Every test file compiles this module into its own crate and uses a different subset of
 //! it, so in any one test binary some helpers are unused; `dead_code` is allowed for the
 //! whole module rather than item by item.
 #![allow(dead_code)]
 
+use std::f64::consts::PI;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::Output;
 use std::time::Duration;
 
-use glam::{DAffine3, IVec3};
+use glam::{DAffine3, DVec3, IVec3};
 use plume::color::Rgb;
 use plume::medium::{Convention, Emission, EmissionKind, TemperatureMap};
+use plume::sampling::Sampler;
 use plume::vdb::{leaf_offset, read_float_grid, FloatGrid, ReadLimits, LEAF_VOXELS};
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
@@ -176,6 +179,40 @@ pub fn grid_emission(convention: Convention) -> Emission {
         temperature_map: TemperatureMap::Kelvin,
         cutoff_kelvin: 0.0,
     }
+}
+
+// ---------------------------------------------------------------------------------------
+// The sampling tier: `tests/sampling.rs` and `tests/light_sampling.rs`
+
+/// Family-wise significance level of the sampling tier's chi² tests, both files together.
+pub const SAMPLING_ALPHA: f64 = 0.01;
+/// Number of chi² tests in the sampling tier: HG ×5, alias (`sampling.rs`); proxy cells ×2,
+/// FNEE ×3, NEE (`light_sampling.rs`).
+pub const SAMPLING_TESTS: usize = 5 + 1 + 2 + 3 + 1;
+
+/// The sampler of the sampling tier's tests: `seed`, pixel 0, sample 0.
+pub fn rng(seed: u64) -> Sampler {
+    Sampler::new(seed, 0, 0)
+}
+
+/// A unit-sphere frame `(t1, t2)` around `pole`, built independently of the library.
+pub fn frame(pole: DVec3) -> (DVec3, DVec3) {
+    let helper = if pole.x.abs() < 0.9 { DVec3::X } else { DVec3::Y };
+    let t1 = pole.cross(helper).normalize();
+    (t1, pole.cross(t1))
+}
+
+/// Bin of direction `w` in a (cos θ, φ) grid around `pole` covering `cos θ ∈ [c_min, 1]`,
+/// or `None` below `c_min`.
+pub fn direction_bin(w: DVec3, pole: DVec3, (t1, t2): (DVec3, DVec3), c_min: f64, nc: usize, nphi: usize) -> Option<usize> {
+    let c = w.dot(pole);
+    if c < c_min {
+        return None;
+    }
+    let ic = (((c - c_min) / (1.0 - c_min) * nc as f64) as usize).min(nc - 1);
+    let phi = w.dot(t2).atan2(w.dot(t1)).rem_euclid(2.0 * PI);
+    let ip = ((phi / (2.0 * PI) * nphi as f64) as usize).min(nphi - 1);
+    Some(ic * nphi + ip)
 }
 
 // ---------------------------------------------------------------------------------------

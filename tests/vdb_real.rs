@@ -1,27 +1,22 @@
-//! The `vdb` module against the real files described in `../shared/data/PROVENANCE.md`.
+//! The `vdb` module against the real files described in `../shared/data/PROVENANCE.md`, and
+//! against plume's own fixtures in `data/fixtures` (written by `make_fixtures.cc`).
 //!
 //! Expected values were read with OpenVDB 10.0.1 itself (a small C++ program calling
 //! `io::File::readGrid`, `activeVoxelCount`, `transform().indexToWorld`, and summing
 //! `cbeginValueOn()` with tile voxel counts), not copied from file metadata. Where they
 //! differ from PROVENANCE.md the test says so.
+//!
+//! Malformed, truncated, foreign and missing files are in `vdb_hostile.rs`; writing grids
+//! in `vdb_write.rs`.
 
 mod common;
 
 use std::collections::HashSet;
-use std::fs;
-use std::path::Path;
 
-use common::{data, fixture, scratch_dir};
-use glam::{DAffine3, DMat3, DVec3, IVec3};
-use plume::vdb::{
-    leaf_offset, list_grids, read_float_grid, write_float_grids, FloatGrid, GridInfo, GridSelector,
-    ReadLimits, LEAF_VOXELS,
-};
+use common::{data, fixture, leaves_by_origin, read};
+use glam::{DAffine3, DVec3, IVec3};
+use plume::vdb::{leaf_offset, list_grids, read_float_grid, FloatGrid, GridInfo, GridSelector, ReadLimits, LEAF_VOXELS};
 use plume::Error;
-
-fn read(relative: &str, selector: &str) -> plume::Result<FloatGrid> {
-    read_float_grid(&data(relative), &selector.parse().unwrap(), &ReadLimits::default())
-}
 
 fn grid<'a>(infos: &'a [GridInfo], selector: &str) -> &'a GridInfo {
     infos.iter().find(|g| g.selector == selector).unwrap_or_else(|| panic!("no {selector}"))
@@ -267,87 +262,6 @@ fn vec3_grid_is_listed_but_not_read() {
     assert!(message.contains("oiio_sphereCd.vdb"), "{message}");
 }
 
-/// OpenImageIO's damaged files: the bbox files hold valid, empty trees whose grid metadata
-/// claims hostile bounds (0..200000³, 0..1e9³, inverted, the whole int32 range, …).
-/// OpenVDB reads them as empty grids, and so do we: the metadata is never used.
-#[test]
-fn malformed_bbox_files_are_empty_grids() {
-    for (file, name) in [
-        ("oiio_bad-bbox-bomb.vdb", "bomb"),
-        ("oiio_bad-bbox-empty.vdb", "empty"),
-        ("oiio_bad-bbox-huge.vdb", "huge"),
-        ("oiio_bad-bbox-inverted.vdb", "inverted"),
-        ("oiio_bad-bbox-overflow.vdb", "overflow"),
-        ("oiio_bad-bbox-roundup.vdb", "roundup"),
-    ] {
-        let relative = format!("edge_cases/malformed/{file}");
-        let infos = list_grids(&data(&relative)).unwrap();
-        assert_eq!(infos.len(), 1, "{file}");
-        assert_eq!(infos[0].name, name);
-        assert_eq!((infos[0].active_voxels, infos[0].leaf_count), (0, 0), "{file}");
-        assert_eq!(infos[0].index_bbox, None, "{file}");
-        let grid = read(&relative, name).unwrap();
-        assert_eq!(grid.leaf_count(), 0, "{file}");
-    }
-}
-
-/// Cut off inside the first grid descriptor (its type string claims 16 bytes; 3 remain).
-/// OpenVDB alone reports "Grid type Tre<garbage> is not registered".
-#[test]
-fn truncated_file_is_an_error() {
-    let path = data("edge_cases/malformed/oiio_truncated.vdb");
-    for result in [
-        list_grids(&path).map(|_| ()),
-        read_float_grid(&path, &"huge".parse().unwrap(), &ReadLimits::default()).map(|_| ()),
-    ] {
-        match result {
-            Err(Error::Vdb { message, .. }) => {
-                assert!(message.contains("truncated"), "{message}");
-                assert!(message.chars().all(|c| !c.is_control()), "{message:?}");
-            }
-            other => panic!("expected Vdb error, got {other:?}"),
-        }
-    }
-}
-
-/// OpenVDB 10 reads a file truncated inside its leaf data without any error, leaving the
-/// missing leaves as garbage (the cloud cut at 60% sums to about -2.7e24). The shim
-/// checks each grid's end offset against the file size first.
-#[test]
-fn file_truncated_in_leaf_data_is_an_error() {
-    let dir = scratch_dir("vdb_real", "truncated");
-    for source in ["smoke/openvdb_org_smoke1.vdb", "cloud/wdas_cloud_sixteenth.vdb"] {
-        let bytes = fs::read(data(source)).unwrap();
-        for percent in [30, 60, 99] {
-            let path = dir.join(format!("{percent}.vdb"));
-            fs::write(&path, &bytes[..bytes.len() * percent / 100]).unwrap();
-            let result =
-                read_float_grid(&path, &GridSelector::first("density"), &ReadLimits::default());
-            match result {
-                Err(Error::Vdb { message, .. }) => {
-                    assert!(message.contains("truncated"), "{message}")
-                }
-                other => panic!("{source} at {percent}%: expected Vdb error, got {other:?}"),
-            }
-            assert!(list_grids(&path).is_err());
-        }
-    }
-}
-
-#[test]
-fn nanovdb_file_gets_a_clear_error() {
-    let path = data("nanovdb/openvdb_fvdb_smoke-blosc.nvdb");
-    for error in [
-        list_grids(&path).unwrap_err(),
-        read_float_grid(&path, &GridSelector::first("density"), &ReadLimits::default())
-            .unwrap_err(),
-    ] {
-        assert!(matches!(error, Error::Vdb { .. }), "{error:?}");
-        let message = error.to_string();
-        assert!(message.contains("NanoVDB") && message.contains("nanovdb_convert"), "{message}");
-    }
-}
-
 /// `nanovdb_convert` wrote one grid with an empty name; OpenVDB calls it `[0]`.
 #[test]
 fn converted_nanovdb_file_has_an_unnamed_grid() {
@@ -402,155 +316,6 @@ fn explosions_list_in_file_order() {
     let grid = read("explosion/mantaflow_explosion_kelvin_0020.vdb", "temperature").unwrap();
     assert_well_formed(&grid);
     assert_close(value_sum(&grid), 665_325_557.5, 1e-6);
-}
-
-#[test]
-fn memory_limit_is_checked_before_allocating() {
-    let path = data("cloud/wdas_cloud_sixteenth.vdb");
-    let selector = GridSelector::first("density");
-    // 1241 leaves + 130 tile blocks, 512 f32 values and 3 i32 per block.
-    let needed = (1241 + 130) * (512 * 4 + 12);
-    match read_float_grid(&path, &selector, &ReadLimits { max_bytes: needed - 1 }) {
-        Err(Error::TooLarge { needed: reported, limit, grid, .. }) => {
-            assert_eq!((reported, limit), (needed, needed - 1));
-            assert_eq!(grid, "density");
-        }
-        other => panic!("expected TooLarge, got {other:?}"),
-    }
-    assert!(read_float_grid(&path, &selector, &ReadLimits { max_bytes: needed }).is_ok());
-    assert!(ReadLimits::default().max_bytes > 0);
-}
-
-#[test]
-fn missing_paths_and_grids() {
-    let missing = data("no/such/file.vdb");
-    assert!(matches!(list_grids(&missing), Err(Error::Open { .. })));
-    let error = read_float_grid(&missing, &GridSelector::first("density"), &ReadLimits::default())
-        .unwrap_err();
-    assert!(matches!(error, Error::Open { .. }), "{error:?}");
-    assert!(error.to_string().contains("file.vdb"));
-
-    // A directory is not a regular file.
-    assert!(matches!(list_grids(&data("smoke")), Err(Error::Open { .. })));
-    // Not a VDB file at all.
-    let not_vdb = Path::new(env!("CARGO_MANIFEST_DIR")).join("Cargo.toml");
-    match list_grids(&not_vdb) {
-        Err(Error::Vdb { message, .. }) => assert!(message.contains("not an OpenVDB file")),
-        other => panic!("expected Vdb error, got {other:?}"),
-    }
-
-    let error = read("fire/openusd_densityAndHeat.vdb", "temperature").unwrap_err();
-    let message = error.to_string();
-    assert!(matches!(error, Error::GridNotFound { .. }), "{error:?}");
-    assert!(message.contains("\"temperature\"") && message.contains("density, heat"), "{message}");
-}
-
-/// A grid with a rotated, non-uniformly scaled, translated transform, a non-zero
-/// background, negative origins, inactive (background) voxels and one all-background leaf.
-fn synthetic_grid(name: &str, background: f32) -> FloatGrid {
-    let rotation = DMat3::from_rotation_z(0.3) * DMat3::from_rotation_x(-0.2);
-    let world_from_index = DAffine3::from_mat3_translation(
-        rotation * DMat3::from_diagonal(DVec3::new(0.5, 0.25, 0.75)),
-        DVec3::new(-1.5, 2.0, 10.0),
-    );
-    let origins = vec![IVec3::new(-16, 0, 8), IVec3::new(0, -8, -8), IVec3::new(24, 24, 24)];
-    let mut values = vec![background; origins.len() * LEAF_VOXELS];
-    for (i, v) in values[..2 * LEAF_VOXELS].iter_mut().enumerate() {
-        if i % 3 != 0 {
-            *v = (i % 97) as f32 * 0.125 - 2.0;
-        }
-    }
-    // The third leaf stays entirely background and is pruned on write.
-    FloatGrid { name: name.to_string(), world_from_index, background, origins, values }
-}
-
-/// The leaves of `grid` keyed by origin.
-fn leaves_by_origin(grid: &FloatGrid) -> std::collections::HashMap<IVec3, Vec<f32>> {
-    (0..grid.leaf_count()).map(|i| (grid.origins[i], grid.leaf_values(i).to_vec())).collect()
-}
-
-#[test]
-fn write_then_read_round_trips() {
-    let dir = scratch_dir("vdb_real", "round_trip");
-    let path = dir.join("two.vdb");
-    let first = synthetic_grid("density", 0.25);
-    let second = synthetic_grid("density", 0.0);
-    write_float_grids(&path, &[&first, &second]).unwrap();
-
-    let infos = list_grids(&path).unwrap();
-    let selectors: Vec<&str> = infos.iter().map(|g| g.selector.as_str()).collect();
-    assert_eq!(selectors, ["density", "density[1]"]);
-    assert_eq!(infos[0].class, "fog volume");
-    assert_eq!(infos[0].leaf_count, 2, "the all-background leaf is pruned");
-    let active = first.values.iter().filter(|&&v| v != first.background).count() as u64;
-    assert_eq!(infos[0].active_voxels, active);
-
-    for (selector, expected) in [("density", &first), ("density[1]", &second)] {
-        let grid =
-            read_float_grid(&path, &selector.parse().unwrap(), &ReadLimits::default()).unwrap();
-        assert_eq!(grid.name, "density");
-        assert_eq!(grid.background, expected.background);
-        assert!(
-            grid.world_from_index.abs_diff_eq(expected.world_from_index, 1e-12),
-            "{:?} vs {:?}",
-            grid.world_from_index,
-            expected.world_from_index
-        );
-        let mut written = leaves_by_origin(expected);
-        written.remove(&IVec3::new(24, 24, 24));
-        assert_eq!(leaves_by_origin(&grid), written, "{selector}");
-    }
-    // Leaf values are in OpenVDB offset order: check one voxel through leaf_offset.
-    let grid =
-        read_float_grid(&path, &GridSelector::first("density"), &ReadLimits::default()).unwrap();
-    let leaf = grid.origins.iter().position(|&o| o == IVec3::new(0, -8, -8)).unwrap();
-    let offset = leaf_offset(1, 2, 4);
-    assert_eq!(grid.leaf_values(leaf)[offset], first.leaf_values(1)[offset]);
-    // No temp files are left beside the output.
-    let entries: Vec<_> = fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name()).collect();
-    assert_eq!(entries, ["two.vdb"]);
-}
-
-#[test]
-fn failed_writes_leave_no_file() {
-    let dir = scratch_dir("vdb_real", "failed_writes");
-    let grid = synthetic_grid("density", 0.0);
-
-    // The directory does not exist.
-    let missing_dir = dir.join("missing").join("out.vdb");
-    let error = write_float_grids(&missing_dir, &[&grid]).unwrap_err();
-    assert!(matches!(error, Error::Write { .. }), "{error:?}");
-    assert!(!dir.join("missing").exists());
-
-    // The target is a directory: the temp file is written, the rename fails, and the temp
-    // file is removed.
-    let target = dir.join("taken.vdb");
-    fs::create_dir(&target).unwrap();
-    let error = write_float_grids(&target, &[&grid]).unwrap_err();
-    assert!(matches!(error, Error::Write { .. }), "{error:?}");
-
-    // Malformed grids are refused before any file is created.
-    let mut bad = synthetic_grid("bad", 0.0);
-    bad.values.pop();
-    let error = write_float_grids(&dir.join("bad.vdb"), &[&bad]).unwrap_err();
-    assert!(error.to_string().contains("\"bad\""), "{error}");
-    let mut misaligned = synthetic_grid("misaligned", 0.0);
-    misaligned.origins[0] = IVec3::new(3, 0, 0);
-    assert!(write_float_grids(&dir.join("bad.vdb"), &[&misaligned]).is_err());
-
-    let entries: Vec<_> = fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name()).collect();
-    assert_eq!(entries, ["taken.vdb"], "only the pre-existing directory remains");
-}
-
-#[test]
-fn write_replaces_an_existing_file() {
-    let dir = scratch_dir("vdb_real", "replace");
-    let path = dir.join("out.vdb");
-    fs::write(&path, b"old contents").unwrap();
-    write_float_grids(&path, &[&synthetic_grid("a", 0.0)]).unwrap();
-    let infos = list_grids(&path).unwrap();
-    assert_eq!(infos.len(), 1);
-    assert_eq!(infos[0].name, "a");
 }
 
 /// `affine_tiles.vdb`, grid `heat_double`: a double grid with a rotated, non-uniform affine

@@ -1,23 +1,26 @@
 //! Shared test harness, `mod common;` in every test file: chi-square goodness of fit in the
 //! style of Mitsuba 3's `chi2.py` (cells pooled to ≥ 5 expected counts, `f64` statistics,
 //! Šidák correction for the number of tests, histograms dumped on failure), synthetic grid
-//! builders, the `plume` binary as a child process, scratch directories, data paths, EXR
-//! pixels and Monte Carlo statistics.
+//! builders, the sampling tier's chi² family and direction bins, the `plume` binary as a
+//! child process, scratch directories, data paths, VDB grid reads, EXR pixels and Monte
+//! Carlo statistics.
 //!
 //! Every test file compiles this module into its own crate and uses a different subset of
 //! it, so in any one test binary some helpers are unused; `dead_code` is allowed for the
 //! whole module rather than item by item.
 #![allow(dead_code)]
 
+use std::f64::consts::PI;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::Output;
 use std::time::Duration;
 
-use glam::{DAffine3, IVec3};
+use glam::{DAffine3, DVec3, IVec3};
 use plume::color::Rgb;
 use plume::medium::{Convention, Emission, EmissionKind, TemperatureMap};
-use plume::vdb::{leaf_offset, FloatGrid, LEAF_VOXELS};
+use plume::sampling::Sampler;
+use plume::vdb::{leaf_offset, read_float_grid, FloatGrid, ReadLimits, LEAF_VOXELS};
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
 /// Fewest expected counts a cell may have before it is pooled with others.
@@ -179,6 +182,40 @@ pub fn grid_emission(convention: Convention) -> Emission {
 }
 
 // ---------------------------------------------------------------------------------------
+// The sampling tier: `tests/sampling.rs` and `tests/light_sampling.rs`
+
+/// Family-wise significance level of the sampling tier's chi² tests, both files together.
+pub const SAMPLING_ALPHA: f64 = 0.01;
+/// Number of chi² tests in the sampling tier: HG ×5, alias (`sampling.rs`); proxy cells ×2,
+/// FNEE ×3, NEE (`light_sampling.rs`).
+pub const SAMPLING_TESTS: usize = 5 + 1 + 2 + 3 + 1;
+
+/// The sampler of the sampling tier's tests: `seed`, pixel 0, sample 0.
+pub fn rng(seed: u64) -> Sampler {
+    Sampler::new(seed, 0, 0)
+}
+
+/// A unit-sphere frame `(t1, t2)` around `pole`, built independently of the library.
+pub fn frame(pole: DVec3) -> (DVec3, DVec3) {
+    let helper = if pole.x.abs() < 0.9 { DVec3::X } else { DVec3::Y };
+    let t1 = pole.cross(helper).normalize();
+    (t1, pole.cross(t1))
+}
+
+/// Bin of direction `w` in a (cos θ, φ) grid around `pole` covering `cos θ ∈ [c_min, 1]`,
+/// or `None` below `c_min`.
+pub fn direction_bin(w: DVec3, pole: DVec3, (t1, t2): (DVec3, DVec3), c_min: f64, nc: usize, nphi: usize) -> Option<usize> {
+    let c = w.dot(pole);
+    if c < c_min {
+        return None;
+    }
+    let ic = (((c - c_min) / (1.0 - c_min) * nc as f64) as usize).min(nc - 1);
+    let phi = w.dot(t2).atan2(w.dot(t1)).rem_euclid(2.0 * PI);
+    let ip = ((phi / (2.0 * PI) * nphi as f64) as usize).min(nphi - 1);
+    Some(ic * nphi + ip)
+}
+
+// ---------------------------------------------------------------------------------------
 // The `plume` binary, files and directories
 
 /// The `plume` binary under test.
@@ -239,6 +276,16 @@ pub fn data(relative: &str) -> PathBuf {
 /// plume's own tiny fixtures, written by OpenVDB (`data/fixtures/make_fixtures.cc`).
 pub fn fixture(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("data/fixtures").join(name)
+}
+
+/// A grid of a real data file (`../shared/data/<relative>`) by selector, default limits.
+pub fn read(relative: &str, selector: &str) -> plume::Result<FloatGrid> {
+    read_float_grid(&data(relative), &selector.parse().unwrap(), &ReadLimits::default())
+}
+
+/// The leaves of `grid` keyed by origin.
+pub fn leaves_by_origin(grid: &FloatGrid) -> std::collections::HashMap<IVec3, Vec<f32>> {
+    (0..grid.leaf_count()).map(|i| (grid.origins[i], grid.leaf_values(i).to_vec())).collect()
 }
 
 /// `plume synth explosion --resolution <resolution> [--seed <seed>] -o <path>`, which must

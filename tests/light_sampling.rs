@@ -134,7 +134,8 @@ fn proxy_resolution_is_validated() {
     for bad in [0u32, 4, 12, 64, 1 << 20] {
         match ProxyGrid::build(&volume, bad, power) {
             Err(Error::InvalidArgument { flag, message }) => {
-                assert_eq!(flag, "--proxy-resolution");
+                // The library names the scene key; the binary shows --proxy-resolution (tests/cli_method.rs)
+                assert_eq!(flag, "integrator.proxy_resolution");
                 assert!(message.contains(&bad.to_string()) && message.contains("32"), "{message}");
             }
             other => panic!("resolution {bad}: expected InvalidArgument, got {other:?}"),

@@ -19,10 +19,7 @@ fn main() {
     println!("cargo:rerun-if-env-changed=OPENVDB_LIB_DIR");
 
     let include_dir = env::var_os("OPENVDB_INCLUDE_DIR").map(PathBuf::from);
-    let search = include_dir
-        .iter()
-        .cloned()
-        .chain(["/usr/include", "/usr/local/include"].map(PathBuf::from));
+    let search = include_dir.iter().cloned().chain(["/usr/include", "/usr/local/include"].map(PathBuf::from));
     let found = search.clone().any(|dir| dir.join("openvdb/openvdb.h").is_file());
     if !found {
         panic!(

@@ -35,12 +35,8 @@ impl Camera {
         if !(from.is_finite() && at.is_finite() && up.is_finite()) {
             return Err(Error::invalid("camera.from/camera.at/camera.up", "components must be finite"));
         }
-        let forward = (at - from).try_normalize().ok_or_else(|| {
-            Error::invalid("camera.at", "must differ from camera.from")
-        })?;
-        let right = forward.cross(up).try_normalize().ok_or_else(|| {
-            Error::invalid("camera.up", "must not be zero or parallel to the view direction")
-        })?;
+        let forward = (at - from).try_normalize().ok_or_else(|| Error::invalid("camera.at", "must differ from camera.from"))?;
+        let right = forward.cross(up).try_normalize().ok_or_else(|| Error::invalid("camera.up", "must not be zero or parallel to the view direction"))?;
         if !(fov_degrees > 0.0 && fov_degrees < 180.0) {
             return Err(Error::invalid("camera.fov", format!("{fov_degrees} is not in (0, 180) degrees")));
         }

@@ -180,7 +180,11 @@ impl Tile {
                 }
                 None => {
                     self.saturated += 1;
-                    if v < 0.0 { i128::MIN } else { i128::MAX }
+                    if v < 0.0 {
+                        i128::MIN
+                    } else {
+                        i128::MAX
+                    }
                 }
             };
             // Radiance and alpha are ≥ 0, so saturating addition is min(Σ, MAX): still

@@ -69,9 +69,7 @@ pub fn append_line(path: &Path, line: &str) -> Result<()> {
 /// [`Error::Write`] naming `path`.
 pub fn check_writable(path: &Path) -> Result<()> {
     let probe = temporary_path(path);
-    File::create(&probe)
-        .and_then(|_| std::fs::remove_file(&probe))
-        .map_err(|source| Error::Write { path: path.to_path_buf(), source })
+    File::create(&probe).and_then(|_| std::fs::remove_file(&probe)).map_err(|source| Error::Write { path: path.to_path_buf(), source })
 }
 
 /// Write `pixels` (row-major RGBA, linear) as a 32-bit float EXR with text attributes
@@ -150,9 +148,7 @@ pub fn write_exr_image(path: &Path, image: &ExrImage<'_>) -> Result<()> {
     let layer = Layer::new(size, attributes, Encoding::FAST_LOSSLESS, AnyChannels::sort(list.into()));
     let display = IntegerBounds::new(Vec2(0, 0), Vec2(image.width as usize, image.height as usize));
     let exr_image = Image::new(ImageAttributes::new(display), layer);
-    write_atomic(path, |out| {
-        exr_image.write().non_parallel().to_buffered(out).map_err(|e| std::io::Error::other(e.to_string()))
-    })
+    write_atomic(path, |out| exr_image.write().non_parallel().to_buffered(out).map_err(|e| std::io::Error::other(e.to_string())))
 }
 
 /// Everything [`write_exr_image`] stores, read back and decoded.
@@ -286,7 +282,11 @@ pub fn host_name() -> String {
     }
     let end = buf.iter().position(|&b| b == 0).unwrap_or(buf.len());
     let h = String::from_utf8_lossy(&buf[..end]).into_owned();
-    if h.is_empty() { "unknown".into() } else { h }
+    if h.is_empty() {
+        "unknown".into()
+    } else {
+        h
+    }
 }
 
 /// The temporary file beside `path`: `.NAME.HOST.PID.tmp`. Named after host and
@@ -352,17 +352,17 @@ fn srgb_encode(v: f32) -> f32 {
 /// Exposure multiplier that maps the 99.5th percentile of pixel luminance to 0.9.
 #[must_use]
 pub fn auto_exposure(pixels: &[[f32; 4]]) -> f32 {
-    let mut lum: Vec<f32> = pixels
-        .iter()
-        .map(|p| 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2])
-        .filter(|l| l.is_finite() && *l > 0.0)
-        .collect();
+    let mut lum: Vec<f32> = pixels.iter().map(|p| 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2]).filter(|l| l.is_finite() && *l > 0.0).collect();
     if lum.is_empty() {
         return 1.0;
     }
     let k = ((lum.len() as f64 * 0.995) as usize).min(lum.len() - 1);
     let (_, v, _) = lum.select_nth_unstable_by(k, f32::total_cmp);
-    if *v > 0.0 { 0.9 / *v } else { 1.0 }
+    if *v > 0.0 {
+        0.9 / *v
+    } else {
+        1.0
+    }
 }
 
 /// Write a tone-mapped 8-bit sRGB PNG preview: `pixel × exposure`, clamped, sRGB encoded,

@@ -171,7 +171,6 @@ pub fn pixel_sample<F: Field>(scene: &Scene<F>, seed: u64, x: u32, y: u32, s: u6
     PixelSample { ray: scene.camera.ray(f64::from(x) + jx, f64::from(y) + jy), sampler }
 }
 
-
 fn render_tile<F: Field>(scene: &Scene<F>, integ: &Integrator, seed: u64, samples: std::ops::Range<u64>, tile: &mut Tile) -> Counters {
     let mut counters = Counters::default();
     for ty in 0..tile.height {
@@ -218,10 +217,7 @@ pub fn render_with<F: Field>(scene: &Scene<F>, settings: &RenderSettings, contro
         0 if out_of_core => std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get) + 1,
         n => n,
     };
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .expect("invariant: a rayon pool can be built");
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("invariant: a rayon pool can be built");
     let (width, height) = (scene.camera.width, scene.camera.height);
     let crop = control.crop.unwrap_or(Crop::full(width, height));
     let mut film = control.film.unwrap_or_else(|| Film::with_crop(width, height, crop));
@@ -297,12 +293,7 @@ pub fn render_with<F: Field>(scene: &Scene<F>, settings: &RenderSettings, contro
                 None => break StopReason::Interrupted,
             }
         } else {
-            pool.install(|| {
-                film.tiles
-                    .par_iter_mut()
-                    .map(|tile| render_tile(scene, &settings.integrator, settings.seed, range.clone(), tile))
-                    .collect()
-            })
+            pool.install(|| film.tiles.par_iter_mut().map(|tile| render_tile(scene, &settings.integrator, settings.seed, range.clone(), tile)).collect())
         };
         for c in &tile_counters {
             counters.merge(c);

@@ -155,8 +155,29 @@ fn compare_command_runs_end_to_end_and_refuses_bad_flags() {
     let work = dir.join("work");
     let out = dir.join("out");
     let o = plume(&[
-        "bench", "compare", "explosion:16", "--methods", "ray-march,line+none", "--time", "0.1", "--runs", "2", "--make-reference",
-        "--reference-time", "0.4", "-o", s(&out), "--name", "e", "--work-dir", s(&work), "--", "--width", "16", "--height", "12",
+        "bench",
+        "compare",
+        "explosion:16",
+        "--methods",
+        "ray-march,line+none",
+        "--time",
+        "0.1",
+        "--runs",
+        "2",
+        "--make-reference",
+        "--reference-time",
+        "0.4",
+        "-o",
+        s(&out),
+        "--name",
+        "e",
+        "--work-dir",
+        s(&work),
+        "--",
+        "--width",
+        "16",
+        "--height",
+        "12",
     ]);
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{stderr}");

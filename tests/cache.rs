@@ -197,7 +197,8 @@ fn damaged_truncated_and_foreign_caches_are_refused() {
         p
     };
     // A bit flipped in each section, in the header, and the section table
-    for kind in [SectionKind::Values, SectionKind::Table, SectionKind::Bricks, SectionKind::Pyramid, SectionKind::Proxy, SectionKind::Meta, SectionKind::Chunks] {
+    for kind in [SectionKind::Values, SectionKind::Table, SectionKind::Bricks, SectionKind::Pyramid, SectionKind::Proxy, SectionKind::Meta, SectionKind::Chunks]
+    {
         let p = copy(&format!("flip-{}.plume", kind as u32));
         let (offset, len) = section(&p, kind);
         flip(&p, offset + len / 2);
@@ -301,7 +302,12 @@ fn a_1_gib_cache_renders_within_a_256_mib_budget() {
     }
     let o = child.wait_with_output().unwrap();
     assert!(o.status.success(), "{}", stderr(&o));
-    eprintln!("dataset {:.2} GiB, peak RssAnon {:.1} MiB, peak RssFile {:.1} MiB", bytes as f64 / 1073741824.0, peak_anon as f64 / 1048576.0, peak_file as f64 / 1048576.0);
+    eprintln!(
+        "dataset {:.2} GiB, peak RssAnon {:.1} MiB, peak RssFile {:.1} MiB",
+        bytes as f64 / 1073741824.0,
+        peak_anon as f64 / 1048576.0,
+        peak_file as f64 / 1048576.0
+    );
     assert!(peak_anon > 0, "never sampled the render's memory");
     assert!(peak_anon < BUDGET, "peak anonymous RSS {peak_anon} exceeds the 256 MiB budget");
     let pixels = exr_pixels(&out);

@@ -17,8 +17,26 @@ fn render_is_bit_identical_for_1_and_2_threads_and_writes_all_outputs() {
         let png = d.join(format!("t{threads}.png"));
         let stats = d.join(format!("t{threads}.json"));
         let o = plume(&[
-            "render", s(&ex), "-o", s(&out), "--preview", s(&png), "--stats", s(&stats), "--spp", "4", "--width", "48",
-            "--height", "32", "--threads", threads, "--seed", "9", "--density-scale", "3",
+            "render",
+            s(&ex),
+            "-o",
+            s(&out),
+            "--preview",
+            s(&png),
+            "--stats",
+            s(&stats),
+            "--spp",
+            "4",
+            "--width",
+            "48",
+            "--height",
+            "32",
+            "--threads",
+            threads,
+            "--seed",
+            "9",
+            "--density-scale",
+            "3",
         ]);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         assert!(std::fs::metadata(&png).unwrap().len() > 100);

@@ -13,8 +13,27 @@ fn every_method_preset_renders_and_reports_its_counters() {
         let out = d.join(format!("{method}.exr"));
         let stats = d.join(format!("{method}.json"));
         let o = plume(&[
-            "render", s(&ex), "-o", s(&out), "--stats", s(&stats), "--method", method, "--albedo", "0.8", "--g", "0.4", "--spp", "2",
-            "--width", "24", "--height", "16", "--density-scale", "5", "-q",
+            "render",
+            s(&ex),
+            "-o",
+            s(&out),
+            "--stats",
+            s(&stats),
+            "--method",
+            method,
+            "--albedo",
+            "0.8",
+            "--g",
+            "0.4",
+            "--spp",
+            "2",
+            "--width",
+            "24",
+            "--height",
+            "16",
+            "--density-scale",
+            "5",
+            "-q",
         ]);
         assert!(o.status.success(), "{method}: {}", String::from_utf8_lossy(&o.stderr));
         let st: serde_json::Value = serde_json::from_slice(&std::fs::read(&stats).unwrap()).unwrap();
@@ -61,7 +80,9 @@ fn scattering_flags_are_validated() {
     let d = tmpdir("clim", "flags");
     let ex = explosion(&d, 48, None);
     let out = d.join("o.exr");
-    for (flag, value) in [("--albedo", "1.5"), ("--g", "1"), ("--g", "-1.2"), ("--proxy-resolution", "12"), ("--debug-pixel", "99,0,0"), ("--environment", "1,-1,0")] {
+    for (flag, value) in
+        [("--albedo", "1.5"), ("--g", "1"), ("--g", "-1.2"), ("--proxy-resolution", "12"), ("--debug-pixel", "99,0,0"), ("--environment", "1,-1,0")]
+    {
         let albedo = if flag == "--albedo" { value } else { "0.5" };
         let mut args = vec!["render", s(&ex), "-o", s(&out), "--albedo", albedo, "--width", "16", "--height", "12", "--spp", "1"];
         if flag != "--albedo" {

@@ -182,10 +182,7 @@ fn all_estimators_agree_in_expectation_on_random_strips() {
             let (reference, _) = exact(&field, &m, &ray);
             for est in ALL {
                 let (mean, se, _) = mc_emission(&field, &m, &ray, est, 20_000, 100 + seed);
-                assert!(
-                    (mean - reference).abs() <= 4.5 * se + 1e-9 * reference,
-                    "{est:?} scale={scale} seed={seed}: {mean} vs {reference} (se {se})"
-                );
+                assert!((mean - reference).abs() <= 4.5 * se + 1e-9 * reference, "{est:?} scale={scale} seed={seed}: {mean} vs {reference} (se {se})");
             }
         }
     }

@@ -75,7 +75,17 @@ fn sequence_with_patterns_renders_each_frame_with_its_seed_and_skips_complete_ou
         assert_eq!(l["seed"], f);
         assert_eq!(l["spp"], 2);
         assert_eq!(l["input_sha256"].as_str().unwrap().len(), 64);
-        for key in ["wall_seconds", "cpu_seconds", "core_hours", "allocated_core_hours", "samples_per_second", "peak_rss_bytes", "plume_version", "command_line", "host"] {
+        for key in [
+            "wall_seconds",
+            "cpu_seconds",
+            "core_hours",
+            "allocated_core_hours",
+            "samples_per_second",
+            "peak_rss_bytes",
+            "plume_version",
+            "command_line",
+            "host",
+        ] {
             assert!(l.get(key).is_some(), "stats lack {key}");
         }
     }
@@ -197,7 +207,11 @@ fn sigterm_writes_a_valid_partial_image_and_the_rerun_finishes_it_bit_identicall
     let reference = d.join("ref.exr");
     let out = d.join("o.exr");
     let base = |o: &Path, spp: &str| {
-        let mut a: Vec<String> = ["render", s(&input), "-o", s(o), "--spp", spp, "--width", "32", "--height", "32", "--threads", "1", "-q", "--progress", "json"].iter().map(|x| x.to_string()).collect();
+        let mut a: Vec<String> =
+            ["render", s(&input), "-o", s(o), "--spp", spp, "--width", "32", "--height", "32", "--threads", "1", "-q", "--progress", "json"]
+                .iter()
+                .map(|x| x.to_string())
+                .collect();
         a.extend(["--density-scale", "3"].iter().map(|x| x.to_string()));
         a
     };
@@ -269,10 +283,30 @@ fn kill_9_at_any_moment_leaves_only_complete_outputs_and_the_rerun_finishes() {
     let out = d.join("o.####.exr");
     let reference = d.join("ref.####.exr");
     let args = |o: &Path| -> Vec<String> {
-        ["render", s(&input), "-o", s(o), "--frames", "1-3", "--spp", "160", "--width", "48", "--height", "32", "--albedo", "0.5", "--max-depth", "3", "--proxy-resolution", "16", "-q"]
-            .iter()
-            .map(|x| x.to_string())
-            .collect()
+        [
+            "render",
+            s(&input),
+            "-o",
+            s(o),
+            "--frames",
+            "1-3",
+            "--spp",
+            "160",
+            "--width",
+            "48",
+            "--height",
+            "32",
+            "--albedo",
+            "0.5",
+            "--max-depth",
+            "3",
+            "--proxy-resolution",
+            "16",
+            "-q",
+        ]
+        .iter()
+        .map(|x| x.to_string())
+        .collect()
     };
     let run = |a: &[String]| plume(&a.iter().map(String::as_str).collect::<Vec<_>>());
     let t = Instant::now();
@@ -307,7 +341,8 @@ fn four_tiles_times_two_sample_ranges_merge_bit_identical_to_one_render() {
     sequence(&d, &[5]);
     let input = d.join("ex.####.vdb");
     // Scattering paths with FNEE, an image size no tile divides evenly
-    let common = ["--frames", "5", "--width", "37", "--height", "23", "--albedo", "0.6", "--max-depth", "4", "--proxy-resolution", "16", "--density-scale", "2", "-q"];
+    let common =
+        ["--frames", "5", "--width", "37", "--height", "23", "--albedo", "0.6", "--max-depth", "4", "--proxy-resolution", "16", "--density-scale", "2", "-q"];
     let single = d.join("single.exr");
     let mut a = vec!["render", s(&input), "-o", s(&single), "--spp", "6"];
     a.extend(common);
@@ -376,7 +411,20 @@ fn progress_lines_for_openjd_and_json() {
     let input = d.join("ex.####.vdb");
     let out = d.join("o.####.exr");
     let args = |mode: &'static str| {
-        let mut a = vec!["render".to_string(), s(&input).into(), "-o".into(), s(&out).into(), "--frames".into(), "1-2".into(), "--spp".into(), "2".into(), "-q".into(), "--overwrite".into(), "--progress".into(), mode.into()];
+        let mut a = vec![
+            "render".to_string(),
+            s(&input).into(),
+            "-o".into(),
+            s(&out).into(),
+            "--frames".into(),
+            "1-2".into(),
+            "--spp".into(),
+            "2".into(),
+            "-q".into(),
+            "--overwrite".into(),
+            "--progress".into(),
+            mode.into(),
+        ];
         a.extend(SMALL.iter().map(|x| x.to_string()));
         a
     };
@@ -515,7 +563,23 @@ fn slurm_array_script_renders_tiles_and_sample_splits_then_merges_bit_identicall
     }
     run("merge", Some(0));
     let single = d.join("single.exr");
-    let o = plume(&["render", s(&d.join("ex.####.vdb")), "-o", s(&single), "--frames", "7", "--spp", "5", "--width", "30", "--height", "20", "--density-scale", "3", "-q"]);
+    let o = plume(&[
+        "render",
+        s(&d.join("ex.####.vdb")),
+        "-o",
+        s(&single),
+        "--frames",
+        "7",
+        "--spp",
+        "5",
+        "--width",
+        "30",
+        "--height",
+        "20",
+        "--density-scale",
+        "3",
+        "-q",
+    ]);
     assert!(o.status.success());
     assert_eq!(bits(&d.join("beauty.0007.exr")), bits(&single));
 }

@@ -195,9 +195,7 @@ fn brute_direction_pdf(proxy: &ProxyGrid, index_from_world: DAffine3, x: DVec3, 
             crossings[a].iter().filter(|c| c.1 >= t).map(|c| c.0).max().unwrap_or(-1)
         }
     };
-    let mut ts: Vec<f64> = std::iter::once(0.0)
-        .chain(crossings.iter().flatten().map(|c| c.1).filter(|&t| t > 0.0))
-        .collect();
+    let mut ts: Vec<f64> = std::iter::once(0.0).chain(crossings.iter().flatten().map(|c| c.1).filter(|&t| t > 0.0)).collect();
     ts.sort_by(f64::total_cmp);
     let mut sum = 0.0;
     for pair in ts.windows(2) {
@@ -357,11 +355,7 @@ fn cone_of_grid(proxy: &ProxyGrid, xf: DAffine3, x: DVec3, pole: DVec3) -> f64 {
     let (_, hi) = proxy.cell_index_bounds(proxy.cell_count() - 1);
     (0..8)
         .map(|i| {
-            let c = DVec3::new(
-                if i & 1 == 0 { lo.x } else { hi.x },
-                if i & 2 == 0 { lo.y } else { hi.y },
-                if i & 4 == 0 { lo.z } else { hi.z },
-            );
+            let c = DVec3::new(if i & 1 == 0 { lo.x } else { hi.x }, if i & 2 == 0 { lo.y } else { hi.y }, if i & 4 == 0 { lo.z } else { hi.z });
             (xf.transform_point3(c) - x).normalize().dot(pole)
         })
         .fold(1.0, f64::min)

@@ -23,7 +23,13 @@ use plume::volume::Volume;
 fn cube(n: i32, size: f64, density: f32, source: f32) -> Volume {
     let xf = DAffine3::from_mat3_translation(DMat3::from_diagonal(DVec3::splat(size / f64::from(8 * n))), DVec3::splat(size / f64::from(16 * n)));
     let origins: Vec<IVec3> = (0..n * n * n).map(|i| IVec3::new(i % n, (i / n) % n, i / (n * n)) * 8).collect();
-    let g = |name: &str, v: f32| FloatGrid { name: name.into(), world_from_index: xf, background: 0.0, origins: origins.clone(), values: vec![v; origins.len() * LEAF_VOXELS] };
+    let g = |name: &str, v: f32| FloatGrid {
+        name: name.into(),
+        world_from_index: xf,
+        background: 0.0,
+        origins: origins.clone(),
+        values: vec![v; origins.len() * LEAF_VOXELS],
+    };
     let e = grid_emission(Convention::Cycles);
     Volume::build(&g("density", density), Some(&g("emission", source)), |v| e.map_source(v)).unwrap()
 }
@@ -105,7 +111,8 @@ fn white_furnace_with_albedo_one_renders_the_environment() {
 fn region_means(scene: &Scene<Volume>, integ: Integrator, spp: u32, runs: u64, seed0: u64) -> Vec<(f64, f64)> {
     let mut per_run: Vec<[f64; 5]> = Vec::new();
     for run in 0..runs {
-        let r = render(scene, &RenderSettings { budget: SampleBudget::Spp(spp), seed: seed0 + run, threads: 0, first_sample: 0, integrator: integ }, &|_, _| {});
+        let r =
+            render(scene, &RenderSettings { budget: SampleBudget::Spp(spp), seed: seed0 + run, threads: 0, first_sample: 0, integrator: integ }, &|_, _| {});
         let px = r.film.average(r.spp);
         let (w, h) = (scene.camera.width as usize, scene.camera.height as usize);
         let mut acc = [0.0f64; 5];
@@ -127,7 +134,14 @@ fn region_means(scene: &Scene<Volume>, integ: Integrator, spp: u32, runs: u64, s
 
 fn explosion_scene(sigma_t: f64, ls: LightSampling, proxy_resolution: u32) -> Scene<Volume> {
     let ex = explosion(&ExplosionParams { resolution: 32, seed: 5, ..Default::default() });
-    let e = Emission { kind: EmissionKind::Blackbody, convention: Convention::Physical, scale: 1e-3, color: Rgb::ONE, temperature_map: TemperatureMap::Kelvin, cutoff_kelvin: 500.0 };
+    let e = Emission {
+        kind: EmissionKind::Blackbody,
+        convention: Convention::Physical,
+        scale: 1e-3,
+        color: Rgb::ONE,
+        temperature_map: TemperatureMap::Kelvin,
+        cutoff_kelvin: 500.0,
+    };
     let vol = Volume::build(&ex.density, Some(&ex.temperature), |v| e.map_source(v)).unwrap();
     let lights = Lights::build(&vol, &e, ls, proxy_resolution).unwrap();
     let cam = Camera::look_at(DVec3::new(0.0, 0.2, -6.5), DVec3::new(0.0, 0.2, 0.0), DVec3::Y, 40.0, 10, 8).unwrap();
@@ -139,7 +153,13 @@ fn every_method_gives_the_same_image_means_on_thin_and_dense_explosions() {
     // Reference: forward-only line integration with many runs. 2 densities × 9 combos × 5
     // regions = 90 comparisons; Šidák at α = 0.01 gives |z| < 3.9 per test; we use 4.
     for sigma_t in [1.5, 25.0] {
-        let reference = region_means(&explosion_scene(sigma_t, LightSampling::None, 8), integrator(Estimator::Line, LightSampling::None, MisHeuristic::Power, 64), 16, 24, 1000);
+        let reference = region_means(
+            &explosion_scene(sigma_t, LightSampling::None, 8),
+            integrator(Estimator::Line, LightSampling::None, MisHeuristic::Power, 64),
+            16,
+            24,
+            1000,
+        );
         assert!(reference[0].0 > 0.0);
         for (est, ls) in COMBOS {
             // Line + classic NEE has no MIS partner, so NEE from vertices inside dense
@@ -168,7 +188,8 @@ fn every_method_gives_the_same_image_means_on_thin_and_dense_explosions() {
 #[test]
 fn proxy_resolution_changes_variance_not_the_mean() {
     let integ = integrator(Estimator::Line, LightSampling::Fnee, MisHeuristic::Power, 64);
-    let results: Vec<_> = [8u32, 16, 32].iter().map(|&r| region_means(&explosion_scene(8.0, LightSampling::Fnee, r), integ, 8, 12, 50 + u64::from(r))).collect();
+    let results: Vec<_> =
+        [8u32, 16, 32].iter().map(|&r| region_means(&explosion_scene(8.0, LightSampling::Fnee, r), integ, 8, 12, 50 + u64::from(r))).collect();
     for other in &results[1..] {
         for ((m, se), (rm, rse)) in other.iter().zip(&results[0]) {
             let z = (m - rm) / (se * se + rse * rse).sqrt();
@@ -185,7 +206,17 @@ fn extreme_phase_albedo_and_density_stay_finite() {
                 let mut scene = explosion_scene(sigma_t, ls, 8);
                 scene.medium.g = g;
                 scene.medium.albedo = albedo;
-                let r = render(&scene, &RenderSettings { budget: SampleBudget::Spp(2), seed: 1, threads: 0, first_sample: 0, integrator: integrator(est, ls, MisHeuristic::Power, 32) }, &|_, _| {});
+                let r = render(
+                    &scene,
+                    &RenderSettings {
+                        budget: SampleBudget::Spp(2),
+                        seed: 1,
+                        threads: 0,
+                        first_sample: 0,
+                        integrator: integrator(est, ls, MisHeuristic::Power, 32),
+                    },
+                    &|_, _| {},
+                );
                 assert_eq!(r.counters.nonfinite_samples, 0, "σ={sigma_t} g={g} a={albedo} {est:?}/{ls:?}");
                 assert!(r.film.average(r.spp).iter().flatten().all(|v| v.is_finite()));
             }
@@ -208,7 +239,14 @@ fn albedo_grid_matches_constant_albedo_and_varies_per_voxel() {
     // A constant albedo grid of 0.8 with medium albedo 1 is bit-identical to medium
     // albedo 0.8 without a grid; a grid of 0 removes all scattering.
     let ex = explosion(&ExplosionParams { resolution: 32, seed: 5, ..Default::default() });
-    let e = Emission { kind: EmissionKind::Blackbody, convention: Convention::Physical, scale: 1e-3, color: Rgb::ONE, temperature_map: TemperatureMap::Kelvin, cutoff_kelvin: 500.0 };
+    let e = Emission {
+        kind: EmissionKind::Blackbody,
+        convention: Convention::Physical,
+        scale: 1e-3,
+        color: Rgb::ONE,
+        temperature_map: TemperatureMap::Kelvin,
+        cutoff_kelvin: 500.0,
+    };
     let albedo_grid = |a: f32| FloatGrid { name: "albedo".into(), values: vec![a; ex.density.values.len()], ..ex.density.clone() };
     let cam = Camera::look_at(DVec3::new(0.0, 0.2, -6.5), DVec3::new(0.0, 0.2, 0.0), DVec3::Y, 40.0, 10, 8).unwrap();
     let render_with = |grid: Option<FloatGrid>, albedo: f32| {

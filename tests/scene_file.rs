@@ -24,9 +24,39 @@ fn ok(o: &std::process::Output) {
 
 /// Flags of a render that exercises most keys (scattering, camera, estimator, lights).
 const FLAGS: &[&str] = &[
-    "--spp", "3", "--width", "40", "--height", "30", "--density-scale", "4", "--albedo", "0.8", "--g", "0.3", "--camera-from", "3,2,6",
-    "--fov", "35", "--estimator", "blend", "--kappa", "2", "--environment", "0.1,0.2,0.3", "--mis", "balance", "--proxy-resolution", "8",
-    "--emission-color", "1,0.5,0.25", "--emission-scale", "1.5", "--seed", "5", "-q",
+    "--spp",
+    "3",
+    "--width",
+    "40",
+    "--height",
+    "30",
+    "--density-scale",
+    "4",
+    "--albedo",
+    "0.8",
+    "--g",
+    "0.3",
+    "--camera-from",
+    "3,2,6",
+    "--fov",
+    "35",
+    "--estimator",
+    "blend",
+    "--kappa",
+    "2",
+    "--environment",
+    "0.1,0.2,0.3",
+    "--mis",
+    "balance",
+    "--proxy-resolution",
+    "8",
+    "--emission-color",
+    "1,0.5,0.25",
+    "--emission-scale",
+    "1.5",
+    "--seed",
+    "5",
+    "-q",
 ];
 
 #[test]
@@ -117,7 +147,8 @@ fn flags_beside_a_scene_file_override_its_keys() {
     let dir = tmpdir("scene", "override");
     let vdb = explosion(&dir);
     let shot = dir.join("shot.toml");
-    std::fs::write(&shot, "[volume]\nfile = \"ex.vdb\"\n[camera]\nwidth = 40\nheight = 30\n[render]\nspp = 2\nquiet = true\n[output]\nimage = \"a.exr\"\n").unwrap();
+    std::fs::write(&shot, "[volume]\nfile = \"ex.vdb\"\n[camera]\nwidth = 40\nheight = 30\n[render]\nspp = 2\nquiet = true\n[output]\nimage = \"a.exr\"\n")
+        .unwrap();
     let by_flags = dir.join("flags.exr");
     ok(&plume(&["render", s(&vdb), "-o", s(&by_flags), "--width", "40", "--height", "30", "--spp", "4", "--density-scale", "3", "-q"]));
     let over = dir.join("over.exr");

@@ -42,10 +42,7 @@ fn malformed_bbox_files_are_empty_grids() {
 #[test]
 fn truncated_file_is_an_error() {
     let path = data("edge_cases/malformed/oiio_truncated.vdb");
-    for result in [
-        list_grids(&path).map(|_| ()),
-        read_float_grid(&path, &"huge".parse().unwrap(), &ReadLimits::default()).map(|_| ()),
-    ] {
+    for result in [list_grids(&path).map(|_| ()), read_float_grid(&path, &"huge".parse().unwrap(), &ReadLimits::default()).map(|_| ())] {
         match result {
             Err(Error::Vdb { message, .. }) => {
                 assert!(message.contains("truncated"), "{message}");
@@ -67,8 +64,7 @@ fn file_truncated_in_leaf_data_is_an_error() {
         for percent in [30, 60, 99] {
             let path = dir.join(format!("{percent}.vdb"));
             fs::write(&path, &bytes[..bytes.len() * percent / 100]).unwrap();
-            let result =
-                read_float_grid(&path, &GridSelector::first("density"), &ReadLimits::default());
+            let result = read_float_grid(&path, &GridSelector::first("density"), &ReadLimits::default());
             match result {
                 Err(Error::Vdb { message, .. }) => {
                     assert!(message.contains("truncated"), "{message}")
@@ -83,11 +79,7 @@ fn file_truncated_in_leaf_data_is_an_error() {
 #[test]
 fn nanovdb_file_gets_a_clear_error() {
     let path = data("nanovdb/openvdb_fvdb_smoke-blosc.nvdb");
-    for error in [
-        list_grids(&path).unwrap_err(),
-        read_float_grid(&path, &GridSelector::first("density"), &ReadLimits::default())
-            .unwrap_err(),
-    ] {
+    for error in [list_grids(&path).unwrap_err(), read_float_grid(&path, &GridSelector::first("density"), &ReadLimits::default()).unwrap_err()] {
         assert!(matches!(error, Error::Vdb { .. }), "{error:?}");
         let message = error.to_string();
         assert!(message.contains("NanoVDB") && message.contains("nanovdb_convert"), "{message}");
@@ -115,8 +107,7 @@ fn memory_limit_is_checked_before_allocating() {
 fn missing_paths_and_grids() {
     let missing = data("no/such/file.vdb");
     assert!(matches!(list_grids(&missing), Err(Error::Open { .. })));
-    let error = read_float_grid(&missing, &GridSelector::first("density"), &ReadLimits::default())
-        .unwrap_err();
+    let error = read_float_grid(&missing, &GridSelector::first("density"), &ReadLimits::default()).unwrap_err();
     assert!(matches!(error, Error::Open { .. }), "{error:?}");
     assert!(error.to_string().contains("file.vdb"));
 

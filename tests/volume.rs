@@ -9,8 +9,6 @@ use plume::volume::field::Ray;
 use plume::volume::{Field, Volume};
 use proptest::prelude::*;
 
-
-
 /// Random volume: some dense leaves, some constant, some with zeros.
 fn random_volume(seed: u32, xf: DAffine3) -> Volume {
     let mut leaves = Vec::new();
@@ -27,15 +25,22 @@ fn random_volume(seed: u32, xf: DAffine3) -> Volume {
     let d = grid("density", xf, &leaves, |p| {
         let h = hash(p, seed + 1);
         match hash(p.div_euclid(IVec3::splat(8)), seed + 2) % 4 {
-            0 => 0.5,                                      // constant leaf
-            1 => 0.0,                                      // zero leaf
-            _ => if h % 5 == 0 { 0.0 } else { (h % 1000) as f32 / 100.0 },
+            0 => 0.5, // constant leaf
+            1 => 0.0, // zero leaf
+            _ => {
+                if h % 5 == 0 {
+                    0.0
+                } else {
+                    (h % 1000) as f32 / 100.0
+                }
+            }
         }
     });
     let s = grid("temperature", xf, &leaves, |p| if hash(p, seed + 3) % 2 == 0 { 1000.0 } else { 0.0 });
     // Albedo: constant 0.5 in some leaves, varying in others, absent elsewhere (→ 1).
     let a_leaves: Vec<IVec3> = leaves.iter().copied().filter(|o| hash(*o, seed + 4) % 3 != 0).collect();
-    let a = grid("albedo", xf, &a_leaves, |p| if hash(p.div_euclid(IVec3::splat(8)), seed + 5) % 2 == 0 { 0.5 } else { (hash(p, seed + 6) % 100) as f32 / 99.0 });
+    let a =
+        grid("albedo", xf, &a_leaves, |p| if hash(p.div_euclid(IVec3::splat(8)), seed + 5) % 2 == 0 { 0.5 } else { (hash(p, seed + 6) % 100) as f32 / 99.0 });
     Volume::build_with_albedo(&d, Some(&s), |v| v, Some(&a)).unwrap()
 }
 

@@ -81,9 +81,22 @@ fn integrator_for(scene: &BenchScene, estimator: Estimator, light_sampling: Ligh
 pub fn read_reference(path: &std::path::Path, scene: &BenchScene) -> Result<Reference> {
     let crate::output::RgbaImage { width: w, height: h, pixels } = crate::output::read_exr(path)?;
     if (w, h) != (scene.shot.scene.camera.width, scene.shot.scene.camera.height) {
-        return Err(Error::invalid("--reference", format!("{} is {w}x{h}, the scene renders {}x{}", path.display(), scene.shot.scene.camera.width, scene.shot.scene.camera.height)));
+        return Err(Error::invalid(
+            "--reference",
+            format!("{} is {w}x{h}, the scene renders {}x{}", path.display(), scene.shot.scene.camera.width, scene.shot.scene.camera.height),
+        ));
     }
-    Ok(Reference { pixels, width: w, height: h, description: format!("given: {}", path.display()), method: "given".into(), spp: 0, cpu_seconds: 0.0, wall_seconds: 0.0, noise_rmse: None })
+    Ok(Reference {
+        pixels,
+        width: w,
+        height: h,
+        description: format!("given: {}", path.display()),
+        method: "given".into(),
+        spp: 0,
+        cpu_seconds: 0.0,
+        wall_seconds: 0.0,
+        noise_rmse: None,
+    })
 }
 
 /// Compute a reference with `cpu_seconds` CPU seconds (see the module docs).
@@ -116,7 +129,17 @@ pub fn make_reference(scene: &mut BenchScene, cpu_seconds: f64, on_line: &dyn Fn
     let wall = wall.elapsed().as_secs_f64();
     let description = format!("computed: {why}; {spp} spp in {cpu:.1} CPU s ({wall:.1} s wall), two halves with seeds unused by the runs");
     on_line(&format!("reference: {description}; estimated own RMSE {noise:.4e}"));
-    Ok(Reference { pixels, width: scene.shot.scene.camera.width, height: scene.shot.scene.camera.height, description, method: method.into(), spp, cpu_seconds: cpu, wall_seconds: wall, noise_rmse: Some(noise) })
+    Ok(Reference {
+        pixels,
+        width: scene.shot.scene.camera.width,
+        height: scene.shot.scene.camera.height,
+        description,
+        method: method.into(),
+        spp,
+        cpu_seconds: cpu,
+        wall_seconds: wall,
+        noise_rmse: Some(noise),
+    })
 }
 
 /// Settings of a comparison.
@@ -255,14 +278,20 @@ pub fn compare(scene: &mut BenchScene, reference: &Reference, cfg: &CompareConfi
     let mut raw: Vec<(MethodResult, Vec<RunResult>)> = Vec::new();
     for m in &cfg.methods {
         let per_method = reset_peak_rss();
-        let proxy = crate::volume::proxy::ProxyGrid::resolution_for(&scene.loaded.scene.field, m.proxy_resolution.or(scene.shot.scene.integrator.proxy_resolution));
+        let proxy =
+            crate::volume::proxy::ProxyGrid::resolution_for(&scene.loaded.scene.field, m.proxy_resolution.or(scene.shot.scene.integrator.proxy_resolution));
         let t = Instant::now();
         let light_bytes = install_lights(scene, m.light_sampling, proxy)?;
         let light_build_seconds = t.elapsed().as_secs_f64();
         let integ = integrator_for(scene, m.estimator, m.light_sampling);
         let mut runs = Vec::new();
         for r in 0..cfg.runs {
-            let plan = RunPlan { cpu_checkpoints: curve.clone(), min_spp: cfg.spp.map_or(1, u64::from), seed: scene.shot.settings.render.seed.unwrap_or(0) + u64::from(r), threads: scene.shot.settings.render.threads };
+            let plan = RunPlan {
+                cpu_checkpoints: curve.clone(),
+                min_spp: cfg.spp.map_or(1, u64::from),
+                seed: scene.shot.settings.render.seed.unwrap_or(0) + u64::from(r),
+                threads: scene.shot.settings.render.threads,
+            };
             let res = progressive::run(&scene.loaded.scene, &integ, &plan, Some(&reference.pixels), cfg.epsilon);
             let last = res.time_points.last().copied();
             if let Some(s) = last {
@@ -341,6 +370,10 @@ impl CompareReport {
     /// Errors of a method's equal-time images as [`Errors`] means (for summaries).
     #[must_use]
     pub fn equal_time_errors(&self, method: &str) -> Option<Errors> {
-        self.methods.iter().find(|m| m.method == method).map(|m| Errors { rmse: m.equal_time.rmse.mean, relmse: m.equal_time.relmse.mean, bias: m.equal_time.bias.mean })
+        self.methods.iter().find(|m| m.method == method).map(|m| Errors {
+            rmse: m.equal_time.rmse.mean,
+            relmse: m.equal_time.relmse.mean,
+            bias: m.equal_time.bias.mean,
+        })
     }
 }

@@ -15,15 +15,15 @@ use std::time::Instant;
 use glam::DVec3;
 use serde::Serialize;
 
-use crate::load::load_scene;
 use crate::camera::Camera;
-use crate::scene::Shot;
 use crate::color::Rgb;
 use crate::error::Result;
 use crate::integrator::{Integrator, Scene};
+use crate::load::load_scene;
 use crate::medium::{Convention, Emission, EmissionKind, Estimator, Medium, TemperatureMap};
 use crate::render::{render, RenderSettings, SampleBudget};
 use crate::sampling::Sampler;
+use crate::scene::Shot;
 use crate::synth::{explosion, ExplosionParams};
 use crate::vdb::LEAF_VOXELS;
 use crate::volume::field::Ray;
@@ -130,13 +130,8 @@ pub fn run(resolution: u32, threads: usize, ttfs_file: &Path) -> Result<CoreRepo
     let camera = Camera::frame_bounds(lo, hi, DVec3::new(0.35, 0.25, 1.0), DVec3::Y, 40.0, 320, 240)?;
     let scene = Scene { field: volume, medium: Medium { sigma_t: 4.0, albedo: 0.0, g: 0.0, emission: em }, camera, lights: Default::default() };
     let time_render = |threads: usize| {
-        let settings = RenderSettings {
-            budget: SampleBudget::Spp(8),
-            seed: 0,
-            threads,
-            first_sample: 0,
-            integrator: Integrator::emission_only(Estimator::Line),
-        };
+        let settings =
+            RenderSettings { budget: SampleBudget::Spp(8), seed: 0, threads, first_sample: 0, integrator: Integrator::emission_only(Estimator::Line) };
         let t = Instant::now();
         let r = render(&scene, &settings, &|_, _| {});
         std::hint::black_box(r.spp);
@@ -182,8 +177,18 @@ impl std::fmt::Display for CoreReport {
         writeln!(f, "|---|---|---|")?;
         writeln!(f, "| voxel steps per second, 1 core, camera rays in tile order | {:.1} M | ≥ 20 M |", self.coherent_voxel_steps_per_second_millions)?;
         writeln!(f, "| voxel steps per second, 1 core, random incoherent chords | {:.1} M | (worst case) |", self.voxel_steps_per_second_millions)?;
-        writeln!(f, "| render speed-up, {} threads vs 1 | {:.2}× ({:.2} s → {:.2} s) | ≥ 1.8× |", self.threads, self.speedup, self.render_seconds_1_thread, self.render_seconds_n_threads)?;
+        writeln!(
+            f,
+            "| render speed-up, {} threads vs 1 | {:.2}× ({:.2} s → {:.2} s) | ≥ 1.8× |",
+            self.threads, self.speedup, self.render_seconds_1_thread, self.render_seconds_n_threads
+        )?;
         writeln!(f, "| time to first sample, {} | {:.3} s | < 0.5 s |", self.ttfs_file, self.time_to_first_sample_seconds)?;
-        writeln!(f, "| brick memory / raw f32 voxel data | {:.2} ({:.1} MiB / {:.1} MiB) | ≤ 1.5 |", self.memory_ratio, self.volume_bytes as f64 / 1048576.0, self.raw_bytes as f64 / 1048576.0)
+        writeln!(
+            f,
+            "| brick memory / raw f32 voxel data | {:.2} ({:.1} MiB / {:.1} MiB) | ≤ 1.5 |",
+            self.memory_ratio,
+            self.volume_bytes as f64 / 1048576.0,
+            self.raw_bytes as f64 / 1048576.0
+        )
     }
 }

@@ -95,12 +95,8 @@ pub struct ExtremesReport {
     pub seconds: f64,
 }
 
-const EMISSION_ONLY: [(&str, Estimator); 4] = [
-    ("ray-march", Estimator::RayMarch),
-    ("line", Estimator::Line),
-    ("point", Estimator::Point),
-    ("blend", Estimator::Blend { kappa: 4.0 }),
-];
+const EMISSION_ONLY: [(&str, Estimator); 4] =
+    [("ray-march", Estimator::RayMarch), ("line", Estimator::Line), ("point", Estimator::Point), ("blend", Estimator::Blend { kappa: 4.0 })];
 
 /// A grid of `n³` voxels (from index 0) with voxel edge `h`, centred on the origin.
 #[must_use]
@@ -246,7 +242,12 @@ fn density_sweep(cfg: &ExtremesConfig, check: &mut Check) -> Result<()> {
     for k in -6..=6 {
         let sigma = 10f64.powi(k);
         let vol = Volume::build(&dens, Some(&src), |v| emission.map_source(v))?;
-        let mut scene = Scene { field: vol, medium: Medium { sigma_t: sigma, albedo: 0.0, g: 0.0, emission }, camera: box_camera(1.0, cfg.size)?, lights: Lights::default() };
+        let mut scene = Scene {
+            field: vol,
+            medium: Medium { sigma_t: sigma, albedo: 0.0, g: 0.0, emission },
+            camera: box_camera(1.0, cfg.size)?,
+            lights: Lights::default(),
+        };
         let depth = sigma; // μ d with ρ = 1, d = 1 m
         let expected = phi(depth); // L_e d φ(μd) with L_e = 1, d = 1
         let case = format!("σ_t = 1e{k}");
@@ -288,10 +289,22 @@ fn temperature_sweep(cfg: &ExtremesConfig, check: &mut Check) -> Result<()> {
     let temp = box_grid("temperature", n, h, |_| 1.0);
     for t in [300.0f64, 1e3, 1e4, 1e5, 1e6, 1e7] {
         let map: TemperatureMap = format!("linear:0,{t}").parse()?;
-        let emission = Emission { kind: EmissionKind::Blackbody, convention: Convention::Physical, scale: 1.0, color: Rgb::ONE, temperature_map: map, cutoff_kelvin: 500.0 };
+        let emission = Emission {
+            kind: EmissionKind::Blackbody,
+            convention: Convention::Physical,
+            scale: 1.0,
+            color: Rgb::ONE,
+            temperature_map: map,
+            cutoff_kelvin: 500.0,
+        };
         let vol = Volume::build(&dens, Some(&temp), |v| emission.map_source(v))?;
         let sigma = 1.0;
-        let scene = Scene { field: vol, medium: Medium { sigma_t: sigma, albedo: 0.0, g: 0.0, emission }, camera: box_camera(1.0, cfg.size)?, lights: Lights::default() };
+        let scene = Scene {
+            field: vol,
+            medium: Medium { sigma_t: sigma, albedo: 0.0, g: 0.0, emission },
+            camera: box_camera(1.0, cfg.size)?,
+            lights: Lights::default(),
+        };
         let c = if t < 500.0 { [0.0; 3] } else { blackbody_rgb_exact(t) };
         let expected = (c[0] + c[1] + c[2]) / 3.0 * phi(sigma);
         for (name, est) in &EMISSION_ONLY[..3] {
@@ -310,7 +323,14 @@ fn explosion_at(ex: &crate::synth::Explosion, h: f64, h0: f64, size: u32) -> Res
         g
     };
     let (d, t) = (rescale(&ex.density), rescale(&ex.temperature));
-    let emission = Emission { kind: EmissionKind::Blackbody, convention: Convention::Physical, scale: (h0 / h) as f32, color: Rgb::ONE, temperature_map: TemperatureMap::Kelvin, cutoff_kelvin: 500.0 };
+    let emission = Emission {
+        kind: EmissionKind::Blackbody,
+        convention: Convention::Physical,
+        scale: (h0 / h) as f32,
+        color: Rgb::ONE,
+        temperature_map: TemperatureMap::Kelvin,
+        cutoff_kelvin: 500.0,
+    };
     let vol = Volume::build(&d, Some(&t), |v| emission.map_source(v))?;
     let crate::volume::Bounds3 { lo, hi } = vol.world_bounds();
     let camera = Camera::frame_bounds(lo, hi, DVec3::new(0.35, 0.25, 1.0), DVec3::Y, 40.0, size, size)?;

@@ -73,7 +73,14 @@ pub struct MethodsReport {
 
 fn scene(resolution: u32, sigma_t: f64, ls: LightSampling, width: u32, height: u32, proxy: u32) -> Result<Scene<Volume>> {
     let ex = explosion(&ExplosionParams { resolution, seed: 1, ..Default::default() });
-    let e = Emission { kind: EmissionKind::Blackbody, convention: Convention::Physical, scale: 1.0, color: Rgb::ONE, temperature_map: TemperatureMap::Kelvin, cutoff_kelvin: 500.0 };
+    let e = Emission {
+        kind: EmissionKind::Blackbody,
+        convention: Convention::Physical,
+        scale: 1.0,
+        color: Rgb::ONE,
+        temperature_map: TemperatureMap::Kelvin,
+        cutoff_kelvin: 500.0,
+    };
     let vol = Volume::build(&ex.density, Some(&ex.temperature), |v| e.map_source(v))?;
     let lights = Lights::build(&vol, &e, ls, proxy.min(resolution.next_power_of_two()))?;
     let crate::volume::Bounds3 { lo, hi } = vol.world_bounds();
@@ -107,20 +114,45 @@ pub fn parse_regimes(list: &str) -> Result<Vec<(String, f64)>> {
 /// # Errors
 /// Scene construction failures (not expected for generated data).
 #[allow(clippy::too_many_arguments)] // one flag each
-pub fn run(resolution: u32, width: u32, height: u32, seconds: f64, reference_seconds: f64, threads: usize, mis: MisHeuristic, proxy: u32, regimes: &[(&str, f64)], on_line: &dyn Fn(&str)) -> Result<MethodsReport> {
+pub fn run(
+    resolution: u32,
+    width: u32,
+    height: u32,
+    seconds: f64,
+    reference_seconds: f64,
+    threads: usize,
+    mis: MisHeuristic,
+    proxy: u32,
+    regimes: &[(&str, f64)],
+    on_line: &dyn Fn(&str),
+) -> Result<MethodsReport> {
     let mut results = Vec::new();
     let mut reference_spp = Vec::new();
     for &(regime, sigma_t) in regimes {
         let s = scene(resolution, sigma_t, LightSampling::Fnee, width, height, 64)?;
         let t = Instant::now();
-        let reference = render(&s, &RenderSettings { budget: SampleBudget::CpuTime(reference_seconds), seed: 1_000_003, threads, first_sample: 0, integrator: integrator(Estimator::Line, LightSampling::Fnee, MisHeuristic::Power) }, &|_, _| {});
+        let reference = render(
+            &s,
+            &RenderSettings {
+                budget: SampleBudget::CpuTime(reference_seconds),
+                seed: 1_000_003,
+                threads,
+                first_sample: 0,
+                integrator: integrator(Estimator::Line, LightSampling::Fnee, MisHeuristic::Power),
+            },
+            &|_, _| {},
+        );
         on_line(&format!("{regime}: reference line-fnee {} spp in {:.0} s", reference.spp, t.elapsed().as_secs_f64()));
         reference_spp.push((regime.to_string(), reference.spp));
         let ref_px = reference.film.average(reference.spp);
         for (name, est, ls) in METHODS {
             let s = scene(resolution, sigma_t, ls, width, height, proxy)?;
             let cpu0 = cpu_seconds();
-            let r = render(&s, &RenderSettings { budget: SampleBudget::CpuTime(seconds), seed: 7, threads, first_sample: 0, integrator: integrator(est, ls, mis) }, &|_, _| {});
+            let r = render(
+                &s,
+                &RenderSettings { budget: SampleBudget::CpuTime(seconds), seed: 7, threads, first_sample: 0, integrator: integrator(est, ls, mis) },
+                &|_, _| {},
+            );
             let cpu = cpu_seconds() - cpu0;
             let res = MethodResult {
                 regime: regime.into(),
@@ -144,7 +176,17 @@ impl std::fmt::Display for MethodsReport {
         writeln!(f, "|---|---|---|---|---|---|---|")?;
         for r in &self.results {
             let base = self.results.iter().find(|b| b.regime == r.regime && b.method == "point-nee").map_or(f64::NAN, |b| b.rmse);
-            writeln!(f, "| {} | {} | {:.5} | {:.2} | {} | {:.0} | {:.5} |", r.regime, r.method, r.rmse, r.rmse / base, r.spp, r.samples_per_cpu_second, r.core_hours)?;
+            writeln!(
+                f,
+                "| {} | {} | {:.5} | {:.2} | {} | {:.0} | {:.5} |",
+                r.regime,
+                r.method,
+                r.rmse,
+                r.rmse / base,
+                r.spp,
+                r.samples_per_cpu_second,
+                r.core_hours
+            )?;
         }
         Ok(())
     }

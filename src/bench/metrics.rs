@@ -59,11 +59,7 @@ pub fn rmse(x: &[[f32; 4]], reference: &[[f32; 4]]) -> f64 {
     if x.is_empty() {
         return 0.0;
     }
-    let s: f64 = x
-        .iter()
-        .zip(reference)
-        .flat_map(|(p, q)| (0..3).map(move |c| (f64::from(p[c]) - f64::from(q[c])).powi(2)))
-        .sum();
+    let s: f64 = x.iter().zip(reference).flat_map(|(p, q)| (0..3).map(move |c| (f64::from(p[c]) - f64::from(q[c])).powi(2))).sum();
     (s / (3 * x.len()) as f64).sqrt()
 }
 

@@ -114,7 +114,8 @@ impl ExtremesOptions {
     /// # Errors
     /// A failed check, or an unwritable JSON file.
     pub fn run(&self) -> Result<()> {
-        let cfg = super::extremes::ExtremesConfig { box_voxels: self.box_voxels, explosion_resolution: self.explosion_resolution, size: self.size, spp: self.spp };
+        let cfg =
+            super::extremes::ExtremesConfig { box_voxels: self.box_voxels, explosion_resolution: self.explosion_resolution, size: self.size, spp: self.spp };
         let report = super::extremes::run(&cfg)?;
         print!("{}", report.table());
         if let Some(p) = &self.json {

@@ -37,7 +37,11 @@ pub fn label(v: f64) -> String {
     }
     let decimals = (2 - a.log10().floor() as i32).max(0) as usize;
     let s = format!("{v:.decimals$}");
-    if s.contains('.') { s.trim_end_matches('0').trim_end_matches('.').to_string() } else { s }
+    if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        s
+    }
 }
 
 /// `mean ± std` with [`num`].
@@ -70,7 +74,11 @@ impl CompareReport {
     pub fn equal_time_table(&self) -> String {
         let mut s = String::new();
         let base = &self.methods[0];
-        let _ = writeln!(s, "| method | CPU s | spp | RMSE | RMSE / {} | relMSE | bias | samples / CPU s | core-h | efficiency vs {} | peak RSS MiB |", base.method, base.method);
+        let _ = writeln!(
+            s,
+            "| method | CPU s | spp | RMSE | RMSE / {} | relMSE | bias | samples / CPU s | core-h | efficiency vs {} | peak RSS MiB |",
+            base.method, base.method
+        );
         let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|---|");
         for m in &self.methods {
             let e = &m.equal_time;
@@ -126,7 +134,16 @@ impl CompareReport {
         let _ = writeln!(s, "|---|---|---|---|---|---|");
         for m in &self.methods {
             let proxy = m.proxy_resolution.map_or("–".into(), |p| format!("{p}³"));
-            let _ = writeln!(s, "| {} | {} | {:.3} | {} | {} | {} |", m.method, proxy, m.light_build_seconds, mib(m.scene_bytes), mib(m.peak_rss_bytes), m.nonfinite_samples);
+            let _ = writeln!(
+                s,
+                "| {} | {} | {:.3} | {} | {} | {} |",
+                m.method,
+                proxy,
+                m.light_build_seconds,
+                mib(m.scene_bytes),
+                mib(m.peak_rss_bytes),
+                m.nonfinite_samples
+            );
         }
         s
     }
@@ -135,7 +152,13 @@ impl CompareReport {
     #[must_use]
     pub fn setup(&self) -> String {
         let r = &self.reference;
-        let noise = r.noise_rmse.map_or(String::new(), |n| format!(" Its own estimated RMSE is {} ({:.1} % of the smallest method RMSE at equal time; included in every RMSE below).", num(n), 100.0 * n / self.methods.iter().map(|m| m.equal_time.rmse.mean).fold(f64::INFINITY, f64::min)));
+        let noise = r.noise_rmse.map_or(String::new(), |n| {
+            format!(
+                " Its own estimated RMSE is {} ({:.1} % of the smallest method RMSE at equal time; included in every RMSE below).",
+                num(n),
+                100.0 * n / self.methods.iter().map(|m| m.equal_time.rmse.mean).fold(f64::INFINITY, f64::min)
+            )
+        });
         format!(
             "Scene `{}` with `{}`, {}x{}, {} threads, {}. {} runs (seeds) per method of {} CPU s each; equal spp = {}. \
              Reference: {}.{} relMSE: ε = {}, top {} % of pixel errors trimmed. Mean reference value {}.",

@@ -162,7 +162,11 @@ pub fn loglog_panels(path: &Path, panels: &[(&str, &str, &str, Vec<Series>)], pa
                     .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], c.stroke_width(2)));
                 chart.draw_series(good.iter().map(|p| Circle::new((p.0, p.1), 3, c.filled()))).map_err(plot_err)?;
                 chart
-                    .draw_series(good.iter().filter(|p| p.2 > 0.0).map(|p| ErrorBar::new_vertical(p.0, (p.1 - p.2).max(p.1 * 0.5), p.1, p.1 + p.2, c.stroke_width(1), 6)))
+                    .draw_series(
+                        good.iter()
+                            .filter(|p| p.2 > 0.0)
+                            .map(|p| ErrorBar::new_vertical(p.0, (p.1 - p.2).max(p.1 * 0.5), p.1, p.1 + p.2, c.stroke_width(1), 6)),
+                    )
                     .map_err(plot_err)?;
             }
             chart
@@ -190,21 +194,20 @@ pub fn error_vs_time(report: &CompareReport, path: &Path) -> Result<()> {
             .iter()
             .map(|m| Series {
                 label: m.method.clone(),
-                points: m.curve.iter().map(|p| {
-                    let (y, sd) = f(p);
-                    (p.cpu_seconds.mean, y, sd)
-                }).collect(),
+                points: m
+                    .curve
+                    .iter()
+                    .map(|p| {
+                        let (y, sd) = f(p);
+                        (p.cpu_seconds.mean, y, sd)
+                    })
+                    .collect(),
             })
             .collect()
     };
     let rmse = series(&|p| (p.rmse.mean, p.rmse.std));
     let rel = series(&|p| (p.relmse.mean, p.relmse.std));
-    loglog_panels(
-        path,
-        &[("RMSE vs CPU time", "CPU seconds", "RMSE", rmse), ("relMSE vs CPU time", "CPU seconds", "relMSE (trimmed)", rel)],
-        440,
-        330,
-    )
+    loglog_panels(path, &[("RMSE vs CPU time", "CPU seconds", "RMSE", rmse), ("relMSE vs CPU time", "CPU seconds", "relMSE (trimmed)", rel)], 440, 330)
 }
 
 fn srgb8(v: f32) -> u8 {
@@ -267,7 +270,8 @@ pub fn crop_montage(report: &CompareReport, path: &Path) -> Result<()> {
         for (k, (name, sub, _)) in tiles.iter().enumerate() {
             let (ox, oy) = (gap + (k % cols) * (tile + gap), gap + (k / cols) * (tile + label_h + gap) + tile);
             root.draw(&Text::new(name.clone(), (ox as i32 + 2, oy as i32 + 2), ("sans-serif", 14).into_font().color(&BLACK))).map_err(plot_err)?;
-            root.draw(&Text::new(sub.clone(), (ox as i32 + 2, oy as i32 + 18), ("sans-serif", 12).into_font().color(&RGBColor(70, 70, 70)))).map_err(plot_err)?;
+            root.draw(&Text::new(sub.clone(), (ox as i32 + 2, oy as i32 + 18), ("sans-serif", 12).into_font().color(&RGBColor(70, 70, 70))))
+                .map_err(plot_err)?;
         }
         root.present().map_err(plot_err)?;
     }

@@ -15,8 +15,8 @@
 use std::fmt::Write as _;
 use std::time::Instant;
 
-use super::options::ReportOptions;
 use super::compare::{compare, make_reference, CompareConfig, CompareReport, Reference};
+use super::options::ReportOptions;
 use super::outputs::num;
 use super::plot::{loglog_panels, Series};
 use super::spec::{bench_shot, load, parse_methods, BenchScene};
@@ -117,12 +117,24 @@ impl Suite<'_> {
         let _ = writeln!(md, "## {title}\n\n{intro}\n");
         let _ = writeln!(md, "{}\n", report.setup());
         let _ = writeln!(md, "Reproduce this section alone:\n\n```sh\n{command}\n```\n");
-        let _ = writeln!(md, "**Equal CPU time** ({} CPU s per run, mean ± std over {} seeds):\n\n{}", num(report.cpu_seconds_per_run), report.runs, report.equal_time_table());
+        let _ = writeln!(
+            md,
+            "**Equal CPU time** ({} CPU s per run, mean ± std over {} seeds):\n\n{}",
+            num(report.cpu_seconds_per_run),
+            report.runs,
+            report.equal_time_table()
+        );
         let _ = writeln!(md, "**Equal spp** ({} spp, the largest power of two every run reached):\n\n{}", report.equal_spp, report.equal_spp_table());
         let _ = writeln!(md, "**Cost of the light structures** (built once per method, outside the render budget):\n\n{}", report.cost_table());
         let best = report.methods.iter().max_by(|a, b| report.efficiency(a).total_cmp(&report.efficiency(b)));
         if let Some(b) = best {
-            let _ = writeln!(md, "Most efficient at equal CPU time: `{}` ({:.2}× the efficiency of `{}`).\n", b.method, report.efficiency(b), report.methods[0].method);
+            let _ = writeln!(
+                md,
+                "Most efficient at equal CPU time: `{}` ({:.2}× the efficiency of `{}`).\n",
+                b.method,
+                report.efficiency(b),
+                report.methods[0].method
+            );
         }
         let growing: Vec<&str> = report
             .methods
@@ -158,7 +170,8 @@ fn ratio_line(regime: &str, r: &CompareReport) -> String {
                 "| {regime} | {:.3} ± {:.3} | {corrected:.3} | {:.3} | {:.2}× | {} vs {} | {:.3} |",
                 f.equal_time.rmse.mean / p.equal_time.rmse.mean,
                 // Spread of the ratio from the relative spreads (independent runs)
-                (f.equal_time.rmse.mean / p.equal_time.rmse.mean) * ((f.equal_time.rmse.std / f.equal_time.rmse.mean).powi(2) + (p.equal_time.rmse.std / p.equal_time.rmse.mean).powi(2)).sqrt(),
+                (f.equal_time.rmse.mean / p.equal_time.rmse.mean)
+                    * ((f.equal_time.rmse.std / f.equal_time.rmse.mean).powi(2) + (p.equal_time.rmse.std / p.equal_time.rmse.mean).powi(2)).sqrt(),
                 f.equal_spp.rmse.mean / p.equal_spp.rmse.mean,
                 r.efficiency(f) / r.efficiency(p),
                 super::outputs::pm_count(&f.equal_time.spp),

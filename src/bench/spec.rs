@@ -16,10 +16,10 @@ use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
 use crate::error::{Error, Result};
-use crate::load::{load_scene, LoadedScene};
-use crate::scene::Shot;
 use crate::integrator::LightSampling;
+use crate::load::{load_scene, LoadedScene};
 use crate::medium::Estimator;
+use crate::scene::Shot;
 
 /// One method of a comparison.
 #[derive(Clone, Debug, PartialEq)]

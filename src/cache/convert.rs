@@ -18,11 +18,11 @@ use super::format::InputFingerprint;
 use super::reader::Cache;
 use super::writer::{CacheInfo, CacheWriter, ProxySpec};
 use crate::error::{Error, Result};
-use crate::scene::bind::{emission_kind, grid_requests, memory_budget, reader, unit_emission_model};
-use crate::stats::GIB;
-use crate::scene::{EmissionSettings, EmissionSource, JobSettings, ReadSettings, SceneDescription, VolumeInput};
 use crate::integrator::{light_power, LightSampling};
 use crate::medium::EmissionKind;
+use crate::scene::bind::{emission_kind, grid_requests, memory_budget, reader, unit_emission_model};
+use crate::scene::{EmissionSettings, EmissionSource, JobSettings, ReadSettings, SceneDescription, VolumeInput};
+use crate::stats::GIB;
 use crate::vdb::{GridSelector, LeafData, ReadIsolation, ReadLimits, StreamedGrid};
 use crate::volume::brick::{brick_of, check_same_transform, table_dims, Channel, Slot};
 use crate::volume::Volume;
@@ -252,10 +252,7 @@ pub fn check_not_stale(cache: &Cache) -> Result<()> {
     let Some(input) = &cache.meta.input else { return Ok(()) };
     let Ok(now) = fingerprint(Path::new(&input.path)) else { return Ok(()) };
     if now.size != input.size || now.mtime_ns != input.mtime_ns {
-        return Err(Error::Cache {
-            path: cache.path.clone(),
-            what: format!("stale: {} changed since it was prepared; run `plume prepare` again", input.path),
-        });
+        return Err(Error::Cache { path: cache.path.clone(), what: format!("stale: {} changed since it was prepared; run `plume prepare` again", input.path) });
     }
     Ok(())
 }
@@ -304,8 +301,15 @@ fn auto_cache_path(scene: &SceneDescription, input: &Path, settings: &JobSetting
     // so caches made then are still found
     let key = format!(
         "{}|{:?}|{}|{:?}|{}|{}|{:?}|{:?}|{:?}",
-        v.density_grid, e.source, v.temperature_grid, v.emission_grid, e.temperature_map, e.temperature_cutoff, e.convention,
-        v.albedo_grid, scene.integrator.proxy_resolution
+        v.density_grid,
+        e.source,
+        v.temperature_grid,
+        v.emission_grid,
+        e.temperature_map,
+        e.temperature_cutoff,
+        e.convention,
+        v.albedo_grid,
+        scene.integrator.proxy_resolution
     );
     let hash = Sha256::digest(key.as_bytes());
     let tag: String = hash[..6].iter().map(|b| format!("{b:02x}")).collect();

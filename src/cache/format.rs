@@ -61,15 +61,8 @@ pub enum SectionKind {
 
 impl SectionKind {
     /// All kinds, in file order.
-    pub const ALL: [SectionKind; 7] = [
-        SectionKind::Values,
-        SectionKind::Table,
-        SectionKind::Bricks,
-        SectionKind::Pyramid,
-        SectionKind::Proxy,
-        SectionKind::Meta,
-        SectionKind::Chunks,
-    ];
+    pub const ALL: [SectionKind; 7] =
+        [SectionKind::Values, SectionKind::Table, SectionKind::Bricks, SectionKind::Pyramid, SectionKind::Proxy, SectionKind::Meta, SectionKind::Chunks];
 
     /// Name used in messages.
     #[must_use]

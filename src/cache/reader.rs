@@ -23,12 +23,12 @@ use rayon::prelude::*;
 use super::format::{Header, Meta, SectionEntry, SectionKind, BYTE_ORDER, CHUNK, MAGIC, PAGE, VERSION};
 use super::verify::{section_sums, Verification};
 use crate::error::{Error, Result};
+use crate::vdb::LEAF_VOXELS;
 use crate::volume::brick::Brick;
 use crate::volume::proxy::CellPower;
 use crate::volume::pyramid::{level_dims, Level, NodeBounds, Pyramid};
 use crate::volume::storage::Buffer;
 use crate::volume::Volume;
-use crate::vdb::LEAF_VOXELS;
 
 /// Sections up to this size are verified before [`Cache::open`] returns.
 pub const EAGER_BYTES: u64 = 64 << 20;
@@ -81,10 +81,7 @@ impl CacheCheck {
 }
 
 fn corrupt(path: &Path, what: impl std::fmt::Display) -> Error {
-    Error::Cache {
-        path: path.to_path_buf(),
-        what: format!("{what}; the file is damaged or not a plume cache (run `plume prepare` again)"),
-    }
+    Error::Cache { path: path.to_path_buf(), what: format!("{what}; the file is damaged or not a plume cache (run `plume prepare` again)") }
 }
 
 /// Check the chunk sums of `entry` over `map`, chunks in parallel (at open).
@@ -127,10 +124,7 @@ impl Cache {
         if header.version != VERSION {
             return Err(Error::Cache {
                 path: path.to_path_buf(),
-                what: format!(
-                    "format version {} is stale (this plume reads version {VERSION}); run `plume prepare` again",
-                    header.version
-                ),
+                what: format!("format version {} is stale (this plume reads version {VERSION}); run `plume prepare` again", header.version),
             });
         }
         if header.compute_checksum() != header.checksum {
@@ -185,17 +179,10 @@ impl Cache {
     }
 
     /// Build the mapped volume after checking the metadata against the section sizes.
-    fn assemble(
-        path: &Path,
-        map: &Arc<Mmap>,
-        meta: &Meta,
-        section: &dyn Fn(SectionKind) -> SectionEntry,
-    ) -> Result<(Volume, Option<CellPower>)> {
+    fn assemble(path: &Path, map: &Arc<Mmap>, meta: &Meta, section: &dyn Fn(SectionKind) -> SectionEntry) -> Result<(Volume, Option<CellPower>)> {
         let w = meta.world_from_index;
-        let world_from_index = DAffine3::from_mat3_translation(
-            DMat3::from_cols_array(&[w[0], w[1], w[2], w[3], w[4], w[5], w[6], w[7], w[8]]),
-            DVec3::new(w[9], w[10], w[11]),
-        );
+        let world_from_index =
+            DAffine3::from_mat3_translation(DMat3::from_cols_array(&[w[0], w[1], w[2], w[3], w[4], w[5], w[6], w[7], w[8]]), DVec3::new(w[9], w[10], w[11]));
         if !world_from_index.is_finite() || world_from_index.matrix3.determinant() == 0.0 {
             return Err(corrupt(path, "its transform is singular or not finite"));
         }

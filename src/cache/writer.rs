@@ -20,11 +20,11 @@ use xxhash_rust::xxh3::Xxh3;
 
 use super::format::{Header, Meta, ProxyMeta, SectionEntry, SectionKind, BYTE_ORDER, CHUNK, MAGIC, MAX_SECTIONS, PAGE, VERSION};
 use crate::error::{Error, Result};
+use crate::vdb::LEAF_VOXELS;
 use crate::volume::brick::{BlockSink, BrickTableBuilder, Channel};
 use crate::volume::proxy::CellPower;
 use crate::volume::storage::Buffer;
 use crate::volume::Volume;
-use crate::vdb::LEAF_VOXELS;
 
 /// Hashes a byte stream in [`CHUNK`]-sized chunks.
 #[derive(Default)]
@@ -88,13 +88,7 @@ impl Out {
         let pad = self.pos.next_multiple_of(PAGE) - self.pos;
         self.file.write_all(&vec![0u8; pad as usize]).map_err(|e| self.io(e))?;
         self.pos += pad;
-        self.open = Some(SectionEntry {
-            kind: kind as u32,
-            first_chunk: self.chunks.sums.len() as u32,
-            offset: self.pos,
-            len: 0,
-            checksum: 0,
-        });
+        self.open = Some(SectionEntry { kind: kind as u32, first_chunk: self.chunks.sums.len() as u32, offset: self.pos, len: 0, checksum: 0 });
         Ok(())
     }
 
@@ -185,13 +179,7 @@ impl CacheWriter {
         crate::output::remove_stale_temporaries(path);
         let tmp = crate::output::temporary_path(path);
         // Read access too: `finish` maps the values written so far
-        let file = File::options()
-            .read(true)
-            .write(true)
-            .create(true)
-            .truncate(true)
-            .open(&tmp)
-            .map_err(|e| Error::Write { path: tmp.clone(), source: e })?;
+        let file = File::options().read(true).write(true).create(true).truncate(true).open(&tmp).map_err(|e| Error::Write { path: tmp.clone(), source: e })?;
         let mut out = Out {
             path: tmp,
             file: BufWriter::with_capacity(8 << 20, file),
@@ -295,10 +283,7 @@ impl CacheWriter {
             source_key: info.source_key.clone(),
             emission_kind: info.emission_kind.clone(),
             input: info.input.clone(),
-            proxy: proxy_power.as_ref().zip(proxy.as_ref()).map(|(p, spec)| ProxyMeta {
-                resolution: p.resolution,
-                power_key: spec.power_key.clone(),
-            }),
+            proxy: proxy_power.as_ref().zip(proxy.as_ref()).map(|(p, spec)| ProxyMeta { resolution: p.resolution, power_key: spec.power_key.clone() }),
             report,
         };
         drop(volume);

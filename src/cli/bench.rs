@@ -233,7 +233,8 @@ pub fn run(command: BenchCommand, _matches: Option<&ArgMatches>) -> Result<()> {
             options.run(scene)
         }
         BenchCommand::Extremes(args) => {
-            ExtremesOptions { box_voxels: args.box_voxels, explosion_resolution: args.explosion_resolution, size: args.size, spp: args.spp, json: args.json }.run()
+            ExtremesOptions { box_voxels: args.box_voxels, explosion_resolution: args.explosion_resolution, size: args.size, spp: args.spp, json: args.json }
+                .run()
         }
         BenchCommand::Report(args) => {
             ReportOptions { out: args.out, time_scale: args.time_scale, resolution: args.resolution, data: args.data, work_dir: args.work_dir }.run()

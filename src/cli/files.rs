@@ -230,13 +230,7 @@ pub fn synth_flare_command(args: &SynthFlareArgs) -> Result<()> {
     }
     let (density, temperature) = flare.to_float_grids();
     vdb::write_float_grids(&args.output, &[&density, &temperature])?;
-    eprintln!(
-        "plume: wrote {} ({}³ flare, {} leaves) in {:.2} s",
-        args.output.display(),
-        args.resolution,
-        density.leaf_count(),
-        t.elapsed().as_secs_f64()
-    );
+    eprintln!("plume: wrote {} ({}³ flare, {} leaves) in {:.2} s", args.output.display(), args.resolution, density.leaf_count(), t.elapsed().as_secs_f64());
     Ok(())
 }
 
@@ -289,4 +283,3 @@ fn cache_info(args: &InfoArgs) -> Result<()> {
     }
     Ok(())
 }
-

@@ -17,8 +17,8 @@ use plume::integrator::{LightSampling, MisHeuristic};
 use plume::medium::Convention;
 use plume::scene::file::{is_scene_file, SceneFile};
 use plume::scene::{
-    ByteSize, CameraSettings, EmissionSettings, EmissionSource, EstimatorKind, IntegratorSettings, MediumSettings, Method, ProgressFormat,
-    ReadSettings, RenderOptions, SampleOrderChoice, Shot, TileIndex, UpAxis, ValidShot, VolumeInput,
+    ByteSize, CameraSettings, EmissionSettings, EmissionSource, EstimatorKind, IntegratorSettings, MediumSettings, Method, ProgressFormat, ReadSettings,
+    RenderOptions, SampleOrderChoice, Shot, TileIndex, UpAxis, ValidShot, VolumeInput,
 };
 
 use super::flags::{choice, parse_size, parse_vec3};
@@ -191,7 +191,6 @@ pub struct RenderArgs {
     pub progress: ProgressFormat,
 }
 
-
 /// Which grids make the volume and how they are read: shared by `render` and `prepare`,
 /// because a brick cache stores exactly what these flags select.
 #[derive(Clone, Debug, Args)]
@@ -231,7 +230,6 @@ pub struct GridArgs {
     #[arg(long)]
     pub no_isolation: bool,
 }
-
 
 /// Flag id (clap's, the field name) → scene key, and how the flag sets the key. The
 /// positional FILE sets `volume.file` (unless it is a scene file); `-o` sets
@@ -385,7 +383,10 @@ impl TryFrom<(&RenderArgs, &ArgMatches)> for RenderRequest {
             apply(&mut shot, args, &typed);
             (shot, Some(file))
         } else {
-            let output = args.output.clone().ok_or_else(|| Error::invalid("--output", "required (-o OUT.exr), unless FILE is a scene file that gives [output] image"))?;
+            let output = args
+                .output
+                .clone()
+                .ok_or_else(|| Error::invalid("--output", "required (-o OUT.exr), unless FILE is a scene file that gives [output] image"))?;
             let mut shot = Shot::new(&args.file, output);
             apply(&mut shot, args, &|_| true);
             (shot, None)

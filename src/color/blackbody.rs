@@ -70,11 +70,7 @@ pub const C2: f64 = 1.43878e-2;
 pub const STEFAN_BOLTZMANN: f64 = 5.670373e-8;
 
 /// XYZ → linear Rec.709 (D65) matrix, row major (METHOD §2).
-pub const XYZ_TO_REC709: [[f64; 3]; 3] = [
-    [3.2410, -1.5374, -0.4986],
-    [-0.9692, 1.8760, 0.0416],
-    [0.0556, -0.2040, 1.0570],
-];
+pub const XYZ_TO_REC709: [[f64; 3]; 3] = [[3.2410, -1.5374, -0.4986], [-0.9692, 1.8760, 0.0416], [0.0556, -0.2040, 1.0570]];
 
 /// Rec.709 luminance weights `(0.2126, 0.7152, 0.0722)` in `f64`, as in [`Rgb::luminance`].
 const REC709_LUMINANCE: [f64; 3] = [0.2126, 0.7152, 0.0722];
@@ -198,10 +194,7 @@ impl PlanckCmf {
             weighted_cmf[i] = cmf.map(|w| scale * w);
             c2_over_lambda[i] = C2 / lambda_m;
         }
-        PlanckCmf {
-            weighted_cmf,
-            c2_over_lambda,
-        }
+        PlanckCmf { weighted_cmf, c2_over_lambda }
     }
 
     /// Same as [`blackbody_xyz`] for `t_kelvin > 0`.
@@ -273,23 +266,12 @@ impl BlackbodyTable {
         // slower, is spread evenly). Nodes are independent and each is summed in a fixed
         // order, so the table is bit-identical for any thread count.
         let spectrum = PlanckCmf::new();
-        let strided = |first: usize| -> Vec<[f64; 3]> {
-            (first..TABLE_NODES)
-                .step_by(threads)
-                .map(|k| spectrum.xyz(node_kelvin(k)))
-                .collect()
-        };
+        let strided = |first: usize| -> Vec<[f64; 3]> { (first..TABLE_NODES).step_by(threads).map(|k| spectrum.xyz(node_kelvin(k))).collect() };
         let per_thread: Vec<Vec<[f64; 3]>> = std::thread::scope(|scope| {
-            let handles: Vec<_> = (1..threads)
-                .map(|first| scope.spawn(move || strided(first)))
-                .collect();
+            let handles: Vec<_> = (1..threads).map(|first| scope.spawn(move || strided(first))).collect();
             let mut per_thread = vec![strided(0)];
             for handle in handles {
-                per_thread.push(
-                    handle
-                        .join()
-                        .unwrap_or_else(|panic| std::panic::resume_unwind(panic)),
-                );
+                per_thread.push(handle.join().unwrap_or_else(|panic| std::panic::resume_unwind(panic)));
             }
             per_thread
         });
@@ -299,22 +281,11 @@ impl BlackbodyTable {
         let mut rgb_over_y = Vec::with_capacity(TABLE_NODES);
         for (k, xyz) in xyz.enumerate() {
             // Y(100 K) ≈ 1e-76 is still a normal f64 (> 2e-308), so ln Y is finite.
-            debug_assert!(
-                xyz[1] > 0.0 && xyz[1].is_finite(),
-                "Y({} K) = {}",
-                node_kelvin(k),
-                xyz[1]
-            );
+            debug_assert!(xyz[1] > 0.0 && xyz[1].is_finite(), "Y({} K) = {}", node_kelvin(k), xyz[1]);
             ln_y.push(xyz[1].ln() as f32);
             rgb_over_y.push(xyz_to_rec709(xyz).map(|c| (c / xyz[1]) as f32));
         }
-        let mut table = BlackbodyTable {
-            ln_t_min,
-            nodes_per_ln_t,
-            ln_y,
-            rgb_over_y,
-            chromaticity_floor: Rgb::ZERO,
-        };
+        let mut table = BlackbodyTable { ln_t_min, nodes_per_ln_t, ln_y, rgb_over_y, chromaticity_floor: Rgb::ZERO };
         table.chromaticity_floor = table.normalized_chromaticity(CHROMATICITY_FLOOR_KELVIN);
         table
     }
@@ -334,17 +305,12 @@ impl BlackbodyTable {
         let f = u - i as f64;
         let lerp = |a: f32, b: f32| f64::from(a) + f * (f64::from(b) - f64::from(a));
         let (c0, c1) = (self.rgb_over_y[i], self.rgb_over_y[i + 1]);
-        Some(TableSample {
-            ln_y: lerp(self.ln_y[i], self.ln_y[i + 1]),
-            rgb_over_y: [lerp(c0[0], c1[0]), lerp(c0[1], c1[1]), lerp(c0[2], c1[2])],
-        })
+        Some(TableSample { ln_y: lerp(self.ln_y[i], self.ln_y[i + 1]), rgb_over_y: [lerp(c0[0], c1[0]), lerp(c0[1], c1[1]), lerp(c0[2], c1[2])] })
     }
 
     /// Clamped C/Y renormalised to Rec.709 luminance 1, for `t ≥ 800 K`.
     fn normalized_chromaticity(&self, t_kelvin: f32) -> Rgb {
-        let sample = self
-            .sample(t_kelvin)
-            .expect("invariant: called only for T >= 800 K, inside the table");
+        let sample = self.sample(t_kelvin).expect("invariant: called only for T >= 800 K, inside the table");
         let clamped = sample.rgb_over_y.map(|c| c.max(0.0));
         // Red dominates below the white point and never clamps, so the luminance is > 0.
         let luminance = rec709_luminance(clamped);
@@ -433,11 +399,7 @@ pub fn blackbody_table() -> &'static BlackbodyTable {
 /// ((5.407, −0.201, −0.0824) at 800 K vs Cycles' (5.413, −0.203, −0.082)).
 #[must_use]
 pub fn cycles_blackbody(t_kelvin: f32) -> Rgb {
-    let t = if t_kelvin.is_nan() {
-        0.0
-    } else {
-        t_kelvin.clamp(0.0, TABLE_MAX_KELVIN)
-    };
+    let t = if t_kelvin.is_nan() { 0.0 } else { t_kelvin.clamp(0.0, TABLE_MAX_KELVIN) };
     let intensity = STEFAN_BOLTZMANN / PI * 1e-6 * f64::from(t).powi(4);
     let chromaticity = blackbody_table().cycles_chromaticity(t);
     Rgb(chromaticity.0.map(|c| (intensity * f64::from(c)) as f32))

@@ -9,8 +9,8 @@ use sha2::{Digest, Sha256};
 
 use crate::error::{Error, Result};
 use crate::scene::{
-    CameraSettings, EmissionSettings, FarmOptions, IntegratorSettings, JobSettings, LightSettings, MediumSettings, OutputSettings, ReadSettings,
-    RenderOptions, SceneDescription, Shot, VolumeInput,
+    CameraSettings, EmissionSettings, FarmOptions, IntegratorSettings, JobSettings, LightSettings, MediumSettings, OutputSettings, ReadSettings, RenderOptions,
+    SceneDescription, Shot, VolumeInput,
 };
 
 /// Hex SHA-256 of a file's bytes and its size.

@@ -116,7 +116,8 @@ pub fn render_frame(job: &Job<'_>, index: usize, frame: Option<i64>, command_lin
     let loaded = load_scene(job.scene(), &paths.input, settings)?;
     warn_about(job, &paths, &loaded);
     let plan = SamplePlan::new(job, resume.as_ref());
-    let render_settings = RenderSettings { budget: plan.budget, seed, threads: settings.render.threads, first_sample: plan.first_sample, integrator: job.scene().integrator() };
+    let render_settings =
+        RenderSettings { budget: plan.budget, seed, threads: settings.render.threads, first_sample: plan.first_sample, integrator: job.scene().integrator() };
     if let Some(dp) = settings.render.debug_pixel {
         replay(&loaded, &render_settings, dp);
         return Ok(FrameOutcome::Replayed);
@@ -184,7 +185,11 @@ fn decide(job: &Job<'_>, paths: &FramePaths, hash: &str, index: usize, frame: Op
         Existing::Missing => Some(None),
         Existing::Complete(info) => {
             // Decisions about existing outputs are always logged, also with --quiet
-            eprintln!("plume: {}: already complete ({} spp), skipped (--overwrite renders it again)", paths.output.display(), info.samples.end - info.samples.start);
+            eprintln!(
+                "plume: {}: already complete ({} spp), skipped (--overwrite renders it again)",
+                paths.output.display(),
+                info.samples.end - info.samples.start
+            );
             progress.frame_skipped(index, frame, &paths.output.display().to_string());
             None
         }
@@ -279,7 +284,9 @@ fn run_passes(
     };
     let bar = (!job_settings.render.quiet && std::io::IsTerminal::is_terminal(&std::io::stderr())).then(|| {
         let pb = if target > 0 { ProgressBar::new(target) } else { ProgressBar::new_spinner() };
-        pb.set_style(ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} spp {msg}").unwrap_or_else(|_| ProgressStyle::default_bar()));
+        pb.set_style(
+            ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} spp {msg}").unwrap_or_else(|_| ProgressStyle::default_bar()),
+        );
         pb
     });
     let film = resume.map(|(_, sums)| {
@@ -297,13 +304,8 @@ fn run_passes(
             volume.memory_bytes() as f64 / 1e9
         );
     }
-    let control = RenderControl {
-        crop: job.crop,
-        film,
-        stop: Some(&stop),
-        deadline: job_settings.farm.time_limit.map(|t| start + Duration::from_secs_f64(t)),
-        order,
-    };
+    let control =
+        RenderControl { crop: job.crop, film, stop: Some(&stop), deadline: job_settings.farm.time_limit.map(|t| start + Duration::from_secs_f64(t)), order };
     let result = render_with(&loaded.scene, settings, control, &|done, total| {
         if let Some(pb) = &bar {
             pb.set_position(done);

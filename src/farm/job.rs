@@ -65,7 +65,10 @@ impl<'a> Job<'a> {
         if frames.len() > 1 {
             for (key, p) in [("output.image", Some(&output)), ("output.preview", preview.as_ref())] {
                 if let Some(p) = p.filter(|p| !p.has_frame()) {
-                    return Err(Error::invalid(key, format!("{} frames would all be written to {}; put a frame token in it (####, %04d or $F4)", frames.len(), p.as_path().display())));
+                    return Err(Error::invalid(
+                        key,
+                        format!("{} frames would all be written to {}; put a frame token in it (####, %04d or $F4)", frames.len(), p.as_path().display()),
+                    ));
                 }
             }
         }

@@ -61,9 +61,7 @@ pub fn check_parts(parts: &[PartInfo]) -> Result<Range<u64>> {
         if p.status != Completion::Complete {
             return Err(bad(format!("is {} with samples {}; run its command again to finish it", p.status.as_str(), format_range(&p.samples))));
         }
-        let differs = |what: &str, mine: String, theirs: String| {
-            bad(format!("{what} is {mine}, but {} has {theirs}", first.path.display()))
-        };
+        let differs = |what: &str, mine: String, theirs: String| bad(format!("{what} is {mine}, but {} has {theirs}", first.path.display()));
         if p.version != first.version {
             return Err(differs("the plume version", p.version.clone(), first.version.clone()));
         }
@@ -106,7 +104,12 @@ pub fn check_parts(parts: &[PartInfo]) -> Result<Range<u64>> {
                 if a.samples.end > b.samples.start {
                     return Err(Error::InvalidPart {
                         path: b.path.clone(),
-                        message: format!("samples {} of pixels {cell} overlap samples {} of {}", format_range(&b.samples), format_range(&a.samples), a.path.display()),
+                        message: format!(
+                            "samples {} of pixels {cell} overlap samples {} of {}",
+                            format_range(&b.samples),
+                            format_range(&a.samples),
+                            a.path.display()
+                        ),
                     });
                 }
                 if a.samples.end < b.samples.start {
@@ -154,7 +157,11 @@ pub fn merge_parts(parts: &[(PartInfo, crate::output::ExrContents)]) -> Result<M
                 for (d, s) in dst.iter_mut().zip(src) {
                     *d = d.checked_add(*s).unwrap_or_else(|| {
                         saturated += 1;
-                        if *s < 0 { i128::MIN } else { i128::MAX }
+                        if *s < 0 {
+                            i128::MIN
+                        } else {
+                            i128::MAX
+                        }
                     });
                 }
             }
@@ -210,7 +217,14 @@ pub fn merge_command(args: &MergeOptions, command_line: &str) -> Result<()> {
     let pixels = merged.pixels();
     let metadata = merged_metadata(&parts, &merged, &args.output, command_line);
     let full = Crop::full(merged.width, merged.height);
-    let image = ExrImage { width: merged.width, height: merged.height, crop: full, pixels: &pixels, sums: args.sums.then_some(merged.sums.as_slice()), metadata: &metadata };
+    let image = ExrImage {
+        width: merged.width,
+        height: merged.height,
+        crop: full,
+        pixels: &pixels,
+        sums: args.sums.then_some(merged.sums.as_slice()),
+        metadata: &metadata,
+    };
     write_exr_image(&args.output, &image)?;
     if let Some(p) = &args.preview {
         let exposure = args.exposure.map_or_else(|| crate::output::auto_exposure(&pixels), |ev| 2f32.powf(ev));

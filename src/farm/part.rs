@@ -119,7 +119,8 @@ impl PartInfo {
     pub fn from_contents(path: &Path, c: &ExrContents) -> Result<PartInfo> {
         let m = &c.metadata;
         let bad = |message: String| Error::InvalidPart { path: path.to_path_buf(), message };
-        let get = |k: &str| m.get(&format!("plume:{k}")).map(String::as_str).ok_or_else(|| bad(format!("no plume:{k} attribute (not rendered by this plume?)")));
+        let get =
+            |k: &str| m.get(&format!("plume:{k}")).map(String::as_str).ok_or_else(|| bad(format!("no plume:{k} attribute (not rendered by this plume?)")));
         let num = |k: &str| get(k).and_then(|v| v.parse::<u64>().map_err(|_| bad(format!("plume:{k} = {v:?} is not a number"))));
         let real = |k: &str| m.get(&format!("plume:{k}")).and_then(|v| v.parse::<f64>().ok()).unwrap_or(0.0);
         let spp = num("spp")?;
@@ -211,7 +212,10 @@ pub fn assess(path: &Path, expected: &Expected) -> Existing {
         return Existing::Stale("rendered with other settings or seed".into());
     }
     if (info.width, info.height, info.crop) != (expected.width, expected.height, expected.crop) {
-        return Existing::Stale(format!("holds pixels {} of {}x{}, not {} of {}x{}", info.crop, info.width, info.height, expected.crop, expected.width, expected.height));
+        return Existing::Stale(format!(
+            "holds pixels {} of {}x{}, not {} of {}x{}",
+            info.crop, info.width, info.height, expected.crop, expected.width, expected.height
+        ));
     }
     let range = crate::farm::split::format_range;
     let Some(r) = &expected.samples else {

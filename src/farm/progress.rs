@@ -56,7 +56,9 @@ impl Progress {
                 format!("openjd_status: {} ({}/{}): rendering", name(frame), index + 1, self.frames),
                 format!("openjd_progress: {:.2}", self.percent(index, 0.0)),
             ]),
-            ProgressFormat::Json => self.emit(&[json!({"event": "frame_start", "frame": frame, "index": index, "frames": self.frames, "output": output}).to_string()]),
+            ProgressFormat::Json => {
+                self.emit(&[json!({"event": "frame_start", "frame": frame, "index": index, "frames": self.frames, "output": output}).to_string()])
+            }
         }
     }
 
@@ -77,7 +79,9 @@ impl Progress {
         match self.mode {
             ProgressFormat::None => {}
             ProgressFormat::Openjd => self.emit(&[format!("openjd_progress: {percent:.2}")]),
-            ProgressFormat::Json => self.emit(&[json!({"event": "progress", "frame": frame, "spp": done, "target_spp": target, "percent": percent}).to_string()]),
+            ProgressFormat::Json => {
+                self.emit(&[json!({"event": "progress", "frame": frame, "spp": done, "target_spp": target, "percent": percent}).to_string()])
+            }
         }
     }
 
@@ -86,11 +90,12 @@ impl Progress {
         let percent = self.percent(index, 1.0);
         match self.mode {
             ProgressFormat::None => {}
-            ProgressFormat::Openjd => self.emit(&[
-                format!("openjd_status: {} ({}/{}): {status}", name(frame), index + 1, self.frames),
-                format!("openjd_progress: {percent:.2}"),
-            ]),
-            ProgressFormat::Json => self.emit(&[json!({"event": "frame_done", "frame": frame, "status": status, "percent": percent, "stats": record}).to_string()]),
+            ProgressFormat::Openjd => {
+                self.emit(&[format!("openjd_status: {} ({}/{}): {status}", name(frame), index + 1, self.frames), format!("openjd_progress: {percent:.2}")])
+            }
+            ProgressFormat::Json => {
+                self.emit(&[json!({"event": "frame_done", "frame": frame, "status": status, "percent": percent, "stats": record}).to_string()])
+            }
         }
     }
 

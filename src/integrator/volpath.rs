@@ -198,15 +198,18 @@ impl Integrator {
                 }
                 ForwardWeight::Fnee { .. } => 0.0,
             };
-            if let (true, Some(p_ph), Some(nee), DistanceSample::Collided { t, density, .. }) =
-                (point_nee, segment_phase_pdf, lights.nee.as_ref(), r.event)
-            {
+            if let (true, Some(p_ph), Some(nee), DistanceSample::Collided { t, density, .. }) = (point_nee, segment_phase_pdf, lights.nee.as_ref(), r.event) {
                 // MIS in volume measure against NEE at the collision point
                 let p_fwd = p_ph * m.mu_t(density) * (-r.optical_depth).exp() / (t * t);
                 w = self.mis.weight(p_fwd, nee.pdf(ray.at(t)));
             }
             add(&mut l, beta * w, r.emission);
-            trace.event(|| format!("segment depth {depth}: origin {:?} dir {:?} -> {:?}, F {:?}, w_fwd {w}, beta {beta}, tau {}", ray.origin, ray.direction, r.event, r.emission, r.transmittance));
+            trace.event(|| {
+                format!(
+                    "segment depth {depth}: origin {:?} dir {:?} -> {:?}, F {:?}, w_fwd {w}, beta {beta}, tau {}",
+                    ray.origin, ray.direction, r.event, r.emission, r.transmittance
+                )
+            });
             if depth == 0 {
                 alpha = 1.0 - r.transmittance;
             }
@@ -261,7 +264,8 @@ impl Integrator {
                             c.nee_samples += 1;
                             let dist = r2.sqrt();
                             let wi = d / dist;
-                            let OpticalDepth { optical_depth: od, voxel_steps: n } = optical_depth(&scene.field, m, &Ray { origin: x, direction: wi }, dist, 745.0);
+                            let OpticalDepth { optical_depth: od, voxel_steps: n } =
+                                optical_depth(&scene.field, m, &Ray { origin: x, direction: wi }, dist, 745.0);
                             c.voxel_steps += n;
                             let tau = (-od).exp();
                             if tau > 0.0 {

@@ -121,11 +121,7 @@ impl ProxyGrid {
             return 0.0;
         };
         // Same reciprocal as clip_to_box, so the last crossing equals t_end bit for bit
-        let inv_d = DVec3::new(
-            if d.x != 0.0 { 1.0 / d.x } else { 0.0 },
-            if d.y != 0.0 { 1.0 / d.y } else { 0.0 },
-            if d.z != 0.0 { 1.0 / d.z } else { 0.0 },
-        );
+        let inv_d = DVec3::new(if d.x != 0.0 { 1.0 / d.x } else { 0.0 }, if d.y != 0.0 { 1.0 / d.y } else { 0.0 }, if d.z != 0.0 { 1.0 / d.z } else { 0.0 });
         // The cell along axis `a` at parameter `t`, from the position, then made consistent
         // with the crossing times of its own faces: a point within rounding of a face whose
         // crossing lies ahead is in the cell before it. On a face: the cell being entered.
@@ -183,7 +179,11 @@ impl ProxyGrid {
                 t = t.max(t_exit);
                 for a in 0..3 {
                     c[a] = if ta[a] == t_exit {
-                        if d[a] > 0.0 { hi[a] } else { lo[a] - 1 }
+                        if d[a] > 0.0 {
+                            hi[a]
+                        } else {
+                            lo[a] - 1
+                        }
                     } else {
                         cell_at(a, t_exit).clamp(lo[a], hi[a] - 1)
                     };

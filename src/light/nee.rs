@@ -237,8 +237,7 @@ impl EmitterDistribution {
         if brick.mask[word] >> bit & 1 == 0 {
             return 0.0;
         }
-        let below: u32 = brick.mask[..word].iter().map(|w| w.count_ones()).sum::<u32>()
-            + (brick.mask[word] & ((1u64 << bit) - 1)).count_ones();
+        let below: u32 = brick.mask[..word].iter().map(|w| w.count_ones()).sum::<u32>() + (brick.mask[word] & ((1u64 << bit) - 1)).count_ones();
         self.alias.pmf(brick.first as usize + below as usize) / self.voxel_volume
     }
 

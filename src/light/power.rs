@@ -101,7 +101,11 @@ impl LightPower {
             }
             (a + f * (b - a)).exp()
         };
-        if t.times_density { f64::from(density) * value } else { value }
+        if t.times_density {
+            f64::from(density) * value
+        } else {
+            value
+        }
     }
 }
 

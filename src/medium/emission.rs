@@ -173,9 +173,7 @@ impl Emission {
         }
         match (self.kind, self.convention) {
             (EmissionKind::None, _) => Rgb::ZERO,
-            (EmissionKind::Blackbody, Convention::Physical) => {
-                blackbody_table().rgb(source) * self.color * (self.scale * density)
-            }
+            (EmissionKind::Blackbody, Convention::Physical) => blackbody_table().rgb(source) * self.color * (self.scale * density),
             (EmissionKind::Blackbody, Convention::Cycles) => cycles_blackbody(source) * self.color * self.scale,
             (EmissionKind::Grid, Convention::Physical) => self.color * (self.scale * source * density),
             (EmissionKind::Grid, Convention::Cycles) => self.color * (self.scale * source),

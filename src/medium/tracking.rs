@@ -163,15 +163,7 @@ fn track_free_path<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, 
     TrackResult { event: DistanceSample::Escaped, emission: f, transmittance: 1.0, optical_depth: od, segments, voxel_steps: it.voxel_steps() }
 }
 
-fn track_expected<F: Field>(
-    field: &F,
-    medium: &Medium,
-    ray: &Ray,
-    t_max: f64,
-    need_collision: bool,
-    u: f64,
-    sampler: &mut Sampler,
-) -> TrackResult {
+fn track_expected<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, need_collision: bool, u: f64, sampler: &mut Sampler) -> TrackResult {
     let e = sample_exponential(u);
     let mut od = 0.0f64;
     let mut weight = 1.0f64; // roulette weight

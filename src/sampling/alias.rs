@@ -94,10 +94,7 @@ impl AliasTable {
             }
         }
         // The largest weight: a safe alias target for leftovers of zero weight.
-        let heaviest = weights
-            .iter()
-            .enumerate()
-            .fold(0usize, |m, (i, &w)| if w > weights[m] { i } else { m }) as u32;
+        let heaviest = weights.iter().enumerate().fold(0usize, |m, (i, &w)| if w > weights[m] { i } else { m }) as u32;
         // A popped small slot's p is final: it becomes that slot's threshold in place
         let mut alias: Vec<u32> = (0..n as u32).collect();
         while let (Some(&s), Some(&l)) = (small.last(), large.last()) {

@@ -16,7 +16,6 @@ use crate::vdb::{GridRequest, GridSelector, ReadIsolation, ReadLimits};
 /// without `volume.emission_grid`.
 pub const EMISSION_GRID_CANDIDATES: [&str; 4] = ["emission", "flame", "heat", "flame_noise"];
 
-
 /// The grids a volume is built from, as read requests: density, then the source
 /// (temperature or emission grid, per `emission.source`; none for `none`), then the
 /// albedo grid if any. See [`split_found`].
@@ -24,9 +23,7 @@ pub const EMISSION_GRID_CANDIDATES: [&str; 4] = ["emission", "flame", "heat", "f
 /// # Errors
 /// A selector that does not parse.
 pub(crate) fn grid_requests(volume: &VolumeInput, source: EmissionSource) -> Result<Vec<GridRequest>> {
-    let candidates = || -> Result<Vec<GridSelector>> {
-        EMISSION_GRID_CANDIDATES.iter().map(|n| selector("volume.emission_grid", n)).collect()
-    };
+    let candidates = || -> Result<Vec<GridSelector>> { EMISSION_GRID_CANDIDATES.iter().map(|n| selector("volume.emission_grid", n)).collect() };
     let temperature = selector("volume.temperature_grid", &volume.temperature_grid)?;
     let mut requests = vec![GridRequest::required(selector("volume.density_grid", &volume.density_grid)?)];
     match source {
@@ -123,4 +120,3 @@ pub fn reader(reading: &ReadSettings) -> Result<(ReadLimits, ReadIsolation)> {
 pub fn memory_budget(settings: &JobSettings) -> u64 {
     settings.render.memory_budget.map_or_else(|| ReadLimits::default().max_bytes, |b| b.0)
 }
-

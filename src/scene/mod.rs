@@ -74,16 +74,14 @@ struct ShotFile {
 impl From<ShotFile> for Shot {
     fn from(f: ShotFile) -> Shot {
         let ShotFile { volume, emission, medium, camera, lights, integrator, render, farm, output, reading } = f;
-        Shot {
-            scene: SceneDescription { volume, emission, medium, camera, lights, integrator },
-            settings: JobSettings { render, farm, output, reading },
-        }
+        Shot { scene: SceneDescription { volume, emission, medium, camera, lights, integrator }, settings: JobSettings { render, farm, output, reading } }
     }
 }
 
 impl From<Shot> for ShotFile {
     fn from(s: Shot) -> ShotFile {
-        let Shot { scene: SceneDescription { volume, emission, medium, camera, lights, integrator }, settings: JobSettings { render, farm, output, reading } } = s;
+        let Shot { scene: SceneDescription { volume, emission, medium, camera, lights, integrator }, settings: JobSettings { render, farm, output, reading } } =
+            s;
         ShotFile { volume, emission, medium, camera, lights, integrator, render, farm, output, reading }
     }
 }

@@ -30,12 +30,7 @@ impl JobSettings {
     /// Defaults, writing the image to `image`.
     #[must_use]
     pub fn new(image: impl Into<PathBuf>) -> JobSettings {
-        JobSettings {
-            render: RenderOptions::default(),
-            farm: FarmOptions::default(),
-            output: OutputSettings::new(image),
-            reading: ReadSettings::default(),
-        }
+        JobSettings { render: RenderOptions::default(), farm: FarmOptions::default(), output: OutputSettings::new(image), reading: ReadSettings::default() }
     }
 }
 

@@ -144,17 +144,9 @@ impl Flare {
     /// in `[0, 1]`.
     #[must_use]
     pub fn new(params: &FlareParams) -> Flare {
-        assert!(
-            (1..=MAX_FLARE_RESOLUTION).contains(&params.resolution),
-            "flare resolution {} outside 1..={MAX_FLARE_RESOLUTION}",
-            params.resolution
-        );
+        assert!((1..=MAX_FLARE_RESOLUTION).contains(&params.resolution), "flare resolution {} outside 1..={MAX_FLARE_RESOLUTION}", params.resolution);
         assert!((0.0..=1.0).contains(&params.knot_fraction), "knot fraction {} outside [0, 1]", params.knot_fraction);
-        let counts = LayoutCounts {
-            arcade: params.arcade_loops,
-            active_region: params.active_region_loops,
-            knot_fraction: params.knot_fraction,
-        };
+        let counts = LayoutCounts { arcade: params.arcade_loops, active_region: params.active_region_loops, knot_fraction: params.knot_fraction };
         let specs: Vec<LoopSpec> = layout::loops(params.seed, counts);
         let tubes: Vec<Tube> = specs.iter().map(|spec| Tube::new(spec, f64::from(params.resolution))).collect();
         let resolution = params.resolution as i32;
@@ -312,10 +304,7 @@ impl Flare {
             let slabs = self.brick_dims.z as u64;
             let affordable = (64.0 * (4096.0 / f64::from(self.resolution)).powi(2)).clamp(8.0, 64.0) as u64;
             let sampled = slabs.min(affordable);
-            let counted: u64 = (0..sampled)
-                .into_par_iter()
-                .map(|i| self.bricks_in_slab(((2 * i + 1) * slabs / (2 * sampled)) as i32).len() as u64)
-                .sum();
+            let counted: u64 = (0..sampled).into_par_iter().map(|i| self.bricks_in_slab(((2 * i + 1) * slabs / (2 * sampled)) as i32).len() as u64).sum();
             (counted * slabs + sampled / 2) / sampled
         });
         bricks * BYTES_PER_BRICK
@@ -334,11 +323,7 @@ impl Flare {
             .map(|bz| {
                 let mut filled = Vec::new();
                 for b in self.bricks_in_slab(bz) {
-                    let mut brick = FilledBrick {
-                        origin: b * LEAF_DIM,
-                        density: Box::new([0.0; 512]),
-                        temperature: Box::new([0.0; 512]),
-                    };
+                    let mut brick = FilledBrick { origin: b * LEAF_DIM, density: Box::new([0.0; 512]), temperature: Box::new([0.0; 512]) };
                     if self.fill_brick(b, &mut brick.density, &mut brick.temperature) {
                         filled.push(brick);
                     }
@@ -381,13 +366,9 @@ impl LoopGrid {
         let per_tube: Vec<Vec<u32>> = tubes
             .par_iter()
             .map(|tube| {
-                let to_cell = |v: f64| {
-                    ((v / f64::from(cell_voxels)).floor() as i64).clamp(0, i64::from(cells.max_element() - 1)) as i32
-                };
-                let lo =
-                    IVec3::new(to_cell(tube.lo.x - MARGIN), to_cell(tube.lo.y - MARGIN), to_cell(tube.lo.z - MARGIN));
-                let hi =
-                    IVec3::new(to_cell(tube.hi.x + MARGIN), to_cell(tube.hi.y + MARGIN), to_cell(tube.hi.z + MARGIN));
+                let to_cell = |v: f64| ((v / f64::from(cell_voxels)).floor() as i64).clamp(0, i64::from(cells.max_element() - 1)) as i32;
+                let lo = IVec3::new(to_cell(tube.lo.x - MARGIN), to_cell(tube.lo.y - MARGIN), to_cell(tube.lo.z - MARGIN));
+                let hi = IVec3::new(to_cell(tube.hi.x + MARGIN), to_cell(tube.hi.y + MARGIN), to_cell(tube.hi.z + MARGIN));
                 let mut list = Vec::new();
                 for z in lo.z..=hi.z.min(cells.z - 1) {
                     for y in lo.y..=hi.y.min(cells.y - 1) {
@@ -395,8 +376,7 @@ impl LoopGrid {
                             // Bounding sphere of the cell's voxel centres
                             let first = IVec3::new(x, y, z) * cell_voxels;
                             let last = ((IVec3::new(x, y, z) + 1) * cell_voxels).min(IVec3::splat(resolution)) - 1;
-                            let (first, last) =
-                                (first.as_dvec3(), last.max(IVec3::new(x, y, z) * cell_voxels).as_dvec3());
+                            let (first, last) = (first.as_dvec3(), last.max(IVec3::new(x, y, z) * cell_voxels).as_dvec3());
                             let radius = 0.5 * (last - first).length();
                             if tube.distance(0.5 * (first + last)) < f64::from(tube.reach) + radius + MARGIN {
                                 list.push(((z * cells.y + y) * cells.x + x) as u32);

@@ -105,29 +105,17 @@ mod bridge {
         fn list_grids(path: &str) -> Result<Vec<GridSummary>>;
         /// Reads the `occurrence`-th grid named `name` (file order), unless its type or
         /// transform is unusable; the outcome is in `header().status`.
-        fn open_float_grid(
-            path: &str,
-            name: &str,
-            occurrence: usize,
-        ) -> Result<UniquePtr<FloatGridReader>>;
+        fn open_float_grid(path: &str, name: &str, occurrence: usize) -> Result<UniquePtr<FloatGridReader>>;
         /// Status, transform and output size of an opened grid.
         fn header(self: &FloatGridReader) -> Result<FloatGridHeader>;
         /// Copies every leaf, then every voxelized tile block: 3 origin components and
         /// 512 values per block. The slices must match the sizes in `header()`.
-        fn copy_leaves(
-            self: &FloatGridReader,
-            origins: &mut [i32],
-            values: &mut [f32],
-        ) -> Result<()>;
+        fn copy_leaves(self: &FloatGridReader, origins: &mut [i32], values: &mut [f32]) -> Result<()>;
 
         /// Opens the `occurrence`-th grid named `name` (file order) with delayed loading
         /// and reads its topology, unless its type or transform is unusable; the outcome
         /// is in `stream_header().status`.
-        fn open_leaf_stream(
-            path: &str,
-            name: &str,
-            occurrence: usize,
-        ) -> Result<UniquePtr<LeafStream>>;
+        fn open_leaf_stream(path: &str, name: &str, occurrence: usize) -> Result<UniquePtr<LeafStream>>;
         /// Status, transform, leaf count, bounds and memory of an opened stream.
         fn stream_header(self: &LeafStream) -> Result<LeafStreamHeader>;
         /// Active tiles above leaf level, in tree order.
@@ -135,23 +123,12 @@ mod bridge {
         /// Copies the next leaves in tree order into the slices (3 origin components and
         /// 512 values each, as many whole leaves as both hold), loading each from the file
         /// and freeing it once copied. Returns the number copied; 0 at the end.
-        fn next_leaves(
-            self: Pin<&mut LeafStream>,
-            origins: &mut [i32],
-            values: &mut [f32],
-        ) -> Result<usize>;
+        fn next_leaves(self: Pin<&mut LeafStream>, origins: &mut [i32], values: &mut [f32]) -> Result<usize>;
 
         /// An empty writer.
         fn new_grid_writer() -> Result<UniquePtr<GridWriter>>;
         /// Adds one fog-volume float grid; voxels that differ from `background` are active.
-        fn add_float_grid(
-            self: Pin<&mut GridWriter>,
-            name: &str,
-            world_from_index: &[f64],
-            background: f32,
-            origins: &[i32],
-            values: &[f32],
-        ) -> Result<()>;
+        fn add_float_grid(self: Pin<&mut GridWriter>, name: &str, world_from_index: &[f64], background: f32, origins: &[i32], values: &[f32]) -> Result<()>;
         /// Writes all added grids to `path` (truncating it), blosc-compressed.
         fn write(self: &GridWriter, path: &str) -> Result<()>;
     }
@@ -163,8 +140,7 @@ pub(crate) use bridge::*;
 pub(crate) fn physical_memory_bytes() -> Option<u64> {
     // SAFETY: sysconf only reads system configuration; it has no preconditions and
     // returns -1 for an unknown name.
-    let (pages, page_size) =
-        unsafe { (libc::sysconf(libc::_SC_PHYS_PAGES), libc::sysconf(libc::_SC_PAGESIZE)) };
+    let (pages, page_size) = unsafe { (libc::sysconf(libc::_SC_PHYS_PAGES), libc::sysconf(libc::_SC_PAGESIZE)) };
     if pages <= 0 || page_size <= 0 {
         return None;
     }

@@ -94,26 +94,16 @@ pub fn list_grids(path: &Path) -> Result<Vec<GridInfo>> {
 /// - [`Error::UnsupportedGrid`]: the grid is not `float`/`double`, or its transform is
 ///   not affine (e.g. a frustum).
 /// - [`Error::TooLarge`]: the voxelized grid would need more than `limits.max_bytes`.
-pub fn read_float_grid(
-    path: &Path,
-    selector: &GridSelector,
-    limits: &ReadLimits,
-) -> Result<FloatGrid> {
+pub fn read_float_grid(path: &Path, selector: &GridSelector, limits: &ReadLimits) -> Result<FloatGrid> {
     let path_str = check_file(path)?;
-    let reader = ffi::open_float_grid(path_str, &selector.name, selector.occurrence)
-        .map_err(|e| vdb_error(path, &e))?;
+    let reader = ffi::open_float_grid(path_str, &selector.name, selector.occurrence).map_err(|e| vdb_error(path, &e))?;
     let header = reader.header().map_err(|e| vdb_error(path, &e))?;
     check_status(path, path_str, selector, header.status, &header.value_type, &header.transform)?;
 
     // Size the output from the tree (leaves + tiles), never from header metadata.
     let leaves = header.leaf_count.saturating_add(header.tile_leaf_count);
     let needed = leaves.saturating_mul(BYTES_PER_LEAF);
-    let too_large = || Error::TooLarge {
-        path: path.to_path_buf(),
-        grid: selector.to_string(),
-        needed,
-        limit: limits.max_bytes,
-    };
+    let too_large = || Error::TooLarge { path: path.to_path_buf(), grid: selector.to_string(), needed, limit: limits.max_bytes };
     if needed > limits.max_bytes {
         return Err(too_large());
     }
@@ -147,32 +137,15 @@ pub fn read_float_grid(
 /// # Errors
 /// [`Error::GridNotFound`] (listing the selectors the file holds),
 /// [`Error::UnsupportedGrid`] for a non-scalar type or a non-affine transform.
-pub(crate) fn check_status(
-    path: &Path,
-    path_str: &str,
-    selector: &GridSelector,
-    status: ffi::ReadStatus,
-    value_type: &str,
-    transform: &str,
-) -> Result<()> {
-    let unsupported = |message: String| Error::UnsupportedGrid {
-        path: path.to_path_buf(),
-        grid: selector.to_string(),
-        message,
-    };
+pub(crate) fn check_status(path: &Path, path_str: &str, selector: &GridSelector, status: ffi::ReadStatus, value_type: &str, transform: &str) -> Result<()> {
+    let unsupported = |message: String| Error::UnsupportedGrid { path: path.to_path_buf(), grid: selector.to_string(), message };
     match status {
         ffi::ReadStatus::Ready => Ok(()),
-        ffi::ReadStatus::NotFound => Err(Error::GridNotFound {
-            path: path.to_path_buf(),
-            name: selector.to_string(),
-            available: available_selectors(path, path_str)?,
-        }),
-        ffi::ReadStatus::NotScalar => Err(unsupported(format!(
-            "value type {value_type} is not a scalar grid (plume reads float and double grids)"
-        ))),
-        ffi::ReadStatus::NonLinearTransform => Err(unsupported(format!(
-            "transform {transform} is not affine (plume needs a linear index-to-world map)"
-        ))),
+        ffi::ReadStatus::NotFound => {
+            Err(Error::GridNotFound { path: path.to_path_buf(), name: selector.to_string(), available: available_selectors(path, path_str)? })
+        }
+        ffi::ReadStatus::NotScalar => Err(unsupported(format!("value type {value_type} is not a scalar grid (plume reads float and double grids)"))),
+        ffi::ReadStatus::NonLinearTransform => Err(unsupported(format!("transform {transform} is not affine (plume needs a linear index-to-world map)"))),
         _ => Err(vdb_message(path, format!("shim returned an unknown status for {selector}"))),
     }
 }
@@ -243,11 +216,7 @@ pub struct FoundGrid {
 /// # Errors
 /// As [`read_float_grid`]; [`Error::GridNotFound`] names a required request's first
 /// alternative.
-pub fn read_grids(
-    path: &Path,
-    requests: &[GridRequest],
-    limits: &ReadLimits,
-) -> Result<Vec<Option<FoundGrid>>> {
+pub fn read_grids(path: &Path, requests: &[GridRequest], limits: &ReadLimits) -> Result<Vec<Option<FoundGrid>>> {
     plan_requests(path, requests)?
         .into_iter()
         .zip(requests)
@@ -275,10 +244,7 @@ pub(crate) fn plan_requests(path: &Path, requests: &[GridRequest]) -> Result<Vec
     requests
         .iter()
         .map(|request| {
-            let first = request
-                .alternatives
-                .first()
-                .ok_or_else(|| Error::invalid("grid request", "no grid selector given"))?;
+            let first = request.alternatives.first().ok_or_else(|| Error::invalid("grid request", "no grid selector given"))?;
             let choice = request.alternatives.iter().position(|a| in_file.contains(a));
             if choice.is_none() && request.required {
                 return Err(Error::GridNotFound {
@@ -300,28 +266,15 @@ pub(crate) fn check_file(path: &Path) -> Result<&str> {
         return Err(open_error(io::Error::new(io::ErrorKind::InvalidInput, "not a regular file")));
     }
     let mut magic = Vec::with_capacity(OPENVDB_MAGIC.len());
-    fs::File::open(path)
-        .and_then(|file| file.take(OPENVDB_MAGIC.len() as u64).read_to_end(&mut magic))
-        .map_err(open_error)?;
+    fs::File::open(path).and_then(|file| file.take(OPENVDB_MAGIC.len() as u64).read_to_end(&mut magic)).map_err(open_error)?;
     if magic.starts_with(NANOVDB_MAGIC_PREFIX) {
-        return Err(vdb_message(
-            path,
-            format!(
-                "this is a NanoVDB file, not OpenVDB; convert it with `nanovdb_convert {} out.vdb`",
-                path.display()
-            ),
-        ));
+        return Err(vdb_message(path, format!("this is a NanoVDB file, not OpenVDB; convert it with `nanovdb_convert {} out.vdb`", path.display())));
     }
     if magic != OPENVDB_MAGIC {
         let hex: Vec<String> = magic.iter().map(|b| format!("{b:02x}")).collect();
-        return Err(vdb_message(
-            path,
-            format!("not an OpenVDB file (starts with bytes {})", hex.join(" ")),
-        ));
+        return Err(vdb_message(path, format!("not an OpenVDB file (starts with bytes {})", hex.join(" "))));
     }
-    path.to_str().ok_or_else(|| {
-        open_error(io::Error::new(io::ErrorKind::InvalidInput, "path is not valid UTF-8"))
-    })
+    path.to_str().ok_or_else(|| open_error(io::Error::new(io::ErrorKind::InvalidInput, "path is not valid UTF-8")))
 }
 
 pub(crate) fn vdb_error(path: &Path, error: &cxx::Exception) -> Error {

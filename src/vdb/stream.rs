@@ -95,9 +95,7 @@ impl ReadIsolation {
     ) -> Result<StreamedGrid> {
         match self {
             ReadIsolation::InProcess => stream_float_grid(path, selector, limits, header, leaf),
-            ReadIsolation::Child { reader_exe, limits: isolation } => stream_float_grid_isolated(
-                reader_exe, path, selector, limits, isolation, header, leaf,
-            ),
+            ReadIsolation::Child { reader_exe, limits: isolation } => stream_float_grid_isolated(reader_exe, path, selector, limits, isolation, header, leaf),
         }
     }
 }
@@ -151,13 +149,9 @@ impl Tile {
         let (min, max) = (self.min.to_array(), self.max.to_array());
         let edge = i64::from(max[0]) - i64::from(min[0]) + 1;
         let cube = (0..3).all(|a| i64::from(max[a]) - i64::from(min[a]) + 1 == edge);
-        let aligned = matches!(edge, 8 | 128 | 4096)
-            && (0..3).all(|a| i64::from(min[a]).rem_euclid(edge) == 0);
+        let aligned = matches!(edge, 8 | 128 | 4096) && (0..3).all(|a| i64::from(min[a]).rem_euclid(edge) == 0);
         if !cube || !aligned {
-            return Err(format!(
-                "active tile {}..{} is not a node-aligned cube",
-                self.min, self.max
-            ));
+            return Err(format!("active tile {}..{} is not a node-aligned cube", self.min, self.max));
         }
         if !self.value.is_finite() {
             return Err(format!("active tile at {} holds a NaN or infinite value", self.min));
@@ -180,9 +174,7 @@ pub(crate) enum Refusal {
 fn tree_order(o: IVec3) -> (i32, i32, i32, u32) {
     let slot = |shift: i32, bits: i32| {
         let mask = (1 << bits) - 1;
-        (((o.x >> shift) & mask) << (2 * bits)
-            | ((o.y >> shift) & mask) << bits
-            | ((o.z >> shift) & mask)) as u32
+        (((o.x >> shift) & mask) << (2 * bits) | ((o.y >> shift) & mask) << bits | ((o.z >> shift) & mask)) as u32
     };
     (o.x >> 12, o.y >> 12, o.z >> 12, slot(7, 5) << 12 | slot(3, 4))
 }
@@ -209,11 +201,7 @@ impl<'v, 'f> Delivery<'v, 'f> {
     }
 
     /// Leaves in tree order: `values` holds [`LEAF_VOXELS`] per origin.
-    pub(crate) fn leaves(
-        &mut self,
-        origins: &[IVec3],
-        values: &[f32],
-    ) -> std::result::Result<(), Refusal> {
+    pub(crate) fn leaves(&mut self, origins: &[IVec3], values: &[f32]) -> std::result::Result<(), Refusal> {
         let corrupt = |m: String| Err(Refusal::Corrupt(m));
         if self.in_tiles {
             return corrupt("leaves after the tiles".into());
@@ -250,16 +238,10 @@ impl<'v, 'f> Delivery<'v, 'f> {
         self.in_tiles = true;
         let blocks = tile.blocks().map_err(Refusal::Corrupt)?;
         if !self.inside(tile.min, tile.max) {
-            return Err(Refusal::Corrupt(format!(
-                "tile {}..{} lies outside the announced bounds",
-                tile.min, tile.max
-            )));
+            return Err(Refusal::Corrupt(format!("tile {}..{} lies outside the announced bounds", tile.min, tile.max)));
         }
         if blocks > self.grid.tile_blocks - self.tile_blocks {
-            return Err(Refusal::Corrupt(format!(
-                "more than the {} tile blocks announced",
-                self.grid.tile_blocks
-            )));
+            return Err(Refusal::Corrupt(format!("more than the {} tile blocks announced", self.grid.tile_blocks)));
         }
         self.tile_blocks += blocks;
         // Bounds are checked and aligned, so every origin is an i32 and steps stay in range
@@ -267,8 +249,7 @@ impl<'v, 'f> Delivery<'v, 'f> {
         for x in axis(0) {
             for y in axis(1) {
                 for z in axis(2) {
-                    (self.visit)(IVec3::new(x, y, z), LeafData::Constant(tile.value))
-                        .map_err(Refusal::Visitor)?;
+                    (self.visit)(IVec3::new(x, y, z), LeafData::Constant(tile.value)).map_err(Refusal::Visitor)?;
                 }
             }
         }
@@ -304,27 +285,16 @@ pub(crate) struct LocalStream<'p> {
 impl<'p> LocalStream<'p> {
     /// Opens the grid and reads its topology, with every check of
     /// [`read_float_grid`](super::read_float_grid) that does not need the values.
-    pub(crate) fn open(
-        path: &'p Path,
-        selector: &'p GridSelector,
-        limits: &ReadLimits,
-    ) -> Result<LocalStream<'p>> {
+    pub(crate) fn open(path: &'p Path, selector: &'p GridSelector, limits: &ReadLimits) -> Result<LocalStream<'p>> {
         let path_str = check_file(path)?;
-        let shim = ffi::open_leaf_stream(path_str, &selector.name, selector.occurrence)
-            .map_err(|e| vdb_error(path, &e))?;
+        let shim = ffi::open_leaf_stream(path_str, &selector.name, selector.occurrence).map_err(|e| vdb_error(path, &e))?;
         let h = shim.stream_header().map_err(|e| vdb_error(path, &e))?;
         check_status(path, path_str, selector, h.status, &h.value_type, &h.transform)?;
         let needed = h.resident_bytes.saturating_add(BATCH_BYTES);
         if needed > limits.max_bytes {
-            return Err(Error::TooLarge {
-                path: path.to_path_buf(),
-                grid: selector.to_string(),
-                needed,
-                limit: limits.max_bytes,
-            });
+            return Err(Error::TooLarge { path: path.to_path_buf(), grid: selector.to_string(), needed, limit: limits.max_bytes });
         }
-        let corrupt =
-            |m: String| vdb_message(path, format!("grid {selector}: {m}; the file is corrupt"));
+        let corrupt = |m: String| vdb_message(path, format!("grid {selector}: {m}; the file is corrupt"));
         if !h.background.is_finite() {
             return Err(corrupt("the background is NaN or infinite".into()));
         }
@@ -332,11 +302,7 @@ impl<'p> LocalStream<'p> {
             .stream_tiles()
             .map_err(|e| vdb_error(path, &e))?
             .iter()
-            .map(|t| Tile {
-                min: IVec3::from_array(t.min),
-                max: IVec3::from_array(t.max),
-                value: t.value,
-            })
+            .map(|t| Tile { min: IVec3::from_array(t.min), max: IVec3::from_array(t.max), value: t.value })
             .collect();
         let mut tile_blocks = 0u64;
         for tile in &tiles {
@@ -348,9 +314,7 @@ impl<'p> LocalStream<'p> {
             background: h.background,
             leaf_count: h.leaf_count,
             tile_blocks,
-            index_bbox: h
-                .has_bbox
-                .then(|| (IVec3::from_array(h.bbox_min), IVec3::from_array(h.bbox_max))),
+            index_bbox: h.has_bbox.then(|| (IVec3::from_array(h.bbox_min), IVec3::from_array(h.bbox_max))),
         };
         Ok(LocalStream {
             path,
@@ -379,27 +343,15 @@ impl<'p> LocalStream<'p> {
     /// [`Error::Vdb`] when OpenVDB cannot load a leaf, or a leaf holds a NaN or infinite
     /// value (the file is corrupt, as [`read_float_grid`](super::read_float_grid) says).
     pub(crate) fn next_batch(&mut self) -> Result<Option<(&[IVec3], &[f32])>> {
-        let n = self
-            .shim
-            .pin_mut()
-            .next_leaves(&mut self.raw_origins, &mut self.values)
-            .map_err(|e| vdb_error(self.path, &e))?;
+        let n = self.shim.pin_mut().next_leaves(&mut self.raw_origins, &mut self.values).map_err(|e| vdb_error(self.path, &e))?;
         if n == 0 {
             return Ok(None);
         }
         self.origins.clear();
         self.origins.extend(self.raw_origins[..3 * n].chunks_exact(3).map(IVec3::from_slice));
         let values = &self.values[..LEAF_VOXELS * n];
-        if let Some(i) =
-            values.chunks_exact(LEAF_VOXELS).position(|b| b.iter().any(|v| !v.is_finite()))
-        {
-            return Err(vdb_message(
-                self.path,
-                format!(
-                    "grid {}: leaf {} holds NaN or infinite values; the file is corrupt",
-                    self.selector, self.origins[i]
-                ),
-            ));
+        if let Some(i) = values.chunks_exact(LEAF_VOXELS).position(|b| b.iter().any(|v| !v.is_finite())) {
+            return Err(vdb_message(self.path, format!("grid {}: leaf {} holds NaN or infinite values; the file is corrupt", self.selector, self.origins[i])));
         }
         Ok(Some((&self.origins, values)))
     }
@@ -423,22 +375,14 @@ mod tests {
 
     #[test]
     fn tiles_must_be_node_cubes() {
-        let tile = |min: [i32; 3], edge: i32| Tile {
-            min: IVec3::from_array(min),
-            max: IVec3::from_array(min) + (edge - 1),
-            value: 1.0,
-        };
+        let tile = |min: [i32; 3], edge: i32| Tile { min: IVec3::from_array(min), max: IVec3::from_array(min) + (edge - 1), value: 1.0 };
         assert_eq!(tile([8, -16, 0], 8).blocks(), Ok(1));
         assert_eq!(tile([-128, 0, 128], 128).blocks(), Ok(16 * 16 * 16));
         assert_eq!(tile([0, 0, -4096], 4096).blocks(), Ok(1 << 27));
         assert!(tile([8, 0, 0], 128).blocks().is_err(), "unaligned");
         assert!(tile([0, 0, 0], 16).blocks().is_err(), "not a node size");
         assert_eq!(tile([i32::MAX - 7, 0, 0], 8).blocks(), Ok(1), "the last block of i32");
-        let wrapped = Tile {
-            min: IVec3::new(i32::MAX - 3, 0, 0),
-            max: IVec3::new(i32::MIN + 4, 7, 7),
-            value: 1.0,
-        };
+        let wrapped = Tile { min: IVec3::new(i32::MAX - 3, 0, 0), max: IVec3::new(i32::MIN + 4, 7, 7), value: 1.0 };
         assert!(wrapped.blocks().is_err());
         let mut wide = tile([0, 0, 0], 8);
         wide.max.x += 8;

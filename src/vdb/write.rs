@@ -25,8 +25,7 @@ use crate::error::{Error, Result};
 /// OpenVDB fails; no file is left behind in either case.
 pub fn write_float_grids(path: &Path, grids: &[&FloatGrid]) -> Result<()> {
     let write_error = |source: io::Error| Error::Write { path: path.to_path_buf(), source };
-    let invalid =
-        |message: String| write_error(io::Error::new(io::ErrorKind::InvalidInput, message));
+    let invalid = |message: String| write_error(io::Error::new(io::ErrorKind::InvalidInput, message));
 
     // Build every grid before touching the file system.
     let mut writer = ffi::new_grid_writer().map_err(|e| write_error(io::Error::other(e.what())))?;
@@ -35,13 +34,7 @@ pub fn write_float_grids(path: &Path, grids: &[&FloatGrid]) -> Result<()> {
         let origins: Vec<i32> = grid.origins.iter().flat_map(|o| o.to_array()).collect();
         writer
             .pin_mut()
-            .add_float_grid(
-                &grid.name,
-                &grid.world_from_index.to_cols_array(),
-                grid.background,
-                &origins,
-                &grid.values,
-            )
+            .add_float_grid(&grid.name, &grid.world_from_index.to_cols_array(), grid.background, &origins, &grid.values)
             .map_err(|e| write_error(io::Error::other(e.what())))?;
     }
 
@@ -64,12 +57,7 @@ pub fn write_float_grids(path: &Path, grids: &[&FloatGrid]) -> Result<()> {
 /// Checks the [`FloatGrid`] invariants the shim relies on.
 fn validate(grid: &FloatGrid) -> std::result::Result<(), String> {
     if grid.values.len() != grid.origins.len() * LEAF_VOXELS {
-        return Err(format!(
-            "{} values for {} leaves (expected {} per leaf)",
-            grid.values.len(),
-            grid.origins.len(),
-            LEAF_VOXELS
-        ));
+        return Err(format!("{} values for {} leaves (expected {} per leaf)", grid.values.len(), grid.origins.len(), LEAF_VOXELS));
     }
     if let Some(origin) = grid.origins.iter().find(|o| (**o % LEAF_DIM) != glam::IVec3::ZERO) {
         return Err(format!("leaf origin {origin} is not a multiple of {LEAF_DIM}"));
@@ -84,8 +72,7 @@ fn validate(grid: &FloatGrid) -> std::result::Result<(), String> {
 /// `dir/.name.<pid>.<n>.tmp`, beside the target so that the rename stays on one file system.
 fn temp_path(path: &Path) -> std::result::Result<PathBuf, String> {
     static COUNTER: AtomicUsize = AtomicUsize::new(0);
-    let file_name =
-        path.file_name().ok_or_else(|| "not a file path".to_string())?.to_string_lossy();
+    let file_name = path.file_name().ok_or_else(|| "not a file path".to_string())?.to_string_lossy();
     let n = COUNTER.fetch_add(1, Ordering::Relaxed);
     let temp_name = format!(".{file_name}.{}.{n}.tmp", std::process::id());
     Ok(path.with_file_name(temp_name))

@@ -13,8 +13,8 @@
 
 use glam::{DAffine3, DVec3, IVec3};
 
-pub use super::builder::{check_same_transform, table_dims, BlockSink, BrickTableBuilder, BuiltTable, Channel};
 use super::builder::slot_at;
+pub use super::builder::{check_same_transform, table_dims, BlockSink, BrickTableBuilder, BuiltTable, Channel};
 use super::field::VoxelValues;
 use super::pyramid::Pyramid;
 use super::storage::Buffer;
@@ -179,11 +179,7 @@ impl Volume {
     /// # Errors
     /// Incompatible transforms, an empty volume, or a bounding box too large for the brick
     /// table ([`MAX_TABLE_ENTRIES`]).
-    pub fn build(
-        density: &FloatGrid,
-        source: Option<&FloatGrid>,
-        source_map: impl Fn(f32) -> f32 + Sync,
-    ) -> Result<Volume> {
+    pub fn build(density: &FloatGrid, source: Option<&FloatGrid>, source_map: impl Fn(f32) -> f32 + Sync) -> Result<Volume> {
         Volume::build_with_albedo(density, source, source_map, None)
     }
 
@@ -262,7 +258,18 @@ impl Volume {
         pyramid: Pyramid,
         report: BuildReport,
     ) -> Volume {
-        Volume { world_from_index, index_from_world: world_from_index.inverse(), brick_lo, dims, table, bricks, values, pyramid, report, occupancy: std::sync::OnceLock::new() }
+        Volume {
+            world_from_index,
+            index_from_world: world_from_index.inverse(),
+            brick_lo,
+            dims,
+            table,
+            bricks,
+            values,
+            pyramid,
+            report,
+            occupancy: std::sync::OnceLock::new(),
+        }
     }
 
     fn empty(world_from_index: DAffine3, index_from_world: DAffine3) -> Volume {
@@ -315,10 +322,7 @@ impl Volume {
     /// Bricks stored with at least one dense channel.
     #[must_use]
     pub fn dense_brick_count(&self) -> usize {
-        self.bricks
-            .iter()
-            .filter(|b| matches!(b.density.get(), Slot::Dense(_)) || matches!(b.source.get(), Slot::Dense(_)))
-            .count()
+        self.bricks.iter().filter(|b| matches!(b.density.get(), Slot::Dense(_)) || matches!(b.source.get(), Slot::Dense(_))).count()
     }
 
     /// Bytes of bricks, table, values and pyramid, wherever they live (heap or mapped).

@@ -40,8 +40,7 @@ pub trait BlockSink {
 
 impl BlockSink for Vec<f32> {
     fn append(&mut self, block: &[f32; LEAF_VOXELS]) -> Result<u32> {
-        let index = u32::try_from(self.len() / LEAF_VOXELS)
-            .map_err(|_| Error::Scene("the volume has more than 2³² dense bricks".into()))?;
+        let index = u32::try_from(self.len() / LEAF_VOXELS).map_err(|_| Error::Scene("the volume has more than 2³² dense bricks".into()))?;
         self.extend_from_slice(block);
         Ok(index)
     }
@@ -99,14 +98,7 @@ impl BrickTableBuilder {
     /// A table larger than [`MAX_TABLE_ENTRIES`] (`what` names the grid in the message).
     pub fn new(brick_lo: IVec3, dims: IVec3, what: &str) -> Result<BrickTableBuilder> {
         let entries = table_entries(dims.as_i64vec3(), what)?;
-        Ok(BrickTableBuilder {
-            brick_lo,
-            dims,
-            table: vec![NO_BRICK; entries],
-            bricks: Vec::new(),
-            bounds: Vec::new(),
-            report: BuildReport::default(),
-        })
+        Ok(BrickTableBuilder { brick_lo, dims, table: vec![NO_BRICK; entries], bricks: Vec::new(), bounds: Vec::new(), report: BuildReport::default() })
     }
 
     /// Store channel `channel` of brick `b` from 512 raw values in OpenVDB leaf order,
@@ -205,10 +197,7 @@ impl BrickTableBuilder {
     fn brick_index(&mut self, b: IVec3) -> Result<usize> {
         let r = b - self.brick_lo;
         if r.cmplt(IVec3::ZERO).any() || r.cmpge(self.dims).any() {
-            return Err(Error::Scene(format!(
-                "leaf at voxel {} lies outside the grid's announced bounding box",
-                b * BRICK
-            )));
+            return Err(Error::Scene(format!("leaf at voxel {} lies outside the grid's announced bounding box", b * BRICK)));
         }
         let cell = r.x as usize + self.dims.x as usize * (r.y as usize + self.dims.y as usize * r.z as usize);
         if self.table[cell] == NO_BRICK {
@@ -296,8 +285,7 @@ fn shrink_to_occupied(lo: IVec3, dims: IVec3, table: Vec<u32>) -> (IVec3, IVec3,
 /// [`Error::Scene`] naming both grids.
 pub fn check_same_transform((a_name, a): (&str, DAffine3), (b_name, b): (&str, DAffine3)) -> Result<()> {
     let scale = a.matrix3.abs().to_cols_array().iter().fold(0.0f64, |m, v| m.max(*v));
-    let close = a.matrix3.abs_diff_eq(b.matrix3, 1e-6 * scale.max(1e-30))
-        && a.translation.abs_diff_eq(b.translation, 1e-6 * scale.max(1e-30));
+    let close = a.matrix3.abs_diff_eq(b.matrix3, 1e-6 * scale.max(1e-30)) && a.translation.abs_diff_eq(b.translation, 1e-6 * scale.max(1e-30));
     if close {
         Ok(())
     } else {
@@ -327,7 +315,11 @@ fn table_entries(d: glam::I64Vec3, what: &str) -> Result<usize> {
     if entries > MAX_TABLE_ENTRIES {
         return Err(Error::Scene(format!(
             "grid {what:?} spans {}x{}x{} bricks ({} voxels across); plume's brick table is limited to {} bricks",
-            d.x, d.y, d.z, d.max_element() * 8, MAX_TABLE_ENTRIES
+            d.x,
+            d.y,
+            d.z,
+            d.max_element() * 8,
+            MAX_TABLE_ENTRIES
         )));
     }
     Ok(entries as usize)
@@ -344,7 +336,11 @@ fn albedo_bounds(values: &[f32], b: &Brick) -> (f32, f32) {
             hi = hi.max(a);
         }
     }
-    if lo > hi { (1.0, 1.0) } else { (lo, hi) }
+    if lo > hi {
+        (1.0, 1.0)
+    } else {
+        (lo, hi)
+    }
 }
 
 /// Value `i` (brick order) of a slot; 0 for a block beyond the value array (only a
@@ -388,6 +384,10 @@ fn clean_albedo_n(v: f32, count: &mut u64, n: u64) -> f32 {
         v
     } else {
         *count += n;
-        if v.is_nan() { 1.0 } else { v.clamp(0.0, 1.0) }
+        if v.is_nan() {
+            1.0
+        } else {
+            v.clamp(0.0, 1.0)
+        }
     }
 }

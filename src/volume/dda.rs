@@ -62,16 +62,8 @@ impl<'a> VolumeSegments<'a> {
     fn new(volume: &'a Volume, ray: &Ray, t_min: f64, t_max: f64) -> Self {
         let o = volume.index_from_world.transform_point3(ray.origin);
         let d = volume.index_from_world.transform_vector3(ray.direction);
-        let inv_d = DVec3::new(
-            if d.x != 0.0 { 1.0 / d.x } else { 0.0 },
-            if d.y != 0.0 { 1.0 / d.y } else { 0.0 },
-            if d.z != 0.0 { 1.0 / d.z } else { 0.0 },
-        );
-        let step = IVec3::new(
-            (d.x > 0.0) as i32 - (d.x < 0.0) as i32,
-            (d.y > 0.0) as i32 - (d.y < 0.0) as i32,
-            (d.z > 0.0) as i32 - (d.z < 0.0) as i32,
-        );
+        let inv_d = DVec3::new(if d.x != 0.0 { 1.0 / d.x } else { 0.0 }, if d.y != 0.0 { 1.0 / d.y } else { 0.0 }, if d.z != 0.0 { 1.0 / d.z } else { 0.0 });
+        let step = IVec3::new((d.x > 0.0) as i32 - (d.x < 0.0) as i32, (d.y > 0.0) as i32 - (d.y < 0.0) as i32, (d.z > 0.0) as i32 - (d.z < 0.0) as i32);
         let mut it = VolumeSegments {
             volume,
             o,
@@ -150,7 +142,11 @@ impl<'a> VolumeSegments<'a> {
         let p = self.o + self.d * t_exit;
         for a in 0..3 {
             self.ijk[a] = if ta[a] == t_exit {
-                if self.d[a] > 0.0 { lo[a] + size } else { lo[a] - 1 }
+                if self.d[a] > 0.0 {
+                    lo[a] + size
+                } else {
+                    lo[a] - 1
+                }
             } else {
                 cell_of(p[a], self.d[a]).clamp(lo[a], lo[a] + size - 1)
             };
@@ -186,11 +182,7 @@ impl<'a> VolumeSegments<'a> {
                     self.brick = None;
                 }
             } else {
-                let bc = IVec3::new(
-                    self.ijk.x.div_euclid(BRICK),
-                    self.ijk.y.div_euclid(BRICK),
-                    self.ijk.z.div_euclid(BRICK),
-                );
+                let bc = IVec3::new(self.ijk.x.div_euclid(BRICK), self.ijk.y.div_euclid(BRICK), self.ijk.z.div_euclid(BRICK));
                 if self.volume.cell(bc).is_none() {
                     // Left the table (only by rounding before t_end): the rest is empty.
                     self.done = true;
@@ -259,10 +251,7 @@ impl Iterator for VolumeSegments<'_> {
                 (Some(p), None) => return Some(p),
                 (None, Some(s)) => self.pending = Some(s),
                 (Some(mut p), Some(s)) => {
-                    if p.density.to_bits() == s.density.to_bits()
-                        && p.source.to_bits() == s.source.to_bits()
-                        && p.albedo.to_bits() == s.albedo.to_bits()
-                    {
+                    if p.density.to_bits() == s.density.to_bits() && p.source.to_bits() == s.source.to_bits() && p.albedo.to_bits() == s.albedo.to_bits() {
                         p.t1 = s.t1;
                         self.pending = Some(p);
                     } else {
@@ -289,11 +278,7 @@ impl Field for Volume {
         let mut wlo = DVec3::splat(f64::INFINITY);
         let mut whi = DVec3::splat(f64::NEG_INFINITY);
         for i in 0..8 {
-            let c = DVec3::new(
-                if i & 1 == 0 { lo.x } else { hi.x },
-                if i & 2 == 0 { lo.y } else { hi.y },
-                if i & 4 == 0 { lo.z } else { hi.z },
-            );
+            let c = DVec3::new(if i & 1 == 0 { lo.x } else { hi.x }, if i & 2 == 0 { lo.y } else { hi.y }, if i & 4 == 0 { lo.z } else { hi.z });
             let w = self.world_from_index.transform_point3(c);
             wlo = wlo.min(w);
             whi = whi.max(w);

@@ -202,14 +202,7 @@ fn inside(p: DVec3, lo: DVec3, hi: DVec3) -> bool {
 /// `[t_min, t_max]`, or `None` if empty. Robust to zero (and −0.0) direction components.
 /// `direction` need not be unit length: `t` is the ray parameter.
 #[must_use]
-pub fn clip_to_box(
-    origin: DVec3,
-    direction: DVec3,
-    lo: DVec3,
-    hi: DVec3,
-    t_min: f64,
-    t_max: f64,
-) -> Option<(f64, f64)> {
+pub fn clip_to_box(origin: DVec3, direction: DVec3, lo: DVec3, hi: DVec3, t_min: f64, t_max: f64) -> Option<(f64, f64)> {
     let mut t0 = t_min;
     let mut t1 = t_max;
     for a in 0..3 {
@@ -262,7 +255,11 @@ impl Field for Constant {
     }
 
     fn values_at(&self, p: DVec3) -> VoxelValues {
-        if inside(p, self.lo, self.hi) { VoxelValues { density: self.density, source: self.source } } else { VoxelValues::ZERO }
+        if inside(p, self.lo, self.hi) {
+            VoxelValues { density: self.density, source: self.source }
+        } else {
+            VoxelValues::ZERO
+        }
     }
 }
 
@@ -287,8 +284,7 @@ impl Field for Strip {
 
     fn segments(&self, ray: &Ray, t_min: f64, t_max: f64) -> Self::Segments<'_> {
         let mut out = Vec::new();
-        let Some((t0, t1)) = clip_to_box(ray.origin, ray.direction, self.lo, self.hi, t_min, t_max)
-        else {
+        let Some((t0, t1)) = clip_to_box(ray.origin, ray.direction, self.lo, self.hi, t_min, t_max) else {
             return out.into();
         };
         let n = self.cells.len();

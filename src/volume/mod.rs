@@ -9,8 +9,8 @@ pub mod brick;
 pub mod builder;
 pub mod dda;
 pub mod field;
-pub mod proxy;
 pub mod prefetch;
+pub mod proxy;
 pub mod pyramid;
 pub mod storage;
 

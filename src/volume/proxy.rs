@@ -137,10 +137,7 @@ fn cell_layout(volume: &Volume, resolution: u32) -> Result<Option<(i32, IVec3)>>
     let dims = (extent + (edge - 1)) / edge;
     let count = dims.x as u64 * dims.y as u64 * dims.z as u64;
     if count >= u64::from(u32::MAX) {
-        return Err(Error::invalid(
-            RESOLUTION_KEY,
-            format!("{resolution} needs {count} proxy cells, more than plume supports; choose a smaller resolution"),
-        ));
+        return Err(Error::invalid(RESOLUTION_KEY, format!("{resolution} needs {count} proxy cells, more than plume supports; choose a smaller resolution")));
     }
     Ok(Some((edge, dims)))
 }
@@ -157,10 +154,8 @@ impl CellPower {
         let (brick_lo, brick_dims) = volume.brick_range();
         let extent = brick_dims * BRICK;
         let voxel_lo = brick_lo * BRICK;
-        let layers: Vec<(Vec<f64>, Option<BadPower>)> = (0..dims.z)
-            .into_par_iter()
-            .map(|cz| layer_power(volume, &power, voxel_lo, extent, edge, dims, cz))
-            .collect();
+        let layers: Vec<(Vec<f64>, Option<BadPower>)> =
+            (0..dims.z).into_par_iter().map(|cz| layer_power(volume, &power, voxel_lo, extent, edge, dims, cz)).collect();
         if let Some(bad) = layers.iter().find_map(|l| l.1) {
             return Err(Error::Scene(format!(
                 "emitted power {} at voxel {} (density {}, source {}) is negative or not finite",
@@ -254,11 +249,8 @@ impl ProxyGrid {
         let block_dims = (dims + (BLOCK - 1)) / BLOCK;
         let mut block_occupied = vec![false; (block_dims.x * block_dims.y * block_dims.z) as usize];
         for &cell in &cells {
-            let c = IVec3::new(
-                (cell % dims.x as u32) as i32,
-                ((cell / dims.x as u32) % dims.y as u32) as i32,
-                (cell / (dims.x as u32 * dims.y as u32)) as i32,
-            ) / BLOCK;
+            let c = IVec3::new((cell % dims.x as u32) as i32, ((cell / dims.x as u32) % dims.y as u32) as i32, (cell / (dims.x as u32 * dims.y as u32)) as i32)
+                / BLOCK;
             block_occupied[(c.x + block_dims.x * (c.y + block_dims.y * c.z)) as usize] = true;
         }
         let e = f64::from(edge);

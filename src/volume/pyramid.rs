@@ -33,24 +33,25 @@ pub struct NodeBounds {
 
 impl NodeBounds {
     /// Bounds of empty space (no brick): density and source 0, albedo 1.
-    pub const ZERO: NodeBounds =
-        NodeBounds { density_min: 0.0, density_max: 0.0, source_min: 0.0, source_max: 0.0, albedo_min: 1.0, albedo_max: 1.0 };
+    pub const ZERO: NodeBounds = NodeBounds { density_min: 0.0, density_max: 0.0, source_min: 0.0, source_max: 0.0, albedo_min: 1.0, albedo_max: 1.0 };
 
     /// True when the node is constant in every channel that matters: density, source,
     /// and albedo where there is density (no collision happens where density is 0).
     #[inline]
     #[must_use]
     pub fn is_uniform(&self) -> bool {
-        self.density_min == self.density_max
-            && self.source_min == self.source_max
-            && (self.albedo_min == self.albedo_max || self.density_max == 0.0)
+        self.density_min == self.density_max && self.source_min == self.source_max && (self.albedo_min == self.albedo_max || self.density_max == 0.0)
     }
 
     /// Albedo factor to report for a uniform node.
     #[inline]
     #[must_use]
     pub fn uniform_albedo(&self) -> f32 {
-        if self.density_max == 0.0 { 1.0 } else { self.albedo_max }
+        if self.density_max == 0.0 {
+            1.0
+        } else {
+            self.albedo_max
+        }
     }
 
     fn union(self, o: NodeBounds) -> NodeBounds {
@@ -114,8 +115,7 @@ impl Pyramid {
         if all.is_empty() {
             return Pyramid::default();
         }
-        let base: Vec<NodeBounds> =
-            table.iter().map(|&bi| if bi == NO_BRICK { NodeBounds::ZERO } else { bounds[bi as usize] }).collect();
+        let base: Vec<NodeBounds> = table.iter().map(|&bi| if bi == NO_BRICK { NodeBounds::ZERO } else { bounds[bi as usize] }).collect();
         let mut levels = vec![Level { dims, nodes: Buffer::from_vec(base) }];
         for &nd in &all[1..] {
             let prev = levels.last().expect("invariant: at least one level");

@@ -48,9 +48,7 @@ pub fn sidak(alpha: f64, test_count: usize) -> f64 {
 
 /// Where failing histograms go: `$CARGO_TARGET_DIR/chi2` or `<crate>/target/chi2`.
 fn dump_dir() -> PathBuf {
-    std::env::var_os("CARGO_TARGET_DIR")
-        .map_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("target"), PathBuf::from)
-        .join("chi2")
+    std::env::var_os("CARGO_TARGET_DIR").map_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("target"), PathBuf::from).join("chi2")
 }
 
 fn dump(name: &str, observed: &[f64], expected: &[f64], why: &str) -> PathBuf {
@@ -171,14 +169,7 @@ pub fn mean_stderr(values: &[f64]) -> (f64, f64) {
 /// Grid emission in `convention`: `L_e` = source (grey), unscaled, no cutoff.
 #[must_use]
 pub fn grid_emission(convention: Convention) -> Emission {
-    Emission {
-        kind: EmissionKind::Grid,
-        convention,
-        scale: 1.0,
-        color: Rgb::ONE,
-        temperature_map: TemperatureMap::Kelvin,
-        cutoff_kelvin: 0.0,
-    }
+    Emission { kind: EmissionKind::Grid, convention, scale: 1.0, color: Rgb::ONE, temperature_map: TemperatureMap::Kelvin, cutoff_kelvin: 0.0 }
 }
 
 // ---------------------------------------------------------------------------------------
@@ -323,12 +314,7 @@ pub fn pixel_bits(pixels: &[[f32; 4]]) -> Vec<u32> {
 
 /// Names of the entries of `dir` for which `keep` holds.
 pub fn names_in(dir: &Path, keep: impl Fn(&str) -> bool) -> Vec<String> {
-    std::fs::read_dir(dir)
-        .unwrap()
-        .filter_map(|e| e.ok())
-        .map(|e| e.file_name().to_string_lossy().into_owned())
-        .filter(|n| keep(n))
-        .collect()
+    std::fs::read_dir(dir).unwrap().filter_map(|e| e.ok()).map(|e| e.file_name().to_string_lossy().into_owned()).filter(|n| keep(n)).collect()
 }
 
 // ---------------------------------------------------------------------------------------

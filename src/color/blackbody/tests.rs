@@ -5,27 +5,11 @@ use super::*;
 
 fn assert_rel(actual: f64, expected: f64, tolerance: f64, what: &str) {
     let rel = (actual / expected - 1.0).abs();
-    assert!(
-        rel <= tolerance,
-        "{what}: {actual:e} vs {expected:e} (rel {rel:e} > {tolerance:e})"
-    );
+    assert!(rel <= tolerance, "{what}: {actual:e} vs {expected:e} (rel {rel:e} > {tolerance:e})");
 }
 
 /// Temperatures that must never produce NaN or ∞ (NaN is treated as 0 K).
-const EDGE_TEMPERATURES: [f32; 12] = [
-    0.0,
-    1e-3,
-    1.0,
-    100.0,
-    499.0,
-    500.0,
-    1e4,
-    1e7,
-    1e8,
-    f32::MAX,
-    f32::INFINITY,
-    f32::NAN,
-];
+const EDGE_TEMPERATURES: [f32; 12] = [0.0, 1e-3, 1.0, 100.0, 499.0, 500.0, 1e4, 1e7, 1e8, f32::MAX, f32::INFINITY, f32::NAN];
 
 #[test]
 fn planck_matches_method_range() {
@@ -84,24 +68,14 @@ fn planck_integrates_to_stefan_boltzmann() {
             .sum::<f64>()
             * h
             / 3.0;
-        assert_rel(
-            integral,
-            STEFAN_BOLTZMANN * t.powi(4) / PI,
-            1e-4,
-            "∫B dλ vs σT⁴/π",
-        );
+        assert_rel(integral, STEFAN_BOLTZMANN * t.powi(4) / PI, 1e-4, "∫B dλ vs σT⁴/π");
     }
 }
 
 #[test]
 fn cmf_table_integrals() {
-    assert_eq!(
-        CIE1931_2DEG.len() as u32,
-        CIE1931_LAMBDA_MAX_NM - CIE1931_LAMBDA_MIN_NM + 1
-    );
-    let sums = CIE1931_2DEG.iter().fold([0.0f64; 3], |acc, row| {
-        [acc[0] + row[0], acc[1] + row[1], acc[2] + row[2]]
-    });
+    assert_eq!(CIE1931_2DEG.len() as u32, CIE1931_LAMBDA_MAX_NM - CIE1931_LAMBDA_MIN_NM + 1);
+    let sums = CIE1931_2DEG.iter().fold([0.0f64; 3], |acc, row| [acc[0] + row[0], acc[1] + row[1], acc[2] + row[2]]);
     assert!((sums[1] - 106.86).abs() < 0.05, "∫ȳ dλ = {} nm", sums[1]);
     // Equal-energy white: the three integrals agree to 0.04 %.
     assert!((sums[0] - sums[1]).abs() < 0.05 && (sums[2] - sums[1]).abs() < 0.05);
@@ -124,10 +98,7 @@ fn fast_xyz_matches_blackbody_xyz() {
 fn chromaticity_of_6504_k_on_planckian_locus() {
     let [x, y, z] = blackbody_xyz(6504.0);
     let (cx, cy) = (x / (x + y + z), y / (x + y + z));
-    assert!(
-        (cx - 0.3135).abs() < 0.002 && (cy - 0.3237).abs() < 0.002,
-        "(x, y) = ({cx}, {cy})"
-    );
+    assert!((cx - 0.3135).abs() < 0.002 && (cy - 0.3237).abs() < 0.002, "(x, y) = ({cx}, {cy})");
 }
 
 #[test]
@@ -194,10 +165,7 @@ fn table_matches_exact() {
             let luminance_error = (table.luminance(t) / xyz[1] - 1.0).abs();
             let approx = table.rgb(t).to_f64();
             let largest = exact.iter().fold(0.0f64, |m, &c| m.max(c));
-            let rgb_error = (0..3)
-                .map(|c| (approx[c] - exact[c]).abs())
-                .fold(0.0, f64::max)
-                / largest;
+            let rgb_error = (0..3).map(|c| (approx[c] - exact[c]).abs()).fold(0.0, f64::max) / largest;
             if luminance_error > max_luminance_error {
                 (max_luminance_error, worst_luminance_t) = (luminance_error, t);
             }
@@ -211,10 +179,7 @@ fn table_matches_exact() {
          (at {worst_luminance_t} K), rgb {max_rgb_error:.2e} of largest channel \
          (at {worst_rgb_t} K)"
     );
-    assert!(
-        max_luminance_error < 1e-3,
-        "luminance error {max_luminance_error:e}"
-    );
+    assert!(max_luminance_error < 1e-3, "luminance error {max_luminance_error:e}");
     assert!(max_rgb_error < 1e-3, "rgb error {max_rgb_error:e}");
 }
 
@@ -231,10 +196,7 @@ fn table_exact_at_nodes_and_zero_below() {
     }
     // Above the table, T is clamped.
     assert_eq!(table.rgb(1e9), table.rgb(TABLE_MAX_KELVIN));
-    assert_eq!(
-        table.luminance(f32::INFINITY),
-        table.luminance(TABLE_MAX_KELVIN)
-    );
+    assert_eq!(table.luminance(f32::INFINITY), table.luminance(TABLE_MAX_KELVIN));
 }
 
 #[test]
@@ -242,10 +204,7 @@ fn chromaticity_has_unit_luminance_and_floor() {
     let table = blackbody_table();
     for t in [800.0, 3000.0, 1e6] {
         let luminance = table.chromaticity(t).luminance();
-        assert!(
-            (luminance - 1.0).abs() < 1e-5,
-            "Ĉ({t} K) luminance {luminance}"
-        );
+        assert!((luminance - 1.0).abs() < 1e-5, "Ĉ({t} K) luminance {luminance}");
     }
     let floor = table.chromaticity(800.0);
     for t in [0.0, 1.0, 300.0, 799.9, f32::NAN, -5.0] {
@@ -260,10 +219,7 @@ fn chromaticity_has_unit_luminance_and_floor() {
     let y = blackbody_xyz(3000.0)[1];
     let chromaticity = table.chromaticity(3000.0).to_f64();
     for k in 0..3 {
-        assert!(
-            (chromaticity[k] - c[k] / y).abs() < 1e-3,
-            "Ĉ(3000 K) {chromaticity:?}"
-        );
+        assert!((chromaticity[k] - c[k] / y).abs() < 1e-3, "Ĉ(3000 K) {chromaticity:?}");
     }
 }
 
@@ -274,10 +230,7 @@ fn cycles_blackbody_convention() {
     let actual = cycles_blackbody(1000.0);
     for c in 0..3 {
         let expected = expected_scale * f64::from(chromaticity.0[c]);
-        assert!(
-            (f64::from(actual.0[c]) - expected).abs() <= 1e-6 * expected.abs(),
-            "{actual:?}"
-        );
+        assert!((f64::from(actual.0[c]) - expected).abs() <= 1e-6 * expected.abs(), "{actual:?}");
     }
     // Unclamped, like Cycles' own fit (values from Cycles' svm_math_blackbody_color_rec709),
     // and constant outside 800 K … 12000 K.
@@ -305,14 +258,8 @@ fn no_nan_or_inf_anywhere() {
         if t.is_finite() || t.is_nan() {
             let t64 = f64::from(t);
             assert!(planck(550.0, t64).is_finite(), "planck at {t}");
-            assert!(
-                blackbody_xyz(t64).iter().all(|v| v.is_finite()),
-                "xyz at {t}"
-            );
-            assert!(
-                blackbody_rgb_exact(t64).iter().all(|v| v.is_finite()),
-                "rgb at {t}"
-            );
+            assert!(blackbody_xyz(t64).iter().all(|v| v.is_finite()), "xyz at {t}");
+            assert!(blackbody_rgb_exact(t64).iter().all(|v| v.is_finite()), "rgb at {t}");
         }
         assert!(table.rgb(t).is_finite(), "table rgb at {t}");
         assert!(table.luminance(t).is_finite(), "table luminance at {t}");
@@ -344,23 +291,13 @@ fn print_reference_colours() {
 
 #[test]
 fn table_build_is_independent_of_thread_count() {
-    let (one, three) = (
-        BlackbodyTable::build_with_threads(1),
-        BlackbodyTable::build_with_threads(3),
-    );
+    let (one, three) = (BlackbodyTable::build_with_threads(1), BlackbodyTable::build_with_threads(3));
     let bits = |table: &BlackbodyTable| {
         let ln_y: Vec<u32> = table.ln_y.iter().map(|v| v.to_bits()).collect();
-        let rgb: Vec<[u32; 3]> = table
-            .rgb_over_y
-            .iter()
-            .map(|c| c.map(f32::to_bits))
-            .collect();
+        let rgb: Vec<[u32; 3]> = table.rgb_over_y.iter().map(|c| c.map(f32::to_bits)).collect();
         (ln_y, rgb)
     };
-    assert!(
-        bits(&one) == bits(&three),
-        "table differs between 1 and 3 build threads"
-    );
+    assert!(bits(&one) == bits(&three), "table differs between 1 and 3 build threads");
 }
 
 /// Table build time. Not a timed assertion (STYLE §8); run with
@@ -370,10 +307,7 @@ fn table_build_is_independent_of_thread_count() {
 fn table_build_time() {
     /// CPU time of this thread, s (wall time is inflated on a shared machine).
     fn thread_cpu_seconds() -> f64 {
-        let mut ts = libc::timespec {
-            tv_sec: 0,
-            tv_nsec: 0,
-        };
+        let mut ts = libc::timespec { tv_sec: 0, tv_nsec: 0 };
         // SAFETY: `ts` is a valid, writable timespec.
         let rc = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
         assert_eq!(rc, 0);

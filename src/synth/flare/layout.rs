@@ -118,12 +118,9 @@ impl SplitMix64 {
 /// All loops for `seed`: the arcade first, then the active-region loops.
 pub fn loops(seed: u64, counts: LayoutCounts) -> Vec<LoopSpec> {
     let pil = Pil::new(&mut SplitMix64::new(seed, 0, 0));
-    let arcade = (0..counts.arcade)
-        .map(|i| arcade_loop(&pil, &mut SplitMix64::new(seed, 1, u64::from(i)), counts.knot_fraction));
+    let arcade = (0..counts.arcade).map(|i| arcade_loop(&pil, &mut SplitMix64::new(seed, 1, u64::from(i)), counts.knot_fraction));
     let spots = Spots::new(&pil, &mut SplitMix64::new(seed, 0, 1));
-    let mut active: Vec<LoopSpec> = (0..counts.active_region)
-        .map(|i| active_region_loop(&spots, &mut SplitMix64::new(seed, 2, u64::from(i))))
-        .collect();
+    let mut active: Vec<LoopSpec> = (0..counts.active_region).map(|i| active_region_loop(&spots, &mut SplitMix64::new(seed, 2, u64::from(i)))).collect();
     // Normalise Σ arc·(radius + D)², the active-region loops' volume dilated by about
     // the reach of a brick at 4096³ (D = 5/4096), which sets the data size: seeds would
     // otherwise differ by ±25 % with the patches' spacing. Solve for one common radius
@@ -196,8 +193,7 @@ fn arcade_loop(pil: &Pil, rng: &mut SplitMix64, knot_fraction: f32) -> LoopSpec 
     let half_separation = height * rng.uniform(0.8, 1.15);
     // Sheared arcade: feet displaced along the PIL in opposite directions
     let shear = half_separation * rng.uniform(0.15, 0.35);
-    let feet =
-        [centre - half_separation * normal - shear * tangent, centre + half_separation * normal + shear * tangent];
+    let feet = [centre - half_separation * normal - shear * tangent, centre + half_separation * normal + shear * tangent];
     // Higher (later, in the standard flare model) loops are hotter
     let hotness = (0.6 * relative + 0.4 * rng.unit()).clamp(0.0, 1.0);
     let top_temperature = 10f64.powf(6.5 + 0.75 * hotness) as f32;
@@ -325,13 +321,6 @@ impl LoopSpec {
         let h = self.height.max(1e-6);
         let c = (h * h - half_separation * half_separation) / (2.0 * h);
         let radius = (h * h + half_separation * half_separation) / (2.0 * h);
-        Circle {
-            centre: middle + c * e2,
-            e1,
-            e2,
-            normal: e1.cross(e2),
-            radius,
-            half_angle: 0.5 * PI + (c / radius).clamp(-1.0, 1.0).asin(),
-        }
+        Circle { centre: middle + c * e2, e1, e2, normal: e1.cross(e2), radius, half_angle: 0.5 * PI + (c / radius).clamp(-1.0, 1.0).asin() }
     }
 }

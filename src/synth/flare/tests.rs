@@ -298,11 +298,8 @@ fn synth_flare_listing_is_conservative_on_sampled_high_resolution_slabs() {
         let dims = f.brick_dims();
         for bz in slabs {
             let listed: HashSet<IVec3> = f.bricks_in_slab(bz).into_iter().collect();
-            let occupied: Vec<IVec3> = (0..dims.y)
-                .into_par_iter()
-                .flat_map_iter(|y| (0..dims.x).map(move |x| IVec3::new(x, y, bz)))
-                .filter(|&b| fill(&f, b).0)
-                .collect();
+            let occupied: Vec<IVec3> =
+                (0..dims.y).into_par_iter().flat_map_iter(|y| (0..dims.x).map(move |x| IVec3::new(x, y, bz))).filter(|&b| fill(&f, b).0).collect();
             assert!(occupied.len() > 50, "{resolution}³ slab {bz}: {} occupied", occupied.len());
             for b in occupied {
                 assert!(listed.contains(&b), "{resolution}³: occupied brick {b} not listed");
@@ -366,12 +363,7 @@ fn synth_flare_seed_spread() {
         let f = flare(4096, seed);
         let listed: usize = (0..f.brick_dims().z).into_par_iter().map(|bz| f.bricks_in_slab(bz).len()).sum();
         let small = flare(256, seed);
-        let occupied =
-            (0..small.brick_dims().z).flat_map(|bz| small.bricks_in_slab(bz)).filter(|&b| fill(&small, b).0).count();
-        println!(
-            "seed {seed}: 4096³ {:.2} % listed, 256³ {:.2} % occupied",
-            100.0 * listed as f64 / 512f64.powi(3),
-            100.0 * occupied as f64 / 32f64.powi(3)
-        );
+        let occupied = (0..small.brick_dims().z).flat_map(|bz| small.bricks_in_slab(bz)).filter(|&b| fill(&small, b).0).count();
+        println!("seed {seed}: 4096³ {:.2} % listed, 256³ {:.2} % occupied", 100.0 * listed as f64 / 512f64.powi(3), 100.0 * occupied as f64 / 32f64.powi(3));
     }
 }

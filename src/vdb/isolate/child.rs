@@ -62,10 +62,7 @@ impl ReaderCommand {
             )
         };
         let mut it = args.iter();
-        fn text(
-            arg: Option<&OsString>,
-            usage: impl Fn() -> String,
-        ) -> std::result::Result<&str, String> {
+        fn text(arg: Option<&OsString>, usage: impl Fn() -> String) -> std::result::Result<&str, String> {
             arg.and_then(|a| a.to_str()).ok_or_else(usage)
         }
         let mode = text(it.next(), usage)?;
@@ -86,11 +83,7 @@ impl ReaderCommand {
                         return Err(usage());
                     }
                     let alternatives = (0..count)
-                        .map(|_| {
-                            text(it.next(), usage)?
-                                .parse::<GridSelector>()
-                                .map_err(|e| e.to_string())
-                        })
+                        .map(|_| text(it.next(), usage)?.parse::<GridSelector>().map_err(|e| e.to_string()))
                         .collect::<std::result::Result<Vec<_>, _>>()?;
                     requests.push(GridRequest { alternatives, required });
                 }
@@ -131,12 +124,7 @@ fn serve(command: &ReaderCommand) -> io::Result<()> {
     Ok(())
 }
 
-fn serve_read<W: Write>(
-    out: &mut Encoder<W>,
-    path: &Path,
-    limits: &ReadLimits,
-    requests: &[GridRequest],
-) -> io::Result<()> {
+fn serve_read<W: Write>(out: &mut Encoder<W>, path: &Path, limits: &ReadLimits, requests: &[GridRequest]) -> io::Result<()> {
     let plan = match plan_requests(path, requests) {
         Ok(plan) => plan,
         Err(e) => return out.failed(&ChildError::from_error(&e)),

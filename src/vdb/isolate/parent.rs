@@ -50,16 +50,9 @@ impl ReadIsolation {
     /// Without a registered executable (a library caller that has not called
     /// [`set_reader_exe`]) reading stays in-process.
     #[must_use]
-    pub fn from_flags(
-        no_isolation: bool,
-        read_limits: &ReadLimits,
-        timeout: Duration,
-    ) -> ReadIsolation {
+    pub fn from_flags(no_isolation: bool, read_limits: &ReadLimits, timeout: Duration) -> ReadIsolation {
         match reader_exe() {
-            Some(exe) if !no_isolation => ReadIsolation::Child {
-                reader_exe: exe.to_path_buf(),
-                limits: IsolationLimits::new(read_limits, timeout),
-            },
+            Some(exe) if !no_isolation => ReadIsolation::Child { reader_exe: exe.to_path_buf(), limits: IsolationLimits::new(read_limits, timeout) },
             _ => ReadIsolation::InProcess,
         }
     }
@@ -71,9 +64,7 @@ impl ReadIsolation {
     pub fn list_grids(&self, path: &Path) -> Result<Vec<GridInfo>> {
         match self {
             ReadIsolation::InProcess => list_grids(path),
-            ReadIsolation::Child { reader_exe, limits } => {
-                list_grids_isolated(reader_exe, path, limits)
-            }
+            ReadIsolation::Child { reader_exe, limits } => list_grids_isolated(reader_exe, path, limits),
         }
     }
 
@@ -81,17 +72,10 @@ impl ReadIsolation {
     ///
     /// # Errors
     /// As [`crate::vdb::read_grids`], plus [`Error::ReaderFailed`] and [`Error::ReaderSpawn`].
-    pub fn read_grids(
-        &self,
-        path: &Path,
-        requests: &[GridRequest],
-        read_limits: &ReadLimits,
-    ) -> Result<Vec<Option<FoundGrid>>> {
+    pub fn read_grids(&self, path: &Path, requests: &[GridRequest], read_limits: &ReadLimits) -> Result<Vec<Option<FoundGrid>>> {
         match self {
             ReadIsolation::InProcess => read_grids(path, requests, read_limits),
-            ReadIsolation::Child { reader_exe, limits } => {
-                read_grids_isolated(reader_exe, path, requests, read_limits, limits)
-            }
+            ReadIsolation::Child { reader_exe, limits } => read_grids_isolated(reader_exe, path, requests, read_limits, limits),
         }
     }
 }
@@ -111,12 +95,7 @@ pub fn read_float_grids_isolated(
 ) -> Result<Vec<FloatGrid>> {
     let requests: Vec<GridRequest> = selectors.iter().cloned().map(GridRequest::required).collect();
     let found = read_grids_isolated(reader_exe, path, &requests, read_limits, limits)?;
-    Ok(found
-        .into_iter()
-        .map(|f| {
-            f.expect("invariant: the reply parser accepts ABSENT only for optional requests").grid
-        })
-        .collect())
+    Ok(found.into_iter().map(|f| f.expect("invariant: the reply parser accepts ABSENT only for optional requests").grid).collect())
 }
 
 /// [`crate::vdb::read_grids`] in one child process of `reader_exe`.
@@ -132,8 +111,7 @@ pub fn read_grids_isolated(
 ) -> Result<Vec<Option<FoundGrid>>> {
     // Missing files, directories, NanoVDB and non-VDB files are refused here, by Rust code
     check_file(path)?;
-    let mut args: Vec<OsString> =
-        vec!["read".into(), path.into(), read_limits.max_bytes.to_string().into()];
+    let mut args: Vec<OsString> = vec!["read".into(), path.into(), read_limits.max_bytes.to_string().into()];
     for request in requests {
         if request.alternatives.is_empty() {
             return Err(Error::invalid("grid request", "no grid selector given"));
@@ -144,8 +122,7 @@ pub fn read_grids_isolated(
     }
     let mut run = ReaderRun::spawn(reader_exe, &args, limits)?;
     let mut grid: Option<String> = None;
-    let outcome =
-        run.parse(read_limits.max_bytes, |decoder| parse_read_reply(decoder, requests, &mut grid));
+    let outcome = run.parse(read_limits.max_bytes, |decoder| parse_read_reply(decoder, requests, &mut grid));
     run.finish(path, outcome, grid.clone(), limits)?.map_err(|e| child_error(path, e, grid, limits))
 }
 
@@ -153,11 +130,7 @@ pub fn read_grids_isolated(
 ///
 /// # Errors
 /// As [`read_float_grids_isolated`].
-pub fn list_grids_isolated(
-    reader_exe: &Path,
-    path: &Path,
-    limits: &IsolationLimits,
-) -> Result<Vec<GridInfo>> {
+pub fn list_grids_isolated(reader_exe: &Path, path: &Path, limits: &IsolationLimits) -> Result<Vec<GridInfo>> {
     check_file(path)?;
     let args: Vec<OsString> = vec!["list".into(), path.into()];
     let mut run = ReaderRun::spawn(reader_exe, &args, limits)?;
@@ -201,9 +174,7 @@ fn parse_read_reply<R: Read>(
             }
             Record::Grid { request, alternative, grid: g } => {
                 let (request, alternative) = (request as usize, alternative as usize);
-                if begun != Some((request, alternative))
-                    || next.is_none_or(|r| r.alternatives[alternative].name != g.name)
-                {
+                if begun != Some((request, alternative)) || next.is_none_or(|r| r.alternatives[alternative].name != g.name) {
                     return Err(malformed_reply("GRID does not answer the grid begun"));
                 }
                 found.push(Some(FoundGrid { alternative, grid: g }));
@@ -248,27 +219,14 @@ pub(in crate::vdb) fn unexpected(record: &Record) -> WireError {
 }
 
 /// The error the child reported cleanly, as the in-process reader would have returned it.
-pub(in crate::vdb) fn child_error(
-    path: &Path,
-    error: ChildError,
-    grid: Option<String>,
-    limits: &IsolationLimits,
-) -> Error {
+pub(in crate::vdb) fn child_error(path: &Path, error: ChildError, grid: Option<String>, limits: &IsolationLimits) -> Error {
     let path = path.to_path_buf();
     match error {
         ChildError::Open { message } => Error::Open { path, source: io::Error::other(message) },
         ChildError::Vdb { message } => Error::Vdb { path, message },
-        ChildError::GridNotFound { name, available } => {
-            Error::GridNotFound { path, name, available }
-        }
+        ChildError::GridNotFound { name, available } => Error::GridNotFound { path, name, available },
         ChildError::Unsupported { grid, message } => Error::UnsupportedGrid { path, grid, message },
-        ChildError::TooLarge { grid, needed, limit } => {
-            Error::TooLarge { path, grid, needed, limit }
-        }
-        ChildError::OutOfMemory => Error::ReaderFailed {
-            path,
-            grid,
-            what: format!("reader ran out of memory at its limit of {} bytes", limits.memory_bytes),
-        },
+        ChildError::TooLarge { grid, needed, limit } => Error::TooLarge { path, grid, needed, limit },
+        ChildError::OutOfMemory => Error::ReaderFailed { path, grid, what: format!("reader ran out of memory at its limit of {} bytes", limits.memory_bytes) },
     }
 }

@@ -5,8 +5,8 @@ use std::io::{self, Write};
 use glam::IVec3;
 
 use super::{TAG_LEAVES, TAG_STREAM, TAG_TILES};
-use crate::vdb::wire::Encoder;
 use crate::vdb::stream::{StreamedGrid, Tile, STREAM_BATCH};
+use crate::vdb::wire::Encoder;
 use crate::vdb::LEAF_VOXELS;
 
 impl<W: Write> Encoder<W> {

@@ -216,3 +216,23 @@ fn the_example_scene_file_is_complete_and_valid() {
         assert!(demo.contains(flag), "the example scene renders what demo.sh renders: {flag}");
     }
 }
+
+#[test]
+fn a_merged_frame_records_the_scene_of_the_whole_frame() {
+    let dir = tmpdir("scene", "merge");
+    let vdb = explosion(&dir);
+    let part = |i: &str| dir.join(format!("part{i}.exr"));
+    for i in ["0", "1"] {
+        let tile = format!("{i}/2");
+        ok(&plume(&["render", s(&vdb), "-o", s(&part(i)), "--tile", &tile, "--spp", "3", "--width", "40", "--height", "30", "--albedo", "0.5", "-q"]));
+    }
+    let merged = dir.join("merged.exr");
+    ok(&plume(&["merge", s(&part("0")), s(&part("1")), "-o", s(&merged), "-q"]));
+    let scene = plume::output::read_exr_contents(&merged).unwrap().metadata.remove("plume:scene").expect("plume:scene");
+    assert!(!scene.contains("tile") && !scene.contains("crop"), "{scene}");
+    let shot = dir.join("merged.toml");
+    std::fs::write(&shot, &scene).unwrap();
+    let again = dir.join("again.exr");
+    ok(&plume(&["render", s(&shot), "-o", s(&again)]));
+    assert_eq!(bits(&pixels(&merged)), bits(&pixels(&again)), "the merged frame's scene renders the merged frame");
+}

@@ -275,7 +275,26 @@ fn merged_metadata(parts: &[(PartInfo, crate::output::ExrContents)], merged: &Me
     for (k, v) in set {
         m.insert(k.to_string(), v);
     }
+    // The scene that made the parts, as the merged frame: the whole image, all samples
+    if let Some(scene) = m.get("plume:scene").and_then(|t| merged_scene(t, merged, output)) {
+        m.insert("plume:scene".into(), scene);
+    }
     m.into_iter().collect()
+}
+
+/// The first part's scene file (`plume:scene`) rewritten for the merged frame: no crop,
+/// tile or sample range, the merged sample count and output. `None` when it does not
+/// parse (an older plume's part); the part's text is kept then.
+fn merged_scene(part_scene: &str, merged: &Merged, output: &Path) -> Option<String> {
+    let mut shot: crate::scene::Shot = toml::from_str(part_scene).ok()?;
+    let farm = &mut shot.settings.farm;
+    (farm.crop, farm.tile) = (None, None);
+    let first = merged.samples.start;
+    farm.sample_range = (first != 0).then(|| merged.samples.clone());
+    shot.settings.render.spp = (first == 0).then(|| u32::try_from(merged.samples.end).ok()).flatten();
+    shot.settings.render.time = None;
+    shot.settings.output.image = output.to_path_buf();
+    crate::scene::file::to_toml(&shot).ok()
 }
 
 #[cfg(test)]

@@ -2,7 +2,7 @@
 //! file, so volumes larger than memory render with resident anonymous memory bounded by
 //! `--memory-budget` while the OS pages bricks in on demand.
 //!
-//! - [`format`]: the layout (sections, checksums, metadata).
+//! - [`mod@format`]: the layout (sections, checksums, metadata).
 //! - [`writer`]: [`CacheWriter`], streaming bricks in and writing the derived sections.
 //! - [`reader`]: [`Cache::open`], checks and a mapped [`crate::volume::Volume`].
 //! - [`verify`]: the background checksum pass over the large sections.

@@ -12,9 +12,9 @@
 //! Outputs are written atomically, so SIGKILL at any moment leaves either the previous
 //! file or the new one, and stale temporaries are removed by the next run.
 //!
-//! [`render_frame`] runs the steps in order: [`FramePaths::resolve`], [`decide`],
-//! loading ([`crate::load::load_scene`]) and [`warn_about`], [`SamplePlan::new`],
-//! [`replay`] (debug pixel) or [`run_passes`], [`stats_record`], [`write_outputs`].
+//! [`render_frame`] runs the steps in order: [`FramePaths::resolve`], `decide`, loading
+//! ([`crate::load::load_scene`]) and `warn_about`, `SamplePlan::new`, `replay` (debug
+//! pixel) or `run_passes`, `stats_record`, `write_outputs`.
 
 use std::path::PathBuf;
 use std::time::{Duration, Instant};

@@ -6,10 +6,10 @@
 //! is built, and a brick cache weighs all of them during conversion, so this is a hot
 //! loop: a blackbody `L_e` costs a logarithm, an exponential and table interpolation.
 //! For blackbody emission the luminance per unit density, `g(T) = Y(L_e(1, T))`, is
-//! tabulated instead at the first [`FRACTION_BITS`] mantissa bits of `T` (256 nodes per
+//! tabulated instead at the first `FRACTION_BITS` mantissa bits of `T` (256 nodes per
 //! octave, [`TABLE_MIN_KELVIN`] … [`TABLE_MAX_KELVIN`]), so a lookup is a shift and one
 //! linear interpolation in `T` within an octave: of `g` itself where `ln g` changes by
-//! less than [`LINEAR_STEP`] from node to node, of `ln g` (then one exponential) where
+//! less than `LINEAR_STEP` from node to node, of `ln g` (then one exponential) where
 //! it changes faster (below about 3500 K):
 //!
 //! ```text

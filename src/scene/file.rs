@@ -4,7 +4,7 @@
 //! description (`[camera] width = 640`), values the command line's (`method =
 //! "line-fnee"`, `crop = "0,0,64,64"`, `memory_budget = "4GiB"`). Unknown keys are
 //! errors. Relative paths in a file are relative to the file's directory, so a shot
-//! directory can be moved as a whole; [`write`] writes absolute paths.
+//! directory can be moved as a whole; [`fn@write`] writes absolute paths.
 //!
 //! Every error names the file, the line and the key: syntax errors, unknown keys and
 //! wrong types from the parser's span, values out of range from [`Shot::validate`]'s

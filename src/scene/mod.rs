@@ -2,7 +2,7 @@
 //! its grids, emission, medium, camera, lights, integrator) and the [`JobSettings`] (how
 //! the job runs: samples, seed, threads, frames, crops and sample ranges, outputs,
 //! memory, progress). Together they are a [`Shot`], the content of a scene file
-//! (`plume render shot.toml`, [`file`]).
+//! (`plume render shot.toml`, [`mod@file`]).
 //!
 //! Everything here is `serde` data with the command line's defaults, and no command-line
 //! type: the `plume` binary turns flags into a [`Shot`] in one conversion, `bench` and

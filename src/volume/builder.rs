@@ -81,7 +81,7 @@ pub struct BuiltTable {
     pub brick_lo: IVec3,
     /// Table size in bricks.
     pub dims: IVec3,
-    /// Brick index per table cell, or [`NO_BRICK`].
+    /// Brick index per table cell, or `NO_BRICK`.
     pub table: Vec<u32>,
     /// Brick records.
     pub bricks: Vec<Brick>,

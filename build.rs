@@ -11,8 +11,13 @@
 use std::env;
 use std::path::PathBuf;
 
+/// The shim's C++ sources, one concept each (see `cpp/shim_internal.h`).
+const SHIM_SOURCES: [&str; 2] = ["cpp/common.cc", "cpp/vdb_shim.cc"];
+/// `vdb_shim.h` is the header the bridge includes; `shim_internal.h` is shared by the sources.
+const SHIM_HEADERS: [&str; 2] = ["cpp/vdb_shim.h", "cpp/shim_internal.h"];
+
 fn main() {
-    for file in ["build.rs", "cpp/vdb_shim.cc", "cpp/vdb_shim.h", "src/vdb/ffi.rs"] {
+    for file in ["build.rs", "src/vdb/ffi.rs"].iter().chain(&SHIM_SOURCES).chain(&SHIM_HEADERS) {
         println!("cargo:rerun-if-changed={file}");
     }
     println!("cargo:rerun-if-env-changed=OPENVDB_INCLUDE_DIR");
@@ -33,7 +38,7 @@ fn main() {
     }
 
     let mut build = cxx_build::bridge("src/vdb/ffi.rs");
-    build.file("cpp/vdb_shim.cc").std("c++17").opt_level(2);
+    build.files(SHIM_SOURCES).std("c++17").opt_level(2);
     if let Some(dir) = &include_dir {
         build.include(dir);
     }

@@ -1,21 +1,7 @@
-// plume's OpenVDB shim: the only code that sees OpenVDB types.
-//
-// Conventions (see src/vdb/mod.rs for the Rust side):
-// - Grids are addressed by (name, occurrence) in *file order*. io::File keeps its grid
-//   descriptors in a multimap sorted by name, so its own listings are alphabetical; the
-//   file order comes from `scan_descriptors`, a bounds-checked walk over the header,
-//   file metadata and grid descriptors that runs before OpenVDB parses the file.
-// - Files are opened without delayed loading (no memory map, no private temp copy), except
-//   by open_leaf_stream: it maps the file so that leaf buffers stay out of core until it
-//   copies them out one batch at a time (still no private temp copy).
-// - world_from_index is returned as 12 doubles, the columns of a 3x4 matrix in the
-//   column-vector convention (x axis, y axis, z axis, translation) = glam's
-//   DAffine3::to_cols_array. OpenVDB's Mat4 uses row vectors, so column i here is row i
-//   of its matrix.
-// - Leaf values are copied in LeafNode offset order, (x << 6) | (y << 3) | z.
+// plume's OpenVDB shim: descriptor scan, listing, reading, streaming and writing.
+// Conventions and the shared helpers: shim_internal.h, common.cc.
 
-#include "plume/cpp/vdb_shim.h"
-#include "plume/src/vdb/ffi.rs.h"
+#include "plume/cpp/shim_internal.h"
 
 #include <openvdb/openvdb.h>
 #include <openvdb/io/Archive.h>
@@ -39,42 +25,10 @@
 
 namespace plume {
 namespace shim {
+
+using namespace detail;
+
 namespace {
-
-namespace vdb = openvdb;
-
-void ensure_initialized() {
-    static std::once_flag once;
-    std::call_once(once, [] { vdb::initialize(); });
-}
-
-// Keeps exception text to one printable line (the truncated OpenImageIO file, for
-// example, makes OpenVDB quote raw bytes in its message).
-std::string printable(const std::string& text) {
-    std::string out;
-    out.reserve(text.size());
-    for (unsigned char c : text) {
-        out.push_back(c >= 0x20 && c < 0x7f ? static_cast<char>(c) : '?');
-    }
-    return out;
-}
-
-// Runs `body`, turning every exception (OpenVDB, standard or unknown) into a
-// std::runtime_error, the type the cxx glue converts into a Rust `Err`.
-template <typename F>
-auto guarded(F&& body) -> decltype(body()) {
-    try {
-        return body();
-    } catch (const vdb::Exception& e) {
-        throw std::runtime_error(printable(e.what()));
-    } catch (const std::bad_alloc&) {
-        throw std::runtime_error("out of memory");
-    } catch (const std::exception& e) {
-        throw std::runtime_error(printable(e.what()));
-    } catch (...) {
-        throw std::runtime_error("unknown C++ exception in the OpenVDB shim");
-    }
-}
 
 // ---------------------------------------------------------------------------------------
 // Descriptor scan
@@ -367,28 +321,6 @@ private:
 // ---------------------------------------------------------------------------------------
 // Grid summaries
 
-// "UniformScaleTranslateMap" -> "uniform-scale-translate"; the frustum map -> "frustum".
-std::string map_kind(const vdb::math::Transform& transform) {
-    std::string type = transform.mapType();
-    if (type == vdb::math::NonlinearFrustumMap::mapType()) return "frustum";
-    const std::string suffix = "Map";
-    if (type.size() > suffix.size() &&
-        type.compare(type.size() - suffix.size(), suffix.size(), suffix) == 0) {
-        type.erase(type.size() - suffix.size());
-    }
-    std::string out;
-    for (std::size_t i = 0; i < type.size(); ++i) {
-        const char c = type[i];
-        if (std::isupper(static_cast<unsigned char>(c))) {
-            if (i > 0) out.push_back('-');
-            out.push_back(static_cast<char>(std::tolower(static_cast<unsigned char>(c))));
-        } else {
-            out.push_back(c);
-        }
-    }
-    return out;
-}
-
 // Min, max and voxel-weighted mean of the active values (tiles count once per voxel),
 // through `to_double` (identity for scalars, length for vectors).
 template <typename GridT, typename ToDouble>
@@ -464,21 +396,6 @@ GridSummary summarize(const std::string& name, const vdb::GridBase& grid) {
 
 // ---------------------------------------------------------------------------------------
 // Float grid reading
-
-std::array<double, 12> world_from_index_columns(const vdb::math::Transform& transform) {
-    const vdb::Mat4d m = transform.baseMap()->getAffineMap()->getMat4();
-    std::array<double, 12> out{};
-    for (int i = 0; i < 4; ++i) {
-        for (int j = 0; j < 3; ++j) out[3 * i + j] = m(i, j);
-    }
-    return out;
-}
-
-std::uint64_t saturating_add(std::uint64_t a, std::uint64_t b) {
-    return b > std::numeric_limits<std::uint64_t>::max() - a
-               ? std::numeric_limits<std::uint64_t>::max()
-               : a + b;
-}
 
 // An active tile, to be voxelized into leaf-sized blocks of its value.
 struct Tile {

@@ -3,6 +3,8 @@
 //
 // The shim is the only code that sees OpenVDB types. Its files, one concept each:
 // - common.cc   OpenVDB start-up, exception text, the transform helpers the reads share.
+// - scan.cc     the bounded pre-scan of the header, file metadata and grid descriptors
+//               before OpenVDB parses the file; Catalog, which runs it and opens the file.
 //
 // Conventions (see src/vdb/mod.rs for the Rust side):
 // - Grids are addressed by (name, occurrence) in *file order*. io::File keeps its grid
@@ -28,11 +30,15 @@
 #include "plume/src/vdb/ffi.rs.h"
 
 #include <openvdb/openvdb.h>
+#include <openvdb/io/File.h>
 
 #include <array>
+#include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 namespace plume {
 namespace shim {
@@ -72,6 +78,48 @@ std::string map_kind(const vdb::math::Transform& transform);
 std::array<double, 12> world_from_index_columns(const vdb::math::Transform& transform);
 
 std::uint64_t saturating_add(std::uint64_t a, std::uint64_t b);
+
+struct Entry {
+    std::string name;         // grid name (descriptor name without the uniqueness suffix)
+    std::string lookup_name;  // "name[N]" form that io::File::readGrid resolves
+};
+
+// An open file plus its grids in file order (see scan.cc).
+class Catalog {
+public:
+    // With `delay_load`, the file is memory-mapped and grids read later keep their leaf
+    // buffers in the file until a buffer is first touched. Scans the file's descriptors
+    // (scan_descriptors, scan.cc) before OpenVDB opens it.
+    explicit Catalog(const std::string& path, bool delay_load = false);
+
+    const std::vector<Entry>& entries() const { return entries_; }
+
+    std::optional<std::size_t> find(const std::string& name, std::size_t occurrence) const {
+        std::size_t seen = 0;
+        for (std::size_t i = 0; i < entries_.size(); ++i) {
+            if (entries_[i].name == name && seen++ == occurrence) return i;
+        }
+        return std::nullopt;
+    }
+
+    // Metadata and transform only.
+    vdb::GridBase::Ptr read_metadata(std::size_t i) {
+        if (preloaded_) return (*preloaded_)[i];
+        return file_.readGridMetadata(entries_[i].lookup_name);
+    }
+
+    vdb::GridBase::Ptr read_grid(std::size_t i) {
+        if (preloaded_) return (*preloaded_)[i];
+        vdb::GridBase::Ptr grid = file_.readGrid(entries_[i].lookup_name);
+        if (!grid) throw std::runtime_error("OpenVDB returned no grid");
+        return grid;
+    }
+
+private:
+    vdb::io::File file_;
+    std::vector<Entry> entries_;
+    vdb::GridPtrVecPtr preloaded_;
+};
 
 }  // namespace detail
 }  // namespace shim

@@ -5,6 +5,7 @@
 // - common.cc   OpenVDB start-up, exception text, the transform helpers the reads share.
 // - scan.cc     the bounded pre-scan of the header, file metadata and grid descriptors
 //               before OpenVDB parses the file; Catalog, which runs it and opens the file.
+// - list.cc     grid_names and list_grids: a file's grids and their summaries.
 //
 // Conventions (see src/vdb/mod.rs for the Rust side):
 // - Grids are addressed by (name, occurrence) in *file order*. io::File keeps its grid

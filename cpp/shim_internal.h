@@ -6,6 +6,7 @@
 // - scan.cc     the bounded pre-scan of the header, file metadata and grid descriptors
 //               before OpenVDB parses the file; Catalog, which runs it and opens the file.
 // - list.cc     grid_names and list_grids: a file's grids and their summaries.
+// - stream.cc   open_leaf_stream and LeafStream: one grid with delayed loading, leaf by leaf.
 //
 // Conventions (see src/vdb/mod.rs for the Rust side):
 // - Grids are addressed by (name, occurrence) in *file order*. io::File keeps its grid
@@ -79,6 +80,31 @@ std::string map_kind(const vdb::math::Transform& transform);
 std::array<double, 12> world_from_index_columns(const vdb::math::Transform& transform);
 
 std::uint64_t saturating_add(std::uint64_t a, std::uint64_t b);
+
+// An active tile, to be voxelized into leaf-sized blocks of its value.
+struct Tile {
+    vdb::CoordBBox bbox;  // inclusive; every side a multiple of 8 voxels
+    double value;
+};
+
+// Active tiles above leaf level. Tiles are constant regions, so voxelizing means
+// emitting one 8^3 block per leaf-sized cell of each tile.
+template <typename TreeT>
+std::vector<Tile> collect_tiles(const TreeT& tree, std::uint64_t& tile_leaves) {
+    std::vector<Tile> tiles;
+    tile_leaves = 0;
+    auto it = tree.cbeginValueOn();
+    it.setMaxDepth(TreeT::DEPTH - 2);  // stop above the leaves: tiles only
+    for (; it; ++it) {
+        if (!it.isTileValue()) continue;
+        Tile tile;
+        it.getBoundingBox(tile.bbox);
+        tile.value = static_cast<double>(*it);
+        tiles.push_back(tile);
+        tile_leaves = saturating_add(tile_leaves, it.getVoxelCount() / 512);
+    }
+    return tiles;
+}
 
 struct Entry {
     std::string name;         // grid name (descriptor name without the uniqueness suffix)

@@ -7,6 +7,7 @@
 //               before OpenVDB parses the file; Catalog, which runs it and opens the file.
 // - list.cc     grid_names and list_grids: a file's grids and their summaries.
 // - stream.cc   open_leaf_stream and LeafStream: one grid with delayed loading, leaf by leaf.
+// - write.cc    new_grid_writer and GridWriter: float grids to one .vdb file.
 //
 // Conventions (see src/vdb/mod.rs for the Rust side):
 // - Grids are addressed by (name, occurrence) in *file order*. io::File keeps its grid

@@ -12,7 +12,7 @@ use std::env;
 use std::path::PathBuf;
 
 /// The shim's C++ sources, one concept each (see `cpp/shim_internal.h`).
-const SHIM_SOURCES: [&str; 6] = ["cpp/common.cc", "cpp/scan.cc", "cpp/list.cc", "cpp/vdb_shim.cc", "cpp/stream.cc", "cpp/write.cc"];
+const SHIM_SOURCES: [&str; 6] = ["cpp/common.cc", "cpp/scan.cc", "cpp/list.cc", "cpp/read.cc", "cpp/stream.cc", "cpp/write.cc"];
 /// `vdb_shim.h` is the header the bridge includes; `shim_internal.h` is shared by the sources.
 const SHIM_HEADERS: [&str; 2] = ["cpp/vdb_shim.h", "cpp/shim_internal.h"];
 

@@ -6,6 +6,7 @@
 // - scan.cc     the bounded pre-scan of the header, file metadata and grid descriptors
 //               before OpenVDB parses the file; Catalog, which runs it and opens the file.
 // - list.cc     grid_names and list_grids: a file's grids and their summaries.
+// - read.cc     open_float_grid and FloatGridReader: one grid read whole, tiles voxelized.
 // - stream.cc   open_leaf_stream and LeafStream: one grid with delayed loading, leaf by leaf.
 // - write.cc    new_grid_writer and GridWriter: float grids to one .vdb file.
 //

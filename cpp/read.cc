@@ -1,25 +1,19 @@
-// plume's OpenVDB shim: whole-grid reading.
-// Conventions and the shared helpers: shim_internal.h, common.cc; also scan.cc, list.cc, stream.cc, write.cc.
+// Whole-grid reading: open_float_grid reads one float or double grid into memory and
+// FloatGridReader copies it out leaf by leaf, active tiles voxelized into leaf-sized blocks
+// of their value (tiles are never lost). Checks the grid's type and transform from its
+// metadata before any tree is read.
 
 #include "plume/cpp/shim_internal.h"
 
-#include <openvdb/openvdb.h>
-#include <openvdb/io/Archive.h>
-#include <openvdb/io/File.h>
-#include <openvdb/io/GridDescriptor.h>
-
 #include <algorithm>
 #include <array>
-#include <cctype>
-#include <cmath>
+#include <cstddef>
+#include <cstdint>
 #include <cstring>
-#include <fstream>
-#include <limits>
-#include <mutex>
-#include <optional>
-#include <sstream>
+#include <memory>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -29,9 +23,6 @@ namespace shim {
 using namespace detail;
 
 namespace {
-
-// ---------------------------------------------------------------------------------------
-// Float grid reading
 
 template <typename TreeT>
 void copy_tree(const TreeT& tree, const std::vector<Tile>& tiles, std::int32_t* origins,

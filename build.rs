@@ -1,9 +1,11 @@
-//! Builds the OpenVDB shim (`cpp/vdb_shim.cc`) and its cxx bridge (`src/vdb/ffi.rs`).
+//! Builds the OpenVDB shim (`cpp/*.cc`, one concept per file, listed in `SHIM_SOURCES`
+//! and described in `cpp/shim_internal.h`) and its cxx bridge (`src/vdb/ffi.rs`).
 //!
-//! Why `cxx_build` rather than the `cmake` crate: the shim is one C++ file, and Debian's
-//! `libopenvdb-dev` installs plain headers and shared libraries that link directly. With
-//! cmake we would need the cmake package plus OpenVDB's `FindOpenVDB.cmake` and the
-//! find-modules of its dependencies (TBB, Blosc, Imath), which are not all packaged.
+//! Why `cxx_build` rather than the `cmake` crate: the shim is a handful of C++ files with
+//! nothing to configure (one compiler invocation each), and Debian's `libopenvdb-dev`
+//! installs plain headers and shared libraries that link directly. With cmake we would
+//! need the cmake package plus OpenVDB's `FindOpenVDB.cmake` and the find-modules of its
+//! dependencies (TBB, Blosc, Imath), which are not all packaged.
 //!
 //! OpenVDB discovery: the system include path, or `OPENVDB_INCLUDE_DIR` /
 //! `OPENVDB_LIB_DIR` for a custom install.
@@ -11,8 +13,14 @@
 use std::env;
 use std::path::PathBuf;
 
+/// The shim's C++ sources, one concept each (see `cpp/shim_internal.h`); a new file must be
+/// added here to be compiled.
+const SHIM_SOURCES: [&str; 6] = ["cpp/common.cc", "cpp/scan.cc", "cpp/list.cc", "cpp/read.cc", "cpp/stream.cc", "cpp/write.cc"];
+/// `vdb_shim.h` is the header the bridge includes; `shim_internal.h` is shared by the sources.
+const SHIM_HEADERS: [&str; 2] = ["cpp/vdb_shim.h", "cpp/shim_internal.h"];
+
 fn main() {
-    for file in ["build.rs", "cpp/vdb_shim.cc", "cpp/vdb_shim.h", "src/vdb/ffi.rs"] {
+    for file in ["build.rs", "src/vdb/ffi.rs"].iter().chain(&SHIM_SOURCES).chain(&SHIM_HEADERS) {
         println!("cargo:rerun-if-changed={file}");
     }
     println!("cargo:rerun-if-env-changed=OPENVDB_INCLUDE_DIR");
@@ -30,7 +38,7 @@ fn main() {
     }
 
     let mut build = cxx_build::bridge("src/vdb/ffi.rs");
-    build.file("cpp/vdb_shim.cc").std("c++17").opt_level(2);
+    build.files(SHIM_SOURCES).std("c++17").opt_level(2);
     if let Some(dir) = &include_dir {
         build.include(dir);
     }

@@ -1,9 +1,10 @@
 // The C++ side of plume's OpenVDB bridge (see src/vdb/ffi.rs for the Rust side).
 //
 // This header is included by the cxx-generated glue, so it names no OpenVDB type: the
-// two opaque classes keep their OpenVDB state behind a pointer to an `Impl` defined in
-// vdb_shim.cc. Every function that can fail throws std::runtime_error with a one-line
-// message; the bridge declares all of them `-> Result`, so no exception reaches Rust.
+// three opaque classes keep their OpenVDB state behind a pointer to an `Impl` defined in
+// read.cc, stream.cc or write.cc (shim_internal.h lists the shim's files). Every function
+// that can fail throws std::runtime_error with a one-line message; the bridge declares all
+// of them `-> Result`, so no exception reaches Rust.
 
 #pragma once
 

@@ -1,4 +1,5 @@
-//! The `cxx` bridge to the C++ shim in `cpp/vdb_shim.cc`, and the crate's only `unsafe`.
+//! The `cxx` bridge to the C++ shim in `cpp/` (through `cpp/vdb_shim.h`), and the crate's
+//! only `unsafe`.
 //!
 //! Every C++ function is declared `-> Result`: the shim turns any exception into a
 //! `std::runtime_error`, which cxx hands to Rust as a [`cxx::Exception`]. An exception

@@ -1,8 +1,9 @@
 //! Reading and writing OpenVDB files.
 //!
-//! This module is the only place that talks to OpenVDB, through the C++ shim in
-//! `cpp/vdb_shim.cc` bridged by [`cxx`] (see `ffi.rs`). No OpenVDB type and no C++
-//! exception crosses the bridge: every call that can throw returns `Result`.
+//! This module is the only place that talks to OpenVDB, through the C++ shim in `cpp/`
+//! (one concept per file; `cpp/vdb_shim.h` is the header the bridge includes) bridged by
+//! [`cxx`] (see `ffi.rs`). No OpenVDB type and no C++ exception crosses the bridge: every
+//! call that can throw returns `Result`.
 //!
 //! Data comes out as plain [`FloatGrid`]s: leaf origins plus 8³ value blocks in index
 //! space, and the affine `world_from_index` transform. Active tiles are voxelized into

@@ -68,7 +68,7 @@ fn skewed_transform() -> DAffine3 {
 
 /// Index → world of the centre of the volume's index bounds.
 fn world_centre(volume: &Volume) -> DVec3 {
-    let (lo, hi) = volume.index_bounds();
+    let plume::volume::Bounds3 { lo, hi } = volume.index_bounds();
     volume.world_from_index().transform_point3(0.5 * (lo + hi))
 }
 
@@ -77,7 +77,7 @@ fn world_centre(volume: &Volume) -> DVec3 {
 
 /// Brute-force `P_j` of every proxy cell from `volume.voxel`, and `ΣΦ`.
 fn brute_cell_probabilities(volume: &Volume, proxy: &ProxyGrid) -> (Vec<f64>, f64) {
-    let (lo, hi) = volume.index_bounds();
+    let plume::volume::Bounds3 { lo, hi } = volume.index_bounds();
     let (vlo, vhi) = ((lo + 0.5).as_ivec3(), (hi + 0.5).as_ivec3());
     let e = proxy.cell_edge_voxels();
     let dims = proxy.dims();
@@ -276,7 +276,7 @@ fn p_sigma_integrates_to_one_over_the_sphere() {
     for (name, xf) in [("identity", DAffine3::IDENTITY), ("skewed", skewed_transform())] {
         let volume = emitter_volume(xf);
         let centre = world_centre(&volume);
-        let (lo, hi) = volume.index_bounds();
+        let plume::volume::Bounds3 { lo, hi } = volume.index_bounds();
         // Inside: near the hot blob; outside: beyond a corner, looking in
         let inside = volume.world_from_index().transform_point3(DVec3::new(3.3, 6.2, 8.7));
         let outside = volume.world_from_index().transform_point3(hi + 0.25 * (hi - lo));
@@ -389,7 +389,7 @@ fn fnee_directions_match_p_sigma_chi2() {
 fn nee_voxel_pdfs_chi2_and_bitwise_agreement() {
     let volume = emitter_volume(skewed_transform());
     let nee = EmitterDistribution::build(&volume, power).unwrap().expect("emits");
-    let (lo, hi) = volume.index_bounds();
+    let plume::volume::Bounds3 { lo, hi } = volume.index_bounds();
     let (vlo, vhi) = ((lo + 0.5).as_ivec3(), (hi + 0.5).as_ivec3());
     let extent = vhi - vlo;
     let slot = |v: IVec3| {

@@ -46,7 +46,7 @@ fn random_volume(seed: u32, xf: DAffine3) -> Volume {
 
 fn check_segments(vol: &Volume, ray: &Ray, t_min: f64, t_max: f64) -> Result<(), TestCaseError> {
     let segs: Vec<_> = vol.segments(ray, t_min, t_max).collect();
-    let (lo, hi) = vol.index_bounds();
+    let plume::volume::Bounds3 { lo, hi } = vol.index_bounds();
     let o = vol.index_from_world().transform_point3(ray.origin);
     let d = vol.index_from_world().transform_vector3(ray.direction);
     let clip = plume::volume::field::clip_to_box(o, d, lo, hi, t_min, t_max);
@@ -116,7 +116,7 @@ fn pyramid_bounds_cover_every_voxel() {
     for seed in 0..5 {
         let vol = random_volume(seed, DAffine3::IDENTITY);
         let levels = vol.pyramid_levels();
-        let (lo, hi) = vol.index_bounds();
+        let plume::volume::Bounds3 { lo, hi } = vol.index_bounds();
         let (lo, hi) = ((lo + 0.5).as_ivec3(), (hi + 0.5).as_ivec3());
         for x in lo.x..hi.x {
             for y in lo.y..hi.y {
@@ -143,7 +143,7 @@ fn voxel_centres_follow_openvdb() {
     assert_eq!(vol.lookup_index(DVec3::new(2.49, 3.0, 3.0)).density, 3.0);
     assert_eq!(vol.lookup_index(DVec3::new(2.51, 3.0, 3.0)).density, 4.0);
     assert_eq!(vol.lookup_index(DVec3::new(-0.49, 3.0, 3.0)).density, 1.0);
-    let (lo, hi) = vol.index_bounds();
+    let plume::volume::Bounds3 { lo, hi } = vol.index_bounds();
     assert_eq!(lo, DVec3::splat(-0.5));
     assert_eq!(hi, DVec3::splat(7.5));
     // A ray along +x through the leaf: 8 unit-length voxels, the first from -0.5.

@@ -155,7 +155,7 @@ impl EmitterDistribution {
                     (0..LEAF_VOXELS).try_for_each(|off| add(off, density, source, p))
                 } else {
                     (0..LEAF_VOXELS).try_for_each(|off| {
-                        let (density, source) = volume.brick_voxel(brick, local_of(off));
+                        let crate::volume::VoxelValues { density, source } = volume.brick_voxel(brick, local_of(off));
                         if source == 0.0 {
                             return Ok(());
                         }

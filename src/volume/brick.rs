@@ -15,7 +15,7 @@ use glam::{DAffine3, DVec3, IVec3};
 
 use super::builder::slot_at;
 pub use super::builder::{check_same_transform, table_dims, BlockSink, BrickTableBuilder, BuiltTable, Channel};
-use super::field::VoxelValues;
+use super::field::{Bounds3, VoxelValues};
 use super::pyramid::Pyramid;
 use super::storage::Buffer;
 use crate::error::{Error, Result};
@@ -307,10 +307,10 @@ impl Volume {
 
     /// Index-space box covered by the brick table: `[lo, hi]`, voxel faces included.
     #[must_use]
-    pub fn index_bounds(&self) -> (DVec3, DVec3) {
+    pub fn index_bounds(&self) -> Bounds3 {
         let lo = (self.brick_lo * BRICK).as_dvec3() - 0.5;
         let hi = ((self.brick_lo + self.dims) * BRICK).as_dvec3() - 0.5;
-        (lo, hi)
+        Bounds3 { lo, hi }
     }
 
     /// Number of stored bricks.
@@ -422,11 +422,10 @@ impl Volume {
         (self.brick_lo, self.dims)
     }
 
-    /// `(density, source)` of local voxel `l` (each component in `0..8`) of `brick`.
+    /// Density and source of local voxel `l` (each component in `0..8`) of `brick`.
     #[inline]
-    #[must_use]
-    pub(crate) fn brick_voxel(&self, brick: &Brick, l: IVec3) -> (f32, f32) {
-        (self.slot_value(brick.density, l.x, l.y, l.z), self.slot_value(brick.source, l.x, l.y, l.z))
+    pub(crate) fn brick_voxel(&self, brick: &Brick, l: IVec3) -> VoxelValues {
+        VoxelValues { density: self.slot_value(brick.density, l.x, l.y, l.z), source: self.slot_value(brick.source, l.x, l.y, l.z) }
     }
 
     /// The 512 values of a dense slot in brick order ([`brick_offset`]); `None` for a

@@ -83,7 +83,7 @@ impl<'a> VolumeSegments<'a> {
         if volume.is_empty() || d == DVec3::ZERO {
             return it;
         }
-        let (lo, hi) = volume.index_bounds();
+        let crate::volume::Bounds3 { lo, hi } = volume.index_bounds();
         if let Some((t0, t1)) = clip_to_box(o, d, lo, hi, t_min, t_max) {
             it.t = t0;
             it.t_end = t1;
@@ -274,7 +274,7 @@ impl Field for Volume {
     type Segments<'a> = VolumeSegments<'a>;
 
     fn world_bounds(&self) -> Bounds3 {
-        let (lo, hi) = self.index_bounds();
+        let crate::volume::Bounds3 { lo, hi } = self.index_bounds();
         let mut wlo = DVec3::splat(f64::INFINITY);
         let mut whi = DVec3::splat(f64::NEG_INFINITY);
         for i in 0..8 {

@@ -2,7 +2,7 @@
 //! to sample *directions* towards emission and to evaluate their density.
 //!
 //! **Cells.** Cubes of `e` voxels on a side in index space, aligned to voxel faces and
-//! starting at the volume's `index_bounds().0`. The longest axis of the index bounds is
+//! starting at the volume's `index_bounds().lo`. The longest axis of the index bounds is
 //! split into `resolution` cells, `e = ⌈extent/resolution⌉ ≥ 1` voxels; the other axes get
 //! `⌈extent/e⌉` cells (the last cells may reach past the data into empty space). With
 //! `A` the linear part of `world_from_index`, a cell's world volume is `V_j = |det A| e³`.
@@ -257,7 +257,7 @@ impl ProxyGrid {
         Ok(Some(ProxyGrid {
             world_from_index: volume.world_from_index(),
             index_from_world: volume.index_from_world(),
-            origin: volume.index_bounds().0,
+            origin: volume.index_bounds().lo,
             edge,
             dims,
             resolution,
@@ -423,7 +423,7 @@ fn layer_power(
                         let k = cx + cell_of(origin.y + ly, 1) * dims.x as usize;
                         for lz in lz0..lz1 {
                             let l = IVec3::new(lx, ly, lz);
-                            let (density, source) = volume.brick_voxel(brick, l);
+                            let crate::volume::VoxelValues { density, source } = volume.brick_voxel(brick, l);
                             if source == 0.0 {
                                 continue;
                             }

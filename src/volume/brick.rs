@@ -306,7 +306,6 @@ impl Volume {
     }
 
     /// Index-space box covered by the brick table: `[lo, hi]`, voxel faces included.
-    #[must_use]
     pub fn index_bounds(&self) -> Bounds3 {
         let lo = (self.brick_lo * BRICK).as_dvec3() - 0.5;
         let hi = ((self.brick_lo + self.dims) * BRICK).as_dvec3() - 0.5;

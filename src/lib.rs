@@ -24,6 +24,7 @@ pub mod integrator;
 pub mod light;
 pub mod load;
 pub mod medium;
+pub mod memory;
 pub mod output;
 pub mod render;
 pub mod sampling;

@@ -47,14 +47,6 @@ pub fn peak_rss_since_reset_bytes() -> u64 {
     hwm.map_or_else(peak_rss_bytes, |kib| kib * 1024)
 }
 
-/// Memory the OS could give this process now without swapping (`MemAvailable`, which
-/// counts reclaimable page cache), in bytes; `None` where `/proc/meminfo` is unavailable.
-#[must_use]
-pub fn available_memory_bytes() -> Option<u64> {
-    let info = std::fs::read_to_string("/proc/meminfo").ok()?;
-    info.lines().find_map(|l| l.strip_prefix("MemAvailable:").and_then(|v| v.trim().trim_end_matches("kB").trim().parse::<u64>().ok())).map(|kib| kib * 1024)
-}
-
 /// The record of one rendered frame (or part of a frame): appended to the `--stats` file
 /// as one JSON line and stored in the EXR header as `plume:<camelCaseName>` attributes.
 #[derive(Clone, Debug, Serialize)]

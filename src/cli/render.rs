@@ -132,7 +132,8 @@ pub struct RenderArgs {
     /// command line. May hold a frame token.
     #[arg(long)]
     pub stats: Option<PathBuf>,
-    /// Bound on resident anonymous memory, e.g. `4GiB` (default: half of RAM). A .vdb
+    /// Bound on resident anonymous memory, e.g. `4GiB` (default: half of RAM or of this
+    /// process's cgroup memory limit, whichever is smaller). A .vdb
     /// larger than a quarter of it on disk renders through a brick cache (mapped; the OS
     /// page cache may hold its pages), and a render whose own tables would exceed it is
     /// refused.
@@ -146,7 +147,8 @@ pub struct RenderArgs {
     /// image, or `tile-major`, every sample of a tile before the next, with the next
     /// tiles' bricks read ahead, so a volume larger than memory is read from disk about
     /// once. `auto`: tile-major for a brick cache larger than the memory available to
-    /// the page cache, with --spp and no --time-limit. In tile-major order a stop signal
+    /// the page cache (MemAvailable or what the cgroup memory limit leaves, whichever is
+    /// smaller), with --spp and no --time-limit. In tile-major order a stop signal
     /// or time limit abandons the frame (nothing of it is written).
     #[arg(long, value_parser = choice::<SampleOrderChoice>(), default_value_t = RenderOptions::default().sample_order)]
     pub sample_order: SampleOrderChoice,
@@ -219,7 +221,8 @@ pub struct GridArgs {
     /// Per-voxel albedo grid (values clamped to [0, 1]), times --albedo.
     #[arg(long)]
     pub albedo_grid: Option<String>,
-    /// Largest input a grid read may allocate, e.g. `8GiB`, `512MiB` (default: half of RAM).
+    /// Largest input a grid read may allocate, e.g. `8GiB`, `512MiB` (default: half of RAM
+    /// or of the cgroup memory limit, whichever is smaller).
     #[arg(long, value_parser = parse_size)]
     pub max_input_memory: Option<ByteSize>,
     /// Seconds the isolated VDB reader may take before it is killed.

@@ -32,6 +32,7 @@ use crate::film::{Crop, Film, FIXED_POINT_BITS};
 use crate::integrator::LineTrace;
 use crate::load::{load_scene, LoadedScene};
 use crate::medium::{EmissionKind, Estimator};
+use crate::memory::{MemoryBound, MemoryLimits};
 use crate::output::{write_exr_image, ExrImage};
 use crate::render::{render_with, RenderControl, RenderResult, RenderSettings, SampleBudget, SampleOrder, StopReason};
 use crate::scene::{EmissionSource, SampleOrderChoice};
@@ -296,10 +297,14 @@ fn run_passes(
     });
     let stop = || signals::stop_requested().is_some();
     let volume = &loaded.scene.field;
-    let order = sample_order(job, volume, matches!(plan.budget, SampleBudget::Spp(_)));
-    if order == SampleOrder::TileMajor && job_settings.render.sample_order == SampleOrderChoice::Auto && !job_settings.render.quiet {
+    let auto = job_settings.render.sample_order == SampleOrderChoice::Auto;
+    let available = if auto { MemoryLimits::read().available() } else { None };
+    let order = sample_order(job, volume, matches!(plan.budget, SampleBudget::Spp(_)), available);
+    if order == SampleOrder::TileMajor && auto && !job_settings.render.quiet {
+        // Names the cgroup limit when that is what decided
+        let what = available.map_or_else(String::new, |a| format!(" ({a})"));
         eprintln!(
-            "plume: {}: {:.1} GB of bricks, more than the memory available; rendering tile by tile (--sample-order)",
+            "plume: {}: {:.2} GB of bricks, more than the memory available{what}; rendering tile by tile (--sample-order)",
             paths.input.display(),
             volume.memory_bytes() as f64 / 1e9
         );
@@ -439,16 +444,17 @@ fn write_outputs(job: &Job<'_>, paths: &FramePaths, loaded: &LoadedScene, result
 }
 
 /// The sample order for this frame: `auto` is tile-major for a mapped volume larger than
-/// the memory available now (its pages could not all stay in the page cache), when the
-/// render has a fixed spp and no time limit (which tile-major order cannot honour
-/// without abandoning the frame).
-fn sample_order(job: &Job<'_>, volume: &Volume, fixed_spp: bool) -> SampleOrder {
+/// the memory `available` now (its pages could not all stay in the page cache:
+/// `MemAvailable`, or what this process's cgroup limit leaves, whichever is smaller;
+/// see [`MemoryLimits::available`]), when the render has a fixed spp and no time limit
+/// (which tile-major order cannot honour without abandoning the frame).
+fn sample_order(job: &Job<'_>, volume: &Volume, fixed_spp: bool, available: Option<MemoryBound>) -> SampleOrder {
     let settings = &job.shot.settings;
     match settings.render.sample_order {
         SampleOrderChoice::Progressive => SampleOrder::Progressive,
         SampleOrderChoice::TileMajor => SampleOrder::TileMajor,
         SampleOrderChoice::Auto => {
-            let available = crate::stats::available_memory_bytes().unwrap_or(u64::MAX);
+            let available = available.map_or(u64::MAX, |a| a.bytes);
             let larger = volume.is_mapped() && volume.memory_bytes() as u64 > available;
             if larger && fixed_spp && settings.farm.time_limit.is_none() {
                 SampleOrder::TileMajor

@@ -10,6 +10,7 @@ use super::{EmissionSettings, EmissionSource, JobSettings, ReadSettings, VolumeI
 use crate::color::Rgb;
 use crate::error::{Error, Result};
 use crate::medium::{Emission, EmissionKind};
+use crate::memory::MemoryLimits;
 use crate::vdb::{GridRequest, GridSelector, ReadIsolation, ReadLimits};
 
 /// Emission grid names tried, in order, by `emission.source = "auto"` and by `"grid"`
@@ -115,8 +116,31 @@ pub fn reader(reading: &ReadSettings) -> Result<(ReadLimits, ReadIsolation)> {
     Ok((limits, ReadIsolation::from_flags(reading.no_isolation, &limits, timeout)))
 }
 
-/// The memory budget: `render.memory_budget`, or half of physical memory.
+/// The memory budget: `render.memory_budget`, or half of physical memory or of this
+/// process's cgroup memory limit, whichever is smaller ([`MemoryLimits::default_budget`]).
 #[must_use]
 pub fn memory_budget(settings: &JobSettings) -> u64 {
-    settings.render.memory_budget.map_or_else(|| ReadLimits::default().max_bytes, |b| b.0)
+    settings.render.memory_budget.map_or_else(|| MemoryLimits::read().default_budget(), |b| b.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::ByteSize;
+
+    #[test]
+    fn an_explicit_memory_budget_overrides_every_limit() {
+        let mut settings = JobSettings::new("x.exr");
+        assert_eq!(memory_budget(&settings), MemoryLimits::read().default_budget());
+        settings.render.memory_budget = Some(ByteSize(3 << 40));
+        assert_eq!(memory_budget(&settings), 3 << 40, "even above RAM and any cgroup limit");
+    }
+
+    #[test]
+    fn the_default_input_limit_is_the_default_budget() {
+        let (limits, _) = reader(&ReadSettings::default()).expect("default reading settings");
+        assert_eq!(limits.max_bytes, MemoryLimits::read().default_budget());
+        let (limits, _) = reader(&ReadSettings { max_input_memory: Some(ByteSize(1 << 20)), ..ReadSettings::default() }).expect("valid");
+        assert_eq!(limits.max_bytes, 1 << 20);
+    }
 }

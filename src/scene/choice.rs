@@ -169,8 +169,9 @@ choice!(EmissionSource {
 /// The order in which samples are taken (the image is the same either way).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum SampleOrderChoice {
-    /// Tile-major for a mapped cache larger than the memory available, with a fixed spp
-    /// and no time limit; progressive otherwise.
+    /// Tile-major for a mapped cache larger than the memory available (MemAvailable or
+    /// what the cgroup memory limit leaves), with a fixed spp and no time limit;
+    /// progressive otherwise.
     #[default]
     Auto,
     /// Passes over the whole image.

@@ -51,7 +51,8 @@ pub struct RenderOptions {
     pub threads: usize,
     /// Order of the samples (the image does not depend on it).
     pub sample_order: SampleOrderChoice,
-    /// Bound on resident anonymous memory (default: half of RAM).
+    /// Bound on resident anonymous memory (default: half of RAM or of the process's
+    /// cgroup memory limit, whichever is smaller; `memory::MemoryLimits`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub memory_budget: Option<ByteSize>,
     /// Where automatic brick caches go (default: beside the input).
@@ -121,7 +122,8 @@ impl OutputSettings {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct ReadSettings {
-    /// Largest input a grid read may allocate (default: half of RAM).
+    /// Largest input a grid read may allocate (default: half of RAM or of the cgroup
+    /// memory limit, whichever is smaller).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub max_input_memory: Option<ByteSize>,
     /// Seconds the isolated VDB reader may take before it is killed.

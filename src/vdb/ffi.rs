@@ -136,14 +136,3 @@ mod bridge {
 }
 
 pub(crate) use bridge::*;
-
-/// Physical memory of this machine in bytes, if the OS reports it.
-pub(crate) fn physical_memory_bytes() -> Option<u64> {
-    // SAFETY: sysconf only reads system configuration; it has no preconditions and
-    // returns -1 for an unknown name.
-    let (pages, page_size) = unsafe { (libc::sysconf(libc::_SC_PHYS_PAGES), libc::sysconf(libc::_SC_PAGESIZE)) };
-    if pages <= 0 || page_size <= 0 {
-        return None;
-    }
-    (pages as u64).checked_mul(page_size as u64)
-}

@@ -13,6 +13,7 @@ use glam::{DAffine3, IVec3};
 use super::ffi;
 use super::{FloatGrid, GridInfo, GridSelector, LEAF_VOXELS};
 use crate::error::{Error, Result};
+use crate::memory::MemoryLimits;
 
 /// OpenVDB's magic number, the int64 `0x56444220` (" BDV") in little-endian order.
 const OPENVDB_MAGIC: [u8; 8] = [0x20, 0x42, 0x44, 0x56, 0, 0, 0, 0];
@@ -22,9 +23,6 @@ const NANOVDB_MAGIC_PREFIX: &[u8] = b"NanoVDB";
 /// Output bytes per leaf: 512 `f32` values plus an `i32` origin triple.
 pub(crate) const BYTES_PER_LEAF: u64 = (LEAF_VOXELS * 4 + 3 * 4) as u64;
 
-/// Used when the OS does not report its physical memory.
-const FALLBACK_MAX_BYTES: u64 = 4 << 30;
-
 /// Resource limits for [`read_float_grid`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct ReadLimits {
@@ -33,10 +31,10 @@ pub struct ReadLimits {
 }
 
 impl Default for ReadLimits {
-    /// Half of physical memory, or 4 GiB where the OS does not say.
+    /// Half of physical memory or of this process's cgroup memory limit, whichever is
+    /// smaller; 4 GiB where the OS does not say ([`MemoryLimits::default_budget`]).
     fn default() -> ReadLimits {
-        let max_bytes = ffi::physical_memory_bytes().map_or(FALLBACK_MAX_BYTES, |bytes| bytes / 2);
-        ReadLimits { max_bytes }
+        ReadLimits { max_bytes: MemoryLimits::read().default_budget() }
     }
 }
 

@@ -17,12 +17,12 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use glam::{DAffine3, DMat3, DVec3, IVec3};
-use memmap2::Mmap;
 use rayon::prelude::*;
 
 use super::format::{Header, Meta, SectionEntry, SectionKind, BYTE_ORDER, CHUNK, MAGIC, PAGE, VERSION};
 use super::verify::{section_sums, Verification};
 use crate::error::{Error, Result};
+use crate::mapfault::Mapping;
 use crate::vdb::LEAF_VOXELS;
 use crate::volume::brick::Brick;
 use crate::volume::proxy::CellPower;
@@ -49,6 +49,9 @@ pub struct Cache {
     /// The background check; outlives the volume's use (see [`CacheCheck::verified`]).
     pub check: CacheCheck,
 }
+
+/// What a fault in a cache's mapping calls the file.
+const KIND: &str = "brick cache";
 
 /// The background check of a cache's large sections, kept by whoever renders from it.
 #[derive(Debug)]
@@ -145,11 +148,10 @@ impl Cache {
             return Err(corrupt(path, "sections overlap"));
         }
         let section = |k: SectionKind| entries[SectionKind::ALL.iter().position(|x| *x == k).expect("invariant: all kinds")];
-        // SAFETY: the file is mapped read-only. plume never writes a cache in place (it
-        // writes a new file and renames it), so the mapping changes only if someone else
-        // truncates or rewrites the file while it is open, which the OS turns into
-        // SIGBUS; caches are plume's own private files, as with any mmap-based reader.
-        let map = Arc::new(unsafe { Mmap::map(&file) }.map_err(|e| Error::Open { path: path.to_path_buf(), source: e })?);
+        // Watched: if another process truncates the file while it is mapped, or its
+        // storage fails, touching a lost page ends plume with a line naming the file
+        // (`mapfault`), here or during the render
+        let map = Arc::new(Mapping::map(&file, path, KIND).map_err(|e| Error::Open { path: path.to_path_buf(), source: e })?);
         let chunks = section(SectionKind::Chunks);
         let chunk_bytes = &map[chunks.offset as usize..(chunks.offset + chunks.len) as usize];
         if xxhash_rust::xxh3::xxh3_64(chunk_bytes) != chunks.checksum || chunks.len % 8 != 0 {
@@ -179,7 +181,7 @@ impl Cache {
     }
 
     /// Build the mapped volume after checking the metadata against the section sizes.
-    fn assemble(path: &Path, map: &Arc<Mmap>, meta: &Meta, section: &dyn Fn(SectionKind) -> SectionEntry) -> Result<(Volume, Option<CellPower>)> {
+    fn assemble(path: &Path, map: &Arc<Mapping>, meta: &Meta, section: &dyn Fn(SectionKind) -> SectionEntry) -> Result<(Volume, Option<CellPower>)> {
         let w = meta.world_from_index;
         let world_from_index =
             DAffine3::from_mat3_translation(DMat3::from_cols_array(&[w[0], w[1], w[2], w[3], w[4], w[5], w[6], w[7], w[8]]), DVec3::new(w[9], w[10], w[11]));

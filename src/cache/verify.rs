@@ -22,6 +22,8 @@ use std::time::Duration;
 
 use memmap2::Mmap;
 
+use crate::mapfault::Mapping;
+
 use super::format::{SectionEntry, SectionKind, CHUNK};
 
 /// Time between two sweeps of phase 1.
@@ -77,7 +79,7 @@ impl Verification {
     ///
     /// # Errors
     /// The thread cannot be started.
-    pub(super) fn start(file: File, map: Arc<Mmap>, sections: &[SectionEntry], sums: &[u64]) -> std::io::Result<Verification> {
+    pub(super) fn start(file: File, map: Arc<Mapping>, sections: &[SectionEntry], sums: &[u64]) -> std::io::Result<Verification> {
         let mut chunks = Vec::new();
         for entry in sections {
             match section_sums(entry, sums) {
@@ -211,8 +213,7 @@ mod tests {
     fn both_phases_check_every_chunk() {
         let (path, mut chunks) = chunked_file("phases", 6);
         let file = File::open(&path).unwrap();
-        // SAFETY: a private temporary file nobody else writes.
-        let map = unsafe { Mmap::map(&file) }.unwrap();
+        let map = Mapping::map(&file, &path, "test file").unwrap();
         assert!(chunks.iter().all(|c| resident(&map, c, &mut Vec::new())), "a file just written is resident");
         for finish_at_once in [false, true] {
             let flag = AtomicBool::new(finish_at_once);

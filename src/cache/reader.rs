@@ -10,6 +10,12 @@
 //! before writing any output, so nothing computed from a damaged file is ever saved.
 //! Until then, every index read from the file is bounds-checked with a harmless
 //! fallback (`volume::brick`), so a damaged file cannot crash plume.
+//!
+//! A file that fails while mapped is not damaged but changed under plume: a page lost to
+//! a truncation or an I/O error ends plume with one line and exit code 4 (`mapfault`);
+//! a chunk the check cannot read, and a file at the path that is no longer the one
+//! opened (device, inode, size, header page: truncated, rewritten, replaced, removed),
+//! refuse the output with [`Error::InputFailed`], also exit code 4.
 
 use std::fs::File;
 use std::io::Read;
@@ -20,7 +26,7 @@ use glam::{DAffine3, DMat3, DVec3, IVec3};
 use rayon::prelude::*;
 
 use super::format::{Header, Meta, SectionEntry, SectionKind, BYTE_ORDER, CHUNK, MAGIC, PAGE, VERSION};
-use super::verify::{section_sums, Verification};
+use super::verify::{section_sums, Failure, Verification};
 use crate::error::{Error, Result};
 use crate::mapfault::Mapping;
 use crate::vdb::LEAF_VOXELS;
@@ -50,7 +56,7 @@ pub struct Cache {
     pub check: CacheCheck,
 }
 
-/// What a fault in a cache's mapping calls the file.
+/// What a fault in a cache's mapping, or a failure of it while in use, calls the file.
 const KIND: &str = "brick cache";
 
 /// The background check of a cache's large sections, kept by whoever renders from it.
@@ -59,22 +65,81 @@ pub struct CacheCheck {
     path: PathBuf,
     verification: Verification,
     remove_on_failure: bool,
+    opened: Identity,
+}
+
+/// The file as it was opened: which file, its size and its header page (whose checksum
+/// covers the chunk checksums, so equal pages mean equal contents).
+#[derive(Debug)]
+struct Identity {
+    dev: u64,
+    ino: u64,
+    bytes: u64,
+    header: Vec<u8>,
+}
+
+impl Identity {
+    fn of(meta: &std::fs::Metadata, header: Vec<u8>) -> Identity {
+        use std::os::unix::fs::MetadataExt;
+        Identity { dev: meta.dev(), ino: meta.ino(), bytes: meta.len(), header }
+    }
+
+    /// How the file now at `path` differs from this one, if it does (`None` also for a
+    /// replacement by a file of the same contents, e.g. an automatic cache rebuilt by
+    /// another process).
+    fn changed(&self, path: &Path) -> Option<String> {
+        let now = match File::open(path).and_then(|mut f| {
+            let meta = f.metadata()?;
+            let mut header = vec![0u8; self.header.len()];
+            f.read_exact(&mut header).map(|()| header).or_else(|_| Ok(Vec::new())).map(|h| Identity::of(&meta, h))
+        }) {
+            Ok(now) => now,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Some("it was removed while in use".into()),
+            Err(e) => return Some(format!("it cannot be opened again ({e})")),
+        };
+        let sizes = format!("{} bytes, {} when opened", now.bytes, self.bytes);
+        if (now.dev, now.ino) != (self.dev, self.ino) {
+            (now.bytes != self.bytes || now.header != self.header).then(|| format!("it was replaced by another file while in use (now {sizes})"))
+        } else if now.bytes < self.bytes {
+            Some(format!("it was truncated while in use (now {sizes})"))
+        } else if now.bytes != self.bytes || now.header != self.header {
+            Some(format!("it was rewritten while in use (now {sizes})"))
+        } else {
+            None
+        }
+    }
 }
 
 impl CacheCheck {
-    /// Wait for the background check of the large sections.
+    /// Wait for the background check of the large sections, then check that the file at
+    /// the path is still the one opened (its device, inode, size and header page).
     ///
     /// # Errors
-    /// [`Error::Cache`] naming the first chunk that failed (an automatic cache is then
-    /// deleted, so the next run rebuilds it).
+    /// [`Error::InputFailed`] (exit code 4) when the file was truncated, rewritten,
+    /// replaced or removed while in use, or could not be read (an I/O error);
+    /// [`Error::Cache`] naming the first chunk that failed its checksum (an automatic
+    /// cache is then deleted, so the next run rebuilds it).
     pub fn verified(&self) -> Result<()> {
-        self.verification.wait().map_err(|what| {
-            if self.remove_on_failure && std::fs::remove_file(&self.path).is_ok() {
+        let outcome = self.verification.wait();
+        let failed = |what: String| Error::InputFailed {
+            kind: KIND,
+            path: self.path.clone(),
+            what: format!("{what}; nothing computed from it was written (run the command again once the file is as it should be)"),
+        };
+        // A file changed under the render explains any checksum failure, and is not
+        // deleted: it may be another process's new file
+        if let Some(what) = self.opened.changed(&self.path) {
+            return Err(failed(what));
+        }
+        match outcome {
+            Ok(()) => Ok(()),
+            Err(Failure::Unreadable(what)) => Err(failed(what)),
+            Err(Failure::Damaged(what)) => Err(if self.remove_on_failure && std::fs::remove_file(&self.path).is_ok() {
                 corrupt(&self.path, format!("{what}; removed this automatic cache, the next run rebuilds it"))
             } else {
                 corrupt(&self.path, what)
-            }
-        })
+            }),
+        }
     }
 
     /// Delete the file if the check fails (for automatic caches, which plume owns).
@@ -111,7 +176,8 @@ impl Cache {
     /// has another version, or fails a check.
     pub fn open(path: &Path) -> Result<Cache> {
         let mut file = File::open(path).map_err(|e| Error::Open { path: path.to_path_buf(), source: e })?;
-        let file_bytes = file.metadata().map_err(|e| Error::Open { path: path.to_path_buf(), source: e })?.len();
+        let file_meta = file.metadata().map_err(|e| Error::Open { path: path.to_path_buf(), source: e })?;
+        let file_bytes = file_meta.len();
         let mut page = vec![0u8; PAGE as usize];
         let header_len = std::mem::size_of::<Header>();
         if file_bytes < PAGE || file.read_exact(&mut page).is_err() {
@@ -176,7 +242,8 @@ impl Cache {
         } else {
             Verification::start(file, Arc::clone(&map), &deferred, &sums).map_err(|e| Error::Open { path: path.to_path_buf(), source: e })?
         };
-        let check = CacheCheck { path: path.to_path_buf(), verification, remove_on_failure: false };
+        let opened = Identity::of(&file_meta, page);
+        let check = CacheCheck { path: path.to_path_buf(), verification, remove_on_failure: false, opened };
         Ok(Cache { path: path.to_path_buf(), meta, volume, proxy_power, file_bytes, check })
     }
 

@@ -191,8 +191,8 @@ pub mod exit {
 
 impl Error {
     /// Process exit code for this error: 2 bad arguments, 3 input missing/unreadable/
-    /// invalid, 4 render or output failure, 5 interrupted, 6 time limit, 7 some frames
-    /// failed (see [`exit`]).
+    /// invalid, 4 render or output failure (an input failing while in use included),
+    /// 5 interrupted, 6 time limit, 7 some frames failed (see [`exit`]).
     #[must_use]
     pub fn exit_code(&self) -> i32 {
         match self {

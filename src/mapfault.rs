@@ -356,9 +356,9 @@ pub fn install() -> io::Result<()> {
     if *done {
         return Ok(());
     }
-    // SAFETY: sigaction with a null new action only reads the current one into
-    // `previous`, a zeroed (valid) sigaction struct.
+    // SAFETY: all-zero bytes are a valid sigaction (a plain C struct).
     let mut previous: libc::sigaction = unsafe { std::mem::zeroed() };
+    // SAFETY: with a null new action, sigaction only reads the current one into `previous`.
     if unsafe { libc::sigaction(libc::SIGBUS, std::ptr::null(), &mut previous) } != 0 {
         return Err(io::Error::last_os_error());
     }

@@ -3,7 +3,8 @@
 //! ([`exit::RENDER_OR_OUTPUT`]), never a death by SIGBUS.
 //!
 //! plume maps brick caches (`cache::Cache::open`, and the cache writer reads back what it
-//! wrote) and, for an in-process stream (`--no-isolation`), OpenVDB maps the `.vdb`. When
+//! wrote), and OpenVDB maps a `.vdb` it streams (in the isolated reader, whose crash is
+//! the parent's error, or in plume itself with `--no-isolation`: [`watch_mappings_of`]). When
 //! another process truncates a mapped file, or shared storage fails to deliver a page,
 //! touching a page that the file no longer backs raises SIGBUS in whichever thread touched
 //! it: a render thread, the checksum verifier, the prefetcher. No Rust error can come out
@@ -29,11 +30,11 @@
 //!   (`si_code > 0`) at an address in a registered range: the first thread writes the
 //!   line with `write(2)` (and, with `--progress`, the protocol's failure line on
 //!   stdout, [`report_on_stdout`]) and calls `_exit(4)`; other threads faulting meanwhile
-//!   wait for that exit, so there is one line. Any other fault goes back to the action installed before (std's, which
-//!   reports a stack overflow, or the default): it is restored and the instruction
-//!   faults again on return. A SIGBUS sent with `kill` gets the default action and is
-//!   raised again: plume dies by the signal, as it should (std's handler alone would
-//!   have ignored it once).
+//!   wait for that exit, so there is one line. Any other fault goes back to the action
+//!   installed before (std's, which reports a stack overflow, or the default): it is
+//!   restored and the instruction faults again on return. A SIGBUS sent with `kill` gets
+//!   the default action and is raised again: plume dies by the signal, as it should
+//!   (std's handler alone would have ignored it once).
 //! - **[`Mapping`]**: `Mmap` plus its [`Watch`]; the only way plume maps a file. The
 //!   watch is dropped before the unmap, so the range is never registered while another
 //!   mapping could reuse its addresses.

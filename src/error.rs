@@ -90,6 +90,19 @@ pub enum Error {
         /// What is wrong and what to do.
         what: String,
     },
+    /// An input that passed its checks failed while plume was using it: it was truncated,
+    /// rewritten or replaced by another process, or its storage returned an I/O error.
+    /// Nothing computed from it is written. (A fault in a mapped page never becomes this
+    /// error: `mapfault` ends the process with the same kind of line and exit code.)
+    #[error("{kind} {}: {what}", .path.display())]
+    InputFailed {
+        /// What the file is, e.g. `brick cache`.
+        kind: &'static str,
+        /// The file.
+        path: PathBuf,
+        /// What happened and what to do.
+        what: String,
+    },
     /// A flag has a value plume cannot use.
     #[error("invalid value for {flag}: {message}")]
     InvalidArgument {
@@ -163,7 +176,10 @@ pub mod exit {
     pub const BAD_ARGUMENTS: i32 = 2;
     /// An input is missing, unreadable or invalid (VDB, grid, merge part).
     pub const INPUT: i32 = 3;
-    /// Rendering or writing an output failed.
+    /// Rendering or writing an output failed, including an input that failed *while* it
+    /// was in use (truncated, rewritten or replaced by another process, an I/O error of
+    /// its storage; see `mapfault`): the input was valid when checked, so the failure is
+    /// the run's, and the same command may succeed once the file is restored.
     pub const RENDER_OR_OUTPUT: i32 = 4;
     /// Interrupted by SIGTERM/SIGINT; the image so far was written with its spp.
     pub const INTERRUPTED: i32 = 5;
@@ -175,8 +191,8 @@ pub mod exit {
 
 impl Error {
     /// Process exit code for this error: 2 bad arguments, 3 input missing/unreadable/
-    /// invalid, 4 render or output failure, 5 interrupted, 6 time limit, 7 some frames
-    /// failed (see [`exit`]).
+    /// invalid, 4 render or output failure (an input failing while in use included),
+    /// 5 interrupted, 6 time limit, 7 some frames failed (see [`exit`]).
     #[must_use]
     pub fn exit_code(&self) -> i32 {
         match self {
@@ -189,7 +205,7 @@ impl Error {
             | Error::ReaderFailed { .. }
             | Error::Cache { .. }
             | Error::Scene(_) => 3,
-            Error::Write { .. } | Error::ReaderSpawn { .. } => 4,
+            Error::Write { .. } | Error::ReaderSpawn { .. } | Error::InputFailed { .. } => exit::RENDER_OR_OUTPUT,
             Error::InvalidPart { .. } => exit::INPUT,
             Error::Interrupted { .. } => exit::INTERRUPTED,
             Error::TimeLimit { .. } => exit::TIME_LIMIT,

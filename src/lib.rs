@@ -23,6 +23,7 @@ pub mod info;
 pub mod integrator;
 pub mod light;
 pub mod load;
+pub mod mapfault;
 pub mod medium;
 pub mod memory;
 pub mod output;

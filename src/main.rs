@@ -15,6 +15,12 @@ fn main() {
     if args.next().is_some_and(|a| a == isolate::READER_SUBCOMMAND) {
         isolate::reader_main(&args.collect::<Vec<_>>());
     }
+    // A mapped file that fails under plume (truncated, I/O error) ends it with a line
+    // and exit code 4 instead of SIGBUS. Not in the reader child above: its crash is
+    // already the parent's error.
+    if let Err(e) = plume::mapfault::install() {
+        eprintln!("plume: warning: cannot install the SIGBUS handler for mapped files ({e})");
+    }
     if let Ok(exe) = std::env::current_exe() {
         isolate::set_reader_exe(exe);
     }

@@ -23,7 +23,7 @@ use crate::medium::EmissionKind;
 use crate::scene::bind::{emission_kind, grid_requests, memory_budget, reader, unit_emission_model};
 use crate::scene::{EmissionSettings, EmissionSource, JobSettings, ReadSettings, SceneDescription, VolumeInput};
 use crate::stats::GIB;
-use crate::vdb::{GridSelector, LeafData, ReadIsolation, ReadLimits, StreamedGrid};
+use crate::vdb::{FileStamp, GridSelector, LeafData, ReadIsolation, ReadLimits, StreamedGrid};
 use crate::volume::brick::{brick_of, check_same_transform, table_dims, Channel, Slot};
 use crate::volume::Volume;
 
@@ -100,6 +100,32 @@ fn probe(isolation: &ReadIsolation, file: &Path, selector: &GridSelector, limits
 /// # Errors
 /// Unreadable input or grids, incompatible transforms, write errors.
 pub fn convert(
+    file: &Path,
+    volume: &VolumeInput,
+    emission: &EmissionSettings,
+    reading: &ReadSettings,
+    proxy_resolution: Option<u32>,
+    out: &Path,
+) -> Result<Converted> {
+    let before = FileStamp::of(file).ok();
+    let result = convert_unchecked(file, volume, emission, reading, proxy_resolution, out);
+    // A file that changed during the conversion explains a reader that crashed or read
+    // garbage (OpenVDB reads the zeros past a new end), and a conversion that succeeded
+    // may hold leaves of two versions: either way the file failed under plume (exit code
+    // 4). Errors of the output (a full disk) stay what they are.
+    let input_error = result.as_ref().err().is_none_or(|e| e.exit_code() == crate::error::exit::INPUT);
+    match before.and_then(|b| b.change(file)) {
+        Some(change) if input_error => {
+            if let Ok(c) = &result {
+                let _ = std::fs::remove_file(&c.path);
+            }
+            Err(FileStamp::failed(file, &change))
+        }
+        _ => result,
+    }
+}
+
+fn convert_unchecked(
     file: &Path,
     volume: &VolumeInput,
     emission: &EmissionSettings,

@@ -10,6 +10,12 @@
 //! before writing any output, so nothing computed from a damaged file is ever saved.
 //! Until then, every index read from the file is bounds-checked with a harmless
 //! fallback (`volume::brick`), so a damaged file cannot crash plume.
+//!
+//! A file that fails while mapped is not damaged but changed under plume: a page lost to
+//! a truncation or an I/O error ends plume with one line and exit code 4 (`mapfault`);
+//! a chunk the check cannot read, and a file at the path that is no longer the one
+//! opened (device, inode, size, header page: truncated, rewritten, replaced, removed),
+//! refuse the output with [`Error::InputFailed`], also exit code 4.
 
 use std::fs::File;
 use std::io::Read;
@@ -17,12 +23,12 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use glam::{DAffine3, DMat3, DVec3, IVec3};
-use memmap2::Mmap;
 use rayon::prelude::*;
 
 use super::format::{Header, Meta, SectionEntry, SectionKind, BYTE_ORDER, CHUNK, MAGIC, PAGE, VERSION};
-use super::verify::{section_sums, Verification};
+use super::verify::{section_sums, Failure, Verification};
 use crate::error::{Error, Result};
+use crate::mapfault::Mapping;
 use crate::vdb::LEAF_VOXELS;
 use crate::volume::brick::Brick;
 use crate::volume::proxy::CellPower;
@@ -50,28 +56,90 @@ pub struct Cache {
     pub check: CacheCheck,
 }
 
+/// What a fault in a cache's mapping, or a failure of it while in use, calls the file.
+const KIND: &str = "brick cache";
+
 /// The background check of a cache's large sections, kept by whoever renders from it.
 #[derive(Debug)]
 pub struct CacheCheck {
     path: PathBuf,
     verification: Verification,
     remove_on_failure: bool,
+    opened: Identity,
+}
+
+/// The file as it was opened: which file, its size and its header page (whose checksum
+/// covers the chunk checksums, so equal pages mean equal contents).
+#[derive(Debug)]
+struct Identity {
+    dev: u64,
+    ino: u64,
+    bytes: u64,
+    header: Vec<u8>,
+}
+
+impl Identity {
+    fn of(meta: &std::fs::Metadata, header: Vec<u8>) -> Identity {
+        use std::os::unix::fs::MetadataExt;
+        Identity { dev: meta.dev(), ino: meta.ino(), bytes: meta.len(), header }
+    }
+
+    /// How the file now at `path` differs from this one, if it does (`None` also for a
+    /// replacement by a file of the same contents, e.g. an automatic cache rebuilt by
+    /// another process).
+    fn changed(&self, path: &Path) -> Option<String> {
+        let now = match File::open(path).and_then(|mut f| {
+            let meta = f.metadata()?;
+            let mut header = vec![0u8; self.header.len()];
+            f.read_exact(&mut header).map(|()| header).or_else(|_| Ok(Vec::new())).map(|h| Identity::of(&meta, h))
+        }) {
+            Ok(now) => now,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Some("it was removed while in use".into()),
+            Err(e) => return Some(format!("it cannot be opened again ({e})")),
+        };
+        let sizes = format!("{} bytes, {} when opened", now.bytes, self.bytes);
+        if (now.dev, now.ino) != (self.dev, self.ino) {
+            (now.bytes != self.bytes || now.header != self.header).then(|| format!("it was replaced by another file while in use (now {sizes})"))
+        } else if now.bytes < self.bytes {
+            Some(format!("it was truncated while in use (now {sizes})"))
+        } else if now.bytes != self.bytes || now.header != self.header {
+            Some(format!("it was rewritten while in use (now {sizes})"))
+        } else {
+            None
+        }
+    }
 }
 
 impl CacheCheck {
-    /// Wait for the background check of the large sections.
+    /// Wait for the background check of the large sections, then check that the file at
+    /// the path is still the one opened (its device, inode, size and header page).
     ///
     /// # Errors
-    /// [`Error::Cache`] naming the first chunk that failed (an automatic cache is then
-    /// deleted, so the next run rebuilds it).
+    /// [`Error::InputFailed`] (exit code 4) when the file was truncated, rewritten,
+    /// replaced or removed while in use, or could not be read (an I/O error);
+    /// [`Error::Cache`] naming the first chunk that failed its checksum (an automatic
+    /// cache is then deleted, so the next run rebuilds it).
     pub fn verified(&self) -> Result<()> {
-        self.verification.wait().map_err(|what| {
-            if self.remove_on_failure && std::fs::remove_file(&self.path).is_ok() {
+        let outcome = self.verification.wait();
+        let failed = |what: String| Error::InputFailed {
+            kind: KIND,
+            path: self.path.clone(),
+            what: format!("{what}; nothing computed from it was written (run the command again once the file is as it should be)"),
+        };
+        // A file changed under the render explains any checksum failure, and is not
+        // deleted: it may be another process's new file
+        if let Some(what) = self.opened.changed(&self.path) {
+            return Err(failed(what));
+        }
+        match outcome {
+            Ok(()) => Ok(()),
+            Err(Failure::Unreadable(what)) => Err(failed(what)),
+            Err(Failure::Damaged(what)) => Err(if self.remove_on_failure && std::fs::remove_file(&self.path).is_ok() {
                 corrupt(&self.path, format!("{what}; removed this automatic cache, the next run rebuilds it"))
             } else {
                 corrupt(&self.path, what)
-            }
-        })
+            }),
+        }
     }
 
     /// Delete the file if the check fails (for automatic caches, which plume owns).
@@ -108,7 +176,8 @@ impl Cache {
     /// has another version, or fails a check.
     pub fn open(path: &Path) -> Result<Cache> {
         let mut file = File::open(path).map_err(|e| Error::Open { path: path.to_path_buf(), source: e })?;
-        let file_bytes = file.metadata().map_err(|e| Error::Open { path: path.to_path_buf(), source: e })?.len();
+        let file_meta = file.metadata().map_err(|e| Error::Open { path: path.to_path_buf(), source: e })?;
+        let file_bytes = file_meta.len();
         let mut page = vec![0u8; PAGE as usize];
         let header_len = std::mem::size_of::<Header>();
         if file_bytes < PAGE || file.read_exact(&mut page).is_err() {
@@ -145,11 +214,10 @@ impl Cache {
             return Err(corrupt(path, "sections overlap"));
         }
         let section = |k: SectionKind| entries[SectionKind::ALL.iter().position(|x| *x == k).expect("invariant: all kinds")];
-        // SAFETY: the file is mapped read-only. plume never writes a cache in place (it
-        // writes a new file and renames it), so the mapping changes only if someone else
-        // truncates or rewrites the file while it is open, which the OS turns into
-        // SIGBUS; caches are plume's own private files, as with any mmap-based reader.
-        let map = Arc::new(unsafe { Mmap::map(&file) }.map_err(|e| Error::Open { path: path.to_path_buf(), source: e })?);
+        // Watched: if another process truncates the file while it is mapped, or its
+        // storage fails, touching a lost page ends plume with a line naming the file
+        // (`mapfault`), here or during the render
+        let map = Arc::new(Mapping::map(&file, path, KIND).map_err(|e| Error::Open { path: path.to_path_buf(), source: e })?);
         let chunks = section(SectionKind::Chunks);
         let chunk_bytes = &map[chunks.offset as usize..(chunks.offset + chunks.len) as usize];
         if xxhash_rust::xxh3::xxh3_64(chunk_bytes) != chunks.checksum || chunks.len % 8 != 0 {
@@ -174,12 +242,13 @@ impl Cache {
         } else {
             Verification::start(file, Arc::clone(&map), &deferred, &sums).map_err(|e| Error::Open { path: path.to_path_buf(), source: e })?
         };
-        let check = CacheCheck { path: path.to_path_buf(), verification, remove_on_failure: false };
+        let opened = Identity::of(&file_meta, page);
+        let check = CacheCheck { path: path.to_path_buf(), verification, remove_on_failure: false, opened };
         Ok(Cache { path: path.to_path_buf(), meta, volume, proxy_power, file_bytes, check })
     }
 
     /// Build the mapped volume after checking the metadata against the section sizes.
-    fn assemble(path: &Path, map: &Arc<Mmap>, meta: &Meta, section: &dyn Fn(SectionKind) -> SectionEntry) -> Result<(Volume, Option<CellPower>)> {
+    fn assemble(path: &Path, map: &Arc<Mapping>, meta: &Meta, section: &dyn Fn(SectionKind) -> SectionEntry) -> Result<(Volume, Option<CellPower>)> {
         let w = meta.world_from_index;
         let world_from_index =
             DAffine3::from_mat3_translation(DMat3::from_cols_array(&[w[0], w[1], w[2], w[3], w[4], w[5], w[6], w[7], w[8]]), DVec3::new(w[9], w[10], w[11]));

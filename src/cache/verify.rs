@@ -22,6 +22,8 @@ use std::time::Duration;
 
 use memmap2::Mmap;
 
+use crate::mapfault::Mapping;
+
 use super::format::{SectionEntry, SectionKind, CHUNK};
 
 /// Time between two sweeps of phase 1.
@@ -29,13 +31,27 @@ const SWEEP_INTERVAL: Duration = Duration::from_secs(1);
 /// CPU niceness of the checking thread.
 const NICENESS: libc::c_int = 19;
 
+/// Why a check failed.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Failure {
+    /// Bytes that do not match their checksum: the file is damaged (or was rewritten
+    /// while in use, which `CacheCheck` tells apart by the file's header and size).
+    Damaged(String),
+    /// Bytes that could not be read: the file shrank since it was opened, or its storage
+    /// returned an I/O error.
+    Unreadable(String),
+}
+
+/// The outcome of a check.
+pub type Outcome = std::result::Result<(), Failure>;
+
 /// The outcome of checking a cache's large sections in the background.
 #[derive(Debug)]
 pub struct Verification {
-    thread: Mutex<Option<JoinHandle<std::result::Result<(), String>>>>,
+    thread: Mutex<Option<JoinHandle<Outcome>>>,
     /// Set by [`Verification::wait`]: check the rest now, reading the file.
     finish: Arc<AtomicBool>,
-    outcome: OnceLock<std::result::Result<(), String>>,
+    outcome: OnceLock<Outcome>,
 }
 
 /// One chunk to check: its bytes in the file, the expected sum, and its section's name.
@@ -48,8 +64,16 @@ struct Chunk {
 }
 
 impl Chunk {
-    fn failed(&self) -> String {
-        format!("the {} section fails its checksum at bytes {}..{}", self.kind, self.start, self.end)
+    fn failed(&self) -> Failure {
+        Failure::Damaged(format!("the {} section fails its checksum at bytes {}..{}", self.kind, self.start, self.end))
+    }
+
+    fn unreadable(&self, e: &std::io::Error) -> Failure {
+        Failure::Unreadable(if e.kind() == std::io::ErrorKind::UnexpectedEof {
+            format!("the file ends before byte {} (the {} section): it was truncated while in use", self.end, self.kind)
+        } else {
+            format!("byte {} (the {} section) cannot be read: {e}", self.start, self.kind)
+        })
     }
 }
 
@@ -69,7 +93,7 @@ impl Verification {
         Verification::finished(Ok(()))
     }
 
-    fn finished(outcome: std::result::Result<(), String>) -> Verification {
+    fn finished(outcome: Outcome) -> Verification {
         Verification { thread: Mutex::new(None), finish: Arc::new(AtomicBool::new(true)), outcome: OnceLock::from(outcome) }
     }
 
@@ -77,7 +101,7 @@ impl Verification {
     ///
     /// # Errors
     /// The thread cannot be started.
-    pub(super) fn start(file: File, map: Arc<Mmap>, sections: &[SectionEntry], sums: &[u64]) -> std::io::Result<Verification> {
+    pub(super) fn start(file: File, map: Arc<Mapping>, sections: &[SectionEntry], sums: &[u64]) -> std::io::Result<Verification> {
         let mut chunks = Vec::new();
         for entry in sections {
             match section_sums(entry, sums) {
@@ -85,7 +109,7 @@ impl Verification {
                     let start = entry.offset + i as u64 * CHUNK;
                     Chunk { start, end: (start + CHUNK).min(entry.offset + entry.len), sum, kind }
                 })),
-                Err(what) => return Ok(Verification::finished(Err(what))),
+                Err(what) => return Ok(Verification::finished(Err(Failure::Damaged(what)))),
             }
         }
         let finish = Arc::new(AtomicBool::new(false));
@@ -101,11 +125,11 @@ impl Verification {
     }
 
     /// Finish the check (reading what the render did not bring into memory) and return
-    /// its outcome; `Err(what)` names the first chunk that failed.
+    /// its outcome.
     ///
     /// # Errors
-    /// The first failing chunk, described.
-    pub fn wait(&self) -> std::result::Result<(), String> {
+    /// The first chunk that failed, described.
+    pub fn wait(&self) -> Outcome {
         self.outcome
             .get_or_init(|| {
                 self.finish.store(true, Ordering::Relaxed);
@@ -113,7 +137,7 @@ impl Verification {
                 match handle {
                     Some(h) => {
                         h.thread().unpark();
-                        h.join().unwrap_or_else(|_| Err("the verifier thread panicked".into()))
+                        h.join().unwrap_or_else(|_| Err(Failure::Damaged("the verifier thread panicked".into())))
                     }
                     None => Ok(()),
                 }
@@ -124,7 +148,7 @@ impl Verification {
 
 /// The checking thread: resident chunks from the mapping until `finish`, then the rest
 /// from the file. See the module docs.
-fn check(file: &File, map: &Mmap, mut pending: Vec<Chunk>, finish: &AtomicBool) -> std::result::Result<(), String> {
+fn check(file: &File, map: &Mmap, mut pending: Vec<Chunk>, finish: &AtomicBool) -> Outcome {
     let mut residency = Vec::new();
     while !pending.is_empty() && !finish.load(Ordering::Relaxed) {
         let mut failed = None;
@@ -169,11 +193,11 @@ fn resident(map: &Mmap, c: &Chunk, scratch: &mut Vec<u8>) -> bool {
 
 /// Check chunk `c` by reading the file, then let the kernel drop those pages (it does so
 /// only for pages nobody has mapped), so the check does not evict the render's pages.
-fn check_by_reading(file: &File, c: &Chunk, buf: &mut [u8]) -> std::result::Result<(), String> {
+fn check_by_reading(file: &File, c: &Chunk, buf: &mut [u8]) -> Outcome {
     use std::os::fd::AsRawFd;
     use std::os::unix::fs::FileExt;
     let bytes = &mut buf[..(c.end - c.start) as usize];
-    file.read_exact_at(bytes, c.start).map_err(|e| format!("the {} section cannot be read at byte {}: {e}", c.kind, c.start))?;
+    file.read_exact_at(bytes, c.start).map_err(|e| c.unreadable(&e))?;
     if xxhash_rust::xxh3::xxh3_64(bytes) != c.sum {
         return Err(c.failed());
     }
@@ -211,15 +235,14 @@ mod tests {
     fn both_phases_check_every_chunk() {
         let (path, mut chunks) = chunked_file("phases", 6);
         let file = File::open(&path).unwrap();
-        // SAFETY: a private temporary file nobody else writes.
-        let map = unsafe { Mmap::map(&file) }.unwrap();
+        let map = Mapping::map(&file, &path, "test file").unwrap();
         assert!(chunks.iter().all(|c| resident(&map, c, &mut Vec::new())), "a file just written is resident");
         for finish_at_once in [false, true] {
             let flag = AtomicBool::new(finish_at_once);
             assert_eq!(check(&file, &map, chunks.clone(), &flag), Ok(()));
             let mut bad = chunks.clone();
             bad[4].sum ^= 1;
-            let err = check(&file, &map, bad, &AtomicBool::new(finish_at_once)).unwrap_err();
+            let err = damaged(check(&file, &map, bad, &AtomicBool::new(finish_at_once)));
             assert!(err.contains(&format!("{}..{}", 4 * CHUNK, 5 * CHUNK)), "{err}");
         }
         // Through the thread: a damaged sum is reported by wait()
@@ -227,9 +250,31 @@ mod tests {
         let entry_sums: Vec<u64> = chunks.iter().map(|c| c.sum).collect();
         let entry = SectionEntry { kind: SectionKind::Values as u32, offset: 0, len: 6 * CHUNK, first_chunk: 0, checksum: 0 };
         let v = Verification::start(File::open(&path).unwrap(), Arc::new(map), &[entry], &entry_sums).unwrap();
-        let err = v.wait().unwrap_err();
+        let err = damaged(v.wait());
         assert!(err.contains(&format!("{}..{}", 2 * CHUNK, 3 * CHUNK)), "{err}");
-        assert_eq!(v.wait().unwrap_err(), err, "the outcome is kept");
+        assert_eq!(damaged(v.wait()), err, "the outcome is kept");
+        let _ = std::fs::remove_file(&path);
+    }
+
+    fn damaged(outcome: Outcome) -> String {
+        match outcome {
+            Err(Failure::Damaged(what)) => what,
+            other => panic!("expected a checksum failure, got {other:?}"),
+        }
+    }
+
+    /// A file that shrank since it was opened is unreadable, not damaged (phase 2 only:
+    /// this test process has no SIGBUS handler for the mapping's lost pages).
+    #[test]
+    fn a_truncated_file_is_unreadable_not_damaged() {
+        let (path, chunks) = chunked_file("truncated", 4);
+        let file = File::open(&path).unwrap();
+        let map = Mapping::map(&file, &path, "test file").unwrap();
+        File::options().write(true).open(&path).unwrap().set_len(2 * CHUNK + 100).unwrap();
+        match check(&file, &map, chunks, &AtomicBool::new(true)) {
+            Err(Failure::Unreadable(what)) => assert!(what.contains(&format!("ends before byte {}", 3 * CHUNK)) && what.contains("truncated"), "{what}"),
+            other => panic!("{other:?}"),
+        }
         let _ = std::fs::remove_file(&path);
     }
 }

@@ -15,16 +15,19 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use glam::{DAffine3, IVec3};
-use memmap2::Mmap;
 use xxhash_rust::xxh3::Xxh3;
 
 use super::format::{Header, Meta, ProxyMeta, SectionEntry, SectionKind, BYTE_ORDER, CHUNK, MAGIC, MAX_SECTIONS, PAGE, VERSION};
 use crate::error::{Error, Result};
+use crate::mapfault::Mapping;
 use crate::vdb::LEAF_VOXELS;
 use crate::volume::brick::{BlockSink, BrickTableBuilder, Channel};
 use crate::volume::proxy::CellPower;
 use crate::volume::storage::Buffer;
 use crate::volume::Volume;
+
+/// What a fault in the temporary file's mapping calls it (`mapfault`).
+const WRITING: &str = "brick cache being written";
 
 /// Hashes a byte stream in [`CHUNK`]-sized chunks.
 #[derive(Default)]
@@ -69,7 +72,7 @@ struct Out {
     open: Option<SectionEntry>,
     /// Dense blocks appended to VALUES.
     blocks: u64,
-    readback: Option<Arc<Mmap>>,
+    readback: Option<Arc<Mapping>>,
 }
 
 impl Out {
@@ -117,9 +120,9 @@ impl BlockSink for Out {
 
     fn appended(&mut self) -> Result<&[f32]> {
         self.file.flush().map_err(|e| self.io(e))?;
-        // SAFETY: the temporary file is ours alone until it is renamed, and not written
-        // while this read-only mapping is in use (`finish` drops it before writing on).
-        let map = unsafe { Mmap::map(self.file.get_ref()) }.map_err(|e| self.io(e))?;
+        // The temporary file is ours alone until it is renamed, and not written while this
+        // mapping is in use (`finish` drops it before writing on)
+        let map = Mapping::map(self.file.get_ref(), &self.path, WRITING).map_err(|e| self.io(e))?;
         let map = self.readback.insert(Arc::new(map));
         let start = PAGE as usize;
         let bytes = &map[start..start + self.blocks as usize * LEAF_VOXELS * 4];
@@ -245,8 +248,8 @@ impl CacheWriter {
         out.file.flush().map_err(|e| out.io(e))?;
         // The volume over the values as written, to compute what an in-core render would
         let values_entry = out.sections[0];
-        // SAFETY: as in `appended`; the values are complete and no longer written.
-        let map = Arc::new(unsafe { Mmap::map(out.file.get_ref()) }.map_err(|e| out.io(e))?);
+        // As in `appended`; the values are complete and no longer written
+        let map = Arc::new(Mapping::map(out.file.get_ref(), &out.path, WRITING).map_err(|e| out.io(e))?);
         let values = Buffer::<f32>::mapped(&map, values_entry.offset as usize, values_entry.len as usize)
             .expect("invariant: the values section is page-aligned and whole blocks");
         let report = built.report;

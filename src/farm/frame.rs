@@ -21,7 +21,7 @@ use std::time::{Duration, Instant};
 
 use indicatif::{ProgressBar, ProgressStyle};
 
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::farm::fingerprint::{file_sha256, settings_hash};
 use crate::farm::job::Job;
 use crate::farm::part::{assess, stats_metadata, Completion, Existing, Expected, PartInfo};
@@ -420,7 +420,16 @@ fn write_outputs(job: &Job<'_>, paths: &FramePaths, loaded: &LoadedScene, result
         warn(format!("{} sample values exceeded the fixed-point range (2^63) and were clamped", record.saturated_samples));
     }
     if let Some(check) = &loaded.cache {
+        // Checksums, and the file at the path is still the one mapped
         check.verified()?;
+        // ... and the one whose identity the record holds, hashed before it was opened
+        if crate::cache::is_cache_path(&paths.input) && file_sha256(&paths.input)?.0 != record.input_sha256 {
+            return Err(Error::InputFailed {
+                kind: "brick cache",
+                path: paths.input.clone(),
+                what: "it was replaced between hashing and opening it; nothing computed from it was written (run the command again)".into(),
+            });
+        }
     }
     let (width, height) = (record.width, record.height);
     let crop = job.crop.unwrap_or(Crop::full(width, height));

@@ -32,6 +32,13 @@ impl Progress {
     /// A reporter for a run of `frames` frames.
     #[must_use]
     pub fn new(mode: ProgressFormat, frames: usize) -> Progress {
+        // A mapped input that fails under the render ends plume from a signal handler,
+        // which then prints the protocol's failure line too
+        crate::mapfault::report_on_stdout(match mode {
+            ProgressFormat::None => crate::mapfault::StdoutProtocol::None,
+            ProgressFormat::Openjd => crate::mapfault::StdoutProtocol::Openjd,
+            ProgressFormat::Json => crate::mapfault::StdoutProtocol::Json,
+        });
         Progress { mode, frames: frames.max(1), last: Mutex::new(None) }
     }
 

@@ -53,6 +53,7 @@ mod write;
 pub use isolate::{list_grids_isolated, read_float_grids_isolated, read_grids_isolated, IsolationLimits, ReadIsolation};
 pub use read::{list_grids, read_float_grid, read_grids, FoundGrid, GridRequest, ReadLimits};
 pub use selector::GridSelector;
+pub(crate) use stream::FileStamp;
 pub use stream::{stream_float_grid, stream_float_grid_isolated, HeaderVisitor, LeafData, LeafVisitor, StreamedGrid};
 pub use write::write_float_grids;
 

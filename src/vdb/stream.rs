@@ -100,6 +100,52 @@ impl ReadIsolation {
     }
 }
 
+/// What identifies the version of a `.vdb` being streamed (OpenVDB maps it and reads
+/// leaves from it as they are asked for): checked before each batch of leaves, and by a
+/// conversion (`cache::convert`) from its start to its end.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct FileStamp {
+    dev: u64,
+    ino: u64,
+    bytes: u64,
+    mtime: (i64, i64),
+}
+
+impl FileStamp {
+    /// The file at `path` now.
+    pub(crate) fn of(path: &Path) -> std::io::Result<FileStamp> {
+        use std::os::unix::fs::MetadataExt;
+        let m = std::fs::metadata(path)?;
+        Ok(FileStamp { dev: m.dev(), ino: m.ino(), bytes: m.len(), mtime: (m.mtime(), m.mtime_nsec()) })
+    }
+
+    /// How the file now at `path` differs from this version, if it does.
+    pub(crate) fn change(&self, path: &Path) -> Option<String> {
+        let now = match FileStamp::of(path) {
+            Ok(now) => now,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Some("it was removed".into()),
+            Err(e) => return Some(format!("it cannot be examined again ({e})")),
+        };
+        let sizes = format!("now {} bytes, {} when opened", now.bytes, self.bytes);
+        if (now.dev, now.ino) != (self.dev, self.ino) {
+            Some(format!("it was replaced by another file ({sizes})"))
+        } else if now.bytes < self.bytes {
+            Some(format!("it was truncated ({sizes})"))
+        } else {
+            (now != *self).then(|| format!("it was modified ({sizes})"))
+        }
+    }
+
+    /// The error for `change`.
+    pub(crate) fn failed(path: &Path, change: &str) -> Error {
+        Error::InputFailed {
+            kind: "VDB file",
+            path: path.to_path_buf(),
+            what: format!("{change} while plume streamed it; the conversion stopped (run the command again once the file is complete)"),
+        }
+    }
+}
+
 /// Streams one scalar grid through `header` and `leaf` in this process (see the module
 /// documentation for the order), holding only its topology and one batch of leaves.
 ///
@@ -273,6 +319,13 @@ impl<'v, 'f> Delivery<'v, 'f> {
 pub(crate) struct LocalStream<'p> {
     path: &'p Path,
     selector: &'p GridSelector,
+    /// OpenVDB's mapping of the file, watched (`mapfault`): a truncation while streaming
+    /// in this process ends plume with a line naming the file. Declared before `shim` so
+    /// that it is dropped before the file is unmapped.
+    #[allow(dead_code)]
+    watches: Vec<crate::mapfault::Watch>,
+    /// The file's version when opened, checked before each batch of leaves is loaded.
+    stamp: std::io::Result<FileStamp>,
     shim: cxx::UniquePtr<ffi::LeafStream>,
     grid: StreamedGrid,
     tiles: Vec<Tile>,
@@ -287,7 +340,10 @@ impl<'p> LocalStream<'p> {
     /// [`read_float_grid`](super::read_float_grid) that does not need the values.
     pub(crate) fn open(path: &'p Path, selector: &'p GridSelector, limits: &ReadLimits) -> Result<LocalStream<'p>> {
         let path_str = check_file(path)?;
+        let stamp = FileStamp::of(path);
         let shim = ffi::open_leaf_stream(path_str, &selector.name, selector.occurrence).map_err(|e| vdb_error(path, &e))?;
+        // Delayed loading has mapped the file (its topology was read from the mapping)
+        let watches = crate::mapfault::watch_mappings_of(path, "VDB file");
         let h = shim.stream_header().map_err(|e| vdb_error(path, &e))?;
         check_status(path, path_str, selector, h.status, &h.value_type, &h.transform)?;
         let needed = h.resident_bytes.saturating_add(BATCH_BYTES);
@@ -319,6 +375,8 @@ impl<'p> LocalStream<'p> {
         Ok(LocalStream {
             path,
             selector,
+            watches,
+            stamp,
             shim,
             grid,
             tiles,
@@ -341,8 +399,14 @@ impl<'p> LocalStream<'p> {
     ///
     /// # Errors
     /// [`Error::Vdb`] when OpenVDB cannot load a leaf, or a leaf holds a NaN or infinite
-    /// value (the file is corrupt, as [`read_float_grid`](super::read_float_grid) says).
+    /// value (the file is corrupt, as [`read_float_grid`](super::read_float_grid) says);
+    /// [`Error::InputFailed`] when the file changed since it was opened.
     pub(crate) fn next_batch(&mut self) -> Result<Option<(&[IVec3], &[f32])>> {
+        // Before OpenVDB reads the next leaves from the mapped file: a truncated file
+        // would fault (SIGBUS), and OpenVDB can crash on the zeros past its new end
+        if let Some(change) = self.stamp.as_ref().ok().and_then(|s| s.change(self.path)) {
+            return Err(FileStamp::failed(self.path, &change));
+        }
         let n = self.shim.pin_mut().next_leaves(&mut self.raw_origins, &mut self.values).map_err(|e| vdb_error(self.path, &e))?;
         if n == 0 {
             return Ok(None);

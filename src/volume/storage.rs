@@ -12,13 +12,14 @@ use std::ops::Deref;
 use std::sync::Arc;
 
 use bytemuck::Pod;
-use memmap2::Mmap;
+
+use crate::mapfault::Mapping;
 
 /// Who keeps a [`Buffer`]'s elements alive.
 #[derive(Debug)]
 enum Owner<T> {
     Heap(Vec<T>),
-    Map(#[allow(dead_code)] Arc<Mmap>),
+    Map(#[allow(dead_code)] Arc<Mapping>),
 }
 
 /// A read-only `[T]` on the heap or in a mapped file. See the module docs.
@@ -48,7 +49,7 @@ impl<T: Pod> Buffer<T> {
     /// Returns `None` when the range lies outside the mapping, is not a whole number of
     /// `T`s, or is not aligned for `T` (cache sections are page-aligned).
     #[must_use]
-    pub fn mapped(map: &Arc<Mmap>, offset: usize, bytes: usize) -> Option<Buffer<T>> {
+    pub fn mapped(map: &Arc<Mapping>, offset: usize, bytes: usize) -> Option<Buffer<T>> {
         let end = offset.checked_add(bytes)?;
         let slice: &[u8] = map.get(offset..end)?;
         let typed: &[T] = bytemuck::try_cast_slice(slice).ok()?;
@@ -148,8 +149,7 @@ mod tests {
         std::fs::remove_file(&path).unwrap();
         file.write_all(&[0u8; 4096]).unwrap();
         file.write_all(bytemuck::cast_slice(&values)).unwrap();
-        // SAFETY (test): the temporary file is private to this test and not modified.
-        let map = Arc::new(unsafe { Mmap::map(&file) }.unwrap());
+        let map = Arc::new(Mapping::map(&file, &path, "test file").unwrap());
         let mapped = Buffer::<f32>::mapped(&map, 4096, values.len() * 4).unwrap();
         assert_eq!(&mapped[..], &values[..]);
         assert!(mapped.is_mapped());

@@ -81,12 +81,14 @@ fn c_path(p: &Path) -> CString {
     CString::new(p.as_os_str().as_bytes()).unwrap()
 }
 
-/// The tmpfs, or `None` after saying loudly why the test is skipped.
-fn tmpfs_or_skip(test: &str, dir: &Path, bytes: u64) -> Option<Tmpfs> {
-    match Tmpfs::mount(dir, bytes) {
+/// A tmpfs of `bytes` on `dir/name`, or `None` after saying loudly why the test is
+/// skipped (and removing the test's directory `dir`).
+fn tmpfs_or_skip(test: &str, dir: &Path, name: &str, bytes: u64) -> Option<Tmpfs> {
+    match Tmpfs::mount(&dir.join(name), bytes) {
         Ok(t) => Some(t),
         Err(reason) => {
             skip(test, &reason);
+            let _ = std::fs::remove_dir_all(dir);
             None
         }
     }
@@ -145,7 +147,7 @@ fn render(input: &Path, out: &Path, extra: &[&str]) -> Output {
 fn a_full_disk_leaves_every_render_output_as_it_was() {
     let test = "a_full_disk_leaves_every_render_output_as_it_was";
     let dir = tmpdir("faults", "full-outputs");
-    let Some(disk) = tmpfs_or_skip(test, &dir.join("full"), 2 * MIB) else { return };
+    let Some(disk) = tmpfs_or_skip(test, &dir, "full", 2 * MIB) else { return };
     let full = disk.dir.clone();
     let vdb = explosion(&dir, 32, Some(2));
     // The previous files: not plume images, so every render below writes anew. The stats
@@ -201,7 +203,7 @@ fn a_full_disk_leaves_every_render_output_as_it_was() {
 fn a_full_disk_while_writing_a_cache_leaves_the_previous_file() {
     let test = "a_full_disk_while_writing_a_cache_leaves_the_previous_file";
     let dir = tmpdir("faults", "full-caches");
-    let Some(disk) = tmpfs_or_skip(test, &dir.join("full"), 2 * MIB) else { return };
+    let Some(disk) = tmpfs_or_skip(test, &dir, "full", 2 * MIB) else { return };
     let full = disk.dir.clone();
     // 256³: a 16 MiB cache, so the writer's 8 MiB buffer fills and the disk refuses it
     // while the leaves stream in, not only when the file is finished
@@ -243,7 +245,7 @@ fn auto_cache_name(vdb: &Path, scratch: &Path, flags: &[&str]) -> String {
 fn a_full_cache_directory_fails_the_render_and_keeps_the_old_cache() {
     let test = "a_full_cache_directory_fails_the_render_and_keeps_the_old_cache";
     let dir = tmpdir("faults", "full-auto");
-    let Some(disk) = tmpfs_or_skip(test, &dir.join("full"), 2 * MIB) else { return };
+    let Some(disk) = tmpfs_or_skip(test, &dir, "full", 2 * MIB) else { return };
     let full = disk.dir.clone();
     let vdb = explosion(&dir, 64, Some(6));
     let budget = ["--memory-budget", "64KiB"];
@@ -287,7 +289,7 @@ fn in_core_estimate(vdb: &Path) -> u64 {
 fn read_only_cache_directories() {
     let test = "read_only_cache_directories";
     let dir = tmpdir("faults", "read-only");
-    let Some(ro) = tmpfs_or_skip(test, &dir.join("ro"), 16 * MIB) else { return };
+    let Some(ro) = tmpfs_or_skip(test, &dir, "ro", 16 * MIB) else { return };
     let (input_dir, shared, xdg) = (ro.dir.join("input"), ro.dir.join("shared"), ro.dir.join("xdg"));
     for d in [&input_dir, &shared, &xdg] {
         std::fs::create_dir(d).unwrap();
@@ -306,6 +308,8 @@ fn read_only_cache_directories() {
     assert!(o.status.success(), "{}", stderr(&o));
     let reference = pixel_bits(&exr_pixels(&dir.join("shared.exr")));
     if let Err(reason) = ro.read_only() {
+        drop(ro);
+        let _ = std::fs::remove_dir_all(&dir);
         return skip(test, &reason);
     }
     let run = |out: &str, flags: &[&str], xdg_home: &Path| {

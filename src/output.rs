@@ -10,12 +10,39 @@ use std::path::{Path, PathBuf};
 use crate::error::{Error, Result};
 use crate::film::Crop;
 
+/// A temporary file that is removed when dropped (on every error path, and when a panic
+/// unwinds), unless [`TemporaryFile::keep`] was called once it has been renamed into
+/// place.
+pub(crate) struct TemporaryFile {
+    path: Option<PathBuf>,
+}
+
+impl TemporaryFile {
+    /// Take charge of `path` (created or about to be).
+    pub(crate) fn new(path: PathBuf) -> TemporaryFile {
+        TemporaryFile { path: Some(path) }
+    }
+
+    /// The file has been renamed into place: leave it alone.
+    pub(crate) fn keep(mut self) {
+        self.path = None;
+    }
+}
+
+impl Drop for TemporaryFile {
+    fn drop(&mut self) {
+        if let Some(p) = self.path.take() {
+            let _ = std::fs::remove_file(p);
+        }
+    }
+}
+
 /// Write a file atomically: `write` fills a temporary file beside `path`, which is
 /// synced and renamed over `path` only if everything succeeded.
 ///
 /// # Errors
-/// [`Error::Write`] naming `path` if the directory is not writable or writing fails;
-/// the temporary file is removed.
+/// [`Error::Write`] naming `path` if the directory is not writable or writing fails (a
+/// full disk included); the temporary file is removed and `path` is left as it was.
 pub fn write_atomic(path: &Path, write: impl FnOnce(&mut BufWriter<File>) -> std::io::Result<()>) -> Result<()> {
     if path.file_name().is_none() {
         return Err(Error::Write { path: path.to_path_buf(), source: std::io::Error::new(std::io::ErrorKind::InvalidInput, "not a file name") });
@@ -23,22 +50,21 @@ pub fn write_atomic(path: &Path, write: impl FnOnce(&mut BufWriter<File>) -> std
     let tmp = temporary_path(path);
     let result = (|| {
         let file = File::create(&tmp)?;
+        let temporary = TemporaryFile::new(tmp.clone());
         let mut w = BufWriter::new(file);
         write(&mut w)?;
         w.flush()?;
         w.get_ref().sync_all()?;
         drop(w);
         std::fs::rename(&tmp, path)?;
+        temporary.keep();
         // Make the rename itself durable (a crash of the machine, not only of plume)
         if let Ok(d) = File::open(parent_dir(path)) {
             let _ = d.sync_all();
         }
         Ok(())
     })();
-    result.map_err(|source| {
-        let _ = std::fs::remove_file(&tmp);
-        Error::Write { path: path.to_path_buf(), source }
-    })
+    result.map_err(|source| Error::Write { path: path.to_path_buf(), source })
 }
 
 /// Append `line` and a newline to `path` (created if missing) with one `write`, so that
@@ -46,19 +72,51 @@ pub fn write_atomic(path: &Path, write: impl FnOnce(&mut BufWriter<File>) -> std
 /// process leaves whole lines. (On NFS, `O_APPEND` is not atomic between hosts: give
 /// each task its own file, e.g. with a frame token.)
 ///
+/// A write that fails part-way (a full disk takes what fits, then refuses the rest) is
+/// undone: the file is cut back to where this line began, as long as nothing was appended
+/// after it, and a file this call created is removed again. The file then holds exactly
+/// its earlier lines.
+///
 /// # Errors
 /// [`Error::Write`] naming `path`.
 pub fn append_line(path: &Path, line: &str) -> Result<()> {
-    use std::io::Write as _;
+    use std::io::Seek as _;
     let mut text = String::with_capacity(line.len() + 1);
     text.push_str(line);
     text.push('\n');
-    std::fs::OpenOptions::new()
-        .create(true)
-        .append(true)
-        .open(path)
-        .and_then(|mut f| f.write_all(text.as_bytes()).and_then(|()| f.sync_data()))
-        .map_err(|source| Error::Write { path: path.to_path_buf(), source })
+    let fail = |source| Error::Write { path: path.to_path_buf(), source };
+    let open = |new: bool| std::fs::OpenOptions::new().append(true).create_new(new).open(path);
+    let (mut f, created) = match open(true) {
+        Ok(f) => (f, true),
+        Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => (open(false).map_err(fail)?, false),
+        Err(e) => return Err(fail(e)),
+    };
+    let mut written = 0;
+    let result = (|| {
+        while written < text.len() {
+            match f.write(&text.as_bytes()[written..]) {
+                Ok(0) => return Err(std::io::Error::from(std::io::ErrorKind::WriteZero)),
+                Ok(n) => written += n,
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                Err(e) => return Err(e),
+            }
+        }
+        f.sync_data()
+    })();
+    if let Err(e) = result {
+        // With O_APPEND the offset is the end of this process's last write
+        let end = f.stream_position().ok();
+        let start = end.and_then(|end| end.checked_sub(written as u64));
+        let len = f.metadata().map(|m| m.len()).ok();
+        if let Some(start) = start.filter(|_| written > 0 && end == len) {
+            let _ = f.set_len(start);
+        }
+        if created && f.metadata().is_ok_and(|m| m.len() == 0) {
+            let _ = std::fs::remove_file(path);
+        }
+        return Err(fail(e));
+    }
+    Ok(())
 }
 
 /// Check, before any expensive work, that `path` can be written: its directory exists and

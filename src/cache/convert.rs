@@ -316,11 +316,9 @@ pub fn check_light_budget(volume: &Volume, light_sampling: LightSampling, budget
     Ok(())
 }
 
-/// Where the automatic cache of `input` lives: `render.cache_dir`, else beside the input,
-/// else `$XDG_CACHE_HOME/plume` (or `~/.cache/plume`). The name carries a hash of the
-/// grid bindings and source mapping, so renders with different grids or mappings keep
-/// separate caches.
-fn auto_cache_path(scene: &SceneDescription, input: &Path, settings: &JobSettings) -> PathBuf {
+/// The automatic cache's file name: the input's name and a hash of the grid bindings and
+/// source mapping, so renders with different grids or mappings keep separate caches.
+fn auto_cache_name(scene: &SceneDescription, input: &Path) -> String {
     use sha2::{Digest, Sha256};
     let (v, e) = (&scene.volume, &scene.emission);
     // The Debug texts are those of the flag enums before the scene description existed,
@@ -339,65 +337,234 @@ fn auto_cache_path(scene: &SceneDescription, input: &Path, settings: &JobSetting
     );
     let hash = Sha256::digest(key.as_bytes());
     let tag: String = hash[..6].iter().map(|b| format!("{b:02x}")).collect();
-    let name = format!("{}.{tag}.{}", input.file_name().map_or_else(|| "input".into(), |n| n.to_string_lossy()), super::EXTENSION);
-    let writable = |d: &Path| {
-        let probe = d.join(format!(".plume-probe-{}", std::process::id()));
-        let ok = std::fs::File::create(&probe).is_ok();
-        let _ = std::fs::remove_file(&probe);
-        ok
-    };
+    format!("{}.{tag}.{}", input.file_name().map_or_else(|| "input".into(), |n| n.to_string_lossy()), super::EXTENSION)
+}
+
+/// A directory an automatic cache may live in, and how the user knows it.
+struct Place {
+    dir: PathBuf,
+    what: &'static str,
+}
+
+/// Where the automatic cache of `input` may live, in order: only `render.cache_dir` when
+/// it is given; otherwise beside the input, then `$XDG_CACHE_HOME/plume` (or
+/// `~/.cache/plume`, or `plume` in the temporary directory without a home).
+fn cache_places(input: &Path, settings: &JobSettings) -> Vec<Place> {
     if let Some(dir) = &settings.render.cache_dir {
-        return dir.join(name);
+        return vec![Place { dir: dir.clone(), what: "--cache-dir" }];
     }
-    let beside = crate::output::parent_dir(input);
-    if writable(&beside) {
-        return beside.join(name);
-    }
-    let base = std::env::var_os("XDG_CACHE_HOME")
+    let user = std::env::var_os("XDG_CACHE_HOME")
+        .filter(|d| !d.is_empty())
         .map(PathBuf::from)
         .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache")))
         .unwrap_or_else(std::env::temp_dir);
-    base.join("plume").join(name)
+    vec![Place { dir: crate::output::parent_dir(input), what: "beside the input" }, Place { dir: user.join("plume"), what: "$XDG_CACHE_HOME/plume" }]
+}
+
+/// The automatic cache at `path` if it may be rendered (complete and current; it is
+/// deleted if its background check fails later); `None` when there is none; `Err` saying
+/// why the file there may not be used.
+fn open_auto(path: &Path) -> Result<Option<Cache>> {
+    if !path.exists() {
+        return Ok(None);
+    }
+    let mut cache = Cache::open(path).and_then(|c| check_not_stale(&c).map(|()| c))?;
+    cache.check.remove_on_failure();
+    Ok(Some(cache))
+}
+
+/// Whether a cache can be made at `path`: its directory exists or can be created, and
+/// takes a new file (a probe named like the writer's temporary, so that one left by a
+/// killed process is cleaned up).
+fn writable(dir: &Path, path: &Path) -> std::io::Result<()> {
+    std::fs::create_dir_all(dir)?;
+    let probe = crate::output::temporary_path(path);
+    std::fs::File::create(&probe)?;
+    std::fs::remove_file(&probe)
+}
+
+/// An advisory lock (`flock`) on `.NAME.lock` beside the cache `NAME`, held while a
+/// process converts, so that other processes making the same cache (farm nodes sharing a
+/// cache directory) wait and then use it instead of converting again. The kernel
+/// releases it when the lock is dropped or the process dies. The lock file is left in
+/// place: removing it would let a process still waiting on the old file and one opening
+/// a new file both hold "the" lock.
+///
+/// Where locks are not available (`flock` refused, e.g. an NFS mount with `nolock`) the
+/// conversion goes on without one: correctness never depends on it (each converter
+/// writes its own temporary and renames a complete file), only duplicate work does.
+struct CacheLock {
+    _file: Option<std::fs::File>,
+}
+
+impl CacheLock {
+    /// How often a waiting process retries (and checks for a stop signal).
+    const POLL: std::time::Duration = std::time::Duration::from_millis(100);
+
+    /// Lock the cache `path`, waiting for another holder to finish.
+    ///
+    /// # Errors
+    /// [`Error::Interrupted`] when SIGTERM or SIGINT arrives while waiting.
+    fn acquire(path: &Path) -> Result<CacheLock> {
+        use std::os::fd::AsRawFd;
+        let name = path.file_name().map_or_else(|| "cache".into(), |n| n.to_string_lossy().into_owned());
+        let lock_path = crate::output::parent_dir(path).join(format!(".{name}.lock"));
+        let unlocked = |e: std::io::Error| {
+            eprintln!("plume: warning: cannot lock {} ({e}); converting without waiting for other processes", lock_path.display());
+            Ok(CacheLock { _file: None })
+        };
+        let file = match std::fs::File::options().read(true).write(true).create(true).truncate(false).open(&lock_path) {
+            Ok(f) => f,
+            Err(e) => return unlocked(e),
+        };
+        let mut announced = false;
+        loop {
+            // SAFETY: flock on a descriptor owned by `file`, which outlives the call.
+            if unsafe { libc::flock(file.as_raw_fd(), libc::LOCK_EX | libc::LOCK_NB) } == 0 {
+                return Ok(CacheLock { _file: Some(file) });
+            }
+            let e = std::io::Error::last_os_error();
+            match e.raw_os_error() {
+                Some(libc::EWOULDBLOCK) => {}
+                Some(libc::EINTR) => continue,
+                _ => return unlocked(e),
+            }
+            if let Some(signal) = crate::farm::signals::stop_requested() {
+                let what = format!("stopped while waiting for another process making the automatic cache {}; nothing written", path.display());
+                return Err(Error::Interrupted { signal: signal.into(), what });
+            }
+            if !announced {
+                eprintln!("plume: waiting for another process that is making the automatic cache {}", path.display());
+                announced = true;
+            }
+            std::thread::sleep(Self::POLL);
+        }
+    }
 }
 
 /// For a .vdb larger on disk than a quarter of the memory budget: its automatic cache,
-/// converted now if missing, stale or damaged. `None` for smaller files (read in core).
+/// converted now if missing, stale or damaged. `None` for smaller files (read in core),
+/// and for files read in core because no cache can be made (below).
+///
+/// - A current cache in any of the places ([`cache_places`]) is used as it is, even in a
+///   read-only directory (a cache directory prepared once and shared read-only).
+/// - Otherwise the cache is made in the first writable place, under a lock
+///   ([`CacheLock`]): a process that waited uses the cache the other one made. A stale or
+///   damaged file stays where it is until the new cache is renamed over it, so a failed
+///   conversion (a full disk) leaves the directory as it was.
+/// - An explicit `render.cache_dir` that cannot be written is an error; without one, when
+///   neither the input's directory nor the user cache directory can be written, the file
+///   is read into memory if that fits the memory budget, and refused otherwise.
 ///
 /// # Errors
-/// As [`convert`]; an unusable cache directory.
+/// As [`convert`]; [`Error::Write`] for a cache directory that cannot be written (exit
+/// code 4); [`Error::Interrupted`] for a signal while waiting for another converter.
 pub fn auto_cache(scene: &SceneDescription, input: &Path, settings: &JobSettings) -> Result<Option<Cache>> {
     let Ok(meta) = std::fs::metadata(input) else { return Ok(None) };
     let budget = memory_budget(settings);
     if meta.len().saturating_mul(4) <= budget {
         return Ok(None);
     }
-    let path = auto_cache_path(scene, input, settings);
-    if path.exists() {
-        match Cache::open(&path).and_then(|c| check_not_stale(&c).map(|()| c)) {
-            Ok(mut cache) => {
-                cache.check.remove_on_failure();
-                return Ok(Some(cache));
-            }
-            Err(e) => {
-                eprintln!("plume: rebuilding the automatic cache ({e})");
-                let _ = std::fs::remove_file(&path);
-            }
+    let name = auto_cache_name(scene, input);
+    let places = cache_places(input, settings);
+    for place in &places {
+        match open_auto(&place.dir.join(&name)) {
+            Ok(Some(cache)) => return Ok(Some(cache)),
+            Ok(None) => {}
+            Err(e) => eprintln!("plume: rebuilding the automatic cache ({e})"),
         }
     }
-    if let Some(dir) = path.parent() {
-        std::fs::create_dir_all(dir).map_err(|e| Error::Write { path: dir.to_path_buf(), source: e })?;
+    let mut refused = Vec::new();
+    for place in &places {
+        let path = place.dir.join(&name);
+        match writable(&place.dir, &path) {
+            Ok(()) => return make_auto_cache(scene, input, settings, &path, meta.len(), budget).map(Some),
+            Err(e) => refused.push((place, e)),
+        }
+    }
+    let why = |(place, e): &(&Place, std::io::Error)| format!("{} ({}): {e}", place.dir.display(), place.what);
+    if settings.render.cache_dir.is_some() {
+        let (place, e) = &refused[0];
+        let message = format!(
+            "{e}; --cache-dir (render.cache_dir) must name a writable directory: the automatic brick cache of {} is made there, \
+             as the file is larger than a quarter of the memory budget",
+            input.display()
+        );
+        return Err(Error::Write { path: place.dir.clone(), source: std::io::Error::new(e.kind(), message) });
+    }
+    let nowhere = refused.iter().map(why).collect::<Vec<_>>().join("; ");
+    let needed = in_core_bytes(scene, input, settings)?;
+    if needed <= budget {
+        eprintln!(
+            "plume: warning: nowhere to write the automatic brick cache of {} ({nowhere}); reading it into memory instead \
+             (about {} while reading, within the memory budget of {})",
+            input.display(),
+            size(needed),
+            size(budget)
+        );
+        return Ok(None);
+    }
+    let (place, e) = &refused[0];
+    let message = format!(
+        "{e} ({}); nor {}; so the automatic brick cache of {} cannot be made, and reading it into memory would need about {}, \
+         more than the memory budget of {} (--memory-budget); give a writable --cache-dir",
+        place.what,
+        refused[1..].iter().map(why).collect::<Vec<_>>().join("; "),
+        input.display(),
+        size(needed),
+        size(budget)
+    );
+    Err(Error::Write { path: place.dir.clone(), source: std::io::Error::new(e.kind(), message) })
+}
+
+/// `bytes` for messages: GiB from 1 GiB on, MiB below.
+fn size(bytes: u64) -> String {
+    if bytes as f64 >= GIB {
+        format!("{:.2} GiB", bytes as f64 / GIB)
+    } else {
+        format!("{:.1} MiB", bytes as f64 / (1u64 << 20) as f64)
+    }
+}
+
+/// Convert `input` to the automatic cache `path` (whose directory is writable), unless
+/// another process made it while this one waited for the lock.
+fn make_auto_cache(scene: &SceneDescription, input: &Path, settings: &JobSettings, path: &Path, input_bytes: u64, budget: u64) -> Result<Cache> {
+    let _lock = CacheLock::acquire(path)?;
+    if let Ok(Some(cache)) = open_auto(path) {
+        eprintln!("plume: using the automatic cache {}, which another process made meanwhile", path.display());
+        return Ok(cache);
     }
     eprintln!(
         "plume: {} is {:.2} GiB on disk, more than a quarter of the memory budget ({:.2} GiB, --memory-budget); \
          converting it once to the brick cache {}",
         input.display(),
-        meta.len() as f64 / GIB,
+        input_bytes as f64 / GIB,
         budget as f64 / GIB,
         path.display()
     );
-    let c = convert(input, &scene.volume, &scene.emission, &settings.reading, scene.integrator.proxy_resolution, &path)?;
+    let c = convert(input, &scene.volume, &scene.emission, &settings.reading, scene.integrator.proxy_resolution, path)?;
     eprintln!("plume: wrote {} ({:.2} GiB) in {:.1} s", c.path.display(), c.bytes as f64 / GIB, c.seconds);
     let mut cache = Cache::open(&c.path)?;
     cache.check.remove_on_failure();
-    Ok(Some(cache))
+    Ok(cache)
+}
+
+/// Peak memory of reading `input` in core, estimated from its grids' headers (topology
+/// only): the values of every leaf of the grids the description selects, twice (the
+/// grids as read, and the volume built from them while they are still held).
+///
+/// # Errors
+/// As reading the headers.
+fn in_core_bytes(scene: &SceneDescription, input: &Path, settings: &JobSettings) -> Result<u64> {
+    let (limits, isolation) = reader(&settings.reading)?;
+    let mut leaves = 0u64;
+    for request in grid_requests(&scene.volume, scene.emission.source)? {
+        for sel in &request.alternatives {
+            if let Some(h) = probe(&isolation, input, sel, &limits)? {
+                leaves += h.leaf_count;
+                break;
+            }
+        }
+    }
+    Ok(leaves.saturating_mul(2 * crate::vdb::LEAF_VOXELS as u64 * 4))
 }

@@ -65,6 +65,10 @@ impl ChunkHasher {
 /// The output file and its position, section bookkeeping and chunk sums.
 struct Out {
     path: PathBuf,
+    /// The cache file being made: what write errors name.
+    target: PathBuf,
+    /// Removes the temporary file `path` unless it was renamed into place.
+    temporary: crate::output::TemporaryFile,
     file: BufWriter<File>,
     pos: u64,
     chunks: ChunkHasher,
@@ -77,7 +81,7 @@ struct Out {
 
 impl Out {
     fn io(&self, e: std::io::Error) -> Error {
-        Error::Write { path: self.path.clone(), source: e }
+        Error::Write { path: self.target.clone(), source: e }
     }
 
     fn write(&mut self, bytes: &[u8]) -> Result<()> {
@@ -182,9 +186,11 @@ impl CacheWriter {
         crate::output::remove_stale_temporaries(path);
         let tmp = crate::output::temporary_path(path);
         // Read access too: `finish` maps the values written so far
-        let file = File::options().read(true).write(true).create(true).truncate(true).open(&tmp).map_err(|e| Error::Write { path: tmp.clone(), source: e })?;
+        let file = File::options().read(true).write(true).create(true).truncate(true).open(&tmp).map_err(|e| Error::Write { path: path.into(), source: e })?;
         let mut out = Out {
+            temporary: crate::output::TemporaryFile::new(tmp.clone()),
             path: tmp,
+            target: path.to_path_buf(),
             file: BufWriter::with_capacity(8 << 20, file),
             pos: 0,
             chunks: ChunkHasher::default(),
@@ -317,8 +323,8 @@ impl CacheWriter {
         header.sections[..out.sections.len()].copy_from_slice(&out.sections);
         header.checksum = header.compute_checksum();
         let tmp = out.path.clone();
-        let mut file = out.file.into_inner().map_err(|e| Error::Write { path: tmp.clone(), source: e.into_error() })?;
-        let io = |e| Error::Write { path: tmp.clone(), source: e };
+        let mut file = out.file.into_inner().map_err(|e| Error::Write { path: final_path.clone(), source: e.into_error() })?;
+        let io = |e| Error::Write { path: final_path.clone(), source: e };
         file.seek(SeekFrom::Start(0)).map_err(io)?;
         file.write_all(bytemuck::bytes_of(&header)).map_err(io)?;
         // No fsync: the kernel writes the pages back in its own time. A cache torn by a
@@ -326,6 +332,7 @@ impl CacheWriter {
         // never trusted, so waiting here for gigabytes to reach the disk buys nothing.
         drop(file);
         std::fs::rename(&tmp, &final_path).map_err(|e| Error::Write { path: final_path.clone(), source: e })?;
+        out.temporary.keep();
         Ok(final_path)
     }
 }

@@ -140,7 +140,9 @@ pub struct RenderArgs {
     #[arg(long, value_parser = parse_size)]
     pub memory_budget: Option<ByteSize>,
     /// Where automatic brick caches of large .vdb inputs go (default: beside the input,
-    /// or `$XDG_CACHE_HOME/plume` when that directory is not writable).
+    /// or `$XDG_CACHE_HOME/plume` when that directory is not writable). A current cache
+    /// there is used even if the directory is read-only; one that must be made in a
+    /// directory that cannot be written is an error (exit 4).
     #[arg(long)]
     pub cache_dir: Option<PathBuf>,
     /// Order of the samples (the image is the same): `progressive` passes over the whole

@@ -89,9 +89,23 @@ fn probe(isolation: &ReadIsolation, file: &Path, selector: &GridSelector, limits
     }
 }
 
-/// Convert the grids of `file` that `volume` selects (its `file` is not used), with
-/// sources mapped as `emission` says, into the cache file `out`, storing a proxy of
-/// `proxy_resolution` (default for the volume's size when `None`).
+/// What a conversion stores: the grids a description binds, how their sources map, how
+/// the file is read, and the proxy resolution (default for the volume's size when
+/// `None`).
+#[derive(Clone, Copy, Debug)]
+pub struct Conversion<'a> {
+    /// The grids (the `file` field is not used: the file is given apart).
+    pub volume: &'a VolumeInput,
+    /// How sources map (scale and tint are not stored).
+    pub emission: &'a EmissionSettings,
+    /// Reader limits and isolation.
+    pub reading: &'a ReadSettings,
+    /// FNEE proxy resolution to store.
+    pub proxy_resolution: Option<u32>,
+}
+
+/// Convert the grids of `file` that `what` selects, with sources mapped as it says, into
+/// the cache file `out`, storing its proxy.
 ///
 /// Streams: each grid's header first (topology only, for the table's box and the
 /// transform checks), then each grid leaf by leaf into the writer, so neither plume nor
@@ -99,16 +113,9 @@ fn probe(isolation: &ReadIsolation, file: &Path, selector: &GridSelector, limits
 ///
 /// # Errors
 /// Unreadable input or grids, incompatible transforms, write errors.
-pub fn convert(
-    file: &Path,
-    volume: &VolumeInput,
-    emission: &EmissionSettings,
-    reading: &ReadSettings,
-    proxy_resolution: Option<u32>,
-    out: &Path,
-) -> Result<Converted> {
+pub fn convert(file: &Path, what: &Conversion<'_>, out: &Path) -> Result<Converted> {
     let before = FileStamp::of(file).ok();
-    let result = convert_unchecked(file, volume, emission, reading, proxy_resolution, out);
+    let result = convert_unchecked(file, what, out);
     // A file that changed during the conversion explains a reader that crashed or read
     // garbage (OpenVDB reads the zeros past a new end), and a conversion that succeeded
     // may hold leaves of two versions: either way the file failed under plume (exit code
@@ -125,14 +132,8 @@ pub fn convert(
     }
 }
 
-fn convert_unchecked(
-    file: &Path,
-    volume: &VolumeInput,
-    emission: &EmissionSettings,
-    reading: &ReadSettings,
-    proxy_resolution: Option<u32>,
-    out: &Path,
-) -> Result<Converted> {
+fn convert_unchecked(file: &Path, what: &Conversion<'_>, out: &Path) -> Result<Converted> {
+    let Conversion { volume, emission, reading, proxy_resolution } = *what;
     let start = Instant::now();
     let input = fingerprint(file)?;
     let (limits, isolation) = reader(reading)?;
@@ -542,7 +543,8 @@ fn make_auto_cache(scene: &SceneDescription, input: &Path, settings: &JobSetting
         budget as f64 / GIB,
         path.display()
     );
-    let c = convert(input, &scene.volume, &scene.emission, &settings.reading, scene.integrator.proxy_resolution, path)?;
+    let what = Conversion { volume: &scene.volume, emission: &scene.emission, reading: &settings.reading, proxy_resolution: scene.integrator.proxy_resolution };
+    let c = convert(input, &what, path)?;
     eprintln!("plume: wrote {} ({:.2} GiB) in {:.1} s", c.path.display(), c.bytes as f64 / GIB, c.seconds);
     let mut cache = Cache::open(&c.path)?;
     cache.check.remove_on_failure();

@@ -149,8 +149,8 @@ pub fn prepare_command(args: &PrepareArgs) -> Result<()> {
     let (scene, reading) = (&shot.scene, &shot.settings.reading);
     let input_bytes = std::fs::metadata(&args.file).map(|m| m.len()).unwrap_or(0);
     let flags = super::render::Origin { scene_file: None, given: Vec::new() };
-    let c = plume::cache::convert::convert(&args.file, &scene.volume, &scene.emission, reading, args.proxy_resolution, &args.output)
-        .map_err(|e| flags.explain(e))?;
+    let what = plume::cache::convert::Conversion { volume: &scene.volume, emission: &scene.emission, reading, proxy_resolution: args.proxy_resolution };
+    let c = plume::cache::convert::convert(&args.file, &what, &args.output).map_err(|e| flags.explain(e))?;
     if !args.quiet {
         eprintln!(
             "plume: wrote {} ({:.1} MiB) from {} ({:.1} MiB) in {:.2} s",

@@ -155,6 +155,16 @@ fn flags_beside_a_scene_file_override_its_keys() {
     ok(&plume(&["render", s(&shot), "-o", s(&over), "--spp", "4", "--density-scale", "3"]));
     assert!(!dir.join("a.exr").exists());
     assert_eq!(bits(&pixels(&by_flags)), bits(&pixels(&over)));
+    // A file without [output] takes -o, and without it is refused naming the key
+    let bare = dir.join("bare.toml");
+    std::fs::write(&bare, "[volume]\nfile = \"ex.vdb\"\n[camera]\nwidth = 40\nheight = 30\n[render]\nspp = 4\nquiet = true\n[medium]\ndensity_scale = 3\n")
+        .unwrap();
+    let o = plume(&["render", s(&bare)]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.code() == Some(2) && err.contains("output.image"), "{err}");
+    let from_bare = dir.join("bare.exr");
+    ok(&plume(&["render", s(&bare), "-o", s(&from_bare)]));
+    assert_eq!(bits(&pixels(&by_flags)), bits(&pixels(&from_bare)));
     // A flag also replaces the keys it conflicts with: --time drops the file's spp
     let written = dir.join("timed.toml");
     ok(&plume(&["render", s(&shot), "--time", "1", "--write-scene", s(&written)]));
@@ -188,6 +198,7 @@ fn bad_scene_files_name_the_file_line_and_key() {
     refused("out-of-range", &format!("{head}[medium]\ng = 0.5\nalbedo = 1.5\n"), 7, "medium.albedo");
     refused("negative-size", &format!("{head}\n[camera]\nheight = -4\n"), 7, "camera.height");
     refused("bad-output", "[volume]\nfile = \"ex.vdb\"\n[output]\nimage = \"out.png\"\n", 4, "output.image");
+    refused("no-volume-file", "[volume]\ndensity_grid = \"d\"\n[output]\nimage = \"out.exr\"\n", 1, "volume");
 }
 
 #[test]

@@ -66,6 +66,8 @@ struct ShotFile {
     render: settings::RenderOptions,
     #[serde(default)]
     farm: settings::FarmOptions,
+    // Optional here so that `-o` beside a scene file can give it; validation requires it
+    #[serde(default = "settings::OutputSettings::unset")]
     output: OutputSettings,
     #[serde(default)]
     reading: ReadSettings,

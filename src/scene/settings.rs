@@ -95,6 +95,7 @@ pub struct FarmOptions {
 #[serde(deny_unknown_fields)]
 pub struct OutputSettings {
     /// The EXR (a pattern with frames).
+    #[serde(default)]
     pub image: PathBuf,
     /// A tone-mapped sRGB PNG preview (a pattern with frames).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -111,6 +112,11 @@ pub struct OutputSettings {
 }
 
 impl OutputSettings {
+    /// No image yet (a scene file without one, completed by `-o`).
+    pub(super) fn unset() -> OutputSettings {
+        OutputSettings::new(PathBuf::new())
+    }
+
     /// Only the EXR `image`.
     #[must_use]
     pub fn new(image: impl Into<PathBuf>) -> OutputSettings {

@@ -123,6 +123,9 @@ impl Shot {
                 return Err(Error::invalid("output.exposure", "must be finite"));
             }
         }
+        if out.image.as_os_str().is_empty() {
+            return Err(Error::invalid("output.image", "required: the EXR to write (`-o OUT.exr`, or `image` in `[output]`)"));
+        }
         if !out.image.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr")) {
             return Err(Error::invalid("output.image", format!("{} must end in .exr", out.image.display())));
         }

@@ -20,7 +20,7 @@ use crate::camera::Camera;
 use crate::error::{Error, Result};
 use crate::integrator::{LightSampling, Lights, Scene};
 use crate::medium::{Emission, EmissionKind, Medium};
-use crate::scene::bind::{emission_kind, emission_model, grid_requests, memory_budget, reader, split_found};
+use crate::scene::bind::{emission_kind, emission_model, grid_requests, memory_budget, reader, split_found, FileReader};
 use crate::scene::{JobSettings, SceneDescription, UpAxis};
 use crate::volume::proxy::{CellPower, ProxyGrid};
 use crate::volume::{Bounds3, Field, Volume};
@@ -50,7 +50,7 @@ struct LoadedVolume {
 
 /// Read a .vdb's grids into memory and build the volume.
 fn load_vdb(scene: &SceneDescription, input: &Path, settings: &JobSettings) -> Result<LoadedVolume> {
-    let (limits, isolation) = reader(&settings.reading)?;
+    let FileReader { limits, isolation } = reader(&settings.reading)?;
     let requests = grid_requests(&scene.volume, scene.emission.source)?;
     let found = isolation.read_grids(input, &requests, &limits)?;
     let grids = split_found(scene.emission.source, found);
@@ -84,9 +84,10 @@ fn load_cache(scene: &SceneDescription, cache: crate::cache::Cache) -> Result<Lo
 pub fn load_scene(scene: &SceneDescription, input: &Path, settings: &JobSettings) -> Result<LoadedScene> {
     // Mapping values are checked before any reading
     emission_model(&scene.emission, EmissionKind::None)?;
+    let budget = memory_budget(settings);
     let loaded = if crate::cache::is_cache_path(input) {
         load_cache(scene, crate::cache::Cache::open(input)?)?
-    } else if let Some(cache) = crate::cache::convert::auto_cache(scene, input, settings)? {
+    } else if let Some(cache) = crate::cache::convert::auto_cache(scene, input, settings, budget)? {
         load_cache(scene, cache)?
     } else {
         load_vdb(scene, input, settings)?
@@ -98,7 +99,7 @@ pub fn load_scene(scene: &SceneDescription, input: &Path, settings: &JobSettings
     let (_, light_sampling) = scene.integrator.parts();
     let lights = if scene.scatters() {
         let proxy_resolution = ProxyGrid::resolution_for(&volume, scene.integrator.proxy_resolution);
-        crate::cache::convert::check_light_budget(&volume, light_sampling, memory_budget(settings))?;
+        crate::cache::convert::check_light_budget(&volume, light_sampling, budget)?;
         match proxy_power {
             Some((power, key)) if light_sampling == LightSampling::Fnee && power.resolution == proxy_resolution && key == emission.light_key() => {
                 Lights { nee: None, proxy: ProxyGrid::from_cell_power(&volume, &power)? }

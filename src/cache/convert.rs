@@ -20,7 +20,7 @@ use super::writer::{CacheInfo, CacheWriter, ProxySpec};
 use crate::error::{Error, Result};
 use crate::integrator::{light_power, LightSampling};
 use crate::medium::EmissionKind;
-use crate::scene::bind::{emission_kind, grid_requests, memory_budget, reader, unit_emission_model};
+use crate::scene::bind::{emission_kind, grid_requests, reader, unit_emission_model, FileReader};
 use crate::scene::{EmissionSettings, EmissionSource, JobSettings, ReadSettings, SceneDescription, VolumeInput};
 use crate::stats::GIB;
 use crate::vdb::{FileStamp, GridSelector, LeafData, ReadIsolation, ReadLimits, StreamedGrid};
@@ -136,7 +136,7 @@ fn convert_unchecked(file: &Path, what: &Conversion<'_>, out: &Path) -> Result<C
     let Conversion { volume, emission, reading, proxy_resolution } = *what;
     let start = Instant::now();
     let input = fingerprint(file)?;
-    let (limits, isolation) = reader(reading)?;
+    let FileReader { limits, isolation } = reader(reading)?;
     let source_kind = emission.source;
     // Resolve every request to one grid, by its header
     let mut chosen: Vec<Option<(usize, GridSelector, StreamedGrid)>> = Vec::new();
@@ -443,7 +443,7 @@ impl CacheLock {
     }
 }
 
-/// For a .vdb larger on disk than a quarter of the memory budget: its automatic cache,
+/// For a .vdb larger on disk than a quarter of the memory `budget` (bytes): its automatic cache,
 /// converted now if missing, stale or damaged. `None` for smaller files (read in core),
 /// and for files read in core because no cache can be made (below).
 ///
@@ -460,9 +460,8 @@ impl CacheLock {
 /// # Errors
 /// As [`convert`]; [`Error::Write`] for a cache directory that cannot be written (exit
 /// code 4); [`Error::Interrupted`] for a signal while waiting for another converter.
-pub fn auto_cache(scene: &SceneDescription, input: &Path, settings: &JobSettings) -> Result<Option<Cache>> {
+pub fn auto_cache(scene: &SceneDescription, input: &Path, settings: &JobSettings, budget: u64) -> Result<Option<Cache>> {
     let Ok(meta) = std::fs::metadata(input) else { return Ok(None) };
-    let budget = memory_budget(settings);
     if meta.len().saturating_mul(4) <= budget {
         return Ok(None);
     }
@@ -558,7 +557,7 @@ fn make_auto_cache(scene: &SceneDescription, input: &Path, settings: &JobSetting
 /// # Errors
 /// As reading the headers.
 fn in_core_bytes(scene: &SceneDescription, input: &Path, settings: &JobSettings) -> Result<u64> {
-    let (limits, isolation) = reader(&settings.reading)?;
+    let FileReader { limits, isolation } = reader(&settings.reading)?;
     let mut leaves = 0u64;
     for request in grid_requests(&scene.volume, scene.emission.source)? {
         for sel in &request.alternatives {

@@ -239,7 +239,7 @@ pub fn info_command(args: &InfoArgs) -> Result<()> {
         return cache_info(args);
     }
     let reading = ReadSettings { max_input_memory: None, read_timeout: args.read_timeout, no_isolation: args.no_isolation };
-    let (_, isolation) = plume::scene::bind::reader(&reading)?;
+    let isolation = plume::scene::bind::reader(&reading)?.isolation;
     let grids = isolation.list_grids(&args.file)?;
     if args.json {
         println!("{}", plume::info::to_json(&grids));

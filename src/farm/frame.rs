@@ -28,7 +28,7 @@ use crate::farm::part::{assess, stats_metadata, Completion, Existing, Expected, 
 use crate::farm::progress::Progress;
 use crate::farm::signals;
 use crate::farm::split::format_range;
-use crate::film::{Crop, Film, FIXED_POINT_BITS};
+use crate::film::{Film, FIXED_POINT_BITS};
 use crate::integrator::LineTrace;
 use crate::load::{load_scene, LoadedScene};
 use crate::medium::{EmissionKind, Estimator};
@@ -151,7 +151,7 @@ pub fn render_frame(job: &Job<'_>, index: usize, frame: Option<i64>, command_lin
     write_outputs(job, &paths, &loaded, &result, &record, status)?;
     if !settings.render.quiet {
         let state = if status == Completion::Complete { String::new() } else { format!(", {}", status.as_str()) };
-        let crop = job.crop.unwrap_or(Crop::full(job.scene().camera.width, job.scene().camera.height));
+        let crop = job.pixels();
         eprintln!(
             "plume: {} ({}x{}, {} spp{state}, {}) in {:.2} s ({:.2} s to first sample, {:.3} core-h)",
             paths.output.display(),
@@ -180,7 +180,7 @@ fn decide(job: &Job<'_>, paths: &FramePaths, hash: &str, index: usize, frame: Op
         return Ok(Some(None));
     }
     let (width, height) = (job.scene().camera.width, job.scene().camera.height);
-    let crop = job.crop.unwrap_or(Crop::full(width, height));
+    let crop = job.pixels();
     let expected = Expected { settings_hash: hash.to_string(), width, height, crop, samples: job.samples.clone() };
     Ok(match assess(&paths.output, &expected) {
         Existing::Missing => Some(None),
@@ -291,7 +291,7 @@ fn run_passes(
         pb
     });
     let film = resume.map(|(_, sums)| {
-        let mut film = Film::with_crop(width, height, job.crop.unwrap_or(Crop::full(width, height)));
+        let mut film = Film::with_crop(width, height, job.pixels());
         film.set_sums(&sums);
         film
     });
@@ -359,7 +359,7 @@ fn stats_record(
 ) -> RenderStats {
     let settings = &job.shot.settings;
     let (width, height) = (job.scene().camera.width, job.scene().camera.height);
-    let crop = job.crop.unwrap_or(Crop::full(width, height));
+    let crop = job.pixels();
     let range_start = job.samples.as_ref().map_or(0, |r| r.start);
     let sample_range = range_start..range_start + spp;
     let threads = if settings.render.threads == 0 { rayon::current_num_threads() } else { settings.render.threads };
@@ -432,7 +432,7 @@ fn write_outputs(job: &Job<'_>, paths: &FramePaths, loaded: &LoadedScene, result
         }
     }
     let (width, height) = (record.width, record.height);
-    let crop = job.crop.unwrap_or(Crop::full(width, height));
+    let crop = job.pixels();
     let pixels = result.film.average(record.spp);
     let sums = (job.write_sums || status != Completion::Complete).then(|| result.film.sums());
     let mut metadata = stats_metadata(record);

@@ -94,6 +94,12 @@ impl<'a> Job<'a> {
     pub fn scene(&self) -> &SceneDescription {
         &self.shot.scene
     }
+
+    /// The pixels each frame renders: the crop or tile, else the whole image.
+    #[must_use]
+    pub fn pixels(&self) -> Crop {
+        self.crop.unwrap_or(Crop::full(self.shot.scene.camera.width, self.shot.scene.camera.height))
+    }
 }
 
 /// Run `plume render`.

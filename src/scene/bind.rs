@@ -103,17 +103,26 @@ pub fn unit_emission_model(settings: &EmissionSettings, kind: EmissionKind) -> R
     emission_model(&EmissionSettings { scale: 1.0, color: [1.0; 3], ..settings.clone() }, kind)
 }
 
-/// Read limits and reader isolation of `reading`.
+/// How input files are read: the limits of one read and where it runs.
+pub struct FileReader {
+    /// Largest input one grid read may allocate.
+    pub limits: ReadLimits,
+    /// In an isolated child or in this process.
+    pub isolation: ReadIsolation,
+}
+
+/// The reader `reading` asks for.
 ///
 /// # Errors
 /// A read timeout that is not a positive number of seconds.
-pub fn reader(reading: &ReadSettings) -> Result<(ReadLimits, ReadIsolation)> {
-    let limits = ReadLimits { max_bytes: reading.max_input_memory.map_or(ReadLimits::default().max_bytes, |b| b.0) };
+pub fn reader(reading: &ReadSettings) -> Result<FileReader> {
+    // The default reads the memory limits (cgroup files): only when no limit is given
+    let limits = ReadLimits { max_bytes: reading.max_input_memory.map_or_else(|| ReadLimits::default().max_bytes, |b| b.0) };
     let timeout = Duration::try_from_secs_f64(reading.read_timeout)
         .ok()
         .filter(|t| !t.is_zero())
         .ok_or_else(|| Error::invalid("reading.read_timeout", format!("{} is not a positive number of seconds", reading.read_timeout)))?;
-    Ok((limits, ReadIsolation::from_flags(reading.no_isolation, &limits, timeout)))
+    Ok(FileReader { limits, isolation: ReadIsolation::from_flags(reading.no_isolation, &limits, timeout) })
 }
 
 /// The memory budget: `render.memory_budget`, or half of physical memory or of this
@@ -138,9 +147,9 @@ mod tests {
 
     #[test]
     fn the_default_input_limit_is_the_default_budget() {
-        let (limits, _) = reader(&ReadSettings::default()).expect("default reading settings");
+        let FileReader { limits, .. } = reader(&ReadSettings::default()).expect("default reading settings");
         assert_eq!(limits.max_bytes, MemoryLimits::read().default_budget());
-        let (limits, _) = reader(&ReadSettings { max_input_memory: Some(ByteSize(1 << 20)), ..ReadSettings::default() }).expect("valid");
+        let FileReader { limits, .. } = reader(&ReadSettings { max_input_memory: Some(ByteSize(1 << 20)), ..ReadSettings::default() }).expect("valid");
         assert_eq!(limits.max_bytes, 1 << 20);
     }
 }

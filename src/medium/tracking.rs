@@ -19,7 +19,7 @@
 use crate::color::Rgb;
 use crate::medium::Medium;
 use crate::sampling::Sampler;
-use crate::volume::field::{Field, Ray, SegmentIter};
+use crate::volume::field::{Field, Piece, Ray, SegmentIter};
 
 /// Emission estimator along a free-path segment.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -131,8 +131,15 @@ fn track_free_path<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, 
     let mut f = [0.0f64; 3];
     let mut segments = 0u32;
     let mut it = field.segments(ray, 0.0, t_max);
-    for seg in it.by_ref() {
+    for piece in it.by_ref() {
         segments += 1;
+        let Some(seg) = piece.constant() else {
+            // A polynomial piece (trilinear reconstruction, METHOD.md §12)
+            if let Some(event) = free_path_polynomial(&piece, medium, estimator, e, &mut od, &mut f) {
+                return TrackResult { event, emission: f, transmittance: 0.0, optical_depth: e, segments, voxel_steps: it.voxel_steps() };
+            }
+            continue;
+        };
         let mu = medium.mu_t(seg.density);
         let len = seg.length();
         let x = mu * len;
@@ -163,6 +170,50 @@ fn track_free_path<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, 
     TrackResult { event: DistanceSample::Escaped, emission: f, transmittance: 1.0, optical_depth: od, segments, voxel_steps: it.voxel_steps() }
 }
 
+#[inline]
+fn add_scaled(acc: &mut [f64; 3], v: [f64; 3], w: f64) {
+    for (a, c) in acc.iter_mut().zip(v) {
+        *a += c * w;
+    }
+}
+
+/// One polynomial piece of a free path: the same estimators as the constant case, with
+/// the piece's closed forms (METHOD.md §12):
+/// - the collision solves `OD(u) = E − OD_before` exactly ([`Piece::free_path`]);
+/// - point: `L_e(u_c)/μ(u_c)`; line: `∫₀^{u_c} L_e du` (closed form), or over the whole piece;
+/// - blend: the piece's `α = 1/(1 + κ OD_piece)`, which does not depend on where the
+///   collision falls, so the mix of two unbiased estimates stays unbiased.
+///
+/// Adds to `od` and `f`; returns the collision, if the free path ends here.
+fn free_path_polynomial<P: Piece>(piece: &P, medium: &Medium, estimator: Estimator, e: f64, od: &mut f64, f: &mut [f64; 3]) -> Option<DistanceSample> {
+    let le = |d: f32, s: f32| medium.emission.le(d, s);
+    let len = piece.length();
+    let x = piece.optical_depth(medium.sigma_t, len);
+    let alpha = match estimator {
+        Estimator::Blend { kappa } => 1.0 / (1.0 + kappa * x),
+        Estimator::Line => 1.0,
+        Estimator::Point | Estimator::RayMarch => 0.0,
+    };
+    if *od + x > e {
+        let u = piece.free_path(medium.sigma_t, e - *od);
+        let density = piece.density_at(u);
+        if alpha > 0.0 {
+            add_scaled(f, piece.emission_integral(&le, u), alpha);
+        }
+        let mu = medium.mu_t(density);
+        if alpha < 1.0 && mu > 0.0 {
+            add_scaled(f, piece.emission_at(&le, u), (1.0 - alpha) / mu);
+        }
+        let t = (piece.t0() + u).clamp(piece.t0(), piece.t1());
+        return Some(DistanceSample::Collided { t, density, source: piece.source_at(u), albedo: piece.albedo_at(u) });
+    }
+    *od += x;
+    if alpha > 0.0 {
+        add_scaled(f, piece.emission_integral(&le, len), alpha);
+    }
+    None
+}
+
 fn track_expected<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, need_collision: bool, u: f64, sampler: &mut Sampler) -> TrackResult {
     let e = sample_exponential(u);
     let mut od = 0.0f64;
@@ -171,15 +222,29 @@ fn track_expected<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, n
     let mut segments = 0u32;
     let mut event = DistanceSample::Escaped;
     let mut marching = true;
+    // Position of the one-point rule in every polynomial piece, drawn at the first one
+    let mut xi: Option<f64> = None;
     let mut it = field.segments(ray, 0.0, t_max);
-    for seg in it.by_ref() {
+    for piece in it.by_ref() {
         segments += 1;
-        let mu = medium.mu_t(seg.density);
-        let len = seg.length();
-        let x = mu * len;
+        let len = piece.length();
+        let constant = piece.constant();
+        let x = match constant {
+            Some(seg) => medium.mu_t(seg.density) * len,
+            None => piece.optical_depth(medium.sigma_t, len),
+        };
         if need_collision && event == DistanceSample::Escaped && od + x > e {
-            let t = (seg.t0 + (e - od) / mu).clamp(seg.t0, seg.t1);
-            event = DistanceSample::Collided { t, density: seg.density, source: seg.source, albedo: seg.albedo };
+            event = match constant {
+                Some(seg) => {
+                    let t = (seg.t0 + (e - od) / medium.mu_t(seg.density)).clamp(seg.t0, seg.t1);
+                    DistanceSample::Collided { t, density: seg.density, source: seg.source, albedo: seg.albedo }
+                }
+                None => {
+                    let u = piece.free_path(medium.sigma_t, e - od);
+                    let t = (piece.t0() + u).clamp(piece.t0(), piece.t1());
+                    DistanceSample::Collided { t, density: piece.density_at(u), source: piece.source_at(u), albedo: piece.albedo_at(u) }
+                }
+            };
         }
         if marching {
             let mut tau = (-od).exp() * weight;
@@ -195,8 +260,23 @@ fn track_expected<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, n
                 }
             }
             if marching {
-                let le = medium.emission.le(seg.density, seg.source);
-                add(&mut f, le, tau * len * phi(x));
+                match constant {
+                    Some(seg) => {
+                        let le = medium.emission.le(seg.density, seg.source);
+                        add(&mut f, le, tau * len * phi(x));
+                    }
+                    None => {
+                        // One-point rule (METHOD.md §12): Δ τ(u_ξ) L_e(u_ξ) with u_ξ uniform
+                        // in the piece is unbiased for ∫ τ L_e over it. One ξ serves every
+                        // piece of the ray (systematic sampling: each piece's point is still
+                        // uniform in it).
+                        let xi = *xi.get_or_insert_with(|| sampler.next_f64());
+                        let u = xi * len;
+                        let le = |d: f32, s: f32| medium.emission.le(d, s);
+                        let tau_u = tau * (-piece.optical_depth(medium.sigma_t, u)).exp();
+                        add_scaled(&mut f, piece.emission_at(&le, u), tau_u * len);
+                    }
+                }
             }
         }
         od += x;
@@ -225,8 +305,11 @@ pub struct OpticalDepth {
 pub fn optical_depth<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, od_stop: f64) -> OpticalDepth {
     let mut od = 0.0;
     let mut it = field.segments(ray, 0.0, t_max);
-    for seg in it.by_ref() {
-        od += medium.mu_t(seg.density) * seg.length();
+    for piece in it.by_ref() {
+        od += match piece.constant() {
+            Some(seg) => medium.mu_t(seg.density) * seg.length(),
+            None => piece.optical_depth(medium.sigma_t, piece.length()),
+        };
         if od > od_stop {
             break;
         }

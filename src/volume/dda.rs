@@ -271,6 +271,7 @@ impl SegmentIter for VolumeSegments<'_> {
 }
 
 impl Field for Volume {
+    type Piece = Segment;
     type Segments<'a> = VolumeSegments<'a>;
 
     fn world_bounds(&self) -> Bounds3 {

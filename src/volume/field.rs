@@ -10,6 +10,8 @@
 
 use glam::DVec3;
 
+use crate::color::Rgb;
+
 /// A piece of a ray over which density and emission source are constant.
 ///
 /// `t0 < t1` (never empty), in world distance along the ray. Stored in `f64` because
@@ -37,6 +39,100 @@ impl Segment {
     pub fn length(&self) -> f64 {
         self.t1 - self.t0
     }
+}
+
+/// One piece of a ray as the estimators read it: the field's values as functions of the
+/// local distance `u = t − t0 ∈ [0, t1 − t0]` (world units).
+///
+/// Nearest-voxel reconstruction gives constant pieces ([`Segment`]); trilinear
+/// reconstruction gives one polynomial piece per dual cell
+/// ([`crate::volume::trilinear::CubicSegment`], METHOD.md §12). Estimators take the
+/// closed forms of §3–4 whenever [`Piece::constant`] says a piece is constant (always, and
+/// at compile time, for [`Segment`]), and the polynomial forms otherwise.
+///
+/// `le(density, source)` is the medium's per-voxel emission density `L_e` (W m⁻³ sr⁻¹ per
+/// channel). What a polynomial piece interpolates is *that*, voxel by voxel, so `L_e(u)`
+/// is a cubic and its integral closed form (see `volume/trilinear/mod.rs`).
+pub trait Piece: Copy + std::fmt::Debug {
+    /// Entry distance.
+    fn t0(&self) -> f64;
+    /// Exit distance.
+    fn t1(&self) -> f64;
+    /// World length `t1 − t0`.
+    #[inline]
+    fn length(&self) -> f64 {
+        self.t1() - self.t0()
+    }
+    /// The piece as one constant [`Segment`] when its values do not vary along it.
+    fn constant(&self) -> Option<Segment>;
+    /// Optical depth `∫₀ᵘ σ_t ρ ds` from the piece's start.
+    fn optical_depth(&self, sigma_t: f64, u: f64) -> f64;
+    /// The `u ∈ [0, length]` with `optical_depth(sigma_t, u) = od`, for
+    /// `0 ≤ od < optical_depth(sigma_t, length)`: where a free path ends in this piece.
+    fn free_path(&self, sigma_t: f64, od: f64) -> f64;
+    /// Density ρ at `u`.
+    fn density_at(&self, u: f64) -> f32;
+    /// Emission source at `u` (reported with collisions; emission itself comes from
+    /// [`Piece::emission_at`]).
+    fn source_at(&self, u: f64) -> f32;
+    /// Albedo factor at `u` (1 where density is 0).
+    fn albedo_at(&self, u: f64) -> f32;
+    /// Emission density `L_e(u)` per channel.
+    fn emission_at(&self, le: &impl Fn(f32, f32) -> Rgb, u: f64) -> [f64; 3];
+    /// `∫₀ᵘ L_e ds` per channel.
+    fn emission_integral(&self, le: &impl Fn(f32, f32) -> Rgb, u: f64) -> [f64; 3];
+}
+
+impl Piece for Segment {
+    #[inline]
+    fn t0(&self) -> f64 {
+        self.t0
+    }
+    #[inline]
+    fn t1(&self) -> f64 {
+        self.t1
+    }
+    #[inline]
+    fn constant(&self) -> Option<Segment> {
+        Some(*self)
+    }
+    #[inline]
+    fn optical_depth(&self, sigma_t: f64, u: f64) -> f64 {
+        sigma_t * f64::from(self.density) * u
+    }
+    #[inline]
+    fn free_path(&self, sigma_t: f64, od: f64) -> f64 {
+        (od / (sigma_t * f64::from(self.density))).clamp(0.0, self.length())
+    }
+    #[inline]
+    fn density_at(&self, _u: f64) -> f32 {
+        self.density
+    }
+    #[inline]
+    fn source_at(&self, _u: f64) -> f32 {
+        self.source
+    }
+    #[inline]
+    fn albedo_at(&self, _u: f64) -> f32 {
+        self.albedo
+    }
+    #[inline]
+    fn emission_at(&self, le: &impl Fn(f32, f32) -> Rgb, _u: f64) -> [f64; 3] {
+        le(self.density, self.source).to_f64()
+    }
+    #[inline]
+    fn emission_integral(&self, le: &impl Fn(f32, f32) -> Rgb, u: f64) -> [f64; 3] {
+        le(self.density, self.source).to_f64().map(|c| c * u)
+    }
+}
+
+/// What a field reconstructs at one point: [`Field::reconstruct`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PointValues {
+    /// Density ρ.
+    pub density: f32,
+    /// Emission density `L_e` per channel.
+    pub emission: [f64; 3],
 }
 
 /// An axis-aligned box `[lo, hi]`, in the units of its space: world metres for
@@ -86,7 +182,7 @@ impl Ray {
 }
 
 /// A segment iterator that can say how much traversal work it did.
-pub trait SegmentIter: Iterator<Item = Segment> {
+pub trait SegmentIter: Iterator {
     /// Cells the traversal stepped through so far (voxel steps plus skipped nodes for a
     /// [`crate::volume::Volume`]; segments for analytic fields).
     fn voxel_steps(&self) -> u64;
@@ -159,8 +255,12 @@ impl RayGrid {
 
 /// A piecewise-constant scalar volume that can be traversed along rays.
 pub trait Field: Sync {
+    /// The pieces the field is made of along a ray: [`Segment`] for piecewise-constant
+    /// fields.
+    type Piece: Piece;
+
     /// Iterator type returned by [`Field::segments`].
-    type Segments<'a>: SegmentIter
+    type Segments<'a>: SegmentIter<Item = Self::Piece>
     where
         Self: 'a;
 
@@ -171,8 +271,16 @@ pub trait Field: Sync {
     /// An empty iterator when the ray misses.
     fn segments(&self, ray: &Ray, t_min: f64, t_max: f64) -> Self::Segments<'_>;
 
-    /// Density and source at a world point (for next-event sampling of a chosen point).
+    /// Density and source at a world point (the voxel's values: nearest reconstruction).
     fn values_at(&self, p_world: DVec3) -> VoxelValues;
+
+    /// Density and emission density at a world point as the field reconstructs them
+    /// along rays (for next-event estimation at a sampled point). `le` is the per-voxel
+    /// emission density (see [`Piece`]).
+    fn reconstruct(&self, p_world: DVec3, le: &impl Fn(f32, f32) -> Rgb) -> PointValues {
+        let v = self.values_at(p_world);
+        PointValues { density: v.density, emission: le(v.density, v.source).to_f64() }
+    }
 
     /// Rays through `grid` will be traced soon: a field paged from disk may start reading
     /// what they cross (`volume::prefetch`). A hint that never changes a result; nothing
@@ -240,6 +348,7 @@ pub struct Constant {
 }
 
 impl Field for Constant {
+    type Piece = Segment;
     type Segments<'a> = VecSegments;
 
     fn world_bounds(&self) -> Bounds3 {
@@ -276,6 +385,7 @@ pub struct Strip {
 }
 
 impl Field for Strip {
+    type Piece = Segment;
     type Segments<'a> = VecSegments;
 
     fn world_bounds(&self) -> Bounds3 {

@@ -13,6 +13,7 @@ pub mod prefetch;
 pub mod proxy;
 pub mod pyramid;
 pub mod storage;
+pub mod trilinear;
 
 pub use brick::Volume;
 pub use field::{Bounds3, Field, Segment, VoxelValues};

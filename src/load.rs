@@ -18,7 +18,7 @@ use glam::DVec3;
 use crate::cache::CacheCheck;
 use crate::camera::Camera;
 use crate::error::{Error, Result};
-use crate::integrator::{LightSampling, Lights, Scene};
+use crate::integrator::{AnyScene, LightSampling, Lights, Scene};
 use crate::medium::{Emission, EmissionKind, Medium};
 use crate::scene::bind::{emission_kind, emission_model, grid_requests, memory_budget, reader, split_found, FileReader};
 use crate::scene::{JobSettings, SceneDescription, UpAxis};
@@ -27,8 +27,8 @@ use crate::volume::{Bounds3, Field, Volume};
 
 /// A scene ready to render, and what the outputs report about how it was loaded.
 pub struct LoadedScene {
-    /// The scene.
-    pub scene: Scene<Volume>,
+    /// The scene, its volume reconstructed as `volume.interpolation` says.
+    pub scene: AnyScene,
     /// Emission kind actually used (after `auto`).
     pub emission_kind: EmissionKind,
     /// Name of the source grid used, if any.
@@ -109,7 +109,8 @@ pub fn load_scene(scene: &SceneDescription, input: &Path, settings: &JobSettings
     } else {
         Lights::default()
     };
-    Ok(LoadedScene { scene: Scene { field: volume, medium, camera, lights }, emission_kind: emission.kind, source_grid, cache })
+    let scene = AnyScene::new(Scene { field: volume, medium, camera, lights }, scene.volume.interpolation);
+    Ok(LoadedScene { scene, emission_kind: emission.kind, source_grid, cache })
 }
 
 /// The camera: as given, or framing the volume automatically.

@@ -65,9 +65,10 @@ pub fn emission_only(scene: &BenchScene) -> bool {
 fn install_lights(scene: &mut BenchScene, light_sampling: LightSampling, proxy_resolution: u32) -> Result<u64> {
     let only = emission_only(scene);
     let s = &mut scene.loaded.scene;
-    s.lights = if only { Lights::default() } else { Lights::build(&s.field, &s.medium.emission, light_sampling, proxy_resolution)? };
-    let s = &scene.loaded.scene;
-    Ok((s.lights.nee.as_ref().map_or(0, |n| n.memory_bytes()) + s.lights.proxy.as_ref().map_or(0, |p| p.memory_bytes())) as u64)
+    let lights = if only { Lights::default() } else { Lights::build(s.volume(), &s.medium().emission, light_sampling, proxy_resolution)? };
+    s.set_lights(lights);
+    let l = scene.loaded.scene.lights();
+    Ok((l.nee.as_ref().map_or(0, |n| n.memory_bytes()) + l.proxy.as_ref().map_or(0, |p| p.memory_bytes())) as u64)
 }
 
 fn integrator_for(scene: &BenchScene, estimator: Estimator, light_sampling: LightSampling) -> Integrator {
@@ -109,14 +110,14 @@ pub fn make_reference(scene: &mut BenchScene, cpu_seconds: f64, on_line: &dyn Fn
     } else {
         ("line-fnee", Estimator::Line, LightSampling::Fnee, "long line-fnee run: the scene scatters")
     };
-    install_lights(scene, ls, crate::volume::proxy::ProxyGrid::resolution_for(&scene.loaded.scene.field, scene.shot.scene.integrator.proxy_resolution))?;
+    install_lights(scene, ls, crate::volume::proxy::ProxyGrid::resolution_for(scene.loaded.scene.volume(), scene.shot.scene.integrator.proxy_resolution))?;
     let integ = integrator_for(scene, estimator, ls);
     let wall = Instant::now();
     let halves: Vec<RunResult> = REFERENCE_SEEDS
         .iter()
         .map(|&seed| {
             let plan = RunPlan { cpu_checkpoints: vec![0.5 * cpu_seconds], min_spp: 1, seed, threads: scene.shot.settings.render.threads };
-            progressive::run(&scene.loaded.scene, &integ, &plan, None, 0.0)
+            crate::with_scene!(&scene.loaded.scene, s => progressive::run(s, &integ, &plan, None, 0.0))
         })
         .collect();
     let (a, b) = (&halves[0], &halves[1]);
@@ -279,7 +280,7 @@ pub fn compare(scene: &mut BenchScene, reference: &Reference, cfg: &CompareConfi
     for m in &cfg.methods {
         let per_method = reset_peak_rss();
         let proxy =
-            crate::volume::proxy::ProxyGrid::resolution_for(&scene.loaded.scene.field, m.proxy_resolution.or(scene.shot.scene.integrator.proxy_resolution));
+            crate::volume::proxy::ProxyGrid::resolution_for(scene.loaded.scene.volume(), m.proxy_resolution.or(scene.shot.scene.integrator.proxy_resolution));
         let t = Instant::now();
         let light_bytes = install_lights(scene, m.light_sampling, proxy)?;
         let light_build_seconds = t.elapsed().as_secs_f64();
@@ -292,7 +293,7 @@ pub fn compare(scene: &mut BenchScene, reference: &Reference, cfg: &CompareConfi
                 seed: scene.shot.settings.render.seed.unwrap_or(0) + u64::from(r),
                 threads: scene.shot.settings.render.threads,
             };
-            let res = progressive::run(&scene.loaded.scene, &integ, &plan, Some(&reference.pixels), cfg.epsilon);
+            let res = crate::with_scene!(&scene.loaded.scene, s => progressive::run(s, &integ, &plan, Some(&reference.pixels), cfg.epsilon));
             let last = res.time_points.last().copied();
             if let Some(s) = last {
                 on_line(&format!("{}: run {}: {} spp in {:.1} CPU s, RMSE {:.4e}", m.name, r + 1, s.spp, s.cpu_seconds, s.errors.rmse));
@@ -316,7 +317,7 @@ pub fn compare(scene: &mut BenchScene, reference: &Reference, cfg: &CompareConfi
             curve: (0..curve.len()).map(|k| Point::of(&runs.iter().map(|r| r.time_points[k]).collect::<Vec<_>>())).collect(),
             samples_per_cpu_second: Spread::of(&runs.iter().map(|r| r.counters.samples as f64 / r.cpu_seconds.max(1e-9)).collect::<Vec<_>>()),
             light_build_seconds,
-            scene_bytes: scene.loaded.scene.field.memory_bytes() as u64 + light_bytes,
+            scene_bytes: scene.loaded.scene.volume().memory_bytes() as u64 + light_bytes,
             peak_rss_bytes: peak_rss_bytes(),
             peak_rss_per_method: per_method,
             nonfinite_samples: runs.iter().map(|r| r.counters.nonfinite_samples).sum(),

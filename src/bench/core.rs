@@ -151,7 +151,7 @@ pub fn run(resolution: u32, threads: usize, ttfs_file: &Path) -> Result<CoreRepo
     for _ in 0..5 {
         let t = Instant::now();
         let loaded = load_scene(&shot.scene, ttfs_file, &shot.settings)?;
-        std::hint::black_box(&loaded.scene.camera);
+        std::hint::black_box(loaded.scene.camera());
         ttfs = ttfs.min(t.elapsed().as_secs_f64());
     }
     Ok(CoreReport {

@@ -17,7 +17,7 @@ use plume::integrator::{LightSampling, MisHeuristic};
 use plume::medium::Convention;
 use plume::scene::file::{is_scene_file, SceneFile};
 use plume::scene::{
-    ByteSize, CameraSettings, EmissionSettings, EmissionSource, EstimatorKind, IntegratorSettings, MediumSettings, Method, ProgressFormat, ReadSettings,
+    ByteSize, CameraSettings, EmissionSettings, EmissionSource, EstimatorKind, IntegratorSettings, Interpolation, MediumSettings, Method, ProgressFormat, ReadSettings,
     RenderOptions, SampleOrderChoice, Shot, TileIndex, UpAxis, ValidShot, VolumeInput,
 };
 
@@ -77,6 +77,9 @@ pub struct RenderArgs {
     /// `--light-sampling` override the preset's parts.
     #[arg(long, value_parser = choice::<Method>(), default_value_t = IntegratorSettings::default().method)]
     pub method: Method,
+    /// How voxel values are reconstructed between voxel centres.
+    #[arg(long, value_parser = choice::<Interpolation>(), default_value_t = VolumeInput::new("").interpolation)]
+    pub interpolation: Interpolation,
     /// Emission estimator (default: from --method).
     #[arg(long, value_parser = choice::<EstimatorKind>())]
     pub estimator: Option<EstimatorKind>,
@@ -294,6 +297,7 @@ flags_to_keys! { RENDER_ONLY_FLAGS, apply_render_only, RenderArgs, s, a;
     "tile" => "farm.tile": s.settings.farm.tile => a.tile;
     "sample_range" => "farm.sample_range": s.settings.farm.sample_range => a.sample_range.clone();
     "sums" => "output.sums": s.settings.output.sums => a.sums;
+    "interpolation" => "volume.interpolation": s.scene.volume.interpolation => a.interpolation;
     "progress" => "render.progress": s.settings.render.progress => a.progress;
 }
 

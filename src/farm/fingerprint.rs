@@ -56,7 +56,7 @@ pub fn file_sha256(path: &Path) -> Result<(String, u64)> {
 pub fn settings_hash(shot: &Shot, seed: u64) -> String {
     let Shot { scene, settings } = shot;
     let SceneDescription { volume, emission, medium, camera, lights, integrator } = scene;
-    let VolumeInput { file: _, density_grid, temperature_grid, emission_grid, albedo_grid } = volume;
+    let VolumeInput { file: _, density_grid, temperature_grid, emission_grid, albedo_grid, interpolation } = volume;
     let EmissionSettings { source, convention, temperature_map, temperature_cutoff, scale, color } = emission;
     let MediumSettings { density_scale, albedo, g } = medium;
     let CameraSettings { from, at, up, fov, width, height, up_axis } = camera;
@@ -70,7 +70,7 @@ pub fn settings_hash(shot: &Shot, seed: u64) -> String {
     let ReadSettings { max_input_memory: _, read_timeout: _, no_isolation: _ } = reading;
     let text = format!(
         "plume {}\nseed {seed}\nfixed point {}\n\
-         volume {density_grid:?} {temperature_grid:?} {emission_grid:?} {albedo_grid:?}\n\
+         volume {density_grid:?} {temperature_grid:?} {emission_grid:?} {albedo_grid:?} {interpolation}\n\
          emission {source} {convention} {temperature_map:?} {temperature_cutoff:?} {scale:?} {color:?}\n\
          medium {density_scale:?} {albedo:?} {g:?}\n\
          camera {from:?} {at:?} {up:?} {fov:?} {width} {height} {up_axis}\n\

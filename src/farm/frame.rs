@@ -206,7 +206,7 @@ fn decide(job: &Job<'_>, paths: &FramePaths, hash: &str, index: usize, frame: Op
 /// estimator that cannot see part of it.
 fn warn_about(job: &Job<'_>, paths: &FramePaths, loaded: &LoadedScene) {
     let input = paths.input.display();
-    let volume = &loaded.scene.field;
+    let volume = loaded.scene.volume();
     let warn = |msg: String| eprintln!("plume: warning: {msg}");
     if volume.report.density_clamped > 0 {
         warn(format!("{input}: {} density voxels were NaN, infinite or negative and were set to 0", volume.report.density_clamped));
@@ -223,7 +223,7 @@ fn warn_about(job: &Job<'_>, paths: &FramePaths, loaded: &LoadedScene) {
     if loaded.emission_kind == EmissionKind::None && job.scene().emission.source == EmissionSource::Auto {
         warn(format!("{input}: no temperature or emission grid found; rendering absorption only"));
     }
-    if job.scene().integrator().estimator == Estimator::Point && loaded.scene.medium.emission.emits_without_density() {
+    if job.scene().integrator().estimator == Estimator::Point && loaded.scene.medium().emission.emits_without_density() {
         warn("--estimator point scores only at collisions: emission where density is 0 (allowed by --convention cycles) is not rendered".into());
     }
 }
@@ -253,12 +253,13 @@ impl SamplePlan {
 
 /// Replay one pixel sample and print its path.
 fn replay(loaded: &LoadedScene, settings: &RenderSettings, dp: crate::render::SampleId) {
-    let scene = &loaded.scene;
     let (x, y, s) = (dp.x, dp.y, dp.sample);
-    let crate::render::PixelSample { ray, mut sampler } = crate::render::pixel_sample(scene, settings.seed, x, y, s);
     let mut trace = LineTrace::default();
     let mut counters = crate::integrator::Counters::default();
-    let l = settings.integrator.li(scene, &ray, &mut sampler, &mut counters, &mut trace);
+    let l = crate::with_scene!(&loaded.scene, scene => {
+        let crate::render::PixelSample { ray, mut sampler } = crate::render::pixel_sample(scene, settings.seed, x, y, s);
+        settings.integrator.li(scene, &ray, &mut sampler, &mut counters, &mut trace)
+    });
     for line in &trace.0 {
         eprintln!("plume: debug {x},{y},{s}: {line}");
     }
@@ -296,7 +297,7 @@ fn run_passes(
         film
     });
     let stop = || signals::stop_requested().is_some();
-    let volume = &loaded.scene.field;
+    let volume = loaded.scene.volume();
     let auto = job_settings.render.sample_order == SampleOrderChoice::Auto;
     let available = if auto { MemoryLimits::read().available() } else { None };
     let order = sample_order(job, volume, matches!(plan.budget, SampleBudget::Spp(_)), available);
@@ -311,12 +312,13 @@ fn run_passes(
     }
     let control =
         RenderControl { crop: job.crop, film, stop: Some(&stop), deadline: job_settings.farm.time_limit.map(|t| start + Duration::from_secs_f64(t)), order };
-    let result = render_with(&loaded.scene, settings, control, &|done, total| {
+    let on_pass = |done, total| {
         if let Some(pb) = &bar {
             pb.set_position(done);
         }
         on_pass(done, total);
-    });
+    };
+    let result = crate::with_scene!(&loaded.scene, scene => render_with(scene, settings, control, &on_pass));
     if let Some(pb) = &bar {
         pb.finish_and_clear();
     }
@@ -364,7 +366,7 @@ fn stats_record(
     let sample_range = range_start..range_start + spp;
     let threads = if settings.render.threads == 0 { rayon::current_num_threads() } else { settings.render.threads };
     let samples = result.counters.samples as f64;
-    let volume = &loaded.scene.field;
+    let volume = loaded.scene.volume();
     RenderStats {
         plume_version: env!("CARGO_PKG_VERSION").into(),
         command_line: id.command_line.into(),

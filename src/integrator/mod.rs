@@ -10,6 +10,8 @@ pub mod volpath;
 use crate::camera::Camera;
 use crate::medium::Medium;
 use crate::volume::field::Field;
+use crate::volume::trilinear::Trilinear;
+use crate::volume::{Interpolation, Volume};
 
 pub use volpath::{light_power, Integrator, LightSampling, Lights, MisHeuristic};
 
@@ -24,6 +26,91 @@ pub struct Scene<F: Field> {
     pub camera: Camera,
     /// Light-sampling structures (NEE distribution, FNEE proxy), when used.
     pub lights: Lights,
+}
+
+/// A loaded volume's scene, with the volume reconstructed as the description asks.
+///
+/// Render code is generic over the [`Field`]; [`crate::with_scene!`] picks the
+/// monomorphized version once per call, so nearest reconstruction runs exactly the code
+/// it ran before trilinear existed.
+#[derive(Debug)]
+pub enum AnyScene {
+    /// Piecewise-constant voxels.
+    Nearest(Scene<Volume>),
+    /// Trilinear reconstruction (METHOD.md §12).
+    Linear(Scene<Trilinear>),
+}
+
+/// Evaluate `$body` with `$s` bound to the [`Scene`] inside an [`AnyScene`], whichever
+/// reconstruction it has.
+#[macro_export]
+macro_rules! with_scene {
+    ($any:expr, $s:ident => $body:expr) => {
+        match $any {
+            $crate::integrator::AnyScene::Nearest($s) => $body,
+            $crate::integrator::AnyScene::Linear($s) => $body,
+        }
+    };
+}
+
+impl AnyScene {
+    /// `scene` reconstructed by `interpolation`. Trilinear adds its dual pyramid (no copy
+    /// of the voxels) and draws NEE points from the trilinear hat (`light/nee.rs`).
+    #[must_use]
+    pub fn new(scene: Scene<Volume>, interpolation: Interpolation) -> AnyScene {
+        match interpolation {
+            Interpolation::Nearest => AnyScene::Nearest(scene),
+            Interpolation::Linear => {
+                let Scene { field, medium, camera, lights } = scene;
+                AnyScene::Linear(Scene { field: Trilinear::new(field), medium, camera, lights: lights.for_interpolation(Interpolation::Linear) })
+            }
+        }
+    }
+
+    /// How the volume is reconstructed.
+    #[must_use]
+    pub fn interpolation(&self) -> Interpolation {
+        match self {
+            AnyScene::Nearest(_) => Interpolation::Nearest,
+            AnyScene::Linear(_) => Interpolation::Linear,
+        }
+    }
+
+    /// The volume's bricks.
+    #[must_use]
+    pub fn volume(&self) -> &Volume {
+        match self {
+            AnyScene::Nearest(s) => &s.field,
+            AnyScene::Linear(s) => s.field.volume(),
+        }
+    }
+
+    /// The medium.
+    #[must_use]
+    pub fn medium(&self) -> &Medium {
+        with_scene!(self, s => &s.medium)
+    }
+
+    /// The camera.
+    #[must_use]
+    pub fn camera(&self) -> &Camera {
+        with_scene!(self, s => &s.camera)
+    }
+
+    /// The light-sampling structures.
+    #[must_use]
+    pub fn lights(&self) -> &Lights {
+        with_scene!(self, s => &s.lights)
+    }
+
+    /// Replace the light-sampling structures (built for nearest reconstruction; NEE is
+    /// switched to this scene's reconstruction).
+    pub fn set_lights(&mut self, lights: Lights) {
+        match self {
+            AnyScene::Nearest(s) => s.lights = lights,
+            AnyScene::Linear(s) => s.lights = lights.for_interpolation(Interpolation::Linear),
+        }
+    }
 }
 
 /// Integer counters gathered per tile and summed in tile order.

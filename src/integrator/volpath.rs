@@ -34,7 +34,7 @@ use crate::medium::tracking::{optical_depth, OpticalDepth};
 use crate::medium::{track, DistanceSample, Estimator};
 use crate::sampling::phase::{hg_pdf, sample_hg};
 use crate::sampling::Sampler;
-use crate::volume::field::{Field, Ray, VoxelValues};
+use crate::volume::field::{Field, PointValues, Ray};
 use crate::volume::proxy::ProxyGrid;
 
 use super::{Counters, Scene, Trace};
@@ -107,6 +107,16 @@ impl Lights {
             LightSampling::Nee => Lights { nee: EmitterDistribution::build(volume, power)?, proxy: None },
             LightSampling::Fnee => Lights { nee: None, proxy: ProxyGrid::build(volume, proxy_resolution, power)? },
         })
+    }
+}
+
+impl Lights {
+    /// The same structures for a volume reconstructed by `interpolation`: NEE draws its
+    /// points from the voxel's box or from the trilinear hat (`light/nee.rs`); FNEE's proxy
+    /// only guides directions and stays as it is (METHOD.md §12).
+    #[must_use]
+    pub fn for_interpolation(self, interpolation: crate::volume::Interpolation) -> Lights {
+        Lights { nee: self.nee.map(|n| n.for_interpolation(interpolation)), proxy: self.proxy }
     }
 }
 
@@ -269,11 +279,12 @@ impl Integrator {
                             c.voxel_steps += n;
                             let tau = (-od).exp();
                             if tau > 0.0 {
-                                let VoxelValues { density: dy, source: sy } = scene.field.values_at(vs.p_world);
-                                let le = m.emission.le(dy, sy);
+                                // L_e and ρ at y as the field reconstructs them (the table's
+                                // pdf follows the same reconstruction: light/nee.rs)
+                                let PointValues { density: dy, emission: le } = scene.field.reconstruct(vs.p_world, &|d, s| m.emission.le(d, s));
                                 let f = hg_pdf(m.g, ray.direction.dot(wi));
                                 let w_l = if point_nee { self.mis.weight(vs.pdf, f * m.mu_t(dy) * tau / r2) } else { 1.0 };
-                                add(&mut l, beta * f * tau * w_l / (vs.pdf * r2), le.to_f64());
+                                add(&mut l, beta * f * tau * w_l / (vs.pdf * r2), le);
                                 trace.event(|| format!("  nee: y {:?} p_V {} tau {tau} f {f} w {w_l} L_e {le:?}", vs.p_world, vs.pdf));
                             }
                         }

@@ -11,7 +11,23 @@
 //! ```
 //!
 //! [`EmitterDistribution::sample`] and [`EmitterDistribution::pdf`] read the same stored
-//! `P_i` and divide by the same `V`, so they agree bit for bit for the same voxel. The
+//! `P_i` and divide by the same `V`, so they agree bit for bit for the same voxel.
+//!
+//! **Under trilinear reconstruction** (METHOD.md §12) the emission is
+//! `L_e(y) = Σ_i L_e,i h(y − i)` with `h` the trilinear hat `Π_k max(0, 1 − |y_k − i_k|)`
+//! (index space; `∫h = 1` voxel), so emission reaches one voxel beyond every emitting
+//! voxel, where the box sample above would never go. The table stays the same; only
+//! the point is drawn from the hat instead of the box: pick `i ~ P`, then
+//! `y − i ~ h` (a tent per axis, inverted in closed form). Then
+//!
+//! ```text
+//! p_V(y) = Σ_i P_i h(y − i) / V,
+//! ```
+//!
+//! the trilinear interpolation of the per-voxel `P_i/V`: positive wherever `L_e(y)` is,
+//! still normalized (`∫h = V` in world units), and with power-proportional `P_i` it is
+//! proportional to the interpolated power itself. [`EmitterDistribution::pdf`]
+//! evaluates exactly this sum (8 voxels around `y`), so `sample` and `pdf` agree. The
 //! estimator `f τ L_e / (P_vol p_V |y − x|²)` is the integrator's business.
 //!
 //! **Layout and memory.** Entries are ordered brick by brick (brick-table order, x
@@ -33,6 +49,7 @@ use crate::error::{Error, Result};
 use crate::sampling::alias::AliasTable;
 use crate::vdb::{leaf_offset, LEAF_VOXELS};
 use crate::volume::brick::{Volume, BRICK};
+use crate::volume::Interpolation;
 
 /// Marker for "no emitting brick here".
 const NONE: u32 = u32::MAX;
@@ -83,6 +100,8 @@ pub struct EmitterDistribution {
     alias: AliasTable,
     voxel_volume: f64,
     total_power: f64,
+    /// How the point is drawn around the voxel: its box, or the trilinear hat.
+    interpolation: Interpolation,
 }
 
 /// Position of the `rank`-th set bit (0-based) of a 512-bit mask.
@@ -199,11 +218,19 @@ impl EmitterDistribution {
             alias,
             voxel_volume,
             total_power,
+            interpolation: Interpolation::Nearest,
         }))
     }
 
-    /// Sample a voxel `i ~ P` with `u_voxel` and a point uniformly in it with `u_pos` (all in
-    /// `[0, 1)`). The pdf is per unit world volume.
+    /// The same table for a volume reconstructed by `interpolation` (see module docs).
+    #[must_use]
+    pub fn for_interpolation(self, interpolation: Interpolation) -> EmitterDistribution {
+        EmitterDistribution { interpolation, ..self }
+    }
+
+    /// Sample a voxel `i ~ P` with `u_voxel` and a point in it with `u_pos` (all in
+    /// `[0, 1)`): uniformly in its box, or from the trilinear hat around it (module docs).
+    /// The pdf is per unit world volume.
     #[must_use]
     pub fn sample(&self, u_voxel: f64, u_pos: [f64; 3]) -> VoxelSample {
         let s = self.alias.sample(u_voxel);
@@ -212,8 +239,33 @@ impl EmitterDistribution {
         let brick = &self.bricks[ordinal];
         let off = select(&brick.mask, (s.index - brick.first as usize) as u32);
         let voxel = brick.origin + local_of(off);
-        let p_index = (voxel.as_dvec3() - 0.5) + DVec3::from(u_pos);
-        VoxelSample { p_world: self.world_from_index.transform_point3(p_index), pdf: s.pmf / self.voxel_volume, voxel }
+        match self.interpolation {
+            Interpolation::Nearest => {
+                let p_index = (voxel.as_dvec3() - 0.5) + DVec3::from(u_pos);
+                VoxelSample { p_world: self.world_from_index.transform_point3(p_index), pdf: s.pmf / self.voxel_volume, voxel }
+            }
+            Interpolation::Linear => {
+                let p_index = voxel.as_dvec3() + DVec3::from(u_pos.map(sample_tent));
+                let p_world = self.world_from_index.transform_point3(p_index);
+                VoxelSample { p_world, pdf: self.pdf_hat(p_index), voxel }
+            }
+        }
+    }
+
+    /// `Σ_i h(p − i) P_i / V` over the 8 voxels around index-space `p` (module docs).
+    fn pdf_hat(&self, p: DVec3) -> f64 {
+        let i = p.floor();
+        let f = p - i;
+        let i = i.as_ivec3();
+        let mut sum = 0.0;
+        for c in 0..8 {
+            let corner = IVec3::new(c & 1, (c >> 1) & 1, (c >> 2) & 1);
+            let w = (0..3).map(|k| if corner[k] == 1 { f[k] } else { 1.0 - f[k] }).product::<f64>();
+            if w > 0.0 {
+                sum += w * self.pdf_voxel(i + corner);
+            }
+        }
+        sum
     }
 
     /// Density per unit world volume of sampling a point in voxel `ijk` (0 where the voxel
@@ -242,14 +294,19 @@ impl EmitterDistribution {
     }
 
     /// Density per unit world volume of sampling `p_world`: [`Self::pdf_voxel`] of the voxel
-    /// `⌊p_index + ½⌋` containing it (0 outside the emissive voxels or for non-finite input).
+    /// `⌊p_index + ½⌋` containing it, or under trilinear reconstruction the hat-weighted
+    /// sum over the 8 voxels around it (0 outside the emissive voxels' support or for
+    /// non-finite input).
     #[must_use]
     pub fn pdf(&self, p_world: DVec3) -> f64 {
-        let v = (self.index_from_world.transform_point3(p_world) + 0.5).floor();
-        if !v.is_finite() || v.abs().max_element() > f64::from(i32::MAX - BRICK) {
+        let p = self.index_from_world.transform_point3(p_world);
+        if !p.is_finite() || p.abs().max_element() > f64::from(i32::MAX - 2 * BRICK) {
             return 0.0;
         }
-        self.pdf_voxel(v.as_ivec3())
+        match self.interpolation {
+            Interpolation::Nearest => self.pdf_voxel((p + 0.5).floor().as_ivec3()),
+            Interpolation::Linear => self.pdf_hat(p),
+        }
     }
 
     /// `ΣΦ_i = V Σ Y(L_e)`: the volume's emitted luminance power, for choosing between
@@ -272,9 +329,31 @@ impl EmitterDistribution {
     }
 }
 
+/// Offset in `(−1, 1)` with the tent density `1 − |x|`, from `u ∈ [0, 1)` (inverse CDF).
+#[inline]
+fn sample_tent(u: f64) -> f64 {
+    if u < 0.5 {
+        (2.0 * u).sqrt() - 1.0
+    } else {
+        1.0 - (2.0 - 2.0 * u).sqrt()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The tent's inverse CDF: quantiles land where `∫_{−1}^x (1 − |s|) ds = u`.
+    #[test]
+    fn tent_inverts_its_cdf() {
+        let cdf = |x: f64| if x < 0.0 { 0.5 * (1.0 + x) * (1.0 + x) } else { 1.0 - 0.5 * (1.0 - x) * (1.0 - x) };
+        for k in 0..=100 {
+            let u = f64::from(k) / 100.0 * 0.999_999;
+            let x = sample_tent(u);
+            assert!((-1.0..1.0).contains(&x));
+            assert!((cdf(x) - u).abs() < 1e-12, "u {u} x {x}");
+        }
+    }
 
     #[test]
     fn select_inverts_rank() {

@@ -8,6 +8,7 @@
 
 use crate::integrator::{LightSampling, MisHeuristic};
 use crate::medium::{Convention, Estimator};
+pub use crate::volume::Interpolation;
 
 /// A closed set of named values.
 pub trait Choice: Copy + PartialEq + Sized + 'static {
@@ -200,6 +201,11 @@ choice!(UpAxis {
     "z" => UpAxis::Z, "+z up (Blender)";
 });
 
+choice!(Interpolation {
+    "linear" => Interpolation::Linear, "Trilinear between voxel centres (OpenVDB BoxSampler, Cycles' Linear): smooth close-ups, exact tracking";
+    "nearest" => Interpolation::Nearest, "Each voxel constant over its box: the paper's volume, exact and faster; blocks in close-ups";
+});
+
 /// Machine-readable progress on stdout.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum ProgressFormat {
@@ -244,5 +250,6 @@ mod tests {
         round_trips::<SampleOrderChoice>();
         round_trips::<UpAxis>();
         round_trips::<ProgressFormat>();
+        round_trips::<Interpolation>();
     }
 }

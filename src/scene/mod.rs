@@ -25,7 +25,7 @@ use std::path::PathBuf;
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
-pub use choice::{Choice, EmissionSource, EstimatorKind, Method, ProgressFormat, SampleOrderChoice, UpAxis};
+pub use choice::{Choice, EmissionSource, EstimatorKind, Interpolation, Method, ProgressFormat, SampleOrderChoice, UpAxis};
 pub use settings::{FarmOptions, JobSettings, OutputSettings, ReadSettings, RenderOptions};
 pub use validate::ValidShot;
 pub use values::{parse_bytes, ByteSize, TileIndex};
@@ -172,6 +172,9 @@ pub struct VolumeInput {
     /// Per-voxel albedo grid (values clamped to [0, 1]), times `medium.albedo`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub albedo_grid: Option<String>,
+    /// How values are reconstructed between voxel centres.
+    #[serde(default)]
+    pub interpolation: Interpolation,
 }
 
 impl VolumeInput {
@@ -184,6 +187,7 @@ impl VolumeInput {
             temperature_grid: defaults::temperature_grid(),
             emission_grid: None,
             albedo_grid: None,
+            interpolation: Interpolation::default(),
         }
     }
 }

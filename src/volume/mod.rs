@@ -16,4 +16,16 @@ pub mod storage;
 pub mod trilinear;
 
 pub use brick::Volume;
+
+/// How voxel values are reconstructed between voxel centres.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Interpolation {
+    /// Each voxel constant over its box `[k − ½, k + ½]³`: the paper's piecewise-constant
+    /// volume, exact and fastest; shows voxel blocks in close-ups.
+    Nearest,
+    /// Trilinear between voxel centres, OpenVDB's `BoxSampler` convention (`trilinear`,
+    /// METHOD.md §12); exact tracking on dual cells.
+    #[default]
+    Linear,
+}
 pub use field::{Bounds3, Field, Segment, VoxelValues};

@@ -31,3 +31,326 @@ pub struct CubicSegment {
     /// piece is one [`Segment`].
     pub constant: bool,
 }
+
+impl CubicSegment {
+    /// A constant piece: all corners `values`, albedo `albedo` (a uniform node of the dual
+    /// pyramid, or empty space), density cubic `[ρ, 0, 0, 0]`.
+    #[must_use]
+    pub fn constant_piece(t0: f64, t1: f64, values: VoxelValues, albedo: f32) -> CubicSegment {
+        CubicSegment {
+            t0,
+            t1,
+            density: [f64::from(values.density), 0.0, 0.0, 0.0],
+            f0: DVec3::ZERO,
+            d: DVec3::ZERO,
+            corners: [values; 8],
+            albedo: [albedo; 8],
+            constant: true,
+        }
+    }
+
+    /// The piece of a ray crossing one dual cell: cell-local coordinates `f0 + d u` over
+    /// `u ∈ [0, t1 − t0]`, the cell's 8 corner voxels and their albedo factors. The density
+    /// cubic comes from [`poly::cubic_along`]; the piece is constant when all 8 corners
+    /// agree bit for bit in density, source and albedo.
+    #[must_use]
+    pub fn cell(t0: f64, t1: f64, f0: DVec3, d: DVec3, corners: [VoxelValues; 8], albedo: [f32; 8]) -> CubicSegment {
+        let density = poly::cubic_along(corners.map(|c| f64::from(c.density)), f0, d);
+        let same = |a: f32, b: f32| a.to_bits() == b.to_bits();
+        let constant =
+            corners.iter().zip(&albedo).all(|(c, &al)| same(c.density, corners[0].density) && same(c.source, corners[0].source) && same(al, albedo[0]));
+        CubicSegment { t0, t1, density, f0, d, corners, albedo, constant }
+    }
+
+    /// Cell-local coordinates at `u`, clamped to the cell.
+    #[inline]
+    fn local(&self, u: f64) -> DVec3 {
+        (self.f0 + self.d * u).clamp(DVec3::ZERO, DVec3::ONE)
+    }
+
+    /// `L_e` along the piece, one cubic per channel: `le` of each corner voxel, expanded by
+    /// [`poly::cubic_along`]. `None` when no corner has a source (`le` is 0 there: the
+    /// contract of [`crate::medium::Emission::le`]).
+    fn emission_cubics(&self, le: &impl Fn(f32, f32) -> Rgb) -> Option<EmissionCubics> {
+        if self.corners.iter().all(|c| c.source == 0.0) {
+            return None;
+        }
+        let corner_le = self.corners.map(|c| le(c.density, c.source).to_f64());
+        Some(EmissionCubics { channels: std::array::from_fn(|ch| poly::cubic_along(corner_le.map(|e| e[ch]), self.f0, self.d)) })
+    }
+}
+
+/// `L_e(u) = Σ_j channels[k][j] uʲ` for channel `k` of a [`CubicSegment`].
+#[derive(Clone, Copy, Debug)]
+struct EmissionCubics {
+    channels: [[f64; 4]; 3],
+}
+
+impl Piece for CubicSegment {
+    #[inline]
+    fn t0(&self) -> f64 {
+        self.t0
+    }
+
+    #[inline]
+    fn t1(&self) -> f64 {
+        self.t1
+    }
+
+    #[inline]
+    fn constant(&self) -> Option<Segment> {
+        let c = self.corners[0];
+        self.constant.then_some(Segment { t0: self.t0, t1: self.t1, density: c.density, source: c.source, albedo: self.albedo[0] })
+    }
+
+    /// `σ_t ∫₀ᵘ ρ` ([`poly::integral`]); a constant piece gives exactly what its
+    /// [`Segment`] gives.
+    #[inline]
+    fn optical_depth(&self, sigma_t: f64, u: f64) -> f64 {
+        match self.constant() {
+            Some(seg) => seg.optical_depth(sigma_t, u),
+            None => sigma_t * poly::integral(&self.density, u),
+        }
+    }
+
+    /// [`poly::solve_integral`] for `∫₀ᵘ ρ = od/σ_t`; a constant piece gives exactly what
+    /// its [`Segment`] gives.
+    #[inline]
+    fn free_path(&self, sigma_t: f64, od: f64) -> f64 {
+        match self.constant() {
+            Some(seg) => seg.free_path(sigma_t, od),
+            None => poly::solve_integral(&self.density, self.length(), od / sigma_t),
+        }
+    }
+
+    /// The cubic at `u`, never below 0 (rounding can dip it there at a zero face).
+    #[inline]
+    fn density_at(&self, u: f64) -> f32 {
+        if self.constant {
+            return self.corners[0].density;
+        }
+        poly::eval(&self.density, u).max(0.0) as f32
+    }
+
+    #[inline]
+    fn source_at(&self, u: f64) -> f32 {
+        if self.constant {
+            return self.corners[0].source;
+        }
+        poly::trilinear(&self.corners.map(|c| f64::from(c.source)), self.local(u)) as f32
+    }
+
+    #[inline]
+    fn albedo_at(&self, u: f64) -> f32 {
+        if self.constant {
+            return self.albedo[0];
+        }
+        poly::trilinear(&self.albedo.map(f64::from), self.local(u)) as f32
+    }
+
+    fn emission_at(&self, le: &impl Fn(f32, f32) -> Rgb, u: f64) -> [f64; 3] {
+        if let Some(seg) = self.constant() {
+            return seg.emission_at(le, u);
+        }
+        self.emission_cubics(le).map_or([0.0; 3], |e| e.channels.map(|a| poly::eval(&a, u)))
+    }
+
+    fn emission_integral(&self, le: &impl Fn(f32, f32) -> Rgb, u: f64) -> [f64; 3] {
+        if let Some(seg) = self.constant() {
+            return seg.emission_integral(le, u);
+        }
+        self.emission_cubics(le).map_or([0.0; 3], |e| e.channels.map(|a| poly::integral(&a, u)))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sampling::Sampler;
+    use crate::volume::trilinear::poly::tests::{random_corners, random_ray, CellRay};
+
+    /// An emission density with `le(ρ, 0) = 0`, like the medium's, mixing both arguments.
+    fn le(d: f32, s: f32) -> Rgb {
+        if s == 0.0 {
+            Rgb::ZERO
+        } else {
+            Rgb([d * s, s, 0.5 * d])
+        }
+    }
+
+    /// A random cell (densities and sources in `[0, 2]`, albedos in `[0.2, 1]`) crossed by
+    /// `ray`, starting at `t0 = 10`.
+    fn random_cell(s: &mut Sampler, ray: &CellRay) -> CubicSegment {
+        let (rho, src) = (random_corners(s, 0.0, 2.0), random_corners(s, 0.0, 2.0));
+        let corners = std::array::from_fn(|c| VoxelValues { density: rho[c] as f32, source: src[c] as f32 });
+        let albedo = random_corners(s, 0.2, 1.0).map(|a| a as f32);
+        CubicSegment::cell(10.0, 10.0 + ray.len, ray.f0, ray.d, corners, albedo)
+    }
+
+    /// Neighbouring histogram bins pooled for χ².
+    #[derive(Clone, Copy, Debug, Default)]
+    struct Pool {
+        observed: f64,
+        expected: f64,
+    }
+
+    /// Upper `p = 0.001` critical value of χ² with `k` degrees of freedom (Wilson–Hilferty).
+    fn chi_square_critical(k: usize) -> f64 {
+        let (k, z) = (k as f64, 3.090_232);
+        let c = 2.0 / (9.0 * k);
+        k * (1.0 - c + z * c.sqrt()).powi(3)
+    }
+
+    /// Density `a + b x` (corners `a` at x = 0, `a + b` at x = 1): along `f0 + d u`,
+    /// `OD(L) = σ ((a + b f0ₓ) L + b dₓ L²/2)` — along +x with voxel size h, `σ(aL + bL²/2h)`.
+    #[test]
+    fn linear_ramp_closed_form() {
+        let (a, b, sigma) = (0.3f32, 1.7f32, 2.5);
+        let corners = std::array::from_fn(|c| VoxelValues { density: if c & 1 == 0 { a } else { a + b }, source: 0.0 });
+        let (a, b) = (f64::from(a), f64::from(a + b) - f64::from(a));
+        let rays = [
+            CellRay { f0: DVec3::new(0.0, 0.37, 0.81), d: DVec3::X, len: 1.0 },
+            CellRay { f0: DVec3::new(0.0, 0.5, 0.5), d: DVec3::X / 0.25, len: 0.25 },
+            CellRay { f0: DVec3::new(0.2, 0.0, 0.1), d: DVec3::new(0.5, 0.6, 0.3), len: 1.5 },
+        ];
+        let mut worst = 0.0f64;
+        for ray in rays {
+            let piece = CubicSegment::cell(7.0, 7.0 + ray.len, ray.f0, ray.d, corners, [1.0; 8]);
+            assert!(!piece.constant);
+            for i in 1..=20 {
+                let l = ray.len * f64::from(i) / 20.0;
+                let exact = sigma * ((a + b * ray.f0.x) * l + b * ray.d.x * l * l / 2.0);
+                let od = piece.optical_depth(sigma, l);
+                worst = worst.max(((od - exact) / exact).abs()).max(((-od).exp() / (-exact).exp() - 1.0).abs());
+            }
+        }
+        println!("linear ramp: max relative error of OD and τ {worst:.2e}");
+        assert!(worst <= 1e-12, "{worst}");
+    }
+
+    /// Free paths sampled by `free_path` on random cells of optical depth 1–3, binned in 20
+    /// bins of `u` plus escape, against the exact `P(u ∈ [u_k, u_k+1)) = e^{−OD(u_k)} − e^{−OD(u_k+1)}`.
+    #[test]
+    fn free_path_chi_square() {
+        const SAMPLES: u64 = 50_000;
+        const BINS: usize = 20;
+        for cell in 0..8 {
+            let mut s = Sampler::new(0x7e3, cell, 0);
+            let ray = random_ray(&mut s);
+            let piece = random_cell(&mut s, &ray);
+            let total = 1.0 + 2.0 * s.next_f64();
+            let sigma = total / poly::integral(&piece.density, ray.len);
+            let mut observed = [0u64; BINS + 1];
+            for _ in 0..SAMPLES {
+                let e = -(-s.next_f64()).ln_1p();
+                let bin = if e < total { ((piece.free_path(sigma, e) / ray.len * BINS as f64) as usize).min(BINS - 1) } else { BINS };
+                observed[bin] += 1;
+            }
+            let tau = |k: usize| (-piece.optical_depth(sigma, ray.len * k as f64 / BINS as f64)).exp();
+            let expected: Vec<f64> = (0..=BINS).map(|k| SAMPLES as f64 * if k < BINS { tau(k) - tau(k + 1) } else { tau(BINS) }).collect();
+            // Pool neighbouring bins until each expects at least 5
+            let mut pools: Vec<Pool> = Vec::new();
+            let mut open = Pool::default();
+            for (o, e) in observed.iter().zip(&expected) {
+                open = Pool { observed: open.observed + *o as f64, expected: open.expected + e };
+                if open.expected >= 5.0 {
+                    pools.push(std::mem::take(&mut open));
+                }
+            }
+            if let Some(last) = pools.last_mut() {
+                *last = Pool { observed: last.observed + open.observed, expected: last.expected + open.expected };
+            }
+            let chi2: f64 = pools.iter().map(|p| (p.observed - p.expected).powi(2) / p.expected).sum();
+            let critical = chi_square_critical(pools.len() - 1);
+            println!("cell {cell}: OD {total:.3}, χ² = {chi2:.2} with {} dof, critical (p = 0.001) {critical:.2}", pools.len() - 1);
+            assert!(chi2 < critical, "cell {cell}: χ² {chi2} ≥ {critical}");
+        }
+    }
+
+    /// `∫ρ` and `∫L_e` over random pieces against a 10⁶-step midpoint rule on the trilinear
+    /// interpolant at `f0 + d u`; free paths reproduce their target optical depth.
+    #[test]
+    fn agrees_with_midpoint_march() {
+        const STEPS: u32 = 1_000_000;
+        let (mut worst_density, mut worst_emission, mut worst_od) = (0.0f64, 0.0f64, 0.0f64);
+        for cell in 0..12 {
+            let mut s = Sampler::new(0x7e4, cell, 0);
+            let ray = random_ray(&mut s);
+            let piece = random_cell(&mut s, &ray);
+            let rho = piece.corners.map(|c| f64::from(c.density));
+            let corner_le = piece.corners.map(|c| le(c.density, c.source).to_f64());
+            let h = ray.len / f64::from(STEPS);
+            let (mut density, mut emission) = (0.0, [0.0; 3]);
+            for i in 0..STEPS {
+                let f = ray.f0 + ray.d * ((f64::from(i) + 0.5) * h);
+                density += poly::trilinear(&rho, f) * h;
+                for (ch, e) in emission.iter_mut().enumerate() {
+                    *e += poly::trilinear(&corner_le.map(|v| v[ch]), f) * h;
+                }
+            }
+            worst_density = worst_density.max((piece.optical_depth(1.0, ray.len) / density - 1.0).abs());
+            for (closed, marched) in piece.emission_integral(&le, ray.len).iter().zip(emission) {
+                worst_emission = worst_emission.max((closed / marched - 1.0).abs());
+            }
+            let sigma = 0.1 + 10.0 * s.next_f64();
+            let total = piece.optical_depth(sigma, ray.len);
+            for _ in 0..1000 {
+                let target = total * s.next_f64();
+                let u = piece.free_path(sigma, target);
+                assert!((0.0..=ray.len).contains(&u));
+                worst_od = worst_od.max((piece.optical_depth(sigma, u) - target).abs() / target);
+            }
+        }
+        println!("midpoint march: max relative error ∫ρ {worst_density:.2e}, ∫L_e {worst_emission:.2e}; free path OD {worst_od:.2e}");
+        assert!(worst_density <= 1e-6 && worst_emission <= 1e-6, "{worst_density} {worst_emission}");
+        assert!(worst_od <= 1e-10, "{worst_od}");
+    }
+
+    /// Point values on a random piece: the trilinear interpolants at `f0 + d u`.
+    #[test]
+    fn point_values_interpolate_corners() {
+        let mut s = Sampler::new(0x7e5, 0, 0);
+        let ray = random_ray(&mut s);
+        let piece = random_cell(&mut s, &ray);
+        let corner_le = piece.corners.map(|c| le(c.density, c.source).to_f64());
+        for i in 0..=10 {
+            let u = ray.len * f64::from(i) / 10.0;
+            let f = (ray.f0 + ray.d * u).clamp(DVec3::ZERO, DVec3::ONE);
+            let near = |a: f64, b: f64| (a - b).abs() <= 1e-6 * b.abs().max(1e-3);
+            assert!(near(f64::from(piece.density_at(u)), poly::trilinear(&piece.corners.map(|c| f64::from(c.density)), f)));
+            assert!(near(f64::from(piece.source_at(u)), poly::trilinear(&piece.corners.map(|c| f64::from(c.source)), f)));
+            assert!(near(f64::from(piece.albedo_at(u)), poly::trilinear(&piece.albedo.map(f64::from), f)));
+            for (ch, e) in piece.emission_at(&le, u).into_iter().enumerate() {
+                assert!(near(e, poly::trilinear(&corner_le.map(|v| v[ch]), f)));
+            }
+        }
+    }
+
+    /// Constant pieces (built either way) answer exactly as their [`Segment`]; one differing
+    /// corner (here its albedo) makes a cell polynomial; no source means no emission.
+    #[test]
+    fn constant_pieces_are_segments() {
+        let values = VoxelValues { density: 0.7, source: 1500.0 };
+        let seg = Segment { t0: 2.0, t1: 2.5, density: 0.7, source: 1500.0, albedo: 0.8 };
+        let f0 = DVec3::new(0.0, 0.2, 0.9);
+        let d = DVec3::new(2.0, 0.1, -0.5);
+        for piece in [CubicSegment::constant_piece(2.0, 2.5, values, 0.8), CubicSegment::cell(2.0, 2.5, f0, d, [values; 8], [0.8; 8])] {
+            assert_eq!(piece.constant(), Some(seg));
+            for u in [0.0, 0.1, 0.5] {
+                assert_eq!(piece.optical_depth(3.0, u), seg.optical_depth(3.0, u));
+                assert_eq!(piece.free_path(3.0, u), seg.free_path(3.0, u));
+                assert_eq!((piece.density_at(u), piece.source_at(u), piece.albedo_at(u)), (0.7, 1500.0, 0.8));
+                assert_eq!(piece.emission_at(&le, u), seg.emission_at(&le, u));
+                assert_eq!(piece.emission_integral(&le, u), seg.emission_integral(&le, u));
+            }
+        }
+        let mut albedo = [0.8; 8];
+        albedo[5] = 0.9;
+        assert!(!CubicSegment::cell(2.0, 2.5, f0, d, [values; 8], albedo).constant);
+        let dark = [VoxelValues { density: 0.7, source: 0.0 }; 8];
+        let mut dark_albedo = [0.8; 8];
+        dark_albedo[0] = 0.5;
+        let piece = CubicSegment::cell(2.0, 2.5, f0, d, dark, dark_albedo);
+        assert_eq!((piece.emission_at(&le, 0.3), piece.emission_integral(&le, 0.5)), ([0.0; 3], [0.0; 3]));
+    }
+}

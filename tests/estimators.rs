@@ -10,7 +10,7 @@ use plume::color::Rgb;
 use plume::medium::tracking::{phi, sample_exponential};
 use plume::medium::{track, Convention, DistanceSample, Emission, EmissionKind, Estimator, Medium, TemperatureMap};
 use plume::sampling::Sampler;
-use plume::volume::field::{Constant, Ray, Strip};
+use plume::volume::field::{Constant, Ray, Segment, Strip};
 use plume::volume::Field;
 
 fn medium(sigma_t: f64, convention: Convention) -> Medium {
@@ -35,7 +35,7 @@ fn mc_emission<F: Field>(field: &F, m: &Medium, ray: &Ray, est: Estimator, n: u6
 }
 
 /// Exact `∫ τ L_e ds` and `τ(d)` along a ray, from its segments (METHOD §4 expected value).
-fn exact<F: Field>(field: &F, m: &Medium, ray: &Ray) -> (f64, f64) {
+fn exact<F: Field<Piece = Segment>>(field: &F, m: &Medium, ray: &Ray) -> (f64, f64) {
     let (mut od, mut f) = (0.0f64, 0.0f64);
     for s in field.segments(ray, 0.0, f64::INFINITY) {
         let mu = m.mu_t(s.density);

@@ -145,7 +145,16 @@ impl Piece for CubicSegment {
         if self.constant {
             return self.albedo[0];
         }
-        poly::trilinear(&self.albedo.map(f64::from), self.local(u)) as f32
+        // σ_s and σ_t are interpolated, so the albedo is their ratio: the corner albedos
+        // weighted by trilinear weight × density (1, like empty space, where ρ is 0).
+        let f = self.local(u);
+        let weighted: [f64; 8] = std::array::from_fn(|c| f64::from(self.albedo[c]) * f64::from(self.corners[c].density));
+        let density = poly::trilinear(&self.corners.map(|v| f64::from(v.density)), f);
+        if density > 0.0 {
+            (poly::trilinear(&weighted, f) / density).clamp(0.0, 1.0) as f32
+        } else {
+            1.0
+        }
     }
 
     fn emission_at(&self, le: &impl Fn(f32, f32) -> Rgb, u: f64) -> [f64; 3] {
@@ -319,7 +328,10 @@ mod tests {
             let near = |a: f64, b: f64| (a - b).abs() <= 1e-6 * b.abs().max(1e-3);
             assert!(near(f64::from(piece.density_at(u)), poly::trilinear(&piece.corners.map(|c| f64::from(c.density)), f)));
             assert!(near(f64::from(piece.source_at(u)), poly::trilinear(&piece.corners.map(|c| f64::from(c.source)), f)));
-            assert!(near(f64::from(piece.albedo_at(u)), poly::trilinear(&piece.albedo.map(f64::from), f)));
+            // Albedo is σ_s/σ_t, both interpolated: density-weighted corner albedos
+            let rho = poly::trilinear(&piece.corners.map(|c| f64::from(c.density)), f);
+            let sigma_s = poly::trilinear(&std::array::from_fn(|c| f64::from(piece.albedo[c]) * f64::from(piece.corners[c].density)), f);
+            assert!(near(f64::from(piece.albedo_at(u)), if rho > 0.0 { sigma_s / rho } else { 1.0 }));
             for (ch, e) in piece.emission_at(&le, u).into_iter().enumerate() {
                 assert!(near(e, poly::trilinear(&corner_le.map(|v| v[ch]), f)));
             }

@@ -24,5 +24,6 @@
 
 pub mod piece;
 pub mod poly;
+mod stub;
 
 pub use piece::CubicSegment;

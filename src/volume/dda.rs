@@ -1,76 +1,175 @@
-//! Hierarchical 3-D DDA over a [`Volume`]: turns a world ray into ordered, gap-free
-//! [`Segment`]s of constant density and source.
+//! Hierarchical 3-D DDA over a lattice of cells in a [`Volume`]'s index space: turns a
+//! world ray into ordered, gap-free pieces.
 //!
 //! Traversal runs in index space, `o' = A⁻¹(x − b)`, `d' = A⁻¹ω`, sharing the parameter
 //! `t` with the world ray, so crossings are world distances even under non-uniform scale
-//! or shear (METHOD.md §1). Voxel `k` spans `[k−½, k+½]` along each axis.
+//! or shear (METHOD.md §1).
 //!
-//! On entering a brick the DDA asks the pyramid for the largest
-//! node around the current voxel that is *uniform* (constant in both channels, zero
-//! included); such a node is crossed as one segment. Otherwise the brick is dense and
-//! the DDA steps voxel by voxel (Amanatides & Woo 1987) until it leaves the brick.
+//! **One walker, two lattices** ([`Cells`]). Cell `k` spans `[k − S, k + 1 − S]` along
+//! each axis, for a lattice shift `S`:
+//! - [`NearestVoxels`], `S = ½`: cell `k` is voxel `k`, `[k−½, k+½]`; a cell yields one
+//!   constant [`Segment`] (nearest reconstruction, [`VolumeSegments`]);
+//! - the dual cells of trilinear reconstruction (`volume::trilinear`), `S = 0`: cell `i`
+//!   is `[i, i+1]`, between the voxel centres `i … i+1`, and yields a cubic piece.
+//!
+//! The dual walk is the voxel walk on the lattice shifted by ½ (`o' − ½` has the dual
+//! cells where `o'` has the voxels), so the same code serves both; `S` is a constant of
+//! the lattice type, and the walker is monomorphized for each, so the nearest walk does
+//! exactly the arithmetic it did before there were two.
+//!
+//! Cells are grouped in 8³ bricks on a table with a min/max pyramid. On entering a brick
+//! the DDA asks the pyramid for the largest node around the current cell that is
+//! *uniform* (constant in every channel, zero included); such a node is crossed as one
+//! piece. Otherwise the brick is dense: the lattice fetches its data once
+//! ([`Cells::dense`]) and the DDA steps cell by cell (Amanatides & Woo 1987) until it
+//! leaves the brick.
 //!
 //! Robustness (METHOD.md §10.9):
 //! - A zero direction component (`d == 0.0`, also `-0.0`) never steps on that axis; we
 //!   never form `1/d` for it.
-//! - Every crossing `t` is computed afresh from an integer boundary, `(k ± ½ − o)/d`, so
-//!   there is no drift along long rays; the voxel index is integer state, so a crossing
-//!   that rounds to zero length still makes progress.
-//! - A start exactly on a boundary takes the voxel being entered.
-//! - Adjacent pieces with bit-identical values are merged, so an empty region is one
-//!   segment, and the last segment ends exactly at the clipped ray's end.
+//! - Every crossing `t` is computed afresh from an integer boundary, `(k + 1 − S − o)/d`
+//!   or `(k − S − o)/d`, so there is no drift along long rays; the cell index is integer
+//!   state, so a crossing that rounds to zero length still makes progress.
+//! - A start exactly on a boundary takes the cell being entered.
+//! - Adjacent pieces the lattice calls mergeable ([`Cells::merge`]: bit-identical constant
+//!   values) are merged, so an empty region is one piece, and the last piece ends exactly
+//!   at the clipped ray's end.
 
-use glam::{DVec3, IVec3};
+use glam::{DAffine3, DVec3, IVec3};
 
 use super::brick::{Brick, Volume, BRICK};
-use super::field::{clip_to_box, Bounds3, Field, Ray, RayGrid, Segment, SegmentIter, VoxelValues};
+use super::field::{clip_to_box, Bounds3, Field, Piece, Ray, RayGrid, Segment, SegmentIter, VoxelValues};
+use super::pyramid::{Level, NodeBounds};
 
-/// Voxel containing coordinate `p` along an axis moving in direction `d`; on a boundary,
-/// the voxel being entered.
+/// The table of 8³-cell bricks a lattice is grouped in, with its min/max pyramid.
+#[derive(Clone, Copy, Debug)]
+pub struct CellTable<'t> {
+    /// Brick coordinate (first cell / 8) of table entry (0,0,0).
+    pub brick_lo: IVec3,
+    /// Table size in bricks.
+    pub dims: IVec3,
+    /// Pyramid levels over the table, finest (one node per table entry) first. A uniform
+    /// node is constant over every cell beneath it.
+    pub levels: &'t [Level],
+}
+
+/// A box of cells `lo .. hi` (`hi` exclusive): where a lattice's rays are clipped.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct CellBox {
+    /// First cell.
+    pub lo: IVec3,
+    /// One past the last cell.
+    pub hi: IVec3,
+}
+
+/// A ray in index space: `p(t) = o + d t`, `t` the world ray's parameter.
+#[derive(Clone, Copy, Debug)]
+pub struct IndexLine {
+    /// Origin, index space.
+    pub o: DVec3,
+    /// Direction, index units per world unit.
+    pub d: DVec3,
+}
+
+/// A lattice of cells the hierarchical DDA walks ([`CellWalk`]): cell `k` spans
+/// `[k − SHIFT, k + 1 − SHIFT]` per axis in index space; what a cell and a uniform node
+/// yield; when two adjacent pieces merge. See the module docs.
+pub trait Cells: Copy {
+    /// Lattice shift `S`: ½ for voxels, 0 for dual cells.
+    const SHIFT: f64;
+    /// What the walk yields.
+    type Piece: Piece;
+    /// A dense brick's data handles, fetched once when the walk enters the brick.
+    type Dense: Copy;
+    /// What one cell holds, read before the walk steps past it.
+    type Cell: Copy;
+
+    /// The volume whose index space the cells live in.
+    fn volume(&self) -> &Volume;
+    /// The brick table and pyramid over the cells.
+    fn table(&self) -> CellTable<'_>;
+    /// The cells rays are clipped to (inside the table).
+    fn cell_box(&self) -> CellBox;
+    /// Data handles of table brick `brick` (brick coordinate), or `None` when it has no
+    /// data (then it is crossed as empty).
+    fn dense(&self, brick: IVec3) -> Option<Self::Dense>;
+    /// Cell `ijk` of the dense brick whose first cell is `origin`.
+    fn read(&self, dense: &Self::Dense, origin: IVec3, ijk: IVec3) -> Self::Cell;
+    /// The cell every cell beneath a uniform pyramid node is.
+    fn uniform(node: &NodeBounds) -> Self::Cell;
+    /// An empty cell (density, source 0; albedo 1).
+    fn empty() -> Self::Cell;
+    /// The piece of `line` over `[t0, t1]` inside `cell`.
+    fn piece(&self, cell: Self::Cell, t0: f64, t1: f64, line: &IndexLine) -> Self::Piece;
+    /// Extend `into` by `next` (adjacent, `into.t1 == next.t0`) when both are constant
+    /// with bit-identical values; false (and nothing changed) otherwise.
+    fn merge(into: &mut Self::Piece, next: &Self::Piece) -> bool;
+}
+
+/// A uniform pyramid node found by the walk.
+#[derive(Clone, Copy, Debug)]
+struct UniformNode {
+    /// First cell.
+    lo: IVec3,
+    /// Edge in cells.
+    size: i32,
+    bounds: NodeBounds,
+}
+
+/// Cell containing coordinate `p` along an axis moving in direction `d`, for lattice
+/// shift `shift`; on a boundary, the cell being entered.
 #[inline]
-fn cell_of(p: f64, d: f64) -> i32 {
-    let x = p + 0.5;
+fn cell_of(p: f64, d: f64, shift: f64) -> i32 {
+    let x = p + shift;
     let c = if d < 0.0 { x.ceil() - 1.0 } else { x.floor() };
     c as i32 // saturating
 }
 
-/// Iterator over the segments of one ray through a [`Volume`]. See the module docs.
+/// Iterator over the pieces of one ray through a lattice of cells. See the module docs.
 #[derive(Debug)]
-pub struct VolumeSegments<'a> {
-    volume: &'a Volume,
+pub struct CellWalk<C: Cells> {
+    cells: C,
     o: DVec3,
     d: DVec3,
     inv_d: DVec3,
-    /// Per axis: `+1`/`−1` voxel step, 0 for a zero component.
+    /// Per axis: `+1`/`−1` cell step, 0 for a zero component.
     step: IVec3,
-    /// Per axis: offset of the exit face from the voxel centre (`±½`).
+    /// Per axis: offset of the exit face from the cell's index (`1 − S` or `−S`).
     face: DVec3,
-    /// Per axis: parameter of the current voxel's exit face (+∞ for a zero component);
+    /// Per axis: parameter of the current cell's exit face (+∞ for a zero component);
     /// valid while stepping through a dense brick.
     t_next: DVec3,
     t: f64,
     t_end: f64,
     ijk: IVec3,
     done: bool,
-    /// Dense brick being stepped through, with its origin in voxels.
-    brick: Option<(Brick, IVec3)>,
-    pending: Option<Segment>,
+    /// Dense brick being stepped through, with its first cell.
+    brick: Option<(C::Dense, IVec3)>,
+    pending: Option<C::Piece>,
     raw_steps: u64,
 }
 
-impl<'a> VolumeSegments<'a> {
-    fn new(volume: &'a Volume, ray: &Ray, t_min: f64, t_max: f64) -> Self {
+/// The nearest-voxel walk over a [`Volume`]: constant [`Segment`]s.
+pub type VolumeSegments<'a> = CellWalk<NearestVoxels<'a>>;
+
+impl<C: Cells> CellWalk<C> {
+    /// The pieces of `ray` within `[t_min, t_max]`, clipped to the lattice's cell box.
+    pub fn new(cells: C, ray: &Ray, t_min: f64, t_max: f64) -> Self {
+        let volume = cells.volume();
         let o = volume.index_from_world.transform_point3(ray.origin);
         let d = volume.index_from_world.transform_vector3(ray.direction);
         let inv_d = DVec3::new(if d.x != 0.0 { 1.0 / d.x } else { 0.0 }, if d.y != 0.0 { 1.0 / d.y } else { 0.0 }, if d.z != 0.0 { 1.0 / d.z } else { 0.0 });
         let step = IVec3::new((d.x > 0.0) as i32 - (d.x < 0.0) as i32, (d.y > 0.0) as i32 - (d.y < 0.0) as i32, (d.z > 0.0) as i32 - (d.z < 0.0) as i32);
-        let mut it = VolumeSegments {
-            volume,
+        let face =
+            DVec3::select(step.cmpgt(IVec3::ZERO), DVec3::splat(1.0 - C::SHIFT), DVec3::select(step.cmplt(IVec3::ZERO), DVec3::splat(-C::SHIFT), DVec3::ZERO));
+        let empty = volume.is_empty();
+        let mut it = CellWalk {
+            cells,
             o,
             d,
             inv_d,
             step,
-            face: step.as_dvec3() * 0.5,
+            face,
             t_next: DVec3::INFINITY,
             t: 0.0,
             t_end: 0.0,
@@ -80,23 +179,21 @@ impl<'a> VolumeSegments<'a> {
             pending: None,
             raw_steps: 0,
         };
-        if volume.is_empty() || d == DVec3::ZERO {
+        if empty || d == DVec3::ZERO {
             return it;
         }
-        let crate::volume::Bounds3 { lo, hi } = volume.index_bounds();
-        if let Some((t0, t1)) = clip_to_box(o, d, lo, hi, t_min, t_max) {
+        let CellBox { lo, hi } = it.cells.cell_box();
+        if let Some((t0, t1)) = clip_to_box(o, d, lo.as_dvec3() - C::SHIFT, hi.as_dvec3() - C::SHIFT, t_min, t_max) {
             it.t = t0;
             it.t_end = t1;
             it.done = false;
             let p = o + d * t0;
-            let vlo = volume.brick_lo * BRICK;
-            let vhi = (volume.brick_lo + volume.dims) * BRICK - 1;
-            it.ijk = IVec3::new(cell_of(p.x, d.x), cell_of(p.y, d.y), cell_of(p.z, d.z)).clamp(vlo, vhi);
+            it.ijk = IVec3::new(cell_of(p.x, d.x, C::SHIFT), cell_of(p.y, d.y, C::SHIFT), cell_of(p.z, d.z, C::SHIFT)).clamp(lo, hi - 1);
         }
         it
     }
 
-    /// Raw (unmerged) pieces produced so far: voxel steps plus skipped nodes.
+    /// Raw (unmerged) pieces produced so far: cell steps plus skipped nodes.
     #[must_use]
     pub fn raw_steps(&self) -> u64 {
         self.raw_steps
@@ -112,7 +209,7 @@ impl<'a> VolumeSegments<'a> {
         }
     }
 
-    /// Parameter at which the ray leaves the current voxel `ijk` on axis `a` (+∞ if it
+    /// Parameter at which the ray leaves the current cell `ijk` on axis `a` (+∞ if it
     /// never does). Computed from the integer index, so it never drifts.
     #[inline]
     fn face_crossing(&self, a: usize) -> f64 {
@@ -123,15 +220,15 @@ impl<'a> VolumeSegments<'a> {
         }
     }
 
-    /// Leave the box of voxels `[lo, lo + size)`: returns the exit parameter and moves
-    /// `ijk` to the voxel entered there.
+    /// Leave the box of cells `[lo, lo + size)`: returns the exit parameter and moves
+    /// `ijk` to the cell entered there.
     fn exit_box(&mut self, lo: IVec3, size: i32) -> f64 {
         let mut ta = [f64::INFINITY; 3];
         for (a, t) in ta.iter_mut().enumerate() {
             if self.d[a] > 0.0 {
-                *t = self.crossing(a, f64::from(lo[a] + size) - 0.5);
+                *t = self.crossing(a, f64::from(lo[a] + size) - C::SHIFT);
             } else if self.d[a] < 0.0 {
-                *t = self.crossing(a, f64::from(lo[a]) - 0.5);
+                *t = self.crossing(a, f64::from(lo[a]) - C::SHIFT);
             }
         }
         let t_exit = ta[0].min(ta[1]).min(ta[2]);
@@ -148,28 +245,46 @@ impl<'a> VolumeSegments<'a> {
                     lo[a] - 1
                 }
             } else {
-                cell_of(p[a], self.d[a]).clamp(lo[a], lo[a] + size - 1)
+                cell_of(p[a], self.d[a], C::SHIFT).clamp(lo[a], lo[a] + size - 1)
             };
         }
         t_exit
     }
 
+    /// The coarsest uniform pyramid node around table brick `rel` (table-relative). A
+    /// uniform node's children are uniform with the same values, so a non-uniform brick
+    /// settles it in one lookup; otherwise search from the top for the coarsest uniform
+    /// level.
+    #[inline]
+    fn uniform_node(table: &CellTable<'_>, rel: IVec3) -> Option<UniformNode> {
+        let levels = table.levels;
+        if !levels[0].get(rel).is_uniform() {
+            return None;
+        }
+        for (k, level) in levels.iter().enumerate().rev() {
+            let nc = rel >> (k as i32);
+            let node = level.get(nc);
+            if node.is_uniform() {
+                return Some(UniformNode { lo: (table.brick_lo + (nc << (k as i32))) * BRICK, size: BRICK << k, bounds: *node });
+            }
+        }
+        None
+    }
+
     /// Next raw piece, possibly of zero length (then `None` is not returned; the caller
     /// loops). Returns `None` only at the end.
-    fn step_raw(&mut self) -> Option<Segment> {
+    fn step_raw(&mut self) -> Option<C::Piece> {
         while !self.done {
             if self.t >= self.t_end {
                 self.done = true;
                 return None;
             }
             let t0 = self.t;
-            let (t_exit, density, source, albedo);
-            if let Some((brick, origin)) = self.brick {
-                // Step one voxel of a dense brick
-                let l = self.ijk - origin;
-                density = self.volume.slot_value(brick.density, l.x, l.y, l.z);
-                source = self.volume.slot_value(brick.source, l.x, l.y, l.z);
-                albedo = if density > 0.0 { self.volume.slot_value(brick.albedo, l.x, l.y, l.z) } else { 1.0 };
+            let (t_exit, cell);
+            if let Some((dense, origin)) = &self.brick {
+                // Step one cell of a dense brick
+                let origin = *origin;
+                cell = self.cells.read(dense, origin, self.ijk);
                 t_exit = self.t_next.x.min(self.t_next.y).min(self.t_next.z);
                 for a in 0..3 {
                     if self.t_next[a] == t_exit {
@@ -182,48 +297,31 @@ impl<'a> VolumeSegments<'a> {
                     self.brick = None;
                 }
             } else {
+                let table = self.cells.table();
                 let bc = IVec3::new(self.ijk.x.div_euclid(BRICK), self.ijk.y.div_euclid(BRICK), self.ijk.z.div_euclid(BRICK));
-                if self.volume.cell(bc).is_none() {
+                let rel = bc - table.brick_lo;
+                if rel.cmplt(IVec3::ZERO).any() || rel.cmpge(table.dims).any() {
                     // Left the table (only by rounding before t_end): the rest is empty.
                     self.done = true;
                     self.raw_steps += 1;
-                    return Some(Segment { t0, t1: self.t_end, density: 0.0, source: 0.0, albedo: 1.0 });
+                    return Some(self.cells.piece(C::empty(), t0, self.t_end, &self.line()));
                 }
-                let rel = bc - self.volume.brick_lo;
-                let levels = &self.volume.pyramid.levels;
-                // Coarsest uniform node around the voxel. A uniform node's children are
-                // uniform with the same values, so a non-uniform brick settles it in one
-                // lookup; otherwise search from the top for the coarsest uniform level.
-                let mut uniform = None;
-                if levels[0].get(rel).is_uniform() {
-                    for (k, level) in levels.iter().enumerate().rev() {
-                        let nc = rel >> (k as i32);
-                        let node = level.get(nc);
-                        if node.is_uniform() {
-                            let lo = (self.volume.brick_lo + (nc << (k as i32))) * BRICK;
-                            uniform = Some((lo, BRICK << k, node.density_max, node.source_max, node.uniform_albedo()));
-                            break;
-                        }
-                    }
-                }
-                match uniform {
-                    Some((lo, size, dv, sv, av)) => {
+                match Self::uniform_node(&table, rel) {
+                    Some(node) => {
                         // Cross a constant (often empty) node in one step
-                        density = dv;
-                        source = sv;
-                        albedo = av;
-                        t_exit = self.exit_box(lo, size);
+                        cell = C::uniform(&node.bounds);
+                        t_exit = self.exit_box(node.lo, node.size);
                     }
-                    None => match self.volume.brick(bc) {
-                        Some(&brick) => {
-                            self.brick = Some((brick, bc * BRICK));
+                    None => match self.cells.dense(bc) {
+                        Some(dense) => {
+                            self.brick = Some((dense, bc * BRICK));
                             self.t_next = DVec3::new(self.face_crossing(0), self.face_crossing(1), self.face_crossing(2));
                             continue;
                         }
                         None => {
                             // A non-uniform node without a brick: only a damaged cache file
                             // says so (its checksums fail the render); cross it as empty.
-                            (density, source, albedo) = (0.0, 0.0, 1.0);
+                            cell = C::empty();
                             t_exit = self.exit_box(bc * BRICK, BRICK);
                         }
                     },
@@ -233,17 +331,22 @@ impl<'a> VolumeSegments<'a> {
             if t1 > t0 {
                 self.t = t1;
                 self.raw_steps += 1;
-                return Some(Segment { t0, t1, density, source, albedo });
+                return Some(self.cells.piece(cell, t0, t1, &self.line()));
             }
         }
         None
     }
+
+    #[inline]
+    fn line(&self) -> IndexLine {
+        IndexLine { o: self.o, d: self.d }
+    }
 }
 
-impl Iterator for VolumeSegments<'_> {
-    type Item = Segment;
+impl<C: Cells> Iterator for CellWalk<C> {
+    type Item = C::Piece;
 
-    fn next(&mut self) -> Option<Segment> {
+    fn next(&mut self) -> Option<C::Piece> {
         loop {
             let raw = self.step_raw();
             match (self.pending.take(), raw) {
@@ -251,8 +354,7 @@ impl Iterator for VolumeSegments<'_> {
                 (Some(p), None) => return Some(p),
                 (None, Some(s)) => self.pending = Some(s),
                 (Some(mut p), Some(s)) => {
-                    if p.density.to_bits() == s.density.to_bits() && p.source.to_bits() == s.source.to_bits() && p.albedo.to_bits() == s.albedo.to_bits() {
-                        p.t1 = s.t1;
+                    if C::merge(&mut p, &s) {
                         self.pending = Some(p);
                     } else {
                         self.pending = Some(s);
@@ -264,10 +366,111 @@ impl Iterator for VolumeSegments<'_> {
     }
 }
 
-impl SegmentIter for VolumeSegments<'_> {
+impl<C: Cells> SegmentIter for CellWalk<C> {
     fn voxel_steps(&self) -> u64 {
         self.raw_steps
     }
+}
+
+/// The voxels of a [`Volume`] as a lattice ([`Cells`], shift ½): nearest reconstruction,
+/// one constant [`Segment`] per voxel or uniform node.
+#[derive(Clone, Copy, Debug)]
+pub struct NearestVoxels<'a> {
+    volume: &'a Volume,
+}
+
+impl<'a> NearestVoxels<'a> {
+    /// The voxels of `volume`.
+    #[must_use]
+    pub fn new(volume: &'a Volume) -> Self {
+        NearestVoxels { volume }
+    }
+}
+
+/// One voxel's values as the nearest walk reads them.
+#[derive(Clone, Copy, Debug)]
+pub struct VoxelCell {
+    density: f32,
+    source: f32,
+    /// 1 where density is 0.
+    albedo: f32,
+}
+
+impl Cells for NearestVoxels<'_> {
+    const SHIFT: f64 = 0.5;
+    type Piece = Segment;
+    type Dense = Brick;
+    type Cell = VoxelCell;
+
+    #[inline]
+    fn volume(&self) -> &Volume {
+        self.volume
+    }
+
+    #[inline]
+    fn table(&self) -> CellTable<'_> {
+        CellTable { brick_lo: self.volume.brick_lo, dims: self.volume.dims, levels: &self.volume.pyramid.levels }
+    }
+
+    #[inline]
+    fn cell_box(&self) -> CellBox {
+        CellBox { lo: self.volume.brick_lo * BRICK, hi: (self.volume.brick_lo + self.volume.dims) * BRICK }
+    }
+
+    #[inline]
+    fn dense(&self, brick: IVec3) -> Option<Brick> {
+        self.volume.brick(brick).copied()
+    }
+
+    #[inline]
+    fn read(&self, brick: &Brick, origin: IVec3, ijk: IVec3) -> VoxelCell {
+        let l = ijk - origin;
+        let density = self.volume.slot_value(brick.density, l.x, l.y, l.z);
+        let source = self.volume.slot_value(brick.source, l.x, l.y, l.z);
+        let albedo = if density > 0.0 { self.volume.slot_value(brick.albedo, l.x, l.y, l.z) } else { 1.0 };
+        VoxelCell { density, source, albedo }
+    }
+
+    #[inline]
+    fn uniform(node: &NodeBounds) -> VoxelCell {
+        VoxelCell { density: node.density_max, source: node.source_max, albedo: node.uniform_albedo() }
+    }
+
+    #[inline]
+    fn empty() -> VoxelCell {
+        VoxelCell { density: 0.0, source: 0.0, albedo: 1.0 }
+    }
+
+    #[inline]
+    fn piece(&self, cell: VoxelCell, t0: f64, t1: f64, _line: &IndexLine) -> Segment {
+        Segment { t0, t1, density: cell.density, source: cell.source, albedo: cell.albedo }
+    }
+
+    #[inline]
+    fn merge(into: &mut Segment, next: &Segment) -> bool {
+        let same = into.density.to_bits() == next.density.to_bits()
+            && into.source.to_bits() == next.source.to_bits()
+            && into.albedo.to_bits() == next.albedo.to_bits();
+        if same {
+            into.t1 = next.t1;
+        }
+        same
+    }
+}
+
+/// World-space axis-aligned bounds of the index-space box `index` under
+/// `world_from_index` (its 8 corners transformed).
+pub(crate) fn world_box(world_from_index: &DAffine3, index: Bounds3) -> Bounds3 {
+    let Bounds3 { lo, hi } = index;
+    let mut wlo = DVec3::splat(f64::INFINITY);
+    let mut whi = DVec3::splat(f64::NEG_INFINITY);
+    for i in 0..8 {
+        let c = DVec3::new(if i & 1 == 0 { lo.x } else { hi.x }, if i & 2 == 0 { lo.y } else { hi.y }, if i & 4 == 0 { lo.z } else { hi.z });
+        let w = world_from_index.transform_point3(c);
+        wlo = wlo.min(w);
+        whi = whi.max(w);
+    }
+    Bounds3 { lo: wlo, hi: whi }
 }
 
 impl Field for Volume {
@@ -275,20 +478,11 @@ impl Field for Volume {
     type Segments<'a> = VolumeSegments<'a>;
 
     fn world_bounds(&self) -> Bounds3 {
-        let crate::volume::Bounds3 { lo, hi } = self.index_bounds();
-        let mut wlo = DVec3::splat(f64::INFINITY);
-        let mut whi = DVec3::splat(f64::NEG_INFINITY);
-        for i in 0..8 {
-            let c = DVec3::new(if i & 1 == 0 { lo.x } else { hi.x }, if i & 2 == 0 { lo.y } else { hi.y }, if i & 4 == 0 { lo.z } else { hi.z });
-            let w = self.world_from_index.transform_point3(c);
-            wlo = wlo.min(w);
-            whi = whi.max(w);
-        }
-        Bounds3 { lo: wlo, hi: whi }
+        world_box(&self.world_from_index, self.index_bounds())
     }
 
     fn segments(&self, ray: &Ray, t_min: f64, t_max: f64) -> VolumeSegments<'_> {
-        VolumeSegments::new(self, ray, t_min, t_max)
+        CellWalk::new(NearestVoxels::new(self), ray, t_min, t_max)
     }
 
     fn values_at(&self, p_world: DVec3) -> VoxelValues {

@@ -1,5 +1,6 @@
 //! Volume data: sparse 8³ bricks in index space, the min/max pyramid, the hierarchical
-//! DDA that turns a ray into [`Segment`]s, and analytic test fields.
+//! DDA that turns a ray into [`Segment`]s (or, over the dual cells of [`trilinear`]
+//! reconstruction, cubic pieces), and analytic test fields.
 //!
 //! This is the *data* half of plume. The optics (`crate::medium`) see the volume only
 //! through [`Field::segments`]: an ordered, gap-free sequence of constant-valued pieces

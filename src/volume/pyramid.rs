@@ -54,7 +54,9 @@ impl NodeBounds {
         }
     }
 
-    fn union(self, o: NodeBounds) -> NodeBounds {
+    /// Bounds of both nodes' footprints together.
+    #[must_use]
+    pub fn union(self, o: NodeBounds) -> NodeBounds {
         NodeBounds {
             density_min: self.density_min.min(o.density_min),
             density_max: self.density_max.max(o.density_max),
@@ -111,11 +113,23 @@ impl Pyramid {
     /// [`NodeBounds::ZERO`]).
     #[must_use]
     pub fn from_brick_bounds(dims: IVec3, table: &[u32], bounds: &[NodeBounds]) -> Pyramid {
+        let base: Vec<NodeBounds> = table.iter().map(|&bi| if bi == NO_BRICK { NodeBounds::ZERO } else { bounds[bi as usize] }).collect();
+        Pyramid::from_base(dims, base)
+    }
+
+    /// Build all levels over a table of `dims` cells whose level-0 nodes are `base` (x
+    /// fastest): each coarser node is the union of its 2×2×2 children, cells beyond the
+    /// table counting as [`NodeBounds::ZERO`].
+    ///
+    /// # Panics
+    /// If `base` does not hold one node per cell.
+    #[must_use]
+    pub fn from_base(dims: IVec3, base: Vec<NodeBounds>) -> Pyramid {
         let all = level_dims(dims);
         if all.is_empty() {
             return Pyramid::default();
         }
-        let base: Vec<NodeBounds> = table.iter().map(|&bi| if bi == NO_BRICK { NodeBounds::ZERO } else { bounds[bi as usize] }).collect();
+        assert_eq!(base.len(), (dims.x * dims.y * dims.z) as usize, "one level-0 node per table cell");
         let mut levels = vec![Level { dims, nodes: Buffer::from_vec(base) }];
         for &nd in &all[1..] {
             let prev = levels.last().expect("invariant: at least one level");

@@ -14,15 +14,22 @@
 //! applies the blackbody function afterwards; the difference on real explosions is
 //! measured by `plume bench interpolation` (README, "Interpolation").
 //!
+//! **Traversal.** [`Trilinear`] ([`field`]) walks the dual cells with the hierarchical DDA
+//! of `volume::dda`, on the lattice shifted by ½ ([`dual`]): one walker, two lattices.
+//!
 //! **Skipping.** A dual cell in brick `b` reads voxels of bricks `b + {0,1}³`, so the
-//! dual pyramid's node `n` at level `k` is the union of the volume pyramid's nodes
-//! `n + {0,1}³` at the same level: a node that is uniform there is constant over every
-//! dual cell beneath it, and is crossed as one piece.
+//! dual pyramid's level-0 node `b` is the union of the volume pyramid's level-0 nodes
+//! `b + {0,1}³`, and coarser nodes are unions of their children: a node that is uniform
+//! there is constant over every dual cell beneath it, and is crossed as one piece.
 //!
 //! **Memory.** No second copy of the voxels: corners are read from the volume's bricks;
 //! the dual pyramid is one more pyramid (a few bytes per brick).
 
+pub mod dual;
+pub mod field;
 pub mod piece;
 pub mod poly;
+mod stub;
 
+pub use field::{Interpolation, Trilinear};
 pub use piece::CubicSegment;

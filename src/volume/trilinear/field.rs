@@ -1,0 +1,184 @@
+//! [`Trilinear`]: a [`Volume`] reconstructed trilinearly (OpenVDB's `BoxSampler`), as a
+//! [`Field`] whose pieces are [`CubicSegment`]s, one per dual cell crossed.
+//!
+//! At index-space `p`, with `i = ⌊p⌋` and `f = p − i`, the value is
+//! `Σ_{c∈{0,1}³} w_c v_{i+c}`, `w_c = Π_k (c_k f_k + (1 − c_k)(1 − f_k))`
+//! ([`Trilinear::interpolate_index`]). Point queries ([`Field::values_at`],
+//! [`Field::reconstruct`]) and the pieces of [`Field::segments`] interpolate the same
+//! corners with the same weights, so a piece's density cubic at `u` is the point value at
+//! `ray.at(t0 + u)` (to rounding). The support reaches ½ voxel beyond the nearest
+//! volume's bounds on every side.
+
+use glam::{DVec3, IVec3};
+
+use super::dual::{corner_offset, dual_pyramid, DualCells};
+use super::CubicSegment;
+use crate::color::Rgb;
+use crate::volume::dda::{world_box, CellWalk};
+use crate::volume::field::{Bounds3, Field, PointValues, Ray, RayGrid, VoxelValues};
+use crate::volume::pyramid::{Level, Pyramid};
+use crate::volume::Volume;
+
+/// A volume with trilinear reconstruction: the volume and its dual pyramid
+/// (`volume::trilinear::dual`). The voxels are the volume's; nothing is copied.
+#[derive(Debug)]
+pub struct Trilinear {
+    volume: Volume,
+    dual: Pyramid,
+}
+
+/// The 8 voxels around an index-space point and their trilinear weights
+/// ([`Trilinear::interpolate_index`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Interpolation {
+    /// Dual cell `i = ⌊p⌋`; corner `c` is voxel `i + c` (bit 0: +x, bit 1: +y, bit 2: +z).
+    pub cell: IVec3,
+    /// Density and source of the corner voxels (0 outside the volume's bricks).
+    pub corners: [VoxelValues; 8],
+    /// `w_c = Π_k (c_k f_k + (1 − c_k)(1 − f_k))`, `f = p − i`; they sum to 1.
+    pub weights: [f64; 8],
+}
+
+impl Interpolation {
+    /// `Σ w_c g(corner_c)`, in f64.
+    #[inline]
+    fn sum(&self, g: impl Fn(VoxelValues) -> f64) -> f64 {
+        self.corners.iter().zip(&self.weights).map(|(&v, &w)| w * g(v)).sum()
+    }
+
+    /// Interpolated density ρ.
+    #[must_use]
+    pub fn density(&self) -> f64 {
+        self.sum(|v| f64::from(v.density))
+    }
+
+    /// Interpolated emission source.
+    #[must_use]
+    pub fn source(&self) -> f64 {
+        self.sum(|v| f64::from(v.source))
+    }
+
+    /// Interpolated per-voxel emission density `Σ w_c le(ρ_c, s_c)` per channel (what a
+    /// piece interpolates, `volume::trilinear`).
+    #[must_use]
+    pub fn emission(&self, le: &impl Fn(f32, f32) -> Rgb) -> [f64; 3] {
+        let mut out = [0.0; 3];
+        for (&v, &w) in self.corners.iter().zip(&self.weights) {
+            if w != 0.0 {
+                let e = le(v.density, v.source).to_f64();
+                for (o, e) in out.iter_mut().zip(e) {
+                    *o += w * e;
+                }
+            }
+        }
+        out
+    }
+}
+
+impl Trilinear {
+    /// Trilinear reconstruction of `volume`; builds the dual pyramid (from the volume's
+    /// pyramid only, in parallel; no voxel is read).
+    #[must_use]
+    pub fn new(volume: Volume) -> Trilinear {
+        let dual = dual_pyramid(&volume);
+        Trilinear { volume, dual }
+    }
+
+    /// The volume whose voxels are interpolated.
+    #[must_use]
+    pub fn volume(&self) -> &Volume {
+        &self.volume
+    }
+
+    /// The volume back, dropping the dual pyramid.
+    #[must_use]
+    pub fn into_volume(self) -> Volume {
+        self.volume
+    }
+
+    /// Bytes of the dual pyramid (all levels).
+    #[must_use]
+    pub fn dual_pyramid_bytes(&self) -> usize {
+        self.dual.memory_bytes()
+    }
+
+    /// Dual pyramid levels, finest first: level 0 has one node per dual brick, from brick
+    /// `brick_lo − 1` of the volume's table (see `volume::trilinear::dual`).
+    #[must_use]
+    pub fn dual_pyramid_levels(&self) -> &[Level] {
+        &self.dual.levels
+    }
+
+    /// Index-space box of everything that can be non-zero: the volume's
+    /// [`Volume::index_bounds`] grown by ½ voxel on every side (empty volumes: unchanged).
+    pub fn index_bounds(&self) -> Bounds3 {
+        let b = self.volume.index_bounds();
+        if self.volume.is_empty() {
+            return b;
+        }
+        Bounds3 { lo: b.lo - 0.5, hi: b.hi + 0.5 }
+    }
+
+    /// The 8 voxels around index-space `p_index` and their weights (`BoxSampler`).
+    #[must_use]
+    pub fn interpolate_index(&self, p_index: DVec3) -> Interpolation {
+        let floor = p_index.floor();
+        let cell = floor.as_ivec3();
+        let f = p_index - floor;
+        let g = DVec3::ONE - f;
+        let corners = std::array::from_fn(|c| self.volume.voxel(cell + corner_offset(c)));
+        let weights = std::array::from_fn(|c| {
+            let o = corner_offset(c);
+            let w = |k: usize| if o[k] == 1 { f[k] } else { g[k] };
+            w(0) * w(1) * w(2)
+        });
+        Interpolation { cell, corners, weights }
+    }
+
+    /// [`Trilinear::interpolate_index`] at a world point.
+    #[must_use]
+    pub fn interpolate_world(&self, p_world: DVec3) -> Interpolation {
+        self.interpolate_index(self.volume.index_from_world.transform_point3(p_world))
+    }
+}
+
+impl Field for Trilinear {
+    type Piece = CubicSegment;
+    type Segments<'a> = CellWalk<DualCells<'a>>;
+
+    fn world_bounds(&self) -> Bounds3 {
+        world_box(&self.volume.world_from_index, self.index_bounds())
+    }
+
+    fn segments(&self, ray: &Ray, t_min: f64, t_max: f64) -> Self::Segments<'_> {
+        CellWalk::new(DualCells::new(&self.volume, &self.dual), ray, t_min, t_max)
+    }
+
+    /// Trilinearly interpolated density and source.
+    fn values_at(&self, p_world: DVec3) -> VoxelValues {
+        let it = self.interpolate_world(p_world);
+        VoxelValues { density: it.density() as f32, source: it.source() as f32 }
+    }
+
+    /// Interpolated density, and the interpolation of the corners' `le(ρ_c, s_c)`.
+    fn reconstruct(&self, p_world: DVec3, le: &impl Fn(f32, f32) -> Rgb) -> PointValues {
+        let it = self.interpolate_world(p_world);
+        PointValues { density: it.density() as f32, emission: it.emission(le) }
+    }
+
+    fn prefetch(&self, grid: &RayGrid) {
+        self.volume.prefetch(grid);
+    }
+
+    fn expect_prefetch(&self) {
+        self.volume.expect_prefetch();
+    }
+
+    fn is_mapped(&self) -> bool {
+        self.volume.is_mapped()
+    }
+
+    fn data_bytes(&self) -> usize {
+        self.volume.memory_bytes() + self.dual.memory_bytes()
+    }
+}

@@ -30,7 +30,7 @@ pub struct Trilinear {
 /// The 8 voxels around an index-space point and their trilinear weights
 /// ([`Trilinear::interpolate_index`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Interpolation {
+pub struct PointCorners {
     /// Dual cell `i = ⌊p⌋`; corner `c` is voxel `i + c` (bit 0: +x, bit 1: +y, bit 2: +z).
     pub cell: IVec3,
     /// Density and source of the corner voxels (0 outside the volume's bricks).
@@ -39,7 +39,7 @@ pub struct Interpolation {
     pub weights: [f64; 8],
 }
 
-impl Interpolation {
+impl PointCorners {
     /// `Σ w_c g(corner_c)`, in f64.
     #[inline]
     fn sum(&self, g: impl Fn(VoxelValues) -> f64) -> f64 {
@@ -121,7 +121,7 @@ impl Trilinear {
 
     /// The 8 voxels around index-space `p_index` and their weights (`BoxSampler`).
     #[must_use]
-    pub fn interpolate_index(&self, p_index: DVec3) -> Interpolation {
+    pub fn interpolate_index(&self, p_index: DVec3) -> PointCorners {
         let floor = p_index.floor();
         let cell = floor.as_ivec3();
         let f = p_index - floor;
@@ -132,12 +132,12 @@ impl Trilinear {
             let w = |k: usize| if o[k] == 1 { f[k] } else { g[k] };
             w(0) * w(1) * w(2)
         });
-        Interpolation { cell, corners, weights }
+        PointCorners { cell, corners, weights }
     }
 
     /// [`Trilinear::interpolate_index`] at a world point.
     #[must_use]
-    pub fn interpolate_world(&self, p_world: DVec3) -> Interpolation {
+    pub fn interpolate_world(&self, p_world: DVec3) -> PointCorners {
         self.interpolate_index(self.volume.index_from_world.transform_point3(p_world))
     }
 }

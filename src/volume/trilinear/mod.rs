@@ -29,7 +29,6 @@ pub mod dual;
 pub mod field;
 pub mod piece;
 pub mod poly;
-mod stub;
 
-pub use field::{Interpolation, Trilinear};
+pub use field::{PointCorners, Trilinear};
 pub use piece::CubicSegment;

@@ -93,8 +93,9 @@ pub trait Cells: Copy {
     /// Data handles of table brick `brick` (brick coordinate), or `None` when it has no
     /// data (then it is crossed as empty).
     fn dense(&self, brick: IVec3) -> Option<Self::Dense>;
-    /// Cell `ijk` of the dense brick whose first cell is `origin`.
-    fn read(&self, dense: &Self::Dense, origin: IVec3, ijk: IVec3) -> Self::Cell;
+    /// Cell `ijk` of the dense brick whose first cell is `origin`. `dense` may remember
+    /// what the previous cell read (the walk steps to a neighbour each time).
+    fn read(&self, dense: &mut Self::Dense, origin: IVec3, ijk: IVec3) -> Self::Cell;
     /// The cell every cell beneath a uniform pyramid node is.
     fn uniform(node: &NodeBounds) -> Self::Cell;
     /// An empty cell (density, source 0; albedo 1).
@@ -104,6 +105,8 @@ pub trait Cells: Copy {
     /// Extend `into` by `next` (adjacent, `into.t1 == next.t0`) when both are constant
     /// with bit-identical values; false (and nothing changed) otherwise.
     fn merge(into: &mut Self::Piece, next: &Self::Piece) -> bool;
+    /// False when `piece` can never merge (then the walk hands it on at once).
+    fn mergeable(piece: &Self::Piece) -> bool;
 }
 
 /// A uniform pyramid node found by the walk.
@@ -281,7 +284,7 @@ impl<C: Cells> CellWalk<C> {
             }
             let t0 = self.t;
             let (t_exit, cell);
-            if let Some((dense, origin)) = &self.brick {
+            if let Some((dense, origin)) = &mut self.brick {
                 // Step one cell of a dense brick
                 let origin = *origin;
                 cell = self.cells.read(dense, origin, self.ijk);
@@ -347,11 +350,16 @@ impl<C: Cells> Iterator for CellWalk<C> {
     type Item = C::Piece;
 
     fn next(&mut self) -> Option<C::Piece> {
+        // A piece that can merge with nothing waits for nothing (no copy through `pending`)
+        if let Some(p) = self.pending.take_if(|p| !C::mergeable(p)) {
+            return Some(p);
+        }
         loop {
             let raw = self.step_raw();
             match (self.pending.take(), raw) {
                 (None, None) => return None,
                 (Some(p), None) => return Some(p),
+                (None, Some(s)) if !C::mergeable(&s) => return Some(s),
                 (None, Some(s)) => self.pending = Some(s),
                 (Some(mut p), Some(s)) => {
                     if C::merge(&mut p, &s) {
@@ -423,7 +431,7 @@ impl Cells for NearestVoxels<'_> {
     }
 
     #[inline]
-    fn read(&self, brick: &Brick, origin: IVec3, ijk: IVec3) -> VoxelCell {
+    fn read(&self, brick: &mut Brick, origin: IVec3, ijk: IVec3) -> VoxelCell {
         let l = ijk - origin;
         let density = self.volume.slot_value(brick.density, l.x, l.y, l.z);
         let source = self.volume.slot_value(brick.source, l.x, l.y, l.z);
@@ -444,6 +452,11 @@ impl Cells for NearestVoxels<'_> {
     #[inline]
     fn piece(&self, cell: VoxelCell, t0: f64, t1: f64, _line: &IndexLine) -> Segment {
         Segment { t0, t1, density: cell.density, source: cell.source, albedo: cell.albedo }
+    }
+
+    #[inline]
+    fn mergeable(_: &Segment) -> bool {
+        true
     }
 
     #[inline]

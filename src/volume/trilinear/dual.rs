@@ -60,10 +60,16 @@ impl<'a> DualCells<'a> {
     }
 }
 
-/// The brick records of voxel bricks `b + {0,1}³` of dual brick `b`, in corner order.
+/// The brick records of voxel bricks `b + {0,1}³` of dual brick `b`, in corner order, and
+/// the last cell read from them.
 #[derive(Clone, Copy, Debug)]
 pub struct DualBricks {
     bricks: [Brick; 8],
+    /// Local index of the last cell read (far away before the first) and its corners:
+    /// the walk steps to a face neighbour, which shares 4 of them.
+    last: IVec3,
+    corners: [VoxelValues; 8],
+    albedo: [f32; 8],
 }
 
 /// One dual cell as the walk reads it: its index and its 8 corner voxels.
@@ -138,29 +144,47 @@ impl Cells for DualCells<'_> {
             }
             None => EMPTY_BRICK,
         });
-        any.then_some(DualBricks { bricks })
+        any.then_some(DualBricks { bricks, last: IVec3::splat(-1000), corners: [VoxelValues::ZERO; 8], albedo: [1.0; 8] })
     }
 
-    /// FIXME: every cell reads its 8 corners afresh (24 slot reads), though it shares 4
-    /// with the cell before it. Camera rays through a 256³ explosion: 15.8 M dual steps/s
-    /// against 51 M voxel steps/s for the nearest walk (1 core, release).
+    /// Reads the 8 corners, or only the 4 new ones when the walk stepped across one face
+    /// (the other 4 are the previous cell's: 12 slot reads instead of 24).
     #[inline]
-    fn read(&self, dense: &DualBricks, origin: IVec3, i: IVec3) -> DualCell {
+    fn read(&self, dense: &mut DualBricks, origin: IVec3, i: IVec3) -> DualCell {
         let l = i - origin;
-        let mut corners = [VoxelValues::ZERO; 8];
-        let mut albedo = [1.0; 8];
+        let step = l - dense.last;
+        // Corners to read: all, or those on the far side of the face crossed along one axis
+        let (keep, fresh): (Option<(usize, bool)>, u8) = match (step.x, step.y, step.z) {
+            (s, 0, 0) if s.abs() == 1 => (Some((1, s > 0)), if s > 0 { 0b1010_1010 } else { 0b0101_0101 }),
+            (0, s, 0) if s.abs() == 1 => (Some((2, s > 0)), if s > 0 { 0b1100_1100 } else { 0b0011_0011 }),
+            (0, 0, s) if s.abs() == 1 => (Some((4, s > 0)), if s > 0 { 0b1111_0000 } else { 0b0000_1111 }),
+            _ => (None, 0xff),
+        };
+        if let Some((bit, forward)) = keep {
+            // Shared corner c of the new cell is corner c ± bit of the old one
+            let (old_c, old_a) = (dense.corners, dense.albedo);
+            for c in 0..8 {
+                if fresh & (1 << c) == 0 {
+                    let from = if forward { c | bit } else { c & !bit };
+                    dense.corners[c] = old_c[from];
+                    dense.albedo[c] = old_a[from];
+                }
+            }
+        }
         for c in 0..8 {
+            if fresh & (1 << c) == 0 {
+                continue;
+            }
             // Voxel l + c of the 9³ the dual brick reads: brick (l + c) / 8, local (l + c) mod 8
             let v = l + corner_offset(c);
             let brick = &dense.bricks[((v.x >> 3) | ((v.y >> 3) << 1) | ((v.z >> 3) << 2)) as usize];
             let (x, y, z) = (v.x & 7, v.y & 7, v.z & 7);
             let density = self.volume.slot_value(brick.density, x, y, z);
-            corners[c] = VoxelValues { density, source: self.volume.slot_value(brick.source, x, y, z) };
-            if density > 0.0 {
-                albedo[c] = self.volume.slot_value(brick.albedo, x, y, z);
-            }
+            dense.corners[c] = VoxelValues { density, source: self.volume.slot_value(brick.source, x, y, z) };
+            dense.albedo[c] = if density > 0.0 { self.volume.slot_value(brick.albedo, x, y, z) } else { 1.0 };
         }
-        DualCell { i, corners, albedo }
+        dense.last = l;
+        DualCell { i, corners: dense.corners, albedo: dense.albedo }
     }
 
     #[inline]
@@ -181,6 +205,11 @@ impl Cells for DualCells<'_> {
         let f0 = (line.o + line.d * t0 - cell.i.as_dvec3()).clamp(DVec3::ZERO, DVec3::ONE);
         let density = poly::cubic_along(cell.corners.map(|c| f64::from(c.density)), f0, line.d);
         CubicSegment { t0, t1, density, f0, d: line.d, corners: cell.corners, albedo: cell.albedo, constant: false }
+    }
+
+    #[inline]
+    fn mergeable(piece: &CubicSegment) -> bool {
+        piece.constant
     }
 
     #[inline]

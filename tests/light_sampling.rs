@@ -385,6 +385,70 @@ fn fnee_directions_match_p_sigma_chi2() {
 // ---------------------------------------------------------------------------------------
 // Volume NEE
 
+/// Under trilinear reconstruction NEE draws `y − i` from the hat around the chosen voxel
+/// (`light/nee.rs`): the pdf is the trilinear interpolation of `P_i/V`, it integrates to 1,
+/// `sample` and `pdf` agree, and the share of samples in each voxel box is exactly
+/// `Σ_i P_i Π_k w(v_k − i_k)` with `w(0) = 3/4`, `w(±1) = 1/8` (the hat's mass in the box).
+#[test]
+fn nee_hat_samples_match_the_trilinear_pdf_chi2() {
+    let volume = emitter_volume(skewed_transform());
+    let nee = EmitterDistribution::build(&volume, power).unwrap().expect("emits").for_interpolation(plume::volume::Interpolation::Linear);
+    let plume::volume::Bounds3 { lo, hi } = volume.index_bounds();
+    // Voxel boxes that can receive samples: the volume's grown by one voxel
+    let (vlo, vhi) = ((lo + 0.5).as_ivec3() - 1, (hi + 0.5).as_ivec3() + 1);
+    let extent = vhi - vlo;
+    let slot = |v: IVec3| {
+        let r = v - vlo;
+        (r.x + extent.x * (r.y + extent.y * r.z)) as usize
+    };
+    let mut weights = vec![0.0; (extent.x * extent.y * extent.z) as usize];
+    for z in vlo.z + 1..vhi.z - 1 {
+        for y in vlo.y + 1..vhi.y - 1 {
+            for x in vlo.x + 1..vhi.x - 1 {
+                let v = IVec3::new(x, y, z);
+                let plume::volume::VoxelValues { density: d, source: s } = volume.voxel(v);
+                let p = power(d, s);
+                if p == 0.0 {
+                    continue;
+                }
+                for k in 0..27 {
+                    let o = IVec3::new(k % 3 - 1, (k / 3) % 3 - 1, k / 9 - 1);
+                    let w: f64 = (0..3).map(|a| if o[a] == 0 { 0.75 } else { 0.125 }).product();
+                    weights[slot(v + o)] += p * w;
+                }
+            }
+        }
+    }
+    let total: f64 = weights.iter().sum();
+    // ∫ p_V = 1: the pdf is trilinear on every dual cell, so the midpoint rule on 2³
+    // sub-cells of each dual cell is exact
+    let (inverse, forward, vv) = (volume.index_from_world(), volume.world_from_index(), volume.voxel_volume());
+    let mut integral = 0.0;
+    for z in 2 * vlo.z..2 * vhi.z {
+        for y in 2 * vlo.y..2 * vhi.y {
+            for x in 2 * vlo.x..2 * vhi.x {
+                let p = (IVec3::new(x, y, z).as_dvec3() + 0.5) * 0.5;
+                integral += nee.pdf(forward.transform_point3(p)) * vv / 8.0;
+            }
+        }
+    }
+    assert!((integral - 1.0).abs() < 1e-9, "∫ p_V = {integral}");
+    let n = 1_000_000;
+    let mut observed = vec![0.0; weights.len()];
+    let mut sampler = rng(37);
+    for _ in 0..n {
+        let s = nee.sample(sampler.next_f64(), [sampler.next_f64(), sampler.next_f64(), sampler.next_f64()]);
+        let p = inverse.transform_point3(s.p_world);
+        assert!((p - s.voxel.as_dvec3()).abs().max_element() < 1.0 + 1e-9, "{p} outside the hat of {}", s.voxel);
+        let again = nee.pdf(s.p_world);
+        assert!(s.pdf > 0.0 && (again - s.pdf).abs() <= 1e-9 * s.pdf, "sample pdf {} vs pdf {again}", s.pdf);
+        observed[slot((p + 0.5).floor().as_ivec3())] += 1.0;
+    }
+    let expected: Vec<f64> = weights.iter().map(|w| n as f64 * w / total).collect();
+    chi2_test("nee_hat_voxels", &observed, &expected, ALPHA, TESTS);
+}
+
+
 #[test]
 fn nee_voxel_pdfs_chi2_and_bitwise_agreement() {
     let volume = emitter_volume(skewed_transform());

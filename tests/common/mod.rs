@@ -178,8 +178,8 @@ pub fn grid_emission(convention: Convention) -> Emission {
 /// Family-wise significance level of the sampling tier's chi² tests, both files together.
 pub const SAMPLING_ALPHA: f64 = 0.01;
 /// Number of chi² tests in the sampling tier: HG ×5, alias (`sampling.rs`); proxy cells ×2,
-/// FNEE ×3, NEE (`light_sampling.rs`).
-pub const SAMPLING_TESTS: usize = 5 + 1 + 2 + 3 + 1;
+/// FNEE ×3, NEE in voxel boxes and from the trilinear hat (`light_sampling.rs`).
+pub const SAMPLING_TESTS: usize = 5 + 1 + 2 + 3 + 2;
 
 /// The sampler of the sampling tier's tests: `seed`, pixel 0, sample 0.
 pub fn rng(seed: u64) -> Sampler {

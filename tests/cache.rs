@@ -43,17 +43,22 @@ fn cached_renders_are_bit_identical_to_in_core_renders() {
     let o = plume(&["prepare", s(&vdb), "-o", s(&cache)]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(!stale.exists(), "a dead conversion's temporary is removed");
-    // Every estimator and light sampling; FNEE uses the stored proxy power
+    // Every estimator and light sampling; FNEE uses the stored proxy power. Trilinear
+    // reconstruction (the default) unless a case says nearest.
     for (name, flags) in [
         ("line-fnee", &["--albedo", "0.8", "--g", "0.3"][..]),
         ("point-nee", &["--method", "point-nee", "--albedo", "0.8"]),
         ("ray-march", &["--method", "ray-march"]),
         ("fnee proxy 16 (rebuilt from bricks)", &["--albedo", "0.5", "--proxy-resolution", "16"]),
         ("scaled and tinted", &["--albedo", "0.7", "--emission-scale", "3", "--emission-color", "1,0.5,0.25", "--density-scale", "4"]),
+        ("line-fnee, nearest", &["--albedo", "0.8", "--interpolation", "nearest"]),
     ] {
         let a = render(&vdb, &dir.join("a.exr"), flags);
         let b = render(&cache, &dir.join("b.exr"), flags);
         assert_bitwise(&a, &b, name);
+        let scene = plume::output::read_exr_contents(&dir.join("b.exr")).unwrap().metadata.remove("plume:scene").unwrap_or_default();
+        let expected = if flags.contains(&"nearest") { "interpolation = \"nearest\"" } else { "interpolation = \"linear\"" };
+        assert!(scene.contains(expected), "{name}: rendered with {expected}? {scene}");
     }
     // Tile-major order with read-ahead from the mapped cache, against progressive in core
     let flags = ["--albedo", "0.8", "--g", "0.3"];

@@ -53,25 +53,57 @@ fn every_method_preset_renders_and_reports_its_counters() {
 
 #[test]
 fn debug_pixel_replays_the_rendered_sample() {
-    // One sample per pixel: the replayed sample must equal the rendered pixel exactly.
+    // One sample per pixel: the replayed sample must equal the rendered pixel exactly, with
+    // scattering, for line + FNEE and point + NEE, for both reconstructions (trilinear
+    // draws NEE points from its own hat and evaluates pieces, not voxels).
     let d = tmpdir("clim", "debug");
     let ex = explosion(&d, 48, None);
-    let out = d.join("one.exr");
-    let common = ["--albedo", "0.8", "--spp", "1", "--width", "20", "--height", "14", "--density-scale", "4", "--seed", "5", "-q"];
-    let mut args = vec!["render", s(&ex), "-o", s(&out)];
-    args.extend_from_slice(&common);
-    assert!(plume(&args).status.success());
-    let px = exr_pixels(&out)[7 * 20 + 10];
-    let mut args = vec!["render", s(&ex), "-o", s(&out), "--debug-pixel", "10,7,0"];
-    args.extend_from_slice(&common);
-    let o = plume(&args);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert!(err.contains("plume: debug 10,7,0: segment depth 0"), "{err}");
-    let printed = String::from_utf8_lossy(&o.stdout);
-    let values: Vec<f64> = printed.trim().trim_matches(|c| c == '[' || c == ']').split(',').map(|v| v.trim().parse().unwrap()).collect();
-    for c in 0..4 {
-        assert_eq!(values[c] as f32, px[c], "channel {c}: replay {values:?} vs pixel {px:?}");
+    for interpolation in ["linear", "nearest"] {
+        for method in ["line-fnee", "point-nee"] {
+            let out = d.join(format!("{interpolation}-{method}.exr"));
+            let common = [
+                "--albedo",
+                "0.8",
+                "--spp",
+                "1",
+                "--width",
+                "20",
+                "--height",
+                "14",
+                "--density-scale",
+                "4",
+                "--seed",
+                "5",
+                "-q",
+                "--interpolation",
+                interpolation,
+                "--method",
+                method,
+            ];
+            let mut args = vec!["render", s(&ex), "-o", s(&out)];
+            args.extend_from_slice(&common);
+            assert!(plume(&args).status.success());
+            // The pixel nearest the centre whose path collided (alpha 1) and carries light,
+            // so that the replay goes through a scattering vertex and its light sample
+            let pixels = exr_pixels(&out);
+            let distance = |i: usize| (i % 20).abs_diff(10) + (i / 20).abs_diff(7);
+            let i = (0..pixels.len()).filter(|&i| pixels[i][3] == 1.0 && pixels[i][0] > 0.0).min_by_key(|&i| distance(i)).expect("a scattered path");
+            let (px, at) = (pixels[i], format!("{},{},0", i % 20, i / 20));
+            let mut args = vec!["render", s(&ex), "-o", s(&out), "--debug-pixel", &at];
+            args.extend_from_slice(&common);
+            let o = plume(&args);
+            assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+            let err = String::from_utf8_lossy(&o.stderr);
+            let light = if method == "line-fnee" { "fnee:" } else { "nee:" };
+            for needle in [format!("plume: debug {at}: segment depth 0"), format!("plume: debug {at}: segment depth 1"), light.to_string()] {
+                assert!(err.contains(&needle), "{interpolation} {method}: no {needle:?} in {err}");
+            }
+            let printed = String::from_utf8_lossy(&o.stdout);
+            let values: Vec<f64> = printed.trim().trim_matches(|c| c == '[' || c == ']').split(',').map(|v| v.trim().parse().unwrap()).collect();
+            for c in 0..4 {
+                assert_eq!(values[c] as f32, px[c], "{interpolation} {method} channel {c}: replay {values:?} vs pixel {px:?}");
+            }
+        }
     }
 }
 

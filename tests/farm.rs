@@ -374,6 +374,8 @@ fn four_tiles_times_two_sample_ranges_merge_bit_identical_to_one_render() {
     assert_eq!(meta(&merged, "sampleRange"), "0..6");
     assert_eq!(meta(&merged, "mergedParts"), "8");
     assert_eq!(meta(&merged, "settingsHash"), meta(&single, "settingsHash"));
+    // With the default reconstruction, trilinear: this is also the linear + scattering check
+    assert!(meta(&single, "scene").contains("interpolation = \"linear\""), "{}", meta(&single, "scene"));
     let c = read_exr_contents(&parts[0]).unwrap();
     assert_eq!((c.width, c.height), (37, 23), "display window: the whole image");
     assert!(c.crop.width() < 37, "data window: the tile");

@@ -136,8 +136,10 @@ impl SceneFile {
     }
 }
 
-/// Apply `f` to every path of `shot` (inputs, outputs, cache directory).
+/// Apply `f` to every path of `shot` (inputs, outputs, cache directory) that is given:
+/// an empty path means "not given" and stays empty, so validation can say it is required.
 pub fn resolve_paths(shot: &mut Shot, f: impl Fn(&Path) -> PathBuf) {
+    let f = |p: &Path| if p.as_os_str().is_empty() { PathBuf::new() } else { f(p) };
     let s = &mut shot.settings;
     shot.scene.volume.file = f(&shot.scene.volume.file);
     s.output.image = f(&s.output.image);

@@ -448,7 +448,6 @@ fn nee_hat_samples_match_the_trilinear_pdf_chi2() {
     chi2_test("nee_hat_voxels", &observed, &expected, ALPHA, TESTS);
 }
 
-
 #[test]
 fn nee_voxel_pdfs_chi2_and_bitwise_agreement() {
     let volume = emitter_volume(skewed_transform());

@@ -183,10 +183,7 @@ fn every_method_gives_the_same_image_means_on_thin_and_dense_explosions() {
                 let got = region_means(&scene, integrator(est, ls, mis, 64), 8, 12, 7);
                 for (k, ((m, se), (rm, rse))) in got.iter().zip(&reference).enumerate() {
                     let z = (m - rm) / (se * se + rse * rse).sqrt().max(1e-12);
-                    assert!(
-                        z.abs() < 4.2,
-                        "{interpolation} σ_t={sigma_t} {est:?}/{ls:?}/{mis:?} region {k}: {m} ± {se} vs {rm} ± {rse} (z = {z:.2})"
-                    );
+                    assert!(z.abs() < 4.2, "{interpolation} σ_t={sigma_t} {est:?}/{ls:?}/{mis:?} region {k}: {m} ± {se} vs {rm} ± {rse} (z = {z:.2})");
                 }
             }
         }
@@ -196,8 +193,10 @@ fn every_method_gives_the_same_image_means_on_thin_and_dense_explosions() {
 #[test]
 fn proxy_resolution_changes_variance_not_the_mean() {
     let integ = integrator(Estimator::Line, LightSampling::Fnee, MisHeuristic::Power, 64);
-    let results: Vec<_> =
-        [8u32, 16, 32].iter().map(|&r| region_means(&explosion_scene(8.0, LightSampling::Fnee, r, Interpolation::Nearest), integ, 8, 12, 50 + u64::from(r))).collect();
+    let results: Vec<_> = [8u32, 16, 32]
+        .iter()
+        .map(|&r| region_means(&explosion_scene(8.0, LightSampling::Fnee, r, Interpolation::Nearest), integ, 8, 12, 50 + u64::from(r)))
+        .collect();
     for other in &results[1..] {
         for ((m, se), (rm, rse)) in other.iter().zip(&results[0]) {
             let z = (m - rm) / (se * se + rse * rse).sqrt();

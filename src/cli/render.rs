@@ -17,8 +17,8 @@ use plume::integrator::{LightSampling, MisHeuristic};
 use plume::medium::Convention;
 use plume::scene::file::{is_scene_file, SceneFile};
 use plume::scene::{
-    ByteSize, CameraSettings, EmissionSettings, EmissionSource, EstimatorKind, IntegratorSettings, Interpolation, MediumSettings, Method, ProgressFormat, ReadSettings,
-    RenderOptions, SampleOrderChoice, Shot, TileIndex, UpAxis, ValidShot, VolumeInput,
+    ByteSize, CameraSettings, EmissionSettings, EmissionSource, EstimatorKind, IntegratorSettings, Interpolation, MediumSettings, Method, ProgressFormat,
+    ReadSettings, RenderOptions, SampleOrderChoice, Shot, TileIndex, UpAxis, ValidShot, VolumeInput,
 };
 
 use super::flags::{choice, parse_size, parse_vec3};

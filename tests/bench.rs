@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{exr_pixels, plume, s, tmpdir};
+use common::{data, exr_pixels, plume, s, tmpdir};
 use glam::IVec3;
 use plume::bench::compare::{compare, make_reference, read_reference, CompareConfig};
 use plume::bench::extremes::{self, box_grid, ExtremesConfig};
@@ -252,5 +252,50 @@ fn non_finite_voxels_in_a_file_are_clamped_and_counted_or_refused_by_name() {
         }
         other => panic!("exit {other:?}: {stderr}"),
     }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn interpolation_bench_runs_at_a_tiny_size_with_sane_figures() {
+    let dir = tmpdir("bench-test", "interpolation");
+    let (json, png) = (dir.join("i.json"), dir.join("closeup.png"));
+    let data = data("");
+    #[rustfmt::skip]
+    let o = plume(&[
+        "bench", "interpolation", "--data", s(&data), "--files", "smoke1", "--width", "16", "--height", "12", "--time", "0.01", "--repeats", "2",
+        "--rule-files", "explosion/mantaflow_explosion_kelvin_0020.vdb", "--rule-width", "16", "--rule-height", "12", "--rule-step", "0.25",
+        "--pictures", s(&png), "--closeup-width", "24", "--closeup-height", "16", "--closeup-spp", "1", "--json", s(&json),
+    ]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{stderr}");
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(stdout.contains("linear cost ÷ nearest") && stdout.contains("dual pyramid") && stdout.contains("Cycles' rule"), "{stdout}");
+    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    let cost = report["cost"].as_array().unwrap();
+    assert_eq!(cost.len(), 4, "ray-march, line, line-fnee, point-nee");
+    for row in cost {
+        let ratio = row["cost_ratio"].as_f64().unwrap();
+        assert!(ratio.is_finite() && ratio > 0.0, "{row}");
+        assert_eq!(row["nearest"]["runs"].as_array().unwrap().len(), 2);
+        assert!(row["linear"]["pieces_per_sample"].as_f64().unwrap() > 0.0, "{row}");
+    }
+    let memory = &report["memory"][0];
+    let percent = memory["percent"].as_f64().unwrap();
+    assert!(percent > 0.0 && percent <= 10.0, "the dual pyramid adds at most 10 %: {memory}");
+    let rule = report["rule"]["rows"].as_array().unwrap();
+    assert_eq!(rule.len(), 2, "cycles and physical conventions");
+    for row in rule {
+        for key in ["mean_difference_percent", "relrmse", "rmse_over_mean"] {
+            assert!(row[key].as_f64().unwrap().is_finite(), "{key}: {row}");
+        }
+        assert!(row["cycles_mean"].as_f64().unwrap() > 0.0, "{row}");
+    }
+    let png = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(&png).unwrap()));
+    let info = png.read_info().unwrap();
+    assert!(info.info().width >= 2 * 24 && info.info().height >= 16);
+    // An unknown file name is refused, naming the flag
+    let o = plume(&["bench", "interpolation", "--data", s(&data), "--files", "nope", "--rule-files", "explosion/mantaflow_explosion_kelvin_0020.vdb"]);
+    assert_eq!(o.status.code(), Some(2), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--files"));
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -7,11 +7,14 @@
 //! - `compare`: any scene and flags, any methods, equal CPU time and equal spp against a
 //!   given or computed reference, several seeds, RMSE / relMSE / bias, CSV, JSON, plots;
 //! - `extremes`: the numerical-extremes sweep with closed forms;
+//! - `interpolation`: trilinear against nearest reconstruction on real files: cost per
+//!   sample, memory, plume's emission rule against Cycles', a close-up picture;
 //! - `report`: the whole suite behind `docs/BENCHMARKS.md`.
 
 pub mod compare;
 pub mod core;
 pub mod extremes;
+pub mod interpolation;
 pub mod methods;
 pub mod metrics;
 pub mod options;

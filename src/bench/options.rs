@@ -1,6 +1,6 @@
-//! What `plume bench compare`, `plume bench extremes` and `plume bench report` are asked
-//! to do, as plain settings (the binary fills them from flags), and the commands they
-//! run.
+//! What `plume bench compare`, `plume bench extremes`, `plume bench interpolation` and
+//! `plume bench report` are asked to do, as plain settings (the binary fills them from
+//! flags), and the commands they run.
 
 use std::path::PathBuf;
 
@@ -127,6 +127,28 @@ impl ExtremesOptions {
             return Err(Error::Scene(format!("{failed} extremes checks failed (see the table)")));
         }
         Ok(())
+    }
+}
+
+/// `plume bench interpolation`.
+#[derive(Clone, Debug)]
+pub struct InterpolationOptions {
+    /// What to measure.
+    pub config: super::interpolation::InterpolationConfig,
+    /// Also write the figures as JSON here.
+    pub json: Option<PathBuf>,
+}
+
+impl InterpolationOptions {
+    /// Run the benchmark: Markdown on stdout, progress on stderr, JSON and picture files.
+    ///
+    /// # Errors
+    /// See [`super::interpolation::run`]; an unwritable JSON file.
+    pub fn run(&self) -> Result<()> {
+        let report = super::interpolation::run(&self.config, &|l| eprintln!("plume: {l}"))?;
+        let picture = self.config.closeup.as_ref().map(|c| c.path.display().to_string());
+        print!("{}", report.markdown(&self.config.command(), picture.as_deref()));
+        super::write_json(&self.json, &report)
     }
 }
 

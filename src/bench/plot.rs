@@ -277,3 +277,40 @@ pub fn crop_montage(report: &CompareReport, path: &Path) -> Result<()> {
     }
     write_rgb_png(path, mw as u32, mh as u32, &buf)
 }
+
+/// Images of one size side by side at one exposure (8-bit sRGB, full precision), each
+/// labelled below: `(label, row-major RGBA)`.
+///
+/// # Errors
+/// Drawing or writing fails.
+///
+/// # Panics
+/// If an image is not `width × height`.
+pub fn side_by_side(path: &Path, width: u32, height: u32, panels: &[(String, &[[f32; 4]])], exposure: f32) -> Result<()> {
+    font_ready();
+    let (w, h) = (width as usize, height as usize);
+    let (gap, label_h) = (4, 24);
+    let (mw, mh) = (panels.len() * (w + gap) + gap, h + label_h + 2 * gap);
+    let mut buf = vec![255u8; mw * mh * 3];
+    for (k, (_, img)) in panels.iter().enumerate() {
+        assert_eq!(img.len(), w * h, "panel {k} is not {width}x{height}");
+        let ox = gap + k * (w + gap);
+        for y in 0..h {
+            for x in 0..w {
+                let o = ((gap + y) * mw + ox + x) * 3;
+                for c in 0..3 {
+                    buf[o + c] = srgb8(img[y * w + x][c] * exposure);
+                }
+            }
+        }
+    }
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (mw as u32, mh as u32)).into_drawing_area();
+        for (k, (label, _)) in panels.iter().enumerate() {
+            let (x, y) = ((gap + k * (w + gap)) as i32 + 2, (gap + h) as i32 + 4);
+            root.draw(&Text::new(label.clone(), (x, y), ("sans-serif", 15).into_font().color(&BLACK))).map_err(plot_err)?;
+        }
+        root.present().map_err(plot_err)?;
+    }
+    write_rgb_png(path, mw as u32, mh as u32, &buf)
+}

@@ -7,7 +7,9 @@
 //! 2. the FNEE proxy-resolution sweep (8³ … full) on the dense explosion;
 //! 3. the openvdb.org smoke and the Disney cloud (1/16), each lit by its own density as
 //!    emission (`--emission grid --emission-grid density`), scattering;
-//! 4. the numerical-extremes sweep ([`super::extremes`]).
+//! 4. trilinear against nearest reconstruction on the real explosions and smoke
+//!    ([`super::interpolation`]): cost per sample, memory, emission rule, close-up;
+//! 5. the numerical-extremes sweep ([`super::extremes`]).
 //!
 //! Budgets are CPU seconds (see [`super::progressive`]); `--time-scale` multiplies them
 //! all, for a quick smoke test of the pipeline.
@@ -270,6 +272,7 @@ pub fn run(args: &ReportOptions) -> Result<()> {
         let title = format!("{} ({})", if name == "smoke" { "openvdb.org smoke" } else { "Disney cloud, 1/16" }, file);
         suite.section(&title, name, intro, &mut scene, &reference, METHODS)?;
     }
+    interpolation_section(&mut suite)?;
     // Extremes
     (suite.log)("== extremes");
     let cfg = super::extremes::ExtremesConfig { box_voxels: 32, explosion_resolution: 64, size: 48, spp: 16 };
@@ -282,6 +285,33 @@ pub fn run(args: &ReportOptions) -> Result<()> {
         EXTREMES_INTRO, cfg.box_voxels, cfg.explosion_resolution, cfg.size, cfg.spp, ex.table()
     );
     write_document(args, &suite.md, &regimes, start.elapsed().as_secs_f64(), &load_start)
+}
+
+/// Trilinear against nearest ([`super::interpolation`]), its picture in `DIR/img`, its
+/// JSON in `DIR/bench`; skipped when a data file is missing.
+fn interpolation_section(suite: &mut Suite<'_>) -> Result<()> {
+    (suite.log)("== interpolation");
+    let out = &suite.args.out;
+    let picture = out.join("img").join("interpolation-closeup.png");
+    let mut cfg = super::interpolation::InterpolationConfig::standard(suite.args.data.clone(), Some(picture));
+    cfg.cpu_seconds = suite.seconds(cfg.cpu_seconds);
+    let title = "## Interpolation: trilinear vs nearest";
+    let missing = cfg.missing_files();
+    if !missing.is_empty() {
+        let names: Vec<String> = missing.iter().map(|p| p.display().to_string()).collect();
+        let _ = writeln!(suite.md, "{title}\n\nSkipped: {} not found.\n", names.join(", "));
+        return Ok(());
+    }
+    let report = super::interpolation::run(&cfg, suite.log)?;
+    let json = out.join("bench").join("interpolation.json");
+    super::write_json(&Some(json.clone()), &report)?;
+    let command = format!("{} --json {}", cfg.command(), json.display());
+    let _ = writeln!(
+        suite.md,
+        "{title}\n\n`--interpolation linear` (the default) against `nearest` on the real files: what trilinear reconstruction costs per sample, what memory it adds, how its emission rule differs from Cycles', and what it looks like (METHOD.md §12; README, \"Interpolation\").\n\n{}Data: [`bench/interpolation.json`](bench/interpolation.json).\n",
+        report.markdown(&command, Some("img/interpolation-closeup.png"))
+    );
+    Ok(())
 }
 
 const EXTREMES_INTRO: &str = "Boxes of constant density and emission seen head-on, where `L = L_e (1 − e^{−μd})/μ` (METHOD.md §11.1), and the generated explosion at voxel sizes from 1e-4 to 1e4.\n\n\

@@ -5,8 +5,9 @@
 use std::path::PathBuf;
 
 use clap::{ArgMatches, Args, CommandFactory, FromArgMatches, Subcommand};
+use plume::bench::interpolation::{closeup::CloseupConfig, rule::RuleConfig, InterpolationConfig};
 use plume::bench::metrics::RELMSE_EPSILON;
-use plume::bench::options::{default_work_dir, CompareOptions, ExtremesOptions, ReportOptions};
+use plume::bench::options::{default_work_dir, CompareOptions, ExtremesOptions, InterpolationOptions, ReportOptions};
 use plume::bench::write_json;
 use plume::error::{Error, Result};
 use plume::integrator::MisHeuristic;
@@ -31,6 +32,10 @@ pub enum BenchCommand {
     /// Numerical extremes: density scales, temperatures, voxel sizes and NaN/inf/negative
     /// voxels, checked against closed forms.
     Extremes(ExtremesArgs),
+    /// Trilinear against nearest reconstruction on real files: cost per sample (linear ÷
+    /// nearest, samples per CPU second), dual-pyramid memory, plume's emission rule
+    /// against Cycles', and a close-up picture pair (--pictures).
+    Interpolation(InterpolationArgs),
     /// The whole benchmark suite behind docs/BENCHMARKS.md (tables and plots).
     Report(ReportArgs),
 }
@@ -165,6 +170,92 @@ pub struct ExtremesArgs {
     pub json: Option<PathBuf>,
 }
 
+/// `plume bench interpolation`.
+#[derive(Debug, Args)]
+pub struct InterpolationArgs {
+    /// Directory of the shared data (explosion/, smoke/).
+    #[arg(long, default_value = "../shared/data")]
+    pub data: PathBuf,
+    /// Files of the cost and memory tables, comma-separated: kelvin40 (Mantaflow explosion,
+    /// Kelvin), blender40 (Blender's cache, flame_noise), r192 (the larger run), smoke1
+    /// (openvdb.org).
+    #[arg(long, value_delimiter = ',', default_value = "kelvin40,blender40,r192,smoke1")]
+    pub files: Vec<String>,
+    /// Image width of the cost renders.
+    #[arg(long, default_value_t = 160)]
+    pub width: u32,
+    /// Image height of the cost renders.
+    #[arg(long, default_value_t = 120)]
+    pub height: u32,
+    /// Target CPU seconds of one timed nearest render (sets the spp; linear renders the
+    /// same spp).
+    #[arg(long, default_value_t = 0.5)]
+    pub time: f64,
+    /// Timed renders per reconstruction and method, alternated; medians are reported.
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=100))]
+    pub repeats: u32,
+    /// Threads of the cost renders (0 = all cores). One by default: CPU time is then the
+    /// work done, not idle workers.
+    #[arg(long, default_value_t = 1)]
+    pub threads: usize,
+    /// Files of the emission-rule comparison, under --data, comma-separated (default:
+    /// every explosion/mantaflow_explosion_kelvin_*.vdb).
+    #[arg(long, value_delimiter = ',')]
+    pub rule_files: Vec<PathBuf>,
+    /// Image width of the emission-rule comparison.
+    #[arg(long, default_value_t = 320)]
+    pub rule_width: u32,
+    /// Image height of the emission-rule comparison.
+    #[arg(long, default_value_t = 240)]
+    pub rule_height: u32,
+    /// Largest index-space step of the emission-rule march, in voxels.
+    #[arg(long, default_value_t = 0.125)]
+    pub rule_step: f64,
+    /// Write the close-up pair (nearest | linear) as this PNG.
+    #[arg(long)]
+    pub pictures: Option<PathBuf>,
+    /// Width of each half of the close-up.
+    #[arg(long, default_value_t = 400)]
+    pub closeup_width: u32,
+    /// Height of the close-up.
+    #[arg(long, default_value_t = 300)]
+    pub closeup_height: u32,
+    /// Samples per pixel of the close-up.
+    #[arg(long, default_value_t = 8)]
+    pub closeup_spp: u32,
+    /// Voxel edge at the close-up's focus, in pixels.
+    #[arg(long, default_value_t = 6.0)]
+    pub closeup_pixels_per_voxel: f64,
+    /// Also write the figures as JSON here.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+}
+
+impl InterpolationArgs {
+    /// The library's configuration.
+    fn config(&self) -> InterpolationConfig {
+        InterpolationConfig {
+            data: self.data.clone(),
+            files: self.files.iter().filter(|f| !f.is_empty()).cloned().collect(),
+            width: self.width,
+            height: self.height,
+            cpu_seconds: self.time,
+            repeats: self.repeats,
+            threads: self.threads,
+            rule: RuleConfig { files: self.rule_files.clone(), width: self.rule_width, height: self.rule_height, step_voxels: self.rule_step },
+            closeup: self.pictures.as_ref().map(|path| CloseupConfig {
+                path: path.clone(),
+                file: PathBuf::from(plume::bench::interpolation::CLOSEUP_FILE),
+                width: self.closeup_width,
+                height: self.closeup_height,
+                spp: self.closeup_spp,
+                pixels_per_voxel: self.closeup_pixels_per_voxel,
+                threads: 0,
+            }),
+        }
+    }
+}
+
 /// `plume bench report`.
 #[derive(Debug, Args)]
 pub struct ReportArgs {
@@ -235,6 +326,15 @@ pub fn run(command: BenchCommand, _matches: Option<&ArgMatches>) -> Result<()> {
         BenchCommand::Extremes(args) => {
             ExtremesOptions { box_voxels: args.box_voxels, explosion_resolution: args.explosion_resolution, size: args.size, spp: args.spp, json: args.json }
                 .run()
+        }
+        BenchCommand::Interpolation(args) => {
+            if !(args.time.is_finite() && args.time > 0.0) {
+                return Err(Error::invalid("--time", format!("{} must be a positive number of CPU seconds", args.time)));
+            }
+            if !(args.closeup_pixels_per_voxel.is_finite() && args.closeup_pixels_per_voxel > 0.0) {
+                return Err(Error::invalid("--closeup-pixels-per-voxel", format!("{} must be positive", args.closeup_pixels_per_voxel)));
+            }
+            InterpolationOptions { config: args.config(), json: args.json.clone() }.run()
         }
         BenchCommand::Report(args) => {
             ReportOptions { out: args.out, time_scale: args.time_scale, resolution: args.resolution, data: args.data, work_dir: args.work_dir }.run()

@@ -67,6 +67,20 @@ impl AnyScene {
         }
     }
 
+    /// The same scene reconstructed by `interpolation`: the volume is moved, never copied
+    /// or re-read; trilinear builds its dual pyramid, nearest drops it. NEE follows.
+    #[must_use]
+    pub fn into_interpolation(self, interpolation: Interpolation) -> AnyScene {
+        match (self, interpolation) {
+            (AnyScene::Nearest(s), i) => AnyScene::new(s, i),
+            (AnyScene::Linear(s), Interpolation::Nearest) => {
+                let Scene { field, medium, camera, lights } = s;
+                AnyScene::Nearest(Scene { field: field.into_volume(), medium, camera, lights: lights.for_interpolation(Interpolation::Nearest) })
+            }
+            (linear, Interpolation::Linear) => linear,
+        }
+    }
+
     /// How the volume is reconstructed.
     #[must_use]
     pub fn interpolation(&self) -> Interpolation {

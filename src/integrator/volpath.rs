@@ -281,7 +281,13 @@ impl Integrator {
                             if tau > 0.0 {
                                 // L_e and ρ at y as the field reconstructs them (the table's
                                 // pdf follows the same reconstruction: light/nee.rs)
-                                let PointValues { density: dy, emission: le } = scene.field.reconstruct(vs.p_world, &|d, s| m.emission.le(d, s));
+                                let PointValues { density: dy, emission: le } = if m.emission.interpolates_source() {
+                                    // Cycles' rule: the emission of the interpolated values
+                                    let v = scene.field.values_at(vs.p_world);
+                                    PointValues { density: v.density, emission: m.emission.le(v.density, v.source).to_f64() }
+                                } else {
+                                    scene.field.reconstruct(vs.p_world, &|d, s| m.emission.le(d, s))
+                                };
                                 let f = hg_pdf(m.g, ray.direction.dot(wi));
                                 let w_l = if point_nee { self.mis.weight(vs.pdf, f * m.mu_t(dy) * tau / r2) } else { 1.0 };
                                 add(&mut l, beta * f * tau * w_l / (vs.pdf * r2), le);

@@ -121,11 +121,11 @@ pub fn track<F: Field>(
 ) -> TrackResult {
     match estimator {
         Estimator::RayMarch => track_expected(field, medium, ray, t_max, need_collision, u, sampler),
-        _ => track_free_path(field, medium, ray, t_max, estimator, u),
+        _ => track_free_path(field, medium, ray, t_max, estimator, u, sampler),
     }
 }
 
-fn track_free_path<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, estimator: Estimator, u: f64) -> TrackResult {
+fn track_free_path<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, estimator: Estimator, u: f64, sampler: &mut Sampler) -> TrackResult {
     let e = sample_exponential(u);
     let mut od = 0.0f64;
     let mut f = [0.0f64; 3];
@@ -135,7 +135,7 @@ fn track_free_path<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, 
         segments += 1;
         let Some(seg) = piece.constant() else {
             // A polynomial piece (trilinear reconstruction, METHOD.md §12)
-            if let Some(event) = free_path_polynomial(&piece, medium, estimator, e, &mut od, &mut f) {
+            if let Some(event) = free_path_polynomial(&piece, medium, estimator, e, &mut od, &mut f, sampler) {
                 return TrackResult { event, emission: f, transmittance: 0.0, optical_depth: e, segments, voxel_steps: it.voxel_steps() };
             }
             continue;
@@ -177,16 +177,54 @@ fn add_scaled(acc: &mut [f64; 3], v: [f64; 3], w: f64) {
     }
 }
 
+/// `L_e` at `u` on a polynomial piece, by the medium's rule: each voxel's emission
+/// interpolated, or (Cycles' rule, [`crate::medium::Emission::interpolates_source`]) the
+/// emission of the interpolated density and temperature.
+#[inline]
+fn emission_at<P: Piece>(piece: &P, medium: &Medium, u: f64) -> [f64; 3] {
+    let le = |d: f32, s: f32| medium.emission.le(d, s);
+    if medium.emission.interpolates_source() {
+        piece.emission_of_values_at(&le, u)
+    } else {
+        piece.emission_at(&le, u)
+    }
+}
+
+/// An unbiased estimate of `∫₀ᵘ L_e ds` on a polynomial piece: the closed form when each
+/// voxel's emission is interpolated (a cubic); under Cycles' rule, where the blackbody of
+/// an interpolated temperature has no closed form, the one-point rule `u L_e(ξu)` with a
+/// fresh `ξ` (unbiased; drawn only where the piece can emit).
+#[inline]
+fn emission_integral<P: Piece>(piece: &P, medium: &Medium, u: f64, sampler: &mut Sampler) -> [f64; 3] {
+    if !piece.may_emit() || u <= 0.0 {
+        return [0.0; 3];
+    }
+    if medium.emission.interpolates_source() {
+        let xi = sampler.next_f64();
+        emission_at(piece, medium, xi * u).map(|c| c * u)
+    } else {
+        piece.emission_integral(&|d: f32, s: f32| medium.emission.le(d, s), u)
+    }
+}
+
 /// One polynomial piece of a free path: the same estimators as the constant case, with
 /// the piece's closed forms (METHOD.md §12):
 /// - the collision solves `OD(u) = E − OD_before` exactly ([`Piece::free_path`]);
-/// - point: `L_e(u_c)/μ(u_c)`; line: `∫₀^{u_c} L_e du` (closed form), or over the whole piece;
+/// - point: `L_e(u_c)/μ(u_c)`; line: `∫₀^{u_c} L_e du` ([`emission_integral`]), or over
+///   the whole piece;
 /// - blend: the piece's `α = 1/(1 + κ OD_piece)`, which does not depend on where the
 ///   collision falls, so the mix of two unbiased estimates stays unbiased.
 ///
 /// Adds to `od` and `f`; returns the collision, if the free path ends here.
-fn free_path_polynomial<P: Piece>(piece: &P, medium: &Medium, estimator: Estimator, e: f64, od: &mut f64, f: &mut [f64; 3]) -> Option<DistanceSample> {
-    let le = |d: f32, s: f32| medium.emission.le(d, s);
+fn free_path_polynomial<P: Piece>(
+    piece: &P,
+    medium: &Medium,
+    estimator: Estimator,
+    e: f64,
+    od: &mut f64,
+    f: &mut [f64; 3],
+    sampler: &mut Sampler,
+) -> Option<DistanceSample> {
     let len = piece.length();
     let x = piece.optical_depth(medium.sigma_t, len);
     let alpha = match estimator {
@@ -198,18 +236,18 @@ fn free_path_polynomial<P: Piece>(piece: &P, medium: &Medium, estimator: Estimat
         let u = piece.free_path(medium.sigma_t, e - *od);
         let density = piece.density_at(u);
         if alpha > 0.0 {
-            add_scaled(f, piece.emission_integral(&le, u), alpha);
+            add_scaled(f, emission_integral(piece, medium, u, sampler), alpha);
         }
         let mu = medium.mu_t(density);
         if alpha < 1.0 && mu > 0.0 {
-            add_scaled(f, piece.emission_at(&le, u), (1.0 - alpha) / mu);
+            add_scaled(f, emission_at(piece, medium, u), (1.0 - alpha) / mu);
         }
         let t = (piece.t0() + u).clamp(piece.t0(), piece.t1());
         return Some(DistanceSample::Collided { t, density, source: piece.source_at(u), albedo: piece.albedo_at(u) });
     }
     *od += x;
     if alpha > 0.0 {
-        add_scaled(f, piece.emission_integral(&le, len), alpha);
+        add_scaled(f, emission_integral(piece, medium, len, sampler), alpha);
     }
     None
 }
@@ -272,9 +310,8 @@ fn track_expected<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, n
                         // uniform in it).
                         let xi = *xi.get_or_insert_with(|| sampler.next_f64());
                         let u = xi * len;
-                        let le = |d: f32, s: f32| medium.emission.le(d, s);
                         let tau_u = tau * (-piece.optical_depth(medium.sigma_t, u)).exp();
-                        add_scaled(&mut f, piece.emission_at(&le, u), tau_u * len);
+                        add_scaled(&mut f, emission_at(&piece, medium, u), tau_u * len);
                     }
                 }
             }

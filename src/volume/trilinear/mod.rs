@@ -8,14 +8,15 @@
 //! centres. Along a ray each `f_k` is linear in the local distance `u`, so density is a
 //! cubic on each dual cell ([`poly`]), expanded in `u` directly (never in world `t`).
 //!
-//! **What is interpolated.** Density ρ, and the *per-voxel emission density*
-//! `L_e,i = le(ρ_i, s_i)` (not the temperature): `L_e(u)` is then a cubic per channel and
-//! the line estimator's integral is closed form. Cycles interpolates temperature and
-//! applies the blackbody function afterwards; the difference on real explosions is
-//! measured by `plume bench interpolation` (README, "Interpolation").
-//!
-//! **Traversal.** [`Trilinear`] ([`field`]) walks the dual cells with the hierarchical DDA
-//! of `volume::dda`, on the lattice shifted by ½ ([`dual`]): one walker, two lattices.
+//! **What is interpolated.** Density ρ, and by default the *per-voxel emission density*
+//! `L_e,i = le(ρ_i, s_i)`: `L_e(u)` is then a cubic per channel and the line estimator's
+//! integral is closed form. In `--convention cycles` with blackbody emission
+//! (`medium::Emission::interpolates_source`) plume follows Cycles instead, which
+//! interpolates temperature and applies the blackbody function afterwards: the per-voxel
+//! rule would make those images 4 % brighter than Cycles' (measured by
+//! `plume bench interpolation`, README "Interpolation"), and that convention exists to
+//! match Cycles. There the line estimator integrates each piece by the unbiased
+//! one-point rule (`medium::tracking`).
 //!
 //! **Skipping.** A dual cell in brick `b` reads voxels of bricks `b + {0,1}³`, so the
 //! dual pyramid's level-0 node `b` is the union of the volume pyramid's level-0 nodes

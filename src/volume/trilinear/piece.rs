@@ -88,6 +88,11 @@ struct EmissionCubics {
 
 impl Piece for CubicSegment {
     #[inline]
+    fn may_emit(&self) -> bool {
+        self.corners.iter().any(|c| c.source != 0.0)
+    }
+
+    #[inline]
     fn t0(&self) -> f64 {
         self.t0
     }

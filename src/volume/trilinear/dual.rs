@@ -98,22 +98,6 @@ impl DualCell {
     }
 }
 
-/// A constant piece: every corner `values`, albedo `albedo`; density cubic `[ρ, 0, 0, 0]`.
-/// Its `f0` and `d` are 0 (the cell-local coordinates do not matter, and a merged run of
-/// constant cells has none).
-fn constant_piece(t0: f64, t1: f64, values: VoxelValues, albedo: f32) -> CubicSegment {
-    CubicSegment {
-        t0,
-        t1,
-        density: [f64::from(values.density), 0.0, 0.0, 0.0],
-        f0: DVec3::ZERO,
-        d: DVec3::ZERO,
-        corners: [values; 8],
-        albedo: [albedo; 8],
-        constant: true,
-    }
-}
-
 impl Cells for DualCells<'_> {
     const SHIFT: f64 = 0.0;
     type Piece = CubicSegment;
@@ -199,7 +183,7 @@ impl Cells for DualCells<'_> {
 
     fn piece(&self, cell: DualCell, t0: f64, t1: f64, line: &IndexLine) -> CubicSegment {
         if cell.is_constant() {
-            return constant_piece(t0, t1, cell.corners[0], cell.albedo[0]);
+            return CubicSegment::constant_piece(t0, t1, cell.corners[0], cell.albedo[0]);
         }
         // Cell-local coordinates at the entry, from the unshifted index-space line
         let f0 = (line.o + line.d * t0 - cell.i.as_dvec3()).clamp(DVec3::ZERO, DVec3::ONE);

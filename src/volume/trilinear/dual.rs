@@ -181,6 +181,7 @@ impl Cells for DualCells<'_> {
         DualCell::constant(VoxelValues::ZERO, 1.0)
     }
 
+    #[inline]
     fn piece(&self, cell: DualCell, t0: f64, t1: f64, line: &IndexLine) -> CubicSegment {
         if cell.is_constant() {
             return CubicSegment::constant_piece(t0, t1, cell.corners[0], cell.albedo[0]);

@@ -75,8 +75,19 @@ impl CubicSegment {
         if self.corners.iter().all(|c| c.source == 0.0) {
             return None;
         }
-        let corner_le = self.corners.map(|c| le(c.density, c.source).to_f64());
-        Some(EmissionCubics { channels: std::array::from_fn(|ch| poly::cubic_along(corner_le.map(|e| e[ch]), self.f0, self.d)) })
+        // Corner values channel by channel (plain loops: array maps of arrays did not
+        // optimize, and this runs for every emitting piece)
+        let mut by_channel = [[0.0f64; 8]; 3];
+        for (c, v) in self.corners.iter().enumerate() {
+            if v.source != 0.0 {
+                let e = le(v.density, v.source).0;
+                by_channel[0][c] = f64::from(e[0]);
+                by_channel[1][c] = f64::from(e[1]);
+                by_channel[2][c] = f64::from(e[2]);
+            }
+        }
+        let [r, g, b] = by_channel;
+        Some(EmissionCubics { channels: [poly::cubic_along(r, self.f0, self.d), poly::cubic_along(g, self.f0, self.d), poly::cubic_along(b, self.f0, self.d)] })
     }
 }
 
@@ -166,14 +177,20 @@ impl Piece for CubicSegment {
         if let Some(seg) = self.constant() {
             return seg.emission_at(le, u);
         }
-        self.emission_cubics(le).map_or([0.0; 3], |e| e.channels.map(|a| poly::eval(&a, u)))
+        self.emission_cubics(le).map_or([0.0; 3], |e| {
+            let [r, g, b] = e.channels;
+            [poly::eval(&r, u), poly::eval(&g, u), poly::eval(&b, u)]
+        })
     }
 
     fn emission_integral(&self, le: &impl Fn(f32, f32) -> Rgb, u: f64) -> [f64; 3] {
         if let Some(seg) = self.constant() {
             return seg.emission_integral(le, u);
         }
-        self.emission_cubics(le).map_or([0.0; 3], |e| e.channels.map(|a| poly::integral(&a, u)))
+        self.emission_cubics(le).map_or([0.0; 3], |e| {
+            let [r, g, b] = e.channels;
+            [poly::integral(&r, u), poly::integral(&g, u), poly::integral(&b, u)]
+        })
     }
 }
 

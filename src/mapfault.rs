@@ -62,8 +62,14 @@ const PREFIX: &[u8] = b"plume: error: ";
 /// Between the file and the byte offset.
 const MIDDLE: &[u8] = b": byte ";
 /// After the byte offset.
-const TAIL: &[u8] = b" of the mapped file could not be read (SIGBUS: the file was truncated by another process while in use, \
+const MAPPED: &[u8] = b" of the mapped file";
+/// Instead of the byte offset and [`MAPPED`], for a [`Watch::any_address`].
+const UNKNOWN: &[u8] = b": the mapped file";
+/// The end of every message.
+const TAIL: &[u8] = b" could not be read (SIGBUS: the file was truncated by another process while in use, \
 or its storage returned an I/O error); stopped at once, nothing more was written";
+/// The stored offset of a [`Watch::any_address`]: no byte offset is known.
+const ANY_ADDRESS: u64 = u64::MAX;
 /// `--progress openjd`'s last line before a non-zero exit (`farm::progress`).
 const OPENJD: &[u8] = b"openjd_fail: exit code 4: ";
 /// `--progress json`'s last event, around the message.
@@ -120,7 +126,10 @@ impl Slot {
         if !(start..end).contains(&addr) {
             return None;
         }
-        let offset = self.offset.load(Ordering::Relaxed) + (addr - start) as u64;
+        let offset = match self.offset.load(Ordering::Relaxed) {
+            ANY_ADDRESS => ANY_ADDRESS,
+            first => first + (addr - start) as u64,
+        };
         let len = self.len.load(Ordering::Relaxed).min(TEXT);
         for (to, from) in text.iter_mut().zip(&self.text[..len]) {
             *to = from.load(Ordering::Relaxed);
@@ -150,6 +159,20 @@ impl Watch {
         let slot = REGISTRY.iter().position(|s| s.claimed.compare_exchange(false, true, Ordering::AcqRel, Ordering::Relaxed).is_ok());
         if let Some(i) = slot {
             REGISTRY[i].update(range, offset, &message_text(kind, path));
+        }
+        Watch { slot }
+    }
+
+    /// Watch every address, for code that maps and reads a file in one call plume cannot
+    /// enter (OpenVDB opening a grid maps the file and reads its topology before
+    /// [`watch_mappings_of`] can find the mapping). A fault that no other watch claims is
+    /// reported as `"{kind} {path}: the mapped file could not be read …"`. Keep it only
+    /// around such a call: meanwhile any unclaimed fault is blamed on `path`.
+    #[must_use]
+    pub fn any_address(kind: &str, path: &Path) -> Watch {
+        let slot = REGISTRY.iter().position(|s| s.claimed.compare_exchange(false, true, Ordering::AcqRel, Ordering::Relaxed).is_ok());
+        if let Some(i) = slot {
+            REGISTRY[i].update(1..usize::MAX, ANY_ADDRESS, &message_text(kind, path));
         }
         Watch { slot }
     }
@@ -187,14 +210,19 @@ fn message_text(kind: &str, path: &Path) -> Vec<u8> {
     text.into_bytes()
 }
 
-/// The registered range holding `addr`: its file offset, message in `text` and length.
+/// The registered range holding `addr`: its file offset, message in `text` and length. A
+/// range of a known mapping wins over a [`Watch::any_address`].
 fn find(addr: usize, text: &mut [u8; TEXT]) -> Option<(u64, usize)> {
-    REGISTRY.iter().find_map(|s| s.lookup(addr, text))
+    let known = REGISTRY.iter().find_map(|s| s.lookup(addr, text).filter(|&(offset, _)| offset != ANY_ADDRESS));
+    known.or_else(|| REGISTRY.iter().find_map(|s| s.lookup(addr, text)))
 }
 
 /// The message (no prefix, no newline) for a fault at file offset `offset` of the slot
 /// text `text`, in `message`; its length. Allocation-free (signal handler).
 fn format_message(text: &[u8], offset: u64, message: &mut [u8; MESSAGE]) -> usize {
+    if offset == ANY_ADDRESS {
+        return concat(message, &[text, UNKNOWN, TAIL]);
+    }
     let mut digits = [0u8; 20];
     let mut n = digits.len();
     let mut v = offset;
@@ -206,7 +234,7 @@ fn format_message(text: &[u8], offset: u64, message: &mut [u8; MESSAGE]) -> usiz
             break;
         }
     }
-    concat(message, &[text, MIDDLE, &digits[n..], TAIL])
+    concat(message, &[text, MIDDLE, &digits[n..], MAPPED, TAIL])
 }
 
 /// `parts` one after the other into `to` (which must have room); their length.
@@ -236,7 +264,7 @@ fn json_event(message: &[u8], to: &mut [u8; EVENT]) -> usize {
 }
 
 /// Longest message: slot text, offset digits, fixed words.
-const MESSAGE: usize = TEXT + MIDDLE.len() + 20 + TAIL.len();
+const MESSAGE: usize = TEXT + MIDDLE.len() + 20 + MAPPED.len() + TAIL.len();
 /// Longest line on stderr or for `--progress openjd`.
 const LINE: usize = PREFIX.len() + OPENJD.len() + MESSAGE + 1;
 /// Longest `--progress json` event.
@@ -497,8 +525,13 @@ mod tests {
         assert!(text.starts_with("brick cache …") && text.ends_with("/é/frame.0001.plume"), "{text}");
         assert_eq!(String::from_utf8(message_text("k", Path::new("a\nb\tc"))).unwrap(), "k a?b?c", "one line");
         let mut message = [0u8; MESSAGE];
-        let n = format_message(long.as_bytes().get(..TEXT).unwrap(), u64::MAX, &mut message);
-        assert!(String::from_utf8_lossy(&message[..n]).contains(&format!(": byte {} of", u64::MAX)));
+        let n = format_message(long.as_bytes().get(..TEXT).unwrap(), u64::MAX - 1, &mut message);
+        assert!(String::from_utf8_lossy(&message[..n]).contains(&format!(": byte {} of", u64::MAX - 1)));
+        // A fault caught by `Watch::any_address` has no byte offset. (Not registered here:
+        // it would claim other tests' addresses.)
+        let n = format_message(b"VDB file /farm/b.vdb", ANY_ADDRESS, &mut message);
+        let m = String::from_utf8_lossy(&message[..n]);
+        assert!(m.starts_with("VDB file /farm/b.vdb: the mapped file could not be read (SIGBUS"), "{m}");
     }
 
     /// The JSON event parses, with the message as its error, whatever quotes and

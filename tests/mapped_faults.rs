@@ -287,7 +287,13 @@ fn a_vdb_truncated_while_prepare_streams_it_fails_cleanly() {
         let mut child = spawn(&dir, &[&["prepare", s(&victim), "-o", s(&out), "-q"][..], isolation].concat());
         let pid = stop_when_mapped(&mut child, &victim, 0).expect("prepare ended before it was stopped");
         truncate(&victim, bytes / 2);
-        send(pid, "-CONT");
+        // The stopped reader may be gone already: plume itself can notice the truncation,
+        // fail, and take its isolated reader with it (PDEATHSIG), stopped or not
+        if pid == child.id() {
+            send(pid, "-CONT");
+        } else {
+            let _ = Command::new("kill").args(["-CONT", &pid.to_string()]).status();
+        }
         let err = assert_failed_cleanly(&finish(child), &victim, &["VDB file", "truncated"]);
         eprintln!("{isolation:?}: {err}");
         assert!(!out.exists(), "{isolation:?}: no cache from a truncated file");

@@ -341,9 +341,13 @@ impl<'p> LocalStream<'p> {
     pub(crate) fn open(path: &'p Path, selector: &'p GridSelector, limits: &ReadLimits) -> Result<LocalStream<'p>> {
         let path_str = check_file(path)?;
         let stamp = FileStamp::of(path);
+        // OpenVDB maps the file and reads its topology from the mapping inside this call: a
+        // truncation meanwhile faults before the mapping can be found and watched
+        let opening = crate::mapfault::Watch::any_address("VDB file", path);
         let shim = ffi::open_leaf_stream(path_str, &selector.name, selector.occurrence).map_err(|e| vdb_error(path, &e))?;
         // Delayed loading has mapped the file (its topology was read from the mapping)
         let watches = crate::mapfault::watch_mappings_of(path, "VDB file");
+        drop(opening);
         let h = shim.stream_header().map_err(|e| vdb_error(path, &e))?;
         check_status(path, path_str, selector, h.status, &h.value_type, &h.transform)?;
         let needed = h.resident_bytes.saturating_add(BATCH_BYTES);

@@ -136,16 +136,21 @@ fn region_means(scene: &AnyScene, integ: Integrator, spp: u32, runs: u64, seed0:
     (0..5).map(|k| mean_stderr(&per_run.iter().map(|r| r[k]).collect::<Vec<_>>())).collect()
 }
 
-fn explosion_scene(sigma_t: f64, ls: LightSampling, proxy_resolution: u32, interpolation: Interpolation) -> AnyScene {
-    let ex = explosion(&ExplosionParams { resolution: 32, seed: 5, ..Default::default() });
-    let e = Emission {
+/// The generated explosion's physical blackbody emission.
+fn explosion_emission() -> Emission {
+    Emission {
         kind: EmissionKind::Blackbody,
         convention: Convention::Physical,
         scale: 1e-3,
         color: Rgb::ONE,
         temperature_map: TemperatureMap::Kelvin,
         cutoff_kelvin: 500.0,
-    };
+    }
+}
+
+fn explosion_scene(sigma_t: f64, ls: LightSampling, proxy_resolution: u32, interpolation: Interpolation) -> AnyScene {
+    let ex = explosion(&ExplosionParams { resolution: 32, seed: 5, ..Default::default() });
+    let e = explosion_emission();
     let vol = Volume::build(&ex.density, Some(&ex.temperature), |v| e.map_source(v)).unwrap();
     let lights = Lights::build(&vol, &e, ls, proxy_resolution).unwrap();
     let cam = Camera::look_at(DVec3::new(0.0, 0.2, -6.5), DVec3::new(0.0, 0.2, 0.0), DVec3::Y, 40.0, 10, 8).unwrap();
@@ -247,14 +252,7 @@ fn albedo_grid_matches_constant_albedo_and_varies_per_voxel() {
     // A constant albedo grid of 0.8 with medium albedo 1 is bit-identical to medium
     // albedo 0.8 without a grid; a grid of 0 removes all scattering.
     let ex = explosion(&ExplosionParams { resolution: 32, seed: 5, ..Default::default() });
-    let e = Emission {
-        kind: EmissionKind::Blackbody,
-        convention: Convention::Physical,
-        scale: 1e-3,
-        color: Rgb::ONE,
-        temperature_map: TemperatureMap::Kelvin,
-        cutoff_kelvin: 500.0,
-    };
+    let e = explosion_emission();
     let albedo_grid = |a: f32| FloatGrid { name: "albedo".into(), values: vec![a; ex.density.values.len()], ..ex.density.clone() };
     let cam = Camera::look_at(DVec3::new(0.0, 0.2, -6.5), DVec3::new(0.0, 0.2, 0.0), DVec3::Y, 40.0, 10, 8).unwrap();
     let render_with = |grid: Option<FloatGrid>, albedo: f32| {

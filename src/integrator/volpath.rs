@@ -30,7 +30,7 @@
 
 use crate::color::Rgb;
 use crate::light::nee::EmitterDistribution;
-use crate::medium::tracking::{optical_depth, OpticalDepth};
+use crate::medium::tracking::{emission_at_point, optical_depth, OpticalDepth};
 use crate::medium::{track, DistanceSample, Estimator};
 use crate::sampling::phase::{hg_pdf, sample_hg};
 use crate::sampling::Sampler;
@@ -281,13 +281,7 @@ impl Integrator {
                             if tau > 0.0 {
                                 // L_e and ρ at y as the field reconstructs them (the table's
                                 // pdf follows the same reconstruction: light/nee.rs)
-                                let PointValues { density: dy, emission: le } = if m.emission.interpolates_source() {
-                                    // Cycles' rule: the emission of the interpolated values
-                                    let v = scene.field.values_at(vs.p_world);
-                                    PointValues { density: v.density, emission: m.emission.le(v.density, v.source).to_f64() }
-                                } else {
-                                    scene.field.reconstruct(vs.p_world, &|d, s| m.emission.le(d, s))
-                                };
+                                let PointValues { density: dy, emission: le } = emission_at_point(&scene.field, m, vs.p_world);
                                 let f = hg_pdf(m.g, ray.direction.dot(wi));
                                 let w_l = if point_nee { self.mis.weight(vs.pdf, f * m.mu_t(dy) * tau / r2) } else { 1.0 };
                                 add(&mut l, beta * f * tau * w_l / (vs.pdf * r2), le);

@@ -19,7 +19,7 @@
 use crate::color::Rgb;
 use crate::medium::Medium;
 use crate::sampling::Sampler;
-use crate::volume::field::{Field, Piece, Ray, SegmentIter};
+use crate::volume::field::{Field, Piece, PointValues, Ray, SegmentIter};
 
 /// Emission estimator along a free-path segment.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -187,6 +187,19 @@ fn emission_at<P: Piece>(piece: &P, medium: &Medium, u: f64) -> [f64; 3] {
         piece.emission_of_values_at(&le, u)
     } else {
         piece.emission_at(&le, u)
+    }
+}
+
+/// Density and `L_e` at a world point (a next-event sample), by the same rule as
+/// [`emission_at`] along pieces: the field's reconstruction of each voxel's emission, or
+/// under Cycles' rule the emission of the interpolated density and temperature.
+#[must_use]
+pub fn emission_at_point<F: Field>(field: &F, medium: &Medium, p_world: glam::DVec3) -> PointValues {
+    if medium.emission.interpolates_source() {
+        let v = field.values_at(p_world);
+        PointValues { density: v.density, emission: medium.emission.le(v.density, v.source).to_f64() }
+    } else {
+        field.reconstruct(p_world, &|d, s| medium.emission.le(d, s))
     }
 }
 

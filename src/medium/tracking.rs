@@ -16,6 +16,8 @@
 //! - **blend** (our extension, METHOD.md §4): per-segment mix
 //!   `α_i = 1/(1 + κ μ_i Δ_i)` of line (weight α) and point (1 − α).
 
+use std::ops::ControlFlow;
+
 use crate::color::Rgb;
 use crate::medium::Medium;
 use crate::sampling::Sampler;
@@ -131,14 +133,14 @@ fn track_free_path<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, 
     let mut f = [0.0f64; 3];
     let mut segments = 0u32;
     let mut it = field.segments(ray, 0.0, t_max);
-    for piece in it.by_ref() {
+    let collision = it.visit(|piece| {
         segments += 1;
         let Some(seg) = piece.constant() else {
             // A polynomial piece (trilinear reconstruction, METHOD.md §12)
-            if let Some(event) = free_path_polynomial(&piece, medium, estimator, e, &mut od, &mut f, sampler) {
-                return TrackResult { event, emission: f, transmittance: 0.0, optical_depth: e, segments, voxel_steps: it.voxel_steps() };
-            }
-            continue;
+            return match free_path_polynomial(piece, medium, estimator, e, &mut od, &mut f, sampler) {
+                Some(event) => ControlFlow::Break(event),
+                None => ControlFlow::Continue(()),
+            };
         };
         let mu = medium.mu_t(seg.density);
         let len = seg.length();
@@ -156,8 +158,7 @@ fn track_free_path<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, 
                 }
                 Estimator::RayMarch => unreachable!("ray-march is tracked by track_expected"),
             }
-            let event = DistanceSample::Collided { t, density: seg.density, source: seg.source, albedo: seg.albedo };
-            return TrackResult { event, emission: f, transmittance: 0.0, optical_depth: e, segments, voxel_steps: it.voxel_steps() };
+            return ControlFlow::Break(DistanceSample::Collided { t, density: seg.density, source: seg.source, albedo: seg.albedo });
         }
         od += x;
         // Add emission along the whole segment
@@ -166,8 +167,14 @@ fn track_free_path<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, 
             Estimator::Blend { kappa } => add(&mut f, le, len / (1.0 + kappa * x)),
             _ => {}
         }
+        ControlFlow::Continue(())
+    });
+    match collision {
+        ControlFlow::Break(event) => TrackResult { event, emission: f, transmittance: 0.0, optical_depth: e, segments, voxel_steps: it.voxel_steps() },
+        ControlFlow::Continue(()) => {
+            TrackResult { event: DistanceSample::Escaped, emission: f, transmittance: 1.0, optical_depth: od, segments, voxel_steps: it.voxel_steps() }
+        }
     }
-    TrackResult { event: DistanceSample::Escaped, emission: f, transmittance: 1.0, optical_depth: od, segments, voxel_steps: it.voxel_steps() }
 }
 
 #[inline]
@@ -276,7 +283,7 @@ fn track_expected<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, n
     // Position of the one-point rule in every polynomial piece, drawn at the first one
     let mut xi: Option<f64> = None;
     let mut it = field.segments(ray, 0.0, t_max);
-    for piece in it.by_ref() {
+    let _ = it.visit(|piece| {
         segments += 1;
         let len = piece.length();
         let constant = piece.constant();
@@ -324,16 +331,17 @@ fn track_expected<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, n
                         let xi = *xi.get_or_insert_with(|| sampler.next_f64());
                         let u = xi * len;
                         let tau_u = tau * (-piece.optical_depth(medium.sigma_t, u)).exp();
-                        add_scaled(&mut f, emission_at(&piece, medium, u), tau_u * len);
+                        add_scaled(&mut f, emission_at(piece, medium, u), tau_u * len);
                     }
                 }
             }
         }
         od += x;
         if !marching && (!need_collision || event != DistanceSample::Escaped) {
-            break;
+            return ControlFlow::Break(());
         }
-    }
+        ControlFlow::Continue(())
+    });
     let transmittance = if marching { (-od).exp() * weight } else { 0.0 };
     let optical_depth = if matches!(event, DistanceSample::Collided { .. }) { e } else { od };
     TrackResult { event, emission: f, transmittance, optical_depth, segments, voxel_steps: it.voxel_steps() }
@@ -355,14 +363,16 @@ pub struct OpticalDepth {
 pub fn optical_depth<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, od_stop: f64) -> OpticalDepth {
     let mut od = 0.0;
     let mut it = field.segments(ray, 0.0, t_max);
-    for piece in it.by_ref() {
+    let _ = it.visit(|piece| {
         od += match piece.constant() {
             Some(seg) => medium.mu_t(seg.density) * seg.length(),
             None => piece.optical_depth(medium.sigma_t, piece.length()),
         };
         if od > od_stop {
-            break;
+            ControlFlow::Break(())
+        } else {
+            ControlFlow::Continue(())
         }
-    }
+    });
     OpticalDepth { optical_depth: od, voxel_steps: it.voxel_steps() }
 }

@@ -35,6 +35,8 @@
 //!   values) are merged, so an empty region is one piece, and the last piece ends exactly
 //!   at the clipped ray's end.
 
+use std::ops::ControlFlow;
+
 use glam::{DAffine3, DVec3, IVec3};
 
 use super::brick::{Brick, Volume, BRICK};
@@ -93,14 +95,15 @@ pub trait Cells: Copy {
     /// Data handles of table brick `brick` (brick coordinate), or `None` when it has no
     /// data (then it is crossed as empty).
     fn dense(&self, brick: IVec3) -> Option<Self::Dense>;
-    /// Cell `ijk` of the dense brick whose first cell is `origin`. `dense` may remember
-    /// what the previous cell read (the walk steps to a neighbour each time).
-    fn read(&self, dense: &mut Self::Dense, origin: IVec3, ijk: IVec3) -> Self::Cell;
+    /// The piece of `line` over `[t0, t1]` inside cell `ijk` of the dense brick whose
+    /// first cell is `origin`. `dense` may remember what the previous cell read (the walk
+    /// steps to a neighbour each time).
+    fn dense_piece(&self, dense: &mut Self::Dense, origin: IVec3, ijk: IVec3, t0: f64, t1: f64, line: &IndexLine) -> Self::Piece;
     /// The cell every cell beneath a uniform pyramid node is.
     fn uniform(node: &NodeBounds) -> Self::Cell;
     /// An empty cell (density, source 0; albedo 1).
     fn empty() -> Self::Cell;
-    /// The piece of `line` over `[t0, t1]` inside `cell`.
+    /// The piece of `line` over `[t0, t1]` inside `cell` (a uniform node or empty space).
     fn piece(&self, cell: Self::Cell, t0: f64, t1: f64, line: &IndexLine) -> Self::Piece;
     /// Extend `into` by `next` (adjacent, `into.t1 == next.t0`) when both are constant
     /// with bit-identical values; false (and nothing changed) otherwise.
@@ -285,20 +288,29 @@ impl<C: Cells> CellWalk<C> {
             let t0 = self.t;
             let (t_exit, cell);
             if let Some((dense, origin)) = &mut self.brick {
-                // Step one cell of a dense brick
+                // Step one cell of a dense brick; its piece is built from the brick's data
+                // before the walk may leave the brick
                 let origin = *origin;
-                cell = self.cells.read(dense, origin, self.ijk);
-                t_exit = self.t_next.x.min(self.t_next.y).min(self.t_next.z);
+                let ijk = self.ijk;
+                let t_exit = self.t_next.x.min(self.t_next.y).min(self.t_next.z);
                 for a in 0..3 {
                     if self.t_next[a] == t_exit {
                         self.ijk[a] += self.step[a];
-                        self.t_next[a] = self.face_crossing(a);
+                        self.t_next[a] = (f64::from(self.ijk[a]) + self.face[a] - self.o[a]) * self.inv_d[a];
                     }
                 }
+                let t1 = t_exit.min(self.t_end);
+                let piece = (t1 > t0).then(|| self.cells.dense_piece(dense, origin, ijk, t0, t1, &IndexLine { o: self.o, d: self.d }));
                 let l = self.ijk - origin;
                 if (l.x as u32 | l.y as u32 | l.z as u32) >= BRICK as u32 {
                     self.brick = None;
                 }
+                if piece.is_some() {
+                    self.t = t1;
+                    self.raw_steps += 1;
+                    return piece;
+                }
+                continue;
             } else {
                 let table = self.cells.table();
                 let bc = IVec3::new(self.ijk.x.div_euclid(BRICK), self.ijk.y.div_euclid(BRICK), self.ijk.z.div_euclid(BRICK));
@@ -378,6 +390,38 @@ impl<C: Cells> SegmentIter for CellWalk<C> {
     fn voxel_steps(&self) -> u64 {
         self.raw_steps
     }
+
+    /// The iterator's merging (a mergeable piece waits for its neighbour), with each raw
+    /// piece built once and handed on by reference. Small pieces (a nearest [`Segment`],
+    /// 24 bytes) go through the iterator, which measured faster for them.
+    fn visit<B>(&mut self, mut visit: impl FnMut(&C::Piece) -> ControlFlow<B>) -> ControlFlow<B> {
+        if std::mem::size_of::<C::Piece>() <= 32 {
+            for piece in self.by_ref() {
+                visit(&piece)?;
+            }
+            return ControlFlow::Continue(());
+        }
+        let mut pending = self.pending.take();
+        while let Some(raw) = self.step_raw() {
+            if !C::mergeable(&raw) {
+                if let Some(p) = pending.take() {
+                    visit(&p)?;
+                }
+                visit(&raw)?;
+                continue;
+            }
+            let merged = pending.as_mut().is_some_and(|p| C::merge(p, &raw));
+            if !merged {
+                if let Some(p) = pending.replace(raw) {
+                    visit(&p)?;
+                }
+            }
+        }
+        match pending {
+            Some(p) => visit(&p),
+            None => ControlFlow::Continue(()),
+        }
+    }
 }
 
 /// The voxels of a [`Volume`] as a lattice ([`Cells`], shift ½): nearest reconstruction,
@@ -431,12 +475,12 @@ impl Cells for NearestVoxels<'_> {
     }
 
     #[inline]
-    fn read(&self, brick: &mut Brick, origin: IVec3, ijk: IVec3) -> VoxelCell {
+    fn dense_piece(&self, brick: &mut Brick, origin: IVec3, ijk: IVec3, t0: f64, t1: f64, _line: &IndexLine) -> Segment {
         let l = ijk - origin;
         let density = self.volume.slot_value(brick.density, l.x, l.y, l.z);
         let source = self.volume.slot_value(brick.source, l.x, l.y, l.z);
         let albedo = if density > 0.0 { self.volume.slot_value(brick.albedo, l.x, l.y, l.z) } else { 1.0 };
-        VoxelCell { density, source, albedo }
+        Segment { t0, t1, density, source, albedo }
     }
 
     #[inline]

@@ -8,6 +8,8 @@
 //! direction, so segment lengths are world lengths (metres), also under non-uniform
 //! voxel sizes and shear.
 
+use std::ops::ControlFlow;
+
 use glam::DVec3;
 
 use crate::color::Rgb;
@@ -198,6 +200,19 @@ pub trait SegmentIter: Iterator {
     /// Cells the traversal stepped through so far (voxel steps plus skipped nodes for a
     /// [`crate::volume::Volume`]; segments for analytic fields).
     fn voxel_steps(&self) -> u64;
+
+    /// Hands the remaining pieces to `visit` by reference, in order, until it breaks:
+    /// the same pieces as the iterator, without moving each one out (a trilinear piece is
+    /// ~200 bytes; the walks override this with a loop that builds each piece once).
+    fn visit<B>(&mut self, mut visit: impl FnMut(&Self::Item) -> ControlFlow<B>) -> ControlFlow<B>
+    where
+        Self: Sized,
+    {
+        for piece in self.by_ref() {
+            visit(&piece)?;
+        }
+        ControlFlow::Continue(())
+    }
 }
 
 /// Segments of analytic fields, precomputed.

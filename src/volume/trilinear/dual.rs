@@ -29,7 +29,8 @@ use rayon::prelude::*;
 
 use super::poly;
 use super::CubicSegment;
-use crate::volume::brick::{Brick, PackedSlot, Volume, BRICK};
+use crate::vdb::LEAF_VOXELS;
+use crate::volume::brick::{brick_offset, PackedSlot, Slot, Volume, BRICK};
 use crate::volume::dda::{CellBox, CellTable, Cells, IndexLine};
 use crate::volume::field::VoxelValues;
 use crate::volume::pyramid::{NodeBounds, Pyramid};
@@ -41,8 +42,57 @@ pub(crate) const fn corner_offset(c: usize) -> IVec3 {
     IVec3::new((c & 1) as i32, ((c >> 1) & 1) as i32, ((c >> 2) & 1) as i32)
 }
 
+/// One channel of one voxel brick, decoded once when the walk enters a dual brick: its
+/// 512 values, or a constant (also for a missing brick, and for a block a damaged cache
+/// places past the value array: 0, as [`Volume::slot_value`] reads it).
+#[derive(Clone, Copy, Debug)]
+struct Channel<'a> {
+    block: Option<&'a [f32; LEAF_VOXELS]>,
+    constant: f32,
+}
+
+impl<'a> Channel<'a> {
+    fn new(volume: &'a Volume, slot: PackedSlot) -> Channel<'a> {
+        match slot.get() {
+            Slot::Constant(v) => Channel { block: None, constant: v },
+            Slot::Dense(block) => {
+                let start = block as usize * LEAF_VOXELS;
+                let block = volume.values.get(start..start + LEAF_VOXELS).and_then(|v| v.try_into().ok());
+                Channel { block, constant: 0.0 }
+            }
+        }
+    }
+
+    const fn constant(v: f32) -> Channel<'static> {
+        Channel { block: None, constant: v }
+    }
+
+    /// The value at brick-order offset `o` (`< 512`).
+    #[inline]
+    fn at(&self, o: usize) -> f32 {
+        match self.block {
+            Some(values) => values[o & (LEAF_VOXELS - 1)],
+            None => self.constant,
+        }
+    }
+}
+
+/// The channels of one voxel brick: density, source, albedo.
+#[derive(Clone, Copy, Debug)]
+struct BrickChannels<'a> {
+    density: Channel<'a>,
+    source: Channel<'a>,
+    albedo: Channel<'a>,
+}
+
 /// What a missing voxel brick reads as: empty space.
-const EMPTY_BRICK: Brick = Brick { density: PackedSlot::constant(0.0), source: PackedSlot::constant(0.0), albedo: PackedSlot::constant(1.0) };
+const EMPTY_BRICK: BrickChannels<'static> = BrickChannels { density: Channel::constant(0.0), source: Channel::constant(0.0), albedo: Channel::constant(1.0) };
+
+/// `FACE[a][s]`: the corners on the low (`s = 0`) or high (`s = 1`) face along axis `a`.
+/// Stepping forward along `a`, the new cell reads its high face and its low face is the
+/// old high face (corner `c` of the new cell is corner `c ^ (1 << a)` of the old one);
+/// stepping back, the other way round.
+const FACE: [[[usize; 4]; 2]; 3] = [[[0, 2, 4, 6], [1, 3, 5, 7]], [[0, 1, 4, 5], [2, 3, 6, 7]], [[0, 1, 2, 3], [4, 5, 6, 7]]];
 
 /// The dual cells of a volume as a lattice for the hierarchical DDA (shift 0), with the
 /// dual pyramid built by [`dual_pyramid`].
@@ -63,8 +113,8 @@ impl<'a> DualCells<'a> {
 /// The brick records of voxel bricks `b + {0,1}³` of dual brick `b`, in corner order, and
 /// the last cell read from them.
 #[derive(Clone, Copy, Debug)]
-pub struct DualBricks {
-    bricks: [Brick; 8],
+pub struct DualBricks<'a> {
+    bricks: [BrickChannels<'a>; 8],
     /// Local index of the last cell read (far away before the first) and its corners:
     /// the walk steps to a face neighbour, which shares 4 of them.
     last: IVec3,
@@ -72,22 +122,30 @@ pub struct DualBricks {
     albedo: [f32; 8],
 }
 
-/// One dual cell as the walk reads it: its index and its 8 corner voxels.
-#[derive(Clone, Copy, Debug)]
-pub struct DualCell {
-    /// Cell index `i` (unused for a uniform node, whose corners all agree).
-    i: IVec3,
-    corners: [VoxelValues; 8],
-    /// Albedo factor per corner, 1 where the corner's density is 0.
-    albedo: [f32; 8],
+impl DualBricks<'_> {
+    /// Reads corner `c` of local cell `l`: voxel `l + c` of the 9³ the dual brick reads,
+    /// in voxel brick `(l + c) / 8` at local `(l + c) mod 8`.
+    #[inline]
+    fn load(&mut self, l: IVec3, c: usize) {
+        let v = l + corner_offset(c);
+        let brick = &self.bricks[((v.x >> 3) | ((v.y >> 3) << 1) | ((v.z >> 3) << 2)) as usize & 7];
+        let o = brick_offset(v.x, v.y, v.z);
+        let density = brick.density.at(o);
+        self.corners[c] = VoxelValues { density, source: brick.source.at(o) };
+        self.albedo[c] = if density > 0.0 { brick.albedo.at(o) } else { 1.0 };
+    }
 }
 
-impl DualCell {
-    fn constant(values: VoxelValues, albedo: f32) -> DualCell {
-        DualCell { i: IVec3::ZERO, corners: [values; 8], albedo: [albedo; 8] }
-    }
+/// A uniform node's or empty space's dual cell: every corner the same.
+#[derive(Clone, Copy, Debug)]
+pub struct DualCell {
+    values: VoxelValues,
+    /// 1 where the density is 0.
+    albedo: f32,
+}
 
-    /// True when all corners agree bit for bit in density, source and albedo.
+impl DualBricks<'_> {
+    /// True when the corners just read agree bit for bit in density, source and albedo.
     #[inline]
     fn is_constant(&self) -> bool {
         let (c0, a0) = (self.corners[0], self.albedo[0]);
@@ -98,10 +156,10 @@ impl DualCell {
     }
 }
 
-impl Cells for DualCells<'_> {
+impl<'a> Cells for DualCells<'a> {
     const SHIFT: f64 = 0.0;
     type Piece = CubicSegment;
-    type Dense = DualBricks;
+    type Dense = DualBricks<'a>;
     type Cell = DualCell;
 
     #[inline]
@@ -119,12 +177,17 @@ impl Cells for DualCells<'_> {
         CellBox { lo: self.volume.brick_lo * BRICK - 1, hi: (self.volume.brick_lo + self.volume.dims) * BRICK }
     }
 
-    fn dense(&self, b: IVec3) -> Option<DualBricks> {
+    fn dense(&self, b: IVec3) -> Option<DualBricks<'a>> {
         let mut any = false;
-        let bricks = std::array::from_fn(|c| match self.volume.brick(b + corner_offset(c)) {
+        let volume = self.volume;
+        let bricks = std::array::from_fn(|c| match volume.brick(b + corner_offset(c)) {
             Some(brick) => {
                 any = true;
-                *brick
+                BrickChannels {
+                    density: Channel::new(volume, brick.density),
+                    source: Channel::new(volume, brick.source),
+                    albedo: Channel::new(volume, brick.albedo),
+                }
             }
             None => EMPTY_BRICK,
         });
@@ -132,64 +195,58 @@ impl Cells for DualCells<'_> {
     }
 
     /// Reads the 8 corners, or only the 4 new ones when the walk stepped across one face
-    /// (the other 4 are the previous cell's: 12 slot reads instead of 24).
+    /// (the other 4 are the previous cell's: 12 value reads instead of 24).
     #[inline]
-    fn read(&self, dense: &mut DualBricks, origin: IVec3, i: IVec3) -> DualCell {
+    fn dense_piece(&self, dense: &mut DualBricks<'a>, origin: IVec3, i: IVec3, t0: f64, t1: f64, line: &IndexLine) -> CubicSegment {
         let l = i - origin;
         let step = l - dense.last;
-        // Corners to read: all, or those on the far side of the face crossed along one axis
-        let (keep, fresh): (Option<(usize, bool)>, u8) = match (step.x, step.y, step.z) {
-            (s, 0, 0) if s.abs() == 1 => (Some((1, s > 0)), if s > 0 { 0b1010_1010 } else { 0b0101_0101 }),
-            (0, s, 0) if s.abs() == 1 => (Some((2, s > 0)), if s > 0 { 0b1100_1100 } else { 0b0011_0011 }),
-            (0, 0, s) if s.abs() == 1 => (Some((4, s > 0)), if s > 0 { 0b1111_0000 } else { 0b0000_1111 }),
-            _ => (None, 0xff),
+        let face = match (step.x, step.y, step.z) {
+            (s, 0, 0) if s.abs() == 1 => Some((0, s > 0)),
+            (0, s, 0) if s.abs() == 1 => Some((1, s > 0)),
+            (0, 0, s) if s.abs() == 1 => Some((2, s > 0)),
+            _ => None,
         };
-        if let Some((bit, forward)) = keep {
-            // Shared corner c of the new cell is corner c ± bit of the old one
-            let (old_c, old_a) = (dense.corners, dense.albedo);
-            for c in 0..8 {
-                if fresh & (1 << c) == 0 {
-                    let from = if forward { c | bit } else { c & !bit };
-                    dense.corners[c] = old_c[from];
-                    dense.albedo[c] = old_a[from];
+        match face {
+            Some((a, forward)) => {
+                // The face shared with the old cell moves across; the far face is read
+                let bit = 1 << a;
+                for &c in &FACE[a][usize::from(!forward)] {
+                    dense.corners[c] = dense.corners[c ^ bit];
+                    dense.albedo[c] = dense.albedo[c ^ bit];
+                }
+                for &c in &FACE[a][usize::from(forward)] {
+                    dense.load(l, c);
+                }
+            }
+            None => {
+                for c in 0..8 {
+                    dense.load(l, c);
                 }
             }
         }
-        for c in 0..8 {
-            if fresh & (1 << c) == 0 {
-                continue;
-            }
-            // Voxel l + c of the 9³ the dual brick reads: brick (l + c) / 8, local (l + c) mod 8
-            let v = l + corner_offset(c);
-            let brick = &dense.bricks[((v.x >> 3) | ((v.y >> 3) << 1) | ((v.z >> 3) << 2)) as usize];
-            let (x, y, z) = (v.x & 7, v.y & 7, v.z & 7);
-            let density = self.volume.slot_value(brick.density, x, y, z);
-            dense.corners[c] = VoxelValues { density, source: self.volume.slot_value(brick.source, x, y, z) };
-            dense.albedo[c] = if density > 0.0 { self.volume.slot_value(brick.albedo, x, y, z) } else { 1.0 };
-        }
         dense.last = l;
-        DualCell { i, corners: dense.corners, albedo: dense.albedo }
+        if dense.is_constant() {
+            return CubicSegment::constant_piece(t0, t1, dense.corners[0], dense.albedo[0]);
+        }
+        // Cell-local coordinates at the entry, from the unshifted index-space line
+        let f0 = (line.o + line.d * t0 - i.as_dvec3()).clamp(DVec3::ZERO, DVec3::ONE);
+        let density = poly::cubic_along(dense.corners.map(|c| f64::from(c.density)), f0, line.d);
+        CubicSegment { t0, t1, density, f0, d: line.d, corners: dense.corners, albedo: dense.albedo, constant: false }
     }
 
     #[inline]
     fn uniform(node: &NodeBounds) -> DualCell {
-        DualCell::constant(VoxelValues { density: node.density_max, source: node.source_max }, node.uniform_albedo())
+        DualCell { values: VoxelValues { density: node.density_max, source: node.source_max }, albedo: node.uniform_albedo() }
     }
 
     #[inline]
     fn empty() -> DualCell {
-        DualCell::constant(VoxelValues::ZERO, 1.0)
+        DualCell { values: VoxelValues::ZERO, albedo: 1.0 }
     }
 
     #[inline]
-    fn piece(&self, cell: DualCell, t0: f64, t1: f64, line: &IndexLine) -> CubicSegment {
-        if cell.is_constant() {
-            return CubicSegment::constant_piece(t0, t1, cell.corners[0], cell.albedo[0]);
-        }
-        // Cell-local coordinates at the entry, from the unshifted index-space line
-        let f0 = (line.o + line.d * t0 - cell.i.as_dvec3()).clamp(DVec3::ZERO, DVec3::ONE);
-        let density = poly::cubic_along(cell.corners.map(|c| f64::from(c.density)), f0, line.d);
-        CubicSegment { t0, t1, density, f0, d: line.d, corners: cell.corners, albedo: cell.albedo, constant: false }
+    fn piece(&self, cell: DualCell, t0: f64, t1: f64, _line: &IndexLine) -> CubicSegment {
+        CubicSegment::constant_piece(t0, t1, cell.values, cell.albedo)
     }
 
     #[inline]

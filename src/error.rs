@@ -103,6 +103,16 @@ pub enum Error {
         /// What happened and what to do.
         what: String,
     },
+    /// Another process held the lock of an automatic brick cache's conversion for longer
+    /// than `render.cache_lock_timeout` (it may hang), and the input does not fit the
+    /// memory budget without the cache. Nothing was written.
+    #[error("{}: {what}", .lock.display())]
+    CacheLocked {
+        /// The lock file (`.NAME.lock` beside the cache).
+        lock: PathBuf,
+        /// Who held it, for how long, and what to do.
+        what: String,
+    },
     /// A flag has a value plume cannot use.
     #[error("invalid value for {flag}: {message}")]
     InvalidArgument {
@@ -205,7 +215,7 @@ impl Error {
             | Error::ReaderFailed { .. }
             | Error::Cache { .. }
             | Error::Scene(_) => 3,
-            Error::Write { .. } | Error::ReaderSpawn { .. } | Error::InputFailed { .. } => exit::RENDER_OR_OUTPUT,
+            Error::Write { .. } | Error::ReaderSpawn { .. } | Error::InputFailed { .. } | Error::CacheLocked { .. } => exit::RENDER_OR_OUTPUT,
             Error::InvalidPart { .. } => exit::INPUT,
             Error::Interrupted { .. } => exit::INTERRUPTED,
             Error::TimeLimit { .. } => exit::TIME_LIMIT,

@@ -1,6 +1,9 @@
 //! The advisory lock (`flock`) on `.NAME.lock` beside the automatic cache `NAME`, held
 //! while a process converts, so that other processes making the same cache (farm nodes
-//! sharing a cache directory) wait and then use it instead of converting again.
+//! sharing a cache directory) wait and then use it instead of converting again, and held
+//! while a process removes a cache it found damaged, so that it removes only the file it
+//! checked, never a new one that a converter renamed over it meanwhile
+//! ([`super::CacheCheck::verified`]).
 //!
 //! The kernel releases the lock when the [`CacheLock`] is dropped or the process dies. The
 //! lock file is left in place: removing it would let a process still waiting on the old

@@ -189,13 +189,16 @@ pub mod exit {
     /// Rendering or writing an output failed, including an input that failed *while* it
     /// was in use (truncated, rewritten or replaced by another process, an I/O error of
     /// its storage; see `mapfault`): the input was valid when checked, so the failure is
-    /// the run's, and the same command may succeed once the file is restored.
+    /// the run's, and the same command may succeed once the file is restored. Such an
+    /// input failure ends a run of several frames at once with this code (a lost page
+    /// comes as SIGBUS, which no frame can return as an error; `farm::job`).
     pub const RENDER_OR_OUTPUT: i32 = 4;
     /// Interrupted by SIGTERM/SIGINT; the image so far was written with its spp.
     pub const INTERRUPTED: i32 = 5;
     /// `--time-limit` reached; the image so far was written with its spp.
     pub const TIME_LIMIT: i32 = 6;
-    /// A run of several frames in which some frames failed or stopped early.
+    /// A run of several frames in which some frames failed or stopped early (and the
+    /// others were rendered; an input failing while in use is 4 instead).
     pub const FRAMES_FAILED: i32 = 7;
 }
 

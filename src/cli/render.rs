@@ -169,7 +169,8 @@ pub struct RenderArgs {
     pub quiet: bool,
     /// Frames to render: `1-100`, `1-100x2` (or `1-100:2`), `1,5,10-20`. One process
     /// renders them in order, each frame's grids loaded once; a frame that fails is
-    /// reported and the others go on (exit code 7).
+    /// reported and the others go on (exit code 7); an input that fails while in use
+    /// (truncated or replaced by another process) ends the run at once (exit code 4).
     #[arg(long, allow_hyphen_values = true)]
     pub frames: Option<String>,
     /// Render frames even when their output is already complete (default: skip them).

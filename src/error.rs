@@ -103,6 +103,16 @@ pub enum Error {
         /// What happened and what to do.
         what: String,
     },
+    /// Another process held the lock of an automatic brick cache's conversion for longer
+    /// than `render.cache_lock_timeout` (it may hang), and the input does not fit the
+    /// memory budget without the cache. Nothing was written.
+    #[error("{}: {what}", .lock.display())]
+    CacheLocked {
+        /// The lock file (`.NAME.lock` beside the cache).
+        lock: PathBuf,
+        /// Who held it, for how long, and what to do.
+        what: String,
+    },
     /// A flag has a value plume cannot use.
     #[error("invalid value for {flag}: {message}")]
     InvalidArgument {
@@ -179,13 +189,16 @@ pub mod exit {
     /// Rendering or writing an output failed, including an input that failed *while* it
     /// was in use (truncated, rewritten or replaced by another process, an I/O error of
     /// its storage; see `mapfault`): the input was valid when checked, so the failure is
-    /// the run's, and the same command may succeed once the file is restored.
+    /// the run's, and the same command may succeed once the file is restored. Such an
+    /// input failure ends a run of several frames at once with this code (a lost page
+    /// comes as SIGBUS, which no frame can return as an error; `farm::job`).
     pub const RENDER_OR_OUTPUT: i32 = 4;
     /// Interrupted by SIGTERM/SIGINT; the image so far was written with its spp.
     pub const INTERRUPTED: i32 = 5;
     /// `--time-limit` reached; the image so far was written with its spp.
     pub const TIME_LIMIT: i32 = 6;
-    /// A run of several frames in which some frames failed or stopped early.
+    /// A run of several frames in which some frames failed or stopped early (and the
+    /// others were rendered; an input failing while in use is 4 instead).
     pub const FRAMES_FAILED: i32 = 7;
 }
 
@@ -205,7 +218,7 @@ impl Error {
             | Error::ReaderFailed { .. }
             | Error::Cache { .. }
             | Error::Scene(_) => 3,
-            Error::Write { .. } | Error::ReaderSpawn { .. } | Error::InputFailed { .. } => exit::RENDER_OR_OUTPUT,
+            Error::Write { .. } | Error::ReaderSpawn { .. } | Error::InputFailed { .. } | Error::CacheLocked { .. } => exit::RENDER_OR_OUTPUT,
             Error::InvalidPart { .. } => exit::INPUT,
             Error::Interrupted { .. } => exit::INTERRUPTED,
             Error::TimeLimit { .. } => exit::TIME_LIMIT,

@@ -320,3 +320,76 @@ fn a_1_gib_cache_renders_within_a_256_mib_budget() {
     assert!(pixels.iter().any(|p| p[0] > 0.0), "the flare rendered black");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A cache of 34 × 32 × 32 dense bricks written from memory: 68 MiB of values, more than
+/// the 64 MiB checked at open, so its values are checked in the background.
+fn background_checked_cache(path: &Path) -> PathBuf {
+    let leaves: Vec<IVec3> = (0..34).flat_map(|x| (0..32).flat_map(move |y| (0..32).map(move |z| 8 * IVec3::new(x, y, z)))).collect();
+    let density = grid("density", DAffine3::from_scale(DVec3::splat(0.1)), &leaves, |p| 0.001 + (hash(p, 5) % 1000) as f32 * 1e-3);
+    let volume = Volume::build(&density, None, |v| v).unwrap();
+    let info = CacheInfo {
+        density_grid: "density".into(),
+        source_grid: None,
+        albedo_grid: None,
+        source_key: String::new(),
+        emission_kind: "none".into(),
+        input: None,
+        backgrounds: [Some(0.0), Some(0.0), None],
+    };
+    write_volume(path, &volume, &info, None).unwrap()
+}
+
+/// Issue 17: an automatic cache found damaged only by the background check is removed
+/// (so the next run rebuilds it) only if the file at its path is still the one checked.
+/// Another process may have renamed a new cache over it meanwhile, with the same size and
+/// header, or hold the conversion lock while it makes one; either is left alone. Library
+/// level, no timing: the file is replaced, or the lock taken, between the open and the
+/// check's end, as another process would.
+#[test]
+fn a_damaged_automatic_cache_is_removed_only_while_it_is_the_file_checked() {
+    use plume::cache::format::SectionKind;
+    use std::os::fd::AsRawFd;
+    use std::os::unix::fs::MetadataExt;
+    let dir = tmpdir("cache", "remove-damaged");
+    let good = background_checked_cache(&dir.join("good.plume"));
+    let (offset, len) = section(&good, SectionKind::Values);
+    assert!(len > plume::cache::reader::EAGER_BYTES, "the values must be checked in the background");
+    let path = dir.join("auto.plume");
+    let damaged_cache = || {
+        std::fs::copy(&good, &path).unwrap();
+        flip(&path, offset + len / 2);
+        let mut cache = Cache::open(&path).expect("damage in the values is found only in the background");
+        cache.check.remove_on_failure();
+        cache
+    };
+    let checked = |cache: Cache| {
+        let err = cache.check.verified().expect_err("the values fail their checksum").to_string();
+        assert!(err.contains(s(&path)) && err.contains("values section fails its checksum"), "{err}");
+        err
+    };
+    // Nobody else: removed
+    let err = checked(damaged_cache());
+    assert!(err.contains("removed this automatic cache"), "{err}");
+    assert!(!path.exists(), "a damaged automatic cache is removed");
+    // A good cache renamed over it while in use (another process rebuilt it): kept
+    let cache = damaged_cache();
+    let staged = dir.join(".auto.plume.other.tmp");
+    std::fs::copy(&good, &staged).unwrap();
+    std::fs::rename(&staged, &path).unwrap();
+    let new_ino = std::fs::metadata(&path).unwrap().ino();
+    let err = checked(cache);
+    assert!(err.contains("already replaced"), "{err}");
+    assert_eq!(std::fs::metadata(&path).map(|m| m.ino()).ok(), Some(new_ino), "the new cache was removed");
+    Cache::open(&path).unwrap().check.verified().expect("the new cache is whole");
+    // Another process holds the conversion lock (it is making a new one): left to it
+    let cache = damaged_cache();
+    let lock = std::fs::File::create(dir.join(".auto.plume.lock")).unwrap();
+    // SAFETY: flock on a descriptor `lock` owns; a lock of another open file conflicts
+    // with the one plume takes, as another process's would.
+    assert_eq!(unsafe { libc::flock(lock.as_raw_fd(), libc::LOCK_EX | libc::LOCK_NB) }, 0);
+    let err = checked(cache);
+    assert!(err.contains("holds its lock") && err.contains(".auto.plume.lock"), "{err}");
+    assert!(path.exists(), "a cache whose lock another process holds was removed");
+    drop(lock);
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -9,12 +9,14 @@
 //!   directory that cannot be written falls back to `$XDG_CACHE_HOME/plume`, then to an
 //!   in-core read if that fits the memory budget, and to an error otherwise;
 //! - **two processes making the same automatic cache at once**: both succeed with the
-//!   same image, one converts and the other waits and uses its cache, which is valid.
+//!   same image, one converts and the other waits and uses its cache, which is valid;
+//! - **a conversion lock that is never released** (a hung holder): the wait ends after
+//!   `--cache-lock-timeout`, and the frame is read in core or fails with one line.
 //!
 //! Full disks and read-only directories are real: a small tmpfs mounted on a directory
 //! the test makes (remounted read-only where needed) and unmounted when the test ends.
 //! That needs root and `CAP_SYS_ADMIN`; without them those tests print `SKIPPED: <reason>`
-//! to stderr and pass. The concurrency test runs anywhere.
+//! to stderr and pass. The concurrency and lock tests run anywhere.
 
 mod common;
 
@@ -403,5 +405,73 @@ fn two_processes_making_the_same_automatic_cache_share_it() {
     // How often the two overlapped (the second waited for the first's lock) depends on
     // the scheduler; the assertions above hold either way
     let _ = writeln!(std::io::stderr(), "two_processes_making_the_same_automatic_cache_share_it: one waited for the other in {waited} of 6 rounds");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Issue 17: a process that holds the conversion lock of an automatic cache and never
+/// lets go (it hangs) holds up a render only for `--cache-lock-timeout`: then the frame is
+/// rendered from the .vdb read into memory, with one warning naming the lock file, when
+/// that fits the memory budget, and fails with one error line naming it (exit 4) when it
+/// does not. The lock is held by this test (`flock` of its own open file).
+#[test]
+fn a_cache_lock_held_past_the_timeout_is_given_up() {
+    use std::os::fd::AsRawFd;
+    use std::time::{Duration, Instant};
+    let dir = tmpdir("faults", "lock-timeout");
+    // As in read_only_cache_directories: a budget that asks for an automatic cache and
+    // fits the in-core read
+    let vdb = dir.join("ex.vdb");
+    synth_explosion(&vdb, 128, Some(8));
+    let estimate = in_core_estimate(&vdb);
+    let file_bytes = std::fs::metadata(&vdb).unwrap().len();
+    assert!(estimate < 4 * file_bytes, "the explosion changed: {estimate} bytes in core vs {file_bytes} on disk; pick another resolution");
+    let fits = ((estimate + 4 * file_bytes) / 2).to_string();
+    let budget = ["--memory-budget", &fits];
+    let name = auto_cache_name(&vdb, &dir.join("scratch"), &budget);
+    let reference = pixel_bits(&exr_pixels(&dir.join("scratch").join("name.exr")));
+    let cache_dir = dir.join("shared");
+    std::fs::create_dir_all(&cache_dir).unwrap();
+    let lock_path = cache_dir.join(format!(".{name}.lock"));
+    let lock = std::fs::File::create(&lock_path).unwrap();
+    // SAFETY: flock on a descriptor `lock` owns, released when it is dropped.
+    assert_eq!(unsafe { libc::flock(lock.as_raw_fd(), libc::LOCK_EX | libc::LOCK_NB) }, 0);
+    let timed = |out: &str, flags: &[&str]| {
+        let start = Instant::now();
+        let mut child = Command::new(PLUME)
+            .args(["render", s(&vdb), "-o", s(&dir.join(out)), "--spp", "2", "--width", "32", "--height", "24", "--seed", "3", "-q"])
+            .args(["--cache-dir", s(&cache_dir), "--cache-lock-timeout", "1"])
+            .args(flags)
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        while child.try_wait().unwrap().is_none() {
+            if start.elapsed() > Duration::from_secs(120) {
+                let _ = child.kill();
+                panic!("plume still waits for the lock after 120 s");
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        (child.wait_with_output().unwrap(), start.elapsed())
+    };
+    // Fits the budget: read in core after the timeout, the same image, no cache made
+    let (o, took) = timed("core.exr", &budget);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(took >= Duration::from_secs(1), "it gave up before the timeout: {took:?}");
+    let warnings: Vec<String> = stderr(&o).lines().filter(|l| l.starts_with("plume: warning:")).map(str::to_owned).collect();
+    assert_eq!(warnings.len(), 1, "{}", stderr(&o));
+    assert!(warnings[0].contains(s(&lock_path)) && warnings[0].contains("--cache-lock-timeout") && warnings[0].contains("into memory"), "{}", warnings[0]);
+    assert!(stderr(&o).contains("waiting for another process"), "{}", stderr(&o));
+    assert_eq!(pixel_bits(&exr_pixels(&dir.join("core.exr"))), reference);
+    assert_eq!(names_in(&cache_dir, |n| n.ends_with(".plume") || n.ends_with(".tmp")), Vec::<String>::new());
+    // Does not fit: exit 4, one line naming the lock file and the way out; no image
+    let (o, _) = timed("none.exr", &["--memory-budget", "1MiB"]);
+    assert_output_failure(&o, &lock_path, "--cache-lock-timeout");
+    assert!(error_lines(&o)[0].contains(s(&cache_dir.join(&name))) && error_lines(&o)[0].contains("--memory-budget"), "{}", stderr(&o));
+    assert!(!dir.join("none.exr").exists());
+    // Once the holder lets go, the cache is made and used as usual
+    drop(lock);
+    let (o, _) = timed("cached.exr", &budget);
+    assert!(o.status.success() && stderr(&o).contains("converting it once"), "{}", stderr(&o));
+    assert_eq!(pixel_bits(&exr_pixels(&dir.join("cached.exr"))), reference);
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -10,11 +10,12 @@
 //! is already mapped): refused, naming the flag.
 
 use std::path::{Path, PathBuf};
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use glam::IVec3;
 
 use super::format::InputFingerprint;
+use super::lock::{Acquired, CacheLock};
 use super::reader::Cache;
 use super::writer::{CacheInfo, CacheWriter, ProxySpec};
 use crate::error::{Error, Result};
@@ -384,65 +385,6 @@ fn writable(dir: &Path, path: &Path) -> std::io::Result<()> {
     std::fs::remove_file(&probe)
 }
 
-/// An advisory lock (`flock`) on `.NAME.lock` beside the cache `NAME`, held while a
-/// process converts, so that other processes making the same cache (farm nodes sharing a
-/// cache directory) wait and then use it instead of converting again. The kernel
-/// releases it when the lock is dropped or the process dies. The lock file is left in
-/// place: removing it would let a process still waiting on the old file and one opening
-/// a new file both hold "the" lock.
-///
-/// Where locks are not available (`flock` refused, e.g. an NFS mount with `nolock`) the
-/// conversion goes on without one: correctness never depends on it (each converter
-/// writes its own temporary and renames a complete file), only duplicate work does.
-struct CacheLock {
-    _file: Option<std::fs::File>,
-}
-
-impl CacheLock {
-    /// How often a waiting process retries (and checks for a stop signal).
-    const POLL: std::time::Duration = std::time::Duration::from_millis(100);
-
-    /// Lock the cache `path`, waiting for another holder to finish.
-    ///
-    /// # Errors
-    /// [`Error::Interrupted`] when SIGTERM or SIGINT arrives while waiting.
-    fn acquire(path: &Path) -> Result<CacheLock> {
-        use std::os::fd::AsRawFd;
-        let name = path.file_name().map_or_else(|| "cache".into(), |n| n.to_string_lossy().into_owned());
-        let lock_path = crate::output::parent_dir(path).join(format!(".{name}.lock"));
-        let unlocked = |e: std::io::Error| {
-            eprintln!("plume: warning: cannot lock {} ({e}); converting without waiting for other processes", lock_path.display());
-            Ok(CacheLock { _file: None })
-        };
-        let file = match std::fs::File::options().read(true).write(true).create(true).truncate(false).open(&lock_path) {
-            Ok(f) => f,
-            Err(e) => return unlocked(e),
-        };
-        let mut announced = false;
-        loop {
-            // SAFETY: flock on a descriptor owned by `file`, which outlives the call.
-            if unsafe { libc::flock(file.as_raw_fd(), libc::LOCK_EX | libc::LOCK_NB) } == 0 {
-                return Ok(CacheLock { _file: Some(file) });
-            }
-            let e = std::io::Error::last_os_error();
-            match e.raw_os_error() {
-                Some(libc::EWOULDBLOCK) => {}
-                Some(libc::EINTR) => continue,
-                _ => return unlocked(e),
-            }
-            if let Some(signal) = crate::farm::signals::stop_requested() {
-                let what = format!("stopped while waiting for another process making the automatic cache {}; nothing written", path.display());
-                return Err(Error::Interrupted { signal: signal.into(), what });
-            }
-            if !announced {
-                eprintln!("plume: waiting for another process that is making the automatic cache {}", path.display());
-                announced = true;
-            }
-            std::thread::sleep(Self::POLL);
-        }
-    }
-}
-
 /// For a .vdb larger on disk than a quarter of the memory `budget` (bytes): its automatic cache,
 /// converted now if missing, stale or damaged. `None` for smaller files (read in core),
 /// and for files read in core because no cache can be made (below).
@@ -452,14 +394,18 @@ impl CacheLock {
 /// - Otherwise the cache is made in the first writable place, under a lock
 ///   ([`CacheLock`]): a process that waited uses the cache the other one made. A stale or
 ///   damaged file stays where it is until the new cache is renamed over it, so a failed
-///   conversion (a full disk) leaves the directory as it was.
+///   conversion (a full disk) leaves the directory as it was. A process that waited
+///   longer than [`lock_timeout`] (the holder hangs) reads the file into memory if that
+///   fits the memory budget, and fails otherwise.
 /// - An explicit `render.cache_dir` that cannot be written is an error; without one, when
 ///   neither the input's directory nor the user cache directory can be written, the file
 ///   is read into memory if that fits the memory budget, and refused otherwise.
 ///
 /// # Errors
 /// As [`convert`]; [`Error::Write`] for a cache directory that cannot be written (exit
-/// code 4); [`Error::Interrupted`] for a signal while waiting for another converter.
+/// code 4); [`Error::Interrupted`] for a signal while waiting for another converter;
+/// [`Error::CacheLocked`] (exit code 4) when it waited in vain and the file does not fit
+/// the memory budget.
 pub fn auto_cache(scene: &SceneDescription, input: &Path, settings: &JobSettings, budget: u64) -> Result<Option<Cache>> {
     let Ok(meta) = std::fs::metadata(input) else { return Ok(None) };
     if meta.len().saturating_mul(4) <= budget {
@@ -478,7 +424,7 @@ pub fn auto_cache(scene: &SceneDescription, input: &Path, settings: &JobSettings
     for place in &places {
         let path = place.dir.join(&name);
         match writable(&place.dir, &path) {
-            Ok(()) => return make_auto_cache(scene, input, settings, &path, meta.len(), budget).map(Some),
+            Ok(()) => return make_auto_cache(scene, input, settings, &path, meta.len(), budget),
             Err(e) => refused.push((place, e)),
         }
     }
@@ -526,13 +472,43 @@ fn size(bytes: u64) -> String {
     }
 }
 
+/// How long a render waits for another process making the same automatic cache before it
+/// gives up: `render.cache_lock_timeout`, or by default 10 minutes plus 1 s per 10 MB of
+/// the `.vdb` (a conversion reading it ten times slower than measured on a 2-core machine,
+/// README "Out-of-core figures", still finishes within it).
+#[must_use]
+pub fn lock_timeout(settings: &JobSettings, input_bytes: u64) -> Duration {
+    match settings.render.cache_lock_timeout {
+        Some(seconds) => Duration::try_from_secs_f64(seconds).unwrap_or(Duration::MAX),
+        None => DEFAULT_LOCK_WAIT + Duration::from_secs(input_bytes / LOCK_WAIT_BYTES_PER_SECOND),
+    }
+}
+
+/// The fixed part of the default [`lock_timeout`].
+const DEFAULT_LOCK_WAIT: Duration = Duration::from_secs(600);
+/// The rate of conversion the default [`lock_timeout`] allows for (bytes of `.vdb` per second).
+const LOCK_WAIT_BYTES_PER_SECOND: u64 = 10_000_000;
+
 /// Convert `input` to the automatic cache `path` (whose directory is writable), unless
-/// another process made it while this one waited for the lock.
-fn make_auto_cache(scene: &SceneDescription, input: &Path, settings: &JobSettings, path: &Path, input_bytes: u64, budget: u64) -> Result<Cache> {
-    let _lock = CacheLock::acquire(path)?;
+/// another process made it while this one waited for the lock. `None` when the lock
+/// stayed taken past [`lock_timeout`] and the file is read into memory instead.
+fn make_auto_cache(scene: &SceneDescription, input: &Path, settings: &JobSettings, path: &Path, input_bytes: u64, budget: u64) -> Result<Option<Cache>> {
+    let timeout = lock_timeout(settings, input_bytes);
+    let at_most = (timeout.as_secs_f64() * 10.0).round() / 10.0;
+    let waiting = format!("waiting for another process that is making the automatic cache {} (at most {at_most} s, --cache-lock-timeout)", path.display());
+    let _lock = match CacheLock::acquire(path, timeout, Some(&waiting))? {
+        Acquired::Locked(lock) => lock,
+        Acquired::TimedOut { lock, waited } => {
+            // A whole new file may be there even so (readers see the old file or the new one)
+            if let Ok(Some(cache)) = open_auto(path) {
+                return Ok(Some(cache));
+            }
+            return locked_out(scene, input, settings, path, &lock, waited, budget).map(|()| None);
+        }
+    };
     if let Ok(Some(cache)) = open_auto(path) {
         eprintln!("plume: using the automatic cache {}, which another process made meanwhile", path.display());
-        return Ok(cache);
+        return Ok(Some(cache));
     }
     eprintln!(
         "plume: {} is {:.2} GiB on disk, more than a quarter of the memory budget ({:.2} GiB, --memory-budget); \
@@ -547,7 +523,39 @@ fn make_auto_cache(scene: &SceneDescription, input: &Path, settings: &JobSetting
     eprintln!("plume: wrote {} ({:.2} GiB) in {:.1} s", c.path.display(), c.bytes as f64 / GIB, c.seconds);
     let mut cache = Cache::open(&c.path)?;
     cache.check.remove_on_failure();
-    Ok(cache)
+    Ok(Some(cache))
+}
+
+/// After waiting `waited` in vain for the `lock` of the automatic cache `path`: `Ok` (with
+/// a warning) when `input` read into memory fits the memory `budget`, so the frame is
+/// rendered without the cache; the error otherwise.
+fn locked_out(scene: &SceneDescription, input: &Path, settings: &JobSettings, path: &Path, lock: &Path, waited: Duration, budget: u64) -> Result<()> {
+    let held = format!(
+        "another process has held this lock for {:.1} s (--cache-lock-timeout) while making the automatic brick cache {}",
+        waited.as_secs_f64(),
+        path.display()
+    );
+    let needed = in_core_bytes(scene, input, settings)?;
+    if needed <= budget {
+        eprintln!(
+            "plume: warning: {}: {held}; reading {} into memory instead (about {}, within the memory budget of {})",
+            lock.display(),
+            input.display(),
+            size(needed),
+            size(budget)
+        );
+        return Ok(());
+    }
+    Err(Error::CacheLocked {
+        lock: lock.to_path_buf(),
+        what: format!(
+            "{held}, and reading {} into memory instead would need about {}, more than the memory budget of {} (--memory-budget); \
+             run the command again once that process has finished (or end it, if it hangs)",
+            input.display(),
+            size(needed),
+            size(budget)
+        ),
+    })
 }
 
 /// Peak memory of reading `input` in core, estimated from its grids' headers (topology

@@ -8,6 +8,7 @@
 //! - [`verify`]: the background checksum pass over the large sections.
 //! - [`convert`]: `.vdb` → cache (`plume prepare`, and the automatic cache of `plume
 //!   render` for inputs too large for `--memory-budget`), staleness and flag checks.
+//! - [`lock`]: the advisory lock of an automatic cache's conversion, with a bounded wait.
 //!
 //! A cache stores what an in-core build would hold, produced by the same code (the brick
 //! table builder, the pyramid from per-brick bounds, the proxy's per-cell power sum), so
@@ -16,6 +17,7 @@
 pub mod convert;
 pub mod format;
 pub mod generate;
+pub mod lock;
 pub mod reader;
 pub mod verify;
 pub mod writer;

@@ -26,6 +26,7 @@ use glam::{DAffine3, DMat3, DVec3, IVec3};
 use rayon::prelude::*;
 
 use super::format::{Header, Meta, SectionEntry, SectionKind, BYTE_ORDER, CHUNK, MAGIC, PAGE, VERSION};
+use super::lock::{Acquired, CacheLock};
 use super::verify::{section_sums, Failure, Verification};
 use crate::error::{Error, Result};
 use crate::mapfault::Mapping;
@@ -38,6 +39,10 @@ use crate::volume::Volume;
 
 /// Sections up to this size are verified before [`Cache::open`] returns.
 pub const EAGER_BYTES: u64 = 64 << 20;
+
+/// How long [`CacheCheck::verified`] waits for the conversion lock before it leaves a
+/// damaged automatic cache to the process holding it.
+const REMOVE_LOCK_WAIT: std::time::Duration = std::time::Duration::from_secs(2);
 
 /// An opened brick cache. See the module docs.
 #[derive(Debug)]
@@ -118,7 +123,8 @@ impl CacheCheck {
     /// [`Error::InputFailed`] (exit code 4) when the file was truncated, rewritten,
     /// replaced or removed while in use, or could not be read (an I/O error);
     /// [`Error::Cache`] naming the first chunk that failed its checksum (an automatic
-    /// cache is then deleted, so the next run rebuilds it).
+    /// cache is then deleted, so the next run rebuilds it, unless another process has
+    /// replaced it meanwhile: see `remove_damaged`).
     pub fn verified(&self) -> Result<()> {
         let outcome = self.verification.wait();
         let failed = |what: String| Error::InputFailed {
@@ -134,11 +140,39 @@ impl CacheCheck {
         match outcome {
             Ok(()) => Ok(()),
             Err(Failure::Unreadable(what)) => Err(failed(what)),
-            Err(Failure::Damaged(what)) => Err(if self.remove_on_failure && std::fs::remove_file(&self.path).is_ok() {
-                corrupt(&self.path, format!("{what}; removed this automatic cache, the next run rebuilds it"))
-            } else {
-                corrupt(&self.path, what)
-            }),
+            Err(Failure::Damaged(what)) if self.remove_on_failure => Err(corrupt(&self.path, format!("{what}; {}", self.remove_damaged()))),
+            Err(Failure::Damaged(what)) => Err(corrupt(&self.path, what)),
+        }
+    }
+
+    /// Remove the damaged automatic cache, if the file at the path is still the one this
+    /// check read; say what was done. Under the conversion lock ([`CacheLock`]), which every
+    /// converter holds while it renames a new cache into place, so no new file can arrive
+    /// between the comparison and the unlink: the identity compared (device and inode of
+    /// the file opened against a fresh `stat` of the path) is the file's, not its bytes',
+    /// as a rebuilt cache has the same size and header as the damaged one it replaces.
+    /// A lock still held after [`REMOVE_LOCK_WAIT`] means another process is converting
+    /// (its new cache will replace this one): the file is left to it. Where locks are not
+    /// available, the comparison is made without one (converters cannot take one either).
+    fn remove_damaged(&self) -> String {
+        use std::os::unix::fs::MetadataExt;
+        let _lock = match CacheLock::acquire(&self.path, REMOVE_LOCK_WAIT, None) {
+            Ok(Acquired::Locked(lock)) => lock,
+            Ok(Acquired::TimedOut { lock, .. }) => {
+                return format!("left in place: another process holds its lock {} and is making a new one", lock.display());
+            }
+            Err(e) => return format!("left in place ({e})"),
+        };
+        match std::fs::metadata(&self.path) {
+            Ok(now) if (now.dev(), now.ino()) != (self.opened.dev, self.opened.ino) => {
+                "not removed: another process has already replaced this automatic cache with a new file; run the command again".into()
+            }
+            Ok(_) => match std::fs::remove_file(&self.path) {
+                Ok(()) => "removed this automatic cache, the next run rebuilds it".into(),
+                Err(e) => format!("cannot remove this automatic cache ({e})"),
+            },
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => "another process has already removed it".into(),
+            Err(e) => format!("left in place ({e})"),
         }
     }
 

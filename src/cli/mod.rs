@@ -26,7 +26,8 @@ use clap::{Parser, Subcommand};
 /// 2 bad arguments or scene file; 3 input missing, unreadable or invalid (VDB file,
 /// grid, merge part); 4 render or output failure, including an input that failed while
 /// in use (truncated, rewritten or replaced by another process, an I/O error of its
-/// storage; one line, never a death by SIGBUS); 5 interrupted by SIGTERM/SIGINT (the
+/// storage; one line, never a death by SIGBUS; it ends a run of several frames at once)
+/// or a cache lock held past --cache-lock-timeout; 5 interrupted by SIGTERM/SIGINT (the
 /// image so far was written with its real spp; a rerun continues it); 6 --time-limit
 /// reached (likewise); 7 a run of several frames in which some frames failed or stopped
 /// early (each is reported; the others were rendered). A run of one frame exits with

@@ -148,6 +148,13 @@ pub struct RenderArgs {
     /// directory that cannot be written is an error (exit 4).
     #[arg(long)]
     pub cache_dir: Option<PathBuf>,
+    /// Seconds to wait for another process that is making the same automatic cache (farm
+    /// nodes sharing a cache directory) before giving up on it: the .vdb is then read into
+    /// memory if that fits --memory-budget, with a warning naming the lock file, and the
+    /// frame fails otherwise (exit 4). 0: do not wait. Default: 10 minutes plus 1 s per
+    /// 10 MB of the .vdb.
+    #[arg(long)]
+    pub cache_lock_timeout: Option<f64>,
     /// Order of the samples (the image is the same): `progressive` passes over the whole
     /// image, or `tile-major`, every sample of a tile before the next, with the next
     /// tiles' bricks read ahead, so a volume larger than memory is read from disk about
@@ -162,7 +169,8 @@ pub struct RenderArgs {
     pub quiet: bool,
     /// Frames to render: `1-100`, `1-100x2` (or `1-100:2`), `1,5,10-20`. One process
     /// renders them in order, each frame's grids loaded once; a frame that fails is
-    /// reported and the others go on (exit code 7).
+    /// reported and the others go on (exit code 7); an input that fails while in use
+    /// (truncated or replaced by another process) ends the run at once (exit code 4).
     #[arg(long, allow_hyphen_values = true)]
     pub frames: Option<String>,
     /// Render frames even when their output is already complete (default: skip them).
@@ -288,6 +296,7 @@ flags_to_keys! { RENDER_ONLY_FLAGS, apply_render_only, RenderArgs, s, a;
     "stats" => "output.stats": s.settings.output.stats => a.stats.clone();
     "memory_budget" => "render.memory_budget": s.settings.render.memory_budget => a.memory_budget;
     "cache_dir" => "render.cache_dir": s.settings.render.cache_dir => a.cache_dir.clone();
+    "cache_lock_timeout" => "render.cache_lock_timeout": s.settings.render.cache_lock_timeout => a.cache_lock_timeout;
     "sample_order" => "render.sample_order": s.settings.render.sample_order => a.sample_order;
     "quiet" => "render.quiet": s.settings.render.quiet => a.quiet;
     "frames" => "farm.frames": s.settings.farm.frames => a.frames.clone();

@@ -64,7 +64,19 @@ pub fn settings_hash(shot: &Shot, seed: u64) -> String {
     let IntegratorSettings { method, estimator, light_sampling, mis, proxy_resolution, max_depth, kappa } = integrator;
     // None of the job's settings changes a pixel
     let JobSettings { render, farm, output, reading } = settings;
-    let RenderOptions { spp: _, time: _, seed: _, threads: _, sample_order: _, memory_budget: _, cache_dir: _, debug_pixel: _, quiet: _, progress: _ } = render;
+    let RenderOptions {
+        spp: _,
+        time: _,
+        seed: _,
+        threads: _,
+        sample_order: _,
+        memory_budget: _,
+        cache_dir: _,
+        cache_lock_timeout: _,
+        debug_pixel: _,
+        quiet: _,
+        progress: _,
+    } = render;
     let FarmOptions { frames: _, overwrite: _, time_limit: _, crop: _, tile: _, sample_range: _ } = farm;
     let OutputSettings { image: _, preview: _, exposure: _, stats: _, sums: _ } = output;
     let ReadSettings { max_input_memory: _, read_timeout: _, no_isolation: _ } = reading;

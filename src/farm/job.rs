@@ -1,10 +1,13 @@
 //! `plume render` as a farm runs it: one frame, or a chunk of a sequence, per command.
 //!
 //! The shot was validated once ([`crate::scene::ValidShot`]); [`Job::new`] adds what
-//! needs the file system, then each frame is rendered in turn by `farm::frame`. A frame that fails is reported (stderr, `--progress`) and the others go
-//! on; a signal stops the run after writing the current frame. The exit code sums up the
-//! run (`error::exit`): a run of one frame exits with that frame's code, a run of several
-//! with 7 when any failed or stopped early, and 5 when interrupted.
+//! needs the file system, then each frame is rendered in turn by `farm::frame`. A frame
+//! that fails is reported (stderr, `--progress`) and the others go on; a signal stops the
+//! run after writing the current frame. The exit code sums up the run (`error::exit`): a
+//! run of one frame exits with that frame's code, a run of several with 7 when any failed
+//! or stopped early, and 5 when interrupted. An input that fails while in use
+//! ([`Error::InputFailed`], or a lost page of a mapped file, `mapfault`) ends any run at
+//! once with 4.
 
 use std::ops::Range;
 
@@ -106,7 +109,8 @@ impl<'a> Job<'a> {
 ///
 /// # Errors
 /// For one frame, that frame's error; for several, [`Error::FramesFailed`]; when a
-/// signal stopped the run, [`Error::Interrupted`]; bad values stop the run at once.
+/// signal stopped the run, [`Error::Interrupted`]; bad values and an input that failed
+/// while in use ([`Error::InputFailed`]) stop the run at once.
 pub fn render_command(shot: &ValidShot, command_line: &str) -> Result<()> {
     let job = Job::new(shot)?;
     if let Err(e) = signals::install() {
@@ -145,7 +149,12 @@ fn run_frames(job: &Job<'_>, command_line: &str, progress: &Progress) -> Result<
                 report(frame, index, &e, progress);
                 failed.push(frame.unwrap_or(0));
             }
-            Err(e) if single || e.exit_code() == exit::BAD_ARGUMENTS => return Err(e),
+            // An input failing while in use (truncated, rewritten or replaced under plume,
+            // or its storage failing) ends the run at once with exit code 4, however it
+            // was noticed: a lost page comes as SIGBUS, which `mapfault` can only end the
+            // process for, so the checksum pass and the final check of the file do the
+            // same, and one fault has one exit code
+            Err(e) if single || e.exit_code() == exit::BAD_ARGUMENTS || matches!(e, Error::InputFailed { .. }) => return Err(e),
             Err(e) => {
                 report(frame, index, &e, progress);
                 failed.push(frame.unwrap_or(0));

@@ -58,6 +58,11 @@ pub struct RenderOptions {
     /// Where automatic brick caches go (default: beside the input).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub cache_dir: Option<PathBuf>,
+    /// Seconds to wait for another process making the same automatic cache before
+    /// rendering without it (default: 10 minutes plus 1 s per 10 MB of the input;
+    /// `cache::convert::lock_timeout`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cache_lock_timeout: Option<f64>,
     /// Render only this pixel sample and print its path.
     #[serde(skip_serializing_if = "Option::is_none", with = "super::values::opt_text")]
     pub debug_pixel: Option<SampleId>,

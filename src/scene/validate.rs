@@ -130,6 +130,11 @@ impl Shot {
             return Err(Error::invalid("output.image", format!("{} must end in .exr", out.image.display())));
         }
         positive_seconds("reading.read_timeout", job.reading.read_timeout)?;
+        if let Some(t) = r.cache_lock_timeout {
+            if !(t.is_finite() && t >= 0.0) {
+                return Err(Error::invalid("render.cache_lock_timeout", format!("{t} must be a number of seconds, 0 or more")));
+            }
+        }
         let farm = &job.farm;
         if let Some(list) = &farm.frames {
             crate::farm::frames::parse_frames(list).map_err(|m| Error::invalid("farm.frames", m))?;

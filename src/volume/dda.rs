@@ -300,15 +300,21 @@ impl<C: Cells> CellWalk<C> {
                     }
                 }
                 let t1 = t_exit.min(self.t_end);
-                let piece = (t1 > t0).then(|| self.cells.dense_piece(dense, origin, ijk, t0, t1, &IndexLine { o: self.o, d: self.d }));
-                let l = self.ijk - origin;
-                if (l.x as u32 | l.y as u32 | l.z as u32) >= BRICK as u32 {
-                    self.brick = None;
-                }
-                if piece.is_some() {
+                let leaves = {
+                    let l = self.ijk - origin;
+                    (l.x as u32 | l.y as u32 | l.z as u32) >= BRICK as u32
+                };
+                if t1 > t0 {
+                    let piece = self.cells.dense_piece(dense, origin, ijk, t0, t1, &IndexLine { o: self.o, d: self.d });
+                    if leaves {
+                        self.brick = None;
+                    }
                     self.t = t1;
                     self.raw_steps += 1;
-                    return piece;
+                    return Some(piece);
+                }
+                if leaves {
+                    self.brick = None;
                 }
                 continue;
             } else {
@@ -402,17 +408,20 @@ impl<C: Cells> SegmentIter for CellWalk<C> {
             return ControlFlow::Continue(());
         }
         let mut pending = self.pending.take();
-        while let Some(raw) = self.step_raw() {
-            if !C::mergeable(&raw) {
+        loop {
+            // Read in place: a piece moves only when it waits to merge
+            let next = self.step_raw();
+            let Some(raw) = next.as_ref() else { break };
+            if !C::mergeable(raw) {
                 if let Some(p) = pending.take() {
                     visit(&p)?;
                 }
-                visit(&raw)?;
+                visit(raw)?;
                 continue;
             }
-            let merged = pending.as_mut().is_some_and(|p| C::merge(p, &raw));
+            let merged = pending.as_mut().is_some_and(|p| C::merge(p, raw));
             if !merged {
-                if let Some(p) = pending.replace(raw) {
+                if let Some(p) = pending.replace(*raw) {
                     visit(&p)?;
                 }
             }

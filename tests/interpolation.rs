@@ -402,17 +402,19 @@ fn linear_renders_through_an_automatic_cache_tile_by_tile_equal_in_core_ones() {
 }
 
 // ---------------------------------------------------------------------------------------
-// Cycles' emission rule
+// Emission between voxel centres in Cycles' convention
 
-/// `--convention cycles` with blackbody emission follows Cycles between voxel centres:
-/// `L_e(x) = le(T(x))` with the interpolated temperature, not the interpolated per-voxel
-/// blackbody. Along a ray through a temperature ramp with no absorption to speak of
-/// (σ_t = 10⁻⁹: no collision, τ = 1), the line estimator's mean (one-point rule per piece)
-/// is `∫ le(T(s)) ds` from a 10⁵-step midpoint march of the field's interpolated values,
-/// within 4σ of 4 000 paths; the per-voxel rule's integral is far outside that band, so
-/// the test can fail.
+/// `--convention cycles` with blackbody emission interpolates each voxel's emission,
+/// `L_e(x) = Σ_c w_c le(T_c)`, as the physical convention does: Cycles 5.0.1 looks OpenVDB
+/// grids up by stochastic one-tap sampling (one corner voxel drawn with probability
+/// `w_c`), whose expected value is that same per-voxel rule (measured against Cycles by
+/// `scripts/compare-cycles.sh`: image means within 0.1 %, where interpolating the
+/// temperature first is 3.6 % darker). Along a ray through a temperature ramp with no
+/// absorption to speak of (σ_t = 10⁻⁹: no collision, τ = 1), the line estimator is the
+/// closed form, so every path returns `∫ Σ w_c le(T_c) ds` of a 10⁵-step midpoint march
+/// to 10⁻⁶; the temperature-interpolated integral is far from it, so the test can fail.
 #[test]
-fn cycles_convention_interpolates_temperature_before_the_blackbody() {
+fn cycles_convention_interpolates_each_voxels_emission() {
     let xf = DAffine3::IDENTITY;
     let leaves = [IVec3::ZERO];
     let density = grid("density", xf, &leaves, |_| 1.0);
@@ -426,7 +428,6 @@ fn cycles_convention_interpolates_temperature_before_the_blackbody() {
         temperature_map: plume::medium::TemperatureMap::Kelvin,
         cutoff_kelvin: 0.0,
     };
-    assert!(emission.interpolates_source());
     let volume = Volume::build(&density, Some(&temperature), |v| emission.map_source(v)).unwrap();
     let medium = Medium { sigma_t: 1e-9, albedo: 0.0, g: 0.0, emission };
     let field = plume::volume::trilinear::Trilinear::new(volume);
@@ -435,23 +436,20 @@ fn cycles_convention_interpolates_temperature_before_the_blackbody() {
     let steps = 100_000;
     let (x0, x1) = (-1.0, 8.0);
     let h = (x1 - x0) / f64::from(steps);
-    let (mut cycles, mut per_voxel) = (0.0, 0.0);
+    let (mut of_temperature, mut per_voxel) = (0.0, 0.0);
     for k in 0..steps {
         let p = DVec3::new(x0 + (f64::from(k) + 0.5) * h, ray.origin.y, ray.origin.z);
         let v = plume::volume::Field::values_at(&field, p);
-        cycles += f64::from(emission.le(v.density, v.source).0[0]) * h;
+        of_temperature += f64::from(emission.le(v.density, v.source).0[0]) * h;
         per_voxel += plume::volume::Field::reconstruct(&field, p, &|d, s| emission.le(d, s)).emission[0] * h;
     }
-    let n = 4000u64;
-    let mut values = Vec::with_capacity(n as usize);
-    for i in 0..n {
+    for i in 0..16u64 {
         let mut sampler = plume::sampling::Sampler::new(77, 0, i);
         let u = sampler.next_f64();
         let r = plume::medium::track(&field, &medium, &ray, f64::INFINITY, Estimator::Line, false, u, &mut sampler);
-        values.push(r.emission[0]);
+        let line = r.emission[0];
+        assert!((line - per_voxel).abs() <= 1e-6 * per_voxel, "path {i}: line estimator {line}, per-voxel rule {per_voxel}");
     }
-    let (mean, se) = mean_stderr(&values);
-    assert!((mean - cycles).abs() < 4.0 * se, "line estimator {mean} ± {se}, Cycles' rule {cycles}");
-    assert!((per_voxel - cycles).abs() > 40.0 * se, "per-voxel rule {per_voxel} too close to Cycles' {cycles} (σ {se}) to tell them apart");
-    println!("cycles rule: ∫L_e = {cycles:.6e}, line estimator {mean:.6e} ± {se:.1e}; per-voxel rule {per_voxel:.6e}");
+    assert!((per_voxel - of_temperature).abs() > 0.01 * per_voxel, "per-voxel {per_voxel} too close to the temperature-interpolated {of_temperature}");
+    println!("per-voxel rule: ∫L_e = {per_voxel:.6e}; temperature interpolated first {of_temperature:.6e}");
 }

@@ -180,18 +180,6 @@ impl Emission {
         }
     }
 
-    /// True when, between voxel centres, emission follows Blender Cycles' rule: density and
-    /// temperature are interpolated and the blackbody function applied to the result
-    /// (`--convention cycles` with blackbody emission). Otherwise each voxel's emission
-    /// density `le(ρ_i, s_i)` is what is interpolated, which is a cubic along a ray with a
-    /// closed-form integral (for grid emission in Cycles' convention, `le` is linear in the
-    /// source and independent of density, so both rules agree exactly). See
-    /// `volume/trilinear/mod.rs`.
-    #[must_use]
-    pub fn interpolates_source(&self) -> bool {
-        self.kind == EmissionKind::Blackbody && self.convention == Convention::Cycles
-    }
-
     /// True when emission can be non-zero where density is zero (then the point
     /// estimator, which scores only at collisions, misses it).
     #[must_use]

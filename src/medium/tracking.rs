@@ -123,11 +123,11 @@ pub fn track<F: Field>(
 ) -> TrackResult {
     match estimator {
         Estimator::RayMarch => track_expected(field, medium, ray, t_max, need_collision, u, sampler),
-        _ => track_free_path(field, medium, ray, t_max, estimator, u, sampler),
+        _ => track_free_path(field, medium, ray, t_max, estimator, u),
     }
 }
 
-fn track_free_path<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, estimator: Estimator, u: f64, sampler: &mut Sampler) -> TrackResult {
+fn track_free_path<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, estimator: Estimator, u: f64) -> TrackResult {
     let e = sample_exponential(u);
     let mut od = 0.0f64;
     let mut f = [0.0f64; 3];
@@ -137,7 +137,7 @@ fn track_free_path<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, 
         segments += 1;
         let Some(seg) = piece.constant() else {
             // A polynomial piece (trilinear reconstruction, METHOD.md §12)
-            return match free_path_polynomial(piece, medium, estimator, e, &mut od, &mut f, sampler) {
+            return match free_path_polynomial(piece, medium, estimator, e, &mut od, &mut f) {
                 Some(event) => ControlFlow::Break(event),
                 None => ControlFlow::Continue(()),
             };
@@ -184,47 +184,27 @@ fn add_scaled(acc: &mut [f64; 3], v: [f64; 3], w: f64) {
     }
 }
 
-/// `L_e` at `u` on a polynomial piece, by the medium's rule: each voxel's emission
-/// interpolated, or (Cycles' rule, [`crate::medium::Emission::interpolates_source`]) the
-/// emission of the interpolated density and temperature.
+/// `L_e` at `u` on a polynomial piece: each voxel's emission density interpolated
+/// (`volume/trilinear/mod.rs`, "What is interpolated").
 #[inline]
 fn emission_at<P: Piece>(piece: &P, medium: &Medium, u: f64) -> [f64; 3] {
-    let le = |d: f32, s: f32| medium.emission.le(d, s);
-    if medium.emission.interpolates_source() {
-        piece.emission_of_values_at(&le, u)
-    } else {
-        piece.emission_at(&le, u)
-    }
+    piece.emission_at(&|d: f32, s: f32| medium.emission.le(d, s), u)
 }
 
 /// Density and `L_e` at a world point (a next-event sample), by the same rule as
-/// [`emission_at`] along pieces: the field's reconstruction of each voxel's emission, or
-/// under Cycles' rule the emission of the interpolated density and temperature.
+/// [`emission_at`] along pieces: the field's reconstruction of each voxel's emission.
 #[must_use]
 pub fn emission_at_point<F: Field>(field: &F, medium: &Medium, p_world: glam::DVec3) -> PointValues {
-    if medium.emission.interpolates_source() {
-        let v = field.values_at(p_world);
-        PointValues { density: v.density, emission: medium.emission.le(v.density, v.source).to_f64() }
-    } else {
-        field.reconstruct(p_world, &|d, s| medium.emission.le(d, s))
-    }
+    field.reconstruct(p_world, &|d, s| medium.emission.le(d, s))
 }
 
-/// An unbiased estimate of `∫₀ᵘ L_e ds` on a polynomial piece: the closed form when each
-/// voxel's emission is interpolated (a cubic); under Cycles' rule, where the blackbody of
-/// an interpolated temperature has no closed form, the one-point rule `u L_e(ξu)` with a
-/// fresh `ξ` (unbiased; drawn only where the piece can emit).
+/// `∫₀ᵘ L_e ds` on a polynomial piece, in closed form (a cubic per channel).
 #[inline]
-fn emission_integral<P: Piece>(piece: &P, medium: &Medium, u: f64, sampler: &mut Sampler) -> [f64; 3] {
+fn emission_integral<P: Piece>(piece: &P, medium: &Medium, u: f64) -> [f64; 3] {
     if !piece.may_emit() || u <= 0.0 {
         return [0.0; 3];
     }
-    if medium.emission.interpolates_source() {
-        let xi = sampler.next_f64();
-        emission_at(piece, medium, xi * u).map(|c| c * u)
-    } else {
-        piece.emission_integral(&|d: f32, s: f32| medium.emission.le(d, s), u)
-    }
+    piece.emission_integral(&|d: f32, s: f32| medium.emission.le(d, s), u)
 }
 
 /// One polynomial piece of a free path: the same estimators as the constant case, with
@@ -236,15 +216,7 @@ fn emission_integral<P: Piece>(piece: &P, medium: &Medium, u: f64, sampler: &mut
 ///   collision falls, so the mix of two unbiased estimates stays unbiased.
 ///
 /// Adds to `od` and `f`; returns the collision, if the free path ends here.
-fn free_path_polynomial<P: Piece>(
-    piece: &P,
-    medium: &Medium,
-    estimator: Estimator,
-    e: f64,
-    od: &mut f64,
-    f: &mut [f64; 3],
-    sampler: &mut Sampler,
-) -> Option<DistanceSample> {
+fn free_path_polynomial<P: Piece>(piece: &P, medium: &Medium, estimator: Estimator, e: f64, od: &mut f64, f: &mut [f64; 3]) -> Option<DistanceSample> {
     let len = piece.length();
     let x = piece.optical_depth(medium.sigma_t, len);
     let alpha = match estimator {
@@ -256,7 +228,7 @@ fn free_path_polynomial<P: Piece>(
         let u = piece.free_path(medium.sigma_t, e - *od);
         let density = piece.density_at(u);
         if alpha > 0.0 {
-            add_scaled(f, emission_integral(piece, medium, u, sampler), alpha);
+            add_scaled(f, emission_integral(piece, medium, u), alpha);
         }
         let mu = medium.mu_t(density);
         if alpha < 1.0 && mu > 0.0 {
@@ -267,7 +239,7 @@ fn free_path_polynomial<P: Piece>(
     }
     *od += x;
     if alpha > 0.0 {
-        add_scaled(f, emission_integral(piece, medium, len, sampler), alpha);
+        add_scaled(f, emission_integral(piece, medium, len), alpha);
     }
     None
 }

@@ -83,13 +83,6 @@ pub trait Piece: Copy + std::fmt::Debug {
     fn emission_at(&self, le: &impl Fn(f32, f32) -> Rgb, u: f64) -> [f64; 3];
     /// `∫₀ᵘ L_e ds` per channel.
     fn emission_integral(&self, le: &impl Fn(f32, f32) -> Rgb, u: f64) -> [f64; 3];
-    /// `le(ρ(u), s(u))`: the emission of the interpolated density and source, Cycles' rule
-    /// (see [`crate::medium::Emission::interpolates_source`]); the same as
-    /// [`Piece::emission_at`] on a constant piece.
-    #[inline]
-    fn emission_of_values_at(&self, le: &impl Fn(f32, f32) -> Rgb, u: f64) -> [f64; 3] {
-        le(self.density_at(u), self.source_at(u)).to_f64()
-    }
     /// False when no emission can come from the piece (every source is 0).
     #[inline]
     fn may_emit(&self) -> bool {

@@ -1,19 +1,21 @@
-//! What trilinear reconstruction interpolates: the per-voxel emission rule against Cycles'.
+//! What trilinear reconstruction interpolates: the per-voxel emission rule against
+//! interpolating the temperature first.
 //!
 //! At a point `x` with corners `c` and weights `w_c` ([`PointCorners`]):
 //! - the **per-voxel rule** interpolates each voxel's emission density:
 //!   `L_e(x) = Σ_c w_c le(ρ_c, T_c)` ([`PointCorners::emission`]), a cubic along a ray, so
 //!   the line estimator integrates it in closed form (`volume::trilinear`); plume uses it
-//!   in the physical convention;
-//! - **Cycles** interpolates density and temperature and applies the emission after:
-//!   `L_e(x) = le(ρ(x), T(x))`, with `ρ(x) = Σ w_c ρ_c`, `T(x) = Σ w_c T_c`; plume uses it
-//!   in `--convention cycles` (`medium::Emission::interpolates_source`), so its images
-//!   follow Cycles there. The figures say what the per-voxel rule would change.
+//!   in both conventions, and it is the expected value of Cycles 5.0.1's stochastic
+//!   one-tap grid lookups;
+//! - **temperature first** interpolates density and temperature and applies the emission
+//!   after: `L_e(x) = le(ρ(x), T(x))`, with `ρ(x) = Σ w_c ρ_c`, `T(x) = Σ w_c T_c` (what a
+//!   deterministic trilinear lookup, e.g. OpenVDB's `BoxSampler`, followed by the blackbody
+//!   gives). The figures say how far apart the two are.
 //!
 //! The two differ where `le` is not linear in T (blackbody: `T⁴` in the Cycles convention,
 //! Planck in the physical one) and, in the physical convention, where `ρ·C(T)` is not
 //! linear across a cell; most of all at the fire's edge, where inactive temperature voxels
-//! count as 0 K and pull Cycles' `T(x)` down.
+//! count as 0 K and pull an interpolated `T(x)` down.
 //!
 //! **Quadrature** (deterministic, the same for both): one ray per pixel centre, clipped to
 //! the trilinear support; a midpoint march whose index-space step is at most
@@ -22,7 +24,7 @@
 //! `L += τ(s_m) L_e(s_m) Δ`. The march stops once the optical depth passes 50
 //! (τ < 2·10⁻²²). Same τ, same points: only the emission rule differs.
 //!
-//! **Figures**, with Cycles' rule's image as the reference `b` and the per-voxel rule's as `a`: the image mean
+//! **Figures**, with the temperature-first image as the reference `b` and the per-voxel rule's as `a`: the image mean
 //! difference `(mean a − mean b)/mean b`; `relRMSE = √relMSE` with `bench::metrics`'
 //! relMSE (`(a − b)²/(b² + ε)` per pixel and channel, top 0.1 % of pixels trimmed) of the
 //! images divided by `mean b`, with the metrics' default ε = 10⁻² (an absolute
@@ -72,7 +74,7 @@ pub struct RuleRow {
     pub convention: String,
     /// Image mean (RGB) with the per-voxel rule.
     pub plume_mean: f64,
-    /// Image mean (RGB) with Cycles' rule.
+    /// Image mean (RGB) with the temperature interpolated first.
     pub cycles_mean: f64,
     /// `100 · (plume_mean − cycles_mean) / cycles_mean`.
     pub mean_difference_percent: f64,
@@ -218,10 +220,10 @@ impl RuleReport {
     #[must_use]
     pub fn markdown(&self) -> String {
         let mut s = format!(
-            "**Emission rule: per-voxel against Cycles'.** The per-voxel rule interpolates each voxel's emission density, `L_e(x) = Σ w_c le(ρ_c, T_c)` (plume in the physical convention: a cubic, integrated in closed form); Cycles interpolates ρ and T and applies the blackbody after, `le(ρ(x), T(x))` (plume in `--convention cycles`). Emission-only images ({}×{}, auto-framed, σ_t = 1 per metre as Blender's default density), one ray per pixel centre, a deterministic midpoint march with an index-space step of at most {} voxel, the same transmittance (interpolated ρ) for both: only the emission rule differs. Reference = Cycles' rule. relRMSE = √relMSE, relMSE as in the metrics above (top 0.1 % trimmed) on both images divided by the reference's mean, ε = {} (the conventions' radiances differ by orders of magnitude).\n\n",
+            "**Emission rule: per-voxel against temperature first.** The per-voxel rule interpolates each voxel's emission density, `L_e(x) = Σ w_c le(ρ_c, T_c)` (plume, in both conventions: a cubic, integrated in closed form; the expected value of Cycles 5.0.1's stochastic one-tap lookups); the other interpolates ρ and T and applies the blackbody after, `le(ρ(x), T(x))`. Emission-only images ({}×{}, auto-framed, σ_t = 1 per metre as Blender's default density), one ray per pixel centre, a deterministic midpoint march with an index-space step of at most {} voxel, the same transmittance (interpolated ρ) for both: only the emission rule differs. Reference = temperature first. relRMSE = √relMSE, relMSE as in the metrics above (top 0.1 % trimmed) on both images divided by the reference's mean, ε = {} (the conventions' radiances differ by orders of magnitude).\n\n",
             self.width, self.height, crate::bench::outputs::num(self.step_voxels), self.epsilon
         );
-        s.push_str("| file | convention | image mean, per-voxel rule | image mean, Cycles' rule | mean difference | relRMSE | RMSE ÷ mean |\n|---|---|---|---|---|---|---|\n");
+        s.push_str("| file | convention | image mean, per-voxel rule | image mean, temperature first | mean difference | relRMSE | RMSE ÷ mean |\n|---|---|---|---|---|---|---|\n");
         for r in &self.rows {
             let _ = writeln!(
                 s,

@@ -1,0 +1,319 @@
+#!/usr/bin/env python3
+"""plume against Blender Cycles 5.0.1 at equal CPU time (issue #16).
+
+Runs inside the venv that `scripts/compare-cycles.sh` makes (bpy==5.0.1, OpenEXR, numpy).
+Cycles renders in this process through `bpy`; plume runs as a subprocess.
+
+Matched conventions (both renderers, every render):
+- the same camera, framed on the volume object's bounds: looking along +y, z up,
+  horizontal field of view `--fov`, `--size`² pixels, box filter 1 pixel;
+- sigma_t = density x 1 (Principled Volume: Density 1, the density grid as Density
+  Attribute, Absorption Color black, so extinction = density and Color = albedo);
+- Anisotropy = g = 0; volume bounces = plume's max depth = 64;
+- emission in Cycles' convention (`--convention cycles`): blackbody of the Kelvin grid
+  (Blackbody Intensity 1, white tint), or an emission grid driving Emission Strength
+  (white Emission Color); not multiplied by density;
+- trilinear reconstruction (Cycles' default for OpenVDB volumes, plume's default);
+- black world, no denoising, no adaptive sampling, no clamping, fixed seed.
+
+Metrics. Each renderer is measured against its own converged reference (`--ref-spp`):
+relRMSE = sqrt(mean((I - R)^2)) / mean(R) over the RGB channels. The reference's own
+noise adds to the measured error; with Monte Carlo error ~ 1/spp in MSE, the measured
+relMSE is the true one times (1 + N/N_ref), which is divided out ("corrected").
+CPU time is the render's process CPU time minus what a 1-spp render costs when the scene
+is already set up; the set-up (the first 1-spp render: file load, scene sync, volume build)
+is reported apart. At equal CPU: for each Cycles budget B (its CPU time
+at each rung of `--cycles-spp`), plume's error is taken from the rung whose CPU time is
+closest to B and scaled by sqrt(cpu/B).
+"""
+
+import argparse
+import json
+import math
+import os
+import subprocess
+import sys
+import time
+
+import numpy as np
+import OpenEXR
+
+FILES = {
+    "blender40": {
+        "path": "explosion/blender_fluid_noise_0040.vdb",
+        "density": "density_noise",
+        "emission": ("grid", "flame_noise"),
+        "about": "Blender's own Mantaflow cache, noise-upres frame 40: grid emission (flame_noise)",
+    },
+    "kelvin40": {
+        "path": "explosion/mantaflow_explosion_kelvin_0040.vdb",
+        "density": "density",
+        "emission": ("blackbody", "temperature"),
+        "about": "Mantaflow explosion frame 40, 192x192x256: blackbody of the Kelvin grid",
+    },
+    "r192": {
+        "path": "explosion/mantaflow_explosion_r192n2_kelvin_0040.vdb",
+        "density": "density",
+        "emission": ("blackbody", "temperature"),
+        "about": "the larger Mantaflow run, 288x288x384, frame 40: blackbody",
+    },
+}
+
+# name -> albedo; emission-absorption uses plume's ray-march (zero variance per ray),
+# scattering the paper's line-fnee
+SETTINGS = {"ea": 0.0, "a0.5": 0.5, "a0.8": 0.8, "a0.95": 0.95}
+
+
+def parse_args():
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--plume", default="target/release/plume")
+    p.add_argument("--data", default="../shared/data")
+    p.add_argument("--out", default="target/compare-cycles")
+    p.add_argument("--files", default=",".join(FILES))
+    p.add_argument("--settings", default=",".join(SETTINGS))
+    p.add_argument("--size", type=int, default=128, help="image width and height")
+    p.add_argument("--fov", type=float, default=40.0, help="horizontal field of view, degrees")
+    p.add_argument("--threads", type=int, default=2)
+    p.add_argument("--max-depth", type=int, default=64)
+    p.add_argument("--cycles-spp", default="16,64,256", help="Cycles' rungs; their CPU times are the budgets")
+    p.add_argument("--plume-spp", default="16,64,256,1024", help="plume's rungs")
+    p.add_argument("--ref-spp", type=int, default=4096, help="spp of each renderer's reference")
+    p.add_argument("--quick", action="store_true", help="blender40 and kelvin40, ea and a0.8, short ladders and references")
+    a = p.parse_args()
+    if a.quick:
+        a.files, a.settings = "blender40,kelvin40", "ea,a0.8"
+        a.cycles_spp, a.plume_spp, a.ref_spp = "4,16", "4,16,64", 256
+    a.files = a.files.split(",")
+    a.settings = a.settings.split(",")
+    for f in a.files:
+        if f not in FILES:
+            sys.exit(f"compare_cycles: --files: unknown file {f!r} (known: {', '.join(FILES)})")
+    for s in a.settings:
+        if s not in SETTINGS:
+            sys.exit(f"compare_cycles: --settings: unknown setting {s!r} (known: {', '.join(SETTINGS)})")
+    a.cycles_spp = [int(s) for s in a.cycles_spp.split(",")]
+    a.plume_spp = [int(s) for s in a.plume_spp.split(",")]
+    return a
+
+
+def read_rgb(path):
+    channels = OpenEXR.File(path).parts[0].channels
+    if "RGBA" in channels:
+        return channels["RGBA"].pixels[..., :3].astype(np.float64)
+    if "RGB" in channels:
+        return channels["RGB"].pixels.astype(np.float64)
+    return np.stack([channels[c].pixels for c in ("R", "G", "B")], -1).astype(np.float64)
+
+
+def rel_mse(img, ref):
+    return float(np.mean((img - ref) ** 2) / np.mean(ref) ** 2)
+
+
+# ---------------------------------------------------------------- Cycles (bpy)
+
+
+class Cycles:
+    """One volume file loaded in a fresh Blender scene, rendered with matched settings."""
+
+    def __init__(self, args, spec):
+        import bpy
+        from mathutils import Vector
+
+        self.bpy = bpy
+        bpy.ops.wm.read_factory_settings(use_empty=True)
+        scene = bpy.context.scene
+        path = os.path.abspath(os.path.join(args.data, spec["path"]))
+        bpy.ops.object.volume_import(filepath=path, align="WORLD", location=(0, 0, 0))
+        obj = bpy.context.active_object
+        if obj is None or obj.type != "VOLUME":
+            sys.exit(f"compare_cycles: Blender could not import {path}")
+        obj.data.grids.load()
+        self.material = bpy.data.materials.new("volume")
+        obj.data.materials.append(self.material)
+        self.spec = spec
+        world = bpy.data.worlds.new("black")
+        world.use_nodes = True
+        world.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.0
+        scene.world = world
+        # Camera on the bounds' centre, looking along +y, z up, the bounding sphere in view
+        bpy.context.view_layer.update()
+        corners = [obj.matrix_world @ Vector(c) for c in obj.bound_box]
+        lo = Vector([min(c[k] for c in corners) for k in range(3)])
+        hi = Vector([max(c[k] for c in corners) for k in range(3)])
+        centre, radius = (lo + hi) / 2, (hi - lo).length / 2
+        distance = radius / math.sin(math.radians(args.fov) / 2)
+        frm = centre - Vector((0.0, distance, 0.0))
+        self.camera = {"from": list(frm), "at": list(centre), "up": [0.0, 0.0, 1.0], "fov": args.fov}
+        cam_data = bpy.data.cameras.new("camera")
+        cam_data.sensor_fit = "HORIZONTAL"
+        cam_data.angle = math.radians(args.fov)
+        cam_data.clip_end = 10 * distance + 10
+        cam = bpy.data.objects.new("camera", cam_data)
+        scene.collection.objects.link(cam)
+        cam.location = frm
+        cam.rotation_euler = (centre - frm).to_track_quat("-Z", "Y").to_euler()
+        scene.camera = cam
+        r, c = scene.render, scene.cycles
+        r.engine = "CYCLES"
+        c.device = "CPU"
+        c.use_adaptive_sampling = False
+        c.use_denoising = False
+        c.sample_clamp_direct = 0.0
+        c.sample_clamp_indirect = 0.0
+        c.max_bounces = args.max_depth
+        c.volume_bounces = args.max_depth
+        c.transparent_max_bounces = args.max_depth
+        c.pixel_filter_type = "BOX"
+        c.filter_width = 1.0
+        c.seed = 0
+        c.use_animated_seed = False
+        r.resolution_x = r.resolution_y = args.size
+        r.resolution_percentage = 100
+        r.threads_mode = "FIXED"
+        r.threads = args.threads
+        r.film_transparent = False
+        # Keep the synchronized scene between renders: set-up is paid once per setting
+        r.use_persistent_data = True
+        scene.view_settings.view_transform = "Standard"
+        scene.view_settings.look = "None"
+        scene.view_settings.exposure = 0.0
+        scene.view_settings.gamma = 1.0
+        r.image_settings.file_format = "OPEN_EXR"
+        r.image_settings.color_depth = "32"
+
+    def set_albedo(self, albedo):
+        """Principled Volume with the conventions of the module docs."""
+        m = self.material
+        m.use_nodes = True
+        nodes, links = m.node_tree.nodes, m.node_tree.links
+        nodes.clear()
+        out = nodes.new("ShaderNodeOutputMaterial")
+        pv = nodes.new("ShaderNodeVolumePrincipled")
+        pv.inputs["Color"].default_value = (albedo, albedo, albedo, 1.0)
+        pv.inputs["Density"].default_value = 1.0
+        pv.inputs["Density Attribute"].default_value = self.spec["density"]
+        pv.inputs["Absorption Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+        pv.inputs["Anisotropy"].default_value = 0.0
+        kind, grid = self.spec["emission"]
+        if kind == "blackbody":
+            pv.inputs["Blackbody Intensity"].default_value = 1.0
+            pv.inputs["Blackbody Tint"].default_value = (1.0, 1.0, 1.0, 1.0)
+            # Cycles multiplies the Temperature input by the attribute: 1 keeps Kelvin
+            pv.inputs["Temperature"].default_value = 1.0
+            pv.inputs["Temperature Attribute"].default_value = grid
+        else:
+            attr = nodes.new("ShaderNodeAttribute")
+            attr.attribute_name = grid
+            links.new(attr.outputs["Fac"], pv.inputs["Emission Strength"])
+            pv.inputs["Emission Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+        links.new(pv.outputs["Volume"], out.inputs["Volume"])
+
+    def render(self, spp, path):
+        """Render `spp` samples to `path`; returns the process CPU seconds it took."""
+        scene = self.bpy.context.scene
+        scene.cycles.samples = spp
+        scene.render.filepath = path
+        t0 = time.process_time()
+        self.bpy.ops.render.render(write_still=True)
+        return time.process_time() - t0
+
+
+# ---------------------------------------------------------------- plume
+
+
+def plume_render(args, spec, camera, albedo, spp, path):
+    """One plume render with the matched settings; returns its CPU seconds (stats)."""
+    kind, grid = spec["emission"]
+    cmd = [args.plume, "render", os.path.join(args.data, spec["path"]), "--density-grid", spec["density"], "--convention", "cycles"]
+    cmd += ["--emission", "grid", "--emission-grid", grid] if kind == "grid" else ["--emission", "blackbody", "--temperature-grid", grid]
+    cmd += ["--camera-from", ",".join(map(repr, camera["from"])), "--camera-at", ",".join(map(repr, camera["at"]))]
+    cmd += ["--camera-up", "0,0,1", "--fov", repr(camera["fov"]), "--width", str(args.size), "--height", str(args.size)]
+    cmd += ["--spp", str(spp), "--threads", str(args.threads), "--seed", "0", "--max-depth", str(args.max_depth), "--g", "0"]
+    cmd += ["--method", "ray-march"] if albedo == 0.0 else ["--method", "line-fnee", "--albedo", repr(albedo)]
+    stats = path + ".json"
+    if os.path.exists(stats):
+        os.remove(stats)  # plume appends one JSON line per render
+    cmd += ["--stats", stats, "-o", path, "--overwrite", "-q"]
+    subprocess.run(cmd, check=True)
+    with open(stats) as f:
+        return json.loads(f.read().splitlines()[-1])["cpu_seconds"]
+
+
+# ---------------------------------------------------------------- measurement
+
+
+def ladder(render, spps, ref_spp, out, name):
+    """Set-up CPU (a first 1-spp render), then each rung's CPU and relRMSE against a
+    `ref_spp` reference, corrected for the reference's noise. A rung's CPU is its render's
+    less a second 1-spp render's (what every render pays besides its samples: for Cycles
+    with persistent data, the film and output; for plume, loading the file)."""
+    setup = render(1, os.path.join(out, f"{name}_setup.exr"))
+    overhead = render(1, os.path.join(out, f"{name}_overhead.exr"))
+    ref_path = os.path.join(out, f"{name}_ref.exr")
+    ref_cpu = render(ref_spp, ref_path)
+    ref = read_rgb(ref_path)
+    rungs = []
+    for spp in spps:
+        path = os.path.join(out, f"{name}_{spp}.exr")
+        cpu = render(spp, path) - overhead
+        if cpu <= 0.0:
+            sys.exit(f"compare_cycles: {name}: {spp} spp took no measurable CPU time beyond a 1-spp render; use more spp or a larger --size")
+        measured = rel_mse(read_rgb(path), ref)
+        rungs.append({"spp": spp, "cpu": cpu, "relrmse_measured": math.sqrt(measured), "relrmse": math.sqrt(measured / (1 + spp / ref_spp))})
+    return {"setup_cpu": setup, "overhead_cpu": overhead, "ref_spp": ref_spp, "ref_cpu": ref_cpu, "ref_mean": float(ref.mean()), "rungs": rungs}
+
+
+def at_budget(result, budget):
+    """Error at CPU `budget`, scaled as 1/sqrt(time) from the rung nearest in log time."""
+    rung = min(result["rungs"], key=lambda r: abs(math.log(r["cpu"] / budget)))
+    return rung["relrmse"] * math.sqrt(rung["cpu"] / budget)
+
+
+def main():
+    args = parse_args()
+    os.makedirs(args.out, exist_ok=True)
+    results = []
+    for fname in args.files:
+        spec = FILES[fname]
+        cycles = Cycles(args, spec)
+        for sname in args.settings:
+            albedo = SETTINGS[sname]
+            name = f"{fname}_{sname}"
+            print(f"compare_cycles: {name}: Cycles", file=sys.stderr, flush=True)
+            cycles.set_albedo(albedo)
+            c = ladder(cycles.render, args.cycles_spp, args.ref_spp, args.out, f"{name}_cycles")
+            print(f"compare_cycles: {name}: plume", file=sys.stderr, flush=True)
+            p = ladder(lambda spp, path: plume_render(args, spec, cycles.camera, albedo, spp, path), args.plume_spp, args.ref_spp, args.out, f"{name}_plume")
+            rows = []
+            for rung in c["rungs"]:
+                budget = rung["cpu"]
+                pe = at_budget(p, budget)
+                rows.append({"cycles_spp": rung["spp"], "cpu": budget, "cycles": rung["relrmse"], "plume": pe, "ratio": pe / rung["relrmse"]})
+            results.append({"file": fname, "setting": sname, "albedo": albedo, "camera": cycles.camera, "cycles": c, "plume": p, "rows": rows, "mean_ratio": p["ref_mean"] / c["ref_mean"]})
+            with open(os.path.join(args.out, "results.json"), "w") as f:
+                json.dump({"args": {k: v for k, v in vars(args).items()}, "results": results}, f, indent=1)
+    table = render_table(args, results)
+    with open(os.path.join(args.out, "table.md"), "w") as f:
+        f.write(table)
+    print(table)
+
+
+def render_table(args, results):
+    lines = [
+        f"{args.size}x{args.size}, {args.threads} threads, max depth {args.max_depth}, g 0; plume ray-march (EA) or line-fnee (scattering); "
+        f"references {args.ref_spp} spp each; CPU seconds without set-up.",
+        "",
+        "| file | setting | CPU s | Cycles spp | Cycles relRMSE | plume relRMSE | plume ÷ Cycles | set-up CPU s (plume / Cycles) | image mean plume ÷ Cycles − 1 |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in results:
+        for row in r["rows"]:
+            lines.append(
+                f"| {r['file']} | {r['setting']} | {row['cpu']:.2f} | {row['cycles_spp']} | {row['cycles']:.4f} | {row['plume']:.4f} | **{row['ratio']:.2f}** | "
+                f"{r['plume']['setup_cpu']:.2f} / {r['cycles']['setup_cpu']:.2f} | {100 * (r['mean_ratio'] - 1):+.2f} % |"
+            )
+    return "\n".join(lines) + "\n"
+
+
+if __name__ == "__main__":
+    main()

@@ -1,7 +1,7 @@
 //! The render loop: passes of samples over tiles on a rayon pool.
 //!
-//! Pixel sample `s` of pixel `(x, y)` uses `Sampler::new(seed, y·width + x, s)`, so every
-//! sample is a pure function of its key, whatever crop or sample range is rendered.
+//! Pixel sample `s` of pixel `(x, y)` uses `Sampler::with_kind(kind, seed, y·width + x, s)`,
+//! so every sample is a pure function of its key, whatever crop or sample range is rendered.
 //! Tiles are rendered in parallel; each pixel's samples are added as exact fixed-point
 //! integers (`film.rs`), and counters are integers merged in tile order: the same seed
 //! gives the same bytes for any thread count, any pass size, any split into crops and
@@ -25,7 +25,7 @@ use rayon::prelude::*;
 
 use crate::film::{Crop, Film, Tile};
 use crate::integrator::{Counters, Integrator, NoTrace, Scene};
-use crate::sampling::Sampler;
+use crate::sampling::{Dim, Sampler, SamplerKind};
 use crate::volume::field::{Field, RayGrid};
 
 /// How many samples to take.
@@ -47,6 +47,8 @@ pub struct RenderSettings {
     pub budget: SampleBudget,
     /// Seed of every sample stream.
     pub seed: u64,
+    /// Which numbers the samplers give (`--sampler`).
+    pub sampler: SamplerKind,
     /// Worker threads (0 = all cores, and one more in tile-major order from a mapped
     /// volume, where workers wait on page faults).
     pub threads: usize,
@@ -158,28 +160,29 @@ impl std::str::FromStr for SampleId {
 pub struct PixelSample {
     /// The camera ray through the jittered point of the pixel (world space).
     pub ray: crate::volume::field::Ray,
-    /// The sample's random stream, after the two pixel-jitter draws.
+    /// The sample's sampler, at the camera segment after the pixel jitter was drawn.
     pub sampler: Sampler,
 }
 
 /// The camera ray and sampler state of one pixel sample, as the render loop makes them
 /// (used by `--debug-pixel` to replay a sample exactly).
-pub fn pixel_sample<F: Field>(scene: &Scene<F>, seed: u64, x: u32, y: u32, s: u64) -> PixelSample {
+pub fn pixel_sample<F: Field>(scene: &Scene<F>, kind: SamplerKind, seed: u64, x: u32, y: u32, s: u64) -> PixelSample {
     let pixel = u64::from(y) * u64::from(scene.camera.width) + u64::from(x);
-    let mut sampler = Sampler::new(seed, pixel, s);
-    let (jx, jy) = (sampler.next_f64(), sampler.next_f64());
+    let mut sampler = Sampler::with_kind(kind, seed, pixel, s);
+    sampler.start_vertex(0);
+    let [jx, jy] = sampler.get_2d(Dim::Direction);
     PixelSample { ray: scene.camera.ray(f64::from(x) + jx, f64::from(y) + jy), sampler }
 }
 
-fn render_tile<F: Field>(scene: &Scene<F>, integ: &Integrator, seed: u64, samples: std::ops::Range<u64>, tile: &mut Tile) -> Counters {
+fn render_tile<F: Field>(scene: &Scene<F>, settings: &RenderSettings, samples: std::ops::Range<u64>, tile: &mut Tile) -> Counters {
     let mut counters = Counters::default();
     for ty in 0..tile.height {
         for tx in 0..tile.width {
             let (x, y) = (tile.x0 + tx, tile.y0 + ty);
             let index = (ty * tile.width + tx) as usize;
             for s in samples.clone() {
-                let PixelSample { ray, mut sampler } = pixel_sample(scene, seed, x, y, s);
-                let l = integ.li(scene, &ray, &mut sampler, &mut counters, &mut NoTrace);
+                let PixelSample { ray, mut sampler } = pixel_sample(scene, settings.sampler, settings.seed, x, y, s);
+                let l = settings.integrator.li(scene, &ray, &mut sampler, &mut counters, &mut NoTrace);
                 counters.samples += 1;
                 if l.iter().all(|v| v.is_finite()) {
                     tile.add_sample(index, l);
@@ -293,7 +296,7 @@ pub fn render_with<F: Field>(scene: &Scene<F>, settings: &RenderSettings, contro
                 None => break StopReason::Interrupted,
             }
         } else {
-            pool.install(|| film.tiles.par_iter_mut().map(|tile| render_tile(scene, &settings.integrator, settings.seed, range.clone(), tile)).collect())
+            pool.install(|| film.tiles.par_iter_mut().map(|tile| render_tile(scene, settings, range.clone(), tile)).collect())
         };
         for c in &tile_counters {
             counters.merge(c);
@@ -350,7 +353,7 @@ fn tile_major_pass<F: Field>(
             let next = queue.lock().unwrap_or_else(std::sync::PoisonError::into_inner).next();
             let Some((i, tile)) = next else { return };
             taken.fetch_max(i + 1, Ordering::Relaxed);
-            let c = render_tile(scene, &settings.integrator, settings.seed, samples.clone(), tile);
+            let c = render_tile(scene, settings, samples.clone(), tile);
             results.lock().unwrap_or_else(std::sync::PoisonError::into_inner).push((i, c));
         });
         finished.store(true, Ordering::Relaxed);

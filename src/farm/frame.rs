@@ -394,6 +394,7 @@ fn stats_record(
         fixed_point_bits: FIXED_POINT_BITS,
         wall_seconds: timing.wall,
         render_seconds: result.render_seconds,
+        workers_busy: result.busy_seconds / result.render_seconds.max(1e-9),
         time_to_first_sample_seconds: timing.time_to_first_sample,
         cpu_seconds: timing.cpu,
         core_hours: timing.cpu / 3600.0,

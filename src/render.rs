@@ -1,7 +1,7 @@
 //! The render loop: passes of samples over tiles on a rayon pool.
 //!
-//! Pixel sample `s` of pixel `(x, y)` uses `Sampler::new(seed, y·width + x, s)`, so every
-//! sample is a pure function of its key, whatever crop or sample range is rendered.
+//! Pixel sample `s` of pixel `(x, y)` uses `Sampler::with_kind(kind, seed, y·width + x, s)`,
+//! so every sample is a pure function of its key, whatever crop or sample range is rendered.
 //! Tiles are rendered in parallel; each pixel's samples are added as exact fixed-point
 //! integers (`film.rs`), and counters are integers merged in tile order: the same seed
 //! gives the same bytes for any thread count, any pass size, any split into crops and
@@ -21,11 +21,9 @@ use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
-use rayon::prelude::*;
-
 use crate::film::{Crop, Film, Tile};
 use crate::integrator::{Counters, Integrator, NoTrace, Scene};
-use crate::sampling::Sampler;
+use crate::sampling::{Dim, Sampler, SamplerKind};
 use crate::volume::field::{Field, RayGrid};
 
 /// How many samples to take.
@@ -47,6 +45,8 @@ pub struct RenderSettings {
     pub budget: SampleBudget,
     /// Seed of every sample stream.
     pub seed: u64,
+    /// Which numbers the samplers give (`--sampler`).
+    pub sampler: SamplerKind,
     /// Worker threads (0 = all cores, and one more in tile-major order from a mapped
     /// volume, where workers wait on page faults).
     pub threads: usize,
@@ -67,6 +67,10 @@ pub struct RenderResult {
     pub counters: Counters,
     /// Wall time spent rendering, seconds.
     pub render_seconds: f64,
+    /// Wall seconds the workers spent rendering tiles, summed over workers: divided by
+    /// `render_seconds`, how many workers had work on average (what pass ends and set-up
+    /// between passes cost; wall time, so other load on the machine does not hide it).
+    pub busy_seconds: f64,
     /// Why the loop ended.
     pub stopped: StopReason,
 }
@@ -158,28 +162,29 @@ impl std::str::FromStr for SampleId {
 pub struct PixelSample {
     /// The camera ray through the jittered point of the pixel (world space).
     pub ray: crate::volume::field::Ray,
-    /// The sample's random stream, after the two pixel-jitter draws.
+    /// The sample's sampler, at the camera segment after the pixel jitter was drawn.
     pub sampler: Sampler,
 }
 
 /// The camera ray and sampler state of one pixel sample, as the render loop makes them
 /// (used by `--debug-pixel` to replay a sample exactly).
-pub fn pixel_sample<F: Field>(scene: &Scene<F>, seed: u64, x: u32, y: u32, s: u64) -> PixelSample {
+pub fn pixel_sample<F: Field>(scene: &Scene<F>, kind: SamplerKind, seed: u64, x: u32, y: u32, s: u64) -> PixelSample {
     let pixel = u64::from(y) * u64::from(scene.camera.width) + u64::from(x);
-    let mut sampler = Sampler::new(seed, pixel, s);
-    let (jx, jy) = (sampler.next_f64(), sampler.next_f64());
+    let mut sampler = Sampler::with_kind(kind, seed, pixel, s);
+    sampler.start_vertex(0);
+    let [jx, jy] = sampler.get_2d(Dim::Direction);
     PixelSample { ray: scene.camera.ray(f64::from(x) + jx, f64::from(y) + jy), sampler }
 }
 
-fn render_tile<F: Field>(scene: &Scene<F>, integ: &Integrator, seed: u64, samples: std::ops::Range<u64>, tile: &mut Tile) -> Counters {
+fn render_tile<F: Field>(scene: &Scene<F>, settings: &RenderSettings, samples: std::ops::Range<u64>, tile: &mut Tile) -> Counters {
     let mut counters = Counters::default();
     for ty in 0..tile.height {
         for tx in 0..tile.width {
             let (x, y) = (tile.x0 + tx, tile.y0 + ty);
             let index = (ty * tile.width + tx) as usize;
             for s in samples.clone() {
-                let PixelSample { ray, mut sampler } = pixel_sample(scene, seed, x, y, s);
-                let l = integ.li(scene, &ray, &mut sampler, &mut counters, &mut NoTrace);
+                let PixelSample { ray, mut sampler } = pixel_sample(scene, settings.sampler, settings.seed, x, y, s);
+                let l = settings.integrator.li(scene, &ray, &mut sampler, &mut counters, &mut NoTrace);
                 counters.samples += 1;
                 if l.iter().all(|v| v.is_finite()) {
                     tile.add_sample(index, l);
@@ -236,6 +241,9 @@ pub fn render_with<F: Field>(scene: &Scene<F>, settings: &RenderSettings, contro
     let mut cpu_per_spp: Option<f64> = None;
     let mut seconds_per_spp: Option<f64> = None;
     let mut last_pass: u64 = 0;
+    // Each tile's wall seconds in the last pass: the next pass takes the costliest first
+    let mut tile_seconds = vec![0.0f64; film.tiles.len()];
+    let mut busy_seconds = 0.0;
     let stopped = loop {
         let remaining = match settings.budget {
             SampleBudget::Spp(_) => total - done,
@@ -287,14 +295,15 @@ pub fn render_with<F: Field>(scene: &Scene<F>, settings: &RenderSettings, contro
         let pass_cpu_start = crate::stats::cpu_seconds();
         let tile_counters: Vec<Counters> = if tile_major {
             let abandon = || control.stop.is_some_and(|stop| stop()) || control.deadline.is_some_and(|d| Instant::now() >= d);
-            match tile_major_pass(scene, settings, &pool, &mut film, &range, &abandon) {
+            match tile_major_pass(scene, settings, &pool, &mut film, &range, &abandon, &mut tile_seconds) {
                 Some(c) => c,
                 None if control.deadline.is_some_and(|d| Instant::now() >= d) => break StopReason::TimeLimit,
                 None => break StopReason::Interrupted,
             }
         } else {
-            pool.install(|| film.tiles.par_iter_mut().map(|tile| render_tile(scene, &settings.integrator, settings.seed, range.clone(), tile)).collect())
+            progressive_pass(scene, settings, &pool, &mut film, &range, &mut tile_seconds)
         };
+        busy_seconds += tile_seconds.iter().sum::<f64>();
         for c in &tile_counters {
             counters.merge(c);
             if let Some(id) = c.first_nonfinite {
@@ -311,7 +320,48 @@ pub fn render_with<F: Field>(scene: &Scene<F>, settings: &RenderSettings, contro
         on_pass(done, total);
     };
     counters.first_nonfinite = first_nonfinite;
-    RenderResult { film, spp: done, counters, render_seconds: start.elapsed().as_secs_f64(), stopped }
+    RenderResult { film, spp: done, counters, render_seconds: start.elapsed().as_secs_f64(), busy_seconds, stopped }
+}
+
+/// One progressive pass of `samples` over every tile of `film`; the tiles' counters in
+/// tile order.
+///
+/// Workers take tiles one at a time from a shared list, the costliest of the last pass
+/// first (`tile_seconds`, updated here): the longest-processing-time-first rule, so the
+/// pass ends on cheap tiles and no worker waits long for the last one. Before, rayon's
+/// `par_iter_mut` split the tiles into runs (with 2 workers, about 4 runs of 16 of a
+/// 128² image's 64 tiles) that cannot be split once started, so a run holding the
+/// fireball kept the other worker idle: 1.66 of 2 cores busy (issue #16). The order
+/// changes no pixel: each tile's sums are its own exact integers.
+fn progressive_pass<F: Field>(
+    scene: &Scene<F>,
+    settings: &RenderSettings,
+    pool: &rayon::ThreadPool,
+    film: &mut Film,
+    samples: &std::ops::Range<u64>,
+    tile_seconds: &mut [f64],
+) -> Vec<Counters> {
+    let mut order: Vec<usize> = (0..film.tiles.len()).collect();
+    order.sort_by(|&a, &b| tile_seconds[b].total_cmp(&tile_seconds[a]));
+    let tiles: Vec<Mutex<&mut Tile>> = film.tiles.iter_mut().map(Mutex::new).collect();
+    let results: Vec<Mutex<(Counters, f64)>> = tiles.iter().map(|_| Mutex::new((Counters::default(), 0.0))).collect();
+    let next = AtomicUsize::new(0);
+    pool.broadcast(|_| loop {
+        let Some(&i) = order.get(next.fetch_add(1, Ordering::Relaxed)) else { return };
+        let start = Instant::now();
+        let mut tile = tiles[i].lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        let c = render_tile(scene, settings, samples.clone(), &mut tile);
+        *results[i].lock().unwrap_or_else(std::sync::PoisonError::into_inner) = (c, start.elapsed().as_secs_f64());
+    });
+    results
+        .into_iter()
+        .zip(tile_seconds.iter_mut())
+        .map(|(r, t)| {
+            let (c, seconds) = r.into_inner().unwrap_or_else(std::sync::PoisonError::into_inner);
+            *t = seconds;
+            c
+        })
+        .collect()
 }
 
 /// One tile-major pass of `samples` over `film` (see [`SampleOrder::TileMajor`]): the
@@ -325,6 +375,7 @@ fn tile_major_pass<F: Field>(
     film: &mut Film,
     samples: &std::ops::Range<u64>,
     abandon: &(dyn Fn() -> bool + Sync),
+    tile_seconds: &mut [f64],
 ) -> Option<Vec<Counters>> {
     let before = film.clone();
     let rects: Vec<(u32, u32, u32, u32)> = film.tiles.iter().map(|t| (t.x0, t.y0, t.width, t.height)).collect();
@@ -332,7 +383,7 @@ fn tile_major_pass<F: Field>(
     let finished = AtomicBool::new(false);
     let abandoned = AtomicBool::new(false);
     let queue = Mutex::new(film.tiles.iter_mut().enumerate());
-    let results: Mutex<Vec<(usize, Counters)>> = Mutex::new(Vec::with_capacity(rects.len()));
+    let results: Mutex<Vec<(usize, Counters, f64)>> = Mutex::new(Vec::with_capacity(rects.len()));
     let ahead = pool.current_num_threads() + PREFETCH_AHEAD;
     std::thread::scope(|s| {
         if scene.field.is_mapped() {
@@ -350,8 +401,9 @@ fn tile_major_pass<F: Field>(
             let next = queue.lock().unwrap_or_else(std::sync::PoisonError::into_inner).next();
             let Some((i, tile)) = next else { return };
             taken.fetch_max(i + 1, Ordering::Relaxed);
-            let c = render_tile(scene, &settings.integrator, settings.seed, samples.clone(), tile);
-            results.lock().unwrap_or_else(std::sync::PoisonError::into_inner).push((i, c));
+            let start = Instant::now();
+            let c = render_tile(scene, settings, samples.clone(), tile);
+            results.lock().unwrap_or_else(std::sync::PoisonError::into_inner).push((i, c, start.elapsed().as_secs_f64()));
         });
         finished.store(true, Ordering::Relaxed);
     });
@@ -360,8 +412,16 @@ fn tile_major_pass<F: Field>(
         return None;
     }
     let mut results = results.into_inner().unwrap_or_else(std::sync::PoisonError::into_inner);
-    results.sort_unstable_by_key(|&(i, _)| i);
-    Some(results.into_iter().map(|(_, c)| c).collect())
+    results.sort_unstable_by_key(|&(i, ..)| i);
+    Some(
+        results
+            .into_iter()
+            .map(|(i, c, seconds)| {
+                tile_seconds[i] = seconds;
+                c
+            })
+            .collect(),
+    )
 }
 
 /// The prefetch thread of a tile-major pass: hands the rays through the pixel corners of

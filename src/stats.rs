@@ -92,6 +92,9 @@ pub struct RenderStats {
     pub wall_seconds: f64,
     /// Wall seconds spent in the render loop.
     pub render_seconds: f64,
+    /// Workers rendering a tile, on average over the render loop (at most `threads`;
+    /// below it, workers waited at the ends of passes).
+    pub workers_busy: f64,
     /// Seconds from the start of the frame to the first sample (hashing, loading, set-up).
     pub time_to_first_sample_seconds: f64,
     /// CPU seconds (user + system) of the process during this frame.

@@ -14,11 +14,12 @@ use plume::camera::Camera;
 use plume::integrator::{AnyScene, Integrator, LightSampling, Lights, MisHeuristic, Scene};
 use plume::medium::{Convention, Emission, EmissionKind, Estimator, Medium};
 use plume::render::{render, RenderSettings, SampleBudget};
+use plume::sampling::SamplerKind;
 use plume::volume::{Interpolation, Volume};
 
 /// Render `scene` with `spp` samples and `seed`; the averaged RGBA pixels.
 fn pixels(scene: &AnyScene, integrator: Integrator, spp: u32, seed: u64, threads: usize) -> Vec<[f32; 4]> {
-    let settings = RenderSettings { budget: SampleBudget::Spp(spp), seed, threads, first_sample: 0, integrator };
+    let settings = RenderSettings { budget: SampleBudget::Spp(spp), seed, sampler: SamplerKind::Sobol, threads, first_sample: 0, integrator };
     let r = plume::with_scene!(scene, s => render(s, &settings, &|_, _| {}));
     r.film.average(r.spp)
 }

@@ -14,6 +14,7 @@ use plume::medium::{Convention, Emission, EmissionKind, Estimator, Medium, Tempe
 use plume::render::{render, RenderSettings, SampleBudget};
 use plume::sampling::phase::sample_uniform_sphere;
 use plume::sampling::Sampler;
+use plume::sampling::SamplerKind;
 use plume::synth::{explosion, ExplosionParams};
 use plume::vdb::{FloatGrid, LEAF_VOXELS};
 use plume::volume::field::Ray;
@@ -55,6 +56,8 @@ const COMBOS: [(Estimator, LightSampling); 12] = [
 ];
 
 /// Mean and standard error of the red channel from a point inside, over random directions.
+/// The standard error comes from the samples' own spread, which needs independent samples:
+/// the `random` stream (`Sampler::new`), not Sobol points.
 fn mean_from_inside(scene: &Scene<Volume>, integ: &Integrator, origin: DVec3, n: u64, seed: u64) -> (f64, f64) {
     let (mut s, mut s2) = (0.0, 0.0);
     let mut c = Counters::default();
@@ -100,7 +103,11 @@ fn white_furnace_with_albedo_one_renders_the_environment() {
             let scene = Scene { field: vol, medium: Medium { sigma_t: 2.0, albedo: 1.0, g: 0.5, emission: e }, camera: cam, lights };
             let mut integ = integrator(est, ls, MisHeuristic::Power, 100_000);
             integ.environment = Some(Rgb::ONE);
-            let r = render(&scene, &RenderSettings { budget: SampleBudget::Spp(32), seed: 3, threads: 0, first_sample: 0, integrator: integ }, &|_, _| {});
+            let r = render(
+                &scene,
+                &RenderSettings { budget: SampleBudget::Spp(32), seed: 3, sampler: SamplerKind::Sobol, threads: 0, first_sample: 0, integrator: integ },
+                &|_, _| {},
+            );
             let px = r.film.average(r.spp);
             let mean = px.iter().map(|p| f64::from(p[0])).sum::<f64>() / px.len() as f64;
             // Line/point: exactly 1 per path. Ray-march: expected-value escape plus the
@@ -111,11 +118,20 @@ fn white_furnace_with_albedo_one_renders_the_environment() {
     }
 }
 
-/// Per-region means (whole image + 4 quadrants) over `runs` independent renders.
+/// Per-region means (whole image + 4 quadrants) over `runs` independent renders, with
+/// standard errors from the spread of the runs.
+///
+/// Runs differ in seed, so with Sobol each run has its own per-pixel scrambles: run means
+/// are independent and unbiased (randomized quasi-Monte Carlo), and their spread is an
+/// honest standard error even though the samples within a run are not independent.
 fn region_means(scene: &AnyScene, integ: Integrator, spp: u32, runs: u64, seed0: u64) -> Vec<(f64, f64)> {
+    region_means_with(SamplerKind::Sobol, scene, integ, spp, runs, seed0)
+}
+
+fn region_means_with(sampler: SamplerKind, scene: &AnyScene, integ: Integrator, spp: u32, runs: u64, seed0: u64) -> Vec<(f64, f64)> {
     let mut per_run: Vec<[f64; 5]> = Vec::new();
     for run in 0..runs {
-        let settings = RenderSettings { budget: SampleBudget::Spp(spp), seed: seed0 + run, threads: 0, first_sample: 0, integrator: integ };
+        let settings = RenderSettings { budget: SampleBudget::Spp(spp), seed: seed0 + run, sampler, threads: 0, first_sample: 0, integrator: integ };
         let r = plume::with_scene!(scene, s => render(s, &settings, &|_, _| {}));
         let px = r.film.average(r.spp);
         let (w, h) = (scene.camera().width as usize, scene.camera().height as usize);
@@ -196,6 +212,24 @@ fn every_method_gives_the_same_image_means_on_thin_and_dense_explosions() {
 }
 
 #[test]
+fn sobol_and_random_samplers_converge_to_the_same_means() {
+    // Thin and dense, nearest and trilinear, line-fnee and ray-march (the one-point rule's
+    // Sobol draw): 2 × 2 × 2 × 5 regions = 40 comparisons, |z| < 4.2 as above
+    for (interpolation, sigma_t) in [Interpolation::Nearest, Interpolation::Linear].into_iter().flat_map(|i| [(i, 1.5), (i, 25.0)]) {
+        for (est, ls) in [(Estimator::Line, LightSampling::Fnee), (Estimator::RayMarch, LightSampling::None)] {
+            let scene = explosion_scene(sigma_t, ls, 8, interpolation);
+            let integ = integrator(est, ls, MisHeuristic::Power, 64);
+            let sobol = region_means_with(SamplerKind::Sobol, &scene, integ, 8, 12, 300);
+            let random = region_means_with(SamplerKind::Random, &scene, integ, 8, 12, 400);
+            for (k, ((m, se), (rm, rse))) in sobol.iter().zip(&random).enumerate() {
+                let z = (m - rm) / (se * se + rse * rse).sqrt().max(1e-12);
+                assert!(z.abs() < 4.2, "{interpolation} σ_t={sigma_t} {est:?}/{ls:?} region {k}: sobol {m} ± {se} vs random {rm} ± {rse} (z = {z:.2})");
+            }
+        }
+    }
+}
+
+#[test]
 fn proxy_resolution_changes_variance_not_the_mean() {
     let integ = integrator(Estimator::Line, LightSampling::Fnee, MisHeuristic::Power, 64);
     let results: Vec<_> = [8u32, 16, 32]
@@ -225,6 +259,7 @@ fn extreme_phase_albedo_and_density_stay_finite() {
                 let settings = RenderSettings {
                     budget: SampleBudget::Spp(2),
                     seed: 1,
+                    sampler: SamplerKind::Sobol,
                     threads: 0,
                     first_sample: 0,
                     integrator: integrator(est, ls, MisHeuristic::Power, 32),
@@ -260,7 +295,11 @@ fn albedo_grid_matches_constant_albedo_and_varies_per_voxel() {
         let lights = Lights::build(&vol, &e, LightSampling::Fnee, 8).unwrap();
         let scene = Scene { field: vol, medium: Medium { sigma_t: 5.0, albedo, g: 0.3, emission: e }, camera: cam, lights };
         let integ = integrator(Estimator::Line, LightSampling::Fnee, MisHeuristic::Power, 16);
-        let r = render(&scene, &RenderSettings { budget: SampleBudget::Spp(4), seed: 2, threads: 0, first_sample: 0, integrator: integ }, &|_, _| {});
+        let r = render(
+            &scene,
+            &RenderSettings { budget: SampleBudget::Spp(4), seed: 2, sampler: SamplerKind::Sobol, threads: 0, first_sample: 0, integrator: integ },
+            &|_, _| {},
+        );
         (r.film.average(r.spp), r.counters)
     };
     let (a, ca) = render_with(Some(albedo_grid(0.8)), 1.0);

@@ -7,9 +7,10 @@ use common::{grid, names_in, pixel_bits, tmpdir};
 use glam::{DAffine3, DMat3, DVec3, IVec3};
 use plume::camera::Camera;
 use plume::color::Rgb;
-use plume::integrator::{Integrator, Scene};
+use plume::integrator::{Counters, Integrator, LightSampling, Lights, MisHeuristic, NoTrace, Scene};
 use plume::medium::{Convention, Emission, EmissionKind, Estimator, Medium, TemperatureMap};
-use plume::render::{render, render_with, RenderControl, RenderSettings, SampleBudget, SampleOrder, StopReason};
+use plume::render::{pixel_sample, render, render_with, PixelSample, RenderControl, RenderSettings, SampleBudget, SampleOrder, StopReason};
+use plume::sampling::SamplerKind;
 use plume::volume::Volume;
 
 fn blob_scene(estimator: Estimator) -> (Scene<Volume>, Integrator) {
@@ -34,19 +35,63 @@ fn blob_scene(estimator: Estimator) -> (Scene<Volume>, Integrator) {
 
 #[test]
 fn same_seed_gives_identical_images_for_any_thread_count() {
-    for est in [Estimator::Point, Estimator::Line, Estimator::RayMarch] {
+    for (est, sampler) in [Estimator::Point, Estimator::Line, Estimator::RayMarch].into_iter().flat_map(|e| [(e, SamplerKind::Sobol), (e, SamplerKind::Random)])
+    {
         let (scene, integrator) = blob_scene(est);
         let run = |threads| {
-            let s = RenderSettings { budget: SampleBudget::Spp(6), seed: 42, threads, first_sample: 0, integrator };
+            let s = RenderSettings { budget: SampleBudget::Spp(6), seed: 42, sampler, threads, first_sample: 0, integrator };
             render(&scene, &s, &|_, _| {})
         };
         let (a, b) = (run(1), run(2));
         let (pa, pb) = (a.film.average(a.spp), b.film.average(b.spp));
         assert!(pa.iter().any(|p| p[0] > 0.0), "{est:?}: image not black");
-        assert_eq!(pixel_bits(&pa), pixel_bits(&pb), "{est:?}: bit-identical across thread counts");
+        assert_eq!(pixel_bits(&pa), pixel_bits(&pb), "{est:?} {sampler}: bit-identical across thread counts");
         assert_eq!(a.counters, b.counters);
-        let other = render(&scene, &RenderSettings { budget: SampleBudget::Spp(6), seed: 43, threads: 2, first_sample: 0, integrator }, &|_, _| {});
+        let other = render(&scene, &RenderSettings { budget: SampleBudget::Spp(6), seed: 43, sampler, threads: 2, first_sample: 0, integrator }, &|_, _| {});
         assert_ne!(pa, other.film.average(other.spp), "a different seed changes the image");
+    }
+}
+
+/// The blob, scattering (albedo 0.8) and lit by FNEE: paths with light segments.
+fn scattering_blob() -> (Scene<Volume>, Integrator) {
+    let (mut scene, _) = blob_scene(Estimator::Line);
+    scene.medium.albedo = 0.8;
+    scene.medium.sigma_t = 6.0;
+    scene.lights = Lights::build(&scene.field, &scene.medium.emission, LightSampling::Fnee, 8).unwrap();
+    (scene, Integrator { estimator: Estimator::Line, light_sampling: LightSampling::Fnee, mis: MisHeuristic::Power, max_depth: 16, environment: None })
+}
+
+#[test]
+fn sample_ranges_merge_and_replays_equal_the_render_for_both_samplers() {
+    let (scene, integrator) = scattering_blob();
+    for sampler in [SamplerKind::Sobol, SamplerKind::Random] {
+        let settings = RenderSettings { budget: SampleBudget::Spp(7), seed: 5, sampler, threads: 2, first_sample: 0, integrator };
+        let whole = render(&scene, &settings, &|_, _| {});
+        assert!(whole.counters.fnee_samples > 0, "light segments were sampled");
+        // Samples 0..3 and 3..7 rendered apart and added: the same sums
+        let a = render(&scene, &RenderSettings { budget: SampleBudget::Spp(3), ..settings }, &|_, _| {});
+        let b = render(&scene, &RenderSettings { budget: SampleBudget::Spp(4), first_sample: 3, threads: 1, ..settings }, &|_, _| {});
+        for ((t, ta), tb) in whole.film.tiles.iter().zip(&a.film.tiles).zip(&b.film.tiles) {
+            let added: Vec<[i128; 4]> = ta.sums.iter().zip(&tb.sums).map(|(x, y)| std::array::from_fn(|c| x[c] + y[c])).collect();
+            assert_eq!(t.sums, added, "{sampler}: ranges 0..3 + 3..7 = 0..7");
+        }
+        // Sample 5 of every pixel, replayed as --debug-pixel does, is the 1-spp render of 5..6
+        let one = render(&scene, &RenderSettings { budget: SampleBudget::Spp(1), first_sample: 5, ..settings }, &|_, _| {});
+        let px = one.film.average(1);
+        let width = scene.camera.width;
+        let mut scattered = 0;
+        for (i, p) in px.iter().enumerate() {
+            let (x, y) = (i as u32 % width, i as u32 / width);
+            let PixelSample { ray, mut sampler } = pixel_sample(&scene, sampler, 5, x, y, 5);
+            let mut c = Counters::default();
+            let l = integrator.li(&scene, &ray, &mut sampler, &mut c, &mut NoTrace);
+            scattered += c.collisions;
+            // One sample's fixed-point value is exact to 2^-65: as f32, the value itself
+            for ch in 0..4 {
+                assert!(l[ch] < 1e-12 || l[ch] as f32 == p[ch], "pixel {x},{y} channel {ch}: replay {} vs render {}", l[ch], p[ch]);
+            }
+        }
+        assert!(scattered > 0, "replays went through scattering vertices");
     }
 }
 
@@ -57,7 +102,7 @@ fn bits(film: &plume::film::Film, spp: u64) -> Vec<u32> {
 #[test]
 fn tile_major_order_gives_the_same_image_and_a_stop_keeps_nothing_of_the_pass() {
     let (scene, integrator) = blob_scene(Estimator::Line);
-    let settings = RenderSettings { budget: SampleBudget::Spp(5), seed: 42, threads: 2, first_sample: 0, integrator };
+    let settings = RenderSettings { budget: SampleBudget::Spp(5), seed: 42, sampler: SamplerKind::Sobol, threads: 2, first_sample: 0, integrator };
     let progressive = render(&scene, &settings, &|_, _| {});
     let tile_major = render_with(&scene, &settings, RenderControl { order: SampleOrder::TileMajor, ..Default::default() }, &|_, _| {});
     assert_eq!((tile_major.spp, tile_major.stopped), (5, StopReason::Finished));
@@ -107,7 +152,11 @@ fn voxel_aligned_box_image_matches_closed_form() {
     let expected = 5.0 * (1.0 - (-mu * 1.0f64).exp()) / mu;
     for est in [Estimator::RayMarch, Estimator::Line, Estimator::Point] {
         let integrator = Integrator::emission_only(est);
-        let r = render(&scene, &RenderSettings { budget: SampleBudget::Spp(4000), seed: 1, threads: 0, first_sample: 0, integrator }, &|_, _| {});
+        let r = render(
+            &scene,
+            &RenderSettings { budget: SampleBudget::Spp(4000), seed: 1, sampler: SamplerKind::Sobol, threads: 0, first_sample: 0, integrator },
+            &|_, _| {},
+        );
         let px = r.film.average(r.spp)[4 * 9 + 4];
         // Per-sample σ of line/point here is below 0.7·expected: 4σ/√4000 < 0.045·expected.
         let tol = if est == Estimator::RayMarch { 1e-5 } else { 0.045 } * expected;

@@ -3,6 +3,10 @@
 //!
 //! - Henyey–Greenstein: chi² against the analytic cosine CDF, normalisation, extremes.
 //! - Alias table: chi² against the weights, zero weights, pmf sum.
+//! - The Sobol sampler (`--sampler sobol`): values in [0, 1), stratification of the first
+//!   2^k samples (one per elementary interval), decorrelation of segments, sets and
+//!   pixels, and the `random` kind as the old stream bit for bit. The chi² tests draw from
+//!   the i.i.d. hashed stream (`common::rng`): their counts assume independent draws.
 //!
 //! Fixed seeds; these chi² tests and those of `light_sampling.rs` are one family of
 //! [`TESTS`] tests at family-wise false-failure rate [`ALPHA`] (Šidák).
@@ -16,6 +20,7 @@ use common::{chi2_test, direction_bin, frame, hash, rng, SAMPLING_ALPHA as ALPHA
 use glam::{DVec3, IVec3};
 use plume::sampling::alias::AliasTable;
 use plume::sampling::phase::{hg_pdf, sample_hg};
+use plume::sampling::{Dim, Sampler, SamplerKind};
 
 // ---------------------------------------------------------------------------------------
 // Henyey–Greenstein
@@ -130,4 +135,154 @@ fn alias_table_chi2_zero_weights_and_pmf_sum() {
     }
     let expected: Vec<f64> = weights.iter().map(|w| n as f64 * w / total).collect();
     chi2_test("alias", &observed, &expected, ALPHA, TESTS);
+}
+
+// ---------------------------------------------------------------------------------------
+// The Sobol sampler
+
+/// Every named draw of one segment block, in a fixed order.
+fn block_values(s: &mut Sampler) -> Vec<f64> {
+    let mut v = s.get_2d(Dim::Direction).to_vec();
+    v.push(s.get_1d(Dim::FreePath));
+    v.push(s.get_1d(Dim::OnePoint));
+    v.push(s.get_1d(Dim::LightChoice));
+    v.extend(s.get_3d(Dim::LightPosition));
+    v.push(s.get_1d(Dim::Roulette));
+    v
+}
+
+/// The sampler of sample `sample` of pixel `pixel`, at the forward block of `depth`.
+fn sobol_at(seed: u64, pixel: u64, sample: u64, depth: u32) -> Sampler {
+    let mut s = Sampler::with_kind(SamplerKind::Sobol, seed, pixel, sample);
+    s.start_vertex(depth);
+    s
+}
+
+#[test]
+fn sobol_values_lie_in_the_unit_interval_and_are_pure_functions_of_their_key() {
+    for sample in (0..300).chain([65_535, 65_536, 1 << 20]) {
+        for pixel in [0, 1, 12_345] {
+            for depth in [0, 1, 7, 1000] {
+                let mut s = sobol_at(3, pixel, sample, depth);
+                let v = block_values(&mut s);
+                assert!(v.iter().all(|u| (0.0..1.0).contains(u)), "{v:?}");
+                // Asking again, or in another order, gives the same numbers
+                let mut again = sobol_at(3, pixel, sample, depth);
+                assert_eq!(again.get_1d(Dim::Roulette), v[8]);
+                assert_eq!(block_values(&mut again), v);
+                let mut light = Sampler::with_kind(SamplerKind::Sobol, 3, pixel, sample);
+                light.start_light_segment(depth);
+                assert_ne!(block_values(&mut light), v, "the light segment has its own block");
+            }
+        }
+    }
+}
+
+/// Points `(x, y)` of `n = 2^m` samples form a (0, m, 2)-net: every elementary interval
+/// `[a 2^-i, (a+1) 2^-i) × [b 2^-(m-i), (b+1) 2^-(m-i))` holds exactly one point.
+fn assert_net(points: &[[f64; 2]], what: &str) {
+    let m = points.len().trailing_zeros();
+    assert_eq!(points.len(), 1 << m);
+    for i in 0..=m {
+        let mut seen = vec![false; points.len()];
+        for p in points {
+            let cell = ((p[0] * f64::from(1u32 << i)) as usize) << (m - i) | (p[1] * f64::from(1u32 << (m - i))) as usize;
+            assert!(!seen[cell], "{what}: two of {} points in one {}×{} interval", points.len(), 1u32 << i, 1u32 << (m - i));
+            seen[cell] = true;
+        }
+    }
+}
+
+#[test]
+fn sobol_direction_of_any_segment_is_a_net_over_the_first_power_of_two_samples() {
+    // Owen scrambling keeps the (0, m, 2)-net property of Sobol dimensions 0 and 1, and
+    // the index shuffle maps an aligned run of 2^m indices to another such run
+    for (pixel, depth) in [(0u64, 0u32), (77, 0), (77, 3), (5000, 64)] {
+        for m in [1, 4, 8, 12] {
+            for start in [0, 1u64 << m] {
+                let points: Vec<[f64; 2]> = (start..start + (1 << m)).map(|i| sobol_at(9, pixel, i, depth).get_2d(Dim::Direction)).collect();
+                assert_net(&points, &format!("pixel {pixel} depth {depth} samples {start}+2^{m}"));
+            }
+        }
+    }
+    // Each 1-D draw alone is stratified: one of the first 2^m samples per 2^-m interval
+    for (k, dim) in [Dim::FreePath, Dim::OnePoint, Dim::LightChoice, Dim::Roulette].into_iter().enumerate() {
+        let m = 10;
+        let mut seen = vec![false; 1 << m];
+        for i in 0..1u64 << m {
+            let mut s = Sampler::with_kind(SamplerKind::Sobol, 1, 42, i);
+            s.start_light_segment(k as u32);
+            let cell = (s.get_1d(dim) * f64::from(1u32 << m)) as usize;
+            assert!(!seen[cell], "{dim:?}: two samples in one interval");
+            seen[cell] = true;
+        }
+    }
+}
+
+fn correlation(a: &[f64], b: &[f64]) -> f64 {
+    let n = a.len() as f64;
+    let (ma, mb) = (a.iter().sum::<f64>() / n, b.iter().sum::<f64>() / n);
+    let cov: f64 = a.iter().zip(b).map(|(x, y)| (x - ma) * (y - mb)).sum();
+    let va: f64 = a.iter().map(|x| (x - ma) * (x - ma)).sum();
+    let vb: f64 = b.iter().map(|y| (y - mb) * (y - mb)).sum();
+    cov / (va * vb).sqrt()
+}
+
+#[test]
+fn sobol_segments_sets_and_pixels_are_decorrelated() {
+    // Pearson correlation over n samples: |r| < 4/√n for independent draws (a false
+    // failure about once in 15 000 per pair)
+    let n = 4096u64;
+    let bound = 4.0 / (n as f64).sqrt();
+    let draws = |pixel: u64, light: bool, depth: u32, dim: Dim, lane: usize| -> Vec<f64> {
+        (0..n)
+            .map(|i| {
+                let mut s = Sampler::with_kind(SamplerKind::Sobol, 11, pixel, i);
+                if light {
+                    s.start_light_segment(depth);
+                } else {
+                    s.start_vertex(depth);
+                }
+                match dim {
+                    Dim::Direction => s.get_2d(dim)[lane],
+                    Dim::LightPosition => s.get_3d(dim)[lane],
+                    _ => s.get_1d(dim),
+                }
+            })
+            .collect()
+    };
+    let free_path = draws(3, false, 0, Dim::FreePath, 0);
+    let pairs = [
+        ("free path, vertex 0 / vertex 1", draws(3, false, 1, Dim::FreePath, 0)),
+        ("free path, forward / light segment", draws(3, true, 0, Dim::FreePath, 0)),
+        ("free path / roulette (another set)", draws(3, false, 0, Dim::Roulette, 0)),
+        ("free path / light choice (another set)", draws(3, false, 0, Dim::LightChoice, 0)),
+        ("free path, pixel 3 / pixel 4", draws(4, false, 0, Dim::FreePath, 0)),
+        ("free path / direction x", draws(3, false, 0, Dim::Direction, 0)),
+        ("free path / direction y", draws(3, false, 0, Dim::Direction, 1)),
+    ];
+    for (what, other) in &pairs {
+        let r = correlation(&free_path, other);
+        assert!(r.abs() < bound, "{what}: correlation {r:.4} (bound {bound:.4})");
+    }
+    let (x, y) = (draws(3, false, 2, Dim::Direction, 0), draws(3, false, 2, Dim::Direction, 1));
+    assert!(correlation(&x, &y).abs() < bound, "direction x / y");
+    let (p0, p2) = (draws(8, true, 1, Dim::LightPosition, 0), draws(8, true, 1, Dim::LightPosition, 2));
+    assert!(correlation(&p0, &p2).abs() < bound, "light position lanes");
+}
+
+#[test]
+fn random_kind_is_the_old_stream_in_the_order_drawn() {
+    for (seed, pixel, sample) in [(0u64, 0u64, 0u64), (7, 12_345, 99)] {
+        let mut old = Sampler::new(seed, pixel, sample);
+        let expected: Vec<f64> = (0..9).map(|_| old.next_f64()).collect();
+        let mut s = Sampler::with_kind(SamplerKind::Random, seed, pixel, sample);
+        s.start_light_segment(4); // blocks mean nothing to the random stream
+        assert_eq!(block_values(&mut s), expected);
+        assert_eq!(s.kind(), SamplerKind::Random);
+    }
+    // The hashed stream of a Sobol sampler is the same stream (for variable-count draws)
+    let (mut a, mut b) = (Sampler::with_kind(SamplerKind::Sobol, 2, 3, 4), Sampler::new(2, 3, 4));
+    let _ = a.get_1d(Dim::FreePath);
+    assert_eq!(a.next_f64(), b.next_f64());
 }

@@ -249,3 +249,33 @@ fn a_merged_frame_records_the_scene_of_the_whole_frame() {
     ok(&plume(&["render", s(&shot), "-o", s(&again)]));
     assert_eq!(bits(&pixels(&merged)), bits(&pixels(&again)), "the merged frame's scene renders the merged frame");
 }
+
+#[test]
+fn sampler_is_chosen_by_flag_or_key_is_written_and_changes_the_image() {
+    let dir = tmpdir("scene", "sampler");
+    let vdb = explosion(&dir);
+    let base = ["--width", "24", "--height", "16", "--spp", "2", "--albedo", "0.8", "--density-scale", "4", "-q"];
+    let render = |name: &str, extra: &[&str]| {
+        let out = dir.join(name);
+        let mut args = vec!["render", s(&vdb), "-o", s(&out)];
+        args.extend_from_slice(&base);
+        args.extend_from_slice(extra);
+        ok(&plume(&args));
+        bits(&pixels(&out))
+    };
+    let default = render("default.exr", &[]);
+    assert_eq!(default, render("sobol.exr", &["--sampler", "sobol"]), "sobol is the default");
+    let random = render("random.exr", &["--sampler", "random"]);
+    assert_ne!(default, random);
+    // The key `render.sampler` says the same, and --write-scene records the choice
+    let shot = dir.join("shot.toml");
+    let text = "[volume]\nfile = \"ex.vdb\"\n[camera]\nwidth = 24\nheight = 16\n[medium]\nalbedo = 0.8\ndensity_scale = 4.0\n[render]\nspp = 2\nsampler = \"random\"\nquiet = true\n";
+    std::fs::write(&shot, text).unwrap();
+    let keyed = dir.join("keyed.exr");
+    ok(&plume(&["render", s(&shot), "-o", s(&keyed)]));
+    assert_eq!(bits(&pixels(&keyed)), random);
+    let written = dir.join("written.toml");
+    ok(&plume(&["render", s(&vdb), "-o", s(&dir.join("unused.exr")), "--sampler", "random", "--write-scene", s(&written)]));
+    assert!(std::fs::read_to_string(&written).unwrap().contains("sampler = \"random\""));
+    common::plume_exits(&["render", s(&vdb), "-o", s(&dir.join("x.exr")), "--sampler", "halton"], 2, &["sobol", "random"]);
+}

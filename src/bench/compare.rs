@@ -116,7 +116,13 @@ pub fn make_reference(scene: &mut BenchScene, cpu_seconds: f64, on_line: &dyn Fn
     let halves: Vec<RunResult> = REFERENCE_SEEDS
         .iter()
         .map(|&seed| {
-            let plan = RunPlan { cpu_checkpoints: vec![0.5 * cpu_seconds], min_spp: 1, seed, threads: scene.shot.settings.render.threads };
+            let plan = RunPlan {
+                cpu_checkpoints: vec![0.5 * cpu_seconds],
+                min_spp: 1,
+                seed,
+                sampler: scene.shot.settings.render.sampler,
+                threads: scene.shot.settings.render.threads,
+            };
             crate::with_scene!(&scene.loaded.scene, s => progressive::run(s, &integ, &plan, None, 0.0))
         })
         .collect();
@@ -291,6 +297,7 @@ pub fn compare(scene: &mut BenchScene, reference: &Reference, cfg: &CompareConfi
                 cpu_checkpoints: curve.clone(),
                 min_spp: cfg.spp.map_or(1, u64::from),
                 seed: scene.shot.settings.render.seed.unwrap_or(0) + u64::from(r),
+                sampler: scene.shot.settings.render.sampler,
                 threads: scene.shot.settings.render.threads,
             };
             let res = crate::with_scene!(&scene.loaded.scene, s => progressive::run(s, &integ, &plan, Some(&reference.pixels), cfg.epsilon));

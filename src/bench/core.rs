@@ -130,8 +130,14 @@ pub fn run(resolution: u32, threads: usize, ttfs_file: &Path) -> Result<CoreRepo
     let camera = Camera::frame_bounds(lo, hi, DVec3::new(0.35, 0.25, 1.0), DVec3::Y, 40.0, 320, 240)?;
     let scene = Scene { field: volume, medium: Medium { sigma_t: 4.0, albedo: 0.0, g: 0.0, emission: em }, camera, lights: Default::default() };
     let time_render = |threads: usize| {
-        let settings =
-            RenderSettings { budget: SampleBudget::Spp(8), seed: 0, threads, first_sample: 0, integrator: Integrator::emission_only(Estimator::Line) };
+        let settings = RenderSettings {
+            budget: SampleBudget::Spp(8),
+            seed: 0,
+            sampler: crate::sampling::SamplerKind::default(),
+            threads,
+            first_sample: 0,
+            integrator: Integrator::emission_only(Estimator::Line),
+        };
         let t = Instant::now();
         let r = render(&scene, &settings, &|_, _| {});
         std::hint::black_box(r.spp);

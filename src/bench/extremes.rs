@@ -137,7 +137,11 @@ fn box_camera(edge: f64, size: u32) -> Result<Camera> {
 }
 
 fn render_image(scene: &Scene<Volume>, integrator: Integrator, spp: u32, seed: u64) -> Vec<[f32; 4]> {
-    let r = render(scene, &RenderSettings { budget: SampleBudget::Spp(spp), seed, threads: 0, first_sample: 0, integrator }, &|_, _| {});
+    let r = render(
+        scene,
+        &RenderSettings { budget: SampleBudget::Spp(spp), seed, sampler: crate::sampling::SamplerKind::default(), threads: 0, first_sample: 0, integrator },
+        &|_, _| {},
+    );
     r.film.average(r.spp)
 }
 

@@ -288,7 +288,8 @@ impl Switch {
 
 /// CPU seconds and counters of one render of `spp` at seed 0.
 fn timed_render(scene: &AnyScene, integrator: Integrator, spp: u32, threads: usize) -> (f64, Counters) {
-    let settings = RenderSettings { budget: SampleBudget::Spp(spp), seed: 0, threads, first_sample: 0, integrator };
+    let settings =
+        RenderSettings { budget: SampleBudget::Spp(spp), seed: 0, sampler: crate::sampling::SamplerKind::default(), threads, first_sample: 0, integrator };
     crate::with_scene!(scene, s => {
         let c0 = cpu_seconds();
         let r = render(s, &settings, &|_, _| {});

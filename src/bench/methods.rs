@@ -136,6 +136,7 @@ pub fn run(
             &RenderSettings {
                 budget: SampleBudget::CpuTime(reference_seconds),
                 seed: 1_000_003,
+                sampler: crate::sampling::SamplerKind::default(),
                 threads,
                 first_sample: 0,
                 integrator: integrator(Estimator::Line, LightSampling::Fnee, MisHeuristic::Power),
@@ -150,7 +151,14 @@ pub fn run(
             let cpu0 = cpu_seconds();
             let r = render(
                 &s,
-                &RenderSettings { budget: SampleBudget::CpuTime(seconds), seed: 7, threads, first_sample: 0, integrator: integrator(est, ls, mis) },
+                &RenderSettings {
+                    budget: SampleBudget::CpuTime(seconds),
+                    seed: 7,
+                    sampler: crate::sampling::SamplerKind::default(),
+                    threads,
+                    first_sample: 0,
+                    integrator: integrator(est, ls, mis),
+                },
                 &|_, _| {},
             );
             let cpu = cpu_seconds() - cpu0;

@@ -63,6 +63,8 @@ pub struct RunPlan {
     pub min_spp: u64,
     /// Seed of the sample streams.
     pub seed: u64,
+    /// Which numbers drive the samples.
+    pub sampler: crate::sampling::SamplerKind,
     /// Worker threads (0 = all cores).
     pub threads: usize,
 }
@@ -133,6 +135,7 @@ pub fn run<F: Field>(scene: &Scene<F>, integrator: &Integrator, plan: &RunPlan, 
         let settings = RenderSettings {
             budget: SampleBudget::Spp(u32::try_from(n).unwrap_or(u32::MAX)),
             seed: plan.seed,
+            sampler: plan.sampler,
             threads: plan.threads,
             first_sample: spp,
             integrator: *integrator,

@@ -18,7 +18,7 @@ use plume::medium::Convention;
 use plume::scene::file::{is_scene_file, SceneFile};
 use plume::scene::{
     ByteSize, CameraSettings, EmissionSettings, EmissionSource, EstimatorKind, IntegratorSettings, Interpolation, MediumSettings, Method, ProgressFormat,
-    ReadSettings, RenderOptions, SampleOrderChoice, Shot, TileIndex, UpAxis, ValidShot, VolumeInput,
+    ReadSettings, RenderOptions, SampleOrderChoice, SamplerKind, Shot, TileIndex, UpAxis, ValidShot, VolumeInput,
 };
 
 use super::flags::{choice, parse_size, parse_vec3};
@@ -48,6 +48,10 @@ pub struct RenderArgs {
     /// Seed of the sample streams (default: the frame number with --frames, else 0).
     #[arg(long)]
     pub seed: Option<u64>,
+    /// Which numbers drive the samples: Owen-scrambled Sobol points (lower error at equal
+    /// spp), or the independent random numbers of plume before issue #16.
+    #[arg(long, value_parser = choice::<SamplerKind>(), default_value_t = RenderOptions::default().sampler)]
+    pub sampler: SamplerKind,
     /// Worker threads (0 = all cores, and one more when rendering tile by tile from a
     /// brick cache, where workers wait for the disk). The image does not depend on it.
     #[arg(long, default_value_t = RenderOptions::default().threads)]
@@ -269,6 +273,7 @@ flags_to_keys! { RENDER_ONLY_FLAGS, apply_render_only, RenderArgs, s, a;
     "spp" => "render.spp": s.settings.render.spp => a.spp;
     "time" => "render.time": s.settings.render.time => a.time;
     "seed" => "render.seed": s.settings.render.seed => a.seed;
+    "sampler" => "render.sampler": s.settings.render.sampler => a.sampler;
     "threads" => "render.threads": s.settings.render.threads => a.threads;
     "width" => "camera.width": s.scene.camera.width => a.width;
     "height" => "camera.height": s.scene.camera.height => a.height;

@@ -62,12 +62,13 @@ pub fn settings_hash(shot: &Shot, seed: u64) -> String {
     let CameraSettings { from, at, up, fov, width, height, up_axis } = camera;
     let LightSettings { environment } = lights;
     let IntegratorSettings { method, estimator, light_sampling, mis, proxy_resolution, max_depth, kappa } = integrator;
-    // None of the job's settings changes a pixel
+    // Of the job's settings only the seed (an argument) and the sampler change pixels
     let JobSettings { render, farm, output, reading } = settings;
     let RenderOptions {
         spp: _,
         time: _,
         seed: _,
+        sampler,
         threads: _,
         sample_order: _,
         memory_budget: _,
@@ -81,7 +82,7 @@ pub fn settings_hash(shot: &Shot, seed: u64) -> String {
     let OutputSettings { image: _, preview: _, exposure: _, stats: _, sums: _ } = output;
     let ReadSettings { max_input_memory: _, read_timeout: _, no_isolation: _ } = reading;
     let text = format!(
-        "plume {}\nseed {seed}\nfixed point {}\n\
+        "plume {}\nseed {seed}\nsampler {sampler}\nfixed point {}\n\
          volume {density_grid:?} {temperature_grid:?} {emission_grid:?} {albedo_grid:?} {interpolation}\n\
          emission {source} {convention} {temperature_map:?} {temperature_cutoff:?} {scale:?} {color:?}\n\
          medium {density_scale:?} {albedo:?} {g:?}\n\
@@ -127,5 +128,8 @@ mod tests {
         tinted.scene.emission.color = [1.0, 0.5, 0.5];
         assert_ne!(settings_hash(&tinted, 1), base);
         assert_ne!(settings_hash(&shot, 2), base);
+        let mut random = shot.clone();
+        random.settings.render.sampler = crate::scene::SamplerKind::Random;
+        assert_ne!(settings_hash(&random, 1), base);
     }
 }

@@ -117,8 +117,14 @@ pub fn render_frame(job: &Job<'_>, index: usize, frame: Option<i64>, command_lin
     let loaded = load_scene(job.scene(), &paths.input, settings)?;
     warn_about(job, &paths, &loaded);
     let plan = SamplePlan::new(job, resume.as_ref());
-    let render_settings =
-        RenderSettings { budget: plan.budget, seed, threads: settings.render.threads, first_sample: plan.first_sample, integrator: job.scene().integrator() };
+    let render_settings = RenderSettings {
+        budget: plan.budget,
+        seed,
+        sampler: settings.render.sampler,
+        threads: settings.render.threads,
+        first_sample: plan.first_sample,
+        integrator: job.scene().integrator(),
+    };
     if let Some(dp) = settings.render.debug_pixel {
         replay(&loaded, &render_settings, dp);
         return Ok(FrameOutcome::Replayed);
@@ -257,7 +263,7 @@ fn replay(loaded: &LoadedScene, settings: &RenderSettings, dp: crate::render::Sa
     let mut trace = LineTrace::default();
     let mut counters = crate::integrator::Counters::default();
     let l = crate::with_scene!(&loaded.scene, scene => {
-        let crate::render::PixelSample { ray, mut sampler } = crate::render::pixel_sample(scene, settings.seed, x, y, s);
+        let crate::render::PixelSample { ray, mut sampler } = crate::render::pixel_sample(scene, settings.sampler, settings.seed, x, y, s);
         settings.integrator.li(scene, &ray, &mut sampler, &mut counters, &mut trace)
     });
     for line in &trace.0 {
@@ -388,6 +394,7 @@ fn stats_record(
         fixed_point_bits: FIXED_POINT_BITS,
         wall_seconds: timing.wall,
         render_seconds: result.render_seconds,
+        workers_busy: result.busy_seconds / result.render_seconds.max(1e-9),
         time_to_first_sample_seconds: timing.time_to_first_sample,
         cpu_seconds: timing.cpu,
         core_hours: timing.cpu / 3600.0,

@@ -33,7 +33,7 @@ use crate::light::nee::EmitterDistribution;
 use crate::medium::tracking::{emission_at_point, optical_depth, OpticalDepth};
 use crate::medium::{track, DistanceSample, Estimator};
 use crate::sampling::phase::{hg_pdf, sample_hg};
-use crate::sampling::Sampler;
+use crate::sampling::{Dim, Sampler};
 use crate::volume::field::{Field, PointValues, Ray};
 use crate::volume::proxy::ProxyGrid;
 
@@ -194,7 +194,7 @@ impl Integrator {
         let point_nee = self.light_sampling == LightSampling::Nee && self.estimator == Estimator::Point;
         loop {
             let need_collision = scatters && depth < self.max_depth;
-            let u = sampler.next_f64();
+            let u = sampler.get_1d(Dim::FreePath);
             let r = track(&scene.field, m, &ray, f64::INFINITY, self.estimator, need_collision, u, sampler);
             c.segments += u64::from(r.segments);
             c.voxel_steps += r.voxel_steps;
@@ -239,14 +239,15 @@ impl Integrator {
             }
             let x = ray.at(t);
             // Sample the volume light at x
+            sampler.start_light_segment(depth);
             match self.light_sampling {
                 LightSampling::Fnee => {
                     if let Some(proxy) = &lights.proxy {
-                        let u_cell = sampler.next_f64();
-                        let u_pos = [sampler.next_f64(), sampler.next_f64(), sampler.next_f64()];
+                        let u_cell = sampler.get_1d(Dim::LightChoice);
+                        let u_pos = sampler.get_3d(Dim::LightPosition);
                         if let Some(wi) = proxy.sample_direction_only(x, u_cell, u_pos) {
                             c.fnee_samples += 1;
-                            let u2 = sampler.next_f64();
+                            let u2 = sampler.get_1d(Dim::FreePath);
                             let rl = track(&scene.field, m, &Ray { origin: x, direction: wi }, f64::INFINITY, self.estimator, false, u2, sampler);
                             c.segments += u64::from(rl.segments);
                             c.voxel_steps += rl.voxel_steps;
@@ -265,8 +266,8 @@ impl Integrator {
                 }
                 LightSampling::Nee => {
                     if let Some(nee) = &lights.nee {
-                        let u_voxel = sampler.next_f64();
-                        let u_pos = [sampler.next_f64(), sampler.next_f64(), sampler.next_f64()];
+                        let u_voxel = sampler.get_1d(Dim::LightChoice);
+                        let u_pos = sampler.get_3d(Dim::LightPosition);
                         let vs = nee.sample(u_voxel, u_pos);
                         let d = vs.p_world - x;
                         let r2 = d.length_squared();
@@ -293,16 +294,17 @@ impl Integrator {
                 LightSampling::None => {}
             }
             // Russian roulette after this segment's emission
+            sampler.start_vertex(depth);
             let q = beta.min(1.0);
             if q < 1.0 {
-                if sampler.next_f64() >= q {
+                if sampler.get_1d(Dim::Roulette) >= q {
                     trace.event(|| format!("  roulette: terminated (q {q})"));
                     break;
                 }
                 beta /= q;
             }
             // Sample the phase function for the next direction (f/p = 1)
-            let ps = sample_hg(m.g, ray.direction, [sampler.next_f64(), sampler.next_f64()]);
+            let ps = sample_hg(m.g, ray.direction, sampler.get_2d(Dim::Direction));
             ray = Ray { origin: x, direction: ps.direction };
             segment_phase_pdf = Some(ps.pdf);
             w_fwd = match self.light_sampling {

@@ -300,7 +300,7 @@ fn track_expected<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, n
                         // in the piece is unbiased for ∫ τ L_e over it. One ξ serves every
                         // piece of the ray (systematic sampling: each piece's point is still
                         // uniform in it).
-                        let xi = *xi.get_or_insert_with(|| sampler.next_f64());
+                        let xi = *xi.get_or_insert_with(|| sampler.get_1d(crate::sampling::Dim::OnePoint));
                         let u = xi * len;
                         let tau_u = tau * (-piece.optical_depth(medium.sigma_t, u)).exp();
                         add_scaled(&mut f, emission_at(piece, medium, u), tau_u * len);

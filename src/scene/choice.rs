@@ -8,6 +8,7 @@
 
 use crate::integrator::{LightSampling, MisHeuristic};
 use crate::medium::{Convention, Estimator};
+pub use crate::sampling::SamplerKind;
 pub use crate::volume::Interpolation;
 
 /// A closed set of named values.
@@ -206,6 +207,11 @@ choice!(Interpolation {
     "nearest" => Interpolation::Nearest, "Each voxel constant over its box: the paper's volume, exact and faster; blocks in close-ups";
 });
 
+choice!(SamplerKind {
+    "sobol" => SamplerKind::Sobol, "Owen-scrambled Sobol points (Burley 2020), padded per path segment: lower error at equal spp";
+    "random" => SamplerKind::Random, "Independent hashed random numbers (SplitMix64), plume's sampler before issue #16";
+});
+
 /// Machine-readable progress on stdout.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum ProgressFormat {
@@ -251,5 +257,6 @@ mod tests {
         round_trips::<UpAxis>();
         round_trips::<ProgressFormat>();
         round_trips::<Interpolation>();
+        round_trips::<SamplerKind>();
     }
 }

@@ -25,7 +25,7 @@ use std::path::PathBuf;
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
-pub use choice::{Choice, EmissionSource, EstimatorKind, Interpolation, Method, ProgressFormat, SampleOrderChoice, UpAxis};
+pub use choice::{Choice, EmissionSource, EstimatorKind, Interpolation, Method, ProgressFormat, SampleOrderChoice, SamplerKind, UpAxis};
 pub use settings::{FarmOptions, JobSettings, OutputSettings, ReadSettings, RenderOptions};
 pub use validate::ValidShot;
 pub use values::{parse_bytes, ByteSize, TileIndex};

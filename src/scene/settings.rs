@@ -8,7 +8,7 @@ use std::path::PathBuf;
 
 use serde::{Deserialize, Serialize};
 
-use super::choice::{ProgressFormat, SampleOrderChoice};
+use super::choice::{ProgressFormat, SampleOrderChoice, SamplerKind};
 use super::values::{sample_range_text, ByteSize, TileIndex};
 use crate::film::Crop;
 use crate::render::SampleId;
@@ -47,6 +47,8 @@ pub struct RenderOptions {
     /// Seed of the sample streams (default: the frame number with frames, else 0).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub seed: Option<u64>,
+    /// Which numbers drive the samples (default: Owen-scrambled Sobol).
+    pub sampler: SamplerKind,
     /// Worker threads (0 = all cores). The image does not depend on it.
     pub threads: usize,
     /// Order of the samples (the image does not depend on it).

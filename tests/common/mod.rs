@@ -181,7 +181,8 @@ pub const SAMPLING_ALPHA: f64 = 0.01;
 /// FNEE ×3, NEE in voxel boxes and from the trilinear hat (`light_sampling.rs`).
 pub const SAMPLING_TESTS: usize = 5 + 1 + 2 + 3 + 2;
 
-/// The sampler of the sampling tier's tests: `seed`, pixel 0, sample 0.
+/// The sampler of the sampling tier's tests: `seed`, pixel 0, sample 0. The i.i.d. hashed
+/// stream (`Sampler::new`, the `random` kind): chi² counts assume independent draws.
 pub fn rng(seed: u64) -> Sampler {
     Sampler::new(seed, 0, 0)
 }

@@ -153,6 +153,7 @@ pub fn run(data: &Path, cfg: &CloseupConfig, log: &dyn Fn(&str)) -> Result<Close
     let settings = RenderSettings {
         budget: SampleBudget::Spp(cfg.spp),
         seed: 0,
+        sampler: crate::sampling::SamplerKind::default(),
         threads: cfg.threads,
         first_sample: 0,
         integrator: Integrator::emission_only(Estimator::RayMarch),

@@ -19,6 +19,7 @@
 use std::ops::ControlFlow;
 
 use crate::color::Rgb;
+use crate::medium::emission::EmissionMemo;
 use crate::medium::Medium;
 use crate::sampling::Sampler;
 use crate::volume::field::{Field, Piece, PointValues, Ray, SegmentIter};
@@ -128,6 +129,7 @@ pub fn track<F: Field>(
 }
 
 fn track_free_path<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, estimator: Estimator, u: f64) -> TrackResult {
+    let memo = EmissionMemo::new(&medium.emission);
     let e = sample_exponential(u);
     let mut od = 0.0f64;
     let mut f = [0.0f64; 3];
@@ -137,7 +139,7 @@ fn track_free_path<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, 
         segments += 1;
         let Some(seg) = piece.constant() else {
             // A polynomial piece (trilinear reconstruction, METHOD.md §12)
-            return match free_path_polynomial(piece, medium, estimator, e, &mut od, &mut f) {
+            return match free_path_polynomial(piece, medium, &memo, estimator, e, &mut od, &mut f) {
                 Some(event) => ControlFlow::Break(event),
                 None => ControlFlow::Continue(()),
             };
@@ -187,8 +189,8 @@ fn add_scaled(acc: &mut [f64; 3], v: [f64; 3], w: f64) {
 /// `L_e` at `u` on a polynomial piece: each voxel's emission density interpolated
 /// (`volume/trilinear/mod.rs`, "What is interpolated").
 #[inline]
-fn emission_at<P: Piece>(piece: &P, medium: &Medium, u: f64) -> [f64; 3] {
-    piece.emission_at(&|d: f32, s: f32| medium.emission.le(d, s), u)
+fn emission_at<P: Piece>(piece: &P, le: &EmissionMemo<'_>, u: f64) -> [f64; 3] {
+    piece.emission_at(&|d: f32, s: f32| le.le(d, s), u)
 }
 
 /// Density and `L_e` at a world point (a next-event sample), by the same rule as
@@ -200,11 +202,11 @@ pub fn emission_at_point<F: Field>(field: &F, medium: &Medium, p_world: glam::DV
 
 /// `∫₀ᵘ L_e ds` on a polynomial piece, in closed form (a cubic per channel).
 #[inline]
-fn emission_integral<P: Piece>(piece: &P, medium: &Medium, u: f64) -> [f64; 3] {
+fn emission_integral<P: Piece>(piece: &P, le: &EmissionMemo<'_>, u: f64) -> [f64; 3] {
     if !piece.may_emit() || u <= 0.0 {
         return [0.0; 3];
     }
-    piece.emission_integral(&|d: f32, s: f32| medium.emission.le(d, s), u)
+    piece.emission_integral(&|d: f32, s: f32| le.le(d, s), u)
 }
 
 /// One polynomial piece of a free path: the same estimators as the constant case, with
@@ -216,7 +218,15 @@ fn emission_integral<P: Piece>(piece: &P, medium: &Medium, u: f64) -> [f64; 3] {
 ///   collision falls, so the mix of two unbiased estimates stays unbiased.
 ///
 /// Adds to `od` and `f`; returns the collision, if the free path ends here.
-fn free_path_polynomial<P: Piece>(piece: &P, medium: &Medium, estimator: Estimator, e: f64, od: &mut f64, f: &mut [f64; 3]) -> Option<DistanceSample> {
+fn free_path_polynomial<P: Piece>(
+    piece: &P,
+    medium: &Medium,
+    le: &EmissionMemo<'_>,
+    estimator: Estimator,
+    e: f64,
+    od: &mut f64,
+    f: &mut [f64; 3],
+) -> Option<DistanceSample> {
     let len = piece.length();
     let x = piece.optical_depth(medium.sigma_t, len);
     let alpha = match estimator {
@@ -228,23 +238,24 @@ fn free_path_polynomial<P: Piece>(piece: &P, medium: &Medium, estimator: Estimat
         let u = piece.free_path(medium.sigma_t, e - *od);
         let density = piece.density_at(u);
         if alpha > 0.0 {
-            add_scaled(f, emission_integral(piece, medium, u), alpha);
+            add_scaled(f, emission_integral(piece, le, u), alpha);
         }
         let mu = medium.mu_t(density);
         if alpha < 1.0 && mu > 0.0 {
-            add_scaled(f, emission_at(piece, medium, u), (1.0 - alpha) / mu);
+            add_scaled(f, emission_at(piece, le, u), (1.0 - alpha) / mu);
         }
         let t = (piece.t0() + u).clamp(piece.t0(), piece.t1());
         return Some(DistanceSample::Collided { t, density, source: piece.source_at(u), albedo: piece.albedo_at(u) });
     }
     *od += x;
     if alpha > 0.0 {
-        add_scaled(f, emission_integral(piece, medium, len), alpha);
+        add_scaled(f, emission_integral(piece, le, len), alpha);
     }
     None
 }
 
 fn track_expected<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, need_collision: bool, u: f64, sampler: &mut Sampler) -> TrackResult {
+    let memo = EmissionMemo::new(&medium.emission);
     let e = sample_exponential(u);
     let mut od = 0.0f64;
     let mut weight = 1.0f64; // roulette weight
@@ -303,7 +314,7 @@ fn track_expected<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, n
                         let xi = *xi.get_or_insert_with(|| sampler.get_1d(crate::sampling::Dim::OnePoint));
                         let u = xi * len;
                         let tau_u = tau * (-piece.optical_depth(medium.sigma_t, u)).exp();
-                        add_scaled(&mut f, emission_at(piece, medium, u), tau_u * len);
+                        add_scaled(&mut f, emission_at(piece, &memo, u), tau_u * len);
                     }
                 }
             }

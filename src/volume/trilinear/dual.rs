@@ -110,8 +110,8 @@ impl<'a> DualCells<'a> {
     }
 }
 
-/// The brick records of voxel bricks `b + {0,1}³` of dual brick `b`, in corner order, and
-/// the last cell read from them.
+/// The channels of voxel bricks `b + {0,1}³` of dual brick `b`, decoded in corner order,
+/// and the last cell read from them.
 #[derive(Clone, Copy, Debug)]
 pub struct DualBricks<'a> {
     bricks: [BrickChannels<'a>; 8],
@@ -134,17 +134,7 @@ impl DualBricks<'_> {
         self.corners[c] = VoxelValues { density, source: brick.source.at(o) };
         self.albedo[c] = if density > 0.0 { brick.albedo.at(o) } else { 1.0 };
     }
-}
 
-/// A uniform node's or empty space's dual cell: every corner the same.
-#[derive(Clone, Copy, Debug)]
-pub struct DualCell {
-    values: VoxelValues,
-    /// 1 where the density is 0.
-    albedo: f32,
-}
-
-impl DualBricks<'_> {
     /// True when the corners just read agree bit for bit in density, source and albedo.
     #[inline]
     fn is_constant(&self) -> bool {
@@ -154,6 +144,14 @@ impl DualBricks<'_> {
             .zip(&self.albedo)
             .all(|(c, a)| c.density.to_bits() == c0.density.to_bits() && c.source.to_bits() == c0.source.to_bits() && a.to_bits() == a0.to_bits())
     }
+}
+
+/// A uniform node's or empty space's dual cell: every corner the same.
+#[derive(Clone, Copy, Debug)]
+pub struct DualCell {
+    values: VoxelValues,
+    /// 1 where the density is 0.
+    albedo: f32,
 }
 
 impl<'a> Cells for DualCells<'a> {

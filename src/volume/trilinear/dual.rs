@@ -27,7 +27,6 @@
 use glam::{DVec3, IVec3};
 use rayon::prelude::*;
 
-use super::poly;
 use super::CubicSegment;
 use crate::vdb::LEAF_VOXELS;
 use crate::volume::brick::{brick_offset, PackedSlot, Slot, Volume, BRICK};
@@ -134,16 +133,6 @@ impl DualBricks<'_> {
         self.corners[c] = VoxelValues { density, source: brick.source.at(o) };
         self.albedo[c] = if density > 0.0 { brick.albedo.at(o) } else { 1.0 };
     }
-
-    /// True when the corners just read agree bit for bit in density, source and albedo.
-    #[inline]
-    fn is_constant(&self) -> bool {
-        let (c0, a0) = (self.corners[0], self.albedo[0]);
-        self.corners
-            .iter()
-            .zip(&self.albedo)
-            .all(|(c, a)| c.density.to_bits() == c0.density.to_bits() && c.source.to_bits() == c0.source.to_bits() && a.to_bits() == a0.to_bits())
-    }
 }
 
 /// A uniform node's or empty space's dual cell: every corner the same.
@@ -223,13 +212,9 @@ impl<'a> Cells for DualCells<'a> {
             }
         }
         dense.last = l;
-        if dense.is_constant() {
-            return CubicSegment::constant_piece(t0, t1, dense.corners[0], dense.albedo[0]);
-        }
         // Cell-local coordinates at the entry, from the unshifted index-space line
         let f0 = (line.o + line.d * t0 - i.as_dvec3()).clamp(DVec3::ZERO, DVec3::ONE);
-        let density = poly::cubic_along(dense.corners.map(|c| f64::from(c.density)), f0, line.d);
-        CubicSegment { t0, t1, density, f0, d: line.d, corners: dense.corners, albedo: dense.albedo, constant: false }
+        CubicSegment::cell(t0, t1, f0, line.d, dense.corners, dense.albedo)
     }
 
     #[inline]

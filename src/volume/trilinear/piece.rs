@@ -50,16 +50,23 @@ impl CubicSegment {
     }
 
     /// The piece of a ray crossing one dual cell: cell-local coordinates `f0 + d u` over
-    /// `u ∈ [0, t1 − t0]`, the cell's 8 corner voxels and their albedo factors. The density
-    /// cubic comes from [`poly::cubic_along`]; the piece is constant when all 8 corners
-    /// agree bit for bit in density, source and albedo.
+    /// `u ∈ [0, t1 − t0]`, the cell's 8 corner voxels and their albedo factors. When all 8
+    /// corners agree bit for bit in density, source and albedo it is
+    /// [`CubicSegment::constant_piece`]; otherwise the density cubic comes from
+    /// [`poly::cubic_along`].
+    #[inline]
     #[must_use]
     pub fn cell(t0: f64, t1: f64, f0: DVec3, d: DVec3, corners: [VoxelValues; 8], albedo: [f32; 8]) -> CubicSegment {
+        let (c0, a0) = (corners[0], albedo[0]);
+        let agree = corners
+            .iter()
+            .zip(&albedo)
+            .all(|(c, a)| c.density.to_bits() == c0.density.to_bits() && c.source.to_bits() == c0.source.to_bits() && a.to_bits() == a0.to_bits());
+        if agree {
+            return CubicSegment::constant_piece(t0, t1, c0, a0);
+        }
         let density = poly::cubic_along(corners.map(|c| f64::from(c.density)), f0, d);
-        let same = |a: f32, b: f32| a.to_bits() == b.to_bits();
-        let constant =
-            corners.iter().zip(&albedo).all(|(c, &al)| same(c.density, corners[0].density) && same(c.source, corners[0].source) && same(al, albedo[0]));
-        CubicSegment { t0, t1, density, f0, d, corners, albedo, constant }
+        CubicSegment { t0, t1, density, f0, d, corners, albedo, constant: false }
     }
 
     /// Cell-local coordinates at `u`, clamped to the cell.

@@ -34,5 +34,6 @@ pub fn run(cli: Cli, matches: &ArgMatches, command_line: &str) -> Result<()> {
         }
         Command::Synth(files::SynthCommand::Explosion(args)) => files::synth_explosion_command(&args),
         Command::Synth(files::SynthCommand::Flare(args)) => files::synth_flare_command(&args),
+        Command::Synth(files::SynthCommand::Sky(args)) => files::synth_sky_command(&args),
     }
 }

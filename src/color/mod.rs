@@ -1,7 +1,7 @@
 //! Colour: the [`Rgb`] type (linear Rec.709) and blackbody emission.
 
 pub mod blackbody;
-mod cie1931;
+pub(crate) mod cie1931;
 
 use std::ops::{Add, AddAssign, Div, Mul, MulAssign};
 

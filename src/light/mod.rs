@@ -1,6 +1,6 @@
 //! Light sampling building blocks for the path integrator (METHOD.md §6–8).
 //!
-//! The volume is the only light. Two techniques sample it:
+//! Two techniques sample the volume's own emission:
 //!
 //! - [`nee`]: volume-measure next-event estimation (Villemin & Hery 2013): a *point* `y`
 //!   drawn from the full-resolution emissive voxels ∝ power, density per unit world volume.
@@ -10,10 +10,16 @@
 //! Both are pure: randomness enters as `u` arguments, so each sample/pdf pair is
 //! chi²-tested in `tests/light_sampling.rs`. Emission enters as a closure
 //! `power(density, source) = Y(L_e)`, keeping the data side free of optics.
+//!
+//! Light from outside the volume:
+//!
+//! - [`sky`]: Preetham et al.'s (1999) analytic daylight sky and sun disc, as radiance per
+//!   direction or as a lat-long environment map, and plume's lat-long convention.
 
 pub mod fnee;
 pub mod nee;
 pub mod power;
+pub mod sky;
 
 pub use fnee::{DirectionSample, ProxyPoint};
 pub use nee::{EmitterDistribution, VoxelSample};

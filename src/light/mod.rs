@@ -1,16 +1,21 @@
 //! Light sampling building blocks for the path integrator (METHOD.md §6–8).
 //!
-//! The volume is the only light. Two techniques sample it:
+//! Two techniques sample the volume's emission:
 //!
 //! - [`nee`]: volume-measure next-event estimation (Villemin & Hery 2013): a *point* `y`
 //!   drawn from the full-resolution emissive voxels ∝ power, density per unit world volume.
 //! - [`fnee`]: a *direction* drawn through the coarse proxy grid
 //!   ([`crate::volume::proxy`]), density per unit solid angle.
 //!
-//! Both are pure: randomness enters as `u` arguments, so each sample/pdf pair is
-//! chi²-tested in `tests/light_sampling.rs`. Emission enters as a closure
+//! A third samples light from outside it: [`envmap`], a lat-long environment map looked
+//! up per pixel, directions drawn ∝ luminance · sin θ, density per unit solid angle
+//! (chi²-tested in `tests/environment_map.rs`).
+//!
+//! All are pure: randomness enters as `u` arguments, so each sample/pdf pair is
+//! chi²-tested (`tests/light_sampling.rs` for the volume's). Emission enters as a closure
 //! `power(density, source) = Y(L_e)`, keeping the data side free of optics.
 
+pub mod envmap;
 pub mod fnee;
 pub mod nee;
 pub mod power;

@@ -166,11 +166,12 @@ impl Distribution1D {
     }
 
     /// Draw `x` with density [`pdf`](Self::pdf) from a uniform `u ∈ [0, 1)` (values at or
-    /// above 1 are treated as the largest `f64` below 1). Monotone in `u`.
+    /// above 1 are treated as the largest `f64` below 1, negative ones and NaN as 0).
+    /// Monotone in `u`.
     #[must_use]
     pub fn sample(&self, u: f64) -> Sample1D {
         debug_assert!(self.integral > 0.0, "sampling a distribution of zero integral");
-        let u = u.clamp(0.0, ONE_MINUS_EPSILON);
+        let u = if u >= 0.0 { u.min(ONE_MINUS_EPSILON) } else { 0.0 };
         let n = self.len();
         // cdf_0 = 0 ≤ u < 1 = cdf_n, so the bin is in 0 … n − 1 and has cdf_k < cdf_{k+1}
         let bin = self.cdf.partition_point(|&c| c <= u) - 1;
@@ -370,6 +371,10 @@ mod tests {
         assert_eq!(d.sample(0.25).x, 0.5);
         assert_eq!(d.sample(0.625).x, 0.75);
         assert_eq!(d.sample(0.625).pdf, 1.5);
+        // out-of-range uniforms stay in range
+        assert_eq!(d.sample(-1.0).x, 0.0);
+        assert_eq!(d.sample(f64::NAN).x, 0.0);
+        assert!(d.sample(1.0).x < 1.0 && d.sample(7.0).x < 1.0);
     }
 
     fn grid() -> (Vec<f64>, usize, usize) {

@@ -90,6 +90,15 @@ pub enum Error {
         /// What is wrong and what to do.
         what: String,
     },
+    /// An input other than a VDB or a brick cache (an environment map, …) is not usable:
+    /// not the expected format, the wrong shape, or values plume cannot use.
+    #[error("{what}: {message}")]
+    InvalidInput {
+        /// What the input is and where it came from, e.g. `environment map sky.exr`.
+        what: String,
+        /// What is wrong, naming the pixel or channel where there is one.
+        message: String,
+    },
     /// An input that passed its checks failed while plume was using it: it was truncated,
     /// rewritten or replaced by another process, or its storage returned an I/O error.
     /// Nothing computed from it is written. (A fault in a mapped page never becomes this
@@ -217,6 +226,7 @@ impl Error {
             | Error::TooLarge { .. }
             | Error::ReaderFailed { .. }
             | Error::Cache { .. }
+            | Error::InvalidInput { .. }
             | Error::Scene(_) => 3,
             Error::Write { .. } | Error::ReaderSpawn { .. } | Error::InputFailed { .. } | Error::CacheLocked { .. } => exit::RENDER_OR_OUTPUT,
             Error::InvalidPart { .. } => exit::INPUT,

@@ -7,8 +7,12 @@
 //! - [`fnee`]: a *direction* drawn through the coarse proxy grid
 //!   ([`crate::volume::proxy`]), density per unit solid angle.
 //!
-//! Both are pure: randomness enters as `u` arguments, so each sample/pdf pair is
-//! chi²-tested in `tests/light_sampling.rs`. Emission enters as a closure
+//! A third samples light from outside it: [`envmap`], a lat-long environment map looked
+//! up per pixel, directions drawn ∝ luminance · sin θ, density per unit solid angle
+//! (chi²-tested in `tests/environment_map.rs`).
+//!
+//! All are pure: randomness enters as `u` arguments, so each sample/pdf pair is
+//! chi²-tested (`tests/light_sampling.rs` for the volume's). Emission enters as a closure
 //! `power(density, source) = Y(L_e)`, keeping the data side free of optics.
 //!
 //! Light from outside the volume:
@@ -16,6 +20,7 @@
 //! - [`sky`]: Preetham et al.'s (1999) analytic daylight sky and sun disc, as radiance per
 //!   direction or as a lat-long environment map, and plume's lat-long convention.
 
+pub mod envmap;
 pub mod fnee;
 pub mod nee;
 pub mod power;

@@ -23,6 +23,7 @@
 //!   stream, named or not. This is plume's sampler before issue #16, bit for bit.
 
 pub mod alias;
+pub mod distribution2d;
 pub mod phase;
 pub mod sobol;
 

@@ -25,11 +25,27 @@ fn main() {
         isolate::set_reader_exe(exe);
     }
     let command_line = std::env::args().collect::<Vec<_>>().join(" ");
-    let matches = cli::Cli::command().get_matches();
-    let parsed = cli::Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
+    let matches = cli::Cli::command().try_get_matches().unwrap_or_else(|e| usage_error(&e));
+    let parsed = cli::Cli::from_arg_matches(&matches).unwrap_or_else(|e| usage_error(&e));
     if let Err(e) = cli::commands::run(parsed, &matches, &command_line) {
         // Messages already carry their cause; one line, naming the file/grid/flag.
         eprintln!("plume: error: {e}");
         std::process::exit(e.exit_code());
     }
+}
+
+/// A command line clap cannot parse: one line naming the flag, exit 2 (help and version
+/// requests print as clap prints them).
+fn usage_error(e: &clap::Error) -> ! {
+    use clap::error::ErrorKind;
+    if matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand) {
+        e.exit();
+    }
+    // clap's message, its possible values and tips, without the usage and help pointers
+    let text = e.render().to_string();
+    let parts: Vec<&str> =
+        text.lines().map(str::trim).take_while(|l| !l.starts_with("Usage:") && !l.starts_with("For more information")).filter(|l| !l.is_empty()).collect();
+    let line = if parts.is_empty() { "error: invalid command line".to_string() } else { parts.join(" ") };
+    eprintln!("plume: {line}");
+    std::process::exit(2);
 }

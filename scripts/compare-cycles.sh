@@ -11,6 +11,8 @@
 #
 #   bash scripts/compare-cycles.sh            # full table
 #   bash scripts/compare-cycles.sh --quick    # a quick look
+#   bash scripts/compare-cycles.sh --lights   # sun, environment map and sphere light
+#                                             # (issue #14; scripts/compare_lights.py)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source scripts/setup.sh
@@ -22,5 +24,9 @@ command -v "$python" >/dev/null 2>&1 || python=python3
 if [ ! -x "$venv/bin/python" ] || ! "$venv/bin/python" -c "import bpy, OpenEXR" >/dev/null 2>&1; then
     "$python" -m venv "$venv"
     "$venv/bin/python" -m pip install --quiet "bpy==5.0.1" "OpenEXR>=3.2"
+fi
+if [ "${1:-}" = "--lights" ]; then
+    shift
+    exec "$venv/bin/python" scripts/compare_lights.py --plume "${CARGO_TARGET_DIR:-target}/release/plume" "$@"
 fi
 exec "$venv/bin/python" scripts/compare_cycles.py --plume "${CARGO_TARGET_DIR:-target}/release/plume" "$@"

@@ -159,6 +159,11 @@ pub struct Tile {
     pub height: u32,
     /// `[r, g, b, alpha]` sums in units of 2^−F, row-major within the tile.
     pub sums: Vec<[i128; 4]>,
+    /// AOV channel sums (`integrator::aov`), `aov_channels` per pixel, row-major; empty
+    /// without AOVs.
+    pub aov: Vec<i128>,
+    /// AOV channels per pixel (0: none).
+    pub aov_channels: usize,
     /// Sample values or sums that did not fit and were clamped to the `i128` range.
     pub saturated: u64,
     /// Non-zero sample values smaller than half a unit (2^−65), stored as 0.
@@ -170,16 +175,31 @@ impl Tile {
     #[inline]
     pub fn add_sample(&mut self, index: usize, l: [f64; 4]) {
         let sum = &mut self.sums[index];
-        for (a, v) in sum.iter_mut().zip(l) {
+        add_fixed(sum, &l, &mut self.saturated, &mut self.underflowed);
+    }
+
+    /// Add one sample's AOV values (`aov_channels` of them) to pixel `index`.
+    #[inline]
+    pub fn add_aov(&mut self, index: usize, values: &[f64]) {
+        let n = self.aov_channels;
+        add_fixed(&mut self.aov[index * n..(index + 1) * n], values, &mut self.saturated, &mut self.underflowed);
+    }
+}
+
+/// Add sample values to fixed-point sums, counting clamps and underflows.
+#[inline]
+fn add_fixed(sum: &mut [i128], l: &[f64], saturated: &mut u64, underflowed: &mut u64) {
+    {
+        for (a, &v) in sum.iter_mut().zip(l) {
             let q = match to_fixed(v) {
                 Some(q) => {
                     if q == 0 && v != 0.0 {
-                        self.underflowed += 1;
+                        *underflowed += 1;
                     }
                     q
                 }
                 None => {
-                    self.saturated += 1;
+                    *saturated += 1;
                     if v < 0.0 {
                         i128::MIN
                     } else {
@@ -191,7 +211,7 @@ impl Tile {
             // independent of order, and every clamp is counted
             let (s, overflow) = a.overflowing_add(q);
             if overflow {
-                self.saturated += 1;
+                *saturated += 1;
                 *a = if q < 0 { i128::MIN } else { i128::MAX };
             } else {
                 *a = s;
@@ -228,12 +248,32 @@ impl Film {
     /// If `crop` does not fit the image.
     #[must_use]
     pub fn with_crop(width: u32, height: u32, crop: Crop) -> Film {
+        Film::with_aovs(width, height, crop, 0)
+    }
+
+    /// [`Film::with_crop`] with `aov_channels` AOV sums per pixel.
+    ///
+    /// # Panics
+    /// If `crop` does not fit the image.
+    #[must_use]
+    pub fn with_aovs(width: u32, height: u32, crop: Crop, aov_channels: usize) -> Film {
         assert!(crop.fits(width, height), "crop {crop} outside the {width}x{height} image");
         let mut tiles = Vec::new();
         for y0 in (crop.y0..crop.y1).step_by(TILE as usize) {
             for x0 in (crop.x0..crop.x1).step_by(TILE as usize) {
                 let (w, h) = (TILE.min(crop.x1 - x0), TILE.min(crop.y1 - y0));
-                tiles.push(Tile { x0, y0, width: w, height: h, sums: vec![[0; 4]; (w * h) as usize], saturated: 0, underflowed: 0 });
+                let n = (w * h) as usize;
+                tiles.push(Tile {
+                    x0,
+                    y0,
+                    width: w,
+                    height: h,
+                    sums: vec![[0; 4]; n],
+                    aov: vec![0; n * aov_channels],
+                    aov_channels,
+                    saturated: 0,
+                    underflowed: 0,
+                });
             }
         }
         Film { width, height, crop, tiles }
@@ -274,6 +314,46 @@ impl Film {
                 let row = (t.y0 - crop.y0 + ty) as usize * cw + (t.x0 - crop.x0) as usize;
                 let dst = (ty * t.width) as usize;
                 t.sums[dst..dst + t.width as usize].copy_from_slice(&sums[row..row + t.width as usize]);
+            }
+        }
+    }
+
+    /// AOV channels per pixel (0: none).
+    #[must_use]
+    pub fn aov_channels(&self) -> usize {
+        self.tiles.first().map_or(0, |t| t.aov_channels)
+    }
+
+    /// The exact AOV sums, `aov_channels` per pixel, row-major over `crop`.
+    #[must_use]
+    pub fn aov_sums(&self) -> Vec<i128> {
+        let n = self.aov_channels();
+        let cw = self.crop.width() as usize;
+        let mut out = vec![0i128; self.crop.area() as usize * n];
+        for t in &self.tiles {
+            for ty in 0..t.height {
+                let row = (t.y0 - self.crop.y0 + ty) as usize * cw + (t.x0 - self.crop.x0) as usize;
+                let src = (ty * t.width) as usize;
+                out[row * n..(row + t.width as usize) * n].copy_from_slice(&t.aov[src * n..(src + t.width as usize) * n]);
+            }
+        }
+        out
+    }
+
+    /// Replace the AOV sums by `sums` (`aov_channels` per pixel, row-major over `crop`).
+    ///
+    /// # Panics
+    /// If `sums` does not have `aov_channels` entries per pixel of `crop`.
+    pub fn set_aov_sums(&mut self, sums: &[i128]) {
+        let n = self.aov_channels();
+        assert_eq!(sums.len() as u64, self.crop.area() * n as u64, "aov_channels sums per pixel of the crop");
+        let cw = self.crop.width() as usize;
+        let crop = self.crop;
+        for t in &mut self.tiles {
+            for ty in 0..t.height {
+                let row = (t.y0 - crop.y0 + ty) as usize * cw + (t.x0 - crop.x0) as usize;
+                let dst = (ty * t.width) as usize;
+                t.aov[dst * n..(dst + t.width as usize) * n].copy_from_slice(&sums[row * n..(row + t.width as usize) * n]);
             }
         }
     }

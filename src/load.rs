@@ -97,29 +97,39 @@ pub fn load_scene(scene: &SceneDescription, input: &Path, settings: &JobSettings
     let medium = Medium { sigma_t: scene.medium.density_scale, albedo: scene.albedo(), g: scene.medium.g, emission };
     // Light-sampling structures, only for the technique in use and only when paths scatter
     let (_, light_sampling) = scene.integrator.parts();
-    let lights = if scene.scatters() {
+    let mut lights = if scene.scatters() {
         let proxy_resolution = ProxyGrid::resolution_for(&volume, scene.integrator.proxy_resolution);
         crate::cache::convert::check_light_budget(&volume, light_sampling, budget)?;
         match proxy_power {
             Some((power, key)) if light_sampling == LightSampling::Fnee && power.resolution == proxy_resolution && key == emission.light_key() => {
-                Lights { nee: None, proxy: ProxyGrid::from_cell_power(&volume, &power)? }
+                Lights { proxy: ProxyGrid::from_cell_power(&volume, &power)?, ..Lights::default() }
             }
             _ => Lights::build(&volume, &emission, light_sampling, proxy_resolution)?,
         }
     } else {
         Lights::default()
     };
+    // Lights besides the volume: seen by camera rays even when nothing scatters
+    if scene.lights.any() {
+        let Bounds3 { lo, hi } = if volume.is_empty() { Bounds3 { lo: DVec3::splat(-1.0), hi: DVec3::splat(1.0) } } else { volume.world_bounds() };
+        lights.external = scene.lights.build(up_axis(scene), 0.5 * (hi - lo).length())?;
+    }
     let scene = AnyScene::new(Scene { field: volume, medium, camera, lights }, scene.volume.interpolation);
     Ok(LoadedScene { scene, emission_kind: emission.kind, source_grid, cache })
+}
+
+/// The scene's up axis (`camera.up_axis`): the zenith of environment maps and the sky.
+fn up_axis(scene: &SceneDescription) -> DVec3 {
+    match scene.camera.up_axis {
+        UpAxis::Y => DVec3::Y,
+        UpAxis::Z => DVec3::Z,
+    }
 }
 
 /// The camera: as given, or framing the volume automatically.
 fn camera(scene: &SceneDescription, input: &Path, volume: &Volume) -> Result<Camera> {
     let c = &scene.camera;
-    let up = c.up.unwrap_or(match c.up_axis {
-        UpAxis::Y => DVec3::Y,
-        UpAxis::Z => DVec3::Z,
-    });
+    let up = c.up.unwrap_or(up_axis(scene));
     let Bounds3 { lo, hi } = if volume.is_empty() { Bounds3 { lo: DVec3::splat(-1.0), hi: DVec3::splat(1.0) } } else { volume.world_bounds() };
     if let Some(from) = c.from {
         return Camera::look_at(from, c.at.unwrap_or(0.5 * (lo + hi)), up, c.fov, c.width, c.height);

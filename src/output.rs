@@ -136,7 +136,7 @@ pub fn check_writable(path: &Path) -> Result<()> {
 /// # Errors
 /// [`Error::Write`] naming `path`.
 pub fn write_exr(path: &Path, width: u32, height: u32, pixels: &[[f32; 4]], metadata: &[(String, String)]) -> Result<()> {
-    write_exr_image(path, &ExrImage { width, height, crop: Crop::full(width, height), pixels, sums: None, metadata })
+    write_exr_image(path, &ExrImage { width, height, crop: Crop::full(width, height), pixels, sums: None, aovs: None, metadata })
 }
 
 /// Names of the 16 `u32` channels that hold a pixel's exact `i128` sums: `sum.{R,G,B,A}.w{0..3}`,
@@ -165,9 +165,24 @@ pub struct ExrImage<'a> {
     pub pixels: &'a [[f32; 4]],
     /// Exact fixed-point sums over `crop` (`film.rs`), stored as 16 `u32` channels.
     pub sums: Option<&'a [[i128; 4]]>,
+    /// AOV layers, if any.
+    pub aovs: Option<AovChannels<'a>>,
     /// Text attributes (name, value); non-ASCII characters become `?`.
     pub metadata: &'a [(String, String)],
 }
+
+/// AOV layers to write (`integrator::aov`): `f32` channels, and optionally their exact
+/// sums (`sum.<channel>.w0..3`), whose channel order is recorded in the attribute
+/// `plume:aov_channels`.
+pub struct AovChannels<'a> {
+    /// `(name, values)`: `emission.R`, …, `alpha.A`, `depth.Z`, each row-major over the crop.
+    pub layers: &'a [(String, Vec<f32>)],
+    /// The summed channels' names and their sums, `names.len()` per pixel.
+    pub sums: Option<(&'a [String], &'a [i128])>,
+}
+
+/// The attribute holding the order of the AOV sum channels.
+pub const AOV_CHANNELS_ATTRIBUTE: &str = "plume:aov_channels";
 
 /// Write `image` as an EXR, atomically.
 ///
@@ -194,7 +209,28 @@ pub fn write_exr_image(path: &Path, image: &ExrImage<'_>) -> Result<()> {
             }
         }
     }
+    let mut aov_order = None;
+    if let Some(aovs) = &image.aovs {
+        for (name, values) in aovs.layers {
+            assert_eq!(values.len(), n, "invariant: one AOV value per crop pixel");
+            list.push(AnyChannel::new(name.as_str(), FlatSamples::F32(values.clone())));
+        }
+        if let Some((names, sums)) = aovs.sums {
+            let k = names.len();
+            assert_eq!(sums.len(), n * k, "invariant: one sum per AOV channel and crop pixel");
+            for (c, name) in names.iter().enumerate() {
+                for w in 0..4 {
+                    let words = (0..n).map(|i| ((sums[i * k + c] as u128) >> (32 * w)) as u32).collect();
+                    list.push(AnyChannel::new(format!("sum.{name}.w{w}").as_str(), FlatSamples::U32(words)));
+                }
+            }
+            aov_order = Some(names.join(","));
+        }
+    }
     let mut attributes = LayerAttributes { layer_position: Vec2(image.crop.x0 as i32, image.crop.y0 as i32), ..LayerAttributes::default() };
+    if let Some(order) = aov_order.and_then(|o| Text::new_or_none(&o)) {
+        attributes.other.insert(Text::new_or_panic(AOV_CHANNELS_ATTRIBUTE), AttributeValue::Text(order));
+    }
     for (k, v) in image.metadata {
         let key = Text::new_or_none(k).unwrap_or_else(|| Text::new_or_panic("plume:invalid"));
         let ascii: String = v.chars().map(|c| if c.is_ascii() { c } else { '?' }).collect();
@@ -222,6 +258,9 @@ pub struct ExrContents {
     pub pixels: Vec<[f32; 4]>,
     /// Exact sums, when the file has all 16 sum channels.
     pub sums: Option<Vec<[i128; 4]>>,
+    /// Exact AOV sums: the channel names (in sum order) and their sums, names.len() per
+    /// pixel, when the file has them all.
+    pub aov_sums: Option<(Vec<String>, Vec<i128>)>,
     /// Text attributes.
     pub metadata: std::collections::BTreeMap<String, String>,
 }
@@ -289,6 +328,30 @@ pub fn read_exr_contents(path: &Path) -> Result<ExrContents> {
             })
             .collect()
     });
+    // AOV sums, in the order the attribute records, if every one of their words is there
+    let aov_sums = match layer.attributes.other.get(&Text::new_or_panic(AOV_CHANNELS_ATTRIBUTE)) {
+        Some(AttributeValue::Text(t)) => {
+            let names: Vec<String> = t.to_string().split(',').map(str::to_string).collect();
+            let words: Option<Vec<&Vec<u32>>> = names
+                .iter()
+                .flat_map(|n| (0..4).map(move |k| format!("sum.{n}.w{k}")))
+                .map(|c| match channel(&c).map(|c| &c.sample_data) {
+                    Some(FlatSamples::U32(v)) if v.len() == w * h => Some(v),
+                    _ => None,
+                })
+                .collect();
+            words.map(|words| {
+                let k = names.len();
+                let mut sums = vec![0i128; w * h * k];
+                for (i, s) in sums.iter_mut().enumerate() {
+                    let (pixel, c) = (i / k, i % k);
+                    *s = (0..4).fold(0u128, |acc, q| acc | (u128::from(words[c * 4 + q][pixel]) << (32 * q))) as i128;
+                }
+                (names, sums)
+            })
+        }
+        _ => None,
+    };
     let metadata = layer
         .attributes
         .other
@@ -303,7 +366,7 @@ pub fn read_exr_contents(path: &Path) -> Result<ExrContents> {
     if !crop.fits(width, height) {
         return Err(bad(format!("data window {crop} outside the {width}x{height} display window")));
     }
-    Ok(ExrContents { width, height, crop, pixels, sums, metadata })
+    Ok(ExrContents { width, height, crop, pixels, sums, aov_sums, metadata })
 }
 
 /// Remove temporary files that an earlier, killed plume on this host left beside `path`

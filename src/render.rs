@@ -22,7 +22,7 @@ use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
 use crate::film::{Crop, Film, Tile};
-use crate::integrator::{Counters, Integrator, NoTrace, Scene};
+use crate::integrator::{AovLayout, AovSample, Aovs, Counters, Integrator, NoAovs, NoTrace, Scene};
 use crate::sampling::{Dim, Sampler, SamplerKind};
 use crate::volume::field::{Field, RayGrid};
 
@@ -122,6 +122,8 @@ pub struct RenderControl<'a> {
     pub deadline: Option<Instant>,
     /// Sample order.
     pub order: SampleOrder,
+    /// Record AOV layers with this layout (`integrator::aov`); `None`: the beauty only.
+    pub aovs: Option<AovLayout>,
 }
 
 /// The key of one pixel sample: sample `sample` of pixel `(x, y)` of the full image.
@@ -177,6 +179,15 @@ pub fn pixel_sample<F: Field>(scene: &Scene<F>, kind: SamplerKind, seed: u64, x:
 }
 
 fn render_tile<F: Field>(scene: &Scene<F>, settings: &RenderSettings, samples: std::ops::Range<u64>, tile: &mut Tile) -> Counters {
+    if tile.aov_channels == 0 {
+        render_tile_with(scene, settings, samples, tile, &mut NoAovs)
+    } else {
+        let mut aovs = AovSample::new(tile.aov_channels);
+        render_tile_with(scene, settings, samples, tile, &mut aovs)
+    }
+}
+
+fn render_tile_with<F: Field, A: Aovs>(scene: &Scene<F>, settings: &RenderSettings, samples: std::ops::Range<u64>, tile: &mut Tile, aovs: &mut A) -> Counters {
     let mut counters = Counters::default();
     for ty in 0..tile.height {
         for tx in 0..tile.width {
@@ -184,10 +195,14 @@ fn render_tile<F: Field>(scene: &Scene<F>, settings: &RenderSettings, samples: s
             let index = (ty * tile.width + tx) as usize;
             for s in samples.clone() {
                 let PixelSample { ray, mut sampler } = pixel_sample(scene, settings.sampler, settings.seed, x, y, s);
-                let l = settings.integrator.li(scene, &ray, &mut sampler, &mut counters, &mut NoTrace);
+                aovs.begin();
+                let l = settings.integrator.li_aovs(scene, &ray, &mut sampler, &mut counters, &mut NoTrace, aovs);
                 counters.samples += 1;
-                if l.iter().all(|v| v.is_finite()) {
+                if l.iter().all(|v| v.is_finite()) && (!A::ON || aovs.values().iter().all(|v| v.is_finite())) {
                     tile.add_sample(index, l);
+                    if A::ON {
+                        tile.add_aov(index, aovs.values());
+                    }
                 } else {
                     // Drop and count non-finite samples; report the first for replay
                     counters.nonfinite_samples += 1;
@@ -225,7 +240,9 @@ pub fn render_with<F: Field>(scene: &Scene<F>, settings: &RenderSettings, contro
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("invariant: a rayon pool can be built");
     let (width, height) = (scene.camera.width, scene.camera.height);
     let crop = control.crop.unwrap_or(Crop::full(width, height));
-    let mut film = control.film.unwrap_or_else(|| Film::with_crop(width, height, crop));
+    let aov_channels = control.aovs.as_ref().map_or(0, AovLayout::channels);
+    let mut film = control.film.unwrap_or_else(|| Film::with_aovs(width, height, crop, aov_channels));
+    assert_eq!(film.aov_channels(), aov_channels, "invariant: resumed film has the AOV channels asked for");
     assert!(film.crop == crop && film.width == width && film.height == height, "invariant: resumed film matches the crop");
     let mut counters = Counters::default();
     // The first non-finite sample in (row, column, sample) order: each tile reports its

@@ -58,7 +58,7 @@ fn scattering_blob() -> (Scene<Volume>, Integrator) {
     scene.medium.albedo = 0.8;
     scene.medium.sigma_t = 6.0;
     scene.lights = Lights::build(&scene.field, &scene.medium.emission, LightSampling::Fnee, 8).unwrap();
-    (scene, Integrator { estimator: Estimator::Line, light_sampling: LightSampling::Fnee, mis: MisHeuristic::Power, max_depth: 16, environment: None })
+    (scene, Integrator { estimator: Estimator::Line, light_sampling: LightSampling::Fnee, mis: MisHeuristic::Power, max_depth: 16 })
 }
 
 #[test]

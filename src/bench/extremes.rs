@@ -262,7 +262,7 @@ fn density_sweep(cfg: &ExtremesConfig, check: &mut Check) -> Result<()> {
         // Scattering: between the emission-only value and the equilibrium L_e/μ_a
         scene.medium.albedo = 0.5;
         scene.lights = Lights::build(&scene.field, &emission, LightSampling::Fnee, 8)?;
-        let integ = Integrator { estimator: Estimator::Line, light_sampling: LightSampling::Fnee, mis: MisHeuristic::Power, max_depth: 64, environment: None };
+        let integ = Integrator { estimator: Estimator::Line, light_sampling: LightSampling::Fnee, mis: MisHeuristic::Power, max_depth: 64 };
         let img = render_image(&scene, integ, cfg.spp, 1);
         let (mean, se) = central(&img, cfg.size, None);
         let upper = 1.0 / (0.5 * sigma);

@@ -30,6 +30,34 @@ pub fn parse_vec3(s: &str) -> Result<DVec3, String> {
     Ok(DVec3::from_array(v))
 }
 
+/// Parse a light's keys as written in a scene file's table, comma-separated (a TOML
+/// inline table's body): `direction = [0, 0, -1], irradiance = 3`. Empty: all defaults.
+///
+/// # Errors
+/// A one-line message for clap naming the key that does not parse or is unknown.
+pub fn parse_keys<T: serde::de::DeserializeOwned>(s: &str) -> Result<T, String> {
+    #[derive(serde::Deserialize)]
+    struct Wrapper<T> {
+        v: T,
+    }
+    toml::from_str::<Wrapper<T>>(&format!("v = {{ {s} }}")).map(|w| w.v).map_err(|e| {
+        let message = e.message().trim().lines().map(str::trim).collect::<Vec<_>>().join("; ");
+        format!("{message} (expected keys like `direction = [0, 0, -1], irradiance = 3`)")
+    })
+}
+
+/// Parse an environment map: a file, or its keys (`file = "sky.exr", intensity = 2`).
+///
+/// # Errors
+/// As [`parse_keys`].
+pub fn parse_environment_map(s: &str) -> Result<plume::scene::EnvironmentMapSettings, String> {
+    if s.contains('=') {
+        parse_keys(s)
+    } else {
+        Ok(plume::scene::EnvironmentMapSettings { file: s.into(), intensity: 1.0, rotation: 0.0, visible: true, group: None })
+    }
+}
+
 /// Parse a byte size (`512MiB`, `8GiB`).
 ///
 /// # Errors

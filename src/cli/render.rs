@@ -17,11 +17,12 @@ use plume::integrator::{LightSampling, MisHeuristic};
 use plume::medium::Convention;
 use plume::scene::file::{is_scene_file, SceneFile};
 use plume::scene::{
-    ByteSize, CameraSettings, EmissionSettings, EmissionSource, EstimatorKind, IntegratorSettings, Interpolation, MediumSettings, Method, ProgressFormat,
-    ReadSettings, RenderOptions, SampleOrderChoice, SamplerKind, Shot, TileIndex, UpAxis, ValidShot, VolumeInput,
+    ByteSize, CameraSettings, DistantSettings, EmissionSettings, EmissionSource, EnvironmentMapSettings, EstimatorKind, IntegratorSettings, Interpolation,
+    MediumSettings, Method, ProgressFormat, ReadSettings, RenderOptions, SampleOrderChoice, SamplerKind, Shot, SkySettings, SphereSettings, TileIndex, UpAxis,
+    ValidShot, VolumeInput,
 };
 
-use super::flags::{choice, parse_size, parse_vec3};
+use super::flags::{choice, parse_environment_map, parse_keys, parse_size, parse_vec3};
 
 /// `plume render`.
 #[derive(Clone, Debug, Args)]
@@ -107,9 +108,30 @@ pub struct RenderArgs {
     /// Largest number of scattering events per path.
     #[arg(long, default_value_t = IntegratorSettings::default().max_depth)]
     pub max_depth: u32,
-    /// Constant environment radiance r,g,b seen by escaping paths (default: none).
+    /// Constant environment radiance r,g,b seen by escaping paths, W·m⁻²·sr⁻¹ per channel
+    /// (default: none).
     #[arg(long, value_parser = parse_vec3)]
     pub environment: Option<DVec3>,
+    /// A lat-long environment map (EXR, Cycles' equirectangular, the up axis its zenith):
+    /// a file, or keys `file = "plate.exr", intensity = 1, rotation = 0, visible = true`
+    /// (rotation in degrees about the up axis; visible: seen by camera rays).
+    #[arg(long, value_parser = parse_environment_map)]
+    pub environment_map: Option<EnvironmentMapSettings>,
+    /// The built-in sky (Preetham 1999) with its sun, keys `elevation = 30, azimuth = 0,
+    /// turbidity = 3, intensity = 1, sun = true, visible = true` (degrees; azimuth from
+    /// +x towards +y with +z up); `--sky ""` for all defaults.
+    #[arg(long, value_parser = parse_keys::<SkySettings>)]
+    pub sky: Option<SkySettings>,
+    /// A distant light (a sun; repeatable): keys `direction = [x, y, z]` (the way the
+    /// light travels), `irradiance = W/m²` (Cycles' Sun Strength; or `illuminance = lux`),
+    /// `color = [r, g, b]` or `kelvin = K`, `angle = 0.53` (angular diameter, degrees).
+    #[arg(long, value_parser = parse_keys::<DistantSettings>)]
+    pub distant_light: Vec<DistantSettings>,
+    /// A sphere light (repeatable; radius 0 is a point light): keys `position = [x, y, z]`,
+    /// `radius = 0`, `power = W` (Cycles' Power; or `intensity = W/sr`), `color = [r, g, b]`
+    /// or `kelvin = K`.
+    #[arg(long, value_parser = parse_keys::<SphereSettings>)]
+    pub sphere_light: Vec<SphereSettings>,
     /// Render only sample S of pixel (X, Y) and print its path: X,Y,S.
     #[arg(long)]
     pub debug_pixel: Option<plume::render::SampleId>,
@@ -201,6 +223,12 @@ pub struct RenderArgs {
     /// --sample-range), so that it can be merged with more samples later.
     #[arg(long)]
     pub sums: bool,
+    /// Also write AOV layers into the EXR: `emission` (volume emission seen directly),
+    /// `scattered` (volume emission after scattering), one layer per light group, `alpha`,
+    /// and `depth` (expected distance to the first collision). The colour layers sum to
+    /// the beauty.
+    #[arg(long)]
+    pub aovs: bool,
     /// Write the fully resolved scene (FILE and every flag, defaults included) as a
     /// scene file here, and exit without rendering.
     #[arg(long)]
@@ -291,6 +319,10 @@ flags_to_keys! { RENDER_ONLY_FLAGS, apply_render_only, RenderArgs, s, a;
     "g" => "medium.g": s.scene.medium.g => a.g;
     "max_depth" => "integrator.max_depth": s.scene.integrator.max_depth => a.max_depth;
     "environment" => "lights.environment": s.scene.lights.environment => a.environment;
+    "environment_map" => "lights.environment_map": s.scene.lights.environment_map => a.environment_map.clone();
+    "sky" => "lights.sky": s.scene.lights.sky => a.sky.clone();
+    "distant_light" => "lights.distant": s.scene.lights.distant => a.distant_light.clone();
+    "sphere_light" => "lights.sphere": s.scene.lights.sphere => a.sphere_light.clone();
     "debug_pixel" => "render.debug_pixel": s.settings.render.debug_pixel => a.debug_pixel;
     "kappa" => "integrator.kappa": s.scene.integrator.kappa => a.kappa;
     "density_scale" => "medium.density_scale": s.scene.medium.density_scale => a.density_scale;
@@ -311,6 +343,7 @@ flags_to_keys! { RENDER_ONLY_FLAGS, apply_render_only, RenderArgs, s, a;
     "tile" => "farm.tile": s.settings.farm.tile => a.tile;
     "sample_range" => "farm.sample_range": s.settings.farm.sample_range => a.sample_range.clone();
     "sums" => "output.sums": s.settings.output.sums => a.sums;
+    "aovs" => "output.aovs": s.settings.output.aovs => a.aovs;
     "interpolation" => "volume.interpolation": s.scene.volume.interpolation => a.interpolation;
     "progress" => "render.progress": s.settings.render.progress => a.progress;
 }
@@ -349,12 +382,25 @@ fn flag_name(id: &str) -> String {
     }
 }
 
-/// The flag that sets `key`, if one does.
+/// The flag that sets `key`, if one does: a key inside a flag's table (`lights.sky.turbidity`)
+/// is set by that flag (`--sky`).
 fn flag_of(key: &str) -> Option<&'static str> {
+    flag_and_rest(key).map(|(id, _)| id)
+}
+
+/// The flag that sets `key`, and the rest of the key inside the flag's table
+/// (`lights.sky.turbidity` → `("sky", "turbidity")`; empty for the flag's own key).
+fn flag_and_rest(key: &str) -> Option<(&'static str, &str)> {
     if key == "volume.file" {
-        return Some("file");
+        return Some(("file", ""));
     }
-    render_flags().find(|(_, k)| *k == key).map(|(id, _)| *id)
+    let mut k = key;
+    loop {
+        if let Some((id, _)) = render_flags().find(|(_, f)| *f == k) {
+            return Some((id, key[k.len()..].trim_start_matches('.')));
+        }
+        k = k.rsplit_once('.')?.0;
+    }
 }
 
 /// A render command line as library types.
@@ -435,7 +481,14 @@ impl Origin {
                 return file.error_at_key(keys[0], &message);
             }
         }
-        let named: Vec<String> = keys.iter().map(|k| flag_of(k).map_or_else(|| (*k).to_string(), flag_name)).collect();
+        let named: Vec<String> = keys
+            .iter()
+            .map(|k| match flag_and_rest(k) {
+                Some((id, "")) => flag_name(id),
+                Some((id, rest)) => format!("{} {rest}", flag_name(id)),
+                None => (*k).to_string(),
+            })
+            .collect();
         // Keys named inside the message too, longest first
         let mut message = message;
         let mut all: Vec<(&str, &str)> = render_flags().copied().collect();

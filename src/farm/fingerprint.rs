@@ -9,8 +9,8 @@ use sha2::{Digest, Sha256};
 
 use crate::error::{Error, Result};
 use crate::scene::{
-    CameraSettings, EmissionSettings, FarmOptions, IntegratorSettings, JobSettings, LightSettings, MediumSettings, OutputSettings, ReadSettings, RenderOptions,
-    SceneDescription, Shot, VolumeInput,
+    CameraSettings, EmissionSettings, EnvironmentMapSettings, FarmOptions, IntegratorSettings, JobSettings, LightSettings, MediumSettings, OutputSettings,
+    ReadSettings, RenderOptions, SceneDescription, Shot, VolumeInput,
 };
 
 /// Hex SHA-256 of a file's bytes and its size.
@@ -60,7 +60,18 @@ pub fn settings_hash(shot: &Shot, seed: u64) -> String {
     let EmissionSettings { source, convention, temperature_map, temperature_cutoff, scale, color } = emission;
     let MediumSettings { density_scale, albedo, g } = medium;
     let CameraSettings { from, at, up, fov, width, height, up_axis } = camera;
-    let LightSettings { environment } = lights;
+    let LightSettings { environment, environment_map, sky, distant, sphere } = lights;
+    // The map's file by name only (paths differ between farm nodes); scenes without
+    // the lights of issue #14 hash as before
+    let map = environment_map.as_ref().map(|m| {
+        let EnvironmentMapSettings { file, intensity, rotation, visible, group } = m;
+        format!("{:?} {intensity:?} {rotation:?} {visible} {group:?}", file.file_name())
+    });
+    let lights = if map.is_none() && sky.is_none() && distant.is_empty() && sphere.is_empty() {
+        format!("{environment:?}")
+    } else {
+        format!("{environment:?} {map:?} {sky:?} {distant:?} {sphere:?}")
+    };
     let IntegratorSettings { method, estimator, light_sampling, mis, proxy_resolution, max_depth, kappa } = integrator;
     // Of the job's settings only the seed (an argument) and the sampler change pixels
     let JobSettings { render, farm, output, reading } = settings;
@@ -79,7 +90,8 @@ pub fn settings_hash(shot: &Shot, seed: u64) -> String {
         progress: _,
     } = render;
     let FarmOptions { frames: _, overwrite: _, time_limit: _, crop: _, tile: _, sample_range: _ } = farm;
-    let OutputSettings { image: _, preview: _, exposure: _, stats: _, sums: _ } = output;
+    // AOV layers change what the file holds: parts and resumes must agree on them
+    let OutputSettings { image: _, preview: _, exposure: _, stats: _, sums: _, aovs } = output;
     let ReadSettings { max_input_memory: _, read_timeout: _, no_isolation: _ } = reading;
     let text = format!(
         "plume {}\nseed {seed}\nsampler {sampler}\nfixed point {}\n\
@@ -87,10 +99,11 @@ pub fn settings_hash(shot: &Shot, seed: u64) -> String {
          emission {source} {convention} {temperature_map:?} {temperature_cutoff:?} {scale:?} {color:?}\n\
          medium {density_scale:?} {albedo:?} {g:?}\n\
          camera {from:?} {at:?} {up:?} {fov:?} {width} {height} {up_axis}\n\
-         lights {environment:?}\n\
-         integrator {method} {estimator:?} {light_sampling:?} {mis} {proxy_resolution:?} {max_depth} {kappa:?}",
+         lights {lights}\n\
+         integrator {method} {estimator:?} {light_sampling:?} {mis} {proxy_resolution:?} {max_depth} {kappa:?}{}",
         env!("CARGO_PKG_VERSION"),
-        crate::film::FIXED_POINT_BITS
+        crate::film::FIXED_POINT_BITS,
+        if *aovs { "\naovs" } else { "" }
     );
     hex(&Sha256::digest(text.as_bytes())[..16])
 }

@@ -29,11 +29,12 @@ use crate::farm::progress::Progress;
 use crate::farm::signals;
 use crate::farm::split::format_range;
 use crate::film::{Film, FIXED_POINT_BITS};
+use crate::integrator::AovLayout;
 use crate::integrator::LineTrace;
 use crate::load::{load_scene, LoadedScene};
 use crate::medium::{EmissionKind, Estimator};
 use crate::memory::{MemoryBound, MemoryLimits};
-use crate::output::{write_exr_image, ExrImage};
+use crate::output::{write_exr_image, AovChannels, ExrImage};
 use crate::render::{render_with, RenderControl, RenderResult, RenderSettings, SampleBudget, SampleOrder, StopReason};
 use crate::scene::{EmissionSource, SampleOrderChoice};
 use crate::stats::{cpu_seconds, peak_rss_since_reset_bytes, reset_peak_rss, RenderStats};
@@ -84,8 +85,8 @@ impl FramePaths {
     }
 }
 
-/// An output to continue: what it holds and its exact sums.
-type Resume = (PartInfo, Vec<[i128; 4]>);
+/// An output to continue: what it holds and its exact sums (and AOV sums).
+type Resume = (PartInfo, Vec<[i128; 4]>, Option<Vec<i128>>);
 
 /// Render frame `frame` (the `index`-th of the run).
 ///
@@ -108,7 +109,7 @@ pub fn render_frame(job: &Job<'_>, index: usize, frame: Option<i64>, command_lin
         crate::output::check_writable(path)?;
     }
     let (input_sha256, input_bytes) = file_sha256(&paths.input)?;
-    if resume.as_ref().is_some_and(|(info, _)| info.input_sha256 != input_sha256) {
+    if resume.as_ref().is_some_and(|(info, ..)| info.input_sha256 != input_sha256) {
         eprintln!("plume: {}: the input changed since it was started; rendering it again", paths.output.display());
         resume = None;
     }
@@ -129,7 +130,7 @@ pub fn render_frame(job: &Job<'_>, index: usize, frame: Option<i64>, command_lin
         replay(&loaded, &render_settings, dp);
         return Ok(FrameOutcome::Replayed);
     }
-    if let Some((info, _)) = &resume {
+    if let Some((info, ..)) = &resume {
         eprintln!("plume: {}: continuing from samples {} ({})", paths.output.display(), format_range(&info.samples), info.status.as_str());
     }
     let render_start = Instant::now();
@@ -187,7 +188,8 @@ fn decide(job: &Job<'_>, paths: &FramePaths, hash: &str, index: usize, frame: Op
     }
     let (width, height) = (job.scene().camera.width, job.scene().camera.height);
     let crop = job.pixels();
-    let expected = Expected { settings_hash: hash.to_string(), width, height, crop, samples: job.samples.clone() };
+    let aov_channels = settings.output.aovs.then(|| AovLayout { groups: job.shot.scene.lights.groups() }.channels());
+    let expected = Expected { settings_hash: hash.to_string(), width, height, crop, samples: job.samples.clone(), aov_channels };
     Ok(match assess(&paths.output, &expected) {
         Existing::Missing => Some(None),
         Existing::Complete(info) => {
@@ -200,7 +202,7 @@ fn decide(job: &Job<'_>, paths: &FramePaths, hash: &str, index: usize, frame: Op
             progress.frame_skipped(index, frame, &paths.output.display().to_string());
             None
         }
-        Existing::Resumable(info, sums) => Some(Some((info, sums))),
+        Existing::Resumable(info, sums, aov) => Some(Some((info, sums, aov))),
         Existing::Stale(reason) => {
             eprintln!("plume: {}: {reason}; rendering it again", paths.output.display());
             Some(None)
@@ -245,7 +247,7 @@ impl SamplePlan {
     fn new(job: &Job<'_>, resume: Option<&Resume>) -> SamplePlan {
         match &job.samples {
             Some(r) => {
-                let from = resume.map_or(r.start, |(info, _)| info.samples.end);
+                let from = resume.map_or(r.start, |(info, ..)| info.samples.end);
                 let n = u32::try_from(r.end - from).expect("invariant: checked by Shot::validate");
                 SamplePlan { budget: SampleBudget::Spp(n), first_sample: from, resumed_spp: from - r.start }
             }
@@ -297,9 +299,13 @@ fn run_passes(
         );
         pb
     });
-    let film = resume.map(|(_, sums)| {
-        let mut film = Film::with_crop(width, height, job.pixels());
+    let aovs = aov_layout(job, loaded);
+    let film = resume.map(|(_, sums, aov)| {
+        let mut film = Film::with_aovs(width, height, job.pixels(), aovs.as_ref().map_or(0, AovLayout::channels));
         film.set_sums(&sums);
+        if let Some(aov) = aov {
+            film.set_aov_sums(&aov);
+        }
         film
     });
     let stop = || signals::stop_requested().is_some();
@@ -316,8 +322,14 @@ fn run_passes(
             volume.memory_bytes() as f64 / 1e9
         );
     }
-    let control =
-        RenderControl { crop: job.crop, film, stop: Some(&stop), deadline: job_settings.farm.time_limit.map(|t| start + Duration::from_secs_f64(t)), order };
+    let control = RenderControl {
+        crop: job.crop,
+        film,
+        stop: Some(&stop),
+        deadline: job_settings.farm.time_limit.map(|t| start + Duration::from_secs_f64(t)),
+        order,
+        aovs,
+    };
     let on_pass = |done, total| {
         if let Some(pb) = &bar {
             pb.set_position(done);
@@ -449,7 +461,12 @@ fn write_outputs(job: &Job<'_>, paths: &FramePaths, loaded: &LoadedScene, result
         Ok(text) => metadata.push(("plume:scene".into(), text)),
         Err(e) => warn(format!("the scene description is not recorded in {}: {e}", paths.output.display())),
     }
-    write_exr_image(&paths.output, &ExrImage { width, height, crop, pixels: &pixels, sums: sums.as_deref(), metadata: &metadata })?;
+    let aov_sums = result.film.aov_sums();
+    let layout = aov_layout(job, loaded);
+    let names = layout.as_ref().map(AovLayout::channel_names).unwrap_or_default();
+    let layers = layout.as_ref().map(|l| aov_layers(l, &aov_sums, &pixels, record.spp)).unwrap_or_default();
+    let aovs = layout.as_ref().map(|_| AovChannels { layers: &layers, sums: sums.is_some().then_some((names.as_slice(), aov_sums.as_slice())) });
+    write_exr_image(&paths.output, &ExrImage { width, height, crop, pixels: &pixels, sums: sums.as_deref(), aovs, metadata: &metadata })?;
     if let Some(p) = &paths.preview {
         let exposure = settings.output.exposure.map_or_else(|| crate::output::auto_exposure(&pixels), |ev| 2f32.powf(ev));
         crate::output::write_png(p, crop.width(), crop.height(), &pixels, exposure)?;
@@ -459,6 +476,33 @@ fn write_outputs(job: &Job<'_>, paths: &FramePaths, loaded: &LoadedScene, result
         crate::output::append_line(p, &json.to_string())?;
     }
     Ok(())
+}
+
+/// The AOV layout of this frame (`--aovs`): one layer per light group of its lights.
+fn aov_layout(job: &Job<'_>, loaded: &LoadedScene) -> Option<AovLayout> {
+    let layout = job.shot.settings.output.aovs.then(|| AovLayout { groups: job.shot.scene.lights.groups() });
+    if let (Some(l), Some(e)) = (&layout, &loaded.scene.lights().external) {
+        debug_assert_eq!(l.groups, e.groups(), "the description's groups are the built lights'");
+    }
+    layout
+}
+
+/// The AOV layers' pixel values from their exact sums (`aov_sums`, `layout.channels()`
+/// per pixel) over `spp` samples, with `alpha` from the beauty: `(name, values)` per
+/// channel.
+#[must_use]
+pub fn aov_layers(layout: &AovLayout, aov_sums: &[i128], beauty: &[[f32; 4]], spp: u64) -> Vec<(String, Vec<f32>)> {
+    let n = layout.channels();
+    let names = layout.channel_names();
+    let mut layers: Vec<(String, Vec<f32>)> =
+        names[..n - 2].iter().chain(std::iter::once(&names[n - 2])).map(|c| (c.clone(), Vec::with_capacity(beauty.len()))).collect();
+    for sums in aov_sums.chunks_exact(n) {
+        for (layer, v) in layers.iter_mut().zip(layout.pixel(sums, spp, crate::film::pixel_value)) {
+            layer.1.push(v);
+        }
+    }
+    layers.push(("alpha.A".into(), beauty.iter().map(|p| p[3]).collect()));
+    layers
 }
 
 /// The sample order for this frame: `auto` is tile-major for a mapped volume larger than

@@ -20,7 +20,8 @@ use crate::error::{Error, Result};
 use crate::farm::part::{read_part, Completion, PartInfo};
 use crate::farm::split::format_range;
 use crate::film::{pixel_value, Crop, FIXED_POINT_BITS};
-use crate::output::{write_exr_image, ExrImage};
+use crate::integrator::AovLayout;
+use crate::output::{write_exr_image, AovChannels, ExrImage};
 
 /// A merged frame.
 #[derive(Debug)]
@@ -35,6 +36,9 @@ pub struct Merged {
     pub sums: Vec<[i128; 4]>,
     /// Sums clamped while adding parts (0 unless the image is beyond the fixed-point range).
     pub saturated: u64,
+    /// AOV channel names and their exact sums (`names.len()` per pixel, row-major), when
+    /// the parts have AOVs.
+    pub aovs: Option<(Vec<String>, Vec<i128>)>,
 }
 
 impl Merged {
@@ -145,29 +149,47 @@ pub fn merge_parts(parts: &[(PartInfo, crate::output::ExrContents)]) -> Result<M
     let infos: Vec<PartInfo> = parts.iter().map(|(p, _)| p.clone()).collect();
     let samples = check_parts(&infos)?;
     let (w, h) = (infos[0].width, infos[0].height);
+    // AOVs: every part has the same channels (the settings hash says whether there are
+    // AOVs and which light groups), or none has
+    let aov_names = parts[0].1.aov_sums.as_ref().map(|(n, _)| n.clone());
+    for (p, c) in parts {
+        if c.aov_sums.as_ref().map(|(n, _)| n) != aov_names.as_ref() {
+            return Err(Error::InvalidPart { path: p.path.clone(), message: format!("has other AOV sums than {}", parts[0].0.path.display()) });
+        }
+    }
     let mut sums = vec![[0i128; 4]; w as usize * h as usize];
+    let k = aov_names.as_ref().map_or(0, Vec::len);
+    let mut aov = vec![0i128; w as usize * h as usize * k];
     let mut saturated = 0u64;
+    let mut add = |d: &mut i128, s: i128| {
+        *d = d.checked_add(s).unwrap_or_else(|| {
+            saturated += 1;
+            if s < 0 {
+                i128::MIN
+            } else {
+                i128::MAX
+            }
+        });
+    };
     for (p, c) in parts {
         let part_sums = c.sums.as_ref().expect("invariant: checked above");
         let cw = p.crop.width() as usize;
         for y in p.crop.y0..p.crop.y1 {
             for x in p.crop.x0..p.crop.x1 {
-                let src = &part_sums[(y - p.crop.y0) as usize * cw + (x - p.crop.x0) as usize];
-                let dst = &mut sums[y as usize * w as usize + x as usize];
-                for (d, s) in dst.iter_mut().zip(src) {
-                    *d = d.checked_add(*s).unwrap_or_else(|| {
-                        saturated += 1;
-                        if *s < 0 {
-                            i128::MIN
-                        } else {
-                            i128::MAX
-                        }
-                    });
+                let src = (y - p.crop.y0) as usize * cw + (x - p.crop.x0) as usize;
+                let dst = y as usize * w as usize + x as usize;
+                for (d, s) in sums[dst].iter_mut().zip(part_sums[src]) {
+                    add(d, s);
+                }
+                if let Some((_, part_aov)) = &c.aov_sums {
+                    for (d, s) in aov[dst * k..(dst + 1) * k].iter_mut().zip(&part_aov[src * k..(src + 1) * k]) {
+                        add(d, *s);
+                    }
                 }
             }
         }
     }
-    Ok(Merged { width: w, height: h, samples, sums, saturated })
+    Ok(Merged { width: w, height: h, samples, sums, saturated, aovs: aov_names.map(|n| (n, aov)) })
 }
 
 /// Header keys of a part that describe only that part's process, not the merged image.
@@ -217,12 +239,24 @@ pub fn merge_command(args: &MergeOptions, command_line: &str) -> Result<()> {
     let pixels = merged.pixels();
     let metadata = merged_metadata(&parts, &merged, &args.output, command_line);
     let full = Crop::full(merged.width, merged.height);
+    let spp = merged.samples.end - merged.samples.start;
+    let layout = merged.aovs.as_ref().and_then(|(names, _)| AovLayout::from_channel_names(names));
+    let layers = match (&layout, &merged.aovs) {
+        (Some(l), Some((_, sums))) => crate::farm::frame::aov_layers(l, sums, &pixels, spp),
+        _ => Vec::new(),
+    };
+    let aovs = merged
+        .aovs
+        .as_ref()
+        .filter(|_| layout.is_some())
+        .map(|(names, sums)| AovChannels { layers: &layers, sums: args.sums.then_some((names.as_slice(), sums.as_slice())) });
     let image = ExrImage {
         width: merged.width,
         height: merged.height,
         crop: full,
         pixels: &pixels,
         sums: args.sums.then_some(merged.sums.as_slice()),
+        aovs,
         metadata: &metadata,
     };
     write_exr_image(&args.output, &image)?;
@@ -251,7 +285,8 @@ pub fn merge_command(args: &MergeOptions, command_line: &str) -> Result<()> {
 /// the merged sample range and crop, costs summed over the parts, and this command.
 fn merged_metadata(parts: &[(PartInfo, crate::output::ExrContents)], merged: &Merged, output: &Path, command_line: &str) -> Vec<(String, String)> {
     let mut m: BTreeMap<String, String> = parts[0].1.metadata.clone();
-    m.retain(|k, _| k.starts_with("plume:") && !PER_PROCESS_KEYS.contains(&k.as_str()));
+    // (The AOV sums' channel order is written with the sums, if they are kept)
+    m.retain(|k, _| k.starts_with("plume:") && !PER_PROCESS_KEYS.contains(&k.as_str()) && k != crate::output::AOV_CHANNELS_ATTRIBUTE);
     let sum_f = |key: &str| parts.iter().filter_map(|(_, c)| c.metadata.get(key).and_then(|v| v.parse::<f64>().ok())).sum::<f64>();
     let sum_u = |key: &str| parts.iter().filter_map(|(_, c)| c.metadata.get(key).and_then(|v| v.parse::<u64>().ok())).sum::<u64>();
     let spp = merged.samples.end - merged.samples.start;

@@ -181,6 +181,8 @@ pub struct Expected {
     pub crop: Crop,
     /// Samples asked for; `None` for a `--time` budget (any count is complete).
     pub samples: Option<Range<u64>>,
+    /// AOV channels per pixel, with `--aovs`.
+    pub aov_channels: Option<usize>,
 }
 
 /// An output that exists already, judged against what this run would write.
@@ -193,7 +195,7 @@ pub enum Existing {
     /// The same settings with exact sums and fewer samples than asked (an interrupted or
     /// time-limited render, or a smaller budget rendered with `--sums`): continue it (if
     /// the input is unchanged).
-    Resumable(PartInfo, Vec<[i128; 4]>),
+    Resumable(PartInfo, Vec<[i128; 4]>, Option<Vec<i128>>),
     /// Anything else (unreadable, truncated, other settings): render anew; the reason.
     Stale(String),
 }
@@ -230,9 +232,12 @@ pub fn assess(path: &Path, expected: &Expected) -> Existing {
     } else if info.samples.start == r.start && info.samples.end < r.end {
         // Fewer samples than asked (interrupted, time-limited, or a smaller budget
         // rendered with --sums): continue from the exact sums
-        match contents.sums {
-            Some(sums) => Existing::Resumable(info, sums),
-            None => Existing::Stale(format!("holds samples {} without exact sums (--sums), not {}", range(&info.samples), range(r))),
+        // (With AOVs, their sums too: the settings hash says whether there are AOVs)
+        match (contents.sums, contents.aov_sums, expected.aov_channels) {
+            (Some(sums), _, None) => Existing::Resumable(info, sums, None),
+            (Some(sums), Some((names, aov)), Some(n)) if names.len() == n => Existing::Resumable(info, sums, Some(aov)),
+            (Some(_), _, Some(_)) => Existing::Stale(format!("holds samples {} without exact AOV sums", range(&info.samples))),
+            (None, ..) => Existing::Stale(format!("holds samples {} without exact sums (--sums), not {}", range(&info.samples), range(r))),
         }
     } else {
         Existing::Stale(format!("{} with samples {}, not {}", info.status.as_str(), range(&info.samples), range(r)))

@@ -5,6 +5,7 @@
 //! integrator `L = ∫₀^d τ(s) L_e(s) ds`. Alpha is `1 − τ(d)` of the camera segment
 //! (estimated: the escape indicator, or the exact ray-marched transmittance).
 
+pub mod aov;
 pub mod volpath;
 
 use crate::camera::Camera;
@@ -13,6 +14,7 @@ use crate::volume::field::Field;
 use crate::volume::trilinear::Trilinear;
 use crate::volume::{Interpolation, Volume};
 
+pub use aov::{AovLayout, AovSample, Aovs, Component, NoAovs};
 pub use volpath::{light_power, Integrator, LightSampling, Lights, MisHeuristic};
 
 /// Everything a render reads: immutable and `Sync`, built once.
@@ -117,13 +119,22 @@ impl AnyScene {
         with_scene!(self, s => &s.lights)
     }
 
-    /// Replace the light-sampling structures (built for nearest reconstruction; NEE is
-    /// switched to this scene's reconstruction).
-    pub fn set_lights(&mut self, lights: Lights) {
-        match self {
-            AnyScene::Nearest(s) => s.lights = lights,
-            AnyScene::Linear(s) => s.lights = lights.for_interpolation(Interpolation::Linear),
+    /// Replace the volume's light-sampling structures (built for nearest reconstruction;
+    /// NEE is switched to this scene's reconstruction). External lights stay unless
+    /// `lights` brings its own.
+    pub fn set_lights(&mut self, mut lights: Lights) {
+        let interpolation = self.interpolation();
+        let old = match self {
+            AnyScene::Nearest(s) => &mut s.lights,
+            AnyScene::Linear(s) => &mut s.lights,
+        };
+        if lights.external.is_none() {
+            lights.external = old.external.take();
         }
+        *old = match interpolation {
+            Interpolation::Nearest => lights,
+            Interpolation::Linear => lights.for_interpolation(Interpolation::Linear),
+        };
     }
 }
 
@@ -142,6 +153,8 @@ pub struct Counters {
     pub fnee_samples: u64,
     /// Classic NEE samples taken.
     pub nee_samples: u64,
+    /// External light samples taken (suns, sphere lights, environments).
+    pub external_light_samples: u64,
     /// Samples dropped because they were NaN or infinite.
     pub nonfinite_samples: u64,
     /// The first dropped sample, for `--debug-pixel` (serialized as
@@ -158,6 +171,7 @@ impl Counters {
         self.collisions += o.collisions;
         self.fnee_samples += o.fnee_samples;
         self.nee_samples += o.nee_samples;
+        self.external_light_samples += o.external_light_samples;
         self.nonfinite_samples += o.nonfinite_samples;
         if self.first_nonfinite.is_none() {
             self.first_nonfinite = o.first_nonfinite;

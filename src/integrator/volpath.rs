@@ -28,7 +28,8 @@
 //!   vertex* carry none (`w_fwd = 0`); camera segments keep full weight. Summing both at
 //!   full weight would count in-scattered emission twice.
 
-use crate::color::Rgb;
+use super::aov::{Aovs, Component, NoAovs};
+use crate::light::external::{ChosenLight, ExternalLights};
 use crate::light::nee::EmitterDistribution;
 use crate::medium::tracking::{emission_at_point, optical_depth, OpticalDepth};
 use crate::medium::{track, DistanceSample, Estimator};
@@ -79,13 +80,15 @@ impl MisHeuristic {
     }
 }
 
-/// The light-sampling structures a scene may carry (built once, immutable).
+/// The lights of a scene and their sampling structures (built once, immutable).
 #[derive(Debug, Default)]
 pub struct Lights {
     /// Full-resolution emitter distribution for classic NEE.
     pub nee: Option<EmitterDistribution>,
     /// FNEE proxy grid.
     pub proxy: Option<ProxyGrid>,
+    /// Lights besides the volume (`light::external`); `None` costs nothing.
+    pub external: Option<ExternalLights>,
 }
 
 impl Lights {
@@ -104,8 +107,8 @@ impl Lights {
         let power = light_power(emission);
         Ok(match light_sampling {
             LightSampling::None => Lights::default(),
-            LightSampling::Nee => Lights { nee: EmitterDistribution::build(volume, power)?, proxy: None },
-            LightSampling::Fnee => Lights { nee: None, proxy: ProxyGrid::build(volume, proxy_resolution, power)? },
+            LightSampling::Nee => Lights { nee: EmitterDistribution::build(volume, power)?, ..Lights::default() },
+            LightSampling::Fnee => Lights { proxy: ProxyGrid::build(volume, proxy_resolution, power)?, ..Lights::default() },
         })
     }
 }
@@ -116,7 +119,7 @@ impl Lights {
     /// only guides directions and stays as it is (METHOD.md §12).
     #[must_use]
     pub fn for_interpolation(self, interpolation: crate::volume::Interpolation) -> Lights {
-        Lights { nee: self.nee.map(|n| n.for_interpolation(interpolation)), proxy: self.proxy }
+        Lights { nee: self.nee.map(|n| n.for_interpolation(interpolation)), ..self }
     }
 }
 
@@ -142,8 +145,6 @@ pub struct Integrator {
     pub mis: MisHeuristic,
     /// Largest number of scattering events (0: emission–absorption only).
     pub max_depth: u32,
-    /// Constant environment radiance seen by escaping paths, if any.
-    pub environment: Option<Rgb>,
 }
 
 /// The MIS weight owed to a forward segment's emission.
@@ -160,12 +161,14 @@ enum ForwardWeight {
     },
 }
 
+/// Add `w · e` to the radiance and to its AOV component.
 #[inline]
-fn add(l: &mut [f64; 3], w: f64, e: [f64; 3]) {
+fn contribute<A: Aovs>(l: &mut [f64; 3], aovs: &mut A, component: Component, w: f64, e: [f64; 3]) {
     if w != 0.0 {
         for (a, v) in l.iter_mut().zip(e) {
             *a += w * v;
         }
+        aovs.add(component, w, e);
     }
 }
 
@@ -173,11 +176,26 @@ impl Integrator {
     /// Emission–absorption only: no scattering, no light sampling.
     #[must_use]
     pub fn emission_only(estimator: Estimator) -> Integrator {
-        Integrator { estimator, light_sampling: LightSampling::None, mis: MisHeuristic::Power, max_depth: 0, environment: None }
+        Integrator { estimator, light_sampling: LightSampling::None, mis: MisHeuristic::Power, max_depth: 0 }
     }
 
     /// Radiance `[r, g, b]` and alpha along a camera ray.
     pub fn li<F: Field, T: Trace>(&self, scene: &Scene<F>, camera_ray: &Ray, sampler: &mut Sampler, c: &mut Counters, trace: &mut T) -> [f64; 4] {
+        self.li_aovs(scene, camera_ray, sampler, c, trace, &mut NoAovs)
+    }
+
+    /// [`Integrator::li`], also handing every contribution to `aovs` by its component
+    /// (`integrator::aov`). With [`NoAovs`] this is `li`.
+    #[allow(clippy::too_many_lines)]
+    pub fn li_aovs<F: Field, T: Trace, A: Aovs>(
+        &self,
+        scene: &Scene<F>,
+        camera_ray: &Ray,
+        sampler: &mut Sampler,
+        c: &mut Counters,
+        trace: &mut T,
+        aovs: &mut A,
+    ) -> [f64; 4] {
         let m = &scene.medium;
         let lights = &scene.lights;
         let mut l = [0.0f64; 3];
@@ -192,10 +210,16 @@ impl Integrator {
         let mut segment_phase_pdf: Option<f64> = None;
         let scatters = m.albedo > 0.0 && self.max_depth > 0;
         let point_nee = self.light_sampling == LightSampling::Nee && self.estimator == Estimator::Point;
+        let external = lights.external.as_ref();
         loop {
             let need_collision = scatters && depth < self.max_depth;
+            // The segment ends at the first sphere light it hits (they are opaque)
+            let hit = external.and_then(|e| e.hit(&ray));
+            let t_max = hit.map_or(f64::INFINITY, |(t, _)| t);
             let u = sampler.get_1d(Dim::FreePath);
-            let r = track(&scene.field, m, &ray, f64::INFINITY, self.estimator, need_collision, u, sampler);
+            // The depth layer wants the camera ray's first collision (ray-march draws it
+            // with the same number; nothing else changes)
+            let r = track(&scene.field, m, &ray, t_max, self.estimator, need_collision || (A::ON && depth == 0), u, sampler);
             c.segments += u64::from(r.segments);
             c.voxel_steps += r.voxel_steps;
             // Add emission along the segment
@@ -213,7 +237,8 @@ impl Integrator {
                 let p_fwd = p_ph * m.mu_t(density) * (-r.optical_depth).exp() / (t * t);
                 w = self.mis.weight(p_fwd, nee.pdf(ray.at(t)));
             }
-            add(&mut l, beta * w, r.emission);
+            let component = if depth == 0 { Component::Emission } else { Component::Scattered };
+            contribute(&mut l, aovs, component, beta * w, r.emission);
             trace.event(|| {
                 format!(
                     "segment depth {depth}: origin {:?} dir {:?} -> {:?}, F {:?}, w_fwd {w}, beta {beta}, tau {}",
@@ -222,9 +247,17 @@ impl Integrator {
             });
             if depth == 0 {
                 alpha = 1.0 - r.transmittance;
+                if let (true, DistanceSample::Collided { t, .. }) = (A::ON, r.event) {
+                    aovs.first_collision(t);
+                }
             }
-            if let Some(env) = self.environment {
-                add(&mut l, beta * r.transmittance, env.to_f64());
+            if let Some(e) = external.filter(|e| r.transmittance != 0.0 && e.reachable()) {
+                // The lights this segment reaches, each weighted against light sampling
+                let weight = beta * r.transmittance;
+                e.arriving(&ray, hit.map(|(_, i)| i), segment_phase_pdf, self.mis, |i, w, radiance| {
+                    contribute(&mut l, aovs, Component::Light(e.group(i)), weight * w, radiance);
+                    trace.event(|| format!("  reaches light {i}: L {radiance:?}, w {w}, tau {}", r.transmittance));
+                });
             }
             let DistanceSample::Collided { t, albedo, .. } = r.event else { break };
             if !need_collision {
@@ -257,7 +290,7 @@ impl Integrator {
                                 if p_sigma > 0.0 {
                                     let f = hg_pdf(m.g, ray.direction.dot(wi));
                                     let w_l = self.mis.weight(p_sigma, f);
-                                    add(&mut l, beta * f * w_l / p_sigma, rl.emission);
+                                    contribute(&mut l, aovs, Component::Scattered, beta * f * w_l / p_sigma, rl.emission);
                                     trace.event(|| format!("  fnee: dir {wi:?} p_sigma {p_sigma} f {f} w {w_l} F {:?}", rl.emission));
                                 }
                             }
@@ -285,13 +318,17 @@ impl Integrator {
                                 let PointValues { density: dy, emission: le } = emission_at_point(&scene.field, m, vs.p_world);
                                 let f = hg_pdf(m.g, ray.direction.dot(wi));
                                 let w_l = if point_nee { self.mis.weight(vs.pdf, f * m.mu_t(dy) * tau / r2) } else { 1.0 };
-                                add(&mut l, beta * f * tau * w_l / (vs.pdf * r2), le);
+                                contribute(&mut l, aovs, Component::Scattered, beta * f * tau * w_l / (vs.pdf * r2), le);
                                 trace.event(|| format!("  nee: y {:?} p_V {} tau {tau} f {f} w {w_l} L_e {le:?}", vs.p_world, vs.pdf));
                             }
                         }
                     }
                 }
                 LightSampling::None => {}
+            }
+            // Sample the external lights at x (a strategy of their own)
+            if let Some(e) = external {
+                self.sample_external(scene, e, x, ray.direction, beta, sampler, (c, trace), (&mut l, &mut *aovs));
             }
             // Russian roulette after this segment's emission
             sampler.start_vertex(depth);
@@ -318,5 +355,38 @@ impl Integrator {
         }
         trace.event(|| format!("result L {l:?} alpha {alpha}"));
         [l[0], l[1], l[2], alpha]
+    }
+
+    /// Light sampling of the external lights at collision `x` reached along `incoming`:
+    /// `L += β f τ L_i w(P_i p_i, f) / (P_i p_i)` with exact shadow transmittance
+    /// (`light::external`).
+    #[allow(clippy::too_many_arguments)]
+    fn sample_external<F: Field, T: Trace, A: Aovs>(
+        &self,
+        scene: &Scene<F>,
+        lights: &ExternalLights,
+        x: glam::DVec3,
+        incoming: glam::DVec3,
+        beta: f64,
+        sampler: &mut Sampler,
+        (c, trace): (&mut Counters, &mut T),
+        (l, aovs): (&mut [f64; 3], &mut A),
+    ) {
+        let m = &scene.medium;
+        let u_choice = sampler.get_1d(Dim::ExternalLightChoice);
+        let u = sampler.get_2d(Dim::ExternalLightDirection);
+        let Some(ChosenLight { index, pmf, sample: s }) = lights.sample(x, u_choice, u) else { return };
+        c.external_light_samples += 1;
+        let f = hg_pdf(m.g, incoming.dot(s.direction));
+        let OpticalDepth { optical_depth: od, voxel_steps: n } = optical_depth(&scene.field, m, &Ray { origin: x, direction: s.direction }, s.distance, 745.0);
+        c.voxel_steps += n;
+        let tau = (-od).exp();
+        if tau > 0.0 {
+            let w = if s.pdf > 0.0 { self.mis.weight(pmf * s.pdf, f) } else { 1.0 };
+            contribute(l, aovs, Component::Light(lights.group(index)), beta * f * tau * w / pmf, s.value);
+            trace.event(|| {
+                format!("  light {index}: dir {:?} dist {} pmf {pmf} pdf {} tau {tau} f {f} w {w} L/p {:?}", s.direction, s.distance, s.pdf, s.value)
+            });
+        }
     }
 }

@@ -64,6 +64,10 @@ pub enum Dim {
     LightPosition,
     /// Russian roulette at a scattering vertex.
     Roulette,
+    /// External light sampling: which light.
+    ExternalLightChoice,
+    /// 2-D: the direction towards the chosen light.
+    ExternalLightDirection,
 }
 
 /// 4-D Sobol sets per segment block.
@@ -79,6 +83,9 @@ impl Dim {
             Dim::LightChoice => (1, 0, 1),
             Dim::LightPosition => (1, 1, 3),
             Dim::Roulette => (2, 0, 1),
+            // In light blocks, where roulette's lane is unused
+            Dim::ExternalLightChoice => (2, 1, 1),
+            Dim::ExternalLightDirection => (2, 2, 2),
         }
     }
 }

@@ -146,6 +146,9 @@ pub fn resolve_paths(shot: &mut Shot, f: impl Fn(&Path) -> PathBuf) {
     for p in [&mut s.output.preview, &mut s.output.stats, &mut s.render.cache_dir].into_iter().flatten() {
         *p = f(p);
     }
+    if let Some(m) = &mut shot.scene.lights.environment_map {
+        m.file = f(&m.file);
+    }
 }
 
 /// `shot` as TOML, every path absolute (made so against the working directory), so

@@ -16,6 +16,7 @@
 pub mod bind;
 pub mod choice;
 pub mod file;
+pub mod lights;
 mod settings;
 pub(crate) mod validate;
 mod values;
@@ -26,6 +27,7 @@ use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
 pub use choice::{Choice, EmissionSource, EstimatorKind, Interpolation, Method, ProgressFormat, SampleOrderChoice, SamplerKind, UpAxis};
+pub use lights::{DistantSettings, EnvironmentMapSettings, LightSettings, SkySettings, SphereSettings};
 pub use settings::{FarmOptions, JobSettings, OutputSettings, ReadSettings, RenderOptions};
 pub use validate::ValidShot;
 pub use values::{parse_bytes, ByteSize, TileIndex};
@@ -144,13 +146,7 @@ impl SceneDescription {
     #[must_use]
     pub fn integrator(&self) -> Integrator {
         let (estimator, light_sampling) = self.integrator.parts();
-        Integrator {
-            estimator,
-            light_sampling,
-            mis: self.integrator.mis,
-            max_depth: if self.albedo() > 0.0 { self.integrator.max_depth } else { 0 },
-            environment: self.lights.environment.map(|e| crate::color::Rgb([e.x as f32, e.y as f32, e.z as f32])),
-        }
+        Integrator { estimator, light_sampling, mis: self.integrator.mis, max_depth: if self.albedo() > 0.0 { self.integrator.max_depth } else { 0 } }
     }
 }
 
@@ -269,15 +265,6 @@ impl Default for CameraSettings {
     fn default() -> Self {
         CameraSettings { from: None, at: None, up: None, fov: 40.0, width: 640, height: 480, up_axis: UpAxis::Y }
     }
-}
-
-/// Lights besides the volume's own emission.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct LightSettings {
-    /// Constant environment radiance (r, g, b) seen by escaping paths.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub environment: Option<DVec3>,
 }
 
 /// Estimators and light sampling.

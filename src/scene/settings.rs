@@ -116,6 +116,10 @@ pub struct OutputSettings {
     /// Also store the exact sample sums in the EXR.
     #[serde(default)]
     pub sums: bool,
+    /// Also write AOV layers (`integrator::aov`): `emission`, `scattered`, one per light
+    /// group, `alpha`, `depth`.
+    #[serde(default)]
+    pub aovs: bool,
 }
 
 impl OutputSettings {
@@ -127,7 +131,7 @@ impl OutputSettings {
     /// Only the EXR `image`.
     #[must_use]
     pub fn new(image: impl Into<PathBuf>) -> OutputSettings {
-        OutputSettings { image: image.into(), preview: None, exposure: None, stats: None, sums: false }
+        OutputSettings { image: image.into(), preview: None, exposure: None, stats: None, sums: false, aovs: false }
     }
 }
 

@@ -101,9 +101,7 @@ impl Shot {
         if !(scene.medium.g > -1.0 && scene.medium.g < 1.0) {
             return Err(Error::invalid("medium.g", format!("{} is not in (-1, 1)", scene.medium.g)));
         }
-        if let Some(env) = scene.lights.environment {
-            nonneg_components("lights.environment", env.to_array())?;
-        }
+        scene.lights.validate()?;
         let v = &scene.volume;
         selector("volume.density_grid", &v.density_grid)?;
         selector("volume.temperature_grid", &v.temperature_grid)?;

@@ -1,0 +1,178 @@
+//! AOVs (`--aovs`): the beauty split by where its light came from, written as layers of
+//! the same EXR.
+//!
+//! Every contribution the integrator adds to a sample's radiance belongs to exactly one
+//! [`Component`]:
+//! - `emission`: the volume's emission reaching the camera directly (the camera
+//!   segment's line integral);
+//! - `scattered`: the volume's emission after one or more scattering events (forward
+//!   segments after a collision, NEE and FNEE);
+//! - one layer per light group: an external light's radiance, seen directly or after
+//!   scattering (lights are grouped by their `group` key; by default one group per kind:
+//!   `sun`, `sphere`, `environment`, `sky`).
+//!
+//! So the colour layers sum to the beauty: per sample exactly (each contribution is added
+//! to both), per pixel up to the rounding of each layer's fixed-point sum and of `f32`.
+//! Besides the colour layers: `alpha` (the beauty's alpha) and `depth`, the **expected
+//! distance to the first collision of camera rays that collide**: each camera sample that
+//! samples a collision along its ray adds its distance `t` and a hit, and the pixel's
+//! depth is `Σ t / Σ hits` (the mean of the free-path law's conditional distance: a
+//! ratio estimator, consistent; 0 where no sample collided). Collisions are drawn from
+//! the exact free-path law for every estimator (ray-march draws one for the layer with
+//! the camera segment's own number, which changes nothing else), so the depth does not
+//! depend on `--method`.
+//!
+//! Without `--aovs` the integrator is instantiated with [`NoAovs`], whose methods are
+//! empty: it compiles to the code it was before AOVs existed.
+
+/// Where a contribution's light came from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Component {
+    /// Volume emission seen directly.
+    Emission,
+    /// Volume emission after scattering.
+    Scattered,
+    /// An external light of this group (index into [`AovLayout::groups`]).
+    Light(usize),
+}
+
+/// Receives a sample's contributions by component.
+pub trait Aovs {
+    /// Whether anything is recorded (lets the integrator skip work for [`NoAovs`]).
+    const ON: bool;
+    /// `w · e` was added to the beauty for `component`.
+    fn add(&mut self, component: Component, w: f64, e: [f64; 3]);
+    /// The camera ray's first collision is at distance `t`.
+    fn first_collision(&mut self, t: f64);
+    /// Start a new sample.
+    fn begin(&mut self);
+    /// The sample's channel values (`AovLayout::channels`).
+    fn values(&self) -> &[f64];
+}
+
+/// No AOVs: records nothing, costs nothing.
+pub struct NoAovs;
+
+impl Aovs for NoAovs {
+    const ON: bool = false;
+    #[inline(always)]
+    fn add(&mut self, _component: Component, _w: f64, _e: [f64; 3]) {}
+    #[inline(always)]
+    fn first_collision(&mut self, _t: f64) {}
+    #[inline(always)]
+    fn begin(&mut self) {}
+    #[inline(always)]
+    fn values(&self) -> &[f64] {
+        &[]
+    }
+}
+
+/// Names of the fixed colour layers.
+pub const FIXED_LAYERS: [&str; 2] = ["emission", "scattered"];
+
+/// Layers no light group may be named (the fixed ones and the beauty's).
+pub const RESERVED: [&str; 5] = ["emission", "scattered", "alpha", "depth", "sum"];
+
+/// The AOV channels of a render: the fixed colour layers, one colour layer per light
+/// group, and depth's two sums.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct AovLayout {
+    /// Light groups, in the order of their layers.
+    pub groups: Vec<String>,
+}
+
+impl AovLayout {
+    /// Number of summed channels per pixel: 3 per colour layer, then depth's `Σ t` and
+    /// `Σ hits`.
+    #[must_use]
+    pub fn channels(&self) -> usize {
+        3 * (FIXED_LAYERS.len() + self.groups.len()) + 2
+    }
+
+    /// The channels' names, in sum order: `emission.R`, …, `<group>.B`, `depth.Z`,
+    /// `depth.hits`.
+    #[must_use]
+    pub fn channel_names(&self) -> Vec<String> {
+        let mut names = Vec::with_capacity(self.channels());
+        for layer in FIXED_LAYERS.iter().copied().chain(self.groups.iter().map(String::as_str)) {
+            for c in ["R", "G", "B"] {
+                names.push(format!("{layer}.{c}"));
+            }
+        }
+        names.push("depth.Z".into());
+        names.push("depth.hits".into());
+        names
+    }
+
+    /// The layout whose [`AovLayout::channel_names`] are `names`, if they are one.
+    #[must_use]
+    pub fn from_channel_names(names: &[String]) -> Option<AovLayout> {
+        let n = names.len();
+        if n < 8 || (n - 2) % 3 != 0 {
+            return None;
+        }
+        let groups: Vec<String> = names[6..n - 2].chunks(3).map(|c| c[0].strip_suffix(".R").unwrap_or("").to_string()).collect();
+        let layout = AovLayout { groups };
+        (layout.channel_names() == names).then_some(layout)
+    }
+
+    /// The offset of `component`'s red channel.
+    #[inline]
+    fn offset(component: Component) -> usize {
+        match component {
+            Component::Emission => 0,
+            Component::Scattered => 3,
+            Component::Light(g) => 6 + 3 * g,
+        }
+    }
+
+    /// Per-pixel layer values from the channel sums of one pixel: colours `Σ / spp`,
+    /// depth `Σ t / Σ hits`. `value(sum, n)` divides a sum by a count.
+    pub fn pixel(&self, sums: &[i128], spp: u64, value: impl Fn(i128, u64) -> f32) -> Vec<f32> {
+        let n = self.channels();
+        let mut out: Vec<f32> = sums[..n - 2].iter().map(|&s| value(s, spp)).collect();
+        let hits = u64::try_from(sums[n - 1] >> crate::film::FIXED_POINT_BITS).unwrap_or(0);
+        out.push(if hits == 0 { 0.0 } else { value(sums[n - 2], hits) });
+        out
+    }
+}
+
+/// One sample's AOV values (reused across samples).
+#[derive(Clone, Debug)]
+pub struct AovSample {
+    /// The channels of [`AovLayout::channels`].
+    pub values: Vec<f64>,
+}
+
+impl AovSample {
+    /// Zeroed values for `channels` channels (`AovLayout::channels`).
+    #[must_use]
+    pub fn new(channels: usize) -> AovSample {
+        AovSample { values: vec![0.0; channels] }
+    }
+}
+
+impl Aovs for AovSample {
+    const ON: bool = true;
+    #[inline]
+    fn add(&mut self, component: Component, w: f64, e: [f64; 3]) {
+        let o = AovLayout::offset(component);
+        for (a, v) in self.values[o..o + 3].iter_mut().zip(e) {
+            *a += w * v;
+        }
+    }
+
+    fn first_collision(&mut self, t: f64) {
+        let n = self.values.len();
+        self.values[n - 2] = t;
+        self.values[n - 1] = 1.0;
+    }
+
+    fn begin(&mut self) {
+        self.values.fill(0.0);
+    }
+
+    fn values(&self) -> &[f64] {
+        &self.values
+    }
+}

@@ -314,3 +314,51 @@ fn albedo_grid_matches_constant_albedo_and_varies_per_voxel() {
     assert!(ca.fnee_samples > 0);
     assert_eq!(c0.fnee_samples, 0, "albedo 0: no scattering vertex survives to sample light");
 }
+
+/// The explosion lit by a sun (a 5° disc, so phase sampling reaches it too), a sphere
+/// light and a constant environment, besides its own fire.
+fn lit_explosion_scene(sigma_t: f64, ls: LightSampling, interpolation: Interpolation) -> AnyScene {
+    use plume::light::external::{Distant, Environment, ExternalLights, Light, Radiance, Sphere};
+    let mut scene = explosion_scene(sigma_t, ls, 8, interpolation);
+    let lights = vec![
+        Light::Distant(Distant::new(DVec3::new(0.4, -0.8, 0.45).normalize(), Rgb([6.0, 5.0, 4.0]), 5f64.to_radians())),
+        Light::Sphere(Sphere::new(DVec3::new(-2.5, 1.0, -1.5), 0.4, Rgb([80.0, 90.0, 120.0]))),
+        Light::Environment(Environment::new(Radiance::Constant(Rgb([0.3, 0.35, 0.45])), 1.0, DVec3::Y, 0.0, true)),
+    ];
+    let external = ExternalLights::new(lights, 2.0);
+    plume::with_scene!(&mut scene, s => s.lights.external = external);
+    scene
+}
+
+#[test]
+fn every_method_gives_the_same_image_means_under_external_lights() {
+    // Lights are a strategy of their own beside NEE/FNEE: every estimator × volume light
+    // sampling, both reconstructions, against forward line integration; 2 × 12 combos × 5
+    // regions = 120 comparisons, |z| < 4.2 as above.
+    for interpolation in [Interpolation::Nearest, Interpolation::Linear] {
+        let reference = region_means(
+            &lit_explosion_scene(1.5, LightSampling::None, interpolation),
+            integrator(Estimator::Line, LightSampling::None, MisHeuristic::Power, 64),
+            16,
+            24,
+            2000,
+        );
+        let unlit = region_means(
+            &explosion_scene(1.5, LightSampling::None, 8, interpolation),
+            integrator(Estimator::Line, LightSampling::None, MisHeuristic::Power, 64),
+            8,
+            4,
+            2000,
+        );
+        // The lights carry a good part of the image, so an error in them would show
+        assert!(reference[0].0 > 1.5 * unlit[0].0, "{interpolation}: lit {:?} vs unlit {:?}", reference[0], unlit[0]);
+        for (est, ls) in COMBOS {
+            let scene = lit_explosion_scene(1.5, ls, interpolation);
+            let got = region_means(&scene, integrator(est, ls, MisHeuristic::Power, 64), 8, 12, 2007);
+            for (k, ((m, se), (rm, rse))) in got.iter().zip(&reference).enumerate() {
+                let z = (m - rm) / (se * se + rse * rse).sqrt().max(1e-12);
+                assert!(z.abs() < 4.2, "{interpolation} {est:?}/{ls:?} region {k}: {m} ± {se} vs {rm} ± {rse} (z = {z:.2})");
+            }
+        }
+    }
+}

@@ -38,6 +38,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::color::Rgb;
 use crate::error::{Error, Result};
+use crate::light::external::environment::world_to_map;
 use crate::light::external::{tinted, Distant, Environment, ExternalLights, Light, Radiance, Sphere};
 
 /// Lights besides the volume's own emission.
@@ -328,8 +329,7 @@ impl LightSettings {
                 let sun = sky.sun_radiance();
                 if !sun.is_black() {
                     // The sun's direction in the world: the sky's frame is the maps' frame
-                    let to_world = Environment::new(Radiance::Constant(Rgb::ZERO), 1.0, up, 0.0, false);
-                    let to_sun = to_world.direction_to_world(sky.sun_direction());
+                    let to_sun = world_to_map(up, 0.0).transpose() * sky.sun_direction();
                     let alpha = 0.5 * crate::light::sky::Sky::SUN_ANGULAR_DIAMETER.to_radians();
                     let e = std::f64::consts::PI * alpha.sin().powi(2) * s.intensity;
                     let irradiance = Rgb(sun.0.map(|c| (f64::from(c) * e) as f32));

@@ -17,6 +17,28 @@ use super::LightSample;
 use crate::color::Rgb;
 use crate::light::envmap::EnvironmentMap;
 
+/// The rotation from world directions to a map's frame (+Z its zenith): the axis change
+/// taking unit `up` to +Z, then a turn by `rotation` radians about it (module docs).
+#[must_use]
+pub fn world_to_map(up: DVec3, rotation: f64) -> DMat3 {
+    let axes = if (up - DVec3::Z).length_squared() < 1e-24 {
+        DMat3::IDENTITY
+    } else if (up - DVec3::Y).length_squared() < 1e-24 {
+        // (x, y, z) ↦ (x, −z, y), as Blender imports a Y-up scene
+        DMat3::from_cols(DVec3::X, DVec3::Z, -DVec3::Y)
+    } else {
+        // Any other up: the rotation taking `up` to +Z about their common normal
+        let axis = up.cross(DVec3::Z);
+        let s = axis.length();
+        if s < 1e-12 {
+            DMat3::from_diagonal(DVec3::new(1.0, -1.0, -1.0)) // up = −Z
+        } else {
+            DMat3::from_axis_angle(axis / s, s.atan2(up.dot(DVec3::Z)))
+        }
+    };
+    DMat3::from_rotation_z(-rotation) * axes
+}
+
 /// Where the radiance comes from.
 #[derive(Debug)]
 pub enum Radiance {
@@ -45,30 +67,8 @@ impl Environment {
     /// by `rotation` radians about it, seen by camera rays when `visible`.
     #[must_use]
     pub fn new(radiance: Radiance, intensity: f64, up: DVec3, rotation: f64, visible: bool) -> Environment {
-        // World → map: first the axis change taking `up` to +Z, then the turn
-        let axes = if (up - DVec3::Z).length_squared() < 1e-24 {
-            DMat3::IDENTITY
-        } else if (up - DVec3::Y).length_squared() < 1e-24 {
-            // (x, y, z) ↦ (x, −z, y): rows of the matrix
-            DMat3::from_cols(DVec3::X, DVec3::Z, -DVec3::Y)
-        } else {
-            // Any other up: the rotation taking `up` to +Z about their common normal
-            let axis = up.cross(DVec3::Z);
-            let s = axis.length();
-            if s < 1e-12 {
-                DMat3::from_diagonal(DVec3::new(1.0, -1.0, -1.0)) // up = −Z
-            } else {
-                DMat3::from_axis_angle(axis / s, s.atan2(up.dot(DVec3::Z)))
-            }
-        };
-        let to_local = DMat3::from_rotation_z(-rotation) * axes;
+        let to_local = world_to_map(up, rotation);
         Environment { radiance, intensity, to_local, to_world: to_local.transpose(), visible }
-    }
-
-    /// Unit `direction` in the map's frame, in the world.
-    #[must_use]
-    pub fn direction_to_world(&self, direction: DVec3) -> DVec3 {
-        self.to_world * direction
     }
 
     /// Whether camera rays see it.

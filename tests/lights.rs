@@ -269,8 +269,8 @@ fn environment_maps_follow_the_up_axis_and_turn_counter_clockwise() {
             let Some(ls) = e.sample([sampler.next_f64(), sampler.next_f64()]) else { continue };
             let (l, pdf) = (e.radiance(ls.direction), e.pdf(ls.direction));
             assert!((ls.pdf - pdf).abs() <= 1e-9 * pdf, "pdf {} vs {pdf}", ls.pdf);
-            for c in 0..3 {
-                assert!((ls.value[c] * ls.pdf - l[c]).abs() <= 1e-9 * l[c].max(1e-12), "channel {c}: {} vs {}", ls.value[c] * ls.pdf, l[c]);
+            for (v, l) in ls.value.iter().zip(l) {
+                assert!((v * ls.pdf - l).abs() <= 1e-9 * l.max(1e-12), "{} vs {l}", v * ls.pdf);
             }
         }
     }

@@ -146,3 +146,46 @@ fn the_sky_lights_like_its_own_environment_map() {
     assert!(level > 0.0 && m.abs() < 4.0 * se + 1e-6 * level, "sky light vs its map: mean difference {m} ± {se} at level {level}");
     assert!(se < 0.05 * level, "too noisy to tell: {se} at level {level}");
 }
+
+#[test]
+fn debug_pixel_replays_a_lit_sample_exactly() {
+    // One spp: the pixel is its one sample, which --debug-pixel replays, printing the
+    // light samples and the lights its segments reach
+    let d = tmpdir("lights", "debug");
+    let ex = explosion(&d, 32, None);
+    let out = d.join("o.exr");
+    let common = [
+        "--width",
+        "20",
+        "--height",
+        "14",
+        "--spp",
+        "1",
+        "--albedo",
+        "0.8",
+        "--seed",
+        "5",
+        "-q",
+        "--distant-light",
+        "direction = [0.3, -1, -0.2], irradiance = 4, angle = 10",
+        "--environment",
+        "0.1,0.1,0.1",
+    ];
+    let mut args = vec!["render", s(&ex), "-o", s(&out)];
+    args.extend(common);
+    assert!(plume(&args).status.success());
+    let pixels = exr_pixels(&out);
+    let i = (0..pixels.len()).filter(|&i| pixels[i][3] == 1.0).min_by_key(|&i| (i % 20).abs_diff(10) + (i / 20).abs_diff(7)).expect("a collided path");
+    let (px, at) = (pixels[i], format!("{},{},0", i % 20, i / 20));
+    let mut args = vec!["render", s(&ex), "-o", s(&out), "--debug-pixel", &at];
+    args.extend(common);
+    let o = plume(&args);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("  light 0:") || err.contains("  light 1:"), "no light sample in {err}");
+    let printed = String::from_utf8_lossy(&o.stdout);
+    let values: Vec<f64> = printed.trim().trim_matches(|c| c == '[' || c == ']').split(',').map(|v| v.trim().parse().unwrap()).collect();
+    for c in 0..4 {
+        assert_eq!(values[c] as f32, px[c], "channel {c}: replay {values:?} vs pixel {px:?}");
+    }
+}

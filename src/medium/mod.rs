@@ -7,6 +7,7 @@
 //! length (W m⁻³ sr⁻¹ per RGB channel) and already contains its coefficient.
 
 pub mod emission;
+pub mod null_tracking;
 pub mod tracking;
 
 pub use emission::{Convention, Emission, EmissionKind, TemperatureMap};

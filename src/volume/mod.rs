@@ -10,6 +10,7 @@ pub mod brick;
 pub mod builder;
 pub mod dda;
 pub mod field;
+pub mod majorant;
 pub mod prefetch;
 pub mod proxy;
 pub mod pyramid;

@@ -22,7 +22,10 @@ use crate::integrator::{AnyScene, LightSampling, Lights, Scene};
 use crate::medium::{Emission, EmissionKind, Medium};
 use crate::scene::bind::{emission_kind, emission_model, grid_requests, memory_budget, reader, split_found, FileReader};
 use crate::scene::{JobSettings, SceneDescription, UpAxis};
+use crate::vdb::{FloatGrid, GridRequest};
+use crate::volume::motion::Motion;
 use crate::volume::proxy::{CellPower, ProxyGrid};
+use crate::volume::velocity::{Velocity, VelocityGrid};
 use crate::volume::{Bounds3, Field, Volume};
 
 /// A scene ready to render, and what the outputs report about how it was loaded.
@@ -114,8 +117,32 @@ pub fn load_scene(scene: &SceneDescription, input: &Path, settings: &JobSettings
         let Bounds3 { lo, hi } = if volume.is_empty() { Bounds3 { lo: DVec3::splat(-1.0), hi: DVec3::splat(1.0) } } else { volume.world_bounds() };
         lights.external = scene.lights.build(up_axis(scene), 0.5 * (hi - lo).length())?;
     }
-    let scene = AnyScene::new(Scene { field: volume, medium, camera, lights }, scene.volume.interpolation);
+    let motion = match (&scene.volume.velocity_grid, scene.shutter_seconds()) {
+        (Some(name), Some(shutter)) => Some(Motion::new(&volume, Velocity::Grid(read_velocity(input, name, settings)?), scene.volume.velocity_scale, shutter)),
+        _ => None,
+    };
+    let scene = AnyScene::new(Scene { field: volume, medium, camera, lights, motion }, scene.volume.interpolation);
     Ok(LoadedScene { scene, emission_kind: emission.kind, source_grid, cache })
+}
+
+/// The velocity grid `name` of the .vdb `input` (or of the .vdb beside a brick cache):
+/// three float grids `name.x`, `name.y`, `name.z`.
+///
+/// # Errors
+/// A missing or unreadable component, a brick cache given as input (velocity is not stored
+/// in caches), non-finite velocities.
+fn read_velocity(input: &Path, name: &str, settings: &JobSettings) -> Result<VelocityGrid> {
+    if crate::cache::is_cache_path(input) {
+        return Err(Error::invalid("volume.velocity_grid", format!("{}: brick caches hold no velocity; render the .vdb for motion blur", input.display())));
+    }
+    let FileReader { limits, isolation } = reader(&settings.reading)?;
+    let requests: Vec<GridRequest> = ["x", "y", "z"]
+        .iter()
+        .map(|c| crate::scene::validate::selector("volume.velocity_grid", &format!("{name}.{c}")).map(GridRequest::required))
+        .collect::<Result<_>>()?;
+    let found = isolation.read_grids(input, &requests, &limits)?;
+    let grids: Vec<FloatGrid> = found.into_iter().map(|f| f.expect("invariant: required grids are found or an error").grid).collect();
+    VelocityGrid::from_components([&grids[0], &grids[1], &grids[2]], &format!("{}: grid {name:?}", input.display()))
 }
 
 /// The scene's up axis (`camera.up_axis`): the zenith of environment maps and the sky.

@@ -147,7 +147,7 @@ fn depth_is_the_expected_distance_to_the_first_collision() {
     let vol = Volume::build(&grid("density", xf, &leaves, |_| 1.0), None, |v| e.map_source(v)).unwrap();
     let medium = Medium { sigma_t: sigma, albedo: 0.0, g: 0.0, emission: Emission { kind: EmissionKind::None, ..e } };
     let cam = Camera::look_at(DVec3::new(0.0, 0.0, -1.0), DVec3::ZERO, DVec3::Y, 1.0, 1, 1).unwrap();
-    let scene = Scene { field: vol, medium, camera: cam, lights: Lights::default() };
+    let scene = Scene { field: vol, medium, camera: cam, lights: Lights::default(), motion: None };
     let layout = AovLayout { groups: vec![] };
     let expected = 1.0 + 1.0 / sigma - depth * (-sigma * depth).exp() / (1.0 - (-sigma * depth).exp());
     let ray = Ray { origin: DVec3::new(0.0, 0.0, -1.0), direction: DVec3::Z };

@@ -46,7 +46,7 @@ fn medium() -> Medium {
 fn scene(lights: Vec<Light>) -> Scene<Volume> {
     let cam = Camera::look_at(DVec3::new(0.0, 0.0, -1.0), DVec3::ZERO, DVec3::Y, 1.0, 1, 1).unwrap();
     let lights = Lights { external: ExternalLights::new(lights, HALF), ..Lights::default() };
-    Scene { field: slab(), medium: medium(), camera: cam, lights }
+    Scene { field: slab(), medium: medium(), camera: cam, lights, motion: None }
 }
 
 /// Mean radiance (red) and its standard error along the camera's central ray, single

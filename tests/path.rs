@@ -83,7 +83,7 @@ fn infinite_medium_reaches_equilibrium_radiance_with_every_method() {
     for (est, ls) in COMBOS {
         let lights = Lights::build(&vol, &e, ls, 8).unwrap();
         let cam = Camera::look_at(DVec3::ZERO, DVec3::ONE, DVec3::Y, 40.0, 1, 1).unwrap();
-        let scene = Scene { field: cube(4, 2.0, 1.0, le), medium: Medium { sigma_t, albedo, g: 0.3, emission: e }, camera: cam, lights };
+        let scene = Scene { field: cube(4, 2.0, 1.0, le), medium: Medium { sigma_t, albedo, g: 0.3, emission: e }, camera: cam, lights, motion: None };
         for (max_depth, expected) in [(10_000u32, f64::from(le) / mu_a), (2, f64::from(le) / mu_a * (1.0 - 0.8f64.powi(3)))] {
             let integ = integrator(est, ls, MisHeuristic::Power, max_depth);
             let (m, se) = mean_from_inside(&scene, &integ, DVec3::ONE, 3000, 11);
@@ -107,7 +107,7 @@ fn white_furnace_with_albedo_one_renders_the_environment() {
             let mut lights = Lights::build(&vol, &e, ls, 8).unwrap();
             let env = Environment::new(Radiance::Constant(Rgb::ONE), 1.0, DVec3::Y, 0.0, true);
             lights.external = ExternalLights::new(vec![Light::Environment(env)], 2.0);
-            let scene = Scene { field: vol, medium: Medium { sigma_t: 2.0, albedo: 1.0, g: 0.5, emission: e }, camera: cam, lights };
+            let scene = Scene { field: vol, medium: Medium { sigma_t: 2.0, albedo: 1.0, g: 0.5, emission: e }, camera: cam, lights, motion: None };
             let integ = integrator(est, ls, MisHeuristic::Power, 100_000);
             let r = render(
                 &scene,
@@ -174,7 +174,7 @@ fn explosion_scene(sigma_t: f64, ls: LightSampling, proxy_resolution: u32, inter
     let vol = Volume::build(&ex.density, Some(&ex.temperature), |v| e.map_source(v)).unwrap();
     let lights = Lights::build(&vol, &e, ls, proxy_resolution).unwrap();
     let cam = Camera::look_at(DVec3::new(0.0, 0.2, -6.5), DVec3::new(0.0, 0.2, 0.0), DVec3::Y, 40.0, 10, 8).unwrap();
-    AnyScene::new(Scene { field: vol, medium: Medium { sigma_t, albedo: 0.8, g: 0.3, emission: e }, camera: cam, lights }, interpolation)
+    AnyScene::new(Scene { field: vol, medium: Medium { sigma_t, albedo: 0.8, g: 0.3, emission: e }, camera: cam, lights, motion: None }, interpolation)
 }
 
 #[test]
@@ -297,7 +297,7 @@ fn albedo_grid_matches_constant_albedo_and_varies_per_voxel() {
     let render_with = |grid: Option<FloatGrid>, albedo: f32| {
         let vol = Volume::build_with_albedo(&ex.density, Some(&ex.temperature), |v| e.map_source(v), grid.as_ref()).unwrap();
         let lights = Lights::build(&vol, &e, LightSampling::Fnee, 8).unwrap();
-        let scene = Scene { field: vol, medium: Medium { sigma_t: 5.0, albedo, g: 0.3, emission: e }, camera: cam, lights };
+        let scene = Scene { field: vol, medium: Medium { sigma_t: 5.0, albedo, g: 0.3, emission: e }, camera: cam, lights, motion: None };
         let integ = integrator(Estimator::Line, LightSampling::Fnee, MisHeuristic::Power, 16);
         let r = render(
             &scene,

@@ -29,7 +29,7 @@ fn blob_scene(estimator: Estimator) -> (Scene<Volume>, Integrator) {
     };
     let vol = Volume::build(&d, Some(&t), |v| emission.map_source(v)).unwrap();
     let cam = Camera::look_at(DVec3::new(1.2, 1.2, -4.0), DVec3::splat(1.2), DVec3::Y, 40.0, 24, 20).unwrap();
-    let scene = Scene { field: vol, medium: Medium { sigma_t: 2.0, albedo: 0.0, g: 0.0, emission }, camera: cam, lights: Default::default() };
+    let scene = Scene { field: vol, medium: Medium { sigma_t: 2.0, albedo: 0.0, g: 0.0, emission }, camera: cam, lights: Default::default(), motion: None };
     (scene, Integrator::emission_only(estimator))
 }
 
@@ -147,7 +147,7 @@ fn voxel_aligned_box_image_matches_closed_form() {
     // Box spans [0, 1]³ in world space.
     let cam = Camera::look_at(DVec3::new(0.5, 0.5, -1000.0), DVec3::new(0.5, 0.5, 0.0), DVec3::Y, 0.01, 9, 9).unwrap();
     let sigma_t = 1.5;
-    let scene = Scene { field: vol, medium: Medium { sigma_t, albedo: 0.0, g: 0.0, emission }, camera: cam, lights: Default::default() };
+    let scene = Scene { field: vol, medium: Medium { sigma_t, albedo: 0.0, g: 0.0, emission }, camera: cam, lights: Default::default(), motion: None };
     let mu = sigma_t * 2.0;
     let expected = 5.0 * (1.0 - (-mu * 1.0f64).exp()) / mu;
     for est in [Estimator::RayMarch, Estimator::Line, Estimator::Point] {

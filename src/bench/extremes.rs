@@ -251,6 +251,7 @@ fn density_sweep(cfg: &ExtremesConfig, check: &mut Check) -> Result<()> {
             medium: Medium { sigma_t: sigma, albedo: 0.0, g: 0.0, emission },
             camera: box_camera(1.0, cfg.size)?,
             lights: Lights::default(),
+            motion: None,
         };
         let depth = sigma; // μ d with ρ = 1, d = 1 m
         let expected = phi(depth); // L_e d φ(μd) with L_e = 1, d = 1
@@ -308,6 +309,7 @@ fn temperature_sweep(cfg: &ExtremesConfig, check: &mut Check) -> Result<()> {
             medium: Medium { sigma_t: sigma, albedo: 0.0, g: 0.0, emission },
             camera: box_camera(1.0, cfg.size)?,
             lights: Lights::default(),
+            motion: None,
         };
         let c = if t < 500.0 { [0.0; 3] } else { blackbody_rgb_exact(t) };
         let expected = (c[0] + c[1] + c[2]) / 3.0 * phi(sigma);
@@ -338,7 +340,7 @@ fn explosion_at(ex: &crate::synth::Explosion, h: f64, h0: f64, size: u32) -> Res
     let vol = Volume::build(&d, Some(&t), |v| emission.map_source(v))?;
     let crate::volume::Bounds3 { lo, hi } = vol.world_bounds();
     let camera = Camera::frame_bounds(lo, hi, DVec3::new(0.35, 0.25, 1.0), DVec3::Y, 40.0, size, size)?;
-    Ok(Scene { field: vol, medium: Medium { sigma_t: 4.0 * h0 / h, albedo: 0.0, g: 0.0, emission }, camera, lights: Lights::default() })
+    Ok(Scene { field: vol, medium: Medium { sigma_t: 4.0 * h0 / h, albedo: 0.0, g: 0.0, emission }, camera, lights: Lights::default(), motion: None })
 }
 
 fn voxel_size_sweep(cfg: &ExtremesConfig, check: &mut Check) -> Result<()> {
@@ -422,8 +424,8 @@ fn invalid_voxels(cfg: &ExtremesConfig, check: &mut Check) -> Result<()> {
     });
     let medium = Medium { sigma_t: 3.0, albedo: 0.0, g: 0.0, emission };
     let camera = box_camera(1.0, cfg.size)?;
-    let dirty = Scene { field: dirty, medium, camera, lights: Lights::default() };
-    let clean = Scene { field: clean, medium, camera, lights: Lights::default() };
+    let dirty = Scene { field: dirty, medium, camera, lights: Lights::default(), motion: None };
+    let clean = Scene { field: clean, medium, camera, lights: Lights::default(), motion: None };
     for (name, est) in EMISSION_ONLY {
         let a = render_image(&dirty, Integrator::emission_only(est), cfg.spp, 4);
         let b = render_image(&clean, Integrator::emission_only(est), cfg.spp, 4);

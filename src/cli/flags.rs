@@ -58,6 +58,17 @@ pub fn parse_environment_map(s: &str) -> Result<plume::scene::EnvironmentMapSett
     }
 }
 
+/// Parse `a,b` (two finite numbers).
+///
+/// # Errors
+/// A message for clap when the text is not two finite numbers.
+pub fn parse_pair(s: &str) -> Result<[f64; 2], String> {
+    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+    let [a, b] = parts.as_slice() else { return Err(format!("expected OPEN,CLOSE, got {s:?}")) };
+    let num = |p: &str| p.parse::<f64>().ok().filter(|v| v.is_finite()).ok_or_else(|| format!("{p:?} is not a finite number"));
+    Ok([num(a)?, num(b)?])
+}
+
 /// Parse a byte size (`512MiB`, `8GiB`).
 ///
 /// # Errors

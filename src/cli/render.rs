@@ -22,7 +22,7 @@ use plume::scene::{
     ValidShot, VolumeInput,
 };
 
-use super::flags::{choice, parse_environment_map, parse_keys, parse_size, parse_vec3};
+use super::flags::{choice, parse_environment_map, parse_keys, parse_pair, parse_size, parse_vec3};
 
 /// `plume render`.
 #[derive(Clone, Debug, Args)]
@@ -132,6 +132,21 @@ pub struct RenderArgs {
     /// or `kelvin = K`.
     #[arg(long, value_parser = parse_keys::<SphereSettings>)]
     pub sphere_light: Vec<SphereSettings>,
+    /// Motion blur: the velocity grid (world units per second), three float grids
+    /// NAME.x, NAME.y, NAME.z. The volume is advected back along it (Eulerian blur:
+    /// density at x and time t is the frame's at x − t·v(x); README "Motion blur").
+    #[arg(long)]
+    pub velocity_grid: Option<String>,
+    /// Multiplies the velocity.
+    #[arg(long, default_value_t = 1.0, allow_hyphen_values = true)]
+    pub velocity_scale: f64,
+    /// Shutter open,close in frames relative to the frame (default -0.25,0.25 with
+    /// --velocity-grid).
+    #[arg(long, value_parser = parse_pair, allow_hyphen_values = true)]
+    pub shutter: Option<[f64; 2]>,
+    /// Frames per second (converts the shutter to seconds).
+    #[arg(long, default_value_t = 24.0)]
+    pub fps: f64,
     /// Render only sample S of pixel (X, Y) and print its path: X,Y,S.
     #[arg(long)]
     pub debug_pixel: Option<plume::render::SampleId>,
@@ -324,6 +339,10 @@ flags_to_keys! { RENDER_ONLY_FLAGS, apply_render_only, RenderArgs, s, a;
     "distant_light" => "lights.distant": s.scene.lights.distant => a.distant_light.clone();
     "sphere_light" => "lights.sphere": s.scene.lights.sphere => a.sphere_light.clone();
     "debug_pixel" => "render.debug_pixel": s.settings.render.debug_pixel => a.debug_pixel;
+    "velocity_grid" => "volume.velocity_grid": s.scene.volume.velocity_grid => a.velocity_grid.clone();
+    "velocity_scale" => "volume.velocity_scale": s.scene.volume.velocity_scale => a.velocity_scale;
+    "shutter" => "camera.shutter": s.scene.camera.shutter => a.shutter;
+    "fps" => "camera.fps": s.scene.camera.fps => a.fps;
     "kappa" => "integrator.kappa": s.scene.integrator.kappa => a.kappa;
     "density_scale" => "medium.density_scale": s.scene.medium.density_scale => a.density_scale;
     "emission_scale" => "emission.scale": s.scene.emission.scale => a.emission_scale;

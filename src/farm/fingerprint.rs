@@ -56,10 +56,12 @@ pub fn file_sha256(path: &Path) -> Result<(String, u64)> {
 pub fn settings_hash(shot: &Shot, seed: u64) -> String {
     let Shot { scene, settings } = shot;
     let SceneDescription { volume, emission, medium, camera, lights, integrator } = scene;
-    let VolumeInput { file: _, density_grid, temperature_grid, emission_grid, albedo_grid, interpolation } = volume;
+    let VolumeInput { file: _, density_grid, temperature_grid, emission_grid, albedo_grid, interpolation, velocity_grid, velocity_scale } = volume;
     let EmissionSettings { source, convention, temperature_map, temperature_cutoff, scale, color } = emission;
     let MediumSettings { density_scale, albedo, g } = medium;
-    let CameraSettings { from, at, up, fov, width, height, up_axis } = camera;
+    let CameraSettings { from, at, up, fov, width, height, up_axis, shutter, fps } = camera;
+    // Motion blur's keys, only when there is motion: still scenes hash as before
+    let motion = velocity_grid.as_ref().map_or_else(String::new, |v| format!("\nmotion {v:?} {velocity_scale:?} {shutter:?} {fps:?}"));
     let LightSettings { environment, environment_map, sky, distant, sphere } = lights;
     // The map's file by name only (paths differ between farm nodes); scenes without
     // the lights of issue #14 hash as before
@@ -100,7 +102,7 @@ pub fn settings_hash(shot: &Shot, seed: u64) -> String {
          medium {density_scale:?} {albedo:?} {g:?}\n\
          camera {from:?} {at:?} {up:?} {fov:?} {width} {height} {up_axis}\n\
          lights {lights}\n\
-         integrator {method} {estimator:?} {light_sampling:?} {mis} {proxy_resolution:?} {max_depth} {kappa:?}{}",
+         integrator {method} {estimator:?} {light_sampling:?} {mis} {proxy_resolution:?} {max_depth} {kappa:?}{}{motion}",
         env!("CARGO_PKG_VERSION"),
         crate::film::FIXED_POINT_BITS,
         if *aovs { "\naovs" } else { "" }

@@ -6,6 +6,7 @@
 //! (estimated: the escape indicator, or the exact ray-marched transmittance).
 
 pub mod aov;
+pub mod tracker;
 pub mod volpath;
 
 use crate::camera::Camera;
@@ -28,6 +29,9 @@ pub struct Scene<F: Field> {
     pub camera: Camera,
     /// Light-sampling structures (NEE distribution, FNEE proxy), when used.
     pub lights: Lights,
+    /// Motion blur (velocity, shutter, majorants); `None`: a still volume, regular
+    /// tracking.
+    pub motion: Option<crate::volume::motion::Motion>,
 }
 
 /// A loaded volume's scene, with the volume reconstructed as the description asks.
@@ -63,8 +67,8 @@ impl AnyScene {
         match interpolation {
             Interpolation::Nearest => AnyScene::Nearest(scene),
             Interpolation::Linear => {
-                let Scene { field, medium, camera, lights } = scene;
-                AnyScene::Linear(Scene { field: Trilinear::new(field), medium, camera, lights: lights.for_interpolation(Interpolation::Linear) })
+                let Scene { field, medium, camera, lights, motion } = scene;
+                AnyScene::Linear(Scene { field: Trilinear::new(field), medium, camera, lights: lights.for_interpolation(Interpolation::Linear), motion })
             }
         }
     }
@@ -76,8 +80,8 @@ impl AnyScene {
         match (self, interpolation) {
             (AnyScene::Nearest(s), i) => AnyScene::new(s, i),
             (AnyScene::Linear(s), Interpolation::Nearest) => {
-                let Scene { field, medium, camera, lights } = s;
-                AnyScene::Nearest(Scene { field: field.into_volume(), medium, camera, lights: lights.for_interpolation(Interpolation::Nearest) })
+                let Scene { field, medium, camera, lights, motion } = s;
+                AnyScene::Nearest(Scene { field: field.into_volume(), medium, camera, lights: lights.for_interpolation(Interpolation::Nearest), motion })
             }
             (linear, Interpolation::Linear) => linear,
         }

@@ -29,10 +29,11 @@
 //!   full weight would count in-scattered emission twice.
 
 use super::aov::{Aovs, Component, NoAovs};
+use super::tracker::Tracker;
 use crate::light::external::{ChosenLight, ExternalLights};
 use crate::light::nee::EmitterDistribution;
-use crate::medium::tracking::{emission_at_point, optical_depth, OpticalDepth};
-use crate::medium::{track, DistanceSample, Estimator};
+use crate::medium::tracking::emission_at_point;
+use crate::medium::{DistanceSample, Estimator, Medium};
 use crate::sampling::phase::{hg_pdf, sample_hg};
 use crate::sampling::{Dim, Sampler};
 use crate::volume::field::{Field, PointValues, Ray};
@@ -211,6 +212,11 @@ impl Integrator {
         let scatters = m.albedo > 0.0 && self.max_depth > 0;
         let point_nee = self.light_sampling == LightSampling::Nee && self.estimator == Estimator::Point;
         let external = lights.external.as_ref();
+        // Regular tracking, or null collisions at this sample's shutter time
+        let tracker = match &scene.motion {
+            None => Tracker::Regular(&scene.field),
+            Some(motion) => Tracker::Moving { field: &scene.field, motion, time: motion.time(sampler.get_1d(Dim::Time)) },
+        };
         loop {
             let need_collision = scatters && depth < self.max_depth;
             // The segment ends at the first sphere light it hits (they are opaque)
@@ -219,7 +225,7 @@ impl Integrator {
             let u = sampler.get_1d(Dim::FreePath);
             // The depth layer wants the camera ray's first collision (ray-march draws it
             // with the same number; nothing else changes)
-            let r = track(&scene.field, m, &ray, t_max, self.estimator, need_collision || (A::ON && depth == 0), u, sampler);
+            let r = tracker.track(m, &ray, t_max, self.estimator, need_collision || (A::ON && depth == 0), u, sampler);
             c.segments += u64::from(r.segments);
             c.voxel_steps += r.voxel_steps;
             // Add emission along the segment
@@ -281,7 +287,7 @@ impl Integrator {
                         if let Some(wi) = proxy.sample_direction_only(x, u_cell, u_pos) {
                             c.fnee_samples += 1;
                             let u2 = sampler.get_1d(Dim::FreePath);
-                            let rl = track(&scene.field, m, &Ray { origin: x, direction: wi }, f64::INFINITY, self.estimator, false, u2, sampler);
+                            let rl = tracker.track(m, &Ray { origin: x, direction: wi }, f64::INFINITY, self.estimator, false, u2, sampler);
                             c.segments += u64::from(rl.segments);
                             c.voxel_steps += rl.voxel_steps;
                             // p_σ only when the free path collected emission
@@ -308,10 +314,9 @@ impl Integrator {
                             c.nee_samples += 1;
                             let dist = r2.sqrt();
                             let wi = d / dist;
-                            let OpticalDepth { optical_depth: od, voxel_steps: n } =
-                                optical_depth(&scene.field, m, &Ray { origin: x, direction: wi }, dist, 745.0);
+                            // (Classic NEE is refused with motion blur: its table is the frame's)
+                            let (tau, n) = tracker.transmittance(m, &Ray { origin: x, direction: wi }, dist, sampler);
                             c.voxel_steps += n;
-                            let tau = (-od).exp();
                             if tau > 0.0 {
                                 // L_e and ρ at y as the field reconstructs them (the table's
                                 // pdf follows the same reconstruction: light/nee.rs)
@@ -328,7 +333,7 @@ impl Integrator {
             }
             // Sample the external lights at x (a strategy of their own)
             if let Some(e) = external {
-                self.sample_external(scene, e, x, ray.direction, beta, sampler, (c, trace), (&mut l, &mut *aovs));
+                self.sample_external((m, &tracker), e, x, ray.direction, beta, sampler, (c, trace), (&mut l, &mut *aovs));
             }
             // Russian roulette after this segment's emission
             sampler.start_vertex(depth);
@@ -363,7 +368,7 @@ impl Integrator {
     #[allow(clippy::too_many_arguments)]
     fn sample_external<F: Field, T: Trace, A: Aovs>(
         &self,
-        scene: &Scene<F>,
+        (m, tracker): (&Medium, &Tracker<'_, F>),
         lights: &ExternalLights,
         x: glam::DVec3,
         incoming: glam::DVec3,
@@ -372,15 +377,13 @@ impl Integrator {
         (c, trace): (&mut Counters, &mut T),
         (l, aovs): (&mut [f64; 3], &mut A),
     ) {
-        let m = &scene.medium;
         let u_choice = sampler.get_1d(Dim::ExternalLightChoice);
         let u = sampler.get_2d(Dim::ExternalLightDirection);
         let Some(ChosenLight { index, pmf, sample: s }) = lights.sample(x, u_choice, u) else { return };
         c.external_light_samples += 1;
         let f = hg_pdf(m.g, incoming.dot(s.direction));
-        let OpticalDepth { optical_depth: od, voxel_steps: n } = optical_depth(&scene.field, m, &Ray { origin: x, direction: s.direction }, s.distance, 745.0);
+        let (tau, n) = tracker.transmittance(m, &Ray { origin: x, direction: s.direction }, s.distance, sampler);
         c.voxel_steps += n;
-        let tau = (-od).exp();
         if tau > 0.0 {
             let w = if s.pdf > 0.0 { self.mis.weight(pmf * s.pdf, f) } else { 1.0 };
             contribute(l, aovs, Component::Light(lights.group(index)), beta * f * tau * w / pmf, s.value);

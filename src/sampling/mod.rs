@@ -68,6 +68,8 @@ pub enum Dim {
     ExternalLightChoice,
     /// 2-D: the direction towards the chosen light.
     ExternalLightDirection,
+    /// The sample's time in the shutter (motion blur; camera block only).
+    Time,
 }
 
 /// 4-D Sobol sets per segment block.
@@ -86,6 +88,8 @@ impl Dim {
             // In light blocks, where roulette's lane is unused
             Dim::ExternalLightChoice => (2, 1, 1),
             Dim::ExternalLightDirection => (2, 2, 2),
+            // In the camera block, where neither roulette nor light sampling draws
+            Dim::Time => (2, 1, 1),
         }
     }
 }

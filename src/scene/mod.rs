@@ -117,6 +117,16 @@ pub struct SceneDescription {
 }
 
 impl SceneDescription {
+    /// The shutter in seconds relative to the frame: `camera.shutter` (frames) over
+    /// `camera.fps`, by default `[-0.25, 0.25]` frames with a velocity grid; `None` for a
+    /// still render.
+    #[must_use]
+    pub fn shutter_seconds(&self) -> Option<[f64; 2]> {
+        self.volume.velocity_grid.as_ref()?;
+        let [open, close] = self.camera.shutter.unwrap_or([-0.25, 0.25]);
+        Some([open / self.camera.fps, close / self.camera.fps])
+    }
+
     /// The default description of `file`.
     #[must_use]
     pub fn new(file: impl Into<PathBuf>) -> SceneDescription {
@@ -171,6 +181,13 @@ pub struct VolumeInput {
     /// How values are reconstructed between voxel centres.
     #[serde(default)]
     pub interpolation: Interpolation,
+    /// Velocity for motion blur (world units per second): three float grids `NAME.x`,
+    /// `NAME.y`, `NAME.z` (Houdini's `vel.x`…). Motion blur needs it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub velocity_grid: Option<String>,
+    /// Multiplies the velocity.
+    #[serde(default = "defaults::one", skip_serializing_if = "defaults::is_one")]
+    pub velocity_scale: f64,
 }
 
 impl VolumeInput {
@@ -184,6 +201,8 @@ impl VolumeInput {
             emission_grid: None,
             albedo_grid: None,
             interpolation: Interpolation::default(),
+            velocity_grid: None,
+            velocity_scale: 1.0,
         }
     }
 }
@@ -259,11 +278,17 @@ pub struct CameraSettings {
     pub height: u32,
     /// Up axis of automatic framing and of the default `up`.
     pub up_axis: UpAxis,
+    /// Shutter open and close in frames relative to the frame (default `[-0.25, 0.25]`
+    /// with a velocity grid, none without).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub shutter: Option<[f64; 2]>,
+    /// Frames per second: converts the shutter to seconds.
+    pub fps: f64,
 }
 
 impl Default for CameraSettings {
     fn default() -> Self {
-        CameraSettings { from: None, at: None, up: None, fov: 40.0, width: 640, height: 480, up_axis: UpAxis::Y }
+        CameraSettings { from: None, at: None, up: None, fov: 40.0, width: 640, height: 480, up_axis: UpAxis::Y, shutter: None, fps: 24.0 }
     }
 }
 
@@ -321,5 +346,12 @@ mod defaults {
     }
     pub(super) fn temperature_grid() -> String {
         "temperature".into()
+    }
+    pub(super) fn one() -> f64 {
+        1.0
+    }
+    #[allow(clippy::trivially_copy_pass_by_ref)] // serde's signature
+    pub(super) fn is_one(v: &f64) -> bool {
+        *v == 1.0
     }
 }

@@ -102,6 +102,33 @@ impl Shot {
             return Err(Error::invalid("medium.g", format!("{} is not in (-1, 1)", scene.medium.g)));
         }
         scene.lights.validate()?;
+        if let Some(name) = &scene.volume.velocity_grid {
+            selector("volume.velocity_grid", name)?;
+            if !scene.volume.velocity_scale.is_finite() {
+                return Err(Error::invalid("volume.velocity_scale", format!("{} must be finite", scene.volume.velocity_scale)));
+            }
+            let (_, light_sampling) = scene.integrator.parts();
+            if light_sampling == crate::integrator::LightSampling::Nee && scene.scatters() {
+                return Err(Error::invalid(
+                    "integrator.light_sampling",
+                    "classic NEE draws points from the frame's emitters, which move under motion blur: use fnee (the default) or none",
+                ));
+            }
+            if matches!(scene.integrator.parts().0, crate::medium::Estimator::Blend { .. }) {
+                return Err(Error::invalid(
+                    "integrator.estimator",
+                    "blend mixes per voxel, which null-collision tracking (motion blur) has not: use line, point or ray-march",
+                ));
+            }
+        }
+        if let Some([open, close]) = cam.shutter {
+            if !(open.is_finite() && close.is_finite() && open <= close) {
+                return Err(Error::invalid("camera.shutter", format!("{open},{close}: open must be at most close, both finite (frames)")));
+            }
+        }
+        if !(cam.fps.is_finite() && cam.fps > 0.0) {
+            return Err(Error::invalid("camera.fps", format!("{} must be a positive number of frames per second", cam.fps)));
+        }
         let v = &scene.volume;
         selector("volume.density_grid", &v.density_grid)?;
         selector("volume.temperature_grid", &v.temperature_grid)?;

@@ -543,6 +543,10 @@ impl Field for Volume {
     type Piece = Segment;
     type Segments<'a> = VolumeSegments<'a>;
 
+    fn albedo_at(&self, p_world: DVec3) -> f32 {
+        self.voxel_albedo((self.index_from_world.transform_point3(p_world) + 0.5).floor().as_ivec3())
+    }
+
     fn world_bounds(&self) -> Bounds3 {
         world_box(&self.world_from_index, self.index_bounds())
     }

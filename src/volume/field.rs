@@ -302,6 +302,11 @@ pub trait Field: Sync {
         PointValues { density: v.density, emission: le(v.density, v.source).to_f64() }
     }
 
+    /// Albedo factor at a world point (the nearest voxel's; 1 without an albedo grid).
+    fn albedo_at(&self, _p_world: DVec3) -> f32 {
+        1.0
+    }
+
     /// Rays through `grid` will be traced soon: a field paged from disk may start reading
     /// what they cross (`volume::prefetch`). A hint that never changes a result; nothing
     /// by default.

@@ -11,11 +11,13 @@ pub mod builder;
 pub mod dda;
 pub mod field;
 pub mod majorant;
+pub mod motion;
 pub mod prefetch;
 pub mod proxy;
 pub mod pyramid;
 pub mod storage;
 pub mod trilinear;
+pub mod velocity;
 
 pub use brick::Volume;
 

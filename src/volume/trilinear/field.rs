@@ -144,6 +144,10 @@ impl Trilinear {
 
 impl Field for Trilinear {
     type Piece = CubicSegment;
+
+    fn albedo_at(&self, p_world: DVec3) -> f32 {
+        self.volume.albedo_at(p_world)
+    }
     type Segments<'a> = CellWalk<DualCells<'a>>;
 
     fn world_bounds(&self) -> Bounds3 {

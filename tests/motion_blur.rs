@@ -192,3 +192,31 @@ fn bad_motion_input_is_one_line_and_no_output() {
         assert!(!out.exists());
     }
 }
+
+#[test]
+fn the_generated_explosion_expands_and_swirls() {
+    // v = k (p − c) + A ∇×ψ: the divergence is 3k (the curl part has none) and the field
+    // is not purely radial
+    use plume::synth::velocity::{explosion_velocity, EXPANSION_RATE};
+    let params = ExplosionParams { resolution: 48, seed: 2, ..Default::default() };
+    let ex = explosion(&params);
+    let v = explosion_velocity(&params, &ex.density);
+    let grid = plume::volume::velocity::VelocityGrid::from_components([&v[0], &v[1], &v[2]], "synth").unwrap();
+    let h = 4.0 / 48.0; // one voxel
+    let (mut div, mut swirl, mut n) = (0.0f64, 0.0f64, 0);
+    let mut rng = Sampler::new(5, 0, 0);
+    while n < 400 {
+        let p = DVec3::new(rng.next_f64() - 0.5, rng.next_f64() * 0.8 + 0.1, rng.next_f64() - 0.5);
+        let probes = [DVec3::X, DVec3::Y, DVec3::Z].map(|a| (grid.at(p + a * h), grid.at(p - a * h)));
+        if probes.iter().any(|(a, b)| *a == DVec3::ZERO || *b == DVec3::ZERO) {
+            continue; // outside the leaves
+        }
+        div += (0..3).map(|k| (probes[k].0[k] - probes[k].1[k]) / (2.0 * h)).sum::<f64>();
+        let radial = p - DVec3::new(0.0, 0.45, 0.0);
+        swirl += (grid.at(p) - radial * f64::from(EXPANSION_RATE)).length();
+        n += 1;
+    }
+    let (div, swirl) = (div / f64::from(n), swirl / f64::from(n));
+    assert!((div - 3.0 * f64::from(EXPANSION_RATE)).abs() < 0.15 * 3.0 * f64::from(EXPANSION_RATE), "mean divergence {div}");
+    assert!(swirl > 0.2, "no curl noise: mean |v − radial| = {swirl}");
+}

@@ -66,7 +66,8 @@ pub struct InfoArgs {
 /// `plume synth …`.
 #[derive(Debug, Subcommand)]
 pub enum SynthCommand {
-    /// A fireball: sparse `density` and Kelvin `temperature` grids in a 4 m cube.
+    /// A fireball: sparse `density` and Kelvin `temperature` grids in a 4 m cube, and its
+    /// `velocity` (`velocity.x/.y/.z`, m/s: radial expansion plus curl noise) for motion blur.
     Explosion(SynthExplosionArgs),
     /// A solar flare: hot (10⁶–2·10⁷ K) plasma loops over a dark photosphere in a 100 m cube.
     ///
@@ -209,7 +210,9 @@ pub fn synth_explosion_command(args: &SynthExplosionArgs) -> Result<()> {
     let t = Instant::now();
     let params = plume::synth::ExplosionParams { resolution: args.resolution, seed: args.seed, ..Default::default() };
     let ex = plume::synth::explosion(&params);
-    vdb::write_float_grids(&args.output, &[&ex.density, &ex.temperature])?;
+    // Velocity for motion blur, as Houdini-style components (`--velocity-grid velocity`)
+    let [vx, vy, vz] = plume::synth::velocity::explosion_velocity(&params, &ex.density);
+    vdb::write_float_grids(&args.output, &[&ex.density, &ex.temperature, &vx, &vy, &vz])?;
     eprintln!(
         "plume: wrote {} ({}³, {} + {} leaves) in {:.2} s",
         args.output.display(),

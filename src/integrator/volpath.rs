@@ -9,6 +9,13 @@
 //!
 //! No vertex emission is ever added: with line integration it would double count.
 //!
+//! **Motion blur** (`volume::motion`): each sample draws its shutter time and tracks by
+//! null collisions at that time (`integrator::tracker`). FNEE keeps the proxy built from
+//! the frame's data: it only chooses directions, and wherever it gives a direction of the
+//! moved emission no density, phase sampling carries that emission with full weight
+//! (`w(p_ph, 0) = 1`), so the estimate stays unbiased. Classic NEE draws *points* from the
+//! frame's emitters, which the motion moves off its support: refused with motion blur.
+//!
 //! **Light sampling and MIS weights** (balance `k = 1` or power `k = 2`,
 //! `w(a, b) = aᵏ/(aᵏ + bᵏ)`; the volume is the only sampled light, `P_vol = 1`):
 //! - `none`: `w_fwd = 1`.

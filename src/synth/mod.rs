@@ -45,6 +45,7 @@
 
 mod flare;
 mod noise;
+pub mod velocity;
 
 use glam::{DAffine3, DVec3, IVec3, Vec3};
 use rayon::prelude::*;

@@ -6,7 +6,8 @@
 // - scan.cc     the bounded pre-scan of the header, file metadata and grid descriptors
 //               before OpenVDB parses the file; Catalog, which runs it and opens the file.
 // - list.cc     grid_names and list_grids: a file's grids and their summaries.
-// - read.cc     open_float_grid and FloatGridReader: one grid read whole, tiles voxelized.
+// - read.cc     open_float_grid and FloatGridReader, open_vec3_grid and Vec3GridReader: one
+//               scalar or vector grid read whole, tiles voxelized.
 // - stream.cc   open_leaf_stream and LeafStream: one grid with delayed loading, leaf by leaf.
 // - write.cc    new_grid_writer and GridWriter: float grids to one .vdb file.
 //
@@ -83,25 +84,32 @@ std::array<double, 12> world_from_index_columns(const vdb::math::Transform& tran
 
 std::uint64_t saturating_add(std::uint64_t a, std::uint64_t b);
 
-// An active tile, to be voxelized into leaf-sized blocks of its value.
-struct Tile {
+// An active tile, to be voxelized into leaf-sized blocks of its value: `double` for
+// scalar grids (Tile), `Vec3d` for vector grids (Vec3Tile).
+template <typename ValueT>
+struct BasicTile {
     vdb::CoordBBox bbox;  // inclusive; every side a multiple of 8 voxels
-    double value;
+    ValueT value;
 };
+using Tile = BasicTile<double>;
+using Vec3Tile = BasicTile<vdb::Vec3d>;
 
-// Active tiles above leaf level. Tiles are constant regions, so voxelizing means
-// emitting one 8^3 block per leaf-sized cell of each tile.
-template <typename TreeT>
-std::vector<Tile> collect_tiles(const TreeT& tree, std::uint64_t& tile_leaves) {
-    std::vector<Tile> tiles;
+// Active tiles above leaf level, in tree order, values converted to TileT's value type.
+// Tiles are constant regions, so voxelizing means emitting one 8^3 block per leaf-sized
+// cell of each tile. Scalar and vector reads share this walk, so their blocks come out
+// in the same order.
+template <typename TileT = Tile, typename TreeT>
+std::vector<TileT> collect_tiles(const TreeT& tree, std::uint64_t& tile_leaves) {
+    using Value = decltype(TileT::value);
+    std::vector<TileT> tiles;
     tile_leaves = 0;
     auto it = tree.cbeginValueOn();
     it.setMaxDepth(TreeT::DEPTH - 2);  // stop above the leaves: tiles only
     for (; it; ++it) {
         if (!it.isTileValue()) continue;
-        Tile tile;
+        TileT tile;
         it.getBoundingBox(tile.bbox);
-        tile.value = static_cast<double>(*it);
+        tile.value = static_cast<Value>(*it);
         tiles.push_back(tile);
         tile_leaves = saturating_add(tile_leaves, it.getVoxelCount() / 512);
     }

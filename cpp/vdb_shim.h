@@ -1,7 +1,7 @@
 // The C++ side of plume's OpenVDB bridge (see src/vdb/ffi.rs for the Rust side).
 //
 // This header is included by the cxx-generated glue, so it names no OpenVDB type: the
-// three opaque classes keep their OpenVDB state behind a pointer to an `Impl` defined in
+// four opaque classes keep their OpenVDB state behind a pointer to an `Impl` defined in
 // read.cc, stream.cc or write.cc (shim_internal.h lists the shim's files). Every function
 // that can fail throws std::runtime_error with a one-line message; the bridge declares all
 // of them `-> Result`, so no exception reaches Rust.
@@ -20,6 +20,7 @@ namespace shim {
 // Shared structs, defined by the cxx-generated header (src/vdb/ffi.rs.h).
 struct GridSummary;
 struct FloatGridHeader;
+struct Vec3GridHeader;
 struct LeafStreamHeader;
 struct ActiveTile;
 
@@ -37,6 +38,27 @@ public:
     // Fills 3 origin components and 512 values per output leaf; the slices must have
     // exactly the sizes announced by header().
     void copy_leaves(rust::Slice<std::int32_t> origins, rust::Slice<float> values) const;
+
+private:
+    std::unique_ptr<Impl> impl_;
+};
+
+// One vec3s or vec3d grid, read into memory and ready to be copied out as three float
+// components that share the leaf origins (the blocks in FloatGridReader's order).
+class Vec3GridReader {
+public:
+    struct Impl;
+    explicit Vec3GridReader(std::unique_ptr<Impl> impl);
+    ~Vec3GridReader();
+    Vec3GridReader(const Vec3GridReader&) = delete;
+    Vec3GridReader& operator=(const Vec3GridReader&) = delete;
+
+    // Status, transform, background and output size (leaves + voxelized tiles).
+    Vec3GridHeader header() const;
+    // Fills 3 origin components per output leaf and 512 values per leaf in each of x, y
+    // and z; the slices must have exactly the sizes announced by header().
+    void copy_leaves(rust::Slice<std::int32_t> origins, rust::Slice<float> x,
+                     rust::Slice<float> y, rust::Slice<float> z) const;
 
 private:
     std::unique_ptr<Impl> impl_;
@@ -91,6 +113,9 @@ rust::Vec<GridSummary> list_grids(rust::Str path);
 // type or a non-linear transform is reported through header().status, not thrown.
 std::unique_ptr<FloatGridReader> open_float_grid(rust::Str path, rust::Str name,
                                                  std::size_t occurrence);
+// As open_float_grid, for a vec3s or vec3d grid (a scalar type is ReadStatus::NotVec3).
+std::unique_ptr<Vec3GridReader> open_vec3_grid(rust::Str path, rust::Str name,
+                                               std::size_t occurrence);
 // Opens the `occurrence`-th grid named `name` (file order) for streaming, reading its
 // topology only; outcomes as for open_float_grid.
 std::unique_ptr<LeafStream> open_leaf_stream(rust::Str path, rust::Str name,

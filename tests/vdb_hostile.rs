@@ -10,7 +10,7 @@ use std::fs;
 use std::path::Path;
 
 use common::{data, read, scratch_dir};
-use plume::vdb::{list_grids, read_float_grid, GridSelector, ReadLimits};
+use plume::vdb::{list_grids, read_float_grid, read_vec3_grid, GridSelector, ReadLimits};
 use plume::Error;
 
 /// OpenImageIO's damaged files: the bbox files hold valid, empty trees whose grid metadata
@@ -42,7 +42,11 @@ fn malformed_bbox_files_are_empty_grids() {
 #[test]
 fn truncated_file_is_an_error() {
     let path = data("edge_cases/malformed/oiio_truncated.vdb");
-    for result in [list_grids(&path).map(|_| ()), read_float_grid(&path, &"huge".parse().unwrap(), &ReadLimits::default()).map(|_| ())] {
+    for result in [
+        list_grids(&path).map(|_| ()),
+        read_float_grid(&path, &"huge".parse().unwrap(), &ReadLimits::default()).map(|_| ()),
+        read_vec3_grid(&path, &"huge".parse().unwrap(), &ReadLimits::default()).map(|_| ()),
+    ] {
         match result {
             Err(Error::Vdb { message, .. }) => {
                 assert!(message.contains("truncated"), "{message}");
@@ -79,7 +83,11 @@ fn file_truncated_in_leaf_data_is_an_error() {
 #[test]
 fn nanovdb_file_gets_a_clear_error() {
     let path = data("nanovdb/openvdb_fvdb_smoke-blosc.nvdb");
-    for error in [list_grids(&path).unwrap_err(), read_float_grid(&path, &GridSelector::first("density"), &ReadLimits::default()).unwrap_err()] {
+    for error in [
+        list_grids(&path).unwrap_err(),
+        read_float_grid(&path, &GridSelector::first("density"), &ReadLimits::default()).unwrap_err(),
+        read_vec3_grid(&path, &GridSelector::first("velocity"), &ReadLimits::default()).unwrap_err(),
+    ] {
         assert!(matches!(error, Error::Vdb { .. }), "{error:?}");
         let message = error.to_string();
         assert!(message.contains("NanoVDB") && message.contains("nanovdb_convert"), "{message}");

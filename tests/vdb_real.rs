@@ -219,8 +219,10 @@ fn duplicate_names_are_addressed_in_file_order() {
     }
 }
 
+/// A vector grid is listed, and refused by the scalar reader (`read_vec3_grid` reads it as
+/// three components: `tests/vec3_grids.rs`).
 #[test]
-fn vec3_grid_is_listed_but_not_read() {
+fn vec3_grid_is_listed_but_not_read_as_a_float_grid() {
     let path = "edge_cases/oiio_sphereCd.vdb";
     let infos = list_grids(&data(path)).unwrap();
     assert_eq!(infos.len(), 1);

@@ -37,10 +37,12 @@ mod bridge {
         Ready,
         /// No grid with that name and occurrence.
         NotFound,
-        /// The grid's value type is not `float` or `double`.
+        /// The grid's value type is not `float` or `double` (a scalar read).
         NotScalar,
         /// The transform is not affine (e.g. a frustum).
         NonLinearTransform,
+        /// The grid's value type is not `vec3s` or `vec3d` (a vector read).
+        NotVec3,
     }
 
     /// What a [`FloatGridReader`] holds, before any value is copied.
@@ -54,6 +56,23 @@ mod bridge {
         /// translation (glam's `DAffine3::to_cols_array` order).
         world_from_index: [f64; 12],
         background: f32,
+        /// Leaves stored in the file.
+        leaf_count: u64,
+        /// Leaf-sized blocks produced by voxelizing active tiles (saturating).
+        tile_leaf_count: u64,
+        /// Active tiles above leaf level.
+        active_tiles: u64,
+    }
+
+    /// What a [`Vec3GridReader`] holds, before any value is copied; as
+    /// [`FloatGridHeader`] but for three components.
+    struct Vec3GridHeader {
+        status: ReadStatus,
+        value_type: String,
+        transform: String,
+        world_from_index: [f64; 12],
+        /// Background of the x, y and z components.
+        background: [f32; 3],
         /// Leaves stored in the file.
         leaf_count: u64,
         /// Leaf-sized blocks produced by voxelizing active tiles (saturating).
@@ -95,6 +114,8 @@ mod bridge {
 
         /// One float or double grid read into memory (opaque, owned by C++).
         type FloatGridReader;
+        /// One vec3s or vec3d grid read into memory (opaque, owned by C++).
+        type Vec3GridReader;
         /// Collects float grids and writes them to a file (opaque, owned by C++).
         type GridWriter;
         /// One float or double grid's topology, its leaves still in the file (opaque).
@@ -112,6 +133,16 @@ mod bridge {
         /// Copies every leaf, then every voxelized tile block: 3 origin components and
         /// 512 values per block. The slices must match the sizes in `header()`.
         fn copy_leaves(self: &FloatGridReader, origins: &mut [i32], values: &mut [f32]) -> Result<()>;
+
+        /// As [`open_float_grid`] for a `vec3s` or `vec3d` grid (another type is
+        /// `ReadStatus::NotVec3`).
+        fn open_vec3_grid(path: &str, name: &str, occurrence: usize) -> Result<UniquePtr<Vec3GridReader>>;
+        /// Status, transform and output size of an opened vector grid.
+        fn header(self: &Vec3GridReader) -> Result<Vec3GridHeader>;
+        /// Copies every leaf, then every voxelized tile block, in [`FloatGridReader`]'s
+        /// order: 3 origin components per block and 512 values per block into each of `x`,
+        /// `y` and `z`. The slices must match the sizes in `header()`.
+        fn copy_leaves(self: &Vec3GridReader, origins: &mut [i32], x: &mut [f32], y: &mut [f32], z: &mut [f32]) -> Result<()>;
 
         /// Opens the `occurrence`-th grid named `name` (file order) with delayed loading
         /// and reads its topology, unless its type or transform is unusable; the outcome

@@ -7,7 +7,9 @@
 //!
 //! Data comes out as plain [`FloatGrid`]s: leaf origins plus 8³ value blocks in index
 //! space, and the affine `world_from_index` transform. Active tiles are voxelized into
-//! leaves on the C++ side, so constant regions are never lost.
+//! leaves on the C++ side, so constant regions are never lost. A vector grid (a velocity
+//! for motion blur) comes out of [`read_vec3_grid`] as three `FloatGrid`s, one per
+//! component, with identical leaves and transform.
 //!
 //! # Conventions
 //!
@@ -20,13 +22,17 @@
 //!   order, then one leaf-sized block per 8³ cell of each active tile (tile value
 //!   everywhere). Inactive tiles are not voxelized: outside the leaves the grid reads as
 //!   its background.
-//! - **Types**: `float` grids (including half-float storage, which reads as float) and
-//!   `double` grids (cast to `f32`) are read; anything else is
-//!   [`Error::UnsupportedGrid`](crate::Error::UnsupportedGrid), as is a non-affine
-//!   (frustum) transform.
+//! - **Types**: [`read_float_grid`] reads `float` grids (including half-float storage,
+//!   which reads as float) and `double` grids (cast to `f32`); [`read_vec3_grid`] reads
+//!   `vec3s` (half-float storage included) and `vec3d` grids, as components `NAME.x`,
+//!   `NAME.y`, `NAME.z`. Any other type is
+//!   [`Error::UnsupportedGrid`](crate::Error::UnsupportedGrid) naming it, as is a
+//!   non-affine (frustum) transform. A velocity stored as three float grids (`vel.x`,
+//!   `vel.y`, `vel.z`, as Houdini may write it) is three [`read_float_grid`] calls.
 //! - **Memory**: [`read_float_grid`] computes the bytes its output needs (file leaves plus
 //!   voxelized tiles) before allocating and refuses with
-//!   [`Error::TooLarge`](crate::Error::TooLarge) above [`ReadLimits::max_bytes`]. Header
+//!   [`Error::TooLarge`](crate::Error::TooLarge) above [`ReadLimits::max_bytes`];
+//!   [`read_vec3_grid`] does the same for three times those bytes. Header
 //!   metadata such as `file_bbox_min/max` is never used to size anything.
 //! - **Hostile files**: before OpenVDB parses a file, the shim walks its header and grid
 //!   descriptors with every length checked against the file size, so a truncated file is
@@ -35,7 +41,8 @@
 //!   NaN or infinite are rejected as corrupt.
 //! - **Untrusted files** are read in a child process ([`isolate`]): a crash, hang or
 //!   runaway allocation in OpenVDB becomes [`Error::ReaderFailed`](crate::Error::ReaderFailed)
-//!   instead of taking plume down. The CLI reads this way by default.
+//!   instead of taking plume down. The CLI reads this way by default. Vector grids too:
+//!   [`ReadIsolation::read_vec3_grid`] / [`read_vec3_grid_isolated`].
 //! - **Streaming**: [`stream_float_grid`] (and [`ReadIsolation::stream_float_grid`]) visit
 //!   one grid block by block in bounded memory, with OpenVDB's delayed loading; the blocks
 //!   and values are exactly those of [`read_float_grid`], tiles as constant blocks.
@@ -50,8 +57,8 @@ mod stream;
 pub mod wire;
 mod write;
 
-pub use isolate::{list_grids_isolated, read_float_grids_isolated, read_grids_isolated, IsolationLimits, ReadIsolation};
-pub use read::{list_grids, read_float_grid, read_grids, FoundGrid, GridRequest, ReadLimits};
+pub use isolate::{list_grids_isolated, read_float_grids_isolated, read_grids_isolated, read_vec3_grid_isolated, IsolationLimits, ReadIsolation};
+pub use read::{list_grids, read_float_grid, read_grids, read_vec3_grid, FoundGrid, GridRequest, ReadLimits};
 pub use selector::GridSelector;
 pub(crate) use stream::FileStamp;
 pub use stream::{stream_float_grid, stream_float_grid_isolated, HeaderVisitor, LeafData, LeafVisitor, StreamedGrid};
@@ -74,7 +81,8 @@ pub const fn leaf_offset(x: i32, y: i32, z: i32) -> usize {
     (((x & 7) << 6) | ((y & 7) << 3) | (z & 7)) as usize
 }
 
-/// One scalar float grid as plain data, in index space.
+/// One scalar float grid as plain data, in index space (also one component of a vector
+/// grid, see [`read_vec3_grid`]).
 #[derive(Clone, Debug)]
 pub struct FloatGrid {
     /// Grid name as stored in the file (for duplicates, the bare name).

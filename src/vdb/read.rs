@@ -1,4 +1,5 @@
-//! Reading: [`list_grids`] for `plume info`, [`read_float_grid`] for rendering.
+//! Reading: [`list_grids`] for `plume info`, [`read_float_grid`] for rendering,
+//! [`read_vec3_grid`] for velocities (motion blur).
 //!
 //! Both check the path in Rust first (exists, regular file, OpenVDB magic number; a
 //! NanoVDB file gets its own message), then call the shim.
@@ -84,6 +85,8 @@ pub fn list_grids(path: &Path) -> Result<Vec<GridInfo>> {
 /// reads as float). Leaves come out in OpenVDB tree order, followed by one leaf-sized
 /// block per 8³ cell of every active tile, filled with the tile value.
 ///
+/// See also [`read_vec3_grid`] for vector grids.
+///
 /// # Errors
 /// - [`Error::Open`]: the file is missing or not a regular file.
 /// - [`Error::Vdb`]: not a readable OpenVDB file, or it holds NaN/infinite values.
@@ -98,29 +101,12 @@ pub fn read_float_grid(path: &Path, selector: &GridSelector, limits: &ReadLimits
     let header = reader.header().map_err(|e| vdb_error(path, &e))?;
     check_status(path, path_str, selector, header.status, &header.value_type, &header.transform)?;
 
-    // Size the output from the tree (leaves + tiles), never from header metadata.
-    let leaves = header.leaf_count.saturating_add(header.tile_leaf_count);
-    let needed = leaves.saturating_mul(BYTES_PER_LEAF);
-    let too_large = || Error::TooLarge { path: path.to_path_buf(), grid: selector.to_string(), needed, limit: limits.max_bytes };
-    if needed > limits.max_bytes {
-        return Err(too_large());
-    }
-    let leaf_count = usize::try_from(leaves).map_err(|_| too_large())?;
-    let mut origins = zeroed_vec::<i32>(3 * leaf_count).ok_or_else(too_large)?;
-    let mut values = zeroed_vec::<f32>(LEAF_VOXELS * leaf_count).ok_or_else(too_large)?;
+    let output = Output::new(path, selector, header.leaf_count, header.tile_leaf_count, BYTES_PER_LEAF, limits)?;
+    let mut origins = output.buffer::<i32>(3)?;
+    let mut values = output.buffer::<f32>(LEAF_VOXELS)?;
     reader.copy_leaves(&mut origins, &mut values).map_err(|e| vdb_error(path, &e))?;
 
-    let non_finite = values.iter().filter(|v| !v.is_finite()).count();
-    if non_finite > 0 || !header.background.is_finite() {
-        return Err(vdb_message(
-            path,
-            format!(
-                "grid {selector}: {non_finite} of {} values (or the background) are NaN or \
-                 infinite; the file is corrupt",
-                values.len()
-            ),
-        ));
-    }
+    check_finite(path, selector, &[&values], &[header.background])?;
     Ok(FloatGrid {
         name: selector.name.clone(),
         world_from_index: DAffine3::from_cols_array(&header.world_from_index),
@@ -130,11 +116,123 @@ pub fn read_float_grid(path: &Path, selector: &GridSelector, limits: &ReadLimits
     })
 }
 
+/// A vector grid as three float grids sharing leaves and transform (names `NAME.x`,
+/// `NAME.y`, `NAME.z`).
+///
+/// `vec3s` grids (half-float storage included, which reads as float) and `vec3d` grids
+/// (cast to `f32`) are accepted, e.g. Blender's `velocity` or Houdini's `vel`. The three
+/// grids have identical [`FloatGrid::origins`], in the order [`read_float_grid`] uses (file
+/// leaves in tree order, then one block per 8³ cell of every active tile, each component
+/// filled with the tile's component), the grid's `world_from_index`, and as background
+/// the matching component of the vector background. `NAME` is the bare grid name (for a
+/// selector `vel[1]`, `vel.x`, …).
+///
+/// A velocity stored as three float grids (`vel.x`, `vel.y`, `vel.z`) is read with
+/// [`read_float_grid`] once per component instead.
+///
+/// # Errors
+/// - [`Error::Open`], [`Error::Vdb`] (NaN or infinite components included) and
+///   [`Error::GridNotFound`]: as [`read_float_grid`].
+/// - [`Error::UnsupportedGrid`]: the grid is not `vec3s`/`vec3d` (the message names its
+///   type), or its transform is not affine.
+/// - [`Error::TooLarge`]: the three voxelized components would need more than
+///   `limits.max_bytes`, that is 3 × what a float grid of the same leaves needs.
+pub fn read_vec3_grid(path: &Path, selector: &GridSelector, limits: &ReadLimits) -> Result<[FloatGrid; 3]> {
+    let path_str = check_file(path)?;
+    let reader = ffi::open_vec3_grid(path_str, &selector.name, selector.occurrence).map_err(|e| vdb_error(path, &e))?;
+    let header = reader.header().map_err(|e| vdb_error(path, &e))?;
+    check_status(path, path_str, selector, header.status, &header.value_type, &header.transform)?;
+
+    // Three FloatGrids, each with its own copy of the origins
+    let output = Output::new(path, selector, header.leaf_count, header.tile_leaf_count, VEC3_BYTES_PER_LEAF, limits)?;
+    let mut origins = output.buffer::<i32>(3)?;
+    let mut x = output.buffer::<f32>(LEAF_VOXELS)?;
+    let mut y = output.buffer::<f32>(LEAF_VOXELS)?;
+    let mut z = output.buffer::<f32>(LEAF_VOXELS)?;
+    reader.copy_leaves(&mut origins, &mut x, &mut y, &mut z).map_err(|e| vdb_error(path, &e))?;
+    drop(reader);
+
+    check_finite(path, selector, &[&x, &y, &z], &header.background)?;
+    let origins: Vec<IVec3> = origins.chunks_exact(3).map(IVec3::from_slice).collect();
+    let world_from_index = DAffine3::from_cols_array(&header.world_from_index);
+    let component = |axis: &str, values: Vec<f32>, background: f32, origins: Vec<IVec3>| FloatGrid {
+        name: format!("{}.{axis}", selector.name),
+        world_from_index,
+        background,
+        origins,
+        values,
+    };
+    let [bx, by, bz] = header.background;
+    Ok([component("x", x, bx, output.copy_of(&origins)?), component("y", y, by, output.copy_of(&origins)?), component("z", z, bz, origins)])
+}
+
+/// Output bytes per leaf of [`read_vec3_grid`]: three component grids, each with its
+/// values and its copy of the leaf origins.
+pub(crate) const VEC3_BYTES_PER_LEAF: u64 = 3 * BYTES_PER_LEAF;
+
+/// The size of a read's output, checked against [`ReadLimits::max_bytes`] before anything
+/// is allocated; allocations that fail anyway become [`Error::TooLarge`].
+struct Output<'a> {
+    path: &'a Path,
+    selector: &'a GridSelector,
+    /// Output blocks: file leaves plus voxelized tile blocks.
+    leaves: usize,
+    needed: u64,
+    limit: u64,
+}
+
+impl<'a> Output<'a> {
+    /// Sizes the output from the tree (leaves + tiles), never from header metadata.
+    fn new(path: &'a Path, selector: &'a GridSelector, leaf_count: u64, tile_leaf_count: u64, bytes_per_leaf: u64, limits: &ReadLimits) -> Result<Output<'a>> {
+        let leaves = leaf_count.saturating_add(tile_leaf_count);
+        let mut output = Output { path, selector, leaves: 0, needed: leaves.saturating_mul(bytes_per_leaf), limit: limits.max_bytes };
+        if output.needed > output.limit {
+            return Err(output.too_large());
+        }
+        output.leaves = usize::try_from(leaves).map_err(|_| output.too_large())?;
+        Ok(output)
+    }
+
+    fn too_large(&self) -> Error {
+        Error::TooLarge { path: self.path.to_path_buf(), grid: self.selector.to_string(), needed: self.needed, limit: self.limit }
+    }
+
+    /// A zero-filled buffer of `per_leaf` items per output leaf.
+    fn buffer<T: Default + Clone>(&self, per_leaf: usize) -> Result<Vec<T>> {
+        let len = per_leaf.checked_mul(self.leaves).ok_or_else(|| self.too_large())?;
+        let mut v = Vec::new();
+        v.try_reserve_exact(len).map_err(|_| self.too_large())?;
+        v.resize(len, T::default());
+        Ok(v)
+    }
+
+    /// A copy of `items`, allocated fallibly.
+    fn copy_of<T: Clone>(&self, items: &[T]) -> Result<Vec<T>> {
+        let mut v = Vec::new();
+        v.try_reserve_exact(items.len()).map_err(|_| self.too_large())?;
+        v.extend_from_slice(items);
+        Ok(v)
+    }
+}
+
+/// Refuses NaN or infinite values (or backgrounds) as corruption: OpenVDB reads damaged
+/// leaf data without complaint.
+fn check_finite(path: &Path, selector: &GridSelector, components: &[&[f32]], backgrounds: &[f32]) -> Result<()> {
+    let non_finite: usize = components.iter().map(|values| values.iter().filter(|v| !v.is_finite()).count()).sum();
+    if non_finite == 0 && backgrounds.iter().all(|b| b.is_finite()) {
+        return Ok(());
+    }
+    let total: usize = components.iter().map(|values| values.len()).sum();
+    let what = if components.len() == 1 { "values" } else { "vector components" };
+    Err(vdb_message(path, format!("grid {selector}: {non_finite} of {total} {what} (or the background) are NaN or infinite; the file is corrupt")))
+}
+
 /// The error for a grid the shim opened but cannot read, `Ok` for [`ffi::ReadStatus::Ready`].
 ///
 /// # Errors
 /// [`Error::GridNotFound`] (listing the selectors the file holds),
-/// [`Error::UnsupportedGrid`] for a non-scalar type or a non-affine transform.
+/// [`Error::UnsupportedGrid`] for a type the read does not take (not scalar for
+/// [`read_float_grid`], not a vector for [`read_vec3_grid`]) or a non-affine transform.
 pub(crate) fn check_status(path: &Path, path_str: &str, selector: &GridSelector, status: ffi::ReadStatus, value_type: &str, transform: &str) -> Result<()> {
     let unsupported = |message: String| Error::UnsupportedGrid { path: path.to_path_buf(), grid: selector.to_string(), message };
     match status {
@@ -143,17 +241,10 @@ pub(crate) fn check_status(path: &Path, path_str: &str, selector: &GridSelector,
             Err(Error::GridNotFound { path: path.to_path_buf(), name: selector.to_string(), available: available_selectors(path, path_str)? })
         }
         ffi::ReadStatus::NotScalar => Err(unsupported(format!("value type {value_type} is not a scalar grid (plume reads float and double grids)"))),
+        ffi::ReadStatus::NotVec3 => Err(unsupported(format!("value type {value_type} is not a vector grid (plume reads vec3s and vec3d grids as vectors)"))),
         ffi::ReadStatus::NonLinearTransform => Err(unsupported(format!("transform {transform} is not affine (plume needs a linear index-to-world map)"))),
         _ => Err(vdb_message(path, format!("shim returned an unknown status for {selector}"))),
     }
-}
-
-/// A zero-filled vector, or `None` if the allocation fails.
-fn zeroed_vec<T: Default + Clone>(len: usize) -> Option<Vec<T>> {
-    let mut v = Vec::new();
-    v.try_reserve_exact(len).ok()?;
-    v.resize(len, T::default());
-    Some(v)
 }
 
 /// Selectors of every grid in the file, for [`Error::GridNotFound`].

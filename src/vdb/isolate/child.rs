@@ -12,7 +12,7 @@ use crate::error::Error;
 use crate::vdb::read::plan_requests;
 use crate::vdb::stream::serve_stream;
 use crate::vdb::wire::{ChildError, Encoder};
-use crate::vdb::{list_grids, read_float_grid, GridRequest, GridSelector, ReadLimits};
+use crate::vdb::{list_grids, read_float_grid, read_vec3_grid, GridRequest, GridSelector, ReadLimits};
 
 /// Runs the reader subcommand (the arguments after [`READER_SUBCOMMAND`]) and ends the
 /// process: exit status 0 after a complete reply (which may report a clean failure), 1
@@ -51,6 +51,7 @@ enum ReaderCommand {
     List { path: PathBuf },
     Read { path: PathBuf, limits: ReadLimits, requests: Vec<GridRequest> },
     Stream { path: PathBuf, limits: ReadLimits, selector: GridSelector },
+    Vec3 { path: PathBuf, limits: ReadLimits, selector: GridSelector },
 }
 
 impl ReaderCommand {
@@ -58,7 +59,7 @@ impl ReaderCommand {
         let usage = || {
             format!(
                 "usage: plume {READER_SUBCOMMAND} list FILE | read FILE MAX_BYTES (need|want) N SEL... ... \
-                 | stream FILE MAX_BYTES SEL"
+                 | stream FILE MAX_BYTES SEL | vec3 FILE MAX_BYTES SEL"
             )
         };
         let mut it = args.iter();
@@ -89,10 +90,11 @@ impl ReaderCommand {
                 }
                 Ok(ReaderCommand::Read { path, limits: ReadLimits { max_bytes }, requests })
             }
-            "stream" if it.len() == 2 => {
+            "stream" | "vec3" if it.len() == 2 => {
                 let max_bytes = text(it.next(), usage)?.parse().map_err(|_| usage())?;
                 let selector = text(it.next(), usage)?.parse().map_err(|e: Error| e.to_string())?;
-                Ok(ReaderCommand::Stream { path, limits: ReadLimits { max_bytes }, selector })
+                let limits = ReadLimits { max_bytes };
+                Ok(if mode == "stream" { ReaderCommand::Stream { path, limits, selector } } else { ReaderCommand::Vec3 { path, limits, selector } })
             }
             _ => Err(usage()),
         }
@@ -119,6 +121,9 @@ fn serve(command: &ReaderCommand) -> io::Result<()> {
         ReaderCommand::Stream { path, limits, selector } => {
             serve_stream(&mut out, path, limits, selector)?;
         }
+        ReaderCommand::Vec3 { path, limits, selector } => {
+            serve_vec3(&mut out, path, limits, selector)?;
+        }
     }
     out.end()?;
     Ok(())
@@ -143,6 +148,15 @@ fn serve_read<W: Write>(out: &mut Encoder<W>, path: &Path, limits: &ReadLimits, 
         }
     }
     Ok(())
+}
+
+/// One vector grid as three GRID records (x, y, z) for request 0, alternative 0.
+fn serve_vec3<W: Write>(out: &mut Encoder<W>, path: &Path, limits: &ReadLimits, selector: &GridSelector) -> io::Result<()> {
+    out.begin(0, 0)?;
+    match read_vec3_grid(path, selector, limits) {
+        Ok(components) => components.iter().try_for_each(|grid| out.grid(0, 0, grid)),
+        Err(e) => out.failed(&ChildError::from_error(&e)),
+    }
 }
 
 /// Request and alternative indices come from a command line, far below `u32::MAX`.

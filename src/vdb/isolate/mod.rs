@@ -29,11 +29,13 @@
 //! plume __read-grids list FILE
 //! plume __read-grids read FILE MAX_BYTES (need|want) N SEL_1 … SEL_N  [(need|want) N …]
 //! plume __read-grids stream FILE MAX_BYTES SEL
+//! plume __read-grids vec3 FILE MAX_BYTES SEL
 //! ```
 //!
 //! `need` is a required [`GridRequest`], `want` an optional one; `MAX_BYTES` is
 //! [`ReadLimits::max_bytes`]; `stream` sends one grid batch by batch of leaves
-//! ([`super::stream_float_grid_isolated`]). The command can be run by hand to replay a
+//! ([`super::stream_float_grid_isolated`]); `vec3` sends one vector grid as three
+//! component grids ([`read_vec3_grid_isolated`]). The command can be run by hand to replay a
 //! failure (the reply is binary: pipe it into `xxd`).
 //!
 //! # Files
@@ -57,7 +59,7 @@ use super::ReadLimits;
 
 pub use child::reader_main;
 pub(in crate::vdb) use parent::{child_error, malformed_reply, unexpected};
-pub use parent::{list_grids_isolated, read_float_grids_isolated, read_grids_isolated, reader_exe, set_reader_exe, ReadIsolation};
+pub use parent::{list_grids_isolated, read_float_grids_isolated, read_grids_isolated, read_vec3_grid_isolated, reader_exe, set_reader_exe, ReadIsolation};
 pub(in crate::vdb) use process::{ChildPipes, Parsed, ReaderRun};
 
 /// The hidden subcommand (`argv[1]`) that runs the reader; `main.rs` dispatches on it

@@ -1,6 +1,6 @@
 //! The parent side of an isolated read: [`ReadIsolation`] chooses where to read, the
-//! `read` and `list` requests are sent to a child (`process.rs`), and its replies are
-//! decoded and checked against the requests, a clean failure becoming the error the
+//! `read`, `vec3` and `list` requests are sent to a child (`process.rs`), and its replies
+//! are decoded and checked against the requests, a clean failure becoming the error the
 //! in-process reader would have returned.
 
 use std::ffi::OsString;
@@ -13,7 +13,7 @@ use super::{IsolationLimits, ReaderRun};
 use crate::error::{Error, Result};
 use crate::vdb::read::check_file;
 use crate::vdb::wire::{ChildError, Decoder, Record, WireError};
-use crate::vdb::{list_grids, read_grids, FloatGrid, FoundGrid, GridInfo, GridRequest};
+use crate::vdb::{list_grids, read_grids, read_vec3_grid, FloatGrid, FoundGrid, GridInfo, GridRequest};
 use crate::vdb::{GridSelector, ReadLimits};
 
 /// The executable registered by [`set_reader_exe`].
@@ -78,6 +78,18 @@ impl ReadIsolation {
             ReadIsolation::Child { reader_exe, limits } => read_grids_isolated(reader_exe, path, requests, read_limits, limits),
         }
     }
+
+    /// [`crate::vdb::read_vec3_grid`], here or in the child: a vector grid as three float
+    /// grids `NAME.x`, `NAME.y`, `NAME.z` sharing leaves and transform.
+    ///
+    /// # Errors
+    /// As [`crate::vdb::read_vec3_grid`], plus [`Error::ReaderFailed`] and [`Error::ReaderSpawn`].
+    pub fn read_vec3_grid(&self, path: &Path, selector: &GridSelector, read_limits: &ReadLimits) -> Result<[FloatGrid; 3]> {
+        match self {
+            ReadIsolation::InProcess => read_vec3_grid(path, selector, read_limits),
+            ReadIsolation::Child { reader_exe, limits } => read_vec3_grid_isolated(reader_exe, path, selector, read_limits, limits),
+        }
+    }
 }
 
 /// Reads the grids named by `selectors` (all required) in one child process of
@@ -124,6 +136,77 @@ pub fn read_grids_isolated(
     let mut grid: Option<String> = None;
     let outcome = run.parse(read_limits.max_bytes, |decoder| parse_read_reply(decoder, requests, &mut grid));
     run.finish(path, outcome, grid.clone(), limits)?.map_err(|e| child_error(path, e, grid, limits))
+}
+
+/// [`crate::vdb::read_vec3_grid`] in one child process of `reader_exe`
+/// (`plume __read-grids vec3 FILE MAX_BYTES SEL`).
+///
+/// The child answers with BEGIN and one GRID record per component; the parent checks
+/// that they are `NAME.x`, `NAME.y` and `NAME.z` in that order, with identical leaf
+/// origins and transforms, and that each is within a third of `read_limits.max_bytes`
+/// (so all three together are within it, as in-process).
+///
+/// # Errors
+/// As [`crate::vdb::read_vec3_grid`]; [`Error::ReaderFailed`] when the child crashes,
+/// hangs, exceeds a limit or replies with garbage; [`Error::ReaderSpawn`] when it cannot
+/// start.
+pub fn read_vec3_grid_isolated(
+    reader_exe: &Path,
+    path: &Path,
+    selector: &GridSelector,
+    read_limits: &ReadLimits,
+    limits: &IsolationLimits,
+) -> Result<[FloatGrid; 3]> {
+    check_file(path)?;
+    let args: Vec<OsString> = vec!["vec3".into(), path.into(), read_limits.max_bytes.to_string().into(), selector.to_string().into()];
+    let mut run = ReaderRun::spawn(reader_exe, &args, limits)?;
+    let mut grid: Option<String> = None;
+    // leaves × BYTES_PER_LEAF ≤ ⌊max / 3⌋ exactly when 3 × leaves × BYTES_PER_LEAF ≤ max
+    let outcome = run.parse(read_limits.max_bytes / 3, |decoder| parse_vec3_reply(decoder, selector, &mut grid));
+    run.finish(path, outcome, grid.clone(), limits)?.map_err(|e| child_error(path, e, grid, limits))
+}
+
+/// The records of a `vec3` reply: BEGIN 0 0, then GRID 0 0 for `NAME.x`, `NAME.y` and
+/// `NAME.z` in order, sharing origins and transform; or FAILED (after BEGIN or not).
+/// `grid` tracks the selector being read, for crash messages.
+fn parse_vec3_reply<R: Read>(
+    decoder: &mut Decoder<R>,
+    selector: &GridSelector,
+    grid: &mut Option<String>,
+) -> std::result::Result<std::result::Result<[FloatGrid; 3], ChildError>, WireError> {
+    let mut components: Vec<FloatGrid> = Vec::with_capacity(3);
+    let mut begun = false;
+    loop {
+        match decoder.next()? {
+            Record::Begin { request: 0, alternative: 0 } if !begun => {
+                begun = true;
+                *grid = Some(selector.to_string());
+            }
+            Record::Grid { request: 0, alternative: 0, grid: g } if begun && components.len() < 3 => {
+                let axis = ["x", "y", "z"][components.len()];
+                if g.name != format!("{}.{axis}", selector.name) {
+                    return Err(malformed_reply(&format!("GRID {:?} is not component {axis} of the grid begun", g.name)));
+                }
+                if components.first().is_some_and(|x| x.origins != g.origins || x.world_from_index != g.world_from_index) {
+                    return Err(malformed_reply("vector components differ in leaves or transform"));
+                }
+                components.push(g);
+                if components.len() == 3 {
+                    *grid = None;
+                }
+            }
+            Record::Failed(e) => {
+                return match decoder.next()? {
+                    Record::End => Ok(Err(e)),
+                    other => Err(unexpected(&other)),
+                };
+            }
+            Record::End if components.len() == 3 => {
+                return Ok(Ok(components.try_into().expect("invariant: three components were checked")));
+            }
+            other => return Err(unexpected(&other)),
+        }
+    }
 }
 
 /// [`crate::vdb::list_grids`] in a child process of `reader_exe`.
@@ -228,5 +311,101 @@ pub(in crate::vdb) fn child_error(path: &Path, error: ChildError, grid: Option<S
         ChildError::Unsupported { grid, message } => Error::UnsupportedGrid { path, grid, message },
         ChildError::TooLarge { grid, needed, limit } => Error::TooLarge { path, grid, needed, limit },
         ChildError::OutOfMemory => Error::ReaderFailed { path, grid, what: format!("reader ran out of memory at its limit of {} bytes", limits.memory_bytes) },
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::{DAffine3, DVec3, IVec3};
+
+    use super::*;
+    use crate::vdb::read::BYTES_PER_LEAF;
+    use crate::vdb::wire::Encoder;
+    use crate::vdb::LEAF_VOXELS;
+
+    fn component(axis: &str, origins: &[IVec3]) -> FloatGrid {
+        FloatGrid {
+            name: format!("vel.{axis}"),
+            world_from_index: DAffine3::from_scale(DVec3::splat(0.5)),
+            background: 0.0,
+            origins: origins.to_vec(),
+            values: vec![1.0; origins.len() * LEAF_VOXELS],
+        }
+    }
+
+    fn components() -> Vec<FloatGrid> {
+        let origins = [IVec3::new(0, 8, -16), IVec3::new(8, 0, 0)];
+        ["x", "y", "z"].iter().map(|axis| component(axis, &origins)).collect()
+    }
+
+    /// A `vec3` reply made of BEGIN 0 0 (if `begin`) and one GRID 0 0 per grid, then END.
+    fn reply(begin: bool, grids: &[FloatGrid]) -> Vec<u8> {
+        let mut bytes = Vec::new();
+        let mut e = Encoder::new(&mut bytes).unwrap();
+        if begin {
+            e.begin(0, 0).unwrap();
+        }
+        for g in grids {
+            e.grid(0, 0, g).unwrap();
+        }
+        e.end().unwrap();
+        bytes
+    }
+
+    fn parse(bytes: &[u8], max_grid_bytes: u64) -> std::result::Result<std::result::Result<[FloatGrid; 3], ChildError>, WireError> {
+        let mut decoder = Decoder::new(bytes, max_grid_bytes)?;
+        let mut grid = None;
+        parse_vec3_reply(&mut decoder, &GridSelector::first("vel"), &mut grid)
+    }
+
+    #[track_caller]
+    fn assert_malformed(bytes: &[u8], needle: &str) {
+        match parse(bytes, u64::MAX) {
+            Err(WireError::Malformed(message)) => assert!(message.contains(needle), "{message:?} lacks {needle:?}"),
+            other => panic!("expected a malformed reply, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn a_vec3_reply_is_three_components_in_order() {
+        let grids = parse(&reply(true, &components()), u64::MAX).unwrap().unwrap();
+        assert_eq!(grids.each_ref().map(|g| g.name.as_str()), ["vel.x", "vel.y", "vel.z"]);
+        // Each component within a third of the limit: 2 leaves each
+        assert!(parse(&reply(true, &components()), 2 * BYTES_PER_LEAF).unwrap().is_ok());
+        assert!(matches!(parse(&reply(true, &components()), 2 * BYTES_PER_LEAF - 1), Err(WireError::Malformed(_))));
+        // A clean failure, with or without BEGIN
+        for begin in [false, true] {
+            let mut bytes = Vec::new();
+            let mut e = Encoder::new(&mut bytes).unwrap();
+            if begin {
+                e.begin(0, 0).unwrap();
+            }
+            e.failed(&ChildError::Unsupported { grid: "vel".into(), message: "float".into() }).unwrap();
+            e.end().unwrap();
+            assert!(matches!(parse(&bytes, u64::MAX), Ok(Err(ChildError::Unsupported { .. }))));
+        }
+    }
+
+    #[test]
+    fn bad_vec3_replies_are_refused() {
+        let good = components();
+        let (x, y, z) = (&good[0], &good[1], &good[2]);
+        assert_malformed(&reply(false, &good), "unexpected GRID");
+        assert_malformed(&reply(true, &[x.clone(), z.clone(), y.clone()]), "is not component y");
+        assert_malformed(&reply(true, &[x.clone(), y.clone()]), "unexpected END");
+        assert_malformed(&reply(true, &[x.clone(), y.clone(), z.clone(), x.clone()]), "unexpected GRID");
+        let mut moved = y.clone();
+        moved.origins[1] = IVec3::new(16, 0, 0);
+        assert_malformed(&reply(true, &[x.clone(), moved, z.clone()]), "differ in leaves or transform");
+        let mut shorter = z.clone();
+        shorter.origins.pop();
+        shorter.values.truncate(LEAF_VOXELS);
+        assert_malformed(&reply(true, &[x.clone(), y.clone(), shorter]), "differ in leaves or transform");
+        let mut shifted = y.clone();
+        shifted.world_from_index.translation.x = 1.0;
+        assert_malformed(&reply(true, &[x.clone(), shifted, z.clone()]), "differ in leaves or transform");
+        let mut renamed = x.clone();
+        renamed.name = "density.x".into();
+        assert_malformed(&reply(true, &[renamed, y.clone(), z.clone()]), "is not component x");
     }
 }

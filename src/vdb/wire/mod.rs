@@ -26,7 +26,11 @@
 //!
 //! Records answer the requests in order: each request gets BEGIN then GRID, or ABSENT, or
 //! the stream fails. A grid's bulk data goes out as whole slices, not value by value.
-//! A `stream` command is answered by BEGIN, STREAM, LEAVES…, TILES…, END instead.
+//! A `stream` command is answered by BEGIN, STREAM, LEAVES…, TILES…, END instead, and a
+//! `vec3` command (one vector grid) by BEGIN 0 0 then three GRID 0 0 records, the
+//! components `NAME.x`, `NAME.y`, `NAME.z` with identical origins and transform, each
+//! within a third of the memory limit (the parent checks all of it; the records are the
+//! version-1 records, so the version is unchanged).
 //!
 //! `Encoder` (`encode.rs`) writes the records in the child, `Decoder` (`decode.rs`)
 //! parses them in the parent; the records of a streamed grid are in `stream/`.

@@ -125,24 +125,37 @@ pub fn load_scene(scene: &SceneDescription, input: &Path, settings: &JobSettings
     Ok(LoadedScene { scene, emission_kind: emission.kind, source_grid, cache })
 }
 
-/// The velocity grid `name` of the .vdb `input` (or of the .vdb beside a brick cache):
-/// three float grids `name.x`, `name.y`, `name.z`.
+/// The velocity grid `name` of the .vdb `input`: a vec3 grid `name` (Blender, Houdini
+/// `vel`), else three float grids `name.x`, `name.y`, `name.z`. A staggered (face-centred)
+/// grid is read as if its values were at voxel centres: velocity only moves the lookup
+/// point, and half a voxel of shift in where it is sampled is below what blur shows.
 ///
 /// # Errors
-/// A missing or unreadable component, a brick cache given as input (velocity is not stored
-/// in caches), non-finite velocities.
+/// A grid `name` that is not a vector grid, no complete x/y/z triple, a brick cache given
+/// as input (velocity is not stored in caches), non-finite velocities.
 fn read_velocity(input: &Path, name: &str, settings: &JobSettings) -> Result<VelocityGrid> {
     if crate::cache::is_cache_path(input) {
         return Err(Error::invalid("volume.velocity_grid", format!("{}: brick caches hold no velocity; render the .vdb for motion blur", input.display())));
     }
     let FileReader { limits, isolation } = reader(&settings.reading)?;
+    let what = format!("{}: grid {name:?}", input.display());
+    let selector = crate::scene::validate::selector("volume.velocity_grid", name)?;
+    match isolation.read_vec3_grid(input, &selector, &limits) {
+        Ok([x, y, z]) => return VelocityGrid::from_components([&x, &y, &z], &what),
+        Err(Error::GridNotFound { .. }) => {}
+        Err(e) => return Err(e),
+    }
+    // No vector grid of that name: its components as float grids
     let requests: Vec<GridRequest> = ["x", "y", "z"]
         .iter()
         .map(|c| crate::scene::validate::selector("volume.velocity_grid", &format!("{name}.{c}")).map(GridRequest::required))
         .collect::<Result<_>>()?;
-    let found = isolation.read_grids(input, &requests, &limits)?;
+    let found = isolation.read_grids(input, &requests, &limits).map_err(|e| match e {
+        Error::GridNotFound { .. } => Error::Scene(format!("{what}: no vector grid {name:?} and no complete float triple {name}.x, {name}.y, {name}.z ({e})")),
+        e => e,
+    })?;
     let grids: Vec<FloatGrid> = found.into_iter().map(|f| f.expect("invariant: required grids are found or an error").grid).collect();
-    VelocityGrid::from_components([&grids[0], &grids[1], &grids[2]], &format!("{}: grid {name:?}", input.display()))
+    VelocityGrid::from_components([&grids[0], &grids[1], &grids[2]], &what)
 }
 
 /// The scene's up axis (`camera.up_axis`): the zenith of environment maps and the sky.

@@ -220,3 +220,25 @@ fn the_generated_explosion_expands_and_swirls() {
     assert!((div - 3.0 * f64::from(EXPANSION_RATE)).abs() < 0.15 * 3.0 * f64::from(EXPANSION_RATE), "mean divergence {div}");
     assert!(swirl > 0.2, "no curl noise: mean |v − radial| = {swirl}");
 }
+
+#[test]
+fn vector_velocity_grids_are_read_and_bad_ones_refused() {
+    // data/fixtures/vec3.vdb (make_fixtures.cc): vec3d `vel_double`, half `vel_half`,
+    // `vel_nan` with a NaN component, and a one-voxel float `density`
+    let d = tmpdir("motion", "vec3");
+    let fixture = common::fixture("vec3.vdb");
+    let out = d.join("o.exr");
+    let base = ["render", s(&fixture), "-o", s(&out), "--width", "8", "--height", "6", "--spp", "2", "-q", "--emission", "none", "--environment", "1,1,1"];
+    let mut ok = base.to_vec();
+    ok.extend(["--velocity-grid", "vel_double", "--albedo", "0.5"]);
+    let o = plume(&ok);
+    assert!(o.status.success(), "a vec3d velocity renders: {}", String::from_utf8_lossy(&o.stderr));
+    std::fs::remove_file(&out).unwrap();
+    for (grid, needles) in [("vel_nan", vec!["vel_nan", "NaN"]), ("density", vec!["density", "not a vector grid"]), ("nothing", vec!["nothing.x"])] {
+        let mut args = base.to_vec();
+        args.extend(["--velocity-grid", grid]);
+        let err = plume_exits(&args, 3, &needles);
+        assert_eq!(err.trim().lines().count(), 1, "{grid}: {err}");
+        assert!(!out.exists());
+    }
+}

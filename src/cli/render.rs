@@ -132,8 +132,8 @@ pub struct RenderArgs {
     /// or `kelvin = K`.
     #[arg(long, value_parser = parse_keys::<SphereSettings>)]
     pub sphere_light: Vec<SphereSettings>,
-    /// Motion blur: the velocity grid (world units per second), three float grids
-    /// NAME.x, NAME.y, NAME.z. The volume is advected back along it (Eulerian blur:
+    /// Motion blur: the velocity grid (world units per second), a vector grid NAME or
+    /// three float grids NAME.x, NAME.y, NAME.z. The volume is advected back along it (Eulerian blur:
     /// density at x and time t is the frame's at x − t·v(x); README "Motion blur").
     #[arg(long)]
     pub velocity_grid: Option<String>,

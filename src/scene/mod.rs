@@ -181,8 +181,8 @@ pub struct VolumeInput {
     /// How values are reconstructed between voxel centres.
     #[serde(default)]
     pub interpolation: Interpolation,
-    /// Velocity for motion blur (world units per second): three float grids `NAME.x`,
-    /// `NAME.y`, `NAME.z` (Houdini's `vel.x`…). Motion blur needs it.
+    /// Velocity for motion blur (world units per second): the vector grid `NAME`, or three
+    /// float grids `NAME.x`, `NAME.y`, `NAME.z`. Motion blur needs it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub velocity_grid: Option<String>,
     /// Multiplies the velocity.

@@ -1,4 +1,5 @@
-//! Pinhole camera: pixel coordinates → world rays.
+//! Pinhole camera: pixel coordinates → world rays; optionally moving within the shutter
+//! (a path of placements, linear between knots; motion blur, issue #15).
 //!
 //! Image x grows to the right and y downwards; pixel `(x, y)` covers `[x, x+1) × [y, y+1)`
 //! (one-pixel box filter). The field of view is horizontal.
@@ -22,6 +23,82 @@ pub struct Camera {
     pub width: u32,
     /// Image height in pixels.
     pub height: u32,
+    /// A camera that moves within the shutter (`camera.keys`); `None`: still.
+    pub motion: Option<CameraMotion>,
+}
+
+/// A camera's placement: position, point looked at, up hint, horizontal field of view
+/// (degrees).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LookAt {
+    /// Position.
+    pub from: DVec3,
+    /// Point looked at.
+    pub at: DVec3,
+    /// Up hint.
+    pub up: DVec3,
+    /// Horizontal field of view, degrees.
+    pub fov: f64,
+}
+
+impl LookAt {
+    /// The placement a fraction `f` of the way from `self` to `o` (each part linearly).
+    #[must_use]
+    pub fn lerp(&self, o: &LookAt, f: f64) -> LookAt {
+        LookAt { from: self.from.lerp(o.from, f), at: self.at.lerp(o.at, f), up: self.up.lerp(o.up, f), fov: self.fov + f * (o.fov - self.fov) }
+    }
+}
+
+/// Most knots of a camera path within one shutter.
+pub const MAX_CAMERA_KNOTS: usize = 8;
+
+/// A camera path over the shutter: placements at increasing times (seconds relative to
+/// the frame), linear between them; the first knot is the shutter's opening, the last its
+/// closing.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CameraMotion {
+    knots: [(f64, LookAt); MAX_CAMERA_KNOTS],
+    len: usize,
+}
+
+impl CameraMotion {
+    /// A path through `knots` (2 to [`MAX_CAMERA_KNOTS`], times increasing).
+    ///
+    /// # Errors
+    /// Too few or too many knots, times not increasing, or a placement that is not a
+    /// camera (as [`Camera::look_at`]).
+    pub fn new(knots: &[(f64, LookAt)], width: u32, height: u32) -> Result<CameraMotion> {
+        if knots.len() < 2 || knots.len() > MAX_CAMERA_KNOTS {
+            return Err(Error::invalid("camera.keys", format!("{} camera keys within one shutter; at most {}", knots.len(), MAX_CAMERA_KNOTS - 2)));
+        }
+        for w in knots.windows(2) {
+            if !(w[0].0 < w[1].0) {
+                return Err(Error::invalid("camera.keys", "keys must be at increasing frames"));
+            }
+        }
+        for (_, k) in knots {
+            Camera::look_at(k.from, k.at, k.up, k.fov, width, height)?;
+        }
+        let mut all = [knots[0]; MAX_CAMERA_KNOTS];
+        all[..knots.len()].copy_from_slice(knots);
+        Ok(CameraMotion { knots: all, len: knots.len() })
+    }
+
+    /// The shutter: first and last knot times (seconds).
+    #[must_use]
+    pub fn shutter(&self) -> [f64; 2] {
+        [self.knots[0].0, self.knots[self.len - 1].0]
+    }
+
+    /// The placement at time `t` (clamped to the shutter).
+    #[must_use]
+    pub fn at(&self, t: f64) -> LookAt {
+        let k = &self.knots[..self.len];
+        let i = k.iter().rposition(|(kt, _)| *kt <= t).unwrap_or(0).min(self.len - 2);
+        let (t0, a) = k[i];
+        let (t1, b) = k[i + 1];
+        a.lerp(&b, ((t - t0) / (t1 - t0)).clamp(0.0, 1.0))
+    }
 }
 
 impl Camera {
@@ -45,7 +122,7 @@ impl Camera {
         }
         let tan_half_x = (fov_degrees.to_radians() * 0.5).tan();
         let tan_half_y = tan_half_x * f64::from(height) / f64::from(width);
-        Ok(Camera { origin: from, forward, right, up: right.cross(forward), tan_half_x, tan_half_y, width, height })
+        Ok(Camera { origin: from, forward, right, up: right.cross(forward), tan_half_x, tan_half_y, width, height, motion: None })
     }
 
     /// Frame a world box: look at its centre from direction `view_dir` (towards the
@@ -61,6 +138,16 @@ impl Camera {
         let half = half_x.min(half_y).max(1e-6);
         let distance = radius / half.sin() * 1.02;
         Camera::look_at(centre + view_dir.normalize() * distance, centre, up, fov_degrees, width, height)
+    }
+
+    /// The camera at time `t` (seconds relative to the frame): itself when still.
+    #[must_use]
+    pub fn at_time(&self, t: f64) -> Camera {
+        let Some(m) = &self.motion else { return *self };
+        let k = m.at(t);
+        // Every knot is a camera (checked); a point between two can coincide only where
+        // `from` passes through `at`: keep the frame's camera there
+        Camera::look_at(k.from, k.at, k.up, k.fov, self.width, self.height).map_or(*self, |c| Camera { motion: self.motion, ..c })
     }
 
     /// The ray through image position `(x, y)` in pixels (continuous).

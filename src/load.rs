@@ -16,7 +16,7 @@ use std::path::Path;
 use glam::DVec3;
 
 use crate::cache::CacheCheck;
-use crate::camera::Camera;
+use crate::camera::{Camera, CameraMotion, LookAt};
 use crate::error::{Error, Result};
 use crate::integrator::{AnyScene, LightSampling, Lights, Scene};
 use crate::medium::{Emission, EmissionKind, Medium};
@@ -84,7 +84,7 @@ fn load_cache(scene: &SceneDescription, cache: crate::cache::Cache) -> Result<Lo
 /// # Errors
 /// Missing or unreadable file or grid, invalid values, incompatible grids, a stale or
 /// damaged cache, or light-sampling tables beyond the memory budget.
-pub fn load_scene(scene: &SceneDescription, input: &Path, settings: &JobSettings) -> Result<LoadedScene> {
+pub fn load_scene(scene: &SceneDescription, input: &Path, settings: &JobSettings, frame: Option<i64>) -> Result<LoadedScene> {
     // Mapping values are checked before any reading
     emission_model(&scene.emission, EmissionKind::None)?;
     let budget = memory_budget(settings);
@@ -96,7 +96,7 @@ pub fn load_scene(scene: &SceneDescription, input: &Path, settings: &JobSettings
         load_vdb(scene, input, settings)?
     };
     let LoadedVolume { volume, emission, source_grid, proxy_power, cache } = loaded;
-    let camera = camera(scene, input, &volume)?;
+    let camera = camera(scene, input, &volume, frame)?;
     let medium = Medium { sigma_t: scene.medium.density_scale, albedo: scene.albedo(), g: scene.medium.g, emission };
     // Light-sampling structures, only for the technique in use and only when paths scatter
     let (_, light_sampling) = scene.integrator.parts();
@@ -166,9 +166,45 @@ fn up_axis(scene: &SceneDescription) -> DVec3 {
     }
 }
 
-/// The camera: as given, or framing the volume automatically.
-fn camera(scene: &SceneDescription, input: &Path, volume: &Volume) -> Result<Camera> {
+/// The placement of an animated camera at frame position `x` (`camera.keys`, linear
+/// between keys, held before the first and after the last).
+fn keyed(scene: &SceneDescription, x: f64) -> LookAt {
     let c = &scene.camera;
+    let look = |k: &crate::scene::CameraKey| LookAt { from: k.from, at: k.at, up: k.up.or(c.up).unwrap_or(up_axis(scene)), fov: k.fov.unwrap_or(c.fov) };
+    let keys = &c.keys;
+    let i = keys.iter().rposition(|k| k.frame <= x).unwrap_or(0);
+    if i + 1 >= keys.len() || x <= keys[0].frame {
+        return look(&keys[if x <= keys[0].frame { 0 } else { i }]);
+    }
+    let (a, b) = (&keys[i], &keys[i + 1]);
+    look(a).lerp(&look(b), (x - a.frame) / (b.frame - a.frame))
+}
+
+/// The camera of an animated scene at frame `frame`: the keys' placement at the frame, and
+/// its path over the shutter (knots at the opening, at every key inside, at the closing).
+fn keyed_camera(scene: &SceneDescription, frame: Option<i64>) -> Result<Camera> {
+    let c = &scene.camera;
+    let f = frame.unwrap_or(0) as f64;
+    let here = keyed(scene, f);
+    let mut camera = Camera::look_at(here.from, here.at, here.up, here.fov, c.width, c.height)?;
+    if let Some([open, close]) = scene.shutter_seconds() {
+        let (o, e) = (f + open * c.fps, f + close * c.fps);
+        let mut knots = vec![(open, keyed(scene, o))];
+        knots.extend(c.keys.iter().filter(|k| k.frame > o && k.frame < e).map(|k| ((k.frame - f) / c.fps, keyed(scene, k.frame))));
+        knots.push((close, keyed(scene, e)));
+        if close > open && knots.windows(2).any(|w| w[0].1 != w[1].1) {
+            camera.motion = Some(CameraMotion::new(&knots, c.width, c.height)?);
+        }
+    }
+    Ok(camera)
+}
+
+/// The camera: as given, animated by keys, or framing the volume automatically.
+fn camera(scene: &SceneDescription, input: &Path, volume: &Volume, frame: Option<i64>) -> Result<Camera> {
+    let c = &scene.camera;
+    if !c.keys.is_empty() {
+        return keyed_camera(scene, frame);
+    }
     let up = c.up.unwrap_or(up_axis(scene));
     let Bounds3 { lo, hi } = if volume.is_empty() { Bounds3 { lo: DVec3::splat(-1.0), hi: DVec3::splat(1.0) } } else { volume.world_bounds() };
     if let Some(from) = c.from {

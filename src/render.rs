@@ -166,6 +166,8 @@ pub struct PixelSample {
     pub ray: crate::volume::field::Ray,
     /// The sample's sampler, at the camera segment after the pixel jitter was drawn.
     pub sampler: Sampler,
+    /// The sample's shutter time (seconds), when the scene moves.
+    pub time: Option<f64>,
 }
 
 /// The camera ray and sampler state of one pixel sample, as the render loop makes them
@@ -175,7 +177,11 @@ pub fn pixel_sample<F: Field>(scene: &Scene<F>, kind: SamplerKind, seed: u64, x:
     let mut sampler = Sampler::with_kind(kind, seed, pixel, s);
     sampler.start_vertex(0);
     let [jx, jy] = sampler.get_2d(Dim::Direction);
-    PixelSample { ray: scene.camera.ray(f64::from(x) + jx, f64::from(y) + jy), sampler }
+    // With motion, the sample's shutter time places the camera (and the volume, in `li`)
+    let shutter = scene.motion.as_ref().map(|m| m.shutter).or(scene.camera.motion.map(|m| m.shutter()));
+    let time = shutter.map(|[open, close]| open + sampler.get_1d(Dim::Time) * (close - open));
+    let camera = time.map_or(scene.camera, |t| scene.camera.at_time(t));
+    PixelSample { ray: camera.ray(f64::from(x) + jx, f64::from(y) + jy), sampler, time }
 }
 
 fn render_tile<F: Field>(scene: &Scene<F>, settings: &RenderSettings, samples: std::ops::Range<u64>, tile: &mut Tile) -> Counters {
@@ -194,9 +200,9 @@ fn render_tile_with<F: Field, A: Aovs>(scene: &Scene<F>, settings: &RenderSettin
             let (x, y) = (tile.x0 + tx, tile.y0 + ty);
             let index = (ty * tile.width + tx) as usize;
             for s in samples.clone() {
-                let PixelSample { ray, mut sampler } = pixel_sample(scene, settings.sampler, settings.seed, x, y, s);
+                let PixelSample { ray, mut sampler, time } = pixel_sample(scene, settings.sampler, settings.seed, x, y, s);
                 aovs.begin();
-                let l = settings.integrator.li_aovs(scene, &ray, &mut sampler, &mut counters, &mut NoTrace, aovs);
+                let l = settings.integrator.li_aovs(scene, &ray, &mut sampler, (time, &mut counters), &mut NoTrace, aovs);
                 counters.samples += 1;
                 if l.iter().all(|v| v.is_finite()) && (!A::ON || aovs.values().iter().all(|v| v.is_finite())) {
                     tile.add_sample(index, l);

@@ -158,7 +158,7 @@ fn depth_is_the_expected_distance_to_the_first_collision() {
         let mut a = AovSample::new(layout.channels());
         for i in 0..20_000u64 {
             a.values.fill(0.0);
-            integ.li_aovs(&scene, &ray, &mut Sampler::new(3, 0, i), &mut c, &mut NoTrace, &mut a);
+            integ.li_aovs(&scene, &ray, &mut Sampler::new(3, 0, i), (None, &mut c), &mut NoTrace, &mut a);
             let k = layout.channels();
             if a.values[k - 1] == 1.0 {
                 ts.push(a.values[k - 2]);

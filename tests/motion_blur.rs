@@ -242,3 +242,77 @@ fn vector_velocity_grids_are_read_and_bad_ones_refused() {
         assert!(!out.exists());
     }
 }
+
+#[test]
+fn a_moving_camera_equals_the_average_over_its_positions() {
+    // The camera slides 0.6 m along x over a shutter after the frame; renders from still
+    // cameras at uniform random times of the same path average to the same regions
+    use plume::camera::{CameraMotion, LookAt};
+    let shutter = [0.0, 0.04];
+    let place = |t: f64| {
+        let x = 15.0 * t;
+        LookAt { from: DVec3::new(x, 0.2, -6.5), at: DVec3::new(x, 0.2, 0.0), up: DVec3::Y, fov: 40.0 }
+    };
+    let with_camera = |camera: Camera| -> AnyScene {
+        let vol = volume(DVec3::ZERO);
+        let e = emission();
+        let lights = Lights::build(&vol, &e, LightSampling::Fnee, 8).unwrap();
+        AnyScene::new(
+            Scene { field: vol, medium: Medium { sigma_t: 2.0, albedo: 0.8, g: 0.3, emission: e }, camera, lights, motion: None },
+            Interpolation::Linear,
+        )
+    };
+    let still_at = |t: f64| {
+        let k = place(t);
+        Camera::look_at(k.from, k.at, k.up, k.fov, 12, 10).unwrap()
+    };
+    let mut moving = still_at(0.0);
+    moving.motion = Some(CameraMotion::new(&[(shutter[0], place(shutter[0])), (shutter[1], place(shutter[1]))], 12, 10).unwrap());
+    let integ = integrator(Estimator::Line, LightSampling::Fnee, 16);
+    let a: Vec<[f64; 5]> = (0..12).map(|r| regions(&with_camera(moving), integ, 16, 600 + r)).collect();
+    let mut times = Sampler::new(78, 0, 0);
+    let b: Vec<[f64; 5]> = (0..24).map(|r| regions(&with_camera(still_at(shutter[0] + times.next_f64() * 0.04)), integ, 16, 700 + r)).collect();
+    compare("moving camera", &a, &b);
+    // …and the motion shows
+    let still: Vec<[f64; 5]> = (0..12).map(|r| regions(&with_camera(still_at(0.0)), integ, 16, 800 + r)).collect();
+    let z = (0..5)
+        .map(|k| {
+            let (ms, ss) = mean_stderr(&still.iter().map(|r| r[k]).collect::<Vec<_>>());
+            let (mb, sb) = mean_stderr(&a.iter().map(|r| r[k]).collect::<Vec<_>>());
+            ((ms - mb) / (ss * ss + sb * sb).sqrt()).abs()
+        })
+        .fold(0.0, f64::max);
+    assert!(z > 6.0, "the camera's motion does not show (largest |z| {z:.2})");
+}
+
+#[test]
+fn camera_keys_animate_a_sequence_from_a_scene_file() {
+    // Keys at frames 1 and 3: frame 2 with a zero shutter is the still camera halfway
+    // (bit for bit); with the default shutter it moves and differs
+    let d = tmpdir("motion", "keys");
+    let ex = common::explosion(&d, 32, None);
+    for f in 1..=3 {
+        std::fs::copy(&ex, d.join(format!("ex.{f:04}.vdb"))).unwrap();
+    }
+    let shot = |name: &str, camera: &str| {
+        let path = d.join(format!("{name}.toml"));
+        let text = format!(
+            "[volume]\nfile = \"ex.####.vdb\"\n[camera]\nwidth = 16\nheight = 12\n{camera}\n[medium]\nalbedo = 0.6\n[render]\nspp = 2\nquiet = true\n[output]\nimage = \"{name}.####.exr\"\n"
+        );
+        std::fs::write(&path, text).unwrap();
+        path
+    };
+    let keys =
+        "[[camera.keys]]\nframe = 1\nfrom = [1.0, 0.5, -7.0]\nat = [0.0, 0.5, 0.0]\n[[camera.keys]]\nframe = 3\nfrom = [3.0, 0.5, -7.0]\nat = [0.0, 0.5, 0.0]";
+    let zero = shot("zero", &format!("shutter = [0.0, 0.0]\n{keys}"));
+    let moving = shot("moving", keys);
+    let fixed = shot("fixed", "from = [2.0, 0.5, -7.0]\nat = [0.0, 0.5, 0.0]");
+    for (file, frames) in [(&zero, "2"), (&moving, "1-3"), (&fixed, "2")] {
+        let o = plume(&["render", s(file), "--frames", frames]);
+        assert!(o.status.success(), "{}: {}", file.display(), String::from_utf8_lossy(&o.stderr));
+    }
+    let px = |name: &str| pixel_bits(&exr_pixels(&d.join(name)));
+    assert_eq!(px("zero.0002.exr"), px("fixed.0002.exr"), "frame 2 of the keys is the camera halfway");
+    assert_ne!(px("moving.0002.exr"), px("zero.0002.exr"), "the camera moves within the shutter");
+    assert_ne!(px("moving.0001.exr"), px("moving.0003.exr"), "the keys animate the sequence");
+}

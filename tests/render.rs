@@ -82,7 +82,7 @@ fn sample_ranges_merge_and_replays_equal_the_render_for_both_samplers() {
         let mut scattered = 0;
         for (i, p) in px.iter().enumerate() {
             let (x, y) = (i as u32 % width, i as u32 / width);
-            let PixelSample { ray, mut sampler } = pixel_sample(&scene, sampler, 5, x, y, 5);
+            let PixelSample { ray, mut sampler, .. } = pixel_sample(&scene, sampler, 5, x, y, 5);
             let mut c = Counters::default();
             let l = integrator.li(&scene, &ray, &mut sampler, &mut c, &mut NoTrace);
             scattered += c.collisions;

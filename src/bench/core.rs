@@ -156,7 +156,7 @@ pub fn run(resolution: u32, threads: usize, ttfs_file: &Path) -> Result<CoreRepo
     let mut ttfs = f64::INFINITY;
     for _ in 0..5 {
         let t = Instant::now();
-        let loaded = load_scene(&shot.scene, ttfs_file, &shot.settings)?;
+        let loaded = load_scene(&shot.scene, ttfs_file, &shot.settings, None)?;
         std::hint::black_box(loaded.scene.camera());
         ttfs = ttfs.min(t.elapsed().as_secs_f64());
     }

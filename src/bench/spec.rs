@@ -153,7 +153,7 @@ pub fn load(mut shot: Shot, flags: Vec<String>, work_dir: &Path) -> Result<Bench
     let spec = shot.scene.volume.file.display().to_string();
     shot.scene.volume.file = scene_file(&spec, work_dir)?;
     let shot = shot.validate()?.into_inner();
-    let loaded = load_scene(&shot.scene, &shot.scene.volume.file, &shot.settings)?;
+    let loaded = load_scene(&shot.scene, &shot.scene.volume.file, &shot.settings, None)?;
     Ok(BenchScene { shot, loaded, spec, flags, load_seconds: t.elapsed().as_secs_f64() })
 }
 

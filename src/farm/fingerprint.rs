@@ -59,9 +59,13 @@ pub fn settings_hash(shot: &Shot, seed: u64) -> String {
     let VolumeInput { file: _, density_grid, temperature_grid, emission_grid, albedo_grid, interpolation, velocity_grid, velocity_scale } = volume;
     let EmissionSettings { source, convention, temperature_map, temperature_cutoff, scale, color } = emission;
     let MediumSettings { density_scale, albedo, g } = medium;
-    let CameraSettings { from, at, up, fov, width, height, up_axis, shutter, fps } = camera;
+    let CameraSettings { from, at, up, fov, width, height, up_axis, shutter, fps, keys } = camera;
     // Motion blur's keys, only when there is motion: still scenes hash as before
-    let motion = velocity_grid.as_ref().map_or_else(String::new, |v| format!("\nmotion {v:?} {velocity_scale:?} {shutter:?} {fps:?}"));
+    let motion = if velocity_grid.is_some() || !keys.is_empty() {
+        format!("\nmotion {velocity_grid:?} {velocity_scale:?} {shutter:?} {fps:?} {keys:?}")
+    } else {
+        String::new()
+    };
     let LightSettings { environment, environment_map, sky, distant, sphere } = lights;
     // The map's file by name only (paths differ between farm nodes); scenes without
     // the lights of issue #14 hash as before

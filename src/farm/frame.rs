@@ -115,7 +115,7 @@ pub fn render_frame(job: &Job<'_>, index: usize, frame: Option<i64>, command_lin
     }
 
     // Load the frame's grids once and build the scene
-    let loaded = load_scene(job.scene(), &paths.input, settings)?;
+    let loaded = load_scene(job.scene(), &paths.input, settings, frame)?;
     warn_about(job, &paths, &loaded);
     let plan = SamplePlan::new(job, resume.as_ref());
     let render_settings = RenderSettings {
@@ -265,8 +265,8 @@ fn replay(loaded: &LoadedScene, settings: &RenderSettings, dp: crate::render::Sa
     let mut trace = LineTrace::default();
     let mut counters = crate::integrator::Counters::default();
     let l = crate::with_scene!(&loaded.scene, scene => {
-        let crate::render::PixelSample { ray, mut sampler } = crate::render::pixel_sample(scene, settings.sampler, settings.seed, x, y, s);
-        settings.integrator.li(scene, &ray, &mut sampler, &mut counters, &mut trace)
+        let crate::render::PixelSample { ray, mut sampler, time } = crate::render::pixel_sample(scene, settings.sampler, settings.seed, x, y, s);
+        settings.integrator.li_aovs(scene, &ray, &mut sampler, (time, &mut counters), &mut trace, &mut crate::integrator::NoAovs)
     });
     for line in &trace.0 {
         eprintln!("plume: debug {x},{y},{s}: {line}");

@@ -189,18 +189,19 @@ impl Integrator {
 
     /// Radiance `[r, g, b]` and alpha along a camera ray.
     pub fn li<F: Field, T: Trace>(&self, scene: &Scene<F>, camera_ray: &Ray, sampler: &mut Sampler, c: &mut Counters, trace: &mut T) -> [f64; 4] {
-        self.li_aovs(scene, camera_ray, sampler, c, trace, &mut NoAovs)
+        self.li_aovs(scene, camera_ray, sampler, (None, c), trace, &mut NoAovs)
     }
 
-    /// [`Integrator::li`], also handing every contribution to `aovs` by its component
-    /// (`integrator::aov`). With [`NoAovs`] this is `li`.
+    /// [`Integrator::li`] at shutter time `time` (seconds; drawn here when the scene moves
+    /// and it is `None`), also handing every contribution to `aovs` by its component
+    /// (`integrator::aov`). With `None` and [`NoAovs`] this is `li`.
     #[allow(clippy::too_many_lines)]
     pub fn li_aovs<F: Field, T: Trace, A: Aovs>(
         &self,
         scene: &Scene<F>,
         camera_ray: &Ray,
         sampler: &mut Sampler,
-        c: &mut Counters,
+        (time, c): (Option<f64>, &mut Counters),
         trace: &mut T,
         aovs: &mut A,
     ) -> [f64; 4] {
@@ -222,7 +223,7 @@ impl Integrator {
         // Regular tracking, or null collisions at this sample's shutter time
         let tracker = match &scene.motion {
             None => Tracker::Regular(&scene.field),
-            Some(motion) => Tracker::Moving { field: &scene.field, motion, time: motion.time(sampler.get_1d(Dim::Time)) },
+            Some(motion) => Tracker::Moving { field: &scene.field, motion, time: time.unwrap_or_else(|| motion.time(sampler.get_1d(Dim::Time))) },
         };
         loop {
             let need_collision = scatters && depth < self.max_depth;

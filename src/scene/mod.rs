@@ -118,11 +118,13 @@ pub struct SceneDescription {
 
 impl SceneDescription {
     /// The shutter in seconds relative to the frame: `camera.shutter` (frames) over
-    /// `camera.fps`, by default `[-0.25, 0.25]` frames with a velocity grid; `None` for a
-    /// still render.
+    /// `camera.fps`, by default `[-0.25, 0.25]` frames with a velocity grid or an animated
+    /// camera; `None` for a still render.
     #[must_use]
     pub fn shutter_seconds(&self) -> Option<[f64; 2]> {
-        self.volume.velocity_grid.as_ref()?;
+        if self.volume.velocity_grid.is_none() && self.camera.keys.len() < 2 {
+            return None;
+        }
         let [open, close] = self.camera.shutter.unwrap_or([-0.25, 0.25]);
         Some([open / self.camera.fps, close / self.camera.fps])
     }
@@ -284,11 +286,33 @@ pub struct CameraSettings {
     pub shutter: Option<[f64; 2]>,
     /// Frames per second: converts the shutter to seconds.
     pub fps: f64,
+    /// A camera animated over frames: placements at frames, linear between them (and
+    /// within each frame's shutter). Replaces `from`, `at`, `up` and `fov` when given.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub keys: Vec<CameraKey>,
+}
+
+/// One key of an animated camera (`[[camera.keys]]`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CameraKey {
+    /// The frame it holds at.
+    pub frame: f64,
+    /// Position.
+    pub from: DVec3,
+    /// Point looked at.
+    pub at: DVec3,
+    /// Up hint (default: from `up_axis`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub up: Option<DVec3>,
+    /// Horizontal field of view, degrees (default: `camera.fov`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fov: Option<f64>,
 }
 
 impl Default for CameraSettings {
     fn default() -> Self {
-        CameraSettings { from: None, at: None, up: None, fov: 40.0, width: 640, height: 480, up_axis: UpAxis::Y, shutter: None, fps: 24.0 }
+        CameraSettings { from: None, at: None, up: None, fov: 40.0, width: 640, height: 480, up_axis: UpAxis::Y, shutter: None, fps: 24.0, keys: Vec::new() }
     }
 }
 

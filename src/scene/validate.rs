@@ -126,6 +126,24 @@ impl Shot {
                 return Err(Error::invalid("camera.shutter", format!("{open},{close}: open must be at most close, both finite (frames)")));
             }
         }
+        if !cam.keys.is_empty() {
+            if cam.from.is_some() || cam.at.is_some() {
+                return Err(Error::invalid("camera.keys", "give camera.keys or camera.from/camera.at, not both"));
+            }
+            for (i, k) in cam.keys.iter().enumerate() {
+                if !(k.frame.is_finite() && k.from.is_finite() && k.at.is_finite() && k.up.is_none_or(|u| u.is_finite())) {
+                    return Err(Error::invalid("camera.keys", format!("key {}: frame, from, at and up must be finite", i + 1)));
+                }
+                if let Some(f) = k.fov {
+                    if !(f > 0.0 && f < 180.0) {
+                        return Err(Error::invalid("camera.keys", format!("key {}: fov {f} is not in (0, 180) degrees", i + 1)));
+                    }
+                }
+                if i > 0 && !(cam.keys[i - 1].frame < k.frame) {
+                    return Err(Error::invalid("camera.keys", format!("key {}: frames must increase ({} after {})", i + 1, k.frame, cam.keys[i - 1].frame)));
+                }
+            }
+        }
         if !(cam.fps.is_finite() && cam.fps > 0.0) {
             return Err(Error::invalid("camera.fps", format!("{} must be a positive number of frames per second", cam.fps)));
         }

@@ -72,7 +72,7 @@ impl CameraMotion {
             return Err(Error::invalid("camera.keys", format!("{} camera keys within one shutter; at most {}", knots.len(), MAX_CAMERA_KNOTS - 2)));
         }
         for w in knots.windows(2) {
-            if !(w[0].0 < w[1].0) {
+            if w[0].0 >= w[1].0 || w[0].0.is_nan() || w[1].0.is_nan() {
                 return Err(Error::invalid("camera.keys", "keys must be at increasing frames"));
             }
         }

@@ -139,7 +139,7 @@ impl Shot {
                         return Err(Error::invalid("camera.keys", format!("key {}: fov {f} is not in (0, 180) degrees", i + 1)));
                     }
                 }
-                if i > 0 && !(cam.keys[i - 1].frame < k.frame) {
+                if i > 0 && cam.keys[i - 1].frame >= k.frame {
                     return Err(Error::invalid("camera.keys", format!("key {}: frames must increase ({} after {})", i + 1, k.frame, cam.keys[i - 1].frame)));
                 }
             }

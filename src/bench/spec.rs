@@ -137,8 +137,11 @@ pub fn scene_file(spec: &str, work_dir: &Path) -> Result<PathBuf> {
     let mut done = GENERATED.lock().map_err(|_| Error::Scene("bench: generator lock poisoned".into()))?;
     if !done.contains(&path) {
         std::fs::create_dir_all(work_dir).map_err(|source| Error::Write { path: work_dir.to_path_buf(), source })?;
-        let ex = crate::synth::explosion(&crate::synth::ExplosionParams { resolution, seed, ..Default::default() });
-        crate::vdb::write_float_grids(&path, &[&ex.density, &ex.temperature])?;
+        let params = crate::synth::ExplosionParams { resolution, seed, ..Default::default() };
+        let ex = crate::synth::explosion(&params);
+        // With its velocity, as `plume synth explosion` writes it (`--velocity-grid velocity`)
+        let [vx, vy, vz] = crate::synth::velocity::explosion_velocity(&params, &ex.density);
+        crate::vdb::write_float_grids(&path, &[&ex.density, &ex.temperature, &vx, &vy, &vz])?;
         done.push(path.clone());
     }
     Ok(path)

@@ -87,7 +87,7 @@ private:
     std::unique_ptr<Impl> impl_;
 };
 
-// Collects float grids, then writes them to one .vdb file.
+// Collects float and vec3 grids, then writes them to one .vdb file.
 class GridWriter {
 public:
     struct Impl;
@@ -99,6 +99,10 @@ public:
     void add_float_grid(rust::Str name, rust::Slice<const double> world_from_index,
                         float background, rust::Slice<const std::int32_t> origins,
                         rust::Slice<const float> values);
+    // A vec3s grid from three component blocks per leaf (x, y, z), background 0.
+    void add_vec3_grid(rust::Str name, rust::Slice<const double> world_from_index,
+                       rust::Slice<const std::int32_t> origins, rust::Slice<const float> x,
+                       rust::Slice<const float> y, rust::Slice<const float> z);
     void write(rust::Str path) const;
 
 private:

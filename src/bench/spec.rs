@@ -141,7 +141,8 @@ pub fn scene_file(spec: &str, work_dir: &Path) -> Result<PathBuf> {
         let ex = crate::synth::explosion(&params);
         // With its velocity, as `plume synth explosion` writes it (`--velocity-grid velocity`)
         let [vx, vy, vz] = crate::synth::velocity::explosion_velocity(&params, &ex.density);
-        crate::vdb::write_float_grids(&path, &[&ex.density, &ex.temperature, &vx, &vy, &vz])?;
+        let velocity = crate::vdb::VectorGrid { name: "velocity", components: [&vx, &vy, &vz] };
+        crate::vdb::write_grids(&path, &[&ex.density, &ex.temperature], &[velocity])?;
         done.push(path.clone());
     }
     Ok(path)

@@ -67,7 +67,7 @@ pub struct InfoArgs {
 #[derive(Debug, Subcommand)]
 pub enum SynthCommand {
     /// A fireball: sparse `density` and Kelvin `temperature` grids in a 4 m cube, and its
-    /// `velocity` (`velocity.x/.y/.z`, m/s: radial expansion plus curl noise) for motion blur.
+    /// `velocity` (a vec3 grid, m/s: radial expansion plus curl noise) for motion blur.
     Explosion(SynthExplosionArgs),
     /// A solar flare: hot (10⁶–2·10⁷ K) plasma loops over a dark photosphere in a 100 m cube.
     ///
@@ -210,9 +210,10 @@ pub fn synth_explosion_command(args: &SynthExplosionArgs) -> Result<()> {
     let t = Instant::now();
     let params = plume::synth::ExplosionParams { resolution: args.resolution, seed: args.seed, ..Default::default() };
     let ex = plume::synth::explosion(&params);
-    // Velocity for motion blur, as Houdini-style components (`--velocity-grid velocity`)
+    // Velocity for motion blur, a vector grid as Blender writes it (`--velocity-grid velocity`)
     let [vx, vy, vz] = plume::synth::velocity::explosion_velocity(&params, &ex.density);
-    vdb::write_float_grids(&args.output, &[&ex.density, &ex.temperature, &vx, &vy, &vz])?;
+    let velocity = vdb::VectorGrid { name: "velocity", components: [&vx, &vy, &vz] };
+    vdb::write_grids(&args.output, &[&ex.density, &ex.temperature], &[velocity])?;
     eprintln!(
         "plume: wrote {} ({}³, {} + {} leaves) in {:.2} s",
         args.output.display(),

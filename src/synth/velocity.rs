@@ -21,7 +21,8 @@ pub const CURL_AMPLITUDE: f32 = 0.8;
 pub const CURL_STEP: f32 = 0.02;
 
 /// The velocity of the explosion `params` on the leaves of `density` (its grid layout and
-/// transform), as three float grids `velocity.x`, `velocity.y`, `velocity.z`.
+/// transform), as three float components `velocity.x`, `velocity.y`, `velocity.z`
+/// (`plume synth explosion` writes them as one vec3 grid `velocity`).
 #[must_use]
 pub fn explosion_velocity(params: &ExplosionParams, density: &FloatGrid) -> [FloatGrid; 3] {
     let potential = Fractal { frequency: 0.9, octaves: 3, seed: stream_seed(params.seed, 7) };

@@ -161,6 +161,9 @@ mod bridge {
         fn new_grid_writer() -> Result<UniquePtr<GridWriter>>;
         /// Adds one fog-volume float grid; voxels that differ from `background` are active.
         fn add_float_grid(self: Pin<&mut GridWriter>, name: &str, world_from_index: &[f64], background: f32, origins: &[i32], values: &[f32]) -> Result<()>;
+        /// Adds one vec3s grid (background 0) from the x, y, z value blocks of each leaf;
+        /// voxels that are not the zero vector are active.
+        fn add_vec3_grid(self: Pin<&mut GridWriter>, name: &str, world_from_index: &[f64], origins: &[i32], x: &[f32], y: &[f32], z: &[f32]) -> Result<()>;
         /// Writes all added grids to `path` (truncating it), blosc-compressed.
         fn write(self: &GridWriter, path: &str) -> Result<()>;
     }

@@ -62,7 +62,7 @@ pub use read::{list_grids, read_float_grid, read_grids, read_vec3_grid, FoundGri
 pub use selector::GridSelector;
 pub(crate) use stream::FileStamp;
 pub use stream::{stream_float_grid, stream_float_grid_isolated, HeaderVisitor, LeafData, LeafVisitor, StreamedGrid};
-pub use write::write_float_grids;
+pub use write::{write_float_grids, write_grids, VectorGrid};
 
 use glam::{DAffine3, IVec3};
 use serde::Serialize;

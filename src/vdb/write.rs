@@ -1,4 +1,5 @@
-//! Writing: [`write_float_grids`], used by the procedural generator and by tests.
+//! Writing: [`write_float_grids`] and [`write_grids`] (with vector grids), used by the
+//! procedural generator and by tests.
 //!
 //! Atomic: the grids are built in memory first, written to a temp file in the target
 //! directory, synced, then renamed over the target. A failure at any step removes the
@@ -24,6 +25,25 @@ use crate::error::{Error, Result};
 /// a multiple of 8, a singular transform), if the directory is not writable, or if
 /// OpenVDB fails; no file is left behind in either case.
 pub fn write_float_grids(path: &Path, grids: &[&FloatGrid]) -> Result<()> {
+    write_grids(path, grids, &[])
+}
+
+/// A vector grid to write: its name and three components on the same leaves and
+/// transform (their own names are not used).
+#[derive(Clone, Copy, Debug)]
+pub struct VectorGrid<'a> {
+    /// The grid's name in the file.
+    pub name: &'a str,
+    /// x, y, z.
+    pub components: [&'a FloatGrid; 3],
+}
+
+/// [`write_float_grids`], and `vectors` as OpenVDB `Vec3SGrid`s (background 0; a voxel
+/// is active iff it is not the zero vector).
+///
+/// # Errors
+/// As [`write_float_grids`]; components on different leaves or transforms.
+pub fn write_grids(path: &Path, grids: &[&FloatGrid], vectors: &[VectorGrid<'_>]) -> Result<()> {
     let write_error = |source: io::Error| Error::Write { path: path.to_path_buf(), source };
     let invalid = |message: String| write_error(io::Error::new(io::ErrorKind::InvalidInput, message));
 
@@ -35,6 +55,20 @@ pub fn write_float_grids(path: &Path, grids: &[&FloatGrid]) -> Result<()> {
         writer
             .pin_mut()
             .add_float_grid(&grid.name, &grid.world_from_index.to_cols_array(), grid.background, &origins, &grid.values)
+            .map_err(|e| write_error(io::Error::other(e.what())))?;
+    }
+    for v in vectors {
+        let [x, y, z] = v.components;
+        for c in [x, y, z] {
+            validate(c).map_err(|message| invalid(format!("grid {:?}: {message}", v.name)))?;
+        }
+        if y.origins != x.origins || z.origins != x.origins || y.world_from_index != x.world_from_index || z.world_from_index != x.world_from_index {
+            return Err(invalid(format!("grid {:?}: its components have different leaves or transforms", v.name)));
+        }
+        let origins: Vec<i32> = x.origins.iter().flat_map(|o| o.to_array()).collect();
+        writer
+            .pin_mut()
+            .add_vec3_grid(v.name, &x.world_from_index.to_cols_array(), &origins, &x.values, &y.values, &z.values)
             .map_err(|e| write_error(io::Error::other(e.what())))?;
     }
 

@@ -228,9 +228,11 @@ fn cycles_blackbody_convention() {
     let expected_scale = STEFAN_BOLTZMANN / PI * 1e-6 * 1e12;
     let chromaticity = blackbody_table().cycles_chromaticity(1000.0);
     let actual = cycles_blackbody(1000.0);
+    // (To 1e-6 of the largest channel: the uniform-T table interpolates the ln-T one)
+    let largest = chromaticity.0.iter().map(|v| v.abs()).fold(0.0, f32::max);
     for c in 0..3 {
         let expected = expected_scale * f64::from(chromaticity.0[c]);
-        assert!((f64::from(actual.0[c]) - expected).abs() <= 1e-6 * expected.abs(), "{actual:?}");
+        assert!((f64::from(actual.0[c]) - expected).abs() <= 1e-6 * expected_scale * f64::from(largest), "{actual:?}");
     }
     // Unclamped, like Cycles' own fit (values from Cycles' svm_math_blackbody_color_rec709),
     // and constant outside 800 K … 12000 K.
@@ -248,6 +250,26 @@ fn cycles_blackbody_convention() {
     assert!(cycles_blackbody(0.0).is_black());
     assert!(cycles_blackbody(-10.0).is_black());
     assert!(cycles_blackbody(f32::NAN).is_black());
+}
+
+#[test]
+fn cycles_uniform_table_agrees_with_the_ln_t_table() {
+    // cycles_blackbody's uniform-in-T table against the ln-T table it is built from, over
+    // 1 K steps and between nodes, and held constant outside 800 … 12000 K
+    let table = blackbody_table();
+    let mut worst = 0.0f64;
+    for k in 0..=120_000 {
+        let t = 500.0 + f64::from(k) * 0.1013;
+        let t32 = t as f32;
+        let exact = table.cycles_chromaticity(t32).to_f64();
+        let scale = STEFAN_BOLTZMANN / PI * 1e-6 * f64::from(t32).powi(4);
+        let got = cycles_blackbody(t32).to_f64();
+        for c in 0..3 {
+            let e = exact[c] * scale;
+            worst = worst.max((got[c] - e).abs() / (exact.iter().map(|v| v.abs()).fold(0.0, f64::max) * scale));
+        }
+    }
+    assert!(worst < 2e-6, "uniform-T table deviates by {worst:e} (relative to the largest channel)");
 }
 
 #[test]

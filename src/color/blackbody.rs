@@ -235,7 +235,17 @@ pub struct BlackbodyTable {
     rgb_over_y: Vec<[f32; 3]>,
     /// Ĉ at [`CHROMATICITY_FLOOR_KELVIN`], from the table itself (continuous at 800 K).
     chromaticity_floor: Rgb,
+    /// C(T) tabulated uniformly in T over the range fires live in ([`UNIFORM_SEGMENTS`]),
+    /// from the ln-T table's own values, so [`BlackbodyTable::rgb`] needs no `ln` there.
+    uniform: Vec<[f32; 3]>,
 }
+
+/// The T-uniform segments of [`BlackbodyTable::rgb`]: `(first K, last K, nodes)`. Y(T) is
+/// exponential at low T (`∂ ln Y/∂T ≈ c₂/(λT²)`, 10 % per K at 500 K), so the first
+/// segment is fine (0.05 K) and the second coarser (0.6 K); a node step changes C by at
+/// most ≈ 0.5 % above 500 K, so linear interpolation is within ≈ 3e-6 of the ln-T table
+/// (tested), far inside its 1e-3 agreement with the exact integral.
+const UNIFORM_SEGMENTS: [(f64, f64, usize); 2] = [(100.0, 2000.0, 38_001), (2000.0, 20000.0, 30_001)];
 
 /// One interpolated table lookup.
 struct TableSample {
@@ -285,8 +295,13 @@ impl BlackbodyTable {
             ln_y.push(xyz[1].ln() as f32);
             rgb_over_y.push(xyz_to_rec709(xyz).map(|c| (c / xyz[1]) as f32));
         }
-        let mut table = BlackbodyTable { ln_t_min, nodes_per_ln_t, ln_y, rgb_over_y, chromaticity_floor: Rgb::ZERO };
+        let mut table = BlackbodyTable { ln_t_min, nodes_per_ln_t, ln_y, rgb_over_y, chromaticity_floor: Rgb::ZERO, uniform: Vec::new() };
         table.chromaticity_floor = table.normalized_chromaticity(CHROMATICITY_FLOOR_KELVIN);
+        let mut uniform = Vec::with_capacity(UNIFORM_SEGMENTS.iter().map(|s| s.2).sum());
+        for (lo, hi, n) in UNIFORM_SEGMENTS {
+            uniform.extend((0..n).map(|k| table.rgb_ln_t((lo + (hi - lo) * k as f64 / (n - 1) as f64) as f32).0));
+        }
+        table.uniform = uniform;
         table
     }
 
@@ -323,8 +338,29 @@ impl BlackbodyTable {
     /// and for NaN (a NaN temperature is treated as 0 K); T above [`TABLE_MAX_KELVIN`]
     /// (including +∞) is clamped to it. No cutoff: callers apply [`DEFAULT_CUTOFF_KELVIN`].
     /// Agrees with [`blackbody_rgb_exact`] to < 1e-3 relative over 500 K … 1e7 K.
+    ///
+    /// Between 100 K and 20 000 K from a table uniform in T (no `ln`; see
+    /// [`UNIFORM_SEGMENTS`]), above from the ln-T table.
     #[must_use]
+    #[inline]
     pub fn rgb(&self, t_kelvin: f32) -> Rgb {
+        let t = f64::from(t_kelvin);
+        let mut base = 0;
+        for (lo, hi, n) in UNIFORM_SEGMENTS {
+            if t >= lo && t <= hi {
+                let u = (t - lo) * ((n - 1) as f64 / (hi - lo));
+                let i = (u as usize).min(n - 2);
+                let f = u - i as f64;
+                let (a, b) = (self.uniform[base + i], self.uniform[base + i + 1]);
+                return Rgb(std::array::from_fn(|c| (f64::from(a[c]) + f * (f64::from(b[c]) - f64::from(a[c]))) as f32));
+            }
+            base += n;
+        }
+        self.rgb_ln_t(t_kelvin)
+    }
+
+    /// [`BlackbodyTable::rgb`] from the ln-T table.
+    fn rgb_ln_t(&self, t_kelvin: f32) -> Rgb {
         match self.sample(t_kelvin) {
             None => Rgb::ZERO,
             Some(s) => {

@@ -273,6 +273,27 @@ fn cycles_uniform_table_agrees_with_the_ln_t_table() {
 }
 
 #[test]
+fn uniform_rgb_table_agrees_with_the_ln_t_table() {
+    // rgb's T-uniform segments against the ln-T table they are built from, 500 K to
+    // 20 000 K in 0.1 K steps (between nodes); above, rgb is the ln-T table itself
+    let table = blackbody_table();
+    let mut worst = 0.0f64;
+    for k in 0..=195_000 {
+        let t = (500.0 + f64::from(k) * 0.1) as f32;
+        let got = table.rgb(t).to_f64();
+        let want = table.rgb_ln_t(t).to_f64();
+        let scale = want.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        for c in 0..3 {
+            worst = worst.max((got[c] - want[c]).abs() / scale);
+        }
+    }
+    println!("uniform-T rgb: largest deviation {worst:e} of the largest channel");
+    assert!(worst < 1e-5, "uniform-T rgb deviates by {worst:e} of the largest channel");
+    assert!(table.rgb(99.9).is_black());
+    assert_eq!(table.rgb(25_000.0), table.rgb_ln_t(25_000.0));
+}
+
+#[test]
 fn no_nan_or_inf_anywhere() {
     let table = blackbody_table();
     for t in EDGE_TEMPERATURES {

@@ -125,25 +125,15 @@ void GridWriter::add_float_grid(rust::Str name, rust::Slice<const double> world_
                                 rust::Slice<const float> values) {
     guarded([&] {
         const std::string grid_name(name);
-        if (world_from_index.size() != 12) {
-            throw std::runtime_error("world_from_index must have 12 entries");
-        }
+        vdb::math::Transform::Ptr transform = linear_transform(grid_name, world_from_index);
         if (origins.size() % 3 != 0 || values.size() != 512 * (origins.size() / 3)) {
             throw std::runtime_error("grid \"" + grid_name + "\": origins and values disagree");
-        }
-        vdb::Mat4d m = vdb::Mat4d::identity();
-        for (int i = 0; i < 4; ++i) {
-            for (int j = 0; j < 3; ++j) m(i, j) = world_from_index[3 * i + j];
-        }
-        const double det = m.getMat3().det();
-        if (!std::isfinite(det) || det == 0.0) {
-            throw std::runtime_error("grid \"" + grid_name + "\": world_from_index is singular");
         }
 
         vdb::FloatGrid::Ptr grid = vdb::FloatGrid::create(background);
         grid->setName(grid_name);
         grid->setGridClass(vdb::GRID_FOG_VOLUME);
-        grid->setTransform(vdb::math::Transform::createLinearTransform(m));
+        grid->setTransform(transform);
         vdb::FloatTree& tree = grid->tree();
         using Leaf = vdb::FloatTree::LeafNodeType;
         const std::size_t leaves = origins.size() / 3;

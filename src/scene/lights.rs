@@ -228,23 +228,25 @@ impl LightSettings {
         self.environment.is_some() || self.environment_map.is_some() || self.sky.is_some() || !self.distant.is_empty() || !self.sphere.is_empty()
     }
 
+    /// The group of every light given, by where it is given (defaults: `environment`,
+    /// `sky`, `sun`, `sphere`): the one place the defaults live.
+    fn entry_groups(&self) -> EntryGroups {
+        let name = |g: &Option<String>, default: &str| g.clone().unwrap_or_else(|| default.to_string());
+        EntryGroups {
+            environment: self.environment.map(|_| "environment".to_string()),
+            environment_map: self.environment_map.as_ref().map(|m| name(&m.group, "environment")),
+            sky: self.sky.as_ref().map(|s| name(&s.group, "sky")),
+            distant: self.distant.iter().map(|d| name(&d.group, "sun")).collect(),
+            sphere: self.sphere.iter().map(|s| name(&s.group, "sphere")).collect(),
+        }
+    }
+
     /// The light groups (AOV layers), in order of first appearance: what
     /// [`ExternalLights::groups`] of the built lights holds, known before loading.
     #[must_use]
     pub fn groups(&self) -> Vec<String> {
-        let name = |g: &Option<String>, default: &str| g.clone().unwrap_or_else(|| default.to_string());
-        let mut all = Vec::new();
-        if self.environment.is_some() {
-            all.push("environment".to_string());
-        }
-        if let Some(m) = &self.environment_map {
-            all.push(name(&m.group, "environment"));
-        }
-        if let Some(s) = &self.sky {
-            all.push(name(&s.group, "sky"));
-        }
-        all.extend(self.distant.iter().map(|d| name(&d.group, "sun")));
-        all.extend(self.sphere.iter().map(|s| name(&s.group, "sphere")));
+        let e = self.entry_groups();
+        let all = e.environment.into_iter().chain(e.environment_map).chain(e.sky).chain(e.distant).chain(e.sphere);
         let mut groups: Vec<String> = Vec::new();
         for g in all {
             if !groups.contains(&g) {
@@ -308,23 +310,23 @@ impl LightSettings {
         let up = up.normalize();
         let mut lights = Vec::new();
         let mut groups: Vec<String> = Vec::new();
-        let name = |g: &Option<String>, default: &str| g.clone().unwrap_or_else(|| default.to_string());
+        let entry = self.entry_groups();
         if let Some(env) = self.environment {
             let c = Rgb([env.x as f32, env.y as f32, env.z as f32]);
             lights.push(Light::Environment(Environment::new(Radiance::Constant(c), 1.0, up, 0.0, true)));
-            groups.push("environment".into());
+            groups.extend(entry.environment.clone());
         }
         if let Some(m) = &self.environment_map {
             let map = crate::light::envmap::EnvironmentMap::load(&m.file)?;
             lights.push(Light::Environment(Environment::new(Radiance::Map(Box::new(map)), m.intensity, up, m.rotation.to_radians(), m.visible)));
-            groups.push(name(&m.group, "environment"));
+            groups.extend(entry.environment_map.clone());
         }
         if let Some(s) = &self.sky {
             let sky = crate::light::sky::Sky::new(&s.params())?;
             let (w, h) = SKY_MAP_SIZE;
             let map = crate::light::envmap::EnvironmentMap::from_pixels(w, h, sky.image(w, h, false), "the sky")?;
             lights.push(Light::Environment(Environment::new(Radiance::Map(Box::new(map)), s.intensity, up, 0.0, s.visible)));
-            groups.push(name(&s.group, "sky"));
+            groups.extend(entry.sky.clone());
             if s.sun {
                 let sun = sky.sun_radiance();
                 if !sun.is_black() {
@@ -334,24 +336,33 @@ impl LightSettings {
                     let e = std::f64::consts::PI * alpha.sin().powi(2) * s.intensity;
                     let irradiance = Rgb(sun.0.map(|c| (f64::from(c) * e) as f32));
                     lights.push(Light::Distant(Distant::new(-to_sun, irradiance, 2.0 * alpha)));
-                    groups.push(name(&s.group, "sky"));
+                    groups.extend(entry.sky.clone());
                 }
             }
         }
         for d in &self.distant {
             lights.push(Light::Distant(Distant::new(d.direction.normalize(), tinted(d.color, d.kelvin, d.irradiance()), d.angle.to_radians())));
-            groups.push(name(&d.group, "sun"));
         }
+        groups.extend(entry.distant);
         for s in &self.sphere {
             lights.push(Light::Sphere(Sphere::new(s.position, s.radius, tinted(s.color, s.kelvin, s.power()))));
-            groups.push(name(&s.group, "sphere"));
         }
+        groups.extend(entry.sphere);
         let mut set = ExternalLights::new(lights, radius);
         if let Some(set) = &mut set {
             set.set_groups(&groups);
         }
         Ok(set)
     }
+}
+
+/// The AOV group of each light as given in `[lights]` (`LightSettings::entry_groups`).
+struct EntryGroups {
+    environment: Option<String>,
+    environment_map: Option<String>,
+    sky: Option<String>,
+    distant: Vec<String>,
+    sphere: Vec<String>,
 }
 
 /// Size of the lat-long table the sky is sampled from (0.35° per pixel).

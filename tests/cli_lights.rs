@@ -183,8 +183,7 @@ fn debug_pixel_replays_a_lit_sample_exactly() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("  light 0:") || err.contains("  light 1:"), "no light sample in {err}");
-    let printed = String::from_utf8_lossy(&o.stdout);
-    let values: Vec<f64> = printed.trim().trim_matches(|c| c == '[' || c == ']').split(',').map(|v| v.trim().parse().unwrap()).collect();
+    let values = common::replayed_values(&o);
     for c in 0..4 {
         assert_eq!(values[c] as f32, px[c], "channel {c}: replay {values:?} vs pixel {px:?}");
     }

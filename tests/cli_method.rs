@@ -98,8 +98,7 @@ fn debug_pixel_replays_the_rendered_sample() {
             for needle in [format!("plume: debug {at}: segment depth 0"), format!("plume: debug {at}: segment depth 1"), light.to_string()] {
                 assert!(err.contains(&needle), "{interpolation} {method}: no {needle:?} in {err}");
             }
-            let printed = String::from_utf8_lossy(&o.stdout);
-            let values: Vec<f64> = printed.trim().trim_matches(|c| c == '[' || c == ']').split(',').map(|v| v.trim().parse().unwrap()).collect();
+            let values = common::replayed_values(&o);
             for c in 0..4 {
                 assert_eq!(values[c] as f32, px[c], "{interpolation} {method} channel {c}: replay {values:?} vs pixel {px:?}");
             }

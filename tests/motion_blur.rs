@@ -68,13 +68,28 @@ fn regions(scene: &AnyScene, integrator: Integrator, spp: u32, seed: u64) -> [f6
     std::array::from_fn(|k| acc[k] / cnt[k])
 }
 
-fn compare(name: &str, a: &[[f64; 5]], b: &[[f64; 5]]) {
-    for k in 0..5 {
+/// One region's comparison: each set of runs' mean and standard error, and the z-score of
+/// their difference.
+type RegionZ = ((f64, f64), (f64, f64), f64);
+
+/// Per region, [`RegionZ`].
+fn z_scores(a: &[[f64; 5]], b: &[[f64; 5]]) -> [RegionZ; 5] {
+    std::array::from_fn(|k| {
         let (ma, sa) = mean_stderr(&a.iter().map(|r| r[k]).collect::<Vec<_>>());
         let (mb, sb) = mean_stderr(&b.iter().map(|r| r[k]).collect::<Vec<_>>());
-        let z = (ma - mb) / (sa * sa + sb * sb).sqrt().max(1e-12);
+        ((ma, sa), (mb, sb), (ma - mb) / (sa * sa + sb * sb).sqrt().max(1e-12))
+    })
+}
+
+fn compare(name: &str, a: &[[f64; 5]], b: &[[f64; 5]]) {
+    for (k, ((ma, sa), (mb, sb), z)) in z_scores(a, b).into_iter().enumerate() {
         assert!(z.abs() < 4.2, "{name} region {k}: {ma} ± {sa} vs {mb} ± {sb} (z = {z:.2})");
     }
+}
+
+/// The largest |z| over the regions: how clearly two sets of runs differ.
+fn largest_z(a: &[[f64; 5]], b: &[[f64; 5]]) -> f64 {
+    z_scores(a, b).iter().map(|r| r.2.abs()).fold(0.0, f64::max)
 }
 
 fn integrator(estimator: Estimator, light_sampling: LightSampling, max_depth: u32) -> Integrator {
@@ -123,13 +138,7 @@ fn uniform_velocity_blurs_like_the_average_of_translated_volumes() {
         compare(&format!("{interpolation} blur"), &a, &b);
         // …and the blur is visible: the still frame differs
         let still: Vec<[f64; 5]> = (0..12).map(|r| regions(&scene(DVec3::ZERO, None, LightSampling::Fnee, interpolation, 0.8), integ, 16, 500 + r)).collect();
-        let z = (0..5)
-            .map(|k| {
-                let (ms, ss) = mean_stderr(&still.iter().map(|r| r[k]).collect::<Vec<_>>());
-                let (mb, sb) = mean_stderr(&a.iter().map(|r| r[k]).collect::<Vec<_>>());
-                ((ms - mb) / (ss * ss + sb * sb).sqrt()).abs()
-            })
-            .fold(0.0, f64::max);
+        let z = largest_z(&still, &a);
         assert!(z > 6.0, "{interpolation}: the blur is not visible in any region (largest |z| {z:.2})");
     }
 }
@@ -275,13 +284,7 @@ fn a_moving_camera_equals_the_average_over_its_positions() {
     compare("moving camera", &a, &b);
     // …and the motion shows
     let still: Vec<[f64; 5]> = (0..12).map(|r| regions(&with_camera(still_at(0.0)), integ, 16, 800 + r)).collect();
-    let z = (0..5)
-        .map(|k| {
-            let (ms, ss) = mean_stderr(&still.iter().map(|r| r[k]).collect::<Vec<_>>());
-            let (mb, sb) = mean_stderr(&a.iter().map(|r| r[k]).collect::<Vec<_>>());
-            ((ms - mb) / (ss * ss + sb * sb).sqrt()).abs()
-        })
-        .fold(0.0, f64::max);
+    let z = largest_z(&still, &a);
     assert!(z > 6.0, "the camera's motion does not show (largest |z| {z:.2})");
 }
 
@@ -378,8 +381,7 @@ fn debug_pixel_replays_a_blurred_sample_exactly() {
     args.extend(common);
     let o = plume(&args);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let printed = String::from_utf8_lossy(&o.stdout);
-    let values: Vec<f64> = printed.trim().trim_matches(|c| c == '[' || c == ']').split(',').map(|v| v.trim().parse().unwrap()).collect();
+    let values = common::replayed_values(&o);
     for c in 0..4 {
         assert_eq!(values[c] as f32, px[c], "channel {c}: replay {values:?} vs pixel {px:?}");
     }

@@ -221,6 +221,16 @@ pub fn plume(args: &[&str]) -> Output {
     std::process::Command::new(PLUME).args(args).output().expect("run plume")
 }
 
+/// The `[r, g, b, alpha]` a `--debug-pixel` run prints on stdout.
+///
+/// # Panics
+/// If stdout is not a bracketed list of numbers.
+#[must_use]
+pub fn replayed_values(o: &Output) -> Vec<f64> {
+    let printed = String::from_utf8_lossy(&o.stdout);
+    printed.trim().trim_matches(|c| c == '[' || c == ']').split(',').map(|v| v.trim().parse().unwrap()).collect()
+}
+
 /// A run's stderr as text.
 pub fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()

@@ -18,11 +18,12 @@ use glam::DVec3;
 use crate::cache::CacheCheck;
 use crate::camera::{Camera, CameraMotion, LookAt};
 use crate::error::{Error, Result};
-use crate::integrator::{AnyScene, LightSampling, Lights, Scene};
+use crate::integrator::{AnyScene, LightSampling, Lights, Scene, Tracking};
 use crate::medium::{Emission, EmissionKind, Medium};
 use crate::scene::bind::{emission_kind, emission_model, grid_requests, memory_budget, reader, split_found, FileReader};
 use crate::scene::{JobSettings, SceneDescription, UpAxis};
 use crate::vdb::{FloatGrid, GridRequest};
+use crate::volume::majorant::MajorantGrid;
 use crate::volume::motion::Motion;
 use crate::volume::proxy::{CellPower, ProxyGrid};
 use crate::volume::velocity::{Velocity, VelocityGrid};
@@ -121,7 +122,9 @@ pub fn load_scene(scene: &SceneDescription, input: &Path, settings: &JobSettings
         (Some(name), Some(shutter)) => Some(Motion::new(&volume, Velocity::Grid(read_velocity(input, name, settings)?), scene.volume.velocity_scale, shutter)),
         _ => None,
     };
-    let scene = AnyScene::new(Scene { field: volume, medium, camera, lights, motion }, scene.volume.interpolation);
+    // Majorants for null collisions in a still volume (a moving one has its own)
+    let majorants = (motion.is_none() && scene.integrator().tracking != Tracking::Regular).then(|| MajorantGrid::new(&volume, 0.0));
+    let scene = AnyScene::new(Scene { field: volume, medium, camera, lights, motion, majorants }, scene.volume.interpolation);
     Ok(LoadedScene { scene, emission_kind: emission.kind, source_grid, cache })
 }
 

@@ -11,7 +11,7 @@ use std::path::Path;
 use common::{explosion, grid, grid_emission, mean_stderr, plume, s, tmpdir};
 use glam::{DAffine3, DMat3, DVec3, IVec3};
 use plume::camera::Camera;
-use plume::integrator::{AovLayout, AovSample, Counters, Integrator, LightSampling, Lights, MisHeuristic, NoTrace, Scene};
+use plume::integrator::{AovLayout, AovSample, Counters, Integrator, LightSampling, Lights, MisHeuristic, NoTrace, Scene, Tracking};
 use plume::medium::{Convention, Emission, EmissionKind, Estimator, Medium};
 use plume::sampling::Sampler;
 use plume::volume::field::Ray;
@@ -147,12 +147,12 @@ fn depth_is_the_expected_distance_to_the_first_collision() {
     let vol = Volume::build(&grid("density", xf, &leaves, |_| 1.0), None, |v| e.map_source(v)).unwrap();
     let medium = Medium { sigma_t: sigma, albedo: 0.0, g: 0.0, emission: Emission { kind: EmissionKind::None, ..e } };
     let cam = Camera::look_at(DVec3::new(0.0, 0.0, -1.0), DVec3::ZERO, DVec3::Y, 1.0, 1, 1).unwrap();
-    let scene = Scene { field: vol, medium, camera: cam, lights: Lights::default(), motion: None };
+    let scene = Scene { field: vol, medium, camera: cam, lights: Lights::default(), motion: None, majorants: None };
     let layout = AovLayout { groups: vec![] };
     let expected = 1.0 + 1.0 / sigma - depth * (-sigma * depth).exp() / (1.0 - (-sigma * depth).exp());
     let ray = Ray { origin: DVec3::new(0.0, 0.0, -1.0), direction: DVec3::Z };
     for estimator in [Estimator::Line, Estimator::RayMarch, Estimator::Point] {
-        let integ = Integrator { estimator, light_sampling: LightSampling::None, mis: MisHeuristic::Power, max_depth: 0 };
+        let integ = Integrator { estimator, light_sampling: LightSampling::None, mis: MisHeuristic::Power, max_depth: 0, tracking: Tracking::Regular };
         let mut ts = Vec::new();
         let mut c = Counters::default();
         let mut a = AovSample::new(layout.channels());

@@ -11,7 +11,7 @@ use std::path::Path;
 use common::{explosion, exr_pixels, grid, grid_emission, mean_stderr, pixel_bits, plume, plume_exits, s, stderr, tmpdir};
 use glam::{DAffine3, DVec3, IVec3};
 use plume::camera::Camera;
-use plume::integrator::{AnyScene, Integrator, LightSampling, Lights, MisHeuristic, Scene};
+use plume::integrator::{AnyScene, Integrator, LightSampling, Lights, MisHeuristic, Scene, Tracking};
 use plume::medium::{Convention, Emission, EmissionKind, Estimator, Medium};
 use plume::render::{render, RenderSettings, SampleBudget};
 use plume::sampling::SamplerKind;
@@ -56,7 +56,7 @@ fn linear_close_ups_are_continuous_and_nearest_ones_are_not() {
     let scene = |interpolation| {
         let vol = Volume::build(&density, Some(&emission), |v| e.map_source(v)).unwrap();
         let medium = Medium { sigma_t: 1e-10, albedo: 0.0, g: 0.0, emission: e };
-        AnyScene::new(Scene { field: vol, medium, camera, lights: Lights::default(), motion: None }, interpolation)
+        AnyScene::new(Scene { field: vol, medium, camera, lights: Lights::default(), motion: None, majorants: None }, interpolation)
     };
     let w = width as usize;
 
@@ -199,7 +199,7 @@ fn nearest_and_linear_agree_on_smooth_data_up_to_the_boundary_band() {
     let scene = |interpolation| {
         let vol = Volume::build(&density, Some(&emission), |v| e.map_source(v)).unwrap();
         let medium = Medium { sigma_t: C / n, albedo: 0.0, g: 0.0, emission: e };
-        AnyScene::new(Scene { field: vol, medium, camera, lights: Lights::default(), motion: None }, interpolation)
+        AnyScene::new(Scene { field: vol, medium, camera, lights: Lights::default(), motion: None, majorants: None }, interpolation)
     };
     let (linear, nearest) = (scene(Interpolation::Linear), scene(Interpolation::Nearest));
     let w = width as usize;
@@ -253,10 +253,10 @@ fn linear_scattering_renders_are_bit_identical_for_any_thread_count() {
         let vol = Volume::build(&ex.density, Some(&ex.temperature), |v| e.map_source(v)).unwrap();
         let lights = Lights::build(&vol, &e, ls, 8).unwrap();
         let medium = Medium { sigma_t: 4.0, albedo: 0.8, g: 0.3, emission: e };
-        let scene = AnyScene::new(Scene { field: vol, medium, camera, lights, motion: None }, Interpolation::Linear);
+        let scene = AnyScene::new(Scene { field: vol, medium, camera, lights, motion: None, majorants: None }, Interpolation::Linear);
         assert_eq!(scene.interpolation(), Interpolation::Linear);
         let estimator = if ls == LightSampling::Nee { Estimator::Point } else { Estimator::Line };
-        let integrator = Integrator { estimator, light_sampling: ls, mis: MisHeuristic::Power, max_depth: 8 };
+        let integrator = Integrator { estimator, light_sampling: ls, mis: MisHeuristic::Power, max_depth: 8, tracking: Tracking::Regular };
         let one = pixels(&scene, integrator, 3, 21, 1);
         let two = pixels(&scene, integrator, 3, 21, 2);
         assert!(one.iter().any(|p| p[0] > 0.0), "{ls:?}: the image is black");

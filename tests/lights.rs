@@ -9,7 +9,7 @@ use common::{grid, grid_emission, mean_stderr_from_sums};
 use glam::{DAffine3, DMat3, DVec3, IVec3};
 use plume::camera::Camera;
 use plume::color::Rgb;
-use plume::integrator::{Counters, Integrator, LightSampling, Lights, MisHeuristic, NoTrace, Scene};
+use plume::integrator::{Counters, Integrator, LightSampling, Lights, MisHeuristic, NoTrace, Scene, Tracking};
 use plume::light::external::{Distant, Environment, ExternalLights, Light, Radiance, Sphere};
 use plume::medium::{Convention, Emission, EmissionKind, Estimator, Medium};
 use plume::sampling::phase::hg_pdf;
@@ -46,13 +46,13 @@ fn medium() -> Medium {
 fn scene(lights: Vec<Light>) -> Scene<Volume> {
     let cam = Camera::look_at(DVec3::new(0.0, 0.0, -1.0), DVec3::ZERO, DVec3::Y, 1.0, 1, 1).unwrap();
     let lights = Lights { external: ExternalLights::new(lights, HALF), ..Lights::default() };
-    Scene { field: slab(), medium: medium(), camera: cam, lights, motion: None }
+    Scene { field: slab(), medium: medium(), camera: cam, lights, motion: None, majorants: None }
 }
 
 /// Mean radiance (red) and its standard error along the camera's central ray, single
 /// scattering only (`max_depth = 1`).
 fn single_scattering(scene: &Scene<Volume>, estimator: Estimator, n: u64, seed: u64) -> (f64, f64) {
-    let integ = Integrator { estimator, light_sampling: LightSampling::None, mis: MisHeuristic::Power, max_depth: 1 };
+    let integ = Integrator { estimator, light_sampling: LightSampling::None, mis: MisHeuristic::Power, max_depth: 1, tracking: Tracking::Regular };
     let ray = Ray { origin: DVec3::new(0.0, 0.0, -1.0), direction: DVec3::Z };
     let (mut s, mut s2) = (0.0, 0.0);
     let mut c = Counters::default();
@@ -114,7 +114,7 @@ fn wide_distant_light_matches_single_scattering_with_mis() {
     }
     for mis in [MisHeuristic::Power, MisHeuristic::Balance] {
         let sc = scene(vec![Light::Distant(light.clone())]);
-        let integ = Integrator { estimator: Estimator::Line, light_sampling: LightSampling::None, mis, max_depth: 1 };
+        let integ = Integrator { estimator: Estimator::Line, light_sampling: LightSampling::None, mis, max_depth: 1, tracking: Tracking::Regular };
         let ray = Ray { origin: DVec3::new(0.0, 0.0, -1.0), direction: DVec3::Z };
         let (mut s, mut s2, n) = (0.0, 0.0, 60_000u64);
         let mut c = Counters::default();

@@ -6,13 +6,11 @@
 
 mod common;
 
-use common::{exr_pixels, mean_stderr, pixel_bits, plume, plume_exits, s, tmpdir};
+use common::{explosion_emission, exr_pixels, mean_stderr, pixel_bits, plume, plume_exits, s, tmpdir};
 use glam::{DAffine3, DVec3};
 use plume::camera::Camera;
-use plume::color::Rgb;
-use plume::integrator::{AnyScene, Integrator, LightSampling, Lights, MisHeuristic, Scene};
-use plume::medium::{Convention, Emission, EmissionKind, Estimator, Medium, TemperatureMap};
-use plume::render::{render, RenderSettings, SampleBudget};
+use plume::integrator::{AnyScene, Integrator, LightSampling, Lights, MisHeuristic, Scene, Tracking};
+use plume::medium::{Estimator, Medium};
 use plume::sampling::{Sampler, SamplerKind};
 use plume::synth::{explosion, ExplosionParams};
 use plume::vdb::FloatGrid;
@@ -20,52 +18,29 @@ use plume::volume::motion::Motion;
 use plume::volume::velocity::Velocity;
 use plume::volume::{Interpolation, Volume};
 
-fn emission() -> Emission {
-    Emission {
-        kind: EmissionKind::Blackbody,
-        convention: Convention::Physical,
-        scale: 1e-3,
-        color: Rgb::ONE,
-        temperature_map: TemperatureMap::Kelvin,
-        cutoff_kelvin: 500.0,
-    }
-}
-
 /// The generated explosion moved by `shift` (world).
 fn volume(shift: DVec3) -> Volume {
     let ex = explosion(&ExplosionParams { resolution: 32, seed: 5, ..Default::default() });
     let moved = |g: &FloatGrid| FloatGrid { world_from_index: DAffine3::from_translation(shift) * g.world_from_index, ..g.clone() };
-    let e = emission();
+    let e = explosion_emission();
     Volume::build(&moved(&ex.density), Some(&moved(&ex.temperature)), |v| e.map_source(v)).unwrap()
 }
 
 fn scene(shift: DVec3, motion: Option<(DVec3, [f64; 2])>, ls: LightSampling, interpolation: Interpolation, albedo: f32) -> AnyScene {
     let vol = volume(shift);
-    let e = emission();
+    let e = explosion_emission();
     let lights = Lights::build(&vol, &e, ls, 8).unwrap();
     let motion = motion.map(|(v, shutter)| Motion::new(&vol, Velocity::Uniform(v), 1.0, shutter));
     let cam = Camera::look_at(DVec3::new(0.0, 0.2, -6.5), DVec3::new(0.0, 0.2, 0.0), DVec3::Y, 40.0, 12, 10).unwrap();
-    AnyScene::new(Scene { field: vol, medium: Medium { sigma_t: 2.0, albedo, g: 0.3, emission: e }, camera: cam, lights, motion }, interpolation)
+    AnyScene::new(
+        Scene { field: vol, medium: Medium { sigma_t: 2.0, albedo, g: 0.3, emission: e }, camera: cam, lights, motion, majorants: None },
+        interpolation,
+    )
 }
 
-/// Whole-image and quadrant means of one render.
+/// [`common::regions`] with Sobol points.
 fn regions(scene: &AnyScene, integrator: Integrator, spp: u32, seed: u64) -> [f64; 5] {
-    let settings = RenderSettings { budget: SampleBudget::Spp(spp), seed, sampler: SamplerKind::Sobol, threads: 0, first_sample: 0, integrator };
-    let r = plume::with_scene!(scene, s => render(s, &settings, &|_, _| {}));
-    let px = r.film.average(r.spp);
-    let (w, h) = (12usize, 10usize);
-    let (mut acc, mut cnt) = ([0.0f64; 5], [0.0f64; 5]);
-    for y in 0..h {
-        for x in 0..w {
-            let v = f64::from(px[y * w + x][0] + px[y * w + x][1] + px[y * w + x][2]);
-            let q = 1 + usize::from(x >= w / 2) + 2 * usize::from(y >= h / 2);
-            for k in [0, q] {
-                acc[k] += v;
-                cnt[k] += 1.0;
-            }
-        }
-    }
-    std::array::from_fn(|k| acc[k] / cnt[k])
+    common::regions(scene, integrator, SamplerKind::Sobol, spp, seed)
 }
 
 /// One region's comparison: each set of runs' mean and standard error, and the z-score of
@@ -93,7 +68,7 @@ fn largest_z(a: &[[f64; 5]], b: &[[f64; 5]]) -> f64 {
 }
 
 fn integrator(estimator: Estimator, light_sampling: LightSampling, max_depth: u32) -> Integrator {
-    Integrator { estimator, light_sampling, mis: MisHeuristic::Power, max_depth }
+    Integrator { estimator, light_sampling, mis: MisHeuristic::Power, max_depth, tracking: Tracking::Regular }
 }
 
 #[test]
@@ -264,10 +239,10 @@ fn a_moving_camera_equals_the_average_over_its_positions() {
     };
     let with_camera = |camera: Camera| -> AnyScene {
         let vol = volume(DVec3::ZERO);
-        let e = emission();
+        let e = explosion_emission();
         let lights = Lights::build(&vol, &e, LightSampling::Fnee, 8).unwrap();
         AnyScene::new(
-            Scene { field: vol, medium: Medium { sigma_t: 2.0, albedo: 0.8, g: 0.3, emission: e }, camera, lights, motion: None },
+            Scene { field: vol, medium: Medium { sigma_t: 2.0, albedo: 0.8, g: 0.3, emission: e }, camera, lights, motion: None, majorants: None },
             Interpolation::Linear,
         )
     };

@@ -5,13 +5,13 @@
 
 mod common;
 
-use common::{grid_emission, mean_stderr, mean_stderr_from_sums};
+use common::{explosion_emission, grid_emission, mean_stderr, mean_stderr_from_sums, region_means_with};
 use glam::{DAffine3, DMat3, DVec3, IVec3};
 use plume::camera::Camera;
 use plume::color::Rgb;
-use plume::integrator::{AnyScene, Counters, Integrator, LightSampling, Lights, MisHeuristic, NoTrace, Scene};
+use plume::integrator::{AnyScene, Counters, Integrator, LightSampling, Lights, MisHeuristic, NoTrace, Scene, Tracking};
 use plume::light::external::{Environment, ExternalLights, Light, Radiance};
-use plume::medium::{Convention, Emission, EmissionKind, Estimator, Medium, TemperatureMap};
+use plume::medium::{Convention, Emission, EmissionKind, Estimator, Medium};
 use plume::render::{render, RenderSettings, SampleBudget};
 use plume::sampling::phase::sample_uniform_sphere;
 use plume::sampling::Sampler;
@@ -37,7 +37,7 @@ fn cube(n: i32, size: f64, density: f32, source: f32) -> Volume {
 }
 
 fn integrator(estimator: Estimator, light_sampling: LightSampling, mis: MisHeuristic, max_depth: u32) -> Integrator {
-    Integrator { estimator, light_sampling, mis, max_depth }
+    Integrator { estimator, light_sampling, mis, max_depth, tracking: Tracking::Regular }
 }
 
 /// Every estimator × light strategy.
@@ -83,7 +83,8 @@ fn infinite_medium_reaches_equilibrium_radiance_with_every_method() {
     for (est, ls) in COMBOS {
         let lights = Lights::build(&vol, &e, ls, 8).unwrap();
         let cam = Camera::look_at(DVec3::ZERO, DVec3::ONE, DVec3::Y, 40.0, 1, 1).unwrap();
-        let scene = Scene { field: cube(4, 2.0, 1.0, le), medium: Medium { sigma_t, albedo, g: 0.3, emission: e }, camera: cam, lights, motion: None };
+        let scene =
+            Scene { field: cube(4, 2.0, 1.0, le), medium: Medium { sigma_t, albedo, g: 0.3, emission: e }, camera: cam, lights, motion: None, majorants: None };
         for (max_depth, expected) in [(10_000u32, f64::from(le) / mu_a), (2, f64::from(le) / mu_a * (1.0 - 0.8f64.powi(3)))] {
             let integ = integrator(est, ls, MisHeuristic::Power, max_depth);
             let (m, se) = mean_from_inside(&scene, &integ, DVec3::ONE, 3000, 11);
@@ -107,7 +108,8 @@ fn white_furnace_with_albedo_one_renders_the_environment() {
             let mut lights = Lights::build(&vol, &e, ls, 8).unwrap();
             let env = Environment::new(Radiance::Constant(Rgb::ONE), 1.0, DVec3::Y, 0.0, true);
             lights.external = ExternalLights::new(vec![Light::Environment(env)], 2.0);
-            let scene = Scene { field: vol, medium: Medium { sigma_t: 2.0, albedo: 1.0, g: 0.5, emission: e }, camera: cam, lights, motion: None };
+            let scene =
+                Scene { field: vol, medium: Medium { sigma_t: 2.0, albedo: 1.0, g: 0.5, emission: e }, camera: cam, lights, motion: None, majorants: None };
             let integ = integrator(est, ls, MisHeuristic::Power, 100_000);
             let r = render(
                 &scene,
@@ -122,50 +124,9 @@ fn white_furnace_with_albedo_one_renders_the_environment() {
     }
 }
 
-/// Per-region means (whole image + 4 quadrants) over `runs` independent renders, with
-/// standard errors from the spread of the runs.
-///
-/// Runs differ in seed, so with Sobol each run has its own per-pixel scrambles: run means
-/// are independent and unbiased (randomized quasi-Monte Carlo), and their spread is an
-/// honest standard error even though the samples within a run are not independent.
+/// [`common::region_means_with`] with Sobol points.
 fn region_means(scene: &AnyScene, integ: Integrator, spp: u32, runs: u64, seed0: u64) -> Vec<(f64, f64)> {
     region_means_with(SamplerKind::Sobol, scene, integ, spp, runs, seed0)
-}
-
-fn region_means_with(sampler: SamplerKind, scene: &AnyScene, integ: Integrator, spp: u32, runs: u64, seed0: u64) -> Vec<(f64, f64)> {
-    let mut per_run: Vec<[f64; 5]> = Vec::new();
-    for run in 0..runs {
-        let settings = RenderSettings { budget: SampleBudget::Spp(spp), seed: seed0 + run, sampler, threads: 0, first_sample: 0, integrator: integ };
-        let r = plume::with_scene!(scene, s => render(s, &settings, &|_, _| {}));
-        let px = r.film.average(r.spp);
-        let (w, h) = (scene.camera().width as usize, scene.camera().height as usize);
-        let mut acc = [0.0f64; 5];
-        let mut cnt = [0.0f64; 5];
-        for y in 0..h {
-            for x in 0..w {
-                let v = f64::from(px[y * w + x][0] + px[y * w + x][1] + px[y * w + x][2]);
-                let q = 1 + usize::from(x >= w / 2) + 2 * usize::from(y >= h / 2);
-                for k in [0, q] {
-                    acc[k] += v;
-                    cnt[k] += 1.0;
-                }
-            }
-        }
-        per_run.push(std::array::from_fn(|k| acc[k] / cnt[k]));
-    }
-    (0..5).map(|k| mean_stderr(&per_run.iter().map(|r| r[k]).collect::<Vec<_>>())).collect()
-}
-
-/// The generated explosion's physical blackbody emission.
-fn explosion_emission() -> Emission {
-    Emission {
-        kind: EmissionKind::Blackbody,
-        convention: Convention::Physical,
-        scale: 1e-3,
-        color: Rgb::ONE,
-        temperature_map: TemperatureMap::Kelvin,
-        cutoff_kelvin: 500.0,
-    }
 }
 
 fn explosion_scene(sigma_t: f64, ls: LightSampling, proxy_resolution: u32, interpolation: Interpolation) -> AnyScene {
@@ -174,7 +135,10 @@ fn explosion_scene(sigma_t: f64, ls: LightSampling, proxy_resolution: u32, inter
     let vol = Volume::build(&ex.density, Some(&ex.temperature), |v| e.map_source(v)).unwrap();
     let lights = Lights::build(&vol, &e, ls, proxy_resolution).unwrap();
     let cam = Camera::look_at(DVec3::new(0.0, 0.2, -6.5), DVec3::new(0.0, 0.2, 0.0), DVec3::Y, 40.0, 10, 8).unwrap();
-    AnyScene::new(Scene { field: vol, medium: Medium { sigma_t, albedo: 0.8, g: 0.3, emission: e }, camera: cam, lights, motion: None }, interpolation)
+    AnyScene::new(
+        Scene { field: vol, medium: Medium { sigma_t, albedo: 0.8, g: 0.3, emission: e }, camera: cam, lights, motion: None, majorants: None },
+        interpolation,
+    )
 }
 
 #[test]
@@ -297,7 +261,7 @@ fn albedo_grid_matches_constant_albedo_and_varies_per_voxel() {
     let render_with = |grid: Option<FloatGrid>, albedo: f32| {
         let vol = Volume::build_with_albedo(&ex.density, Some(&ex.temperature), |v| e.map_source(v), grid.as_ref()).unwrap();
         let lights = Lights::build(&vol, &e, LightSampling::Fnee, 8).unwrap();
-        let scene = Scene { field: vol, medium: Medium { sigma_t: 5.0, albedo, g: 0.3, emission: e }, camera: cam, lights, motion: None };
+        let scene = Scene { field: vol, medium: Medium { sigma_t: 5.0, albedo, g: 0.3, emission: e }, camera: cam, lights, motion: None, majorants: None };
         let integ = integrator(Estimator::Line, LightSampling::Fnee, MisHeuristic::Power, 16);
         let r = render(
             &scene,

@@ -7,7 +7,7 @@ use common::{grid, names_in, pixel_bits, tmpdir};
 use glam::{DAffine3, DMat3, DVec3, IVec3};
 use plume::camera::Camera;
 use plume::color::Rgb;
-use plume::integrator::{Counters, Integrator, LightSampling, Lights, MisHeuristic, NoTrace, Scene};
+use plume::integrator::{Counters, Integrator, LightSampling, Lights, MisHeuristic, NoTrace, Scene, Tracking};
 use plume::medium::{Convention, Emission, EmissionKind, Estimator, Medium, TemperatureMap};
 use plume::render::{pixel_sample, render, render_with, PixelSample, RenderControl, RenderSettings, SampleBudget, SampleOrder, StopReason};
 use plume::sampling::SamplerKind;
@@ -29,7 +29,14 @@ fn blob_scene(estimator: Estimator) -> (Scene<Volume>, Integrator) {
     };
     let vol = Volume::build(&d, Some(&t), |v| emission.map_source(v)).unwrap();
     let cam = Camera::look_at(DVec3::new(1.2, 1.2, -4.0), DVec3::splat(1.2), DVec3::Y, 40.0, 24, 20).unwrap();
-    let scene = Scene { field: vol, medium: Medium { sigma_t: 2.0, albedo: 0.0, g: 0.0, emission }, camera: cam, lights: Default::default(), motion: None };
+    let scene = Scene {
+        field: vol,
+        medium: Medium { sigma_t: 2.0, albedo: 0.0, g: 0.0, emission },
+        camera: cam,
+        lights: Default::default(),
+        motion: None,
+        majorants: None,
+    };
     (scene, Integrator::emission_only(estimator))
 }
 
@@ -58,7 +65,10 @@ fn scattering_blob() -> (Scene<Volume>, Integrator) {
     scene.medium.albedo = 0.8;
     scene.medium.sigma_t = 6.0;
     scene.lights = Lights::build(&scene.field, &scene.medium.emission, LightSampling::Fnee, 8).unwrap();
-    (scene, Integrator { estimator: Estimator::Line, light_sampling: LightSampling::Fnee, mis: MisHeuristic::Power, max_depth: 16 })
+    (
+        scene,
+        Integrator { estimator: Estimator::Line, light_sampling: LightSampling::Fnee, mis: MisHeuristic::Power, max_depth: 16, tracking: Tracking::Regular },
+    )
 }
 
 #[test]
@@ -147,7 +157,8 @@ fn voxel_aligned_box_image_matches_closed_form() {
     // Box spans [0, 1]³ in world space.
     let cam = Camera::look_at(DVec3::new(0.5, 0.5, -1000.0), DVec3::new(0.5, 0.5, 0.0), DVec3::Y, 0.01, 9, 9).unwrap();
     let sigma_t = 1.5;
-    let scene = Scene { field: vol, medium: Medium { sigma_t, albedo: 0.0, g: 0.0, emission }, camera: cam, lights: Default::default(), motion: None };
+    let scene =
+        Scene { field: vol, medium: Medium { sigma_t, albedo: 0.0, g: 0.0, emission }, camera: cam, lights: Default::default(), motion: None, majorants: None };
     let mu = sigma_t * 2.0;
     let expected = 5.0 * (1.0 - (-mu * 1.0f64).exp()) / mu;
     for est in [Estimator::RayMarch, Estimator::Line, Estimator::Point] {

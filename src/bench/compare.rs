@@ -72,7 +72,7 @@ fn install_lights(scene: &mut BenchScene, light_sampling: LightSampling, proxy_r
 }
 
 fn integrator_for(scene: &BenchScene, estimator: Estimator, light_sampling: LightSampling) -> Integrator {
-    Integrator { estimator, light_sampling, ..scene.shot.scene.integrator() }
+    scene.shot.scene.integrator_with(estimator, light_sampling)
 }
 
 /// Read a reference EXR and check its size against the scene's.

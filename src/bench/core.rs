@@ -128,7 +128,14 @@ pub fn run(resolution: u32, threads: usize, ttfs_file: &Path) -> Result<CoreRepo
 
     // Parallel speed-up of a whole render.
     let camera = Camera::frame_bounds(lo, hi, DVec3::new(0.35, 0.25, 1.0), DVec3::Y, 40.0, 320, 240)?;
-    let scene = Scene { field: volume, medium: Medium { sigma_t: 4.0, albedo: 0.0, g: 0.0, emission: em }, camera, lights: Default::default(), motion: None };
+    let scene = Scene {
+        field: volume,
+        medium: Medium { sigma_t: 4.0, albedo: 0.0, g: 0.0, emission: em },
+        camera,
+        lights: Default::default(),
+        motion: None,
+        majorants: None,
+    };
     let time_render = |threads: usize| {
         let settings = RenderSettings {
             budget: SampleBudget::Spp(8),

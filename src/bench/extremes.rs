@@ -39,7 +39,7 @@ use crate::camera::Camera;
 use crate::color::blackbody::blackbody_rgb_exact;
 use crate::color::Rgb;
 use crate::error::{Error, Result};
-use crate::integrator::{Integrator, LightSampling, Lights, MisHeuristic, Scene};
+use crate::integrator::{Integrator, LightSampling, Lights, MisHeuristic, Scene, Tracking};
 use crate::medium::tracking::phi;
 use crate::medium::{Convention, Emission, EmissionKind, Estimator, Medium, TemperatureMap};
 use crate::render::{render, RenderSettings, SampleBudget};
@@ -252,6 +252,7 @@ fn density_sweep(cfg: &ExtremesConfig, check: &mut Check) -> Result<()> {
             camera: box_camera(1.0, cfg.size)?,
             lights: Lights::default(),
             motion: None,
+            majorants: None,
         };
         let depth = sigma; // μ d with ρ = 1, d = 1 m
         let expected = phi(depth); // L_e d φ(μd) with L_e = 1, d = 1
@@ -263,7 +264,13 @@ fn density_sweep(cfg: &ExtremesConfig, check: &mut Check) -> Result<()> {
         // Scattering: between the emission-only value and the equilibrium L_e/μ_a
         scene.medium.albedo = 0.5;
         scene.lights = Lights::build(&scene.field, &emission, LightSampling::Fnee, 8)?;
-        let integ = Integrator { estimator: Estimator::Line, light_sampling: LightSampling::Fnee, mis: MisHeuristic::Power, max_depth: 64 };
+        let integ = Integrator {
+            estimator: Estimator::Line,
+            light_sampling: LightSampling::Fnee,
+            mis: MisHeuristic::Power,
+            max_depth: 64,
+            tracking: Tracking::Regular,
+        };
         let img = render_image(&scene, integ, cfg.spp, 1);
         let (mean, se) = central(&img, cfg.size, None);
         let upper = 1.0 / (0.5 * sigma);
@@ -310,6 +317,7 @@ fn temperature_sweep(cfg: &ExtremesConfig, check: &mut Check) -> Result<()> {
             camera: box_camera(1.0, cfg.size)?,
             lights: Lights::default(),
             motion: None,
+            majorants: None,
         };
         let c = if t < 500.0 { [0.0; 3] } else { blackbody_rgb_exact(t) };
         let expected = (c[0] + c[1] + c[2]) / 3.0 * phi(sigma);
@@ -340,7 +348,14 @@ fn explosion_at(ex: &crate::synth::Explosion, h: f64, h0: f64, size: u32) -> Res
     let vol = Volume::build(&d, Some(&t), |v| emission.map_source(v))?;
     let crate::volume::Bounds3 { lo, hi } = vol.world_bounds();
     let camera = Camera::frame_bounds(lo, hi, DVec3::new(0.35, 0.25, 1.0), DVec3::Y, 40.0, size, size)?;
-    Ok(Scene { field: vol, medium: Medium { sigma_t: 4.0 * h0 / h, albedo: 0.0, g: 0.0, emission }, camera, lights: Lights::default(), motion: None })
+    Ok(Scene {
+        field: vol,
+        medium: Medium { sigma_t: 4.0 * h0 / h, albedo: 0.0, g: 0.0, emission },
+        camera,
+        lights: Lights::default(),
+        motion: None,
+        majorants: None,
+    })
 }
 
 fn voxel_size_sweep(cfg: &ExtremesConfig, check: &mut Check) -> Result<()> {
@@ -424,8 +439,8 @@ fn invalid_voxels(cfg: &ExtremesConfig, check: &mut Check) -> Result<()> {
     });
     let medium = Medium { sigma_t: 3.0, albedo: 0.0, g: 0.0, emission };
     let camera = box_camera(1.0, cfg.size)?;
-    let dirty = Scene { field: dirty, medium, camera, lights: Lights::default(), motion: None };
-    let clean = Scene { field: clean, medium, camera, lights: Lights::default(), motion: None };
+    let dirty = Scene { field: dirty, medium, camera, lights: Lights::default(), motion: None, majorants: None };
+    let clean = Scene { field: clean, medium, camera, lights: Lights::default(), motion: None, majorants: None };
     for (name, est) in EMISSION_ONLY {
         let a = render_image(&dirty, Integrator::emission_only(est), cfg.spp, 4);
         let b = render_image(&clean, Integrator::emission_only(est), cfg.spp, 4);

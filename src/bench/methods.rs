@@ -20,7 +20,7 @@ use serde::Serialize;
 use crate::camera::Camera;
 use crate::color::Rgb;
 use crate::error::Result;
-use crate::integrator::{Integrator, LightSampling, Lights, MisHeuristic, Scene};
+use crate::integrator::{Integrator, LightSampling, Lights, MisHeuristic, Scene, Tracking};
 use crate::medium::{Convention, Emission, EmissionKind, Estimator, Medium, TemperatureMap};
 use crate::render::{render, RenderSettings, SampleBudget};
 use crate::stats::cpu_seconds;
@@ -85,11 +85,11 @@ fn scene(resolution: u32, sigma_t: f64, ls: LightSampling, width: u32, height: u
     let lights = Lights::build(&vol, &e, ls, proxy.min(resolution.next_power_of_two()))?;
     let crate::volume::Bounds3 { lo, hi } = vol.world_bounds();
     let camera = Camera::frame_bounds(lo, hi, DVec3::new(0.35, 0.25, 1.0), DVec3::Y, 40.0, width, height)?;
-    Ok(Scene { field: vol, medium: Medium { sigma_t, albedo: 0.8, g: 0.3, emission: e }, camera, lights, motion: None })
+    Ok(Scene { field: vol, medium: Medium { sigma_t, albedo: 0.8, g: 0.3, emission: e }, camera, lights, motion: None, majorants: None })
 }
 
 fn integrator(estimator: Estimator, light_sampling: LightSampling, mis: MisHeuristic) -> Integrator {
-    Integrator { estimator, light_sampling, mis, max_depth: 64 }
+    Integrator { estimator, light_sampling, mis, max_depth: 64, tracking: Tracking::Regular }
 }
 
 pub use super::metrics::rmse;

@@ -18,8 +18,8 @@ use plume::medium::Convention;
 use plume::scene::file::{is_scene_file, SceneFile};
 use plume::scene::{
     ByteSize, CameraSettings, DistantSettings, EmissionSettings, EmissionSource, EnvironmentMapSettings, EstimatorKind, IntegratorSettings, Interpolation,
-    MediumSettings, Method, ProgressFormat, ReadSettings, RenderOptions, SampleOrderChoice, SamplerKind, Shot, SkySettings, SphereSettings, TileIndex, UpAxis,
-    ValidShot, VolumeInput,
+    MediumSettings, Method, ProgressFormat, ReadSettings, RenderOptions, SampleOrderChoice, SamplerKind, Shot, SkySettings, SphereSettings, TileIndex,
+    TrackingChoice, UpAxis, ValidShot, VolumeInput,
 };
 
 use super::flags::{choice, parse_environment_map, parse_keys, parse_pair, parse_size, parse_vec3};
@@ -94,6 +94,12 @@ pub struct RenderArgs {
     /// MIS heuristic between forward sampling and NEE/FNEE.
     #[arg(long, value_parser = choice::<MisHeuristic>(), default_value_t = IntegratorSettings::default().mis)]
     pub mis: MisHeuristic,
+    /// How segments are tracked: exactly cell by cell (regular), or by null collisions
+    /// under brick majorants (METHOD.md §13), which look the volume up only at tentative
+    /// points. `mixed` tracks camera rays exactly and every segment after a scattering
+    /// event by null collisions.
+    #[arg(long, value_parser = choice::<TrackingChoice>(), default_value_t = IntegratorSettings::default().tracking)]
+    pub tracking: TrackingChoice,
     /// FNEE proxy grid resolution (cells along the longest axis; a power of two, 8 up to
     /// the data resolution). Default 64, or the data resolution if that is smaller.
     #[arg(long)]
@@ -329,6 +335,7 @@ flags_to_keys! { RENDER_ONLY_FLAGS, apply_render_only, RenderArgs, s, a;
     "estimator" => "integrator.estimator": s.scene.integrator.estimator => a.estimator;
     "light_sampling" => "integrator.light_sampling": s.scene.integrator.light_sampling => a.light_sampling;
     "mis" => "integrator.mis": s.scene.integrator.mis => a.mis;
+    "tracking" => "integrator.tracking": s.scene.integrator.tracking => a.tracking;
     "proxy_resolution" => "integrator.proxy_resolution": s.scene.integrator.proxy_resolution => a.proxy_resolution;
     "albedo" => "medium.albedo": s.scene.medium.albedo => a.albedo;
     "g" => "medium.g": s.scene.medium.g => a.g;

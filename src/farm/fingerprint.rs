@@ -78,7 +78,7 @@ pub fn settings_hash(shot: &Shot, seed: u64) -> String {
     } else {
         format!("{environment:?} {map:?} {sky:?} {distant:?} {sphere:?}")
     };
-    let IntegratorSettings { method, estimator, light_sampling, mis, proxy_resolution, max_depth, kappa } = integrator;
+    let IntegratorSettings { method, estimator, light_sampling, mis, proxy_resolution, max_depth, kappa, tracking } = integrator;
     // Of the job's settings only the seed (an argument) and the sampler change pixels
     let JobSettings { render, farm, output, reading } = settings;
     let RenderOptions {
@@ -106,7 +106,7 @@ pub fn settings_hash(shot: &Shot, seed: u64) -> String {
          medium {density_scale:?} {albedo:?} {g:?}\n\
          camera {from:?} {at:?} {up:?} {fov:?} {width} {height} {up_axis}\n\
          lights {lights}\n\
-         integrator {method} {estimator:?} {light_sampling:?} {mis} {proxy_resolution:?} {max_depth} {kappa:?}{}{motion}",
+         integrator {method} {estimator:?} {light_sampling:?} {mis} {proxy_resolution:?} {max_depth} {kappa:?} {tracking}{}{motion}",
         env!("CARGO_PKG_VERSION"),
         crate::film::FIXED_POINT_BITS,
         if *aovs { "\naovs" } else { "" }

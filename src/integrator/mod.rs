@@ -16,6 +16,7 @@ use crate::volume::trilinear::Trilinear;
 use crate::volume::{Interpolation, Volume};
 
 pub use aov::{AovLayout, AovSample, Aovs, Component, NoAovs};
+pub use tracker::Tracking;
 pub use volpath::{light_power, Integrator, LightSampling, Lights, MisHeuristic};
 
 /// Everything a render reads: immutable and `Sync`, built once.
@@ -32,6 +33,9 @@ pub struct Scene<F: Field> {
     /// Motion blur (velocity, shutter, majorants); `None`: a still volume, regular
     /// tracking.
     pub motion: Option<crate::volume::motion::Motion>,
+    /// Majorants for null-collision tracking of a still volume (`integrator::tracker`,
+    /// [`Tracking`] other than `Regular`); `None`: every segment tracks regularly.
+    pub majorants: Option<crate::volume::majorant::MajorantGrid>,
 }
 
 /// A loaded volume's scene, with the volume reconstructed as the description asks.
@@ -67,8 +71,15 @@ impl AnyScene {
         match interpolation {
             Interpolation::Nearest => AnyScene::Nearest(scene),
             Interpolation::Linear => {
-                let Scene { field, medium, camera, lights, motion } = scene;
-                AnyScene::Linear(Scene { field: Trilinear::new(field), medium, camera, lights: lights.for_interpolation(Interpolation::Linear), motion })
+                let Scene { field, medium, camera, lights, motion, majorants } = scene;
+                AnyScene::Linear(Scene {
+                    field: Trilinear::new(field),
+                    medium,
+                    camera,
+                    lights: lights.for_interpolation(Interpolation::Linear),
+                    motion,
+                    majorants,
+                })
             }
         }
     }
@@ -80,8 +91,15 @@ impl AnyScene {
         match (self, interpolation) {
             (AnyScene::Nearest(s), i) => AnyScene::new(s, i),
             (AnyScene::Linear(s), Interpolation::Nearest) => {
-                let Scene { field, medium, camera, lights, motion } = s;
-                AnyScene::Nearest(Scene { field: field.into_volume(), medium, camera, lights: lights.for_interpolation(Interpolation::Nearest), motion })
+                let Scene { field, medium, camera, lights, motion, majorants } = s;
+                AnyScene::Nearest(Scene {
+                    field: field.into_volume(),
+                    medium,
+                    camera,
+                    lights: lights.for_interpolation(Interpolation::Nearest),
+                    motion,
+                    majorants,
+                })
             }
             (linear, Interpolation::Linear) => linear,
         }

@@ -1,19 +1,79 @@
-//! The tracker a sample traces with: regular tracking through a still volume (exact
-//! free paths and transmittance, METHOD §3), or null collisions at the sample's shutter
-//! time through a moving one (`volume::motion`, `medium::null_tracking`). Chosen once per
-//! sample; a still scene runs exactly the regular code.
+//! The tracker a sample traces with, chosen once per sample and per kind of segment:
+//! regular tracking through a still volume (exact free paths and transmittance, METHOD
+//! §3 and §12), or null collisions (METHOD §13) under the majorants of
+//! `volume::majorant`, through a still volume or through a moving one at the sample's
+//! shutter time (`volume::motion`, `medium::null_tracking`).
+//!
+//! **Which segments track how** ([`Tracking`], `--tracking`): regular tracking walks
+//! every cell a segment crosses and integrates each in closed form; null collisions look
+//! the field up only at tentative points (`Exp(μ̄)` apart) and estimate the emission
+//! integral from one point per stretch between them. On a camera ray the exact walk pays
+//! for itself: its emission *is* the image of an emission–absorption render, and Sobol
+//! points stratify it. After a scattering event a segment's emission is one sample of the
+//! in-scattered radiance, far noisier than the integral's own estimate, and in thin media
+//! it crosses the whole volume: there the cheap tentative points win (`Tracking::Mixed`,
+//! the default where it applies; measured in docs/BENCHMARKS.md, "Tracking").
+//! A moving volume is tracked by null collisions everywhere (no closed form exists).
 
-use crate::medium::null_tracking::{null_track, ratio_transmittance, PointSample};
+use crate::integrator::LightSampling;
+use crate::medium::emission::EmissionMemo;
+use crate::medium::null_tracking::{null_track, ratio_transmittance, PointField, PointSample};
 use crate::medium::tracking::{optical_depth, OpticalDepth};
 use crate::medium::{track, Estimator, Medium, TrackResult};
 use crate::sampling::Sampler;
 use crate::volume::field::{Field, Ray};
+use crate::volume::majorant::MajorantGrid;
 use crate::volume::motion::Motion;
+
+/// How the segments of a still volume's paths are tracked.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Tracking {
+    /// Regular tracking of every segment (the paper's; exact).
+    Regular,
+    /// Regular tracking of camera segments, null collisions after scattering (light
+    /// segments, forward segments and shadow rays).
+    Mixed,
+    /// Null collisions on every segment.
+    Null,
+}
+
+impl Tracking {
+    /// Whether null collisions can serve `estimator` with `light_sampling`: not blend (a
+    /// per-voxel mix, and null collisions have no voxels), and not the point estimator
+    /// with classic NEE (its MIS at forward collisions needs the exact optical depth,
+    /// which null collisions do not know). Where they cannot, every segment tracks
+    /// regularly whatever the [`Tracking`].
+    #[must_use]
+    pub fn applies(estimator: Estimator, light_sampling: LightSampling) -> bool {
+        let blend = matches!(estimator, Estimator::Blend { .. });
+        let point_nee = estimator == Estimator::Point && light_sampling == LightSampling::Nee;
+        !(blend || point_nee)
+    }
+
+    /// Whether segments after a scattering event use null collisions.
+    #[must_use]
+    pub fn null_after_scattering(self) -> bool {
+        self != Tracking::Regular
+    }
+
+    /// Whether camera segments use null collisions.
+    #[must_use]
+    pub fn null_on_camera(self) -> bool {
+        self == Tracking::Null
+    }
+}
 
 /// How a sample tracks rays.
 pub enum Tracker<'a, F: Field> {
     /// Regular tracking of a still volume.
     Regular(&'a F),
+    /// Null collisions through a still volume.
+    Null {
+        /// The volume.
+        field: &'a F,
+        /// Its majorants (no displacement).
+        majorants: &'a MajorantGrid,
+    },
     /// Null collisions through the volume advected to `time` (seconds).
     Moving {
         /// The frame's volume.
@@ -25,14 +85,55 @@ pub enum Tracker<'a, F: Field> {
     },
 }
 
-impl<F: Field> Tracker<'_, F> {
-    /// The field at world point `p` at the sample's time.
-    fn point(field: &F, motion: &Motion, time: f64, medium: &Medium, p: glam::DVec3) -> PointSample {
-        let q = motion.source_point(p, time);
-        let v = field.reconstruct(q, &|d, s| medium.emission.le(d, s));
-        PointSample { density: v.density, source: field.values_at(q).source, emission: v.emission, albedo: field.albedo_at(q) }
+impl<F: Field> Clone for Tracker<'_, F> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+
+impl<F: Field> Copy for Tracker<'_, F> {}
+
+/// The field as null collisions read it (`medium::null_tracking`), at the sample's time:
+/// world point `p` reads the frame's field at `motion.source_point(p, time)`, or at `p`
+/// in a still volume. Emission goes through a memo of the corners' `L_e` (consecutive
+/// points along a ray share voxels).
+struct Points<'a, F: Field> {
+    field: &'a F,
+    medium: &'a Medium,
+    motion: Option<(&'a Motion, f64)>,
+    memo: EmissionMemo<'a>,
+}
+
+impl<'a, F: Field> Points<'a, F> {
+    fn new(field: &'a F, medium: &'a Medium, motion: Option<(&'a Motion, f64)>) -> Self {
+        Points { field, medium, motion, memo: EmissionMemo::new(&medium.emission) }
     }
 
+    #[inline]
+    fn source_point(&self, p: glam::DVec3) -> glam::DVec3 {
+        self.motion.map_or(p, |(motion, time)| motion.source_point(p, time))
+    }
+}
+
+impl<F: Field> PointField for Points<'_, F> {
+    #[inline]
+    fn density(&self, p: glam::DVec3) -> f32 {
+        self.field.values_at(self.source_point(p)).density
+    }
+
+    #[inline]
+    fn emission(&self, p: glam::DVec3) -> [f64; 3] {
+        self.field.reconstruct(self.source_point(p), &|d, s| self.memo.le(d, s)).emission
+    }
+
+    fn sample(&self, p: glam::DVec3) -> PointSample {
+        let q = self.source_point(p);
+        let v = self.field.reconstruct(q, &|d, s| self.medium.emission.le(d, s));
+        PointSample { density: v.density, source: self.field.values_at(q).source, emission: v.emission, albedo: self.field.albedo_at(q) }
+    }
+}
+
+impl<F: Field> Tracker<'_, F> {
     /// A free path and the estimator's emission along `ray` over `[0, t_max]`
     /// ([`track`] or [`null_track`]).
     #[allow(clippy::too_many_arguments)]
@@ -40,9 +141,11 @@ impl<F: Field> Tracker<'_, F> {
     pub fn track(&self, medium: &Medium, ray: &Ray, t_max: f64, estimator: Estimator, need_collision: bool, u: f64, sampler: &mut Sampler) -> TrackResult {
         match *self {
             Tracker::Regular(field) => track(field, medium, ray, t_max, estimator, need_collision, u, sampler),
+            Tracker::Null { field, majorants } => {
+                null_track(majorants, &Points::new(field, medium, None), medium, ray, t_max, estimator, need_collision, u, sampler)
+            }
             Tracker::Moving { field, motion, time } => {
-                let eval = |p| Self::point(field, motion, time, medium, p);
-                null_track(&motion.majorants, &eval, medium, ray, t_max, estimator, need_collision, u, sampler)
+                null_track(&motion.majorants, &Points::new(field, medium, Some((motion, time))), medium, ray, t_max, estimator, need_collision, u, sampler)
             }
         }
     }
@@ -57,10 +160,68 @@ impl<F: Field> Tracker<'_, F> {
                 let OpticalDepth { optical_depth: od, voxel_steps } = optical_depth(field, medium, ray, t_max, 745.0);
                 ((-od).exp(), voxel_steps)
             }
+            Tracker::Null { field, majorants } => (ratio_transmittance(majorants, &Points::new(field, medium, None), medium, ray, t_max, sampler), 0),
             Tracker::Moving { field, motion, time } => {
-                let eval = |p| Self::point(field, motion, time, medium, p);
-                (ratio_transmittance(&motion.majorants, &eval, medium, ray, t_max, sampler), 0)
+                (ratio_transmittance(&motion.majorants, &Points::new(field, medium, Some((motion, time))), medium, ray, t_max, sampler), 0)
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::medium::{Convention, Emission, EmissionKind, TemperatureMap};
+    use crate::sampling::phase::sample_uniform_sphere;
+    use crate::volume::trilinear::Trilinear;
+    use crate::volume::Volume;
+
+    /// What null collisions read of a still volume is exactly what the field
+    /// reconstructs there (bit for bit), nearest and trilinear, at random points in and
+    /// around a hot explosion; and a moving volume at time 0 with zero velocity reads the
+    /// same.
+    #[test]
+    fn points_read_what_the_field_reconstructs() {
+        let ex = crate::synth::explosion(&crate::synth::ExplosionParams { resolution: 24, seed: 2, ..Default::default() });
+        let emission = Emission {
+            kind: EmissionKind::Blackbody,
+            convention: Convention::Physical,
+            scale: 1e-3,
+            color: crate::color::Rgb::ONE,
+            temperature_map: TemperatureMap::Kelvin,
+            cutoff_kelvin: 500.0,
+        };
+        let volume = || Volume::build(&ex.density, Some(&ex.temperature), |v| emission.map_source(v)).unwrap();
+        let medium = Medium { sigma_t: 2.0, albedo: 0.8, g: 0.0, emission };
+        let nearest = volume();
+        let linear = Trilinear::new(volume());
+        let motion = Motion::new(&nearest, crate::volume::velocity::Velocity::Uniform(glam::DVec3::ZERO), 1.0, [0.0, 0.0]);
+        let b = nearest.world_bounds();
+        let mut rng = Sampler::new(5, 0, 0);
+        let mut emitting = 0;
+        for _ in 0..8000 {
+            let u = glam::DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64());
+            let p = b.lo + (b.hi - b.lo) * (u * 1.2 - 0.1) + 1e-3 * sample_uniform_sphere([rng.next_f64(), rng.next_f64()]);
+            for (still, moving) in [
+                (Points::new(&nearest, &medium, None).sample(p), Points::new(&nearest, &medium, Some((&motion, 0.0))).sample(p)),
+                (Points::new(&linear, &medium, None).sample(p), Points::new(&linear, &medium, Some((&motion, 0.0))).sample(p)),
+            ] {
+                assert_eq!(still, moving, "at {p}");
+            }
+            let check = |field: &dyn Fn(glam::DVec3) -> (crate::volume::field::PointValues, crate::volume::field::VoxelValues, f32),
+                         points: &dyn PointField| {
+                let (v, values, albedo) = field(p);
+                let s = points.sample(p);
+                assert_eq!(points.density(p).to_bits(), v.density.to_bits(), "density at {p}");
+                assert_eq!(points.emission(p).map(f64::to_bits), v.emission.map(f64::to_bits), "emission at {p}");
+                assert_eq!(s, PointSample { density: v.density, source: values.source, emission: v.emission, albedo }, "sample at {p}");
+                v.emission.iter().any(|&e| e > 0.0)
+            };
+            let le = |d: f32, s: f32| medium.emission.le(d, s);
+            emitting +=
+                usize::from(check(&|q| (nearest.reconstruct(q, &le), nearest.values_at(q), nearest.albedo_at(q)), &Points::new(&nearest, &medium, None)));
+            emitting += usize::from(check(&|q| (linear.reconstruct(q, &le), linear.values_at(q), linear.albedo_at(q)), &Points::new(&linear, &medium, None)));
+        }
+        assert!(emitting > 200, "only {emitting} emitting points checked");
     }
 }

@@ -36,7 +36,7 @@
 //!   full weight would count in-scattered emission twice.
 
 use super::aov::{Aovs, Component, NoAovs};
-use super::tracker::Tracker;
+use super::tracker::{Tracker, Tracking};
 use crate::light::external::{ChosenLight, ExternalLights};
 use crate::light::nee::EmitterDistribution;
 use crate::medium::tracking::emission_at_point;
@@ -153,6 +153,8 @@ pub struct Integrator {
     pub mis: MisHeuristic,
     /// Largest number of scattering events (0: emission–absorption only).
     pub max_depth: u32,
+    /// How segments are tracked (`integrator::tracker`).
+    pub tracking: Tracking,
 }
 
 /// The MIS weight owed to a forward segment's emission.
@@ -167,6 +169,16 @@ enum ForwardWeight {
         /// Phase pdf of the segment's direction.
         p_phase: f64,
     },
+}
+
+/// A collision a scattered path starts from: at `incoming.at(t)`, in a segment with
+/// albedo factor `albedo`, carrying throughput `beta` (before the albedo).
+#[derive(Clone, Copy, Debug)]
+struct Vertex {
+    incoming: Ray,
+    t: f64,
+    albedo: f32,
+    beta: f64,
 }
 
 /// Add `w · e` to the radiance and to its AOV component.
@@ -184,7 +196,7 @@ impl Integrator {
     /// Emission–absorption only: no scattering, no light sampling.
     #[must_use]
     pub fn emission_only(estimator: Estimator) -> Integrator {
-        Integrator { estimator, light_sampling: LightSampling::None, mis: MisHeuristic::Power, max_depth: 0 }
+        Integrator { estimator, light_sampling: LightSampling::None, mis: MisHeuristic::Power, max_depth: 0, tracking: Tracking::Regular }
     }
 
     /// Radiance `[r, g, b]` and alpha along a camera ray.
@@ -206,77 +218,82 @@ impl Integrator {
         aovs: &mut A,
     ) -> [f64; 4] {
         let m = &scene.medium;
-        let lights = &scene.lights;
         let mut l = [0.0f64; 3];
-        let mut beta = 1.0f64;
-        let mut ray = *camera_ray;
-        let mut alpha = 0.0;
-        let mut depth = 0u32;
-        // MIS weight of the current forward segment, evaluated only if it collects
-        // emission: `p_σ` needs a proxy walk, and the weight of a zero F is irrelevant.
-        let mut w_fwd = ForwardWeight::One;
-        // Phase pdf of the direction of the current segment (None: camera ray).
-        let mut segment_phase_pdf: Option<f64> = None;
         let scatters = m.albedo > 0.0 && self.max_depth > 0;
-        let point_nee = self.light_sampling == LightSampling::Nee && self.estimator == Estimator::Point;
-        let external = lights.external.as_ref();
-        // Regular tracking, or null collisions at this sample's shutter time
-        let tracker = match &scene.motion {
-            None => Tracker::Regular(&scene.field),
-            Some(motion) => Tracker::Moving { field: &scene.field, motion, time: time.unwrap_or_else(|| motion.time(sampler.get_1d(Dim::Time))) },
-        };
-        loop {
-            let need_collision = scatters && depth < self.max_depth;
-            // The segment ends at the first sphere light it hits (they are opaque)
-            let hit = external.and_then(|e| e.hit(&ray));
-            let t_max = hit.map_or(f64::INFINITY, |(t, _)| t);
-            let u = sampler.get_1d(Dim::FreePath);
-            // The depth layer wants the camera ray's first collision (ray-march draws it
-            // with the same number; nothing else changes)
-            let r = tracker.track(m, &ray, t_max, self.estimator, need_collision || (A::ON && depth == 0), u, sampler);
-            c.segments += u64::from(r.segments);
-            c.voxel_steps += r.voxel_steps;
-            // Add emission along the segment
-            let has_emission = r.emission.iter().any(|&v| v != 0.0);
-            let mut w = match w_fwd {
-                ForwardWeight::One => 1.0,
-                ForwardWeight::Zero => 0.0,
-                ForwardWeight::Fnee { p_phase } if has_emission => {
-                    lights.proxy.as_ref().map_or(1.0, |p| self.mis.weight(p_phase, p.direction_pdf(ray.origin, ray.direction)))
-                }
-                ForwardWeight::Fnee { .. } => 0.0,
-            };
-            if let (true, Some(p_ph), Some(nee), DistanceSample::Collided { t, density, .. }) = (point_nee, segment_phase_pdf, lights.nee.as_ref(), r.event) {
-                // MIS in volume measure against NEE at the collision point
-                let p_fwd = p_ph * m.mu_t(density) * (-r.optical_depth).exp() / (t * t);
-                w = self.mis.weight(p_fwd, nee.pdf(ray.at(t)));
-            }
-            let component = if depth == 0 { Component::Emission } else { Component::Scattered };
-            contribute(&mut l, aovs, component, beta * w, r.emission);
-            trace.event(|| {
-                format!(
-                    "segment depth {depth}: origin {:?} dir {:?} -> {:?}, F {:?}, w_fwd {w}, beta {beta}, tau {}",
-                    ray.origin, ray.direction, r.event, r.emission, r.transmittance
-                )
+        let external = scene.lights.external.as_ref();
+        let (camera, tracker) = self.trackers(scene, time, sampler);
+        // The camera segment ends at the first sphere light it hits (they are opaque)
+        let hit = external.and_then(|e| e.hit(camera_ray));
+        let t_max = hit.map_or(f64::INFINITY, |(t, _)| t);
+        let u = sampler.get_1d(Dim::FreePath);
+        // The depth layer wants the camera ray's first collision (ray-march draws it
+        // with the same number; nothing else changes)
+        let r = camera.track(m, camera_ray, t_max, self.estimator, scatters || A::ON, u, sampler);
+        c.segments += u64::from(r.segments);
+        c.voxel_steps += r.voxel_steps;
+        contribute(&mut l, aovs, Component::Emission, 1.0, r.emission);
+        trace.event(|| {
+            format!(
+                "segment depth 0: origin {:?} dir {:?} -> {:?}, F {:?}, w_fwd 1, beta 1, tau {}",
+                camera_ray.origin, camera_ray.direction, r.event, r.emission, r.transmittance
+            )
+        });
+        let alpha = 1.0 - r.transmittance;
+        if let (true, DistanceSample::Collided { t, .. }) = (A::ON, r.event) {
+            aovs.first_collision(t);
+        }
+        if let Some(e) = external.filter(|e| r.transmittance != 0.0 && e.reachable()) {
+            // The lights this segment reaches (no light sampling partner on camera rays)
+            e.arriving(camera_ray, hit.map(|(_, i)| i), None, self.mis, |i, w, radiance| {
+                contribute(&mut l, aovs, Component::Light(e.group(i)), r.transmittance * w, radiance);
+                trace.event(|| format!("  reaches light {i}: L {radiance:?}, w {w}, tau {}", r.transmittance));
             });
-            if depth == 0 {
-                alpha = 1.0 - r.transmittance;
-                if let (true, DistanceSample::Collided { t, .. }) = (A::ON, r.event) {
-                    aovs.first_collision(t);
-                }
-            }
-            if let Some(e) = external.filter(|e| r.transmittance != 0.0 && e.reachable()) {
-                // The lights this segment reaches, each weighted against light sampling
-                let weight = beta * r.transmittance;
-                e.arriving(&ray, hit.map(|(_, i)| i), segment_phase_pdf, self.mis, |i, w, radiance| {
-                    contribute(&mut l, aovs, Component::Light(e.group(i)), weight * w, radiance);
-                    trace.event(|| format!("  reaches light {i}: L {radiance:?}, w {w}, tau {}", r.transmittance));
-                });
-            }
-            let DistanceSample::Collided { t, albedo, .. } = r.event else { break };
-            if !need_collision {
-                break;
-            }
+        }
+        if let (true, DistanceSample::Collided { t, albedo, .. }) = (scatters, r.event) {
+            let vertex = Vertex { incoming: *camera_ray, t, albedo, beta: 1.0 };
+            self.scattered_path(scene, &tracker, vertex, sampler, (&mut *c, &mut *trace), (&mut l, &mut *aovs));
+        }
+        trace.event(|| format!("result L {l:?} alpha {alpha}"));
+        [l[0], l[1], l[2], alpha]
+    }
+
+    /// The trackers of one sample: for the camera segment, and for every segment after
+    /// a scattering event (`integrator::tracker`). Null collisions need the scene's
+    /// majorants and an estimator they serve ([`Tracking::applies`]); without either,
+    /// segments track regularly.
+    fn trackers<'s, F: Field>(&self, scene: &'s Scene<F>, time: Option<f64>, sampler: &mut Sampler) -> (Tracker<'s, F>, Tracker<'s, F>) {
+        if let Some(motion) = &scene.motion {
+            // Null collisions at this sample's shutter time
+            let t = Tracker::Moving { field: &scene.field, motion, time: time.unwrap_or_else(|| motion.time(sampler.get_1d(Dim::Time))) };
+            return (t, t);
+        }
+        let regular = Tracker::Regular(&scene.field);
+        let null = scene.majorants.as_ref().map(|majorants| Tracker::Null { field: &scene.field, majorants });
+        let serves = Tracking::applies(self.estimator, self.light_sampling);
+        let pick = |use_null: bool| if use_null && serves { null.unwrap_or(regular) } else { regular };
+        (pick(self.tracking.null_on_camera()), pick(self.tracking.null_after_scattering()))
+    }
+
+    /// The path from a collision on: at each vertex light sampling, Russian roulette and
+    /// the phase function's next direction, then the next segment's emission, until the
+    /// path escapes, is absorbed or reaches the largest depth. Adds to `l` and `aovs`.
+    #[allow(clippy::too_many_lines)]
+    fn scattered_path<F: Field, T: Trace, A: Aovs>(
+        &self,
+        scene: &Scene<F>,
+        tracker: &Tracker<'_, F>,
+        vertex: Vertex,
+        sampler: &mut Sampler,
+        (c, trace): (&mut Counters, &mut T),
+        (l, aovs): (&mut [f64; 3], &mut A),
+    ) {
+        let m = &scene.medium;
+        let lights = &scene.lights;
+        let external = lights.external.as_ref();
+        let point_nee = self.light_sampling == LightSampling::Nee && self.estimator == Estimator::Point;
+        let Vertex { incoming: mut ray, mut t, mut albedo, mut beta } = vertex;
+        let mut depth = 0u32;
+        loop {
             c.collisions += 1;
             depth += 1;
             // Scattering albedo of the collision's own segment (METHOD §10.3)
@@ -304,7 +321,7 @@ impl Integrator {
                                 if p_sigma > 0.0 {
                                     let f = hg_pdf(m.g, ray.direction.dot(wi));
                                     let w_l = self.mis.weight(p_sigma, f);
-                                    contribute(&mut l, aovs, Component::Scattered, beta * f * w_l / p_sigma, rl.emission);
+                                    contribute(l, aovs, Component::Scattered, beta * f * w_l / p_sigma, rl.emission);
                                     trace.event(|| format!("  fnee: dir {wi:?} p_sigma {p_sigma} f {f} w {w_l} F {:?}", rl.emission));
                                 }
                             }
@@ -331,7 +348,7 @@ impl Integrator {
                                 let PointValues { density: dy, emission: le } = emission_at_point(&scene.field, m, vs.p_world);
                                 let f = hg_pdf(m.g, ray.direction.dot(wi));
                                 let w_l = if point_nee { self.mis.weight(vs.pdf, f * m.mu_t(dy) * tau / r2) } else { 1.0 };
-                                contribute(&mut l, aovs, Component::Scattered, beta * f * tau * w_l / (vs.pdf * r2), le);
+                                contribute(l, aovs, Component::Scattered, beta * f * tau * w_l / (vs.pdf * r2), le);
                                 trace.event(|| format!("  nee: y {:?} p_V {} tau {tau} f {f} w {w_l} L_e {le:?}", vs.p_world, vs.pdf));
                             }
                         }
@@ -341,7 +358,7 @@ impl Integrator {
             }
             // Sample the external lights at x (a strategy of their own)
             if let Some(e) = external {
-                self.sample_external((m, &tracker), e, x, ray.direction, beta, sampler, (c, trace), (&mut l, &mut *aovs));
+                self.sample_external((m, tracker), e, x, ray.direction, beta, sampler, (c, trace), (l, &mut *aovs));
             }
             // Russian roulette after this segment's emission
             sampler.start_vertex(depth);
@@ -356,8 +373,9 @@ impl Integrator {
             // Sample the phase function for the next direction (f/p = 1)
             let ps = sample_hg(m.g, ray.direction, sampler.get_2d(Dim::Direction));
             ray = Ray { origin: x, direction: ps.direction };
-            segment_phase_pdf = Some(ps.pdf);
-            w_fwd = match self.light_sampling {
+            // MIS weight of the new segment, evaluated only if it collects emission: `p_σ`
+            // needs a proxy walk, and the weight of a zero F is irrelevant
+            let w_fwd = match self.light_sampling {
                 LightSampling::None => ForwardWeight::One,
                 LightSampling::Fnee if lights.proxy.is_some() => ForwardWeight::Fnee { p_phase: ps.pdf },
                 LightSampling::Fnee => ForwardWeight::One,
@@ -365,9 +383,50 @@ impl Integrator {
                 LightSampling::Nee if lights.nee.is_some() => ForwardWeight::Zero,
                 LightSampling::Nee => ForwardWeight::One,
             };
+            // The next segment, which ends at the first sphere light it hits
+            let need_collision = depth < self.max_depth;
+            let hit = external.and_then(|e| e.hit(&ray));
+            let t_max = hit.map_or(f64::INFINITY, |(t, _)| t);
+            let u = sampler.get_1d(Dim::FreePath);
+            let r = tracker.track(m, &ray, t_max, self.estimator, need_collision, u, sampler);
+            c.segments += u64::from(r.segments);
+            c.voxel_steps += r.voxel_steps;
+            // Add emission along the segment
+            let has_emission = r.emission.iter().any(|&v| v != 0.0);
+            let mut w = match w_fwd {
+                ForwardWeight::One => 1.0,
+                ForwardWeight::Zero => 0.0,
+                ForwardWeight::Fnee { p_phase } if has_emission => {
+                    lights.proxy.as_ref().map_or(1.0, |p| self.mis.weight(p_phase, p.direction_pdf(ray.origin, ray.direction)))
+                }
+                ForwardWeight::Fnee { .. } => 0.0,
+            };
+            if let (true, Some(nee), DistanceSample::Collided { t, density, .. }) = (point_nee, lights.nee.as_ref(), r.event) {
+                // MIS in volume measure against NEE at the collision point
+                let p_fwd = ps.pdf * m.mu_t(density) * (-r.optical_depth).exp() / (t * t);
+                w = self.mis.weight(p_fwd, nee.pdf(ray.at(t)));
+            }
+            contribute(l, aovs, Component::Scattered, beta * w, r.emission);
+            trace.event(|| {
+                format!(
+                    "segment depth {depth}: origin {:?} dir {:?} -> {:?}, F {:?}, w_fwd {w}, beta {beta}, tau {}",
+                    ray.origin, ray.direction, r.event, r.emission, r.transmittance
+                )
+            });
+            if let Some(e) = external.filter(|e| r.transmittance != 0.0 && e.reachable()) {
+                // The lights this segment reaches, each weighted against light sampling
+                let weight = beta * r.transmittance;
+                e.arriving(&ray, hit.map(|(_, i)| i), Some(ps.pdf), self.mis, |i, w, radiance| {
+                    contribute(l, aovs, Component::Light(e.group(i)), weight * w, radiance);
+                    trace.event(|| format!("  reaches light {i}: L {radiance:?}, w {w}, tau {}", r.transmittance));
+                });
+            }
+            let DistanceSample::Collided { t: tc, albedo: ac, .. } = r.event else { break };
+            if !need_collision {
+                break;
+            }
+            (t, albedo) = (tc, ac);
         }
-        trace.event(|| format!("result L {l:?} alpha {alpha}"));
-        [l[0], l[1], l[2], alpha]
     }
 
     /// Light sampling of the external lights at collision `x` reached along `incoming`:

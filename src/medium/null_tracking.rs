@@ -46,6 +46,31 @@ pub struct PointSample {
     pub albedo: f32,
 }
 
+/// The field as null collisions read it at world points: each read asks only for what
+/// it uses (a tentative point its density; an emission point its `L_e`; a real
+/// collision everything), so a lookup costs one gather of the reconstruction.
+pub trait PointField {
+    /// Density at `p`.
+    fn density(&self, p: glam::DVec3) -> f32;
+    /// Emission density `L_e` at `p`.
+    fn emission(&self, p: glam::DVec3) -> [f64; 3];
+    /// Everything at a real collision.
+    fn sample(&self, p: glam::DVec3) -> PointSample;
+}
+
+/// A closure giving the whole [`PointSample`] is a [`PointField`] (tests, analytic fields).
+impl<T: Fn(glam::DVec3) -> PointSample> PointField for T {
+    fn density(&self, p: glam::DVec3) -> f32 {
+        self(p).density
+    }
+    fn emission(&self, p: glam::DVec3) -> [f64; 3] {
+        self(p).emission
+    }
+    fn sample(&self, p: glam::DVec3) -> PointSample {
+        self(p)
+    }
+}
+
 fn add(f: &mut [f64; 3], e: [f64; 3], w: f64) {
     for (a, v) in f.iter_mut().zip(e) {
         *a += w * v;
@@ -53,14 +78,14 @@ fn add(f: &mut [f64; 3], e: [f64; 3], w: f64) {
 }
 
 /// Track `ray` over `[0, t_max]` by null collisions: the free path (delta tracking) and
-/// the estimator's emission (module docs). `field(p)` gives the field at world point `p`.
+/// the estimator's emission (module docs). `field` gives the field at world points.
 ///
 /// # Panics
 /// For [`Estimator::Blend`] (refused when the scene is built).
 #[allow(clippy::too_many_arguments)]
 pub fn null_track(
     majorants: &MajorantGrid,
-    field: &impl Fn(glam::DVec3) -> PointSample,
+    field: &impl PointField,
     medium: &Medium,
     ray: &Ray,
     t_max: f64,
@@ -93,7 +118,7 @@ pub fn null_track(
             let end = next.min(seg.t1);
             if integrates && emits && end > s && (event == DistanceSample::Escaped || expected) && weight > 0.0 {
                 let x = s + sampler.next_f64() * (end - s);
-                add(&mut f, field(ray.at(x)).emission, (end - s) * weight);
+                add(&mut f, field.emission(ray.at(x)), (end - s) * weight);
             }
             if next >= seg.t1 {
                 // Carry the unused part of the exponential into the next stretch
@@ -105,13 +130,14 @@ pub fn null_track(
             // A tentative collision at `next`
             e = sample_exponential(sampler.next_f64());
             s = next;
-            let p = field(ray.at(next));
-            let ratio = (medium.mu_t(p.density) / mu_bar).clamp(0.0, 1.0);
+            let density = field.density(ray.at(next));
+            let ratio = (medium.mu_t(density) / mu_bar).clamp(0.0, 1.0);
             if event == DistanceSample::Escaped && (need_collision || !expected) && sampler.next_f64() < ratio {
-                event = DistanceSample::Collided { t: next, density: p.density, source: p.source, albedo: p.albedo };
+                let p = field.sample(ray.at(next));
+                event = DistanceSample::Collided { t: next, density, source: p.source, albedo: p.albedo };
                 od_to_collision = f64::NAN; // not tracked by null collisions
                 if estimator == Estimator::Point {
-                    let mu = medium.mu_t(p.density);
+                    let mu = medium.mu_t(density);
                     add(&mut f, p.emission, 1.0 / mu);
                 }
                 if !expected {
@@ -151,14 +177,7 @@ pub fn null_track(
 
 /// Ratio-tracking estimate of `τ(0, t_max)` along `ray` (module docs); stops early once
 /// it is 0.
-pub fn ratio_transmittance(
-    majorants: &MajorantGrid,
-    field: &impl Fn(glam::DVec3) -> PointSample,
-    medium: &Medium,
-    ray: &Ray,
-    t_max: f64,
-    sampler: &mut Sampler,
-) -> f64 {
+pub fn ratio_transmittance(majorants: &MajorantGrid, field: &impl PointField, medium: &Medium, ray: &Ray, t_max: f64, sampler: &mut Sampler) -> f64 {
     let mut weight = 1.0f64;
     for seg in majorants.segments(ray, 0.0, t_max) {
         let mu_bar = medium.mu_t(seg.bounds.density);
@@ -171,7 +190,7 @@ pub fn ratio_transmittance(
             if s >= seg.t1 {
                 break;
             }
-            weight *= 1.0 - (medium.mu_t(field(ray.at(s)).density) / mu_bar).clamp(0.0, 1.0);
+            weight *= 1.0 - (medium.mu_t(field.density(ray.at(s))) / mu_bar).clamp(0.0, 1.0);
             if weight < RAY_MARCH_ROULETTE_THRESHOLD {
                 let q = weight / RAY_MARCH_ROULETTE_THRESHOLD;
                 if sampler.next_f64() >= q {

@@ -6,7 +6,7 @@
 //! list of possible values with their help (the binary builds its value parsers from
 //! [`Choice::CHOICES`]), so a name is written once.
 
-use crate::integrator::{LightSampling, MisHeuristic};
+use crate::integrator::{LightSampling, MisHeuristic, Tracking};
 use crate::medium::{Convention, Estimator};
 pub use crate::sampling::SamplerKind;
 pub use crate::volume::Interpolation;
@@ -138,6 +138,41 @@ choice!(LightSampling {
     "fnee" => LightSampling::Fnee, "Forward NEE: proxy direction + free path, MIS in solid angle";
 });
 
+/// How segments are tracked, before the estimator is known (`auto` is resolved by
+/// [`TrackingChoice::resolve`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TrackingChoice {
+    /// `mixed` where the estimator and light sampling allow it ([`Tracking::applies`]),
+    /// else `regular`.
+    Auto,
+    /// [`Tracking::Regular`].
+    Regular,
+    /// [`Tracking::Mixed`].
+    Mixed,
+    /// [`Tracking::Null`].
+    Null,
+}
+
+choice!(TrackingChoice {
+    "auto" => TrackingChoice::Auto, "mixed, or regular where null collisions do not apply (blend, point estimator with classic NEE)";
+    "regular" => TrackingChoice::Regular, "Exact regular tracking of every segment (the paper's)";
+    "mixed" => TrackingChoice::Mixed, "Regular tracking of camera segments, null collisions after scattering";
+    "null" => TrackingChoice::Null, "Null-collision tracking of every segment (METHOD.md §13)";
+});
+
+impl TrackingChoice {
+    /// The tracking for `estimator` and `light_sampling`.
+    #[must_use]
+    pub fn resolve(self, estimator: Estimator, light_sampling: LightSampling) -> Tracking {
+        match self {
+            TrackingChoice::Auto if Tracking::applies(estimator, light_sampling) => Tracking::Mixed,
+            TrackingChoice::Auto | TrackingChoice::Regular => Tracking::Regular,
+            TrackingChoice::Mixed => Tracking::Mixed,
+            TrackingChoice::Null => Tracking::Null,
+        }
+    }
+}
+
 choice!(MisHeuristic {
     "balance" => MisHeuristic::Balance, "Balance heuristic";
     "power" => MisHeuristic::Power, "Power heuristic (exponent 2)";
@@ -251,6 +286,7 @@ mod tests {
         round_trips::<EstimatorKind>();
         round_trips::<LightSampling>();
         round_trips::<MisHeuristic>();
+        round_trips::<TrackingChoice>();
         round_trips::<Convention>();
         round_trips::<EmissionSource>();
         round_trips::<SampleOrderChoice>();

@@ -26,7 +26,7 @@ use std::path::PathBuf;
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
-pub use choice::{Choice, EmissionSource, EstimatorKind, Interpolation, Method, ProgressFormat, SampleOrderChoice, SamplerKind, UpAxis};
+pub use choice::{Choice, EmissionSource, EstimatorKind, Interpolation, Method, ProgressFormat, SampleOrderChoice, SamplerKind, TrackingChoice, UpAxis};
 pub use lights::{DistantSettings, EnvironmentMapSettings, LightSettings, SkySettings, SphereSettings};
 pub use settings::{FarmOptions, JobSettings, OutputSettings, ReadSettings, RenderOptions};
 pub use validate::ValidShot;
@@ -158,7 +158,20 @@ impl SceneDescription {
     #[must_use]
     pub fn integrator(&self) -> Integrator {
         let (estimator, light_sampling) = self.integrator.parts();
-        Integrator { estimator, light_sampling, mis: self.integrator.mis, max_depth: if self.albedo() > 0.0 { self.integrator.max_depth } else { 0 } }
+        self.integrator_with(estimator, light_sampling)
+    }
+
+    /// The integrator this description asks for, with another estimator and light
+    /// sampling (benchmarks compare them on one scene); the tracking is resolved for them.
+    #[must_use]
+    pub fn integrator_with(&self, estimator: Estimator, light_sampling: LightSampling) -> Integrator {
+        Integrator {
+            estimator,
+            light_sampling,
+            mis: self.integrator.mis,
+            max_depth: if self.albedo() > 0.0 { self.integrator.max_depth } else { 0 },
+            tracking: self.integrator.tracking.resolve(estimator, light_sampling),
+        }
     }
 }
 
@@ -337,6 +350,8 @@ pub struct IntegratorSettings {
     pub max_depth: u32,
     /// κ of the blend estimator.
     pub kappa: f64,
+    /// How segments are tracked (`integrator::tracker`).
+    pub tracking: TrackingChoice,
 }
 
 impl Default for IntegratorSettings {
@@ -349,6 +364,7 @@ impl Default for IntegratorSettings {
             proxy_resolution: None,
             max_depth: 64,
             kappa: 4.0,
+            tracking: TrackingChoice::Auto,
         }
     }
 }

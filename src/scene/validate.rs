@@ -102,6 +102,20 @@ impl Shot {
             return Err(Error::invalid("medium.g", format!("{} is not in (-1, 1)", scene.medium.g)));
         }
         scene.lights.validate()?;
+        let (estimator, light_sampling) = scene.integrator.parts();
+        if matches!(scene.integrator.tracking, super::TrackingChoice::Mixed | super::TrackingChoice::Null)
+            && scene.scatters()
+            && !crate::integrator::Tracking::applies(estimator, light_sampling)
+        {
+            return Err(Error::invalid(
+                "integrator.tracking",
+                format!(
+                    "{} tracks by null collisions after scattering, which {} cannot use (blend mixes per voxel; the point estimator's MIS with classic NEE needs exact optical depths): use regular or auto",
+                    super::Choice::name(scene.integrator.tracking),
+                    if light_sampling == crate::integrator::LightSampling::Nee { "the point estimator with classic NEE" } else { "the blend estimator" }
+                ),
+            ));
+        }
         if let Some(name) = &scene.volume.velocity_grid {
             selector("volume.velocity_grid", name)?;
             if !scene.volume.velocity_scale.is_finite() {

@@ -2,8 +2,9 @@
 //! style of Mitsuba 3's `chi2.py` (cells pooled to ≥ 5 expected counts, `f64` statistics,
 //! Šidák correction for the number of tests, histograms dumped on failure), synthetic grid
 //! builders, the sampling tier's chi² family and direction bins, the `plume` binary as a
-//! child process, scratch directories, data paths, VDB grid reads, EXR pixels and Monte
-//! Carlo statistics.
+//! child process, scratch directories, data paths, VDB grid reads, EXR pixels, Monte
+//! Carlo statistics, and the region means of in-process renders that the path-integrator
+//! tiers compare.
 //!
 //! Every test file compiles this module into its own crate and uses a different subset of
 //! it, so in any one test binary some helpers are unused; `dead_code` is allowed for the
@@ -18,8 +19,10 @@ use std::time::Duration;
 
 use glam::{DAffine3, DVec3, IVec3};
 use plume::color::Rgb;
+use plume::integrator::{AnyScene, Integrator};
 use plume::medium::{Convention, Emission, EmissionKind, TemperatureMap};
-use plume::sampling::Sampler;
+use plume::render::{render, RenderSettings, SampleBudget};
+use plume::sampling::{Sampler, SamplerKind};
 use plume::vdb::{leaf_offset, read_float_grid, FloatGrid, ReadLimits, LEAF_VOXELS};
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
@@ -356,4 +359,48 @@ pub fn retry_while_busy<T>(reader: &Path, mut attempt: impl FnMut() -> plume::Re
         }
     }
     panic!("{} stayed busy", reader.display());
+}
+
+/// The generated explosion's physical blackbody emission.
+pub fn explosion_emission() -> Emission {
+    Emission {
+        kind: EmissionKind::Blackbody,
+        convention: Convention::Physical,
+        scale: 1e-3,
+        color: Rgb::ONE,
+        temperature_map: TemperatureMap::Kelvin,
+        cutoff_kelvin: 500.0,
+    }
+}
+
+/// Mean of `r + g + b` over the whole image and over its 4 quadrants (in that order) of
+/// one in-process render of `spp` samples per pixel under `seed`.
+pub fn regions(scene: &AnyScene, integrator: Integrator, sampler: SamplerKind, spp: u32, seed: u64) -> [f64; 5] {
+    let settings = RenderSettings { budget: SampleBudget::Spp(spp), seed, sampler, threads: 0, first_sample: 0, integrator };
+    let r = plume::with_scene!(scene, s => render(s, &settings, &|_, _| {}));
+    let px = r.film.average(r.spp);
+    let (w, h) = (scene.camera().width as usize, scene.camera().height as usize);
+    let (mut acc, mut cnt) = ([0.0f64; 5], [0.0f64; 5]);
+    for y in 0..h {
+        for x in 0..w {
+            let v = f64::from(px[y * w + x][0] + px[y * w + x][1] + px[y * w + x][2]);
+            let q = 1 + usize::from(x >= w / 2) + 2 * usize::from(y >= h / 2);
+            for k in [0, q] {
+                acc[k] += v;
+                cnt[k] += 1.0;
+            }
+        }
+    }
+    std::array::from_fn(|k| acc[k] / cnt[k])
+}
+
+/// Per-region means ([`regions`]) over `runs` independent renders (seeds `seed0…`), with
+/// standard errors from the spread of the runs.
+///
+/// Runs differ in seed, so with Sobol each run has its own per-pixel scrambles: run means
+/// are independent and unbiased (randomized quasi-Monte Carlo), and their spread is an
+/// honest standard error even though the samples within a run are not independent.
+pub fn region_means_with(sampler: SamplerKind, scene: &AnyScene, integrator: Integrator, spp: u32, runs: u64, seed0: u64) -> Vec<(f64, f64)> {
+    let per_run: Vec<[f64; 5]> = (0..runs).map(|run| regions(scene, integrator, sampler, spp, seed0 + run)).collect();
+    (0..5).map(|k| mean_stderr(&per_run.iter().map(|r| r[k]).collect::<Vec<_>>())).collect()
 }

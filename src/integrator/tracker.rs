@@ -13,6 +13,8 @@
 //! in-scattered radiance, far noisier than the integral's own estimate, and in thin media
 //! it crosses the whole volume: there the cheap tentative points win (`Tracking::Mixed`,
 //! the default where it applies; measured in docs/BENCHMARKS.md, "Tracking").
+//! Shadow rays (NEE, external lights) of a still volume are exact under every tracking:
+//! they only sum optical depth, and an exact `τ` adds no noise to the light it carries.
 //! A moving volume is tracked by null collisions everywhere (no closed form exists).
 
 use crate::integrator::LightSampling;
@@ -30,10 +32,10 @@ use crate::volume::motion::Motion;
 pub enum Tracking {
     /// Regular tracking of every segment (the paper's; exact).
     Regular,
-    /// Regular tracking of camera segments, null collisions after scattering (light
-    /// segments, forward segments and shadow rays).
+    /// Regular tracking of camera segments, null collisions after scattering (FNEE light
+    /// segments and forward segments; shadow rays stay exact).
     Mixed,
-    /// Null collisions on every segment.
+    /// Null collisions on every segment (shadow rays stay exact).
     Null,
 }
 
@@ -150,17 +152,19 @@ impl<F: Field> Tracker<'_, F> {
         }
     }
 
-    /// Transmittance along `ray` over `[0, t_max]` and the traversal's steps: exact by
-    /// regular tracking (stopped once the optical depth passes 745, where `e^{−OD}` is 0),
-    /// or ratio tracking's unbiased estimate.
+    /// Transmittance along `ray` over `[0, t_max]` and the traversal's steps: exact in a
+    /// still volume (regular tracking, stopped once the optical depth passes 745, where
+    /// `e^{−OD}` is 0), ratio tracking's unbiased estimate in a moving one.
     #[inline]
     pub fn transmittance(&self, medium: &Medium, ray: &Ray, t_max: f64, sampler: &mut Sampler) -> (f64, u64) {
         match *self {
-            Tracker::Regular(field) => {
+            // A still volume's shadow rays stay exact under null collisions too: they only
+            // sum optical depth (no emission cubics), and an exact τ adds no noise to the
+            // light it carries
+            Tracker::Regular(field) | Tracker::Null { field, .. } => {
                 let OpticalDepth { optical_depth: od, voxel_steps } = optical_depth(field, medium, ray, t_max, 745.0);
                 ((-od).exp(), voxel_steps)
             }
-            Tracker::Null { field, majorants } => (ratio_transmittance(majorants, &Points::new(field, medium, None), medium, ray, t_max, sampler), 0),
             Tracker::Moving { field, motion, time } => {
                 (ratio_transmittance(&motion.majorants, &Points::new(field, medium, Some((motion, time))), medium, ray, t_max, sampler), 0)
             }

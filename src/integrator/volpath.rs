@@ -430,7 +430,8 @@ impl Integrator {
     }
 
     /// Light sampling of the external lights at collision `x` reached along `incoming`:
-    /// `L += β f τ L_i w(P_i p_i, f) / (P_i p_i)` with exact shadow transmittance
+    /// `L += β f τ L_i w(P_i p_i, f) / (P_i p_i)` with the tracker's shadow transmittance
+    /// (exact, or ratio tracking's unbiased estimate)
     /// (`light::external`).
     #[allow(clippy::too_many_arguments)]
     fn sample_external<F: Field, T: Trace, A: Aovs>(

@@ -228,4 +228,26 @@ mod tests {
         }
         assert!(emitting > 200, "only {emitting} emitting points checked");
     }
+
+    /// Shadow rays of a still volume are exact under null collisions: the same τ and steps
+    /// as regular tracking, bit for bit, and no random number drawn.
+    #[test]
+    fn still_shadow_rays_are_exact_under_null_collisions() {
+        let ex = crate::synth::explosion(&crate::synth::ExplosionParams { resolution: 24, seed: 2, ..Default::default() });
+        let volume = Volume::build(&ex.density, None, |v| v).unwrap();
+        let majorants = MajorantGrid::new(&volume, 0.0);
+        let medium = Medium { sigma_t: 3.0, albedo: 0.8, g: 0.0, emission: Emission::none() };
+        let b = volume.world_bounds();
+        let mut rng = Sampler::new(9, 0, 0);
+        for _ in 0..500 {
+            let u = glam::DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64());
+            let ray = Ray { origin: b.lo + (b.hi - b.lo) * u, direction: sample_uniform_sphere([rng.next_f64(), rng.next_f64()]) };
+            let t_max = 4.0 * rng.next_f64();
+            let (mut a, mut b2) = (Sampler::new(1, 2, 3), Sampler::new(1, 2, 3));
+            let exact = Tracker::Regular(&volume).transmittance(&medium, &ray, t_max, &mut a);
+            let null = Tracker::Null { field: &volume, majorants: &majorants }.transmittance(&medium, &ray, t_max, &mut b2);
+            assert_eq!((exact.0.to_bits(), exact.1), (null.0.to_bits(), null.1));
+            assert_eq!(a.next_u64(), b2.next_u64(), "null shadow ray drew random numbers");
+        }
+    }
 }

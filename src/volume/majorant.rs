@@ -1,15 +1,21 @@
 //! Majorants for null-collision tracking (METHOD.md §13): a coarse grid, one cell per
 //! brick (8³ voxels), holding bounds on the density and the emission source over
-//! everything a point of the cell can see.
+//! everything a point of the cell can see. A brick table of more than [`MAX_CELLS`]
+//! bricks (volumes beyond about 1024³ voxels, e.g. a 4096³ cache) takes the first
+//! coarser pyramid level that fits instead, one cell per node of `2^k` bricks a side:
+//! looser bounds (more null collisions) but a grid of at most 16 MiB, where the brick
+//! level would hold one anonymous 8-byte cell per brick (1 GiB at 4096³).
 //!
 //! A point `p` of cell `c` reads the field at `p' = p − t·v(p)` (motion blur: a
 //! displacement of at most `D` voxels on every index axis) through a reconstruction whose
 //! support reaches one voxel beyond the point (trilinear; nearest needs half). So
-//! `μ(p') ≤ σ_t · max` over the bricks within `D + 1` voxels of the cell, per axis: the
-//! cell's box `[8c − ½, 8c + 7½]` dilated by `D + 1` meets bricks `c − R … c + R` with
-//! `R = ⌈(D + 1)/8⌉`. The grid is the pyramid's brick level (`volume::pyramid`) under a
-//! separable box maximum of radius `R`, padded by `R` cells on every side, so
-//! displaced lookups from outside the volume's table are bounded too.
+//! `μ(p') ≤ σ_t · max` over the cells within `D + 1` voxels of the cell, per axis: with
+//! cells of `e` voxels (8, or `8·2^k` on a coarser level), the cell's box
+//! `[e c − ½, e c + e − ½]` dilated by `D + 1` meets cells `c − R … c + R` with
+//! `R = ⌈(D + 1)/e⌉`. The grid is that pyramid level (`volume::pyramid`; a node's bounds
+//! hold over every brick beneath it) under a separable box maximum of radius `R`, padded
+//! by `R` cells on every side, so displaced lookups from outside the volume's table are
+//! bounded too.
 //!
 //! [`MajorantGrid::segments`] walks a ray through the cells (Amanatides–Woo in index
 //! space; the ray parameter `t` is the world ray's) and yields `(t0, t1, bounds)`, merging
@@ -30,12 +36,17 @@ pub struct CellBounds {
     pub source: f32,
 }
 
+/// Most cells a majorant grid holds before it moves to a coarser pyramid level (16 MiB).
+pub const MAX_CELLS: i64 = 1 << 21;
+
 /// The majorant grid of a volume for a displacement bound.
 #[derive(Clone, Debug)]
 pub struct MajorantGrid {
     index_from_world: DAffine3,
     /// Index-space corner of cell (0, 0, 0).
     origin: DVec3,
+    /// Cell edge in voxels (8 on the brick level, `8·2^k` on level `k`).
+    edge: i32,
     dims: IVec3,
     cells: Vec<CellBounds>,
 }
@@ -79,9 +90,23 @@ impl MajorantGrid {
     /// If `displacement` is negative or not finite.
     #[must_use]
     pub fn new(volume: &Volume, displacement: f64) -> MajorantGrid {
+        MajorantGrid::with_max_cells(volume, displacement, MAX_CELLS)
+    }
+
+    /// [`MajorantGrid::new`] on the finest pyramid level of at most `max_cells` nodes (the
+    /// coarsest level when none is that small).
+    ///
+    /// # Panics
+    /// If `displacement` is negative or not finite.
+    #[must_use]
+    pub fn with_max_cells(volume: &Volume, displacement: f64, max_cells: i64) -> MajorantGrid {
         assert!(displacement.is_finite() && displacement >= 0.0, "displacement {displacement} must be finite and ≥ 0");
-        let r = ((displacement + 1.0) / f64::from(BRICK)).ceil() as i32;
-        let level = volume.pyramid_levels().first();
+        let levels = volume.pyramid_levels();
+        let count = |d: IVec3| i64::from(d.x) * i64::from(d.y) * i64::from(d.z);
+        let k = levels.iter().position(|l| count(l.dims) <= max_cells).unwrap_or(levels.len().saturating_sub(1));
+        let level = levels.get(k);
+        let edge = BRICK << k;
+        let r = ((displacement + 1.0) / f64::from(edge)).ceil() as i32;
         let vd = level.map_or(IVec3::ZERO, |l| l.dims);
         let dims = vd + 2 * r;
         let mut cells = vec![CellBounds::default(); (dims.x * dims.y * dims.z).max(0) as usize];
@@ -99,8 +124,14 @@ impl MajorantGrid {
         for axis in 0..3 {
             cells = max_filter(&cells, dims, axis, r);
         }
-        let origin = ((volume.brick_lo - r) * BRICK).as_dvec3() - 0.5;
-        MajorantGrid { index_from_world: volume.index_from_world(), origin, dims, cells }
+        let origin = (volume.brick_lo * BRICK - r * edge).as_dvec3() - 0.5;
+        MajorantGrid { index_from_world: volume.index_from_world(), origin, edge, dims, cells }
+    }
+
+    /// Cell edge in voxels.
+    #[must_use]
+    pub fn cell_edge_voxels(&self) -> i32 {
+        self.edge
     }
 
     /// Bytes held.
@@ -114,7 +145,7 @@ impl MajorantGrid {
     pub fn segments(&self, ray: &Ray, t_min: f64, t_max: f64) -> impl Iterator<Item = MajorantSegment> + '_ {
         let o = self.index_from_world.transform_point3(ray.origin);
         let d = self.index_from_world.transform_vector3(ray.direction);
-        let size = f64::from(BRICK);
+        let size = f64::from(self.edge);
         let hi = self.origin + self.dims.as_dvec3() * size;
         let range = if self.cells.is_empty() { None } else { clip_to_box(o, d, self.origin, hi, t_min, t_max) };
         let mut state = range.map(|(t0, t1)| {

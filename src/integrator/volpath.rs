@@ -9,6 +9,11 @@
 //!
 //! No vertex emission is ever added: with line integration it would double count.
 //!
+//! **Tracking** (`integrator::tracker`, `--tracking`): the camera segment and the
+//! segments after a scattering event each get their tracker once per sample, regular or
+//! null collisions; every estimator above is unbiased under either, so the split changes
+//! cost and noise only.
+//!
 //! **Motion blur** (`volume::motion`): each sample draws its shutter time and tracks by
 //! null collisions at that time (`integrator::tracker`). FNEE keeps the proxy built from
 //! the frame's data: it only chooses directions, and wherever it gives a direction of the

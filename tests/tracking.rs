@@ -8,23 +8,16 @@
 
 mod common;
 
-use common::{explosion, explosion_emission, plume, plume_exits, region_means_with, s, tmpdir};
+use common::{explosion, explosion_emission, explosion_volume, plume, plume_exits, region_means_with, s, tmpdir};
 use glam::DVec3;
 use plume::camera::Camera;
 use plume::integrator::{AnyScene, Integrator, LightSampling, Lights, MisHeuristic, Scene, Tracking};
 use plume::medium::{Estimator, Medium};
 use plume::sampling::{Sampler, SamplerKind};
 use plume::scene::TrackingChoice;
-use plume::synth::ExplosionParams;
 use plume::volume::field::{Field, Ray};
 use plume::volume::majorant::{MajorantGrid, MAX_CELLS};
-use plume::volume::{Interpolation, Volume};
-
-fn explosion_volume() -> Volume {
-    let ex = plume::synth::explosion(&ExplosionParams { resolution: 32, seed: 5, ..Default::default() });
-    let e = explosion_emission();
-    Volume::build(&ex.density, Some(&ex.temperature), |v| e.map_source(v)).unwrap()
-}
+use plume::volume::Interpolation;
 
 /// The generated explosion, with majorants for null collisions.
 fn scene(sigma_t: f64, ls: LightSampling, interpolation: Interpolation) -> AnyScene {

@@ -101,14 +101,13 @@ impl<F: Field> Copy for Tracker<'_, F> {}
 /// points along a ray share voxels).
 struct Points<'a, F: Field> {
     field: &'a F,
-    medium: &'a Medium,
     motion: Option<(&'a Motion, f64)>,
     memo: EmissionMemo<'a>,
 }
 
 impl<'a, F: Field> Points<'a, F> {
     fn new(field: &'a F, medium: &'a Medium, motion: Option<(&'a Motion, f64)>) -> Self {
-        Points { field, medium, motion, memo: EmissionMemo::new(&medium.emission) }
+        Points { field, motion, memo: EmissionMemo::new(&medium.emission) }
     }
 
     #[inline]
@@ -130,7 +129,7 @@ impl<F: Field> PointField for Points<'_, F> {
 
     fn sample(&self, p: glam::DVec3) -> PointSample {
         let q = self.source_point(p);
-        let v = self.field.reconstruct(q, &|d, s| self.medium.emission.le(d, s));
+        let v = self.field.reconstruct(q, &|d, s| self.memo.le(d, s));
         PointSample { density: v.density, source: self.field.values_at(q).source, emission: v.emission, albedo: self.field.albedo_at(q) }
     }
 }

@@ -373,6 +373,14 @@ pub fn explosion_emission() -> Emission {
     }
 }
 
+/// The generated explosion (32³, seed 5) with [`explosion_emission`]'s blackbody as its
+/// source: the path-integrator tiers' test volume.
+pub fn explosion_volume() -> plume::volume::Volume {
+    let ex = plume::synth::explosion(&plume::synth::ExplosionParams { resolution: 32, seed: 5, ..Default::default() });
+    let e = explosion_emission();
+    plume::volume::Volume::build(&ex.density, Some(&ex.temperature), |v| e.map_source(v)).unwrap()
+}
+
 /// Mean of `r + g + b` over the whole image and over its 4 quadrants (in that order) of
 /// one in-process render of `spp` samples per pixel under `seed`.
 pub fn regions(scene: &AnyScene, integrator: Integrator, sampler: SamplerKind, spp: u32, seed: u64) -> [f64; 5] {

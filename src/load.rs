@@ -103,12 +103,12 @@ pub fn load_scene(scene: &SceneDescription, input: &Path, settings: &JobSettings
     let (_, light_sampling) = scene.integrator.parts();
     let mut lights = if scene.scatters() {
         let proxy_resolution = ProxyGrid::resolution_for(&volume, scene.integrator.proxy_resolution);
-        crate::cache::convert::check_light_budget(&volume, light_sampling, budget)?;
+        crate::cache::convert::check_light_budget(&volume, light_sampling, scene.integrator.nee_table, budget)?;
         match proxy_power {
             Some((power, key)) if light_sampling == LightSampling::Fnee && power.resolution == proxy_resolution && key == emission.light_key() => {
                 Lights { proxy: ProxyGrid::from_cell_power(&volume, &power)?, ..Lights::default() }
             }
-            _ => Lights::build(&volume, &emission, light_sampling, proxy_resolution)?,
+            _ => Lights::build_with(&volume, &emission, light_sampling, proxy_resolution, scene.integrator.nee_table)?,
         }
     } else {
         Lights::default()

@@ -389,10 +389,25 @@ fn fnee_directions_match_p_sigma_chi2() {
 /// (`light/nee.rs`): the pdf is the trilinear interpolation of `P_i/V`, it integrates to 1,
 /// `sample` and `pdf` agree, and the share of samples in each voxel box is exactly
 /// `Σ_i P_i Π_k w(v_k − i_k)` with `w(0) = 3/4`, `w(±1) = 1/8` (the hat's mass in the box).
+///
+/// For both tables: one entry per voxel, or per brick with the voxel drawn from the brick.
 #[test]
 fn nee_hat_samples_match_the_trilinear_pdf_chi2() {
     let volume = emitter_volume(skewed_transform());
-    let nee = EmitterDistribution::build(&volume, power).unwrap().expect("emits").for_interpolation(plume::volume::Interpolation::Linear);
+    for (table, nee) in nee_tables(&volume) {
+        nee_hat_chi2(&volume, table, &nee.for_interpolation(plume::volume::Interpolation::Linear));
+    }
+}
+
+/// The voxel table and the brick table of `volume`, by name.
+fn nee_tables(volume: &Volume) -> [(&'static str, EmitterDistribution); 2] {
+    [
+        ("voxel", EmitterDistribution::build(volume, power).unwrap().expect("emits")),
+        ("brick", EmitterDistribution::build_bricks(volume, power).unwrap().expect("emits")),
+    ]
+}
+
+fn nee_hat_chi2(volume: &Volume, table: &str, nee: &EmitterDistribution) {
     let plume::volume::Bounds3 { lo, hi } = volume.index_bounds();
     // Voxel boxes that can receive samples: the volume's grown by one voxel
     let (vlo, vhi) = ((lo + 0.5).as_ivec3() - 1, (hi + 0.5).as_ivec3() + 1);
@@ -428,30 +443,56 @@ fn nee_hat_samples_match_the_trilinear_pdf_chi2() {
         for y in 2 * vlo.y..2 * vhi.y {
             for x in 2 * vlo.x..2 * vhi.x {
                 let p = (IVec3::new(x, y, z).as_dvec3() + 0.5) * 0.5;
-                integral += nee.pdf(forward.transform_point3(p)) * vv / 8.0;
+                integral += nee.pdf(volume, forward.transform_point3(p)) * vv / 8.0;
             }
         }
     }
-    assert!((integral - 1.0).abs() < 1e-9, "∫ p_V = {integral}");
+    assert!((integral - 1.0).abs() < 1e-9, "{table}: ∫ p_V = {integral}");
     let n = 1_000_000;
     let mut observed = vec![0.0; weights.len()];
     let mut sampler = rng(37);
     for _ in 0..n {
-        let s = nee.sample(sampler.next_f64(), [sampler.next_f64(), sampler.next_f64(), sampler.next_f64()]);
+        let s = nee.sample(volume, sampler.next_f64(), [sampler.next_f64(), sampler.next_f64(), sampler.next_f64()]);
         let p = inverse.transform_point3(s.p_world);
         assert!((p - s.voxel.as_dvec3()).abs().max_element() < 1.0 + 1e-9, "{p} outside the hat of {}", s.voxel);
-        let again = nee.pdf(s.p_world);
+        let again = nee.pdf(volume, s.p_world);
         assert!(s.pdf > 0.0 && (again - s.pdf).abs() <= 1e-9 * s.pdf, "sample pdf {} vs pdf {again}", s.pdf);
         observed[slot((p + 0.5).floor().as_ivec3())] += 1.0;
     }
     let expected: Vec<f64> = weights.iter().map(|w| n as f64 * w / total).collect();
-    chi2_test("nee_hat_voxels", &observed, &expected, ALPHA, TESTS);
+    chi2_test(&format!("nee_hat_voxels_{table}_table"), &observed, &expected, ALPHA, TESTS);
 }
 
+/// Both tables: pdfs sum to 1 and match the brute-force power share, sample and pdf agree
+/// bit for bit, and samples follow the pdf (chi²).
 #[test]
 fn nee_voxel_pdfs_chi2_and_bitwise_agreement() {
     let volume = emitter_volume(skewed_transform());
-    let nee = EmitterDistribution::build(&volume, power).unwrap().expect("emits");
+    let [(_, voxels), (_, bricks)] = nee_tables(&volume);
+    nee_voxel_chi2(&volume, "voxel", &voxels);
+    nee_voxel_chi2(&volume, "brick", &bricks);
+    // The same law: each voxel's pdf agrees between the tables, to the alias tables' 32-bit
+    // thresholds (each reports the exact pmf of its own quantized table, `sampling::alias`)
+    let plume::volume::Bounds3 { lo, hi } = volume.index_bounds();
+    let (vlo, vhi) = ((lo + 0.5).as_ivec3(), (hi + 0.5).as_ivec3());
+    let mut worst = 0.0f64;
+    for z in vlo.z..vhi.z {
+        for y in vlo.y..vhi.y {
+            for x in vlo.x..vhi.x {
+                let v = IVec3::new(x, y, z);
+                let (a, b) = (voxels.pdf_voxel(&volume, v), bricks.pdf_voxel(&volume, v));
+                assert_eq!(a > 0.0, b > 0.0, "voxel {v}: {a} vs {b}");
+                if a > 0.0 {
+                    worst = worst.max((b / a - 1.0).abs());
+                }
+            }
+        }
+    }
+    assert!(worst < 1e-6, "voxel and brick tables differ by {worst:e} (relative)");
+    assert!(bricks.memory_bytes() < voxels.memory_bytes() / 8, "{} vs {} bytes", bricks.memory_bytes(), voxels.memory_bytes());
+}
+
+fn nee_voxel_chi2(volume: &Volume, table: &str, nee: &EmitterDistribution) {
     let plume::volume::Bounds3 { lo, hi } = volume.index_bounds();
     let (vlo, vhi) = ((lo + 0.5).as_ivec3(), (hi + 0.5).as_ivec3());
     let extent = vhi - vlo;
@@ -469,21 +510,27 @@ fn nee_voxel_pdfs_chi2_and_bitwise_agreement() {
                 let plume::volume::VoxelValues { density: d, source: s } = volume.voxel(v);
                 let p = power(d, s);
                 brute[slot(v)] = p;
-                let pdf = nee.pdf_voxel(v);
+                let pdf = nee.pdf_voxel(volume, v);
                 assert_eq!(pdf > 0.0, p > 0.0, "voxel {v}: pdf {pdf}, power {p}");
                 emissive += usize::from(p > 0.0);
                 pdf_sum += pdf * vv;
                 // pdf at the voxel centre goes through the world → index lookup
-                assert_eq!(nee.pdf(volume.world_from_index().transform_point3(v.as_dvec3())).to_bits(), pdf.to_bits());
+                assert_eq!(nee.pdf(volume, volume.world_from_index().transform_point3(v.as_dvec3())).to_bits(), pdf.to_bits());
             }
         }
     }
-    assert_eq!(nee.voxel_count(), emissive);
+    let emitting_bricks = (vlo.z..vhi.z)
+        .flat_map(|z| (vlo.y..vhi.y).flat_map(move |y| (vlo.x..vhi.x).map(move |x| IVec3::new(x, y, z))))
+        .filter(|&v| brute[slot(v)] > 0.0)
+        .map(|v| v.div_euclid(IVec3::splat(8)))
+        .collect::<std::collections::HashSet<_>>()
+        .len();
+    assert_eq!(nee.entry_count(), if table == "voxel" { emissive } else { emitting_bricks }, "{table}");
     assert!((pdf_sum - 1.0).abs() < 1e-12, "Σ pdf V = {pdf_sum}");
     let total: f64 = brute.iter().sum();
     assert!((nee.total_power() - vv * total).abs() < 1e-12 * vv * total);
-    assert_eq!(nee.pdf_voxel(IVec3::new(1000, 0, 0)), 0.0);
-    assert_eq!(nee.pdf(DVec3::splat(f64::NAN)), 0.0);
+    assert_eq!(nee.pdf_voxel(volume, IVec3::new(1000, 0, 0)), 0.0);
+    assert_eq!(nee.pdf(volume, DVec3::splat(f64::NAN)), 0.0);
 
     let n = 1_000_000;
     let mut observed = vec![0.0; brute.len()];
@@ -491,12 +538,12 @@ fn nee_voxel_pdfs_chi2_and_bitwise_agreement() {
     let inverse = volume.index_from_world();
     let mut face_rounding = 0usize;
     for _ in 0..n {
-        let s = nee.sample(sampler.next_f64(), [sampler.next_f64(), sampler.next_f64(), sampler.next_f64()]);
-        assert_eq!(s.pdf.to_bits(), nee.pdf_voxel(s.voxel).to_bits());
+        let s = nee.sample(volume, sampler.next_f64(), [sampler.next_f64(), sampler.next_f64(), sampler.next_f64()]);
+        assert_eq!(s.pdf.to_bits(), nee.pdf_voxel(volume, s.voxel).to_bits());
         let p = inverse.transform_point3(s.p_world);
         assert!((p - s.voxel.as_dvec3()).abs().max_element() <= 0.5 + 1e-9, "{p} not in voxel {}", s.voxel);
         if (p + 0.5).floor().as_ivec3() == s.voxel {
-            assert_eq!(nee.pdf(s.p_world).to_bits(), s.pdf.to_bits());
+            assert_eq!(nee.pdf(volume, s.p_world).to_bits(), s.pdf.to_bits());
         } else {
             face_rounding += 1; // the round trip landed on the neighbour's side of a face
         }
@@ -504,11 +551,11 @@ fn nee_voxel_pdfs_chi2_and_bitwise_agreement() {
     }
     assert!(face_rounding < 100, "{face_rounding} samples rounded out of their voxel");
     let expected: Vec<f64> = brute.iter().map(|p| n as f64 * p / total).collect();
-    chi2_test("nee_voxels", &observed, &expected, ALPHA, TESTS);
+    chi2_test(&format!("nee_voxels_{table}_table"), &observed, &expected, ALPHA, TESTS);
     println!(
-        "nee: {} emissive voxels, {} bytes ({:.2} B/voxel), {face_rounding} face round-trips",
-        nee.voxel_count(),
+        "nee, {table} table: {} entries for {emissive} emissive voxels, {} bytes ({:.2} B/voxel), {face_rounding} face round-trips",
+        nee.entry_count(),
         nee.memory_bytes(),
-        nee.memory_bytes() as f64 / nee.voxel_count() as f64
+        nee.memory_bytes() as f64 / emissive as f64
     );
 }

@@ -65,7 +65,11 @@ pub fn emission_only(scene: &BenchScene) -> bool {
 fn install_lights(scene: &mut BenchScene, light_sampling: LightSampling, proxy_resolution: u32) -> Result<u64> {
     let only = emission_only(scene);
     let s = &mut scene.loaded.scene;
-    let lights = if only { Lights::default() } else { Lights::build(s.volume(), &s.medium().emission, light_sampling, proxy_resolution)? };
+    let lights = if only {
+        Lights::default()
+    } else {
+        Lights::build_with(s.volume(), &s.medium().emission, light_sampling, proxy_resolution, scene.shot.scene.integrator.nee_table)?
+    };
     s.set_lights(lights);
     let l = scene.loaded.scene.lights();
     Ok((l.nee.as_ref().map_or(0, |n| n.memory_bytes()) + l.proxy.as_ref().map_or(0, |p| p.memory_bytes())) as u64)

@@ -22,6 +22,7 @@ use crate::error::{Error, Result};
 use crate::integrator::{light_power, LightSampling};
 use crate::medium::EmissionKind;
 use crate::scene::bind::{emission_kind, grid_requests, reader, unit_emission_model, FileReader};
+use crate::scene::NeeTable;
 use crate::scene::{EmissionSettings, EmissionSource, JobSettings, ReadSettings, SceneDescription, VolumeInput};
 use crate::stats::GIB;
 use crate::vdb::{FileStamp, GridSelector, LeafData, ReadIsolation, ReadLimits, StreamedGrid};
@@ -289,27 +290,31 @@ pub fn check_not_stale(cache: &Cache) -> Result<()> {
 ///
 /// # Errors
 /// [`Error::InvalidArgument`] for `--memory-budget`, with the way out.
-pub fn check_light_budget(volume: &Volume, light_sampling: LightSampling, budget: u64) -> Result<()> {
+pub fn check_light_budget(volume: &Volume, light_sampling: LightSampling, table: NeeTable, budget: u64) -> Result<()> {
     if light_sampling != LightSampling::Nee {
         return Ok(());
     }
-    // Classic NEE: an alias slot and index per emitting voxel, a record per brick, a table
-    let emitting_voxels: u64 = volume
-        .bricks
-        .iter()
-        .map(|b| match b.source.get() {
-            Slot::Dense(_) => 512,
-            Slot::Constant(s) if s != 0.0 => 512,
-            Slot::Constant(_) => 0,
-        })
-        .sum();
-    let needed = emitting_voxels * 24 + volume.table.len() as u64 * 4 + volume.bricks.len() as u64 * 16;
+    let emitting_bricks: u64 = volume.bricks.iter().map(|b| u64::from(!matches!(b.source.get(), Slot::Constant(s) if s == 0.0))).sum();
+    // A brick table: an alias slot, a cell and a power per emitting brick (light::nee_bricks)
+    let brick_table = emitting_bricks * 32;
+    // A voxel table: an alias slot and index per emitting voxel, a record per brick, a table
+    let emitting_voxels = emitting_bricks * 512;
+    let needed = match table {
+        NeeTable::Voxel => emitting_voxels * 24 + volume.table.len() as u64 * 4 + volume.bricks.len() as u64 * 16,
+        NeeTable::Brick => brick_table,
+    };
     if needed > budget {
+        let way_out = match table {
+            NeeTable::Voxel => format!(
+                "use --nee-table brick (about {:.1} MiB: the voxel drawn from its brick's values) or the line-fnee method (its proxy needs a few MiB), or raise the memory budget",
+                brick_table as f64 / (1024.0 * 1024.0)
+            ),
+            NeeTable::Brick => "use the line-fnee method (its proxy needs a few MiB) or raise the memory budget".into(),
+        };
         return Err(Error::invalid(
             "render.memory_budget",
             format!(
-                "classic NEE would need about {:.2} GiB for its table of up to {emitting_voxels} emitting voxels, more than the budget of {:.2} GiB; \
-                 use the line-fnee method (its proxy needs a few MiB) or raise the memory budget",
+                "classic NEE would need about {:.2} GiB for its {table} table of up to {emitting_voxels} emitting voxels in {emitting_bricks} bricks, more than the budget of {:.2} GiB; {way_out}",
                 needed as f64 / GIB,
                 budget as f64 / GIB
             ),

@@ -36,8 +36,45 @@ pub enum BenchCommand {
     /// nearest, samples per CPU second), dual-pyramid memory, plume's emission rule
     /// against Cycles', and a close-up picture pair (--pictures).
     Interpolation(InterpolationArgs),
+    /// The paper's solar-flare experiment (issue #17): a generated flare brick cache
+    /// (≈33 GB at 4096³, made once in --work-dir) rendered out of core with scattering,
+    /// FNEE against classic NEE (brick table) at equal spp: RMSE against a longer
+    /// reference, core-hours, picture. `bench compare` with this preset.
+    Flare(FlareArgs),
     /// The whole benchmark suite behind docs/BENCHMARKS.md (tables and plots).
     Report(ReportArgs),
+}
+
+/// `plume bench flare`.
+#[derive(Debug, Args)]
+pub struct FlareArgs {
+    /// Flare resolution (voxels per axis): 4096 is the paper's ≈30 GB.
+    #[arg(long, default_value_t = 4096, value_parser = clap::value_parser!(u32).range(8..=65536))]
+    pub resolution: u32,
+    /// Equal-spp point of both methods (the paper: 128).
+    #[arg(long, default_value_t = 16)]
+    pub spp: u32,
+    /// CPU seconds of the line-fnee reference (two independent halves).
+    #[arg(long, default_value_t = 1800.0)]
+    pub reference_time: f64,
+    /// Scattering albedo.
+    #[arg(long, default_value_t = 0.5)]
+    pub albedo: f64,
+    /// Image size.
+    #[arg(long, default_value_t = 320)]
+    pub width: u32,
+    /// Image size.
+    #[arg(long, default_value_t = 240)]
+    pub height: u32,
+    /// Write flare.csv, flare.json and the plots here.
+    #[arg(long, short)]
+    pub out: Option<PathBuf>,
+    /// Where the flare cache is made (once; reused while it is current).
+    #[arg(long, default_value_os_t = default_work_dir())]
+    pub work_dir: PathBuf,
+    /// More `plume render` flags after `--` (e.g. `-- --interpolation nearest`).
+    #[arg(last = true)]
+    pub render_flags: Vec<String>,
 }
 
 /// `plume bench methods`.
@@ -305,24 +342,7 @@ pub fn run(command: BenchCommand, _matches: Option<&ArgMatches>) -> Result<()> {
             print!("{report}");
             write_json(&args.json, &report)
         }
-        BenchCommand::Compare(args) => {
-            let scene = compare_scene(&args)?;
-            let options = CompareOptions {
-                methods: args.methods.clone(),
-                time: args.time,
-                spp: args.spp,
-                runs: args.runs,
-                reference: args.reference.clone(),
-                make_reference: args.make_reference,
-                reference_time: args.reference_time,
-                save_reference: args.save_reference.clone(),
-                epsilon: args.epsilon,
-                curve_points: args.curve_points,
-                out: args.out.clone(),
-                name: args.name.clone(),
-            };
-            options.run(scene)
-        }
+        BenchCommand::Compare(args) => compare_options(&args).run(compare_scene(&args)?),
         BenchCommand::Extremes(args) => {
             ExtremesOptions { box_voxels: args.box_voxels, explosion_resolution: args.explosion_resolution, size: args.size, spp: args.spp, json: args.json }
                 .run()
@@ -336,9 +356,65 @@ pub fn run(command: BenchCommand, _matches: Option<&ArgMatches>) -> Result<()> {
             }
             InterpolationOptions { config: args.config(), json: args.json.clone() }.run()
         }
+        BenchCommand::Flare(args) => flare(&args),
         BenchCommand::Report(args) => {
             ReportOptions { out: args.out, time_scale: args.time_scale, resolution: args.resolution, data: args.data, work_dir: args.work_dir }.run()
         }
+    }
+}
+
+/// `plume bench flare`: make the cache if it is missing, then `bench compare` of line-fnee
+/// and line-nee (brick table: the voxel table of a 4096³ flare would need about 100 GiB)
+/// at `--spp`, one run each, against a computed line-fnee reference.
+fn flare(args: &FlareArgs) -> Result<()> {
+    let cache = args.work_dir.join(format!("flare{}.plume", args.resolution));
+    if !cache.exists() {
+        std::fs::create_dir_all(&args.work_dir).map_err(|e| Error::invalid("--work-dir", format!("{}: {e}", args.work_dir.display())))?;
+        eprintln!("plume: making {} (once)", cache.display());
+        super::files::synth_flare_command(&super::files::SynthFlareArgs { resolution: args.resolution, output: cache.clone(), seed: 1 })?;
+    }
+    let mut render_flags: Vec<String> =
+        ["--nee-table", "brick", "--albedo", &args.albedo.to_string(), "--width", &args.width.to_string(), "--height", &args.height.to_string()]
+            .iter()
+            .map(ToString::to_string)
+            .collect();
+    render_flags.extend(args.render_flags.iter().cloned());
+    let compare = CompareArgs {
+        scene: cache.display().to_string(),
+        methods: "line-fnee,line-nee".into(),
+        // Equal spp: every run stops at --spp (the CPU budget is reached at once)
+        time: 1e-3,
+        spp: Some(args.spp),
+        runs: 1,
+        reference: None,
+        make_reference: true,
+        reference_time: Some(args.reference_time),
+        save_reference: args.out.as_ref().map(|o| o.join("flare-reference.exr")),
+        epsilon: RELMSE_EPSILON,
+        curve_points: 1,
+        out: args.out.clone(),
+        name: "flare".into(),
+        work_dir: args.work_dir.clone(),
+        render_flags,
+    };
+    compare_options(&compare).run(compare_scene(&compare)?)
+}
+
+/// The library's options of `plume bench compare`.
+fn compare_options(args: &CompareArgs) -> CompareOptions {
+    CompareOptions {
+        methods: args.methods.clone(),
+        time: args.time,
+        spp: args.spp,
+        runs: args.runs,
+        reference: args.reference.clone(),
+        make_reference: args.make_reference,
+        reference_time: args.reference_time,
+        save_reference: args.save_reference.clone(),
+        epsilon: args.epsilon,
+        curve_points: args.curve_points,
+        out: args.out.clone(),
+        name: args.name.clone(),
     }
 }
 

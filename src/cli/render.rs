@@ -18,8 +18,8 @@ use plume::medium::Convention;
 use plume::scene::file::{is_scene_file, SceneFile};
 use plume::scene::{
     ByteSize, CameraSettings, DistantSettings, EmissionSettings, EmissionSource, EnvironmentMapSettings, EstimatorKind, IntegratorSettings, Interpolation,
-    MediumSettings, Method, ProgressFormat, ReadSettings, RenderOptions, SampleOrderChoice, SamplerKind, Shot, SkySettings, SphereSettings, TileIndex,
-    TrackingChoice, UpAxis, ValidShot, VolumeInput,
+    MediumSettings, Method, NeeTable, ProgressFormat, ReadSettings, RenderOptions, SampleOrderChoice, SamplerKind, Shot, SkySettings, SphereSettings,
+    TileIndex, TrackingChoice, UpAxis, ValidShot, VolumeInput,
 };
 
 use super::flags::{choice, parse_environment_map, parse_keys, parse_pair, parse_size, parse_vec3};
@@ -100,6 +100,11 @@ pub struct RenderArgs {
     /// event by null collisions.
     #[arg(long, value_parser = choice::<TrackingChoice>(), default_value_t = IntegratorSettings::default().tracking)]
     pub tracking: TrackingChoice,
+    /// Classic NEE's table: one entry per emitting voxel (16 bytes each), or one per
+    /// emitting brick with the voxel drawn from the brick's values (32 bytes per brick),
+    /// for volumes whose voxel table does not fit the memory budget. Same law either way.
+    #[arg(long, value_parser = choice::<NeeTable>(), default_value_t = IntegratorSettings::default().nee_table)]
+    pub nee_table: NeeTable,
     /// FNEE proxy grid resolution (cells along the longest axis; a power of two, 8 up to
     /// the data resolution). Default 64, or the data resolution if that is smaller.
     #[arg(long)]
@@ -336,6 +341,7 @@ flags_to_keys! { RENDER_ONLY_FLAGS, apply_render_only, RenderArgs, s, a;
     "light_sampling" => "integrator.light_sampling": s.scene.integrator.light_sampling => a.light_sampling;
     "mis" => "integrator.mis": s.scene.integrator.mis => a.mis;
     "tracking" => "integrator.tracking": s.scene.integrator.tracking => a.tracking;
+    "nee_table" => "integrator.nee_table": s.scene.integrator.nee_table => a.nee_table;
     "proxy_resolution" => "integrator.proxy_resolution": s.scene.integrator.proxy_resolution => a.proxy_resolution;
     "albedo" => "medium.albedo": s.scene.medium.albedo => a.albedo;
     "g" => "medium.g": s.scene.medium.g => a.g;

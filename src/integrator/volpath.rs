@@ -48,6 +48,7 @@ use crate::medium::tracking::emission_at_point;
 use crate::medium::{DistanceSample, Estimator, Medium};
 use crate::sampling::phase::{hg_pdf, sample_hg};
 use crate::sampling::{Dim, Sampler};
+use crate::scene::NeeTable;
 use crate::volume::field::{Field, PointValues, Ray};
 use crate::volume::proxy::ProxyGrid;
 
@@ -117,11 +118,26 @@ impl Lights {
         light_sampling: LightSampling,
         proxy_resolution: u32,
     ) -> crate::error::Result<Lights> {
-        let power = light_power(emission);
+        Lights::build_with(volume, emission, light_sampling, proxy_resolution, NeeTable::Voxel)
+    }
+
+    /// [`Lights::build`] with classic NEE's table at the resolution `nee_table` asks for.
+    ///
+    /// # Errors
+    /// As [`Lights::build`].
+    pub fn build_with(
+        volume: &crate::volume::Volume,
+        emission: &crate::medium::Emission,
+        light_sampling: LightSampling,
+        proxy_resolution: u32,
+        nee_table: NeeTable,
+    ) -> crate::error::Result<Lights> {
         Ok(match light_sampling {
             LightSampling::None => Lights::default(),
-            LightSampling::Nee => Lights { nee: EmitterDistribution::build(volume, power)?, ..Lights::default() },
-            LightSampling::Fnee => Lights { proxy: ProxyGrid::build(volume, proxy_resolution, power)?, ..Lights::default() },
+            LightSampling::Nee => {
+                Lights { nee: EmitterDistribution::build_as(volume, crate::light::LightPower::new(emission), nee_table)?, ..Lights::default() }
+            }
+            LightSampling::Fnee => Lights { proxy: ProxyGrid::build(volume, proxy_resolution, light_power(emission))?, ..Lights::default() },
         })
     }
 }
@@ -334,10 +350,10 @@ impl Integrator {
                     }
                 }
                 LightSampling::Nee => {
-                    if let Some(nee) = &lights.nee {
+                    if let (Some(nee), Some(voxels)) = (&lights.nee, scene.field.voxels()) {
                         let u_voxel = sampler.get_1d(Dim::LightChoice);
                         let u_pos = sampler.get_3d(Dim::LightPosition);
-                        let vs = nee.sample(u_voxel, u_pos);
+                        let vs = nee.sample(voxels, u_voxel, u_pos);
                         let d = vs.p_world - x;
                         let r2 = d.length_squared();
                         if r2 > 0.0 {
@@ -406,10 +422,12 @@ impl Integrator {
                 }
                 ForwardWeight::Fnee { .. } => 0.0,
             };
-            if let (true, Some(nee), DistanceSample::Collided { t, density, .. }) = (point_nee, lights.nee.as_ref(), r.event) {
+            if let (true, Some(nee), Some(voxels), DistanceSample::Collided { t, density, .. }) =
+                (point_nee, lights.nee.as_ref(), scene.field.voxels(), r.event)
+            {
                 // MIS in volume measure against NEE at the collision point
                 let p_fwd = ps.pdf * m.mu_t(density) * (-r.optical_depth).exp() / (t * t);
-                w = self.mis.weight(p_fwd, nee.pdf(ray.at(t)));
+                w = self.mis.weight(p_fwd, nee.pdf(voxels, ray.at(t)));
             }
             contribute(l, aovs, Component::Scattered, beta * w, r.emission);
             trace.event(|| {

@@ -26,6 +26,7 @@ pub mod envmap;
 pub mod external;
 pub mod fnee;
 pub mod nee;
+mod nee_bricks;
 pub mod power;
 pub mod sky;
 

@@ -45,8 +45,11 @@
 use glam::{DAffine3, DVec3, IVec3};
 use rayon::prelude::*;
 
+use super::nee_bricks::BrickEmitters;
+use super::LightPower;
 use crate::error::{Error, Result};
 use crate::sampling::alias::AliasTable;
+use crate::scene::NeeTable;
 use crate::vdb::{leaf_offset, LEAF_VOXELS};
 use crate::volume::brick::{Volume, BRICK};
 use crate::volume::Interpolation;
@@ -91,6 +94,26 @@ struct BrickPower {
 pub struct EmitterDistribution {
     world_from_index: DAffine3,
     index_from_world: DAffine3,
+    /// How voxels are drawn: from one table entry each, or brick by brick.
+    entries: Entries,
+    voxel_volume: f64,
+    total_power: f64,
+    /// How the point is drawn around the voxel: its box, or the trilinear hat.
+    interpolation: Interpolation,
+}
+
+/// The table's resolution ([`NeeTable`]).
+#[derive(Clone, Debug)]
+enum Entries {
+    /// One alias entry per emitting voxel.
+    Voxels(VoxelTable),
+    /// One alias entry per emitting brick (`light::nee_bricks`).
+    Bricks(BrickEmitters),
+}
+
+/// One alias entry per emitting voxel (module docs, "Layout and memory").
+#[derive(Clone, Debug)]
+struct VoxelTable {
     /// Brick coordinate of table cell (0,0,0) and the table size in bricks.
     brick_lo: IVec3,
     dims: IVec3,
@@ -98,10 +121,6 @@ pub struct EmitterDistribution {
     table: Vec<u32>,
     bricks: Vec<EmitterBrick>,
     alias: AliasTable,
-    voxel_volume: f64,
-    total_power: f64,
-    /// How the point is drawn around the voxel: its box, or the trilinear hat.
-    interpolation: Interpolation,
 }
 
 /// Position of the `rank`-th set bit (0-based) of a 512-bit mask.
@@ -211,15 +230,41 @@ impl EmitterDistribution {
         Ok(Some(EmitterDistribution {
             world_from_index: volume.world_from_index(),
             index_from_world: volume.index_from_world(),
-            brick_lo,
-            dims,
-            table,
-            bricks,
-            alias,
+            entries: Entries::Voxels(VoxelTable { brick_lo, dims, table, bricks, alias }),
             voxel_volume,
             total_power,
             interpolation: Interpolation::Nearest,
         }))
+    }
+
+    /// The distribution of `volume`'s emissive voxels with one entry per emitting brick,
+    /// weighed by `power` (`light::nee_bricks`): 32 bytes per emitting brick instead of
+    /// 16 per emitting voxel. Returns `Ok(None)` when nothing emits.
+    ///
+    /// # Errors
+    /// As [`EmitterDistribution::build`].
+    pub fn build_bricks(volume: &Volume, power: impl Fn(f32, f32) -> f64 + Send + Sync + 'static) -> Result<Option<EmitterDistribution>> {
+        let Some(bricks) = BrickEmitters::build(volume, std::sync::Arc::new(power))? else { return Ok(None) };
+        let voxel_volume = volume.voxel_volume();
+        Ok(Some(EmitterDistribution {
+            world_from_index: volume.world_from_index(),
+            index_from_world: volume.index_from_world(),
+            total_power: voxel_volume * bricks.total_power(),
+            entries: Entries::Bricks(bricks),
+            voxel_volume,
+            interpolation: Interpolation::Nearest,
+        }))
+    }
+
+    /// Build the table `table` asks for (`NeeTable`).
+    ///
+    /// # Errors
+    /// As [`EmitterDistribution::build`].
+    pub fn build_as(volume: &Volume, power: LightPower, table: NeeTable) -> Result<Option<EmitterDistribution>> {
+        match table {
+            NeeTable::Voxel => EmitterDistribution::build(volume, move |d, s| power.power(d, s)),
+            NeeTable::Brick => EmitterDistribution::build_bricks(volume, move |d, s| power.power(d, s)),
+        }
     }
 
     /// The same table for a volume reconstructed by `interpolation` (see module docs).
@@ -230,30 +275,39 @@ impl EmitterDistribution {
 
     /// Sample a voxel `i ~ P` with `u_voxel` and a point in it with `u_pos` (all in
     /// `[0, 1)`): uniformly in its box, or from the trilinear hat around it (module docs).
-    /// The pdf is per unit world volume.
+    /// The pdf is per unit world volume. `volume` is the one the table was built from
+    /// (a brick table reads its voxels).
     #[must_use]
-    pub fn sample(&self, u_voxel: f64, u_pos: [f64; 3]) -> VoxelSample {
-        let s = self.alias.sample(u_voxel);
-        // Entry → brick (entries are grouped by brick, `first` increasing) → set bit
-        let ordinal = self.bricks.partition_point(|b| b.first as usize <= s.index) - 1;
-        let brick = &self.bricks[ordinal];
-        let off = select(&brick.mask, (s.index - brick.first as usize) as u32);
-        let voxel = brick.origin + local_of(off);
+    pub fn sample(&self, volume: &Volume, u_voxel: f64, u_pos: [f64; 3]) -> VoxelSample {
+        let (voxel, pmf) = match &self.entries {
+            Entries::Voxels(t) => {
+                let s = t.alias.sample(u_voxel);
+                // Entry → brick (entries are grouped by brick, `first` increasing) → set bit
+                let ordinal = t.bricks.partition_point(|b| b.first as usize <= s.index) - 1;
+                let brick = &t.bricks[ordinal];
+                let off = select(&brick.mask, (s.index - brick.first as usize) as u32);
+                (brick.origin + local_of(off), s.pmf)
+            }
+            Entries::Bricks(b) => {
+                let s = b.sample(volume, u_voxel);
+                (s.voxel, s.pmf)
+            }
+        };
         match self.interpolation {
             Interpolation::Nearest => {
                 let p_index = (voxel.as_dvec3() - 0.5) + DVec3::from(u_pos);
-                VoxelSample { p_world: self.world_from_index.transform_point3(p_index), pdf: s.pmf / self.voxel_volume, voxel }
+                VoxelSample { p_world: self.world_from_index.transform_point3(p_index), pdf: pmf / self.voxel_volume, voxel }
             }
             Interpolation::Linear => {
                 let p_index = voxel.as_dvec3() + DVec3::from(u_pos.map(sample_tent));
                 let p_world = self.world_from_index.transform_point3(p_index);
-                VoxelSample { p_world, pdf: self.pdf_hat(p_index), voxel }
+                VoxelSample { p_world, pdf: self.pdf_hat(volume, p_index), voxel }
             }
         }
     }
 
     /// `Σ_i h(p − i) P_i / V` over the 8 voxels around index-space `p` (module docs).
-    fn pdf_hat(&self, p: DVec3) -> f64 {
+    fn pdf_hat(&self, volume: &Volume, p: DVec3) -> f64 {
         let i = p.floor();
         let f = p - i;
         let i = i.as_ivec3();
@@ -262,7 +316,7 @@ impl EmitterDistribution {
             let corner = IVec3::new(c & 1, (c >> 1) & 1, (c >> 2) & 1);
             let w = (0..3).map(|k| if corner[k] == 1 { f[k] } else { 1.0 - f[k] }).product::<f64>();
             if w > 0.0 {
-                sum += w * self.pdf_voxel(i + corner);
+                sum += w * self.pdf_voxel(volume, i + corner);
             }
         }
         sum
@@ -271,7 +325,60 @@ impl EmitterDistribution {
     /// Density per unit world volume of sampling a point in voxel `ijk` (0 where the voxel
     /// emits nothing).
     #[must_use]
-    pub fn pdf_voxel(&self, ijk: IVec3) -> f64 {
+    pub fn pdf_voxel(&self, volume: &Volume, ijk: IVec3) -> f64 {
+        let pmf = match &self.entries {
+            Entries::Voxels(t) => t.pmf(ijk),
+            Entries::Bricks(b) => b.pmf(volume, ijk),
+        };
+        pmf / self.voxel_volume
+    }
+
+    /// Density per unit world volume of sampling `p_world`: [`Self::pdf_voxel`] of the voxel
+    /// `⌊p_index + ½⌋` containing it, or under trilinear reconstruction the hat-weighted
+    /// sum over the 8 voxels around it (0 outside the emissive voxels' support or for
+    /// non-finite input).
+    #[must_use]
+    pub fn pdf(&self, volume: &Volume, p_world: DVec3) -> f64 {
+        let p = self.index_from_world.transform_point3(p_world);
+        if !p.is_finite() || p.abs().max_element() > f64::from(i32::MAX - 2 * BRICK) {
+            return 0.0;
+        }
+        match self.interpolation {
+            Interpolation::Nearest => self.pdf_voxel(volume, (p + 0.5).floor().as_ivec3()),
+            Interpolation::Linear => self.pdf_hat(volume, p),
+        }
+    }
+
+    /// `ΣΦ_i = V Σ Y(L_e)`: the volume's emitted luminance power, for choosing between
+    /// lights (same quantity as the proxy grid's `total_power`).
+    #[must_use]
+    pub fn total_power(&self) -> f64 {
+        self.total_power
+    }
+
+    /// Number of alias entries: emitting voxels, or emitting bricks of a brick table.
+    #[must_use]
+    pub fn entry_count(&self) -> usize {
+        match &self.entries {
+            Entries::Voxels(t) => t.alias.len(),
+            Entries::Bricks(b) => b.brick_count(),
+        }
+    }
+
+    /// Heap bytes: 16 per emissive voxel, 80 per emitting brick and 4 per brick-table
+    /// cell; or 32 per emitting brick for a brick table.
+    #[must_use]
+    pub fn memory_bytes(&self) -> usize {
+        match &self.entries {
+            Entries::Voxels(t) => t.alias.memory_bytes() + t.bricks.len() * std::mem::size_of::<EmitterBrick>() + t.table.len() * 4,
+            Entries::Bricks(b) => b.memory_bytes(),
+        }
+    }
+}
+
+impl VoxelTable {
+    /// `P_i` of voxel `ijk` (0 where it emits nothing).
+    fn pmf(&self, ijk: IVec3) -> f64 {
         let b = ijk.div_euclid(IVec3::splat(BRICK));
         let r = b - self.brick_lo;
         if r.cmplt(IVec3::ZERO).any() || r.cmpge(self.dims).any() {
@@ -290,42 +397,7 @@ impl EmitterDistribution {
             return 0.0;
         }
         let below: u32 = brick.mask[..word].iter().map(|w| w.count_ones()).sum::<u32>() + (brick.mask[word] & ((1u64 << bit) - 1)).count_ones();
-        self.alias.pmf(brick.first as usize + below as usize) / self.voxel_volume
-    }
-
-    /// Density per unit world volume of sampling `p_world`: [`Self::pdf_voxel`] of the voxel
-    /// `⌊p_index + ½⌋` containing it, or under trilinear reconstruction the hat-weighted
-    /// sum over the 8 voxels around it (0 outside the emissive voxels' support or for
-    /// non-finite input).
-    #[must_use]
-    pub fn pdf(&self, p_world: DVec3) -> f64 {
-        let p = self.index_from_world.transform_point3(p_world);
-        if !p.is_finite() || p.abs().max_element() > f64::from(i32::MAX - 2 * BRICK) {
-            return 0.0;
-        }
-        match self.interpolation {
-            Interpolation::Nearest => self.pdf_voxel((p + 0.5).floor().as_ivec3()),
-            Interpolation::Linear => self.pdf_hat(p),
-        }
-    }
-
-    /// `ΣΦ_i = V Σ Y(L_e)`: the volume's emitted luminance power, for choosing between
-    /// lights (same quantity as the proxy grid's `total_power`).
-    #[must_use]
-    pub fn total_power(&self) -> f64 {
-        self.total_power
-    }
-
-    /// Number of emissive voxels (alias entries).
-    #[must_use]
-    pub fn voxel_count(&self) -> usize {
-        self.alias.len()
-    }
-
-    /// Heap bytes: 16 per emissive voxel, 80 per emitting brick, 4 per brick-table cell.
-    #[must_use]
-    pub fn memory_bytes(&self) -> usize {
-        self.alias.memory_bytes() + self.bricks.len() * std::mem::size_of::<EmitterBrick>() + self.table.len() * 4
+        self.alias.pmf(brick.first as usize + below as usize)
     }
 }
 

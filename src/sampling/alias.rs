@@ -174,6 +174,32 @@ impl AliasTable {
         AliasSample { index, pmf: self.slots[index].pmf }
     }
 
+    /// [`AliasTable::sample`] and the part of `u` that the choice did not use, rescaled to
+    /// `[0, 1)`: given the index it is uniform (the fraction of `u · len` within the kept
+    /// or the aliased share of the slot) and independent of it, so a nested choice needs
+    /// no second random number.
+    #[inline]
+    #[must_use]
+    pub fn sample_with_residual(&self, u: f64) -> (AliasSample, f64) {
+        let n = self.slots.len();
+        let x = u * n as f64;
+        let k = (x as usize).min(n - 1);
+        let slot = &self.slots[k];
+        let chosen = self.sample(u);
+        let fraction = (x - k as f64).clamp(0.0, 1.0);
+        let residual = if slot.alias as usize == k {
+            fraction
+        } else {
+            let kept = f64::from(slot.threshold) / FIXED_ONE;
+            if chosen.index == k {
+                fraction / kept
+            } else {
+                (fraction - kept) / (1.0 - kept)
+            }
+        };
+        (chosen, residual.clamp(0.0, 1.0 - f64::EPSILON / 2.0))
+    }
+
     /// Probability mass of index `i` under the table (0 for zero weights).
     ///
     /// # Panics
@@ -216,6 +242,32 @@ mod tests {
         assert!(AliasTable::new(&[1.0, f64::INFINITY]).is_none());
         assert!(AliasTable::new(&[f64::MAX, f64::MAX]).is_none());
         assert!(AliasTable::new(&[-0.0, 2.0]).is_some());
+    }
+
+    /// The residual is uniform given the index: over a fine grid of `u`, each index's
+    /// residuals fill 10 equal bins evenly (to one grid step per bin and slot share).
+    #[test]
+    fn residual_is_uniform_per_index() {
+        let weights = [0.5, 3.0, 0.0, 1.25, 2.0, 0.01];
+        let t = AliasTable::new(&weights).unwrap();
+        const N: u32 = 600_000;
+        let mut bins = [[0u32; 10]; 6];
+        for j in 0..N {
+            let u = (f64::from(j) + 0.5) / f64::from(N);
+            let (s, r) = t.sample_with_residual(u);
+            assert!((0.0..1.0).contains(&r), "u {u}: residual {r}");
+            assert_eq!(s, t.sample(u));
+            bins[s.index][(r * 10.0) as usize] += 1;
+        }
+        for (i, row) in bins.iter().enumerate() {
+            let total: u32 = row.iter().sum();
+            let expected = f64::from(N) * t.pmf(i);
+            assert!((f64::from(total) - expected).abs() <= 3.0, "index {i}: {total} vs {expected}");
+            for &count in row {
+                // Each index takes at most two slot shares, each spread evenly over the bins
+                assert!((f64::from(count) - f64::from(total) / 10.0).abs() <= 4.0, "index {i}: bins {row:?}");
+            }
+        }
     }
 
     #[test]

@@ -138,6 +138,31 @@ choice!(LightSampling {
     "fnee" => LightSampling::Fnee, "Forward NEE: proxy direction + free path, MIS in solid angle";
 });
 
+/// Resolution of classic NEE's table (`light::nee`, `light::nee_bricks`): a voxel is
+/// drawn from one table entry per emitting voxel, or from its brick's entry and then the
+/// brick's values. The same law either way; the brick table needs no memory per voxel.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum NeeTable {
+    /// 16 bytes per emitting voxel.
+    #[default]
+    Voxel,
+    /// 32 bytes per emitting brick; a sample weighs its brick's voxels.
+    Brick,
+}
+
+choice!(NeeTable {
+    "voxel" => NeeTable::Voxel, "One entry per emitting voxel (16 bytes each): the fastest samples";
+    "brick" => NeeTable::Brick, "One entry per emitting brick, the voxel drawn from the brick's values: for volumes whose voxel table does not fit in memory";
+});
+
+impl NeeTable {
+    /// Whether this is the default (`voxel`): scene files and the settings hash leave it out.
+    #[must_use]
+    pub fn is_voxel(&self) -> bool {
+        *self == NeeTable::Voxel
+    }
+}
+
 /// How segments are tracked, before the estimator is known (`auto` is resolved by
 /// [`TrackingChoice::resolve`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -287,6 +312,7 @@ mod tests {
         round_trips::<LightSampling>();
         round_trips::<MisHeuristic>();
         round_trips::<TrackingChoice>();
+        round_trips::<NeeTable>();
         round_trips::<Convention>();
         round_trips::<EmissionSource>();
         round_trips::<SampleOrderChoice>();

@@ -26,7 +26,9 @@ use std::path::PathBuf;
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
-pub use choice::{Choice, EmissionSource, EstimatorKind, Interpolation, Method, ProgressFormat, SampleOrderChoice, SamplerKind, TrackingChoice, UpAxis};
+pub use choice::{
+    Choice, EmissionSource, EstimatorKind, Interpolation, Method, NeeTable, ProgressFormat, SampleOrderChoice, SamplerKind, TrackingChoice, UpAxis,
+};
 pub use lights::{DistantSettings, EnvironmentMapSettings, LightSettings, SkySettings, SphereSettings};
 pub use settings::{FarmOptions, JobSettings, OutputSettings, ReadSettings, RenderOptions};
 pub use validate::ValidShot;
@@ -352,6 +354,9 @@ pub struct IntegratorSettings {
     pub kappa: f64,
     /// How segments are tracked (`integrator::tracker`).
     pub tracking: TrackingChoice,
+    /// Resolution of classic NEE's table.
+    #[serde(skip_serializing_if = "NeeTable::is_voxel")]
+    pub nee_table: NeeTable,
 }
 
 impl Default for IntegratorSettings {
@@ -365,6 +370,7 @@ impl Default for IntegratorSettings {
             max_depth: 64,
             kappa: 4.0,
             tracking: TrackingChoice::Auto,
+            nee_table: NeeTable::Voxel,
         }
     }
 }

@@ -574,4 +574,8 @@ impl Field for Volume {
     fn data_bytes(&self) -> usize {
         self.memory_bytes()
     }
+
+    fn voxels(&self) -> Option<&Volume> {
+        Some(self)
+    }
 }

@@ -325,6 +325,12 @@ pub trait Field: Sync {
     fn data_bytes(&self) -> usize {
         0
     }
+
+    /// The voxels behind the field, for light sampling that reads them (classic NEE's
+    /// brick table); `None` for an analytic field.
+    fn voxels(&self) -> Option<&super::Volume> {
+        None
+    }
 }
 
 fn inside(p: DVec3, lo: DVec3, hi: DVec3) -> bool {

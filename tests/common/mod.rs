@@ -181,8 +181,9 @@ pub fn grid_emission(convention: Convention) -> Emission {
 /// Family-wise significance level of the sampling tier's chi² tests, both files together.
 pub const SAMPLING_ALPHA: f64 = 0.01;
 /// Number of chi² tests in the sampling tier: HG ×5, alias (`sampling.rs`); proxy cells ×2,
-/// FNEE ×3, NEE in voxel boxes and from the trilinear hat (`light_sampling.rs`).
-pub const SAMPLING_TESTS: usize = 5 + 1 + 2 + 3 + 2;
+/// FNEE ×3, NEE in voxel boxes and from the trilinear hat, each with a voxel and a brick
+/// table (`light_sampling.rs`).
+pub const SAMPLING_TESTS: usize = 5 + 1 + 2 + 3 + 2 * 2;
 
 /// The sampler of the sampling tier's tests: `seed`, pixel 0, sample 0. The i.i.d. hashed
 /// stream (`Sampler::new`, the `random` kind): chi² counts assume independent draws.

@@ -185,4 +185,8 @@ impl Field for Trilinear {
     fn data_bytes(&self) -> usize {
         self.volume.memory_bytes() + self.dual.memory_bytes()
     }
+
+    fn voxels(&self) -> Option<&Volume> {
+        Some(&self.volume)
+    }
 }

@@ -160,6 +160,22 @@ void check_sizes(const GridHead& head, std::size_t origins, std::size_t values) 
     }
 }
 
+// The header a reader reports (FloatGridHeader or Vec3GridHeader, which differ only in
+// the background's type): what read_checked and count_blocks learned.
+template <typename HeaderT, typename BackgroundT>
+HeaderT header_of(const GridHead& head, const BackgroundT& background) {
+    HeaderT h;
+    h.status = head.status;
+    h.value_type = head.value_type;
+    h.transform = head.transform;
+    h.world_from_index = head.world_from_index;
+    h.background = background;
+    h.leaf_count = head.leaf_count;
+    h.tile_leaf_count = head.tile_leaf_count;
+    h.active_tiles = head.active_tiles;
+    return h;
+}
+
 }  // namespace
 
 // ---- Scalar grids ----
@@ -176,19 +192,7 @@ FloatGridReader::FloatGridReader(std::unique_ptr<Impl> impl) : impl_(std::move(i
 FloatGridReader::~FloatGridReader() = default;
 
 FloatGridHeader FloatGridReader::header() const {
-    return guarded([&] {
-        const GridHead& head = impl_->head;
-        FloatGridHeader h;
-        h.status = head.status;
-        h.value_type = head.value_type;
-        h.transform = head.transform;
-        h.world_from_index = head.world_from_index;
-        h.background = impl_->background;
-        h.leaf_count = head.leaf_count;
-        h.tile_leaf_count = head.tile_leaf_count;
-        h.active_tiles = head.active_tiles;
-        return h;
-    });
+    return guarded([&] { return header_of<FloatGridHeader>(impl_->head, impl_->background); });
 }
 
 void FloatGridReader::copy_leaves(rust::Slice<std::int32_t> origins,
@@ -243,19 +247,7 @@ Vec3GridReader::Vec3GridReader(std::unique_ptr<Impl> impl) : impl_(std::move(imp
 Vec3GridReader::~Vec3GridReader() = default;
 
 Vec3GridHeader Vec3GridReader::header() const {
-    return guarded([&] {
-        const GridHead& head = impl_->head;
-        Vec3GridHeader h;
-        h.status = head.status;
-        h.value_type = head.value_type;
-        h.transform = head.transform;
-        h.world_from_index = head.world_from_index;
-        h.background = impl_->background;
-        h.leaf_count = head.leaf_count;
-        h.tile_leaf_count = head.tile_leaf_count;
-        h.active_tiles = head.active_tiles;
-        return h;
-    });
+    return guarded([&] { return header_of<Vec3GridHeader>(impl_->head, impl_->background); });
 }
 
 void Vec3GridReader::copy_leaves(rust::Slice<std::int32_t> origins, rust::Slice<float> x,

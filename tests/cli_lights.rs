@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{explosion, exr_pixels, pixel_bits, plume, plume_exits, s, tmpdir};
+use common::{explosion, exr_pixels, pixel_bits, plume, refused_in_one_line, s, tmpdir};
 
 /// A small lat-long map: a bright warm band above the horizon, dim below.
 fn write_map(path: &std::path::Path, width: u32, height: u32) {
@@ -114,9 +114,7 @@ fn bad_light_input_is_one_line_and_no_output() {
     for (flag, value, code, needles) in cases {
         let mut args = vec!["render", s(&ex), "-o", s(&out), flag, value.as_str()];
         args.extend(SMALL);
-        let err = plume_exits(&args, code, &needles);
-        assert_eq!(err.trim().lines().count(), 1, "{flag} {value}: one line, got {err:?}");
-        assert!(!out.exists(), "{flag} {value}: no output");
+        refused_in_one_line(&args, code, &needles, &out);
     }
 }
 

@@ -253,6 +253,13 @@ pub fn plume_exits(args: &[&str], code: i32, needles: &[&str]) -> String {
     err
 }
 
+/// [`plume_exits`] for bad input: the error is one line, and `out` was not written.
+pub fn refused_in_one_line(args: &[&str], code: i32, needles: &[&str], out: &Path) {
+    let err = plume_exits(args, code, needles);
+    assert_eq!(err.trim().lines().count(), 1, "{args:?}: one line, got {err:?}");
+    assert!(!out.exists(), "{args:?}: wrote {}", out.display());
+}
+
 /// A fresh, empty temporary directory `plume-<tier>-<name>-<pid>` for one test.
 pub fn tmpdir(tier: &str, name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("plume-{tier}-{name}-{}", std::process::id()));

@@ -53,8 +53,9 @@ pub struct RenderArgs {
     /// spp), or the independent random numbers of plume before issue #16.
     #[arg(long, value_parser = choice::<SamplerKind>(), default_value_t = RenderOptions::default().sampler)]
     pub sampler: SamplerKind,
-    /// Worker threads (0 = all cores, and one more when rendering tile by tile from a
-    /// brick cache, where workers wait for the disk). The image does not depend on it.
+    /// Worker threads (0 = all cores; when rendering tile by tile from a brick cache, where
+    /// workers wait for the disk, one more, or three per core when paths scatter). The
+    /// image does not depend on it.
     #[arg(long, default_value_t = RenderOptions::default().threads)]
     pub threads: usize,
     /// Image width in pixels.

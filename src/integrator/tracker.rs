@@ -134,6 +134,47 @@ impl<F: Field> PointField for Points<'_, F> {
     }
 }
 
+/// Most points a [`Recorder`] keeps: about a megabyte of pages read ahead per segment.
+const MAX_READ_AHEAD_POINTS: usize = 512;
+
+/// Out of core, a scattered segment asks for its pages before it reads any (one batch of
+/// reads the disk can serve in parallel, instead of one fault at a time): it is first
+/// tracked with a copy of its sampler through this field, which records where it is read
+/// and holds nothing. Null collisions draw their numbers independently of the values they
+/// read up to the first real collision (tentative distances, acceptance draws and
+/// emission points all come from the majorants and the stream), so the recorded points
+/// are the real walk's up to its collision, then those of the rest of the segment.
+/// Ray-march's ratio-tracking roulette does depend on the values: there the hint is
+/// approximate. A hint either way: nothing recorded changes a result.
+#[derive(Default)]
+struct Recorder {
+    points: std::cell::RefCell<Vec<glam::DVec3>>,
+}
+
+impl Recorder {
+    fn record(&self, p: glam::DVec3) {
+        let mut points = self.points.borrow_mut();
+        if points.len() < MAX_READ_AHEAD_POINTS {
+            points.push(p);
+        }
+    }
+}
+
+impl PointField for Recorder {
+    fn density(&self, p: glam::DVec3) -> f32 {
+        self.record(p);
+        0.0
+    }
+    fn emission(&self, p: glam::DVec3) -> [f64; 3] {
+        self.record(p);
+        [0.0; 3]
+    }
+    fn sample(&self, p: glam::DVec3) -> PointSample {
+        self.record(p);
+        PointSample::default()
+    }
+}
+
 impl<F: Field> Tracker<'_, F> {
     /// A free path and the estimator's emission along `ray` over `[0, t_max]`
     /// ([`track`] or [`null_track`]).
@@ -143,6 +184,11 @@ impl<F: Field> Tracker<'_, F> {
         match *self {
             Tracker::Regular(field) => track(field, medium, ray, t_max, estimator, need_collision, u, sampler),
             Tracker::Null { field, majorants } => {
+                if let Some(volume) = field.voxels().filter(|v| v.reading_ahead()) {
+                    let recorder = Recorder::default();
+                    null_track(majorants, &recorder, medium, ray, t_max, estimator, need_collision, u, &mut sampler.clone());
+                    volume.read_ahead_points(&recorder.points.into_inner());
+                }
                 null_track(majorants, &Points::new(field, medium, None), medium, ray, t_max, estimator, need_collision, u, sampler)
             }
             Tracker::Moving { field, motion, time } => {
@@ -161,6 +207,9 @@ impl<F: Field> Tracker<'_, F> {
             // sum optical depth (no emission cubics), and an exact τ adds no noise to the
             // light it carries
             Tracker::Regular(field) | Tracker::Null { field, .. } => {
+                if let Some(volume) = field.voxels().filter(|v| v.reading_ahead()) {
+                    volume.read_ahead_ray(ray, t_max);
+                }
                 let OpticalDepth { optical_depth: od, voxel_steps } = optical_depth(field, medium, ray, t_max, 745.0);
                 ((-od).exp(), voxel_steps)
             }
@@ -179,12 +228,8 @@ mod tests {
     use crate::volume::trilinear::Trilinear;
     use crate::volume::Volume;
 
-    /// What null collisions read of a still volume is exactly what the field
-    /// reconstructs there (bit for bit), nearest and trilinear, at random points in and
-    /// around a hot explosion; and a moving volume at time 0 with zero velocity reads the
-    /// same.
-    #[test]
-    fn points_read_what_the_field_reconstructs() {
+    /// A generated 24³ explosion and a blackbody emission for it.
+    fn hot_explosion() -> (crate::synth::Explosion, Emission) {
         let ex = crate::synth::explosion(&crate::synth::ExplosionParams { resolution: 24, seed: 2, ..Default::default() });
         let emission = Emission {
             kind: EmissionKind::Blackbody,
@@ -194,6 +239,16 @@ mod tests {
             temperature_map: TemperatureMap::Kelvin,
             cutoff_kelvin: 500.0,
         };
+        (ex, emission)
+    }
+
+    /// What null collisions read of a still volume is exactly what the field
+    /// reconstructs there (bit for bit), nearest and trilinear, at random points in and
+    /// around a hot explosion; and a moving volume at time 0 with zero velocity reads the
+    /// same.
+    #[test]
+    fn points_read_what_the_field_reconstructs() {
+        let (ex, emission) = hot_explosion();
         let volume = || Volume::build(&ex.density, Some(&ex.temperature), |v| emission.map_source(v)).unwrap();
         let medium = Medium { sigma_t: 2.0, albedo: 0.8, g: 0.0, emission };
         let nearest = volume();
@@ -248,5 +303,56 @@ mod tests {
             assert_eq!((exact.0.to_bits(), exact.1), (null.0.to_bits(), null.1));
             assert_eq!(a.next_u64(), b2.next_u64(), "null shadow ray drew random numbers");
         }
+    }
+
+    /// The read-ahead walk ([`Recorder`]) asks for every point the real walk reads, in
+    /// the same order: the real walk's density and emission lookups are a prefix of the
+    /// recorded ones, for the line and point estimators, with and without a needed
+    /// collision, on a thin and a dense explosion.
+    #[test]
+    fn read_ahead_records_the_real_walks_lookups_first() {
+        struct Tap<'a, P: PointField> {
+            inner: &'a P,
+            points: std::cell::RefCell<Vec<glam::DVec3>>,
+        }
+        impl<P: PointField> PointField for Tap<'_, P> {
+            fn density(&self, p: glam::DVec3) -> f32 {
+                self.points.borrow_mut().push(p);
+                self.inner.density(p)
+            }
+            fn emission(&self, p: glam::DVec3) -> [f64; 3] {
+                self.points.borrow_mut().push(p);
+                self.inner.emission(p)
+            }
+            fn sample(&self, p: glam::DVec3) -> PointSample {
+                self.inner.sample(p)
+            }
+        }
+        let (ex, emission) = hot_explosion();
+        let volume = Volume::build(&ex.density, Some(&ex.temperature), |v| emission.map_source(v)).unwrap();
+        let majorants = MajorantGrid::new(&volume, 0.0);
+        let b = volume.world_bounds();
+        let mut rng = Sampler::new(11, 0, 0);
+        let (mut collided, mut compared) = (0, 0);
+        for sigma_t in [0.5, 20.0] {
+            let medium = Medium { sigma_t, albedo: 0.8, g: 0.0, emission };
+            for k in 0..400u64 {
+                let u = glam::DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64());
+                let ray = Ray { origin: b.lo + (b.hi - b.lo) * u, direction: sample_uniform_sphere([rng.next_f64(), rng.next_f64()]) };
+                let (estimator, need_collision) = [(Estimator::Line, true), (Estimator::Line, false), (Estimator::Point, true)][(k % 3) as usize];
+                let u = rng.next_f64();
+                let points = Points::new(&volume, &medium, None);
+                let tap = Tap { inner: &points, points: std::cell::RefCell::new(Vec::new()) };
+                let real = null_track(&majorants, &tap, &medium, &ray, f64::INFINITY, estimator, need_collision, u, &mut Sampler::new(3, k, 0));
+                let recorder = Recorder::default();
+                null_track(&majorants, &recorder, &medium, &ray, f64::INFINITY, estimator, need_collision, u, &mut Sampler::new(3, k, 0));
+                let (real_points, recorded) = (tap.points.into_inner(), recorder.points.into_inner());
+                let n = real_points.len().min(MAX_READ_AHEAD_POINTS);
+                assert_eq!(real_points[..n], recorded[..n], "ray {k}, σ_t {sigma_t}: recorded lookups differ from the real walk's");
+                collided += usize::from(matches!(real.event, crate::medium::DistanceSample::Collided { .. }));
+                compared += n;
+            }
+        }
+        assert!(collided > 100 && compared > 2000, "{collided} collisions, {compared} lookups compared");
     }
 }

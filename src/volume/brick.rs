@@ -157,6 +157,9 @@ pub struct Volume {
     /// Read-ahead only (`volume::prefetch`): one bit per table cell, set where a brick
     /// is; built on first use.
     pub(crate) occupancy: std::sync::OnceLock<Vec<u64>>,
+    /// Set by [`Volume::expect_read_ahead`]: the render reads ahead of its rays, and
+    /// scattered segments read ahead of their lookups (`integrator::tracker`).
+    pub(crate) reading_ahead: std::sync::atomic::AtomicBool,
 }
 
 fn floor_div(a: i32, b: i32) -> i32 {
@@ -241,6 +244,7 @@ impl Volume {
             pyramid,
             report: built.report,
             occupancy: std::sync::OnceLock::new(),
+            reading_ahead: std::sync::atomic::AtomicBool::new(false),
         }
     }
 
@@ -269,6 +273,7 @@ impl Volume {
             pyramid,
             report,
             occupancy: std::sync::OnceLock::new(),
+            reading_ahead: std::sync::atomic::AtomicBool::new(false),
         }
     }
 
@@ -284,6 +289,7 @@ impl Volume {
             pyramid: Pyramid::default(),
             report: BuildReport::default(),
             occupancy: std::sync::OnceLock::new(),
+            reading_ahead: std::sync::atomic::AtomicBool::new(false),
         }
     }
 

@@ -108,15 +108,7 @@ impl Volume {
             return;
         }
         let n = self.subdivision(grid);
-        let occupied = self.occupancy.get_or_init(|| {
-            let mut bits = vec![0u64; self.table.len().div_ceil(64)];
-            for (cell, &brick) in self.table.iter().enumerate() {
-                if (brick as usize) < self.bricks.len() {
-                    bits[cell / 64] |= 1 << (cell % 64);
-                }
-            }
-            bits
-        });
+        let occupied = self.occupied();
         let mut blocks: Vec<usize> = Vec::new();
         // Neighbouring sub-rays cross the same bricks: take each brick once
         let mut seen: std::collections::HashSet<usize, std::hash::BuildHasherDefault<CellHasher>> = std::collections::HashSet::default();
@@ -124,21 +116,58 @@ impl Volume {
             for i in 0..=grid.cells_x * n {
                 let ray = grid.at(i as f64 / n as f64, j as f64 / n as f64);
                 cells_along(&self.index_from_world, self.brick_lo, self.dims, &ray, 0.0, f64::INFINITY, |cell| {
-                    if occupied.get(cell / 64).is_none_or(|w| w & (1 << (cell % 64)) == 0) || !seen.insert(cell) {
-                        return;
-                    }
-                    let Some(brick) = self.table.get(cell).and_then(|&i| self.bricks.get(i as usize)) else { return };
-                    let Brick { density, source, albedo } = *brick;
-                    for slot in [density, source, albedo] {
-                        if let Slot::Dense(block) = slot.get() {
-                            blocks.push(block as usize);
-                        }
+                    if occupied.get(cell / 64).is_some_and(|w| w & (1 << (cell % 64)) != 0) && seen.insert(cell) {
+                        self.push_blocks(self.table.get(cell).and_then(|&i| self.bricks.get(i as usize)), &mut blocks);
                     }
                 });
             }
         }
+        self.will_need_blocks(blocks);
+    }
+
+    /// One bit per table cell, set where a brick is (built on first use).
+    fn occupied(&self) -> &[u64] {
+        self.occupancy.get_or_init(|| {
+            let mut bits = vec![0u64; self.table.len().div_ceil(64)];
+            for (cell, &brick) in self.table.iter().enumerate() {
+                if (brick as usize) < self.bricks.len() {
+                    bits[cell / 64] |= 1 << (cell % 64);
+                }
+            }
+            bits
+        })
+    }
+
+    /// Add the dense value blocks of `brick` (all channels) to `blocks`.
+    fn push_blocks(&self, brick: Option<&Brick>, blocks: &mut Vec<usize>) {
+        let Some(&Brick { density, source, albedo }) = brick else { return };
+        for slot in [density, source, albedo] {
+            if let Slot::Dense(block) = slot.get() {
+                blocks.push(block as usize);
+            }
+        }
+    }
+
+    /// Ask for `blocks`, sorted and merged into runs.
+    fn will_need_blocks(&self, mut blocks: Vec<usize>) {
         let block = BRICK_VALUES;
         self.values.will_need(runs(&mut blocks, MERGE_GAP_BLOCKS).into_iter().map(|r| r.start * block..r.end * block));
+    }
+
+    /// Ask the OS to read ahead the value blocks of the bricks `ray` crosses within
+    /// `[0, t_max]` (an exact walk reads no others). Nothing for an in-core volume.
+    pub fn read_ahead_ray(&self, ray: &Ray, t_max: f64) {
+        if !self.is_mapped() {
+            return;
+        }
+        let occupied = self.occupied();
+        let mut blocks: Vec<usize> = Vec::new();
+        cells_along(&self.index_from_world, self.brick_lo, self.dims, ray, 0.0, t_max, |cell| {
+            if occupied.get(cell / 64).is_some_and(|w| w & (1 << (cell % 64)) != 0) {
+                self.push_blocks(self.table.get(cell).and_then(|&i| self.bricks.get(i as usize)), &mut blocks);
+            }
+        });
+        self.will_need_blocks(blocks);
     }
 
     /// Sub-rays per cell edge so that neighbouring walked rays are at most
@@ -166,11 +195,46 @@ impl Volume {
 }
 
 impl Volume {
+    /// Ask the OS to read ahead the value blocks that lookups at world `points` will
+    /// read: the bricks of the 8 voxels around each (the trilinear corners, among which is
+    /// the nearest voxel), all channels, sorted and merged into runs. Nothing for an
+    /// in-core volume. A hint, like [`Volume::read_ahead`].
+    pub fn read_ahead_points(&self, points: &[DVec3]) {
+        if !self.is_mapped() || points.is_empty() {
+            return;
+        }
+        let mut blocks: Vec<usize> = Vec::with_capacity(points.len() * 3);
+        let limit = f64::from(i32::MAX - 2 * BRICK);
+        for p in points {
+            let q = self.index_from_world.transform_point3(*p).floor();
+            if !(q.is_finite() && q.abs().max_element() < limit) {
+                continue;
+            }
+            let (lo, hi) = (q.as_ivec3().div_euclid(IVec3::splat(BRICK)), (q.as_ivec3() + 1).div_euclid(IVec3::splat(BRICK)));
+            for z in lo.z..=hi.z {
+                for y in lo.y..=hi.y {
+                    for x in lo.x..=hi.x {
+                        self.push_blocks(self.brick(IVec3::new(x, y, z)), &mut blocks);
+                    }
+                }
+            }
+        }
+        self.will_need_blocks(blocks);
+    }
+
+    /// Whether the render reads ahead ([`Volume::expect_read_ahead`] was called on a
+    /// mapped volume).
+    #[must_use]
+    pub fn reading_ahead(&self) -> bool {
+        self.reading_ahead.load(std::sync::atomic::Ordering::Relaxed)
+    }
+
     /// The render will [`Volume::read_ahead`] what it reads: faults on the value blocks
     /// stop pulling in the kernel's read-around window, and the index arrays are asked for
     /// whole. See the module docs.
     pub fn expect_read_ahead(&self) {
         if self.is_mapped() {
+            self.reading_ahead.store(true, std::sync::atomic::Ordering::Relaxed);
             self.values.fault_pages_only();
             self.table.will_need(std::iter::once(0..self.table.len()));
             self.bricks.will_need(std::iter::once(0..self.bricks.len()));

@@ -26,8 +26,13 @@
 //! a few per cent of the values, but the DDA reads the pyramid in every cell it crosses,
 //! empty ones included) are asked for whole, in file order, instead.
 //!
-//! Camera rays decide most of what a tile reads; scattered rays still fault on demand.
-//! Prefetching is a hint: it reads nothing the render uses and never changes a result.
+//! Scattered rays go anywhere in the volume. Each of their segments asks for its own
+//! pages just before it is walked, all at once, so the disk serves them in parallel
+//! instead of one fault at a time: a null-tracked segment for the bricks around the points
+//! its walk will look up ([`Volume::read_ahead_points`], found by a recording walk in
+//! `integrator::tracker`), a shadow ray for the bricks it crosses
+//! ([`Volume::read_ahead_ray`]). Prefetching is a hint: it reads nothing the render uses
+//! and never changes a result.
 
 use glam::{DAffine3, DVec3, IVec3};
 

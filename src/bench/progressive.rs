@@ -18,7 +18,7 @@ use serde::Serialize;
 use super::metrics::Errors;
 use crate::film::Film;
 use crate::integrator::{Counters, Integrator, Scene};
-use crate::render::{render, RenderSettings, SampleBudget};
+use crate::render::{render_with, RenderControl, RenderSettings, SampleBudget, SampleOrder};
 use crate::stats::cpu_seconds;
 use crate::volume::Field;
 
@@ -115,6 +115,11 @@ pub fn run<F: Field>(scene: &Scene<F>, integrator: &Integrator, plan: &RunPlan, 
         Snapshot { cpu_seconds: cpu, wall_seconds: wall, spp, errors }
     };
     let mut cpu = 0.0;
+    // A brick cache larger than the memory available is rendered tile by tile within each
+    // pass, as `plume render --sample-order auto` does: camera rays and scattered segments
+    // read ahead. The image is the same in either order.
+    let available = crate::memory::MemoryLimits::read().available().map_or(u64::MAX, |a| a.bytes);
+    let order = if scene.field.is_mapped() && scene.field.data_bytes() as u64 > available { SampleOrder::TileMajor } else { SampleOrder::Progressive };
     loop {
         let next_time = plan.cpu_checkpoints.get(time_points.len()).copied();
         if next_time.is_none() && spp >= plan.min_spp {
@@ -141,7 +146,7 @@ pub fn run<F: Field>(scene: &Scene<F>, integrator: &Integrator, plan: &RunPlan, 
             integrator: *integrator,
         };
         let c0 = cpu_seconds();
-        let r = render(scene, &settings, &|_, _| {});
+        let r = render_with(scene, &settings, RenderControl { order, ..RenderControl::default() }, &|_, _| {});
         let pass_cpu = cpu_seconds() - c0;
         accumulate(&mut sums, &r.film);
         counters.merge(&r.counters);

@@ -364,7 +364,7 @@ pub fn run(command: BenchCommand, _matches: Option<&ArgMatches>) -> Result<()> {
 }
 
 /// `plume bench flare`: make the cache if it is missing, then `bench compare` of line-fnee
-/// and line-nee (brick table: the voxel table of a 4096³ flare would need about 100 GiB)
+/// and line-nee (brick table: the voxel table of a 4096³ flare would need about 90 GiB)
 /// at `--spp`, one run each, against a computed line-fnee reference.
 fn flare(args: &FlareArgs) -> Result<()> {
     let cache = args.work_dir.join(format!("flare{}.plume", args.resolution));

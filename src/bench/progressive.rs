@@ -1,10 +1,11 @@
 //! Progressive rendering with checkpoints, the measuring loop of `plume bench compare`.
 //!
-//! A run renders sample ranges `[k, k + n)` with [`render`] (each a pure function of the
-//! seed, so the image is the same as one long render up to summation order) and adds the
-//! films. Between ranges it records [`Snapshot`]s: when the process CPU time spent by the
-//! run crosses each CPU-time checkpoint (the error-vs-time curve and the equal-time
-//! point), and at every power-of-two spp (the equal-spp point).
+//! A run renders sample ranges `[k, k + n)` with [`render_with`] (each a pure function of
+//! the seed, so the image is the same as one long render up to summation order; tile by
+//! tile for a brick cache larger than the memory available) and adds the films. Between
+//! ranges it records [`Snapshot`]s: when the process CPU time spent by the run crosses
+//! each CPU-time checkpoint (the error-vs-time curve and the equal-time point), and at
+//! every power-of-two spp (the equal-spp point).
 //!
 //! Budgets are **CPU seconds** (user + system, `getrusage`), not wall seconds: on a
 //! machine shared with other work, CPU time is what a method cost. Range sizes are chosen

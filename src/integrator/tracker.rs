@@ -134,7 +134,7 @@ impl<F: Field> PointField for Points<'_, F> {
     }
 }
 
-/// Most points a [`Recorder`] keeps: about a megabyte of pages read ahead per segment.
+/// Most points a [`Recorder`] keeps: at most a few megabytes of pages asked for per segment.
 const MAX_READ_AHEAD_POINTS: usize = 512;
 
 /// Out of core, a scattered segment asks for its pages before it reads any (one batch of

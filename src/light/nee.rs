@@ -56,7 +56,7 @@ use crate::error::{Error, Result};
 use crate::sampling::alias::AliasTable;
 use crate::scene::NeeTable;
 use crate::vdb::{leaf_offset, LEAF_VOXELS};
-use crate::volume::brick::{Volume, BRICK};
+use crate::volume::brick::{Brick, Volume, BRICK};
 use crate::volume::Interpolation;
 
 /// Marker for "no emitting brick here".
@@ -150,6 +150,55 @@ fn local_of(off: usize) -> IVec3 {
     IVec3::new((off >> 6) as i32, ((off >> 3) & 7) as i32, (off & 7) as i32)
 }
 
+/// Brick-table cell `k` (x fastest) as a coordinate relative to the table's origin.
+#[inline]
+pub(super) fn cell_coords(k: usize, dims: IVec3) -> IVec3 {
+    let (nx, ny) = (dims.x as usize, dims.y as usize);
+    IVec3::new((k % nx) as i32, ((k / nx) % ny) as i32, (k / (nx * ny)) as i32)
+}
+
+/// The voxels of `brick` with a non-zero source and positive power, `(offset, Φ_i)` to
+/// `visit` in offset order (`local` maps an offset to the local voxel: leaf or brick
+/// order), until it returns false; `Err` for a negative or non-finite power, naming the
+/// voxel. A constant brick is one call of `weigh` and of `visit`, with offset
+/// `LEAF_VOXELS` and its voxels' common power. Both NEE tables weigh bricks here.
+pub(super) fn weigh_brick(
+    volume: &Volume,
+    brick: &Brick,
+    origin: IVec3,
+    weigh: &(impl Fn(f32, f32) -> f64 + ?Sized),
+    local: fn(usize) -> IVec3,
+    mut visit: impl FnMut(usize, f64) -> bool,
+) -> Result<()> {
+    let check = |off: usize, density: f32, source: f32, p: f64| {
+        if p >= 0.0 && p.is_finite() {
+            Ok(p)
+        } else {
+            let at = origin + if off < LEAF_VOXELS { local(off) } else { IVec3::ZERO };
+            Err(Error::Scene(format!("emitted power {p} at voxel {at} (density {density}, source {source}) is negative or not finite")))
+        }
+    };
+    if let Some((density, source)) = Volume::brick_constant(brick) {
+        if source != 0.0 {
+            let p = check(LEAF_VOXELS, density, source, weigh(density, source))?;
+            if p > 0.0 {
+                visit(LEAF_VOXELS, p);
+            }
+        }
+        return Ok(());
+    }
+    for off in 0..LEAF_VOXELS {
+        let v = volume.brick_voxel(brick, local(off));
+        if v.source != 0.0 {
+            let p = check(off, v.density, v.source, weigh(v.density, v.source))?;
+            if p > 0.0 && !visit(off, p) {
+                break;
+            }
+        }
+    }
+    Ok(())
+}
+
 impl EmitterDistribution {
     /// Build the distribution of `volume`'s emissive voxels, `power(density, source)`
     /// being the luminance `Y(L_e)` of the emission density. Called once per voxel with a
@@ -163,48 +212,28 @@ impl EmitterDistribution {
     pub fn build(volume: &Volume, power: impl Fn(f32, f32) -> f64 + Sync) -> Result<Option<EmitterDistribution>> {
         let (brick_lo, dims) = volume.brick_range();
         let table_len = dims.x.max(0) as usize * dims.y.max(0) as usize * dims.z.max(0) as usize;
-        let coords = |k: usize| {
-            let (nx, ny) = (dims.x as usize, dims.y as usize);
-            brick_lo + IVec3::new((k % nx) as i32, ((k / nx) % ny) as i32, (k / (nx * ny)) as i32)
-        };
         // Power of every emitting voxel, brick by brick (order kept by collect)
         let per_brick: Vec<Result<BrickPower>> = (0..table_len)
             .into_par_iter()
             .filter_map(|k| {
-                let b = coords(k);
+                let b = brick_lo + cell_coords(k, dims);
                 let brick = volume.brick(b)?;
                 let origin = b * BRICK;
                 let mut mask = [0u64; 8];
                 let mut weights = Vec::new();
-                let mut add = |off: usize, density: f32, source: f32, p: f64| -> Result<()> {
-                    if !(p >= 0.0 && p.is_finite()) {
-                        return Err(Error::Scene(format!(
-                            "emitted power {p} at voxel {} (density {density}, source {source}) is negative or not finite",
-                            origin + local_of(off)
-                        )));
-                    }
-                    if p > 0.0 {
-                        mask[off >> 6] |= 1 << (off & 63);
-                        weights.push(p);
-                    }
-                    Ok(())
+                let mut add = |off: usize, p: f64| {
+                    mask[off >> 6] |= 1 << (off & 63);
+                    weights.push(p);
                 };
-                let result = if let Some((density, source)) = Volume::brick_constant(brick) {
-                    // Constant brick: one power call
-                    if source == 0.0 {
-                        return None;
+                let result = weigh_brick(volume, brick, origin, &power, local_of, |off, p| {
+                    // A constant brick: every voxel has the power of one call
+                    if off == LEAF_VOXELS {
+                        (0..LEAF_VOXELS).for_each(|o| add(o, p));
+                    } else {
+                        add(off, p);
                     }
-                    let p = power(density, source);
-                    (0..LEAF_VOXELS).try_for_each(|off| add(off, density, source, p))
-                } else {
-                    (0..LEAF_VOXELS).try_for_each(|off| {
-                        let crate::volume::VoxelValues { density, source } = volume.brick_voxel(brick, local_of(off));
-                        if source == 0.0 {
-                            return Ok(());
-                        }
-                        add(off, density, source, power(density, source))
-                    })
-                };
+                    true
+                });
                 match result {
                     Err(e) => Some(Err(e)),
                     Ok(()) if weights.is_empty() => None,

@@ -31,10 +31,11 @@ use std::sync::Arc;
 use glam::IVec3;
 use rayon::prelude::*;
 
+use super::nee::{cell_coords, weigh_brick};
 use crate::error::{Error, Result};
 use crate::sampling::alias::AliasTable;
 use crate::vdb::LEAF_VOXELS;
-use crate::volume::brick::{brick_local, Brick, Volume, BRICK};
+use crate::volume::brick::{brick_local, Volume, BRICK};
 
 /// `Φ_i` of a voxel from its density and source (`integrator::light_power`).
 pub(crate) type Weigh = Arc<dyn Fn(f32, f32) -> f64 + Send + Sync>;
@@ -69,38 +70,6 @@ pub(crate) struct BrickVoxel {
     pub pmf: f64,
 }
 
-/// The voxels of `brick` with positive power, in brick order: `(offset, Φ_i)` to `visit`,
-/// until it returns false; `Err` for a negative or non-finite power, naming the voxel. A
-/// constant brick is one call with offset `LEAF_VOXELS` and its voxels' common power.
-fn weigh_brick(volume: &Volume, brick: &Brick, origin: IVec3, weigh: &Weigh, mut visit: impl FnMut(usize, f64) -> bool) -> Result<()> {
-    let check = |off: usize, density: f32, source: f32, p: f64| {
-        if p >= 0.0 && p.is_finite() {
-            Ok(p)
-        } else {
-            let at = origin + if off < LEAF_VOXELS { brick_local(off) } else { IVec3::ZERO };
-            Err(Error::Scene(format!("emitted power {p} at voxel {at} (density {density}, source {source}) is negative or not finite")))
-        }
-    };
-    if let Some((density, source)) = Volume::brick_constant(brick) {
-        let p = check(LEAF_VOXELS, density, source, weigh(density, source))?;
-        if p > 0.0 {
-            visit(LEAF_VOXELS, p);
-        }
-        return Ok(());
-    }
-    for off in 0..LEAF_VOXELS {
-        let l = brick_local(off);
-        let v = volume.brick_voxel(brick, l);
-        if v.source != 0.0 {
-            let p = check(off, v.density, v.source, weigh(v.density, v.source))?;
-            if p > 0.0 && !visit(off, p) {
-                break;
-            }
-        }
-    }
-    Ok(())
-}
-
 impl BrickEmitters {
     /// The emitting bricks of `volume` weighed by `weigh`, in parallel; `Ok(None)` when
     /// nothing emits.
@@ -117,9 +86,9 @@ impl BrickEmitters {
                 let b = brick_lo + cell_coords(k, dims);
                 let brick = volume.brick(b)?;
                 let mut total = 0.0f64;
-                let constant = Volume::brick_constant(brick).is_some();
-                match weigh_brick(volume, brick, b * BRICK, &weigh, |_, p| {
-                    total += if constant { p * LEAF_VOXELS as f64 } else { p };
+                match weigh_brick(volume, brick, b * BRICK, &*weigh, brick_local, |off, p| {
+                    // A constant brick comes as one call for all its voxels
+                    total += if off == LEAF_VOXELS { p * LEAF_VOXELS as f64 } else { p };
                     true
                 }) {
                     Err(e) => Some(Err(e)),
@@ -181,7 +150,7 @@ impl BrickEmitters {
         // leaves over
         let target = residual * self.power[chosen.index];
         let (mut sum, mut last) = (0.0f64, None);
-        let walked = weigh_brick(volume, brick, origin, &self.weigh, |off, p| {
+        let walked = weigh_brick(volume, brick, origin, &*self.weigh, brick_local, |off, p| {
             sum += p;
             last = Some((off, p));
             sum <= target
@@ -213,11 +182,4 @@ impl BrickEmitters {
             0.0
         }
     }
-}
-
-/// Brick-table cell `k` (x fastest) as a coordinate relative to the table's origin.
-#[inline]
-fn cell_coords(k: usize, dims: IVec3) -> IVec3 {
-    let (nx, ny) = (dims.x as usize, dims.y as usize);
-    IVec3::new((k % nx) as i32, ((k / nx) % ny) as i32, (k / (nx * ny)) as i32)
 }

@@ -7,25 +7,16 @@
 
 mod common;
 
-use common::{explosion, explosion_emission, explosion_volume, plume, plume_exits, region_means_with, s, tmpdir};
-use glam::DVec3;
-use plume::camera::Camera;
-use plume::integrator::{AnyScene, Integrator, LightSampling, Lights, MisHeuristic, Scene, Tracking};
-use plume::medium::{Estimator, Medium};
+use common::{explosion, plume, plume_exits, region_means_with, s, tmpdir};
+use plume::integrator::{AnyScene, Integrator, LightSampling, Lights, MisHeuristic, Tracking};
+use plume::medium::Estimator;
 use plume::sampling::SamplerKind;
 use plume::scene::NeeTable;
 use plume::volume::Interpolation;
 
 /// The generated explosion with classic NEE from `table`.
 fn scene(table: NeeTable, interpolation: Interpolation) -> AnyScene {
-    let vol = explosion_volume();
-    let e = explosion_emission();
-    let lights = Lights::build_with(&vol, &e, LightSampling::Nee, 8, table).unwrap();
-    let cam = Camera::look_at(DVec3::new(0.0, 0.2, -6.5), DVec3::new(0.0, 0.2, 0.0), DVec3::Y, 40.0, 10, 8).unwrap();
-    AnyScene::new(
-        Scene { field: vol, medium: Medium { sigma_t: 1.5, albedo: 0.8, g: 0.3, emission: e }, camera: cam, lights, motion: None, majorants: None },
-        interpolation,
-    )
+    common::explosion_scene(1.5, interpolation, false, |vol, e| Lights::build_with(vol, e, LightSampling::Nee, 8, table).unwrap())
 }
 
 #[test]

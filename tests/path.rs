@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{explosion_emission, explosion_volume, grid_emission, mean_stderr, mean_stderr_from_sums, region_means_with};
+use common::{explosion_emission, grid_emission, mean_stderr, mean_stderr_from_sums, region_means_with};
 use glam::{DAffine3, DMat3, DVec3, IVec3};
 use plume::camera::Camera;
 use plume::color::Rgb;
@@ -130,14 +130,7 @@ fn region_means(scene: &AnyScene, integ: Integrator, spp: u32, runs: u64, seed0:
 }
 
 fn explosion_scene(sigma_t: f64, ls: LightSampling, proxy_resolution: u32, interpolation: Interpolation) -> AnyScene {
-    let vol = explosion_volume();
-    let e = explosion_emission();
-    let lights = Lights::build(&vol, &e, ls, proxy_resolution).unwrap();
-    let cam = Camera::look_at(DVec3::new(0.0, 0.2, -6.5), DVec3::new(0.0, 0.2, 0.0), DVec3::Y, 40.0, 10, 8).unwrap();
-    AnyScene::new(
-        Scene { field: vol, medium: Medium { sigma_t, albedo: 0.8, g: 0.3, emission: e }, camera: cam, lights, motion: None, majorants: None },
-        interpolation,
-    )
+    common::explosion_scene(sigma_t, interpolation, false, |vol, e| Lights::build(vol, e, ls, proxy_resolution).unwrap())
 }
 
 #[test]

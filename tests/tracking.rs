@@ -8,11 +8,10 @@
 
 mod common;
 
-use common::{explosion, explosion_emission, explosion_volume, plume, plume_exits, region_means_with, s, tmpdir};
+use common::{explosion, explosion_volume, plume, plume_exits, region_means_with, s, tmpdir};
 use glam::DVec3;
-use plume::camera::Camera;
-use plume::integrator::{AnyScene, Integrator, LightSampling, Lights, MisHeuristic, Scene, Tracking};
-use plume::medium::{Estimator, Medium};
+use plume::integrator::{AnyScene, Integrator, LightSampling, Lights, MisHeuristic, Tracking};
+use plume::medium::Estimator;
 use plume::sampling::{Sampler, SamplerKind};
 use plume::scene::TrackingChoice;
 use plume::volume::field::{Field, Ray};
@@ -21,15 +20,7 @@ use plume::volume::Interpolation;
 
 /// The generated explosion, with majorants for null collisions.
 fn scene(sigma_t: f64, ls: LightSampling, interpolation: Interpolation) -> AnyScene {
-    let vol = explosion_volume();
-    let e = explosion_emission();
-    let lights = Lights::build(&vol, &e, ls, 8).unwrap();
-    let majorants = Some(MajorantGrid::new(&vol, 0.0));
-    let cam = Camera::look_at(DVec3::new(0.0, 0.2, -6.5), DVec3::new(0.0, 0.2, 0.0), DVec3::Y, 40.0, 10, 8).unwrap();
-    AnyScene::new(
-        Scene { field: vol, medium: Medium { sigma_t, albedo: 0.8, g: 0.3, emission: e }, camera: cam, lights, motion: None, majorants },
-        interpolation,
-    )
+    common::explosion_scene(sigma_t, interpolation, true, |vol, e| Lights::build(vol, e, ls, 8).unwrap())
 }
 
 fn integrator(estimator: Estimator, light_sampling: LightSampling, tracking: Tracking) -> Integrator {

@@ -389,6 +389,24 @@ pub fn explosion_volume() -> plume::volume::Volume {
     plume::volume::Volume::build(&ex.density, Some(&ex.temperature), |v| e.map_source(v)).unwrap()
 }
 
+/// [`explosion_volume`] seen by the 10×8 camera of the mean tests, albedo 0.8, g 0.3,
+/// density scale `sigma_t`, reconstructed by `interpolation`, with the lights `lights`
+/// builds for it and, when `majorants`, its majorants for null collisions.
+pub fn explosion_scene(
+    sigma_t: f64,
+    interpolation: plume::volume::Interpolation,
+    majorants: bool,
+    lights: impl FnOnce(&plume::volume::Volume, &Emission) -> plume::integrator::Lights,
+) -> AnyScene {
+    let vol = explosion_volume();
+    let e = explosion_emission();
+    let lights = lights(&vol, &e);
+    let majorants = majorants.then(|| plume::volume::majorant::MajorantGrid::new(&vol, 0.0));
+    let camera = plume::camera::Camera::look_at(DVec3::new(0.0, 0.2, -6.5), DVec3::new(0.0, 0.2, 0.0), DVec3::Y, 40.0, 10, 8).unwrap();
+    let medium = plume::medium::Medium { sigma_t, albedo: 0.8, g: 0.3, emission: e };
+    AnyScene::new(plume::integrator::Scene { field: vol, medium, camera, lights, motion: None, majorants }, interpolation)
+}
+
 /// Mean of `r + g + b` over the whole image and over its 4 quadrants (in that order) of
 /// one in-process render of `spp` samples per pixel under `seed`.
 pub fn regions(scene: &AnyScene, integrator: Integrator, sampler: SamplerKind, spp: u32, seed: u64) -> [f64; 5] {

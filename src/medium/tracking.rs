@@ -228,7 +228,15 @@ fn free_path_polynomial<P: Piece>(
     f: &mut [f64; 3],
 ) -> Option<DistanceSample> {
     let len = piece.length();
-    let x = piece.optical_depth(medium.sigma_t, len);
+    // The line part needs the whole piece's emission unless the path ends here: computed
+    // with its optical depth (one set of trilinear weights), and unused in that one piece
+    let (x, whole_emission) = match estimator {
+        Estimator::Line | Estimator::Blend { .. } => {
+            let whole = piece.integrals(medium.sigma_t, &|d: f32, s: f32| le.le(d, s), len);
+            (whole.optical_depth, whole.emission)
+        }
+        Estimator::Point | Estimator::RayMarch => (piece.optical_depth(medium.sigma_t, len), [0.0; 3]),
+    };
     let alpha = match estimator {
         Estimator::Blend { kappa } => 1.0 / (1.0 + kappa * x),
         Estimator::Line => 1.0,
@@ -249,7 +257,7 @@ fn free_path_polynomial<P: Piece>(
     }
     *od += x;
     if alpha > 0.0 {
-        add_scaled(f, emission_integral(piece, le, len), alpha);
+        add_scaled(f, whole_emission, alpha);
     }
     None
 }

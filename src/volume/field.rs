@@ -88,6 +88,23 @@ pub trait Piece: Copy + std::fmt::Debug {
     fn may_emit(&self) -> bool {
         true
     }
+    /// [`Piece::optical_depth`] and [`Piece::emission_integral`] over `[0, u]` together
+    /// (a piece may share work between them; emission is 0 where [`Piece::may_emit`] is
+    /// false).
+    #[inline]
+    fn integrals(&self, sigma_t: f64, le: &impl Fn(f32, f32) -> Rgb, u: f64) -> PieceIntegrals {
+        let emission = if self.may_emit() { self.emission_integral(le, u) } else { [0.0; 3] };
+        PieceIntegrals { optical_depth: self.optical_depth(sigma_t, u), emission }
+    }
+}
+
+/// What [`Piece::integrals`] returns.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PieceIntegrals {
+    /// `∫₀ᵘ σ_t ρ ds`.
+    pub optical_depth: f64,
+    /// `∫₀ᵘ L_e ds` per channel.
+    pub emission: [f64; 3],
 }
 
 impl Piece for Segment {

@@ -8,6 +8,12 @@
 //! centres. Along a ray each `f_k` is linear in the local distance `u`, so density is a
 //! cubic on each dual cell ([`poly`]), expanded in `u` directly (never in world `t`).
 //!
+//! **Integrals.** Along a piece, `∫₀ᵘ v(f0 + d s) ds = Σ_c v_c W_c(u)` with the integrated
+//! trilinear weights `W_c` ([`poly::integrated_weights`]: 2-point Gauss–Legendre, exact
+//! for the cubic weights), so one set of 8 weights gives the optical depth and all three
+//! emission channels of a piece. Free paths solve the quartic `∫₀ᵘ ρ` from the density
+//! cubic ([`poly::cubic_along`]), formed only in the piece where the path ends.
+//!
 //! **What is interpolated.** Density ρ, and the *per-voxel emission density*
 //! `L_e,i = le(ρ_i, s_i)` in every convention: `L_e(u)` is then a cubic per channel and the
 //! line estimator's integral is closed form. This is also what Cycles 5.0.1 renders: it

@@ -5,7 +5,7 @@ use glam::DVec3;
 
 use super::poly;
 use crate::color::Rgb;
-use crate::volume::field::{Piece, Segment, VoxelValues};
+use crate::volume::field::{Piece, PieceIntegrals, Segment, VoxelValues};
 
 /// A piece of a ray inside one dual cell (or a constant run of them).
 ///
@@ -17,8 +17,6 @@ pub struct CubicSegment {
     pub t0: f64,
     /// Exit distance.
     pub t1: f64,
-    /// `ρ(u) = Σ_j density[j] uʲ`, from [`poly::cubic_along`].
-    pub density: [f64; 4],
     /// Cell-local coordinates at `u = 0`, each in `[0, 1]`.
     pub f0: DVec3,
     /// Index-space direction per world unit (`df/du`).
@@ -34,26 +32,16 @@ pub struct CubicSegment {
 
 impl CubicSegment {
     /// A constant piece: all corners `values`, albedo `albedo` (a uniform node of the dual
-    /// pyramid, or empty space), density cubic `[ρ, 0, 0, 0]`.
+    /// pyramid, or empty space).
     #[must_use]
     pub fn constant_piece(t0: f64, t1: f64, values: VoxelValues, albedo: f32) -> CubicSegment {
-        CubicSegment {
-            t0,
-            t1,
-            density: [f64::from(values.density), 0.0, 0.0, 0.0],
-            f0: DVec3::ZERO,
-            d: DVec3::ZERO,
-            corners: [values; 8],
-            albedo: [albedo; 8],
-            constant: true,
-        }
+        CubicSegment { t0, t1, f0: DVec3::ZERO, d: DVec3::ZERO, corners: [values; 8], albedo: [albedo; 8], constant: true }
     }
 
     /// The piece of a ray crossing one dual cell: cell-local coordinates `f0 + d u` over
     /// `u ∈ [0, t1 − t0]`, the cell's 8 corner voxels and their albedo factors. When all 8
     /// corners agree bit for bit in density, source and albedo it is
-    /// [`CubicSegment::constant_piece`]; otherwise the density cubic comes from
-    /// [`poly::cubic_along`].
+    /// [`CubicSegment::constant_piece`].
     #[inline]
     #[must_use]
     pub fn cell(t0: f64, t1: f64, f0: DVec3, d: DVec3, corners: [VoxelValues; 8], albedo: [f32; 8]) -> CubicSegment {
@@ -65,8 +53,24 @@ impl CubicSegment {
         if agree {
             return CubicSegment::constant_piece(t0, t1, c0, a0);
         }
-        let density = poly::cubic_along(corners.map(|c| f64::from(c.density)), f0, d);
-        CubicSegment { t0, t1, density, f0, d, corners, albedo, constant: false }
+        CubicSegment { t0, t1, f0, d, corners, albedo, constant: false }
+    }
+
+    /// `ρ(u) = Σ_j a_j uʲ` along the piece ([`poly::cubic_along`]; `[ρ, 0, 0, 0]` for a
+    /// constant piece): for free paths and point densities, which only the piece holding
+    /// a collision needs, so it is not kept in the piece.
+    #[must_use]
+    pub fn density_cubic(&self) -> [f64; 4] {
+        if self.constant {
+            return [f64::from(self.corners[0].density), 0.0, 0.0, 0.0];
+        }
+        poly::cubic_along(self.densities(), self.f0, self.d)
+    }
+
+    /// The corners' densities.
+    #[inline]
+    fn densities(&self) -> [f64; 8] {
+        self.corners.map(|c| f64::from(c.density))
     }
 
     /// Cell-local coordinates at `u`, clamped to the cell.
@@ -75,15 +79,16 @@ impl CubicSegment {
         (self.f0 + self.d * u).clamp(DVec3::ZERO, DVec3::ONE)
     }
 
-    /// `L_e` along the piece, one cubic per channel: `le` of each corner voxel, expanded by
-    /// [`poly::cubic_along`]. `None` when no corner has a source (`le` is 0 there: the
-    /// contract of [`crate::medium::Emission::le`]).
-    fn emission_cubics(&self, le: &impl Fn(f32, f32) -> Rgb) -> Option<EmissionCubics> {
+    /// `le` of each corner voxel, channel by channel (0 where a corner has no source).
+    /// `None` when no corner has a source (`le` is 0 there: the contract of
+    /// [`crate::medium::Emission::le`]).
+    #[inline]
+    fn corner_emission(&self, le: &impl Fn(f32, f32) -> Rgb) -> Option<[[f64; 8]; 3]> {
         if self.corners.iter().all(|c| c.source == 0.0) {
             return None;
         }
-        // Corner values channel by channel (plain loops: array maps of arrays did not
-        // optimize, and this runs for every emitting piece)
+        // Plain loops: array maps of arrays did not optimize, and this runs for every
+        // emitting piece
         let mut by_channel = [[0.0f64; 8]; 3];
         for (c, v) in self.corners.iter().enumerate() {
             if v.source != 0.0 {
@@ -93,15 +98,14 @@ impl CubicSegment {
                 by_channel[2][c] = f64::from(e[2]);
             }
         }
-        let [r, g, b] = by_channel;
-        Some(EmissionCubics { channels: [poly::cubic_along(r, self.f0, self.d), poly::cubic_along(g, self.f0, self.d), poly::cubic_along(b, self.f0, self.d)] })
+        Some(by_channel)
     }
-}
 
-/// `L_e(u) = Σ_j channels[k][j] uʲ` for channel `k` of a [`CubicSegment`].
-#[derive(Clone, Copy, Debug)]
-struct EmissionCubics {
-    channels: [[f64; 4]; 3],
+    /// `Σ_c v_c W_c` per channel, for the corners' emission `e` and integrated weights `w`.
+    #[inline]
+    fn channels(e: &[[f64; 8]; 3], w: &[f64; 8]) -> [f64; 3] {
+        [poly::dot(&e[0], w), poly::dot(&e[1], w), poly::dot(&e[2], w)]
+    }
 }
 
 impl Piece for CubicSegment {
@@ -126,14 +130,26 @@ impl Piece for CubicSegment {
         self.constant.then_some(Segment { t0: self.t0, t1: self.t1, density: c.density, source: c.source, albedo: self.albedo[0] })
     }
 
-    /// `σ_t ∫₀ᵘ ρ` ([`poly::integral`]); a constant piece gives exactly what its
-    /// [`Segment`] gives.
+    /// `σ_t ∫₀ᵘ ρ = σ_t Σ_c ρ_c W_c(u)` ([`poly::integrated_weights`]); a constant piece
+    /// gives exactly what its [`Segment`] gives.
     #[inline]
     fn optical_depth(&self, sigma_t: f64, u: f64) -> f64 {
         match self.constant() {
             Some(seg) => seg.optical_depth(sigma_t, u),
-            None => sigma_t * poly::integral(&self.density, u),
+            None => sigma_t * poly::dot(&self.densities(), &poly::integrated_weights(self.f0, self.d, u)),
         }
+    }
+
+    /// Both integrals from one set of integrated weights.
+    #[inline]
+    fn integrals(&self, sigma_t: f64, le: &impl Fn(f32, f32) -> Rgb, u: f64) -> PieceIntegrals {
+        if let Some(seg) = self.constant() {
+            return seg.integrals(sigma_t, le, u);
+        }
+        let w = poly::integrated_weights(self.f0, self.d, u);
+        let optical_depth = sigma_t * poly::dot(&self.densities(), &w);
+        let emission = self.corner_emission(le).map_or([0.0; 3], |e| Self::channels(&e, &w));
+        PieceIntegrals { optical_depth, emission }
     }
 
     /// [`poly::solve_integral`] for `∫₀ᵘ ρ = od/σ_t`; a constant piece gives exactly what
@@ -142,7 +158,7 @@ impl Piece for CubicSegment {
     fn free_path(&self, sigma_t: f64, od: f64) -> f64 {
         match self.constant() {
             Some(seg) => seg.free_path(sigma_t, od),
-            None => poly::solve_integral(&self.density, self.length(), od / sigma_t),
+            None => poly::solve_integral(&self.density_cubic(), self.length(), od / sigma_t),
         }
     }
 
@@ -152,7 +168,7 @@ impl Piece for CubicSegment {
         if self.constant {
             return self.corners[0].density;
         }
-        poly::eval(&self.density, u).max(0.0) as f32
+        poly::eval(&self.density_cubic(), u).max(0.0) as f32
     }
 
     #[inline]
@@ -184,20 +200,15 @@ impl Piece for CubicSegment {
         if let Some(seg) = self.constant() {
             return seg.emission_at(le, u);
         }
-        self.emission_cubics(le).map_or([0.0; 3], |e| {
-            let [r, g, b] = e.channels;
-            [poly::eval(&r, u), poly::eval(&g, u), poly::eval(&b, u)]
-        })
+        let f = self.local(u);
+        self.corner_emission(le).map_or([0.0; 3], |e| e.map(|v| poly::trilinear(&v, f)))
     }
 
     fn emission_integral(&self, le: &impl Fn(f32, f32) -> Rgb, u: f64) -> [f64; 3] {
         if let Some(seg) = self.constant() {
             return seg.emission_integral(le, u);
         }
-        self.emission_cubics(le).map_or([0.0; 3], |e| {
-            let [r, g, b] = e.channels;
-            [poly::integral(&r, u), poly::integral(&g, u), poly::integral(&b, u)]
-        })
+        self.corner_emission(le).map_or([0.0; 3], |e| Self::channels(&e, &poly::integrated_weights(self.f0, self.d, u)))
     }
 }
 
@@ -277,7 +288,7 @@ mod tests {
             let ray = random_ray(&mut s);
             let piece = random_cell(&mut s, &ray);
             let total = 1.0 + 2.0 * s.next_f64();
-            let sigma = total / poly::integral(&piece.density, ray.len);
+            let sigma = total / poly::integral(&piece.density_cubic(), ray.len);
             let mut observed = [0u64; BINS + 1];
             for _ in 0..SAMPLES {
                 let e = -(-s.next_f64()).ln_1p();

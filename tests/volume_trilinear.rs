@@ -326,3 +326,28 @@ fn dual_pyramid_is_small_next_to_the_volume() {
     assert!(ratio <= 0.10, "dual pyramid {dual} B is {:.1} % of the volume's {volume} B", 100.0 * ratio);
     assert_eq!(tri.data_bytes(), dual + volume);
 }
+
+/// `Volume::voxel_block` (one brick lookup when the 8 corners share a brick) gives what 8
+/// `Volume::voxel` lookups give, for every cell of the sparse volume and a layer around
+/// it: inside bricks, on their high faces (where the corners span 2–8 bricks), at missing
+/// and constant bricks, and outside the table (negative coordinates included).
+#[test]
+fn voxel_block_matches_eight_voxel_lookups() {
+    let tri = sparse_volume(11, DAffine3::IDENTITY);
+    let volume = tri.volume();
+    let mut checked = 0;
+    for z in -2..18 {
+        for y in -10..18 {
+            for x in -18..18 {
+                let cell = IVec3::new(x, y, z);
+                let block = volume.voxel_block(cell);
+                for (c, got) in block.iter().enumerate() {
+                    let want = volume.voxel(cell + IVec3::new((c & 1) as i32, ((c >> 1) & 1) as i32, (c >> 2) as i32));
+                    assert_eq!((got.density.to_bits(), got.source.to_bits()), (want.density.to_bits(), want.source.to_bits()), "cell {cell}, corner {c}");
+                }
+                checked += 1;
+            }
+        }
+    }
+    assert_eq!(checked, 20 * 28 * 36);
+}

@@ -383,6 +383,26 @@ impl Volume {
         }
     }
 
+    /// Density and source of the 8 voxels `cell + c`, `c ∈ {0,1}³` (bit 0: +x, bit 1: +y,
+    /// bit 2: +z), each what [`Volume::voxel`] gives: the corners of a trilinear lookup.
+    /// When all 8 lie in one brick (7 cells in 8 along each axis) the brick is found once.
+    #[must_use]
+    pub fn voxel_block(&self, cell: IVec3) -> [VoxelValues; 8] {
+        let corner = |c: usize| IVec3::new((c & 1) as i32, ((c >> 1) & 1) as i32, (c >> 2) as i32);
+        let l = IVec3::new(cell.x.rem_euclid(BRICK), cell.y.rem_euclid(BRICK), cell.z.rem_euclid(BRICK));
+        if l.cmplt(IVec3::splat(BRICK - 1)).all() {
+            let b = IVec3::new(floor_div(cell.x, BRICK), floor_div(cell.y, BRICK), floor_div(cell.z, BRICK));
+            let Some(br) = self.brick(b) else { return [VoxelValues::ZERO; 8] };
+            let (density, source) = (br.density, br.source);
+            return std::array::from_fn(|c| {
+                let v = l + corner(c);
+                let o = brick_offset(v.x, v.y, v.z);
+                VoxelValues { density: slot_at(&self.values, density, o), source: slot_at(&self.values, source, o) }
+            });
+        }
+        std::array::from_fn(|c| self.voxel(cell + corner(c)))
+    }
+
     /// Albedo factor of voxel `ijk` (1 outside bricks or without an albedo grid).
     #[must_use]
     pub fn voxel_albedo(&self, ijk: IVec3) -> f32 {

@@ -11,7 +11,8 @@
 
 use glam::{DVec3, IVec3};
 
-use super::dual::{corner_offset, dual_pyramid, DualCells};
+use super::dual::{dual_pyramid, DualCells};
+use super::poly;
 use super::CubicSegment;
 use crate::color::Rgb;
 use crate::volume::dda::{world_box, CellWalk};
@@ -124,15 +125,8 @@ impl Trilinear {
     pub fn interpolate_index(&self, p_index: DVec3) -> PointCorners {
         let floor = p_index.floor();
         let cell = floor.as_ivec3();
-        let f = p_index - floor;
-        let g = DVec3::ONE - f;
-        let corners = std::array::from_fn(|c| self.volume.voxel(cell + corner_offset(c)));
-        let weights = std::array::from_fn(|c| {
-            let o = corner_offset(c);
-            let w = |k: usize| if o[k] == 1 { f[k] } else { g[k] };
-            w(0) * w(1) * w(2)
-        });
-        PointCorners { cell, corners, weights }
+        let corners = self.volume.voxel_block(cell);
+        PointCorners { cell, corners, weights: poly::weights(p_index - floor) }
     }
 
     /// [`Trilinear::interpolate_index`] at a world point.

@@ -386,7 +386,6 @@ impl Volume {
     /// Density and source of the 8 voxels `cell + c`, `c ∈ {0,1}³` (bit 0: +x, bit 1: +y,
     /// bit 2: +z), each what [`Volume::voxel`] gives: the corners of a trilinear lookup.
     /// When all 8 lie in one brick (7 cells in 8 along each axis) the brick is found once.
-    #[must_use]
     pub fn voxel_block(&self, cell: IVec3) -> [VoxelValues; 8] {
         let corner = |c: usize| IVec3::new((c & 1) as i32, ((c >> 1) & 1) as i32, (c >> 2) as i32);
         let l = IVec3::new(cell.x.rem_euclid(BRICK), cell.y.rem_euclid(BRICK), cell.z.rem_euclid(BRICK));

@@ -16,6 +16,7 @@ pub mod bench;
 pub mod cache;
 pub mod camera;
 pub mod color;
+pub mod cpu;
 pub mod error;
 pub mod farm;
 pub mod film;

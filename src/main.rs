@@ -9,6 +9,12 @@ use clap::{CommandFactory, FromArgMatches};
 use plume::vdb::isolate;
 
 fn main() {
+    // Before anything else: this build may use instructions the CPU lacks (src/cpu.rs)
+    let missing = plume::cpu::missing_features();
+    if !missing.is_empty() {
+        eprintln!("plume: error: {}", plume::cpu::refusal(&missing));
+        std::process::exit(plume::error::exit::RENDER_OR_OUTPUT);
+    }
     // The isolated VDB reader is this same binary: `plume __read-grids …` (hidden, see
     // vdb::isolate). It is dispatched before clap so that it stays out of --help.
     let mut args = std::env::args_os().skip(1);

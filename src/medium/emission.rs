@@ -342,11 +342,9 @@ mod tests {
     /// temperatures share an emission.
     #[test]
     fn the_memo_returns_exactly_what_le_returns() {
-        for (kind, convention) in [
-            (EmissionKind::Blackbody, Convention::Cycles),
-            (EmissionKind::Blackbody, Convention::Physical),
-            (EmissionKind::Grid, Convention::Physical),
-        ] {
+        for (kind, convention) in
+            [(EmissionKind::Blackbody, Convention::Cycles), (EmissionKind::Blackbody, Convention::Physical), (EmissionKind::Grid, Convention::Physical)]
+        {
             let emission = Emission { kind, convention, scale: 1.5, color: Rgb([1.0, 0.8, 0.6]), temperature_map: TemperatureMap::Kelvin, cutoff_kelvin: 0.0 };
             let mut rng = Sampler::new(3, 0, 0);
             let temperatures: Vec<f32> = (0..3 * MEMO_SLOTS).map(|i| 900.0 + 0.37 * i as f32).collect();

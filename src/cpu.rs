@@ -12,61 +12,37 @@
 //! the features and how to rebuild. Only features this build was compiled with are asked
 //! for: a build for the baseline (`RUSTFLAGS='-C target-cpu=x86-64'`) asks for nothing.
 
+/// One x86-64-v3 feature (or a v2 feature below them): its name, whether this build was
+/// compiled to use it, and the running CPU's answer (cpuid).
+struct Feature {
+    name: &'static str,
+    compiled: bool,
+    detected: fn() -> bool,
+}
+
+#[cfg(target_arch = "x86_64")]
+macro_rules! features {
+    ($($name:tt),*) => {
+        &[$(Feature { name: $name, compiled: cfg!(target_feature = $name), detected: || std::arch::is_x86_feature_detected!($name) }),*]
+    };
+}
+
+/// The features [`missing_features`] checks.
+#[cfg(target_arch = "x86_64")]
+const FEATURES: &[Feature] = features!("sse3", "ssse3", "sse4.1", "sse4.2", "popcnt", "avx", "avx2", "fma", "bmi1", "bmi2", "f16c", "lzcnt", "movbe");
+#[cfg(not(target_arch = "x86_64"))]
+const FEATURES: &[Feature] = &[];
+
 /// The CPU features this build was compiled to use that the running CPU lacks (empty on
 /// a suitable CPU, and on other architectures).
 #[must_use]
 pub fn missing_features() -> Vec<&'static str> {
-    missing_among(&compiled_features(), detected)
+    missing_among(FEATURES)
 }
 
-/// The x86-64-v3 features (and those of v2 below them) this build was compiled with.
-#[must_use]
-pub fn compiled_features() -> Vec<&'static str> {
-    #[allow(unused_mut, reason = "nothing to push outside x86-64")]
-    let mut compiled = Vec::new();
-    macro_rules! compiled {
-        ($($feature:tt),*) => {
-            $(if cfg!(target_feature = $feature) {
-                compiled.push($feature);
-            })*
-        };
-    }
-    compiled!("sse3", "ssse3", "sse4.1", "sse4.2", "popcnt", "avx", "avx2", "fma", "bmi1", "bmi2", "f16c", "lzcnt", "movbe");
-    compiled
-}
-
-/// Those of `features` that `present` says the CPU lacks.
-fn missing_among(features: &[&'static str], present: impl Fn(&str) -> bool) -> Vec<&'static str> {
-    features.iter().copied().filter(|f| !present(f)).collect()
-}
-
-/// Whether the running CPU has `feature` (cpuid; a name [`compiled_features`] gives).
-fn detected(feature: &str) -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        use std::arch::is_x86_feature_detected as has;
-        match feature {
-            "sse3" => has!("sse3"),
-            "ssse3" => has!("ssse3"),
-            "sse4.1" => has!("sse4.1"),
-            "sse4.2" => has!("sse4.2"),
-            "popcnt" => has!("popcnt"),
-            "avx" => has!("avx"),
-            "avx2" => has!("avx2"),
-            "fma" => has!("fma"),
-            "bmi1" => has!("bmi1"),
-            "bmi2" => has!("bmi2"),
-            "f16c" => has!("f16c"),
-            "lzcnt" => has!("lzcnt"),
-            "movbe" => has!("movbe"),
-            _ => false,
-        }
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        let _ = feature;
-        false
-    }
+/// The names of `features` compiled in and not detected.
+fn missing_among(features: &[Feature]) -> Vec<&'static str> {
+    features.iter().filter(|f| f.compiled && !(f.detected)()).map(|f| f.name).collect()
 }
 
 /// The one-line refusal for a CPU lacking `missing` (see [`missing_features`]).
@@ -83,22 +59,26 @@ mod tests {
     use super::*;
 
     /// The machine that runs the tests runs the build's code: nothing it was compiled
-    /// for is missing here (or this test would have died of SIGILL), and each compiled
-    /// feature's name is one the detection knows.
+    /// for is missing here (or this test would have died of SIGILL).
     #[test]
     fn this_machine_has_what_the_build_uses() {
         assert!(missing_features().is_empty(), "{:?}", missing_features());
-        for feature in compiled_features() {
-            assert!(detected(feature), "{feature}");
-        }
     }
 
-    /// A CPU lacking some of the compiled features is refused with exactly those.
+    /// A CPU lacking some of the compiled features is refused with exactly those; a
+    /// feature the build does not use is never asked for.
     #[test]
     fn a_cpu_without_a_feature_is_found_out() {
-        let compiled = ["sse4.2", "avx2", "fma", "bmi2"];
-        assert_eq!(missing_among(&compiled, |f| f != "fma" && f != "bmi2"), ["fma", "bmi2"]);
-        assert!(missing_among(&compiled, |_| true).is_empty());
+        let feature = |name, compiled, detected: fn() -> bool| Feature { name, compiled, detected };
+        let features = [
+            feature("sse4.2", true, || true),
+            feature("avx2", true, || true),
+            feature("fma", true, || false),
+            feature("bmi2", true, || false),
+            feature("movbe", false, || false),
+        ];
+        assert_eq!(missing_among(&features), ["fma", "bmi2"]);
+        assert!(missing_among(&features[..2]).is_empty());
     }
 
     #[test]

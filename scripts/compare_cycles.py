@@ -22,9 +22,10 @@ noise adds to the measured error; with Monte Carlo error ~ 1/spp in MSE, the mea
 relMSE is the true one times (1 + N/N_ref), which is divided out ("corrected").
 CPU time is the render's process CPU time minus what a 1-spp render costs when the scene
 is already set up; the set-up (the first 1-spp render: file load, scene sync, volume build)
-is reported apart. At equal CPU: for each Cycles budget B (its CPU time
-at each rung of `--cycles-spp`), plume's error is taken from the rung whose CPU time is
-closest to B and scaled by sqrt(cpu/B).
+is reported apart. Each rung and the overhead render run `--repeats` times (3) and the
+least CPU time counts: load from other processes only ever adds time. At equal CPU: for
+each Cycles budget B (its CPU time at each rung of `--cycles-spp`), plume's error is taken
+from the rung whose CPU time is closest to B and scaled by sqrt(cpu/B).
 """
 
 import argparse
@@ -78,6 +79,7 @@ def parse_args():
     p.add_argument("--cycles-spp", default="16,64,256", help="Cycles' rungs; their CPU times are the budgets")
     p.add_argument("--plume-spp", default="16,64,256,1024", help="plume's rungs")
     p.add_argument("--ref-spp", type=int, default=4096, help="spp of each renderer's reference")
+    p.add_argument("--repeats", type=int, default=3, help="renders of each rung (and of the 1-spp overhead render); the least CPU time counts")
     p.add_argument("--quick", action="store_true", help="blender40 and kelvin40, ea and a0.8, short ladders and references")
     a = p.parse_args()
     if a.quick:
@@ -91,6 +93,8 @@ def parse_args():
     for s in a.settings:
         if s not in SETTINGS:
             sys.exit(f"compare_cycles: --settings: unknown setting {s!r} (known: {', '.join(SETTINGS)})")
+    if a.repeats < 1:
+        sys.exit(f"compare_cycles: --repeats: {a.repeats}: at least 1")
     a.cycles_spp = [int(s) for s in a.cycles_spp.split(",")]
     a.plume_spp = [int(s) for s in a.plume_spp.split(",")]
     return a
@@ -242,20 +246,29 @@ def plume_render(args, spec, camera, albedo, spp, path):
 # ---------------------------------------------------------------- measurement
 
 
-def ladder(render, spps, ref_spp, out, name):
+def least_cpu(render, spp, path, repeats):
+    """The least CPU time of `repeats` renders of `spp` samples to `path` (fixed seeds: the
+    same image each time). Load from other processes only ever adds time, so the least is
+    the render's own cost; on a shared 2-core machine single small renders scattered by
+    +-20 %."""
+    return min(render(spp, path) for _ in range(repeats))
+
+
+def ladder(render, spps, ref_spp, out, name, repeats):
     """Set-up CPU (a first 1-spp render), then each rung's CPU and relRMSE against a
     `ref_spp` reference, corrected for the reference's noise. A rung's CPU is its render's
     less a second 1-spp render's (what every render pays besides its samples: for Cycles
-    with persistent data, the film and output; for plume, loading the file)."""
+    with persistent data, the film and output; for plume, loading the file), each the
+    least of `repeats` renders."""
     setup = render(1, os.path.join(out, f"{name}_setup.exr"))
-    overhead = render(1, os.path.join(out, f"{name}_overhead.exr"))
+    overhead = least_cpu(render, 1, os.path.join(out, f"{name}_overhead.exr"), repeats)
     ref_path = os.path.join(out, f"{name}_ref.exr")
     ref_cpu = render(ref_spp, ref_path)
     ref = read_rgb(ref_path)
     rungs = []
     for spp in spps:
         path = os.path.join(out, f"{name}_{spp}.exr")
-        cpu = render(spp, path) - overhead
+        cpu = least_cpu(render, spp, path, repeats) - overhead
         if cpu <= 0.0:
             sys.exit(f"compare_cycles: {name}: {spp} spp took no measurable CPU time beyond a 1-spp render; use more spp or a larger --size")
         measured = rel_mse(read_rgb(path), ref)
@@ -281,9 +294,9 @@ def main():
             name = f"{fname}_{sname}"
             print(f"compare_cycles: {name}: Cycles", file=sys.stderr, flush=True)
             cycles.set_albedo(albedo)
-            c = ladder(cycles.render, args.cycles_spp, args.ref_spp, args.out, f"{name}_cycles")
+            c = ladder(cycles.render, args.cycles_spp, args.ref_spp, args.out, f"{name}_cycles", args.repeats)
             print(f"compare_cycles: {name}: plume", file=sys.stderr, flush=True)
-            p = ladder(lambda spp, path: plume_render(args, spec, cycles.camera, albedo, spp, path), args.plume_spp, args.ref_spp, args.out, f"{name}_plume")
+            p = ladder(lambda spp, path: plume_render(args, spec, cycles.camera, albedo, spp, path), args.plume_spp, args.ref_spp, args.out, f"{name}_plume", args.repeats)
             rows = []
             for rung in c["rungs"]:
                 budget = rung["cpu"]

@@ -18,6 +18,7 @@ pub use super::builder::{check_same_transform, table_dims, BlockSink, BrickTable
 use super::field::{Bounds3, VoxelValues};
 use super::pyramid::Pyramid;
 use super::storage::Buffer;
+use super::trilinear::dual::corner_offset;
 use crate::error::{Error, Result};
 use crate::vdb::FloatGrid;
 
@@ -387,19 +388,18 @@ impl Volume {
     /// bit 2: +z), each what [`Volume::voxel`] gives: the corners of a trilinear lookup.
     /// When all 8 lie in one brick (7 cells in 8 along each axis) the brick is found once.
     pub fn voxel_block(&self, cell: IVec3) -> [VoxelValues; 8] {
-        let corner = |c: usize| IVec3::new((c & 1) as i32, ((c >> 1) & 1) as i32, (c >> 2) as i32);
         let l = IVec3::new(cell.x.rem_euclid(BRICK), cell.y.rem_euclid(BRICK), cell.z.rem_euclid(BRICK));
         if l.cmplt(IVec3::splat(BRICK - 1)).all() {
             let b = IVec3::new(floor_div(cell.x, BRICK), floor_div(cell.y, BRICK), floor_div(cell.z, BRICK));
             let Some(br) = self.brick(b) else { return [VoxelValues::ZERO; 8] };
             let (density, source) = (br.density, br.source);
             return std::array::from_fn(|c| {
-                let v = l + corner(c);
+                let v = l + corner_offset(c);
                 let o = brick_offset(v.x, v.y, v.z);
                 VoxelValues { density: slot_at(&self.values, density, o), source: slot_at(&self.values, source, o) }
             });
         }
-        std::array::from_fn(|c| self.voxel(cell + corner(c)))
+        std::array::from_fn(|c| self.voxel(cell + corner_offset(c)))
     }
 
     /// Albedo factor of voxel `ijk` (1 outside bricks or without an albedo grid).

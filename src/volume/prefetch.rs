@@ -121,8 +121,8 @@ impl Volume {
             for i in 0..=grid.cells_x * n {
                 let ray = grid.at(i as f64 / n as f64, j as f64 / n as f64);
                 cells_along(&self.index_from_world, self.brick_lo, self.dims, &ray, 0.0, f64::INFINITY, |cell| {
-                    if occupied.get(cell / 64).is_some_and(|w| w & (1 << (cell % 64)) != 0) && seen.insert(cell) {
-                        self.push_blocks(self.table.get(cell).and_then(|&i| self.bricks.get(i as usize)), &mut blocks);
+                    if is_set(occupied, cell) && seen.insert(cell) {
+                        self.push_blocks(self.brick_at_cell(cell), &mut blocks);
                     }
                 });
             }
@@ -141,6 +141,11 @@ impl Volume {
             }
             bits
         })
+    }
+
+    /// The brick at table cell `cell`, if any.
+    fn brick_at_cell(&self, cell: usize) -> Option<&Brick> {
+        self.table.get(cell).and_then(|&i| self.bricks.get(i as usize))
     }
 
     /// Add the dense value blocks of `brick` (all channels) to `blocks`.
@@ -168,8 +173,8 @@ impl Volume {
         let occupied = self.occupied();
         let mut blocks: Vec<usize> = Vec::new();
         cells_along(&self.index_from_world, self.brick_lo, self.dims, ray, 0.0, t_max, |cell| {
-            if occupied.get(cell / 64).is_some_and(|w| w & (1 << (cell % 64)) != 0) {
-                self.push_blocks(self.table.get(cell).and_then(|&i| self.bricks.get(i as usize)), &mut blocks);
+            if is_set(occupied, cell) {
+                self.push_blocks(self.brick_at_cell(cell), &mut blocks);
             }
         });
         self.will_need_blocks(blocks);
@@ -197,6 +202,11 @@ impl Volume {
         }
         ((widest / RAY_SPACING_VOXELS).ceil() as usize).clamp(1, MAX_SUBDIVISION)
     }
+}
+
+/// Bit `cell` of an occupancy bitmap ([`Volume::occupied`]).
+fn is_set(occupied: &[u64], cell: usize) -> bool {
+    occupied.get(cell / 64).is_some_and(|w| w & (1 << (cell % 64)) != 0)
 }
 
 impl Volume {

@@ -152,7 +152,8 @@ fn depth_is_the_expected_distance_to_the_first_collision() {
     let expected = 1.0 + 1.0 / sigma - depth * (-sigma * depth).exp() / (1.0 - (-sigma * depth).exp());
     let ray = Ray { origin: DVec3::new(0.0, 0.0, -1.0), direction: DVec3::Z };
     for estimator in [Estimator::Line, Estimator::RayMarch, Estimator::Point] {
-        let integ = Integrator { estimator, light_sampling: LightSampling::None, mis: MisHeuristic::Power, max_depth: 0, tracking: Tracking::Regular };
+        let integ =
+            Integrator { estimator, light_sampling: LightSampling::None, mis: MisHeuristic::Power, max_depth: 0, tracking: Tracking::Regular, split: 1 };
         let mut ts = Vec::new();
         let mut c = Counters::default();
         let mut a = AovSample::new(layout.channels());

@@ -26,7 +26,8 @@ fn brick_table_gives_the_image_means_of_the_voxel_table() {
     for interpolation in [Interpolation::Nearest, Interpolation::Linear] {
         let (voxels, bricks) = (scene(NeeTable::Voxel, interpolation), scene(NeeTable::Brick, interpolation));
         for estimator in [Estimator::Point, Estimator::Line] {
-            let integrator = Integrator { estimator, light_sampling: LightSampling::Nee, mis: MisHeuristic::Power, max_depth: 64, tracking: Tracking::Regular };
+            let integrator =
+                Integrator { estimator, light_sampling: LightSampling::Nee, mis: MisHeuristic::Power, max_depth: 64, tracking: Tracking::Regular, split: 1 };
             let a = region_means_with(SamplerKind::Sobol, &voxels, integrator, 16, 16, 11);
             let b = region_means_with(SamplerKind::Sobol, &bricks, integrator, 16, 16, 500);
             assert!(a[0].0 > 0.0);

@@ -37,7 +37,7 @@ fn cube(n: i32, size: f64, density: f32, source: f32) -> Volume {
 }
 
 fn integrator(estimator: Estimator, light_sampling: LightSampling, mis: MisHeuristic, max_depth: u32) -> Integrator {
-    Integrator { estimator, light_sampling, mis, max_depth, tracking: Tracking::Regular }
+    Integrator { estimator, light_sampling, mis, max_depth, tracking: Tracking::Regular, split: 1 }
 }
 
 /// Every estimator × light strategy.
@@ -187,6 +187,57 @@ fn sobol_and_random_samplers_converge_to_the_same_means() {
             }
         }
     }
+}
+
+#[test]
+fn splitting_changes_variance_not_the_mean() {
+    // 4 paths per camera collision against 1, thin and dense, both reconstructions, the
+    // paper's method, MIS in volume measure, forward paths, and ray-march with FNEE:
+    // 2 × 2 × 4 × 5 regions = 80 comparisons, |z| < 4.2 as above
+    for (interpolation, sigma_t) in [Interpolation::Nearest, Interpolation::Linear].into_iter().flat_map(|i| [(i, 1.5), (i, 25.0)]) {
+        for (est, ls) in [
+            (Estimator::Line, LightSampling::Fnee),
+            (Estimator::Point, LightSampling::Nee),
+            (Estimator::Line, LightSampling::None),
+            (Estimator::RayMarch, LightSampling::Fnee),
+        ] {
+            let scene = explosion_scene(sigma_t, ls, 8, interpolation);
+            let one = integrator(est, ls, MisHeuristic::Power, 64);
+            let split = Integrator { split: 4, ..one };
+            let reference = region_means(&scene, one, 8, 12, 500);
+            let got = region_means(&scene, split, 8, 12, 600);
+            for (k, ((m, se), (rm, rse))) in got.iter().zip(&reference).enumerate() {
+                let z = (m - rm) / (se * se + rse * rse).sqrt().max(1e-12);
+                assert!(z.abs() < 4.2, "{interpolation} σ_t={sigma_t} {est:?}/{ls:?} region {k}: split 4 {m} ± {se} vs 1 {rm} ± {rse} (z = {z:.2})");
+            }
+        }
+    }
+}
+
+#[test]
+fn splitting_divides_the_variance_of_the_paths() {
+    // From inside the uniform infinite medium of the equilibrium test, ray-march gives
+    // every direction the same camera-segment emission, so all variance is the scattered
+    // paths': n independent paths per collision divide it by n. Variances from 4000
+    // samples each are within ±10 % at 4σ; the bound leaves room for that. A split that did
+    // nothing, or gave its paths the same numbers, keeps the ratio at 1.
+    let (sigma_t, albedo, le) = (40.0, 0.8f32, 2.0f32);
+    let e = grid_emission(Convention::Cycles);
+    let vol = cube(4, 2.0, 1.0, le);
+    let lights = Lights::build(&vol, &e, LightSampling::Fnee, 8).unwrap();
+    let cam = Camera::look_at(DVec3::ZERO, DVec3::ONE, DVec3::Y, 40.0, 1, 1).unwrap();
+    let scene = Scene { field: vol, medium: Medium { sigma_t, albedo, g: 0.3, emission: e }, camera: cam, lights, motion: None, majorants: None };
+    let expected = f64::from(le) / (sigma_t * f64::from(1.0 - albedo));
+    let one = integrator(Estimator::RayMarch, LightSampling::Fnee, MisHeuristic::Power, 10_000);
+    let n = 4000;
+    let (m1, se1) = mean_from_inside(&scene, &one, DVec3::ONE, n, 21);
+    for split in [4u32, 16] {
+        let (m, se) = mean_from_inside(&scene, &Integrator { split, ..one }, DVec3::ONE, n, 22);
+        assert!((m - expected).abs() < 4.0 * se + 2e-3 * expected, "split {split}: {m} ± {se} vs {expected}");
+        let ratio = (se / se1).powi(2);
+        assert!(ratio < 1.5 / f64::from(split), "split {split}: variance ratio {ratio} (expected about 1/{split})");
+    }
+    assert!((m1 - expected).abs() < 4.0 * se1 + 2e-3 * expected, "split 1: {m1} ± {se1} vs {expected}");
 }
 
 #[test]

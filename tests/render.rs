@@ -67,7 +67,14 @@ fn scattering_blob() -> (Scene<Volume>, Integrator) {
     scene.lights = Lights::build(&scene.field, &scene.medium.emission, LightSampling::Fnee, 8).unwrap();
     (
         scene,
-        Integrator { estimator: Estimator::Line, light_sampling: LightSampling::Fnee, mis: MisHeuristic::Power, max_depth: 16, tracking: Tracking::Regular },
+        Integrator {
+            estimator: Estimator::Line,
+            light_sampling: LightSampling::Fnee,
+            mis: MisHeuristic::Power,
+            max_depth: 16,
+            tracking: Tracking::Regular,
+            split: 1,
+        },
     )
 }
 

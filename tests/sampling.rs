@@ -286,3 +286,62 @@ fn random_kind_is_the_old_stream_in_the_order_drawn() {
     let _ = a.get_1d(Dim::FreePath);
     assert_eq!(a.next_f64(), b.next_f64());
 }
+
+#[test]
+fn split_paths_of_a_pixel_form_one_sobol_sequence() {
+    // n paths per collision over N samples: the n·N split paths' directions at a vertex
+    // form a (0, m, 2)-net, as N·n samples of one sequence would; a split that reused the
+    // sample's own index would put n points in each cell
+    for (n, samples) in [(2u32, 64u64), (4, 16), (8, 128), (8, 8192)] {
+        for (pixel, depth) in [(0u64, 1u32), (77, 3)] {
+            let points: Vec<[f64; 2]> = (0..samples)
+                .flat_map(|i| (0..n).map(move |k| (i, k)))
+                .map(|(i, k)| {
+                    let mut s = Sampler::with_kind(SamplerKind::Sobol, 9, pixel, i).split(k, n);
+                    s.start_vertex(depth);
+                    s.get_2d(Dim::Direction)
+                })
+                .collect();
+            assert_net(&points, &format!("split {n} × {samples} samples, pixel {pixel} depth {depth}"));
+        }
+    }
+    // Past 2^16 split indices the next run of the sequence takes over with its own scramble
+    let a = Sampler::with_kind(SamplerKind::Sobol, 9, 5, 8191).split(7, 8);
+    let b = Sampler::with_kind(SamplerKind::Sobol, 9, 5, 8192).split(0, 8);
+    let c = Sampler::with_kind(SamplerKind::Sobol, 9, 5, 0).split(0, 8);
+    let first = |s: &Sampler| {
+        let mut s = s.clone();
+        s.start_vertex(1);
+        block_values(&mut s)
+    };
+    assert!(first(&a).iter().chain(&first(&b)).all(|u| (0.0..1.0).contains(u)));
+    assert_ne!(first(&b), first(&c), "index 65 536 is not index 0 again");
+}
+
+#[test]
+fn one_split_is_the_sampler_itself_and_splits_have_their_own_streams() {
+    for kind in [SamplerKind::Sobol, SamplerKind::Random] {
+        let s = Sampler::with_kind(kind, 4, 10, 3);
+        let (mut whole, mut one) = (s.clone(), s.split(0, 1));
+        whole.start_vertex(2);
+        one.start_vertex(2);
+        assert_eq!(block_values(&mut one), block_values(&mut whole));
+        assert_eq!(one.next_f64(), whole.next_f64());
+        // Split paths draw other numbers than each other and than the unsplit path, in
+        // their named draws and in their hashed streams
+        let mut seen: Vec<(Vec<f64>, f64)> = Vec::new();
+        for k in 0..4 {
+            let mut p = s.split(k, 4);
+            p.start_vertex(2);
+            let v = (block_values(&mut p), p.next_f64());
+            assert!(seen.iter().all(|o| o.0 != v.0 && o.1 != v.1), "{kind:?}: split {k} repeats another's numbers");
+            let mut unsplit = s.clone();
+            unsplit.start_vertex(2);
+            assert_ne!(v.0, block_values(&mut unsplit));
+            seen.push(v);
+        }
+        // Pure: the same split again gives the same numbers
+        let (mut p, mut q) = (s.split(2, 4), s.split(2, 4));
+        assert_eq!(p.next_f64(), q.next_f64());
+    }
+}

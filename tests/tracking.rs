@@ -24,7 +24,7 @@ fn scene(sigma_t: f64, ls: LightSampling, interpolation: Interpolation) -> AnySc
 }
 
 fn integrator(estimator: Estimator, light_sampling: LightSampling, tracking: Tracking) -> Integrator {
-    Integrator { estimator, light_sampling, mis: MisHeuristic::Power, max_depth: 64, tracking }
+    Integrator { estimator, light_sampling, mis: MisHeuristic::Power, max_depth: 64, tracking, split: 1 }
 }
 
 #[test]

@@ -270,6 +270,7 @@ fn density_sweep(cfg: &ExtremesConfig, check: &mut Check) -> Result<()> {
             mis: MisHeuristic::Power,
             max_depth: 64,
             tracking: Tracking::Regular,
+            split: 1,
         };
         let img = render_image(&scene, integ, cfg.spp, 1);
         let (mean, se) = central(&img, cfg.size, None);

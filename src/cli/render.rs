@@ -120,6 +120,11 @@ pub struct RenderArgs {
     /// Largest number of scattering events per path.
     #[arg(long, default_value_t = IntegratorSettings::default().max_depth)]
     pub max_depth: u32,
+    /// Paths traced from each collision of a camera ray, each carrying 1/N (splitting, 1 to
+    /// 256). The camera ray's walk, most of a sample's cost in thin media, is shared by N
+    /// scattered paths, which carry most of the noise; 1 traces one path, as the paper does.
+    #[arg(long, default_value_t = IntegratorSettings::default().split)]
+    pub split: u32,
     /// Constant environment radiance r,g,b seen by escaping paths, W·m⁻²·sr⁻¹ per channel
     /// (default: none).
     #[arg(long, value_parser = parse_vec3)]
@@ -347,6 +352,7 @@ flags_to_keys! { RENDER_ONLY_FLAGS, apply_render_only, RenderArgs, s, a;
     "albedo" => "medium.albedo": s.scene.medium.albedo => a.albedo;
     "g" => "medium.g": s.scene.medium.g => a.g;
     "max_depth" => "integrator.max_depth": s.scene.integrator.max_depth => a.max_depth;
+    "split" => "integrator.split": s.scene.integrator.split => a.split;
     "environment" => "lights.environment": s.scene.lights.environment => a.environment;
     "environment_map" => "lights.environment_map": s.scene.lights.environment_map => a.environment_map.clone();
     "sky" => "lights.sky": s.scene.lights.sky => a.sky.clone();

@@ -175,6 +175,27 @@ impl Sampler {
         self.start_block(2 * u64::from(depth) + 1);
     }
 
+    /// The sampler of split path `k` of `n` leaving the camera segment's collision
+    /// (`Integrator::split`): its named draws from block 1 on are Sobol point
+    /// `sample · n + k` of the pixel's sequence, so the `n · spp` split paths of a pixel
+    /// are stratified together, and its hashed stream is its own. With `n = 1` it is this
+    /// sampler.
+    #[must_use]
+    pub fn split(&self, k: u32, n: u32) -> Sampler {
+        if n <= 1 {
+            return self.clone();
+        }
+        let state = mix64(self.state ^ 0x6a09_e667_f3bc_c909 ^ u64::from(k + 1).wrapping_mul(GOLDEN));
+        let sobol = self.sobol.as_ref().map(|s| {
+            let j = u64::from(s.index) * u64::from(n) + u64::from(k);
+            let run = j / sobol::SEQUENCE_LENGTH;
+            let key = if run == 0 { s.key } else { mix64(s.key ^ run.wrapping_mul(GOLDEN) ^ 0xbb67_ae85_84ca_a73b) };
+            let index = u32::try_from(j % sobol::SEQUENCE_LENGTH).expect("invariant: below 2^16");
+            SobolState { key, index, block: s.block, sets: [[0; 4]; SETS], filled: 0 }
+        });
+        Sampler { state, sobol }
+    }
+
     fn start_block(&mut self, block: u64) {
         if let Some(s) = &mut self.sobol {
             s.block = block;

@@ -173,6 +173,7 @@ impl SceneDescription {
             mis: self.integrator.mis,
             max_depth: if self.albedo() > 0.0 { self.integrator.max_depth } else { 0 },
             tracking: self.integrator.tracking.resolve(estimator, light_sampling),
+            split: self.integrator.split,
         }
     }
 }
@@ -357,6 +358,8 @@ pub struct IntegratorSettings {
     /// Resolution of classic NEE's table.
     #[serde(skip_serializing_if = "NeeTable::is_voxel")]
     pub nee_table: NeeTable,
+    /// Paths traced from each collision of a camera ray, each carrying `1/split`.
+    pub split: u32,
 }
 
 impl Default for IntegratorSettings {
@@ -371,6 +374,7 @@ impl Default for IntegratorSettings {
             kappa: 4.0,
             tracking: TrackingChoice::Auto,
             nee_table: NeeTable::Voxel,
+            split: 8,
         }
     }
 }

@@ -91,6 +91,9 @@ impl Shot {
         finite_nonneg("medium.density_scale", scene.medium.density_scale)?;
         finite_nonneg("emission.scale", f64::from(scene.emission.scale))?;
         finite_nonneg("integrator.kappa", scene.integrator.kappa)?;
+        if !(1..=256).contains(&scene.integrator.split) {
+            return Err(Error::invalid("integrator.split", format!("{} is not between 1 and 256 paths per camera collision", scene.integrator.split)));
+        }
         finite_nonneg("emission.temperature_cutoff", f64::from(scene.emission.temperature_cutoff))?;
         nonneg_components("emission.color", scene.emission.color.map(f64::from))?;
         scene.emission.temperature_map.parse::<TemperatureMap>()?;

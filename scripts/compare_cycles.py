@@ -17,9 +17,10 @@ Matched conventions (both renderers, every render):
 - black world, no denoising, no adaptive sampling, no clamping, fixed seed.
 
 Metrics. Each renderer is measured against its own converged reference (`--ref-spp`):
-relRMSE = sqrt(mean((I - R)^2)) / mean(R) over the RGB channels. The reference's own
-noise adds to the measured error; with Monte Carlo error ~ 1/spp in MSE, the measured
-relMSE is the true one times (1 + N/N_ref), which is divided out ("corrected").
+relRMSE = sqrt(mean((I - R)^2)) / mean(R) over the RGB channels. The reference is
+rendered with another seed than the rungs, so its noise is independent of theirs and adds
+to the measured error; with Monte Carlo error ~ 1/spp in MSE, the measured relMSE is the
+true one times (1 + N/N_ref), which is divided out ("corrected").
 CPU time is the render's process CPU time minus what a 1-spp render costs when the scene
 is already set up; the set-up (the first 1-spp render: file load, scene sync, volume build)
 is reported apart. Each rung and the overhead render run `--repeats` times (3) and the
@@ -212,9 +213,10 @@ class Cycles:
             pv.inputs["Emission Color"].default_value = (1.0, 1.0, 1.0, 1.0)
         links.new(pv.outputs["Volume"], out.inputs["Volume"])
 
-    def render(self, spp, path):
-        """Render `spp` samples to `path`; returns the process CPU seconds it took."""
+    def render(self, spp, path, seed=0):
+        """Render `spp` samples to `path` with `seed`; returns the process CPU seconds it took."""
         scene = self.bpy.context.scene
+        scene.cycles.seed = seed
         scene.cycles.samples = spp
         scene.render.filepath = path
         t0 = time.process_time()
@@ -225,14 +227,14 @@ class Cycles:
 # ---------------------------------------------------------------- plume
 
 
-def plume_render(args, spec, camera, albedo, spp, path):
+def plume_render(args, spec, camera, albedo, spp, path, seed=0):
     """One plume render with the matched settings; returns its CPU seconds (stats)."""
     kind, grid = spec["emission"]
     cmd = [args.plume, "render", os.path.join(args.data, spec["path"]), "--density-grid", spec["density"], "--convention", "cycles"]
     cmd += ["--emission", "grid", "--emission-grid", grid] if kind == "grid" else ["--emission", "blackbody", "--temperature-grid", grid]
     cmd += ["--camera-from", ",".join(map(repr, camera["from"])), "--camera-at", ",".join(map(repr, camera["at"]))]
     cmd += ["--camera-up", "0,0,1", "--fov", repr(camera["fov"]), "--width", str(args.size), "--height", str(args.size)]
-    cmd += ["--spp", str(spp), "--threads", str(args.threads), "--seed", "0", "--max-depth", str(args.max_depth), "--g", "0"]
+    cmd += ["--spp", str(spp), "--threads", str(args.threads), "--seed", str(seed), "--max-depth", str(args.max_depth), "--g", "0"]
     cmd += ["--method", "ray-march"] if albedo == 0.0 else ["--method", "line-fnee", "--albedo", repr(albedo)]
     stats = path + ".json"
     if os.path.exists(stats):
@@ -244,6 +246,10 @@ def plume_render(args, spec, camera, albedo, spp, path):
 
 
 # ---------------------------------------------------------------- measurement
+
+
+# The references' seed; the rungs use seed 0.
+REF_SEED = 1000
 
 
 def least_cpu(render, spp, path, repeats):
@@ -263,7 +269,9 @@ def ladder(render, spps, ref_spp, out, name, repeats):
     setup = render(1, os.path.join(out, f"{name}_setup.exr"))
     overhead = least_cpu(render, 1, os.path.join(out, f"{name}_overhead.exr"), repeats)
     ref_path = os.path.join(out, f"{name}_ref.exr")
-    ref_cpu = render(ref_spp, ref_path)
+    # Another seed than the rungs': with the same one a rung's samples would be the first
+    # of the reference's, and the correction below assumes independent errors
+    ref_cpu = render(ref_spp, ref_path, REF_SEED)
     ref = read_rgb(ref_path)
     rungs = []
     for spp in spps:
@@ -296,7 +304,7 @@ def main():
             cycles.set_albedo(albedo)
             c = ladder(cycles.render, args.cycles_spp, args.ref_spp, args.out, f"{name}_cycles", args.repeats)
             print(f"compare_cycles: {name}: plume", file=sys.stderr, flush=True)
-            p = ladder(lambda spp, path: plume_render(args, spec, cycles.camera, albedo, spp, path), args.plume_spp, args.ref_spp, args.out, f"{name}_plume", args.repeats)
+            p = ladder(lambda spp, path, seed=0: plume_render(args, spec, cycles.camera, albedo, spp, path, seed), args.plume_spp, args.ref_spp, args.out, f"{name}_plume", args.repeats)
             rows = []
             for rung in c["rungs"]:
                 budget = rung["cpu"]

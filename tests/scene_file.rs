@@ -198,6 +198,7 @@ fn bad_scene_files_name_the_file_line_and_key() {
     refused("wrong-type", &format!("{head}[camera]\nwidth = \"wide\"\n"), 6, "camera.width");
     refused("bad-choice", &format!("{head}[integrator]\nmethod = \"fast\"\n"), 6, "integrator.method");
     refused("out-of-range", &format!("{head}[medium]\ng = 0.5\nalbedo = 1.5\n"), 7, "medium.albedo");
+    refused("no-paths", &format!("{head}[integrator]\nsplit = 0\n"), 6, "integrator.split");
     refused("negative-size", &format!("{head}\n[camera]\nheight = -4\n"), 7, "camera.height");
     refused("bad-output", "[volume]\nfile = \"ex.vdb\"\n[output]\nimage = \"out.png\"\n", 4, "output.image");
     refused("no-volume-file", "[volume]\ndensity_grid = \"d\"\n[output]\nimage = \"out.exr\"\n", 1, "volume");

@@ -24,7 +24,8 @@ true one times (1 + N/N_ref), which is divided out ("corrected").
 CPU time is the render's process CPU time minus what a 1-spp render costs when the scene
 is already set up; the set-up (the first 1-spp render: file load, scene sync, volume build)
 is reported apart. Each rung and the overhead render run `--repeats` times (3) and the
-least CPU time counts: load from other processes only ever adds time. At equal CPU: for
+least CPU time counts: load from other processes only ever adds time. The repeats go
+round the ladder, so a stretch of load slows one render of each rung, not all of one. At equal CPU: for
 each Cycles budget B (its CPU time at each rung of `--cycles-spp`), plume's error is taken
 from the rung whose CPU time is closest to B and scaled by sqrt(cpu/B).
 """
@@ -273,10 +274,17 @@ def ladder(render, spps, ref_spp, out, name, repeats):
     # of the reference's, and the correction below assumes independent errors
     ref_cpu = render(ref_spp, ref_path, REF_SEED)
     ref = read_rgb(ref_path)
+    # The repeats go round the ladder (every rung once, then again), so that a stretch of
+    # load from other processes slows one render of several rungs, not every render of one
+    paths = {spp: os.path.join(out, f"{name}_{spp}.exr") for spp in spps}
+    least = {spp: math.inf for spp in spps}
+    for _ in range(repeats):
+        for spp in spps:
+            least[spp] = min(least[spp], render(spp, paths[spp]))
     rungs = []
     for spp in spps:
-        path = os.path.join(out, f"{name}_{spp}.exr")
-        cpu = least_cpu(render, spp, path, repeats) - overhead
+        path = paths[spp]
+        cpu = least[spp] - overhead
         if cpu <= 0.0:
             sys.exit(f"compare_cycles: {name}: {spp} spp took no measurable CPU time beyond a 1-spp render; use more spp or a larger --size")
         measured = rel_mse(read_rgb(path), ref)

@@ -80,8 +80,10 @@ fn scattering_blob() -> (Scene<Volume>, Integrator) {
 
 #[test]
 fn sample_ranges_merge_and_replays_equal_the_render_for_both_samplers() {
-    let (scene, integrator) = scattering_blob();
-    for sampler in [SamplerKind::Sobol, SamplerKind::Random] {
+    let (scene, one_path) = scattering_blob();
+    // One path per camera collision, and split 4 ways (`Sampler::split`)
+    for (sampler, split) in [SamplerKind::Sobol, SamplerKind::Random].into_iter().flat_map(|k| [(k, 1), (k, 4)]) {
+        let integrator = Integrator { split, ..one_path };
         let settings = RenderSettings { budget: SampleBudget::Spp(7), seed: 5, sampler, threads: 2, first_sample: 0, integrator };
         let whole = render(&scene, &settings, &|_, _| {});
         assert!(whole.counters.fnee_samples > 0, "light segments were sampled");
@@ -90,7 +92,7 @@ fn sample_ranges_merge_and_replays_equal_the_render_for_both_samplers() {
         let b = render(&scene, &RenderSettings { budget: SampleBudget::Spp(4), first_sample: 3, threads: 1, ..settings }, &|_, _| {});
         for ((t, ta), tb) in whole.film.tiles.iter().zip(&a.film.tiles).zip(&b.film.tiles) {
             let added: Vec<[i128; 4]> = ta.sums.iter().zip(&tb.sums).map(|(x, y)| std::array::from_fn(|c| x[c] + y[c])).collect();
-            assert_eq!(t.sums, added, "{sampler}: ranges 0..3 + 3..7 = 0..7");
+            assert_eq!(t.sums, added, "{sampler} split {split}: ranges 0..3 + 3..7 = 0..7");
         }
         // Sample 5 of every pixel, replayed as --debug-pixel does, is the 1-spp render of 5..6
         let one = render(&scene, &RenderSettings { budget: SampleBudget::Spp(1), first_sample: 5, ..settings }, &|_, _| {});

@@ -394,7 +394,7 @@ fn writable(dir: &Path, path: &Path) -> std::io::Result<()> {
 /// converted now if missing, stale or damaged. `None` for smaller files (read in core),
 /// and for files read in core because no cache can be made (below).
 ///
-/// - A current cache in any of the places ([`cache_places`]) is used as it is, even in a
+/// - A current cache in any of the places (`cache_places`) is used as it is, even in a
 ///   read-only directory (a cache directory prepared once and shared read-only).
 /// - Otherwise the cache is made in the first writable place, under a lock
 ///   ([`CacheLock`]): a process that waited uses the cache the other one made. A stale or

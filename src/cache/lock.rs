@@ -11,7 +11,7 @@
 //!
 //! **Bounded wait.** A holder that hangs (a node whose storage stopped answering, a process
 //! stopped by a debugger) would otherwise keep every waiter waiting forever. A waiter polls
-//! with `LOCK_NB`, sleeping [`FIRST_SLEEP`] doubling to [`LONGEST_SLEEP`] between tries (and
+//! with `LOCK_NB`, sleeping `FIRST_SLEEP` doubling to `LONGEST_SLEEP` between tries (and
 //! checking for SIGTERM/SIGINT each time), and gives up after its timeout
 //! ([`Acquired::TimedOut`]); what to do then is the caller's decision.
 //!

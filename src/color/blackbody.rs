@@ -340,7 +340,7 @@ impl BlackbodyTable {
     /// Agrees with [`blackbody_rgb_exact`] to < 1e-3 relative over 500 K … 1e7 K.
     ///
     /// Between 100 K and 20 000 K from a table uniform in T (no `ln`; see
-    /// [`UNIFORM_SEGMENTS`]), above from the ln-T table.
+    /// `UNIFORM_SEGMENTS`), above from the ln-T table.
     #[must_use]
     #[inline]
     pub fn rgb(&self, t_kelvin: f32) -> Rgb {

@@ -42,7 +42,7 @@
 //! brick overhead, against ≥ 40 bytes for an explicit coordinate per entry plus a hash map
 //! for the reverse lookup. A voxel→entry `HashMap` alone would cost ≈ 20 bytes per voxel.
 //!
-//! **Brick resolution** (`--nee-table brick`, [`super::nee_bricks`]): for volumes whose
+//! **Brick resolution** (`--nee-table brick`, `light/nee_bricks.rs`): for volumes whose
 //! voxel table does not fit in memory, one entry per emitting brick (32 bytes) and the
 //! voxel drawn from the brick's values when sampling. The same `P_i`, so everything above
 //! (boxes, the hat, `pdf`) is shared; `sample` and `pdf` then read the volume.

@@ -194,7 +194,7 @@ fn emission_at<P: Piece>(piece: &P, le: &EmissionMemo<'_>, u: f64) -> [f64; 3] {
 }
 
 /// Density and `L_e` at a world point (a next-event sample), by the same rule as
-/// [`emission_at`] along pieces: the field's reconstruction of each voxel's emission.
+/// `emission_at` along pieces: the field's reconstruction of each voxel's emission.
 #[must_use]
 pub fn emission_at_point<F: Field>(field: &F, medium: &Medium, p_world: glam::DVec3) -> PointValues {
     field.reconstruct(p_world, &|d, s| medium.emission.le(d, s))

@@ -94,7 +94,7 @@ const EMPTY_BRICK: BrickChannels<'static> = BrickChannels { density: Channel::co
 const FACE: [[[usize; 4]; 2]; 3] = [[[0, 2, 4, 6], [1, 3, 5, 7]], [[0, 1, 4, 5], [2, 3, 6, 7]], [[0, 1, 2, 3], [4, 5, 6, 7]]];
 
 /// The dual cells of a volume as a lattice for the hierarchical DDA (shift 0), with the
-/// dual pyramid built by [`dual_pyramid`].
+/// dual pyramid built by `dual_pyramid`.
 #[derive(Clone, Copy, Debug)]
 pub struct DualCells<'a> {
     volume: &'a Volume,

@@ -293,14 +293,13 @@ impl Integrator {
             let n = self.split.max(1);
             let scale = 1.0 / f64::from(n);
             let vertex = Vertex { incoming: *camera_ray, t, albedo, beta: scale, scale };
-            if n == 1 {
-                self.scattered_path(scene, &tracker, vertex, sampler, (&mut *c, &mut *trace), (&mut l, &mut *aovs));
-            } else {
-                for k in 0..n {
+            for k in 0..n {
+                if n > 1 {
                     trace.event(|| format!("split path {} of {n}", k + 1));
-                    let mut path_sampler = sampler.split(k, n);
-                    self.scattered_path(scene, &tracker, vertex, &mut path_sampler, (&mut *c, &mut *trace), (&mut l, &mut *aovs));
                 }
+                // One path (n = 1) draws the sample's own numbers: `split` is then a copy
+                let mut path_sampler = sampler.split(k, n);
+                self.scattered_path(scene, &tracker, vertex, &mut path_sampler, (&mut *c, &mut *trace), (&mut l, &mut *aovs));
             }
         }
         trace.event(|| format!("result L {l:?} alpha {alpha}"));

@@ -97,6 +97,16 @@ pub enum SampleOrder {
     /// pass taking every sample of a tile before the next, tiles in raster order, the
     /// tiles just ahead of the workers prefetched. For volumes larger than memory. A stop
     /// request or the deadline abandons the pass between tiles and keeps nothing of it.
+    ///
+    /// **Read-ahead window.** A tile's camera rays can cross hundreds of MB of bricks
+    /// (up to 340 MB for one 16×16 tile of the 2048³ flare), so a fixed number of tiles
+    /// ahead can ask for more than the memory holds: pages read ahead then push out the
+    /// pages of the tiles being rendered, and both are read again. The prefetch thread
+    /// therefore also waits while the bytes it asked for, for tiles not yet finished
+    /// (being rendered or waiting), exceed [`RenderControl::read_ahead_window`]; a tile
+    /// already taken by a worker is always asked for. In a 1.5 GiB cgroup with the flare
+    /// this took an emission–absorption render from 180 k page faults to 16 k
+    /// (docs/BENCHMARKS.md, issue #17).
     TileMajor,
 }
 
@@ -124,6 +134,10 @@ pub struct RenderControl<'a> {
     pub order: SampleOrder,
     /// Record AOV layers with this layout (`integrator::aov`); `None`: the beauty only.
     pub aovs: Option<AovLayout>,
+    /// In tile-major order, the most bytes asked to be read ahead for tiles that are not
+    /// finished yet (see [`SampleOrder::TileMajor`]); `None`: no bound but the number of
+    /// tiles ahead. Never changes a result.
+    pub read_ahead_window: Option<u64>,
 }
 
 /// The key of one pixel sample: sample `sample` of pixel `(x, y)` of the full image.
@@ -325,7 +339,7 @@ pub fn render_with<F: Field>(scene: &Scene<F>, settings: &RenderSettings, contro
         let pass_cpu_start = crate::stats::cpu_seconds();
         let tile_counters: Vec<Counters> = if tile_major {
             let abandon = || control.stop.is_some_and(|stop| stop()) || control.deadline.is_some_and(|d| Instant::now() >= d);
-            match tile_major_pass(scene, settings, &pool, &mut film, &range, &abandon, &mut tile_seconds) {
+            match tile_major_pass(scene, settings, &pool, &mut film, (&range, control.read_ahead_window), &abandon, &mut tile_seconds) {
                 Some(c) => c,
                 None if control.deadline.is_some_and(|d| Instant::now() >= d) => break StopReason::TimeLimit,
                 None => break StopReason::Interrupted,
@@ -396,14 +410,14 @@ fn progressive_pass<F: Field>(
 
 /// One tile-major pass of `samples` over `film` (see [`SampleOrder::TileMajor`]): the
 /// workers take tiles in raster order from a shared queue while a prefetch thread walks
-/// the camera rays of the next tiles through `scene.field`. Returns the tiles' counters
+/// the camera rays of the next tiles through `scene.field`, within `read_ahead_window`. Returns the tiles' counters
 /// in tile order, or `None` with `film` unchanged when `abandon` said so between tiles.
 fn tile_major_pass<F: Field>(
     scene: &Scene<F>,
     settings: &RenderSettings,
     pool: &rayon::ThreadPool,
     film: &mut Film,
-    samples: &std::ops::Range<u64>,
+    (samples, read_ahead_window): (&std::ops::Range<u64>, Option<u64>),
     abandon: &(dyn Fn() -> bool + Sync),
     tile_seconds: &mut [f64],
 ) -> Option<Vec<Counters>> {
@@ -414,11 +428,12 @@ fn tile_major_pass<F: Field>(
     let abandoned = AtomicBool::new(false);
     let queue = Mutex::new(film.tiles.iter_mut().enumerate());
     let results: Mutex<Vec<(usize, Counters, f64)>> = Mutex::new(Vec::with_capacity(rects.len()));
-    let ahead = pool.current_num_threads() + PREFETCH_AHEAD;
+    let done: Vec<AtomicBool> = rects.iter().map(|_| AtomicBool::new(false)).collect();
+    let window = ReadAheadWindow { ahead: pool.current_num_threads() + PREFETCH_AHEAD, bytes: read_ahead_window.unwrap_or(u64::MAX) };
     std::thread::scope(|s| {
         if scene.field.is_mapped() {
             scene.field.expect_prefetch();
-            s.spawn(|| prefetch_tiles(scene, &rects, &taken, &finished, ahead));
+            s.spawn(|| prefetch_tiles(scene, &rects, (&taken, &done, &finished), window));
         }
         pool.broadcast(|_| loop {
             if abandoned.load(Ordering::Relaxed) {
@@ -433,6 +448,7 @@ fn tile_major_pass<F: Field>(
             taken.fetch_max(i + 1, Ordering::Relaxed);
             let start = Instant::now();
             let c = render_tile(scene, settings, samples.clone(), tile);
+            done[i].store(true, Ordering::Relaxed);
             results.lock().unwrap_or_else(std::sync::PoisonError::into_inner).push((i, c, start.elapsed().as_secs_f64()));
         });
         finished.store(true, Ordering::Relaxed);
@@ -454,12 +470,45 @@ fn tile_major_pass<F: Field>(
     )
 }
 
+/// How far the prefetch thread of a tile-major pass may run ahead of the workers.
+#[derive(Clone, Copy, Debug)]
+struct ReadAheadWindow {
+    /// Tiles beyond the last one taken.
+    ahead: usize,
+    /// Bytes asked for, for tiles not finished.
+    bytes: u64,
+}
+
+impl ReadAheadWindow {
+    /// Whether tile `i` may be asked for now: `taken` tiles have been taken by workers,
+    /// and `in_flight` bytes were asked for, for tiles before `i` not yet finished. A
+    /// taken tile always may: a worker is reading it now.
+    fn allows(self, i: usize, taken: usize, in_flight: u64) -> bool {
+        i < taken || (i < taken + self.ahead && in_flight <= self.bytes)
+    }
+}
+
 /// The prefetch thread of a tile-major pass: hands the rays through the pixel corners of
-/// the tiles up to `ahead` beyond the last one taken to `Field::prefetch`.
-fn prefetch_tiles<F: Field>(scene: &Scene<F>, rects: &[(u32, u32, u32, u32)], taken: &AtomicUsize, finished: &AtomicBool, ahead: usize) {
+/// the tiles to `Field::prefetch`, as far ahead of the tiles taken (`taken`) and of those
+/// finished (`done`) as `window` allows, until the pass has `finished`.
+fn prefetch_tiles<F: Field>(
+    scene: &Scene<F>,
+    rects: &[(u32, u32, u32, u32)],
+    (taken, done, finished): (&AtomicUsize, &[AtomicBool], &AtomicBool),
+    window: ReadAheadWindow,
+) {
     let mut grid = RayGrid::default();
+    let mut asked = vec![0u64; rects.len()];
+    let mut oldest = 0; // no tile before it is unfinished
     for (i, &(x0, y0, w, h)) in rects.iter().enumerate() {
-        while i >= taken.load(Ordering::Relaxed) + ahead {
+        loop {
+            while oldest < i && done[oldest].load(Ordering::Relaxed) {
+                oldest += 1;
+            }
+            let in_flight = (oldest..i).filter(|&j| !done[j].load(Ordering::Relaxed)).map(|j| asked[j]).sum();
+            if window.allows(i, taken.load(Ordering::Relaxed), in_flight) {
+                break;
+            }
             if finished.load(Ordering::Relaxed) {
                 return;
             }
@@ -475,13 +524,32 @@ fn prefetch_tiles<F: Field>(scene: &Scene<F>, rects: &[(u32, u32, u32, u32)], ta
                 grid.rays.push(scene.camera.ray(f64::from(x), f64::from(y)));
             }
         }
-        scene.field.prefetch(&grid);
+        asked[i] = scene.field.prefetch(&grid);
     }
 }
 
 #[cfg(test)]
 mod tests {
-    use super::SampleId;
+    use super::{ReadAheadWindow, SampleId};
+
+    /// The prefetch thread asks for a tile when a worker has taken it, or when it is
+    /// within `ahead` tiles of the last one taken and the bytes asked for unfinished
+    /// tiles are within the window; never otherwise.
+    #[test]
+    fn the_read_ahead_window_bounds_tiles_and_bytes() {
+        let w = ReadAheadWindow { ahead: 4, bytes: 100 };
+        // Taken: always, whatever is in flight
+        assert!(w.allows(2, 3, 1_000));
+        // Waiting, within the tiles ahead: as the bytes allow
+        assert!(w.allows(3, 3, 100));
+        assert!(!w.allows(3, 3, 101));
+        assert!(w.allows(6, 3, 0));
+        // Beyond the tiles ahead: never
+        assert!(!w.allows(7, 3, 0));
+        // No byte bound: the tiles ahead alone
+        let tiles = ReadAheadWindow { ahead: 4, bytes: u64::MAX };
+        assert!(tiles.allows(6, 3, u64::MAX - 1) && !tiles.allows(7, 3, 0));
+    }
 
     /// `--debug-pixel` takes what warnings print; the stats JSON names the fields.
     #[test]

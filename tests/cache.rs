@@ -9,7 +9,7 @@ use common::{explosion, exr_pixels, grid, hash, plume, plume_exits, s, stderr, t
 use glam::{DAffine3, DVec3, IVec3};
 use plume::cache::format::{Header, PAGE};
 use plume::cache::{write_volume, Cache, CacheInfo};
-use plume::volume::field::Ray;
+use plume::volume::field::{Ray, RayGrid};
 use plume::volume::{Field, Volume};
 
 /// Render `input` with `extra` flags; returns the pixels.
@@ -124,6 +124,42 @@ fn info() -> CacheInfo {
         input: None,
         backgrounds: [Some(0.0), Some(0.0), Some(1.0)],
     }
+}
+
+/// A grid of `n × n` parallel rays along +z through the world-space box `lo..hi` (in x, y).
+fn parallel_grid(lo: DVec3, hi: DVec3, n: usize) -> RayGrid {
+    let mut rays = Vec::new();
+    for j in 0..=n {
+        for i in 0..=n {
+            let f = DVec3::new(i as f64 / n as f64, j as f64 / n as f64, 0.0);
+            let origin = DVec3::new(lo.x + (hi.x - lo.x) * f.x, lo.y + (hi.y - lo.y) * f.y, lo.z - 1.0);
+            rays.push(Ray { origin, direction: DVec3::Z });
+        }
+    }
+    RayGrid { rays, cells_x: n, cells_y: n }
+}
+
+/// The read-ahead reports the bytes it asked for, which the tile-major render bounds by
+/// its read-ahead window: every value block once for rays through the whole volume, whole
+/// blocks through part of it, none for rays that miss it or for a volume in memory.
+#[test]
+fn read_ahead_reports_the_bytes_it_asks_for() {
+    let dir = tmpdir("cache", "read_ahead");
+    let volume = test_volume();
+    let path = write_volume(&dir.join("v.plume"), &volume, &info(), None).unwrap();
+    let cache = Cache::open(&path).unwrap();
+    let mapped = &cache.volume;
+    let all = cache.meta.value_blocks * 512 * 4;
+    let b = mapped.world_bounds();
+    let pad = DVec3::splat(0.5);
+    assert_eq!(mapped.read_ahead(&parallel_grid(b.lo - pad, b.hi + pad, 2)), all, "every block, once");
+    let mid = DVec3::new((b.lo.x + b.hi.x) / 2.0, b.hi.y, b.hi.z);
+    let part = mapped.read_ahead(&parallel_grid(b.lo - pad, mid, 2));
+    // (Blocks less than 16 apart are read as one run, so a part may come to all 36 here)
+    assert!(part > 0 && part <= all && part % 2048 == 0, "whole blocks: {part} of {all}");
+    let away = DVec3::new(b.hi.x + 10.0, b.lo.y, b.lo.z);
+    assert_eq!(mapped.read_ahead(&parallel_grid(away, away + DVec3::ONE, 2)), 0, "rays that miss");
+    assert_eq!(volume.read_ahead(&parallel_grid(b.lo - pad, b.hi + pad, 2)), 0, "in memory");
 }
 
 #[test]

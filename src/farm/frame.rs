@@ -328,6 +328,9 @@ fn run_passes(
         stop: Some(&stop),
         deadline: job_settings.farm.time_limit.map(|t| start + Duration::from_secs_f64(t)),
         order,
+        // A quarter of the memory limit (the budget is half of it), leaving the rest to
+        // the tiles' scattered rays and to the volume's index
+        read_ahead_window: Some(crate::scene::bind::memory_budget(job_settings) / 2),
         aovs,
     };
     let on_pass = |done, total| {

@@ -559,8 +559,8 @@ impl Field for Volume {
         self.lookup_world(p_world)
     }
 
-    fn prefetch(&self, grid: &RayGrid) {
-        self.read_ahead(grid);
+    fn prefetch(&self, grid: &RayGrid) -> u64 {
+        self.read_ahead(grid)
     }
 
     fn expect_prefetch(&self) {

@@ -325,9 +325,11 @@ pub trait Field: Sync {
     }
 
     /// Rays through `grid` will be traced soon: a field paged from disk may start reading
-    /// what they cross (`volume::prefetch`). A hint that never changes a result; nothing
-    /// by default.
-    fn prefetch(&self, _grid: &RayGrid) {}
+    /// what they cross (`volume::prefetch`). A hint that never changes a result. Returns
+    /// the bytes it asked for (0 by default: nothing).
+    fn prefetch(&self, _grid: &RayGrid) -> u64 {
+        0
+    }
 
     /// The render will [`Field::prefetch`] ahead of its rays from now on (a field paged
     /// from disk may then stop reading ahead on its own). Nothing by default.

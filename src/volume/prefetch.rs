@@ -108,9 +108,11 @@ fn runs(items: &mut Vec<usize>, gap: usize) -> Vec<std::ops::Range<usize>> {
 impl Volume {
     /// Ask the OS to read ahead what the rays through `grid` will touch: the value blocks
     /// of the bricks they cross. Nothing for an in-core volume. See the module docs.
-    pub fn read_ahead(&self, grid: &RayGrid) {
+    /// Returns the bytes asked for (the render bounds what it has asked for and not yet
+    /// used: `render`, "read-ahead window").
+    pub fn read_ahead(&self, grid: &RayGrid) -> u64 {
         if !self.is_mapped() || grid.cells_x == 0 || grid.cells_y == 0 {
-            return;
+            return 0;
         }
         let n = self.subdivision(grid);
         let occupied = self.occupied();
@@ -127,7 +129,7 @@ impl Volume {
                 });
             }
         }
-        self.will_need_blocks(blocks);
+        self.will_need_blocks(blocks)
     }
 
     /// One bit per table cell, set where a brick is (built on first use).
@@ -158,10 +160,13 @@ impl Volume {
         }
     }
 
-    /// Ask for `blocks`, sorted and merged into runs.
-    fn will_need_blocks(&self, mut blocks: Vec<usize>) {
+    /// Ask for `blocks`, sorted and merged into runs; returns the bytes of the runs.
+    fn will_need_blocks(&self, mut blocks: Vec<usize>) -> u64 {
         let block = BRICK_VALUES;
-        self.values.will_need(runs(&mut blocks, MERGE_GAP_BLOCKS).into_iter().map(|r| r.start * block..r.end * block));
+        let runs = runs(&mut blocks, MERGE_GAP_BLOCKS);
+        let values: usize = runs.iter().map(std::ops::Range::len).sum();
+        self.values.will_need(runs.into_iter().map(|r| r.start * block..r.end * block));
+        (values * block * std::mem::size_of::<f32>()) as u64
     }
 
     /// Ask the OS to read ahead the value blocks of the bricks `ray` crosses within

@@ -164,8 +164,8 @@ impl Field for Trilinear {
         PointValues { density: it.density() as f32, emission: it.emission(le) }
     }
 
-    fn prefetch(&self, grid: &RayGrid) {
-        self.volume.prefetch(grid);
+    fn prefetch(&self, grid: &RayGrid) -> u64 {
+        self.volume.prefetch(grid)
     }
 
     fn expect_prefetch(&self) {

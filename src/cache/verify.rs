@@ -5,14 +5,20 @@
 //! check that read it all again would double the disk traffic and take CPU from the
 //! render. So the check runs in two phases, at the lowest CPU priority (`nice` 19):
 //!
-//! 1. **While rendering**, in a sweep every second, it hashes only the chunks that
-//!    are wholly in the page cache (`mincore`), straight from the mapping: no disk read,
-//!    no copy, and nothing evicted. The render's own reads are what brings them in.
-//! 2. **When the render asks for the outcome** ([`Verification::wait`]), it reads the
-//!    chunks still unchecked from the file (`pread`) and lets the kernel drop those pages
-//!    again (`POSIX_FADV_DONTNEED`), so it does not push the render's working set out.
+//! 1. **While rendering**, in a sweep every second, it hashes what is in the page cache
+//!    (`mincore`), straight from the mapping: no disk read, no copy, and nothing evicted.
+//!    The render's own reads are what brings pages in. A chunk is hashed as a stream
+//!    (xxh3's streaming state gives the one-shot sum), from its first unhashed page up
+//!    to the next page not in memory, so a chunk whose pages the render reads at
+//!    different times is still hashed in pieces. Out of core this matters: the render
+//!    keeps only part of the file in memory at a time, so few 1 MiB chunks are ever
+//!    wholly resident at once (docs/BENCHMARKS.md, issue #17).
+//! 2. **When the render asks for the outcome** ([`Verification::wait`]), it reads what
+//!    is still unhashed from the file (`pread`: of a chunk, only the pages after its
+//!    hashed prefix) and lets the kernel drop those pages again (`POSIX_FADV_DONTNEED`),
+//!    so it does not push the render's working set out.
 //!
-//! Every chunk is checked either way; only the order and the I/O differ.
+//! Every byte is checked either way; only the order and the I/O differ.
 
 use std::fs::File;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -21,6 +27,7 @@ use std::thread::JoinHandle;
 use std::time::Duration;
 
 use memmap2::Mmap;
+use xxhash_rust::xxh3::{xxh3_64, Xxh3Default};
 
 use crate::mapfault::Mapping;
 
@@ -146,20 +153,91 @@ impl Verification {
     }
 }
 
-/// The checking thread: resident chunks from the mapping until `finish`, then the rest
+/// Page size the residency of a mapping is asked in.
+const PAGE: usize = 4096;
+
+/// A chunk being checked: its first `hashed` bytes are fed to `state` (`None` until a
+/// part of it has been hashed; a chunk hashed whole at once never needs one).
+struct Progress {
+    chunk: Chunk,
+    hashed: usize,
+    state: Option<Box<Xxh3Default>>,
+}
+
+impl Progress {
+    fn new(chunk: Chunk) -> Progress {
+        Progress { chunk, hashed: 0, state: None }
+    }
+
+    fn len(&self) -> usize {
+        (self.chunk.end - self.chunk.start) as usize
+    }
+
+    /// Hash the next `bytes` (following the prefix already hashed); `Some(outcome)` once
+    /// the chunk is complete.
+    fn feed(&mut self, bytes: &[u8]) -> Option<Outcome> {
+        let len = self.len();
+        let sum = if self.hashed == 0 && bytes.len() == len {
+            xxh3_64(bytes)
+        } else {
+            let state = self.state.get_or_insert_with(|| Box::new(Xxh3Default::new()));
+            state.update(bytes);
+            self.hashed += bytes.len();
+            if self.hashed < len {
+                return None;
+            }
+            state.digest()
+        };
+        Some(if sum == self.chunk.sum { Ok(()) } else { Err(self.chunk.failed()) })
+    }
+
+    /// Phase 1: hash the pages after the prefix that are in memory now, up to the first
+    /// that is not; `Some(outcome)` once the chunk is complete.
+    fn advance(&mut self, map: &Mmap, scratch: &mut Vec<u8>) -> Option<Outcome> {
+        let from = self.chunk.start as usize + self.hashed;
+        let resident = resident_prefix(map, from, self.len() - self.hashed, scratch);
+        if resident == 0 {
+            return None;
+        }
+        self.feed(&map[from..from + resident])
+    }
+
+    /// Phase 2: read the rest of the chunk from the file and finish its sum, then let the
+    /// kernel drop those pages (it does so only for pages nobody has mapped), so the check
+    /// does not evict the render's pages.
+    fn finish_by_reading(&mut self, file: &File, buf: &mut [u8]) -> Outcome {
+        use std::os::fd::AsRawFd;
+        use std::os::unix::fs::FileExt;
+        let from = self.chunk.start + self.hashed as u64;
+        let bytes = &mut buf[..self.len() - self.hashed];
+        file.read_exact_at(bytes, from).map_err(|e| self.chunk.unreadable(&e))?;
+        let outcome = self.feed(bytes).expect("invariant: the rest of the chunk completes it");
+        // SAFETY: posix_fadvise only advises the kernel about this open descriptor's pages.
+        unsafe {
+            libc::posix_fadvise(file.as_raw_fd(), from as libc::off_t, bytes.len() as libc::off_t, libc::POSIX_FADV_DONTNEED);
+        }
+        outcome
+    }
+}
+
+/// The checking thread: what is in memory from the mapping until `finish`, then the rest
 /// from the file. See the module docs.
-fn check(file: &File, map: &Mmap, mut pending: Vec<Chunk>, finish: &AtomicBool) -> Outcome {
+fn check(file: &File, map: &Mmap, chunks: Vec<Chunk>, finish: &AtomicBool) -> Outcome {
+    let mut pending: Vec<Progress> = chunks.into_iter().map(Progress::new).collect();
     let mut residency = Vec::new();
     while !pending.is_empty() && !finish.load(Ordering::Relaxed) {
         let mut failed = None;
-        pending.retain(|c| {
-            if failed.is_some() || !resident(map, c, &mut residency) {
+        pending.retain_mut(|p| {
+            if failed.is_some() {
                 return true;
             }
-            if xxhash_rust::xxh3::xxh3_64(&map[c.start as usize..c.end as usize]) != c.sum {
-                failed = Some(c.failed());
+            match p.advance(map, &mut residency) {
+                None => true,
+                Some(outcome) => {
+                    failed = outcome.err();
+                    false
+                }
             }
-            false
         });
         if let Some(what) = failed {
             return Err(what);
@@ -167,45 +245,30 @@ fn check(file: &File, map: &Mmap, mut pending: Vec<Chunk>, finish: &AtomicBool) 
         std::thread::park_timeout(SWEEP_INTERVAL);
     }
     let mut buf = vec![0u8; CHUNK as usize];
-    pending.iter().try_for_each(|c| check_by_reading(file, c, &mut buf))
+    pending.iter_mut().try_for_each(|p| p.finish_by_reading(file, &mut buf))
 }
 
-/// True when every page of chunk `c` is in memory (`mincore`; false if it cannot tell).
-/// The last page is asked first: a chunk the render has not read through is turned
-/// away with one page lookup instead of 256.
-fn resident(map: &Mmap, c: &Chunk, scratch: &mut Vec<u8>) -> bool {
-    let page = 4096usize;
-    let (start, len) = (c.start as usize, (c.end - c.start) as usize);
-    let last = (len - 1) / page * page;
+/// Bytes from `start` (page-aligned, inside `map`) on, at most `len`, whose pages are all
+/// in memory (`mincore`; 0 if it cannot tell). The first page is asked alone first: a
+/// chunk whose next page the render has not read is turned away with one page lookup.
+fn resident_prefix(map: &Mmap, start: usize, len: usize, scratch: &mut Vec<u8>) -> usize {
+    if len == 0 {
+        return 0;
+    }
     scratch.clear();
-    scratch.resize(len.div_ceil(page), 0);
+    scratch.resize(len.div_ceil(PAGE), 0);
     // SAFETY: the ranges lie inside the mapping (section bounds were checked at open) and
     // start on page boundaries (sections are page-aligned, chunks a multiple of pages);
     // mincore writes one byte per page into `scratch`, which has room for all of them.
-    unsafe {
-        let at = |offset: usize| map.as_ptr().add(start + offset) as *mut libc::c_void;
-        libc::mincore(at(last), len - last, scratch.as_mut_ptr()) == 0
-            && scratch[0] & 1 == 1
-            && libc::mincore(at(0), len, scratch.as_mut_ptr()) == 0
-            && scratch.iter().all(|&b| b & 1 == 1)
+    let asked = unsafe {
+        let at = map.as_ptr().add(start) as *mut libc::c_void;
+        libc::mincore(at, len.min(PAGE), scratch.as_mut_ptr()) == 0 && scratch[0] & 1 == 1 && libc::mincore(at, len, scratch.as_mut_ptr()) == 0
+    };
+    if !asked {
+        return 0;
     }
-}
-
-/// Check chunk `c` by reading the file, then let the kernel drop those pages (it does so
-/// only for pages nobody has mapped), so the check does not evict the render's pages.
-fn check_by_reading(file: &File, c: &Chunk, buf: &mut [u8]) -> Outcome {
-    use std::os::fd::AsRawFd;
-    use std::os::unix::fs::FileExt;
-    let bytes = &mut buf[..(c.end - c.start) as usize];
-    file.read_exact_at(bytes, c.start).map_err(|e| c.unreadable(&e))?;
-    if xxhash_rust::xxh3::xxh3_64(bytes) != c.sum {
-        return Err(c.failed());
-    }
-    // SAFETY: posix_fadvise only advises the kernel about this open descriptor's pages.
-    unsafe {
-        libc::posix_fadvise(file.as_raw_fd(), c.start as libc::off_t, (c.end - c.start) as libc::off_t, libc::POSIX_FADV_DONTNEED);
-    }
-    Ok(())
+    let pages = scratch.iter().take_while(|&&b| b & 1 == 1).count();
+    (pages * PAGE).min(len)
 }
 
 #[cfg(test)]
@@ -236,7 +299,10 @@ mod tests {
         let (path, mut chunks) = chunked_file("phases", 6);
         let file = File::open(&path).unwrap();
         let map = Mapping::map(&file, &path, "test file").unwrap();
-        assert!(chunks.iter().all(|c| resident(&map, c, &mut Vec::new())), "a file just written is resident");
+        assert!(
+            chunks.iter().all(|c| resident_prefix(&map, c.start as usize, CHUNK as usize, &mut Vec::new()) == CHUNK as usize),
+            "a file just written is resident"
+        );
         for finish_at_once in [false, true] {
             let flag = AtomicBool::new(finish_at_once);
             assert_eq!(check(&file, &map, chunks.clone(), &flag), Ok(()));
@@ -253,6 +319,59 @@ mod tests {
         let err = damaged(v.wait());
         assert!(err.contains(&format!("{}..{}", 2 * CHUNK, 3 * CHUNK)), "{err}");
         assert_eq!(damaged(v.wait()), err, "the outcome is kept");
+        let _ = std::fs::remove_file(&path);
+    }
+
+    /// A chunk hashed in pieces, as phase 1 hashes what the render has brought into
+    /// memory, gets the one-shot sum: complete only with its last byte, and a wrong sum
+    /// or a changed byte is reported whatever the pieces.
+    #[test]
+    fn a_chunk_hashed_in_pieces_gets_the_one_shot_sum() {
+        let bytes: Vec<u8> = (0..CHUNK).map(|b| (b as u8).wrapping_mul(29) ^ (b >> 12) as u8).collect();
+        let chunk = Chunk { start: 0, end: CHUNK, sum: xxh3_64(&bytes), kind: "values" };
+        for pieces in [vec![256], vec![1, 255], vec![3, 100, 153], vec![255, 1]] {
+            let mut p = Progress::new(chunk);
+            let mut at = 0;
+            for (i, &pages) in pieces.iter().enumerate() {
+                let outcome = p.feed(&bytes[at..at + pages * PAGE]);
+                at += pages * PAGE;
+                let last = i + 1 == pieces.len();
+                assert_eq!(outcome, last.then_some(Ok(())), "pieces {pieces:?}, after {i}");
+            }
+            let mut changed = bytes.clone();
+            changed[at - 7] ^= 1;
+            let mut q = Progress::new(chunk);
+            let mut at = 0;
+            let mut last = None;
+            for &pages in &pieces {
+                last = q.feed(&changed[at..at + pages * PAGE]);
+                at += pages * PAGE;
+            }
+            assert!(matches!(last, Some(Err(Failure::Damaged(_)))), "{last:?}");
+        }
+    }
+
+    /// Phase 2 reads only what phase 1 left of a chunk: a prefix hashed from memory and
+    /// the rest read from the file make the chunk's sum, and damage in the rest is found.
+    #[test]
+    fn phase_two_reads_the_rest_of_a_partly_hashed_chunk() {
+        let (path, chunks) = chunked_file("rest", 2);
+        let original = std::fs::read(&path).unwrap();
+        let file = File::open(&path).unwrap();
+        let map = Mapping::map(&file, &path, "test file").unwrap();
+        assert_eq!(resident_prefix(&map, 0, CHUNK as usize, &mut Vec::new()), CHUNK as usize, "a file just written is resident");
+        let mut buf = vec![0u8; CHUNK as usize];
+        let mut p = Progress::new(chunks[1]);
+        let from = chunks[1].start as usize;
+        assert_eq!(p.feed(&original[from..from + 100 * PAGE]), None);
+        assert_eq!(p.finish_by_reading(&file, &mut buf), Ok(()));
+        // A byte in the unhashed rest changes on disk
+        let mut p = Progress::new(chunks[1]);
+        assert_eq!(p.feed(&original[from..from + 100 * PAGE]), None);
+        let at = chunks[1].start + 200 * PAGE as u64;
+        std::os::unix::fs::FileExt::write_all_at(&File::options().write(true).open(&path).unwrap(), &[!original[at as usize]], at).unwrap();
+        let err = damaged(p.finish_by_reading(&file, &mut buf));
+        assert!(err.contains(&format!("{}..{}", CHUNK, 2 * CHUNK)), "{err}");
         let _ = std::fs::remove_file(&path);
     }
 

@@ -126,6 +126,15 @@ fn info() -> CacheInfo {
     }
 }
 
+/// [`test_volume`] in memory, and written to a cache (in a directory named after `test`)
+/// and opened from it.
+fn test_cache(test: &str) -> (Volume, Cache) {
+    let volume = test_volume();
+    let path = write_volume(&tmpdir("cache", test).join("v.plume"), &volume, &info(), None).unwrap();
+    let cache = Cache::open(&path).unwrap();
+    (volume, cache)
+}
+
 /// A grid of `n × n` parallel rays along +z through the world-space box `lo..hi` (in x, y).
 fn parallel_grid(lo: DVec3, hi: DVec3, n: usize) -> RayGrid {
     let mut rays = Vec::new();
@@ -144,10 +153,7 @@ fn parallel_grid(lo: DVec3, hi: DVec3, n: usize) -> RayGrid {
 /// blocks through part of it, none for rays that miss it or for a volume in memory.
 #[test]
 fn read_ahead_reports_the_bytes_it_asks_for() {
-    let dir = tmpdir("cache", "read_ahead");
-    let volume = test_volume();
-    let path = write_volume(&dir.join("v.plume"), &volume, &info(), None).unwrap();
-    let cache = Cache::open(&path).unwrap();
+    let (volume, cache) = test_cache("read_ahead");
     let mapped = &cache.volume;
     let all = cache.meta.value_blocks * 512 * 4;
     let b = mapped.world_bounds();
@@ -164,10 +170,7 @@ fn read_ahead_reports_the_bytes_it_asks_for() {
 
 #[test]
 fn a_mapped_volume_gives_the_same_segments_bit_for_bit() {
-    let dir = tmpdir("cache", "segments");
-    let volume = test_volume();
-    let path = write_volume(&dir.join("v.plume"), &volume, &info(), None).unwrap();
-    let cache = Cache::open(&path).unwrap();
+    let (volume, cache) = test_cache("segments");
     cache.check.verified().unwrap();
     let mapped = &cache.volume;
     assert!(mapped.is_mapped() && mapped.heap_bytes() < volume.heap_bytes() / 4);

@@ -105,8 +105,8 @@ pub enum SampleOrder {
     /// therefore also waits while the bytes it asked for, for tiles not yet finished
     /// (being rendered or waiting), exceed [`RenderControl::read_ahead_window`]; a tile
     /// already taken by a worker is always asked for. In a 1.5 GiB cgroup with the flare
-    /// this took an emission–absorption render from 180 k page faults to 16 k
-    /// (docs/BENCHMARKS.md, issue #17).
+    /// this took an emission–absorption render from 40–180 k page faults to 16–17 k, and
+    /// one with scattering from 0.71 M to 0.44 M (docs/BENCHMARKS.md, issue #17).
     TileMajor,
 }
 
@@ -410,8 +410,9 @@ fn progressive_pass<F: Field>(
 
 /// One tile-major pass of `samples` over `film` (see [`SampleOrder::TileMajor`]): the
 /// workers take tiles in raster order from a shared queue while a prefetch thread walks
-/// the camera rays of the next tiles through `scene.field`, within `read_ahead_window`. Returns the tiles' counters
-/// in tile order, or `None` with `film` unchanged when `abandon` said so between tiles.
+/// the camera rays of the next tiles through `scene.field`, within `read_ahead_window`.
+/// Returns the tiles' counters in tile order, or `None` with `film` unchanged when
+/// `abandon` said so between tiles.
 fn tile_major_pass<F: Field>(
     scene: &Scene<F>,
     settings: &RenderSettings,

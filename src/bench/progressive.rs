@@ -118,8 +118,10 @@ pub fn run<F: Field>(scene: &Scene<F>, integrator: &Integrator, plan: &RunPlan, 
     let mut cpu = 0.0;
     // A brick cache larger than the memory available is rendered tile by tile within each
     // pass, as `plume render --sample-order auto` does: camera rays and scattered segments
-    // read ahead. The image is the same in either order.
-    let available = crate::memory::MemoryLimits::read().available().map_or(u64::MAX, |a| a.bytes);
+    // read ahead, within the same read-ahead window. The image is the same in either order.
+    let memory = crate::memory::MemoryLimits::read();
+    let available = memory.available().map_or(u64::MAX, |a| a.bytes);
+    let read_ahead_window = Some(memory.default_budget() / 2);
     let order = if scene.field.is_mapped() && scene.field.data_bytes() as u64 > available { SampleOrder::TileMajor } else { SampleOrder::Progressive };
     loop {
         let next_time = plan.cpu_checkpoints.get(time_points.len()).copied();
@@ -147,7 +149,7 @@ pub fn run<F: Field>(scene: &Scene<F>, integrator: &Integrator, plan: &RunPlan, 
             integrator: *integrator,
         };
         let c0 = cpu_seconds();
-        let r = render_with(scene, &settings, RenderControl { order, ..RenderControl::default() }, &|_, _| {});
+        let r = render_with(scene, &settings, RenderControl { order, read_ahead_window, ..RenderControl::default() }, &|_, _| {});
         let pass_cpu = cpu_seconds() - c0;
         accumulate(&mut sums, &r.film);
         counters.merge(&r.counters);

@@ -113,6 +113,14 @@ pub enum SampleOrder {
 /// Tiles beyond those being rendered whose camera rays are prefetched.
 const PREFETCH_AHEAD: usize = 4;
 
+/// The [`RenderControl::read_ahead_window`] for a memory budget: half of it, i.e. a
+/// quarter of the memory limit when the budget is the default, leaving the rest to the
+/// tiles' scattered rays and to the volume's index.
+#[must_use]
+pub fn read_ahead_window(memory_budget: u64) -> Option<u64> {
+    Some(memory_budget / 2)
+}
+
 /// Wall seconds a pass aims at: the longest wait between a stop request and the image.
 pub const PASS_SECONDS: f64 = 1.0;
 

@@ -19,7 +19,7 @@ use serde::Serialize;
 use super::metrics::Errors;
 use crate::film::Film;
 use crate::integrator::{Counters, Integrator, Scene};
-use crate::render::{render_with, RenderControl, RenderSettings, SampleBudget, SampleOrder};
+use crate::render::{read_ahead_window, render_with, RenderControl, RenderSettings, SampleBudget, SampleOrder};
 use crate::stats::cpu_seconds;
 use crate::volume::Field;
 
@@ -121,7 +121,7 @@ pub fn run<F: Field>(scene: &Scene<F>, integrator: &Integrator, plan: &RunPlan, 
     // read ahead, within the same read-ahead window. The image is the same in either order.
     let memory = crate::memory::MemoryLimits::read();
     let available = memory.available().map_or(u64::MAX, |a| a.bytes);
-    let read_ahead_window = Some(memory.default_budget() / 2);
+    let read_ahead_window = read_ahead_window(memory.default_budget());
     let order = if scene.field.is_mapped() && scene.field.data_bytes() as u64 > available { SampleOrder::TileMajor } else { SampleOrder::Progressive };
     loop {
         let next_time = plan.cpu_checkpoints.get(time_points.len()).copied();

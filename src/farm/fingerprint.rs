@@ -82,8 +82,6 @@ pub fn settings_hash(shot: &Shot, seed: u64) -> String {
     // A brick table draws other voxels than a voxel table from the same numbers; the
     // default adds nothing, so earlier hashes stay valid
     let nee_table = if nee_table.is_voxel() { String::new() } else { format!(" nee-table {nee_table}") };
-    // The split count is always hashed: its default (8) changed every scattering render's
-    // pixels, so parts rendered before it existed must not merge with parts rendered after
     // Of the job's settings only the seed (an argument) and the sampler change pixels
     let JobSettings { render, farm, output, reading } = settings;
     let RenderOptions {
@@ -104,6 +102,8 @@ pub fn settings_hash(shot: &Shot, seed: u64) -> String {
     // AOV layers change what the file holds: parts and resumes must agree on them
     let OutputSettings { image: _, preview: _, exposure: _, stats: _, sums: _, aovs } = output;
     let ReadSettings { max_input_memory: _, read_timeout: _, no_isolation: _ } = reading;
+    // The split count is always hashed: its default (8) changed every scattering render's
+    // pixels, so parts rendered before it existed must not merge with parts rendered after
     let text = format!(
         "plume {}\nseed {seed}\nsampler {sampler}\nfixed point {}\n\
          volume {density_grid:?} {temperature_grid:?} {emission_grid:?} {albedo_grid:?} {interpolation}\n\

@@ -35,7 +35,7 @@ use crate::load::{load_scene, LoadedScene};
 use crate::medium::{EmissionKind, Estimator};
 use crate::memory::{MemoryBound, MemoryLimits};
 use crate::output::{write_exr_image, AovChannels, ExrImage};
-use crate::render::{render_with, RenderControl, RenderResult, RenderSettings, SampleBudget, SampleOrder, StopReason};
+use crate::render::{read_ahead_window, render_with, RenderControl, RenderResult, RenderSettings, SampleBudget, SampleOrder, StopReason};
 use crate::scene::{EmissionSource, SampleOrderChoice};
 use crate::stats::{cpu_seconds, peak_rss_since_reset_bytes, reset_peak_rss, RenderStats};
 use crate::volume::Volume;
@@ -328,9 +328,7 @@ fn run_passes(
         stop: Some(&stop),
         deadline: job_settings.farm.time_limit.map(|t| start + Duration::from_secs_f64(t)),
         order,
-        // A quarter of the memory limit (the budget is half of it), leaving the rest to
-        // the tiles' scattered rays and to the volume's index
-        read_ahead_window: Some(crate::scene::bind::memory_budget(job_settings) / 2),
+        read_ahead_window: read_ahead_window(crate::scene::bind::memory_budget(job_settings)),
         aovs,
     };
     let on_pass = |done, total| {

@@ -343,36 +343,45 @@ pub fn info_command(args: &InfoArgs) -> Result<()> {
 }
 
 /// `plume info X.plume`: the cache's metadata, after checking every checksum.
+///
+/// Everything read from the mapping (the brick counts read the mapped brick records) is
+/// read before anything is printed: a file truncated under `info` ends it with one error
+/// line and nothing on stdout, never with half a report.
 fn cache_info(args: &InfoArgs) -> Result<()> {
+    use std::fmt::Write as _;
     let cache = plume::cache::Cache::open(&args.file)?;
     cache.check.verified()?;
     let v = &cache.volume;
-    if args.json {
+    let (bricks, dense) = (v.brick_count(), v.dense_brick_count());
+    let report = if args.json {
         let json = serde_json::json!({
             "file": args.file,
             "bytes": cache.file_bytes,
             "checksums": "ok",
-            "bricks": v.brick_count(),
-            "dense_bricks": v.dense_brick_count(),
+            "bricks": bricks,
+            "dense_bricks": dense,
             "meta": cache.meta,
         });
-        println!("{json:#}");
+        format!("{json:#}\n")
     } else {
         let m = &cache.meta;
-        println!("{}: plume brick cache, {:.1} MiB, checksums ok", args.file.display(), cache.file_bytes as f64 / 1048576.0);
-        println!("  written by        {}", m.writer);
-        println!("  grids             density {:?}, source {:?}, albedo {:?}", m.density_grid, m.source_grid, m.albedo_grid);
-        println!("  source            {} ({})", m.emission_kind, m.source_key);
-        println!("  bricks            {} ({} dense), table {:?} from brick {:?}", v.brick_count(), v.dense_brick_count(), m.dims, m.brick_lo);
-        println!("  value blocks      {} ({:.1} MiB)", m.value_blocks, (m.value_blocks * 2048) as f64 / 1048576.0);
-        match &m.proxy {
-            Some(p) => println!("  FNEE proxy        {}³ ({})", p.resolution, p.power_key),
-            None => println!("  FNEE proxy        none"),
-        }
-        match &m.input {
-            Some(i) => println!("  converted from    {} ({} bytes)", i.path, i.size),
-            None => println!("  converted from    (generated)"),
-        }
-    }
+        let mut r = String::new();
+        let _ = writeln!(r, "{}: plume brick cache, {:.1} MiB, checksums ok", args.file.display(), cache.file_bytes as f64 / 1048576.0);
+        let _ = writeln!(r, "  written by        {}", m.writer);
+        let _ = writeln!(r, "  grids             density {:?}, source {:?}, albedo {:?}", m.density_grid, m.source_grid, m.albedo_grid);
+        let _ = writeln!(r, "  source            {} ({})", m.emission_kind, m.source_key);
+        let _ = writeln!(r, "  bricks            {bricks} ({dense} dense), table {:?} from brick {:?}", m.dims, m.brick_lo);
+        let _ = writeln!(r, "  value blocks      {} ({:.1} MiB)", m.value_blocks, (m.value_blocks * 2048) as f64 / 1048576.0);
+        let _ = match &m.proxy {
+            Some(p) => writeln!(r, "  FNEE proxy        {}³ ({})", p.resolution, p.power_key),
+            None => writeln!(r, "  FNEE proxy        none"),
+        };
+        let _ = match &m.input {
+            Some(i) => writeln!(r, "  converted from    {} ({} bytes)", i.path, i.size),
+            None => writeln!(r, "  converted from    (generated)"),
+        };
+        r
+    };
+    print!("{report}");
     Ok(())
 }

@@ -164,6 +164,9 @@ pub struct Tile {
     pub aov: Vec<i128>,
     /// AOV channels per pixel (0: none).
     pub aov_channels: usize,
+    /// With half sums (`integrator::aov`, `--denoise`): their first AOV channel and the
+    /// half block (`denoise::half_of`).
+    pub half: Option<(usize, u64)>,
     /// Sample values or sums that did not fit and were clamped to the `i128` range.
     pub saturated: u64,
     /// Non-zero sample values smaller than half a unit (2^−65), stored as 0.
@@ -271,12 +274,29 @@ impl Film {
                     sums: vec![[0; 4]; n],
                     aov: vec![0; n * aov_channels],
                     aov_channels,
+                    half: None,
                     saturated: 0,
                     underflowed: 0,
                 });
             }
         }
         Film { width, height, crop, tiles }
+    }
+
+    /// `Some((at, block))`: record each sample's beauty in the half sums at AOV channel
+    /// `at` too, when it goes to the second half buffer (`denoise::half_of(sample,
+    /// block)`, `--denoise`); `None`: no half sums.
+    ///
+    /// # Panics
+    /// If the half sums (5 channels from `at`) do not fit the AOV channels, or `block` is 0.
+    pub fn set_half(&mut self, half: Option<(usize, u64)>) {
+        assert!(
+            half.is_none_or(|(at, block)| block > 0 && at + crate::integrator::aov::HALF_CHANNELS.len() <= self.aov_channels()),
+            "invariant: half sums within the AOV channels"
+        );
+        for t in &mut self.tiles {
+            t.half = half;
+        }
     }
 
     /// Per-pixel values `sums / spp` ([`pixel_value`]) as `f32` RGBA, row-major over

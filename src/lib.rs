@@ -17,6 +17,7 @@ pub mod cache;
 pub mod camera;
 pub mod color;
 pub mod cpu;
+pub mod denoise;
 pub mod error;
 pub mod farm;
 pub mod film;

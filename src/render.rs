@@ -146,6 +146,9 @@ pub struct RenderControl<'a> {
     /// finished yet (see [`SampleOrder::TileMajor`]); `None`: no bound but the number of
     /// tiles ahead. Never changes a result.
     pub read_ahead_window: Option<u64>,
+    /// With half sums in `aovs` (`--denoise`): the half block ([`crate::denoise::half_of`];
+    /// `None`: [`crate::denoise::half_block`]`(None)`).
+    pub half_block: Option<u64>,
 }
 
 /// The key of one pixel sample: sample `sample` of pixel `(x, y)` of the full image.
@@ -210,7 +213,7 @@ fn render_tile<F: Field>(scene: &Scene<F>, settings: &RenderSettings, samples: s
     if tile.aov_channels == 0 {
         render_tile_with(scene, settings, samples, tile, &mut NoAovs)
     } else {
-        let mut aovs = AovSample::new(tile.aov_channels);
+        let mut aovs = AovSample::new(tile.aov_channels, tile.half.map(|(at, _)| at));
         render_tile_with(scene, settings, samples, tile, &mut aovs)
     }
 }
@@ -225,6 +228,9 @@ fn render_tile_with<F: Field, A: Aovs>(scene: &Scene<F>, settings: &RenderSettin
                 let PixelSample { ray, mut sampler, time } = pixel_sample(scene, settings.sampler, settings.seed, x, y, s);
                 aovs.begin();
                 let l = settings.integrator.li_aovs(scene, &ray, &mut sampler, (time, &mut counters), &mut NoTrace, aovs);
+                if let Some((at, _)) = tile.half.filter(|&(_, block)| crate::denoise::half_of(s, block)) {
+                    aovs.half(at, l);
+                }
                 counters.samples += 1;
                 if l.iter().all(|v| v.is_finite()) && (!A::ON || aovs.values().iter().all(|v| v.is_finite())) {
                     tile.add_sample(index, l);
@@ -278,6 +284,7 @@ pub fn render_with<F: Field>(scene: &Scene<F>, settings: &RenderSettings, contro
     let aov_channels = control.aovs.as_ref().map_or(0, AovLayout::channels);
     let mut film = control.film.unwrap_or_else(|| Film::with_aovs(width, height, crop, aov_channels));
     assert_eq!(film.aov_channels(), aov_channels, "invariant: resumed film has the AOV channels asked for");
+    film.set_half(control.aovs.as_ref().and_then(AovLayout::half_at).map(|at| (at, control.half_block.unwrap_or_else(|| crate::denoise::half_block(None)))));
     assert!(film.crop == crop && film.width == width && film.height == height, "invariant: resumed film matches the crop");
     let mut counters = Counters::default();
     // The first non-finite sample in (row, column, sample) order: each tile reports its

@@ -5,10 +5,9 @@
 
 mod common;
 
-use std::collections::BTreeMap;
 use std::path::Path;
 
-use common::{explosion, grid, grid_emission, mean_stderr, plume, s, tmpdir};
+use common::{bits, channels, explosion, grid, grid_emission, mean_stderr, plume, s, tmpdir};
 use glam::{DAffine3, DMat3, DVec3, IVec3};
 use plume::camera::Camera;
 use plume::integrator::{AovLayout, AovSample, Counters, Integrator, LightSampling, Lights, MisHeuristic, NoTrace, Scene, Tracking};
@@ -16,24 +15,6 @@ use plume::medium::{Convention, Emission, EmissionKind, Estimator, Medium};
 use plume::sampling::Sampler;
 use plume::volume::field::Ray;
 use plume::volume::Volume;
-
-/// Every `f32` channel of an EXR by name.
-fn channels(path: &Path) -> BTreeMap<String, Vec<f32>> {
-    use exr::prelude::*;
-    let image = read().no_deep_data().largest_resolution_level().all_channels().first_valid_layer().all_attributes().from_file(path).unwrap();
-    image
-        .layer_data
-        .channel_data
-        .list
-        .iter()
-        .filter(|c| matches!(c.sample_data, FlatSamples::F32(_)))
-        .map(|c| (c.name.to_string(), c.sample_data.values_as_f32().collect()))
-        .collect()
-}
-
-fn bits(c: &BTreeMap<String, Vec<f32>>) -> BTreeMap<String, Vec<u32>> {
-    c.iter().map(|(k, v)| (k.clone(), v.iter().map(|x| x.to_bits()).collect())).collect()
-}
 
 /// A lit, scattering, emitting explosion with two named light groups and a constant
 /// environment (the default group `environment`).
@@ -148,7 +129,7 @@ fn depth_is_the_expected_distance_to_the_first_collision() {
     let medium = Medium { sigma_t: sigma, albedo: 0.0, g: 0.0, emission: Emission { kind: EmissionKind::None, ..e } };
     let cam = Camera::look_at(DVec3::new(0.0, 0.0, -1.0), DVec3::ZERO, DVec3::Y, 1.0, 1, 1).unwrap();
     let scene = Scene { field: vol, medium, camera: cam, lights: Lights::default(), motion: None, majorants: None };
-    let layout = AovLayout { groups: vec![] };
+    let layout = AovLayout { groups: vec![], halves: false };
     let expected = 1.0 + 1.0 / sigma - depth * (-sigma * depth).exp() / (1.0 - (-sigma * depth).exp());
     let ray = Ray { origin: DVec3::new(0.0, 0.0, -1.0), direction: DVec3::Z };
     for estimator in [Estimator::Line, Estimator::RayMarch, Estimator::Point] {
@@ -156,7 +137,7 @@ fn depth_is_the_expected_distance_to_the_first_collision() {
             Integrator { estimator, light_sampling: LightSampling::None, mis: MisHeuristic::Power, max_depth: 0, tracking: Tracking::Regular, split: 1 };
         let mut ts = Vec::new();
         let mut c = Counters::default();
-        let mut a = AovSample::new(layout.channels());
+        let mut a = AovSample::new(layout.channels(), layout.half_at());
         for i in 0..20_000u64 {
             a.values.fill(0.0);
             integ.li_aovs(&scene, &ray, &mut Sampler::new(3, 0, i), (None, &mut c), &mut NoTrace, &mut a);

@@ -261,6 +261,12 @@ pub struct RenderArgs {
     /// the beauty.
     #[arg(long)]
     pub aovs: bool,
+    /// Denoise the beauty: non-local means on two half buffers of the samples (the
+    /// filter Cycles used before OpenImageDenoise). Writes the AOV layers too, and the
+    /// noisy beauty as the layer `noisy`; parts rendered with it merge into the same
+    /// denoised image.
+    #[arg(long)]
+    pub denoise: bool,
     /// Write the fully resolved scene (FILE and every flag, defaults included) as a
     /// scene file here, and exit without rendering.
     #[arg(long)]
@@ -383,6 +389,7 @@ flags_to_keys! { RENDER_ONLY_FLAGS, apply_render_only, RenderArgs, s, a;
     "sample_range" => "farm.sample_range": s.settings.farm.sample_range => a.sample_range.clone();
     "sums" => "output.sums": s.settings.output.sums => a.sums;
     "aovs" => "output.aovs": s.settings.output.aovs => a.aovs;
+    "denoise" => "output.denoise": s.settings.output.denoise => a.denoise;
     "interpolation" => "volume.interpolation": s.scene.volume.interpolation => a.interpolation;
     "progress" => "render.progress": s.settings.render.progress => a.progress;
 }

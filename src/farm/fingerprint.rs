@@ -99,8 +99,8 @@ pub fn settings_hash(shot: &Shot, seed: u64) -> String {
         progress: _,
     } = render;
     let FarmOptions { frames: _, overwrite: _, time_limit: _, crop: _, tile: _, sample_range: _ } = farm;
-    // AOV layers change what the file holds: parts and resumes must agree on them
-    let OutputSettings { image: _, preview: _, exposure: _, stats: _, sums: _, aovs } = output;
+    // AOV layers and half sums change what the file holds: parts and resumes must agree
+    let OutputSettings { image: _, preview: _, exposure: _, stats: _, sums: _, aovs, denoise } = output;
     let ReadSettings { max_input_memory: _, read_timeout: _, no_isolation: _ } = reading;
     // The split count is always hashed: its default (8) changed every scattering render's
     // pixels, so parts rendered before it existed must not merge with parts rendered after
@@ -111,12 +111,27 @@ pub fn settings_hash(shot: &Shot, seed: u64) -> String {
          medium {density_scale:?} {albedo:?} {g:?}\n\
          camera {from:?} {at:?} {up:?} {fov:?} {width} {height} {up_axis}\n\
          lights {lights}\n\
-         integrator {method} {estimator:?} {light_sampling:?} {mis} {proxy_resolution:?} {max_depth} {kappa:?} {tracking}{nee_table} split {split}{}{motion}",
+         integrator {method} {estimator:?} {light_sampling:?} {mis} {proxy_resolution:?} {max_depth} {kappa:?} {tracking}{nee_table} split {split}{}{}{motion}",
         env!("CARGO_PKG_VERSION"),
         crate::film::FIXED_POINT_BITS,
-        if *aovs { "\naovs" } else { "" }
+        if *aovs { "\naovs" } else { "" },
+        if *denoise { format!("\ndenoise {}", half_block(settings)) } else { String::new() }
     );
     hex(&Sha256::digest(text.as_bytes())[..16])
+}
+
+/// The half block of a frame rendered with `--denoise` ([`crate::denoise::half_block`] of
+/// its planned spp: `--spp`, the default 64, or none with a time budget or sample ranges
+/// without `--spp`). Hashed, so parts and resumes agree on the halves.
+#[must_use]
+pub fn half_block(settings: &JobSettings) -> u64 {
+    let (farm, render) = (&settings.farm, &settings.render);
+    let planned = match (&farm.sample_range, render.spp, render.time) {
+        (Some(_), spp, _) => spp,
+        (None, _, Some(_)) => None,
+        (None, spp, None) => Some(spp.unwrap_or(64)),
+    };
+    crate::denoise::half_block(planned)
 }
 
 fn hex(bytes: &[u8]) -> String {

@@ -28,7 +28,7 @@ use crate::farm::part::{assess, stats_metadata, Completion, Existing, Expected, 
 use crate::farm::progress::Progress;
 use crate::farm::signals;
 use crate::farm::split::format_range;
-use crate::film::{Film, FIXED_POINT_BITS};
+use crate::film::{Crop, Film, FIXED_POINT_BITS};
 use crate::integrator::AovLayout;
 use crate::integrator::LineTrace;
 use crate::load::{load_scene, LoadedScene};
@@ -188,7 +188,7 @@ fn decide(job: &Job<'_>, paths: &FramePaths, hash: &str, index: usize, frame: Op
     }
     let (width, height) = (job.scene().camera.width, job.scene().camera.height);
     let crop = job.pixels();
-    let aov_channels = settings.output.aovs.then(|| AovLayout { groups: job.shot.scene.lights.groups() }.channels());
+    let aov_channels = layout_for(&settings.output, job).map(|l| l.channels());
     let expected = Expected { settings_hash: hash.to_string(), width, height, crop, samples: job.samples.clone(), aov_channels };
     Ok(match assess(&paths.output, &expected) {
         Existing::Missing => Some(None),
@@ -330,6 +330,7 @@ fn run_passes(
         order,
         read_ahead_window: read_ahead_window(crate::scene::bind::memory_budget(job_settings)),
         aovs,
+        half_block: Some(crate::farm::fingerprint::half_block(job_settings)),
     };
     let on_pass = |done, total| {
         if let Some(pb) = &bar {
@@ -455,7 +456,7 @@ fn write_outputs(job: &Job<'_>, paths: &FramePaths, loaded: &LoadedScene, result
     }
     let (width, height) = (record.width, record.height);
     let crop = job.pixels();
-    let pixels = result.film.average(record.spp);
+    let noisy = result.film.average(record.spp);
     let sums = (job.write_sums || status != Completion::Complete).then(|| result.film.sums());
     let mut metadata = stats_metadata(record);
     match crate::scene::file::to_toml(job.shot) {
@@ -465,7 +466,10 @@ fn write_outputs(job: &Job<'_>, paths: &FramePaths, loaded: &LoadedScene, result
     let aov_sums = result.film.aov_sums();
     let layout = aov_layout(job, loaded);
     let names = layout.as_ref().map(AovLayout::channel_names).unwrap_or_default();
-    let layers = layout.as_ref().map(|l| aov_layers(l, &aov_sums, &pixels, record.spp)).unwrap_or_default();
+    let (pixels, layers) = beauty_and_layers(layout.as_ref(), (&result.film.sums(), &aov_sums), noisy, record.spp, crop);
+    if settings.output.denoise && record.spp < 2 {
+        warn(format!("{} spp: denoising needs at least 2; the image is not denoised", record.spp));
+    }
     let aovs = layout.as_ref().map(|_| AovChannels { layers: &layers, sums: sums.is_some().then_some((names.as_slice(), aov_sums.as_slice())) });
     write_exr_image(&paths.output, &ExrImage { width, height, crop, pixels: &pixels, sums: sums.as_deref(), aovs, metadata: &metadata })?;
     if let Some(p) = &paths.preview {
@@ -479,13 +483,42 @@ fn write_outputs(job: &Job<'_>, paths: &FramePaths, loaded: &LoadedScene, result
     Ok(())
 }
 
-/// The AOV layout of this frame (`--aovs`): one layer per light group of its lights.
+/// The AOV layout that `output` asks for (`--aovs`, `--denoise`): one layer per light
+/// group of the job's lights, and the half sums with `--denoise`.
+fn layout_for(output: &crate::scene::OutputSettings, job: &Job<'_>) -> Option<AovLayout> {
+    (output.aovs || output.denoise).then(|| AovLayout { groups: job.shot.scene.lights.groups(), halves: output.denoise })
+}
+
+/// The AOV layout of this frame ([`layout_for`]).
 fn aov_layout(job: &Job<'_>, loaded: &LoadedScene) -> Option<AovLayout> {
-    let layout = job.shot.settings.output.aovs.then(|| AovLayout { groups: job.shot.scene.lights.groups() });
+    let layout = layout_for(&job.shot.settings.output, job);
     if let (Some(l), Some(e)) = (&layout, &loaded.scene.lights().external) {
         debug_assert_eq!(l.groups, e.groups(), "the description's groups are the built lights'");
     }
     layout
+}
+
+/// Named `f32` channels (`emission.R`, …), each row-major over the image.
+pub type Layers = Vec<(String, Vec<f32>)>;
+
+/// The beauty and the AOV layers of an image (`crop`) from its exact sums `(RGBA, AOV
+/// channels)` over `spp` samples and its noisy beauty: with half sums in the layout (and
+/// `spp ≥ 2`) the beauty is denoised ([`crate::denoise::from_sums`]) and the noisy one
+/// becomes the layer `noisy`. Used by `plume render` and `plume merge`, so that a merged
+/// frame is the single render's.
+#[must_use]
+pub fn beauty_and_layers(layout: Option<&AovLayout>, sums: (&[[i128; 4]], &[i128]), noisy: Vec<[f32; 4]>, spp: u64, crop: Crop) -> (Vec<[f32; 4]>, Layers) {
+    let Some(layout) = layout else { return (noisy, Vec::new()) };
+    let mut layers = aov_layers(layout, sums.1, &noisy, spp);
+    match crate::denoise::from_sums(layout, sums.0, sums.1, spp, crop.width() as usize, crop.height() as usize) {
+        Some(denoised) => {
+            for (c, name) in ["R", "G", "B", "A"].iter().enumerate() {
+                layers.push((format!("noisy.{name}"), noisy.iter().map(|p| p[c]).collect()));
+            }
+            (denoised, layers)
+        }
+        None => (noisy, layers),
+    }
 }
 
 /// The AOV layers' pixel values from their exact sums (`aov_sums`, `layout.channels()`
@@ -493,10 +526,10 @@ fn aov_layout(job: &Job<'_>, loaded: &LoadedScene) -> Option<AovLayout> {
 /// channel.
 #[must_use]
 pub fn aov_layers(layout: &AovLayout, aov_sums: &[i128], beauty: &[[f32; 4]], spp: u64) -> Vec<(String, Vec<f32>)> {
-    let n = layout.channels();
+    let (n, n_layers) = (layout.channels(), layout.layer_channels());
     let names = layout.channel_names();
     let mut layers: Vec<(String, Vec<f32>)> =
-        names[..n - 2].iter().chain(std::iter::once(&names[n - 2])).map(|c| (c.clone(), Vec::with_capacity(beauty.len()))).collect();
+        names[..n_layers - 2].iter().chain(std::iter::once(&names[n_layers - 2])).map(|c| (c.clone(), Vec::with_capacity(beauty.len()))).collect();
     for sums in aov_sums.chunks_exact(n) {
         for (layer, v) in layers.iter_mut().zip(layout.pixel(sums, spp, crate::film::pixel_value)) {
             layer.1.push(v);

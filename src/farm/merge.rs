@@ -236,15 +236,14 @@ pub fn merge_command(args: &MergeOptions, command_line: &str) -> Result<()> {
     }
     let parts = args.parts.iter().map(|p| read_part(p)).collect::<Result<Vec<_>>>()?;
     let merged = merge_parts(&parts)?;
-    let pixels = merged.pixels();
     let metadata = merged_metadata(&parts, &merged, &args.output, command_line);
     let full = Crop::full(merged.width, merged.height);
     let spp = merged.samples.end - merged.samples.start;
     let layout = merged.aovs.as_ref().and_then(|(names, _)| AovLayout::from_channel_names(names));
-    let layers = match (&layout, &merged.aovs) {
-        (Some(l), Some((_, sums))) => crate::farm::frame::aov_layers(l, sums, &pixels, spp),
-        _ => Vec::new(),
-    };
+    // Parts rendered with --denoise carry the half sums: the merged frame is denoised as
+    // the single render would be
+    let aov_sums = merged.aovs.as_ref().map_or(&[][..], |(_, sums)| sums.as_slice());
+    let (pixels, layers) = crate::farm::frame::beauty_and_layers(layout.as_ref(), (&merged.sums, aov_sums), merged.pixels(), spp, full);
     let aovs = merged
         .aovs
         .as_ref()

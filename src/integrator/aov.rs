@@ -22,7 +22,12 @@
 //! the camera segment's own number, which changes nothing else), so the depth does not
 //! depend on `--method`.
 //!
-//! Without `--aovs` the integrator is instantiated with [`NoAovs`], whose methods are
+//! With `--denoise` the layout also has the **half sums** (`half.R`, `half.G`, `half.B`,
+//! `half.A`, `half.n`): the beauty and count of the samples that [`crate::denoise::half_of`]
+//! puts in the second half buffer. They are summed like every channel, so sums files and
+//! merges carry them, and the first half is the total minus them; they are not a layer.
+//!
+//! Without `--aovs` or `--denoise` the integrator is instantiated with [`NoAovs`], whose methods are
 //! empty: it compiles to the code it was before AOVs existed.
 
 /// Where a contribution's light came from.
@@ -48,6 +53,9 @@ pub trait Aovs {
     fn begin(&mut self);
     /// The sample's channel values (`AovLayout::channels`).
     fn values(&self) -> &[f64];
+    /// The sample's beauty `l` goes to the second half buffer, whose sums start at channel
+    /// `at` ([`AovLayout::half_at`]).
+    fn half(&mut self, at: usize, l: [f64; 4]);
 }
 
 /// No AOVs: records nothing, costs nothing.
@@ -65,6 +73,8 @@ impl Aovs for NoAovs {
     fn values(&self) -> &[f64] {
         &[]
     }
+    #[inline(always)]
+    fn half(&mut self, _at: usize, _l: [f64; 4]) {}
 }
 
 /// Names of the fixed colour layers.
@@ -73,20 +83,36 @@ pub const FIXED_LAYERS: [&str; 2] = ["emission", "scattered"];
 /// Layers no light group may be named (the fixed ones and the beauty's).
 pub const RESERVED: [&str; 5] = ["emission", "scattered", "alpha", "depth", "sum"];
 
+/// Names of the half sums' channels (`--denoise`), after the layers' channels.
+pub const HALF_CHANNELS: [&str; 5] = ["half.R", "half.G", "half.B", "half.A", "half.n"];
+
 /// The AOV channels of a render: the fixed colour layers, one colour layer per light
-/// group, and depth's two sums.
+/// group, depth's two sums, and with `--denoise` the half sums.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct AovLayout {
     /// Light groups, in the order of their layers.
     pub groups: Vec<String>,
+    /// Whether the half sums follow the layers' channels (`--denoise`).
+    pub halves: bool,
 }
 
 impl AovLayout {
-    /// Number of summed channels per pixel: 3 per colour layer, then depth's `Σ t` and
-    /// `Σ hits`.
+    /// Channels of the layers: 3 per colour layer, then depth's `Σ t` and `Σ hits`.
+    #[must_use]
+    pub fn layer_channels(&self) -> usize {
+        3 * (FIXED_LAYERS.len() + self.groups.len()) + 2
+    }
+
+    /// Number of summed channels per pixel: the layers', then the half sums if any.
     #[must_use]
     pub fn channels(&self) -> usize {
-        3 * (FIXED_LAYERS.len() + self.groups.len()) + 2
+        self.layer_channels() + if self.halves { HALF_CHANNELS.len() } else { 0 }
+    }
+
+    /// The first of the half sums' channels, if the layout has them.
+    #[must_use]
+    pub fn half_at(&self) -> Option<usize> {
+        self.halves.then(|| self.layer_channels())
     }
 
     /// The channels' names, in sum order: `emission.R`, …, `<group>.B`, `depth.Z`,
@@ -101,18 +127,22 @@ impl AovLayout {
         }
         names.push("depth.Z".into());
         names.push("depth.hits".into());
+        if self.halves {
+            names.extend(HALF_CHANNELS.iter().map(|c| (*c).to_string()));
+        }
         names
     }
 
     /// The layout whose [`AovLayout::channel_names`] are `names`, if they are one.
     #[must_use]
     pub fn from_channel_names(names: &[String]) -> Option<AovLayout> {
-        let n = names.len();
+        let halves = names.last().is_some_and(|c| c == HALF_CHANNELS[HALF_CHANNELS.len() - 1]);
+        let n = names.len() - if halves { HALF_CHANNELS.len().min(names.len()) } else { 0 };
         if n < 8 || (n - 2) % 3 != 0 {
             return None;
         }
         let groups: Vec<String> = names[6..n - 2].chunks(3).map(|c| c[0].strip_suffix(".R").unwrap_or("").to_string()).collect();
-        let layout = AovLayout { groups };
+        let layout = AovLayout { groups, halves };
         (layout.channel_names() == names).then_some(layout)
     }
 
@@ -127,9 +157,10 @@ impl AovLayout {
     }
 
     /// Per-pixel layer values from the channel sums of one pixel: colours `Σ / spp`,
-    /// depth `Σ t / Σ hits`. `value(sum, n)` divides a sum by a count.
+    /// depth `Σ t / Σ hits` (the half sums are not a layer). `value(sum, n)` divides a sum
+    /// by a count.
     pub fn pixel(&self, sums: &[i128], spp: u64, value: impl Fn(i128, u64) -> f32) -> Vec<f32> {
-        let n = self.channels();
+        let n = self.layer_channels();
         let mut out: Vec<f32> = sums[..n - 2].iter().map(|&s| value(s, spp)).collect();
         let hits = u64::try_from(sums[n - 1] >> crate::film::FIXED_POINT_BITS).unwrap_or(0);
         out.push(if hits == 0 { 0.0 } else { value(sums[n - 2], hits) });
@@ -142,13 +173,16 @@ impl AovLayout {
 pub struct AovSample {
     /// The channels of [`AovLayout::channels`].
     pub values: Vec<f64>,
+    /// Where depth's two sums are: the last two of the layers' channels.
+    depth_at: usize,
 }
 
 impl AovSample {
-    /// Zeroed values for `channels` channels (`AovLayout::channels`).
+    /// Zeroed values for `channels` channels (`AovLayout::channels`), with the half sums
+    /// from channel `half_at` if any ([`AovLayout::half_at`]).
     #[must_use]
-    pub fn new(channels: usize) -> AovSample {
-        AovSample { values: vec![0.0; channels] }
+    pub fn new(channels: usize, half_at: Option<usize>) -> AovSample {
+        AovSample { values: vec![0.0; channels], depth_at: half_at.unwrap_or(channels) - 2 }
     }
 }
 
@@ -163,9 +197,8 @@ impl Aovs for AovSample {
     }
 
     fn first_collision(&mut self, t: f64) {
-        let n = self.values.len();
-        self.values[n - 2] = t;
-        self.values[n - 1] = 1.0;
+        self.values[self.depth_at] = t;
+        self.values[self.depth_at + 1] = 1.0;
     }
 
     fn begin(&mut self) {
@@ -174,5 +207,10 @@ impl Aovs for AovSample {
 
     fn values(&self) -> &[f64] {
         &self.values
+    }
+
+    fn half(&mut self, at: usize, l: [f64; 4]) {
+        self.values[at..at + 4].copy_from_slice(&l);
+        self.values[at + 4] = 1.0;
     }
 }

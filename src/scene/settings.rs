@@ -120,6 +120,10 @@ pub struct OutputSettings {
     /// group, `alpha`, `depth`.
     #[serde(default)]
     pub aovs: bool,
+    /// Denoise the beauty (`crate::denoise`): records the AOV layers and half sums it
+    /// needs, writes the AOV layers and the noisy beauty as the layer `noisy`.
+    #[serde(default)]
+    pub denoise: bool,
 }
 
 impl OutputSettings {
@@ -131,7 +135,7 @@ impl OutputSettings {
     /// Only the EXR `image`.
     #[must_use]
     pub fn new(image: impl Into<PathBuf>) -> OutputSettings {
-        OutputSettings { image: image.into(), preview: None, exposure: None, stats: None, sums: false, aovs: false }
+        OutputSettings { image: image.into(), preview: None, exposure: None, stats: None, sums: false, aovs: false, denoise: false }
     }
 }
 

@@ -329,6 +329,25 @@ pub fn exr_pixels(p: &Path) -> Vec<[f32; 4]> {
     plume::output::read_exr(p).unwrap().pixels
 }
 
+/// Every `f32` channel of an EXR by name.
+pub fn channels(path: &Path) -> std::collections::BTreeMap<String, Vec<f32>> {
+    use exr::prelude::*;
+    let image = read().no_deep_data().largest_resolution_level().all_channels().first_valid_layer().all_attributes().from_file(path).unwrap();
+    image
+        .layer_data
+        .channel_data
+        .list
+        .iter()
+        .filter(|c| matches!(c.sample_data, FlatSamples::F32(_)))
+        .map(|c| (c.name.to_string(), c.sample_data.values_as_f32().collect()))
+        .collect()
+}
+
+/// The bits of every value of every channel of [`channels`].
+pub fn bits(c: &std::collections::BTreeMap<String, Vec<f32>>) -> std::collections::BTreeMap<String, Vec<u32>> {
+    c.iter().map(|(k, v)| (k.clone(), v.iter().map(|x| x.to_bits()).collect())).collect()
+}
+
 /// The bits of every channel of every pixel (the comparison for "bit-identical").
 pub fn pixel_bits(pixels: &[[f32; 4]]) -> Vec<u32> {
     pixels.iter().flatten().map(|v| v.to_bits()).collect()

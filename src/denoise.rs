@@ -219,10 +219,13 @@ fn filter_strip(guide: Rgba<'_>, var: &[[f32; 3]], target: Rgba<'_>, nlm: &Nlm, 
     let clamp = |i: isize, n: usize| i.clamp(0, n as isize - 1) as usize;
     // Patch distances are needed for rows y0 − f .. y0 + rows + f (clamped to the image)
     let halo = rows + 2 * f;
-    let mut dist = vec![[0f32; 1]; halo * w];
+    let mut dist = vec![0f32; halo * w];
+    // Row sums of `dist` over the patch's 2f + 1 columns
+    let mut hsum = vec![0f32; halo * w];
     let mut acc = vec![[0f64; 4]; rows * w];
     let mut wsum = vec![0f64; rows * w];
     let g = guide.pixels;
+    let inv_patch = 1.0 / (3 * (2 * f + 1) * (2 * f + 1)) as f32;
     for dy in -r..=r {
         for dx in -r..=r {
             // d for every pixel p of the halo rows against q = p + (dx, dy)
@@ -238,16 +241,21 @@ fn filter_strip(guide: Rgba<'_>, var: &[[f32; 3]], target: Rgba<'_>, nlm: &Nlm, 
                         let diff = g[p][c] - g[q][c];
                         d += (diff * diff - (vp[c] + vq[c])) / (1e-10 + k2 * (vp[c] + vq[c]));
                     }
-                    dist[j * w + x] = [d * (1.0 / 3.0)];
+                    dist[j * w + x] = d;
+                }
+                let row = &dist[j * w..(j + 1) * w];
+                for x in 0..w {
+                    hsum[j * w + x] = (-(f as isize)..=f as isize).map(|o| row[clamp(x as isize + o, w)]).sum();
                 }
             }
-            let patch = box_mean(&dist, w, halo, f);
             for j in 0..rows {
-                let y = y0 + j;
-                let qy = clamp(y as isize + dy, h);
+                let qy = clamp((y0 + j) as isize + dy, h);
+                let src = &target.pixels[qy * w..(qy + 1) * w];
                 for x in 0..w {
-                    let wt = f64::from((-patch[(j + f) * w + x][0].max(0.0)).exp());
-                    let q = target.pixels[qy * w + clamp(x as isize + dx, w)];
+                    // The patch mean of d: the halo rows j .. j + 2f around output row j
+                    let patch: f32 = (0..=2 * f).map(|k| hsum[(j + k) * w + x]).sum::<f32>() * inv_patch;
+                    let wt = f64::from((-patch.max(0.0)).exp());
+                    let q = src[clamp(x as isize + dx, w)];
                     let a = &mut acc[j * w + x];
                     for c in 0..4 {
                         a[c] += wt * f64::from(q[c]);

@@ -222,11 +222,11 @@ fn the_example_scene_file_is_complete_and_valid() {
     let written = dir.join("resolved.toml");
     ok(&plume(&["render", s(&example), "--write-scene", s(&written)]));
     let text = std::fs::read_to_string(&written).unwrap();
-    for key in ["density_scale = 4.0", "albedo = 0.8", "g = 0.3", "spp = 32", "method = \"line-fnee\"", "split = 8", "width = 640"] {
+    for key in ["density_scale = 4.0", "albedo = 0.8", "g = 0.3", "spp = 32", "method = \"line-fnee\"", "split = 8", "width = 640", "denoise = true"] {
         assert!(text.contains(key), "{key} in {text}");
     }
     let demo = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/demo.sh")).unwrap();
-    for flag in ["--spp 32", "--width 640", "--height 480", "--density-scale 4", "--albedo 0.8", "--g 0.3"] {
+    for flag in ["--spp 32", "--width 640", "--height 480", "--density-scale 4", "--albedo 0.8", "--g 0.3", "--denoise"] {
         assert!(demo.contains(flag), "the example scene renders what demo.sh renders: {flag}");
     }
 }

@@ -127,24 +127,23 @@ pub fn denoise(a: Rgba<'_>, b: Rgba<'_>, nlm: &Nlm) -> Vec<[f32; 4]> {
 /// The denoised beauty of an image (`crop` pixels, row-major) from its exact sums over
 /// `spp` samples: `sums` (RGBA per pixel) and `aov_sums` (`layout.channels()` per pixel,
 /// with the half sums), with the default [`Nlm`]. `None` when the layout has no half sums
-/// or `spp < 2`.
+/// or no pixel has samples in both halves (fewer samples than one half block, e.g. a
+/// time budget that ended before sample 16).
 ///
 /// The second half's mean is `half / n_b` and the first's `(total − half)/(spp − n_b)`,
 /// both from the exact sums (so a merged frame denoises to the same bits as one render).
-/// A pixel whose samples all fell in one half (a chance of 2^(1−spp)) gets its mean for
-/// both. A dropped non-finite sample counts as a zero in the first half, as it counts as
-/// a zero in the beauty.
+/// A dropped non-finite sample counts as a zero in the first half, as it counts as a zero
+/// in the beauty; a pixel whose second half was all dropped gets its mean for both.
 #[must_use]
 pub fn from_sums(layout: &AovLayout, sums: &[[i128; 4]], aov_sums: &[i128], spp: u64, width: usize, height: usize) -> Option<Vec<[f32; 4]>> {
     let at = layout.half_at()?;
-    if spp < 2 {
-        return None;
-    }
     let n = layout.channels();
     let (mut a, mut b) = (Vec::with_capacity(sums.len()), Vec::with_capacity(sums.len()));
+    let mut both = false;
     for (total, aov) in sums.iter().zip(aov_sums.chunks_exact(n)) {
         let half = &aov[at..at + 5];
         let nb = u64::try_from(half[4] >> FIXED_POINT_BITS).unwrap_or(0).min(spp);
+        both |= nb > 0 && nb < spp;
         if nb == 0 || nb == spp {
             let u: [f32; 4] = std::array::from_fn(|c| pixel_value(total[c], spp));
             a.push(u);
@@ -153,6 +152,9 @@ pub fn from_sums(layout: &AovLayout, sums: &[[i128; 4]], aov_sums: &[i128], spp:
             a.push(std::array::from_fn(|c| pixel_value(total[c] - half[c], spp - nb)));
             b.push(std::array::from_fn(|c| pixel_value(half[c], nb)));
         }
+    }
+    if !both {
+        return None;
     }
     Some(denoise(Rgba { width, height, pixels: &a }, Rgba { width, height, pixels: &b }, &Nlm::default()))
 }

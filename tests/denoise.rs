@@ -97,8 +97,14 @@ fn too_few_samples_leave_the_image_as_it_is_with_a_warning() {
     let (plain, denoised) = (d.join("plain.exr"), d.join("denoised.exr"));
     render(&ex, &plain, &["--spp", "1"]);
     let err = render(&ex, &denoised, &["--spp", "1", "--denoise"]);
-    assert!(err.contains("denoising needs at least 2"), "{err}");
+    assert!(err.contains("denoising needs samples in both half buffers"), "{err}");
     let (p, dn) = (bits(&channels(&plain)), bits(&channels(&denoised)));
     assert_eq!(p["R"], dn["R"]);
     assert!(!dn.contains_key("noisy.R"), "a noisy layer beside an image that was not denoised");
+    // A sample range within the first half block (16 samples without --spp) has no second
+    // half either
+    let part = d.join("part.exr");
+    let err = render(&ex, &part, &["--sample-range", "0..8", "--denoise"]);
+    assert!(err.contains("blocks of 16"), "{err}");
+    assert!(!channels(&part).contains_key("noisy.R"));
 }

@@ -467,8 +467,9 @@ fn write_outputs(job: &Job<'_>, paths: &FramePaths, loaded: &LoadedScene, result
     let layout = aov_layout(job, loaded);
     let names = layout.as_ref().map(AovLayout::channel_names).unwrap_or_default();
     let (pixels, layers) = beauty_and_layers(layout.as_ref(), (&result.film.sums(), &aov_sums), noisy, record.spp, crop);
-    if settings.output.denoise && record.spp < 2 {
-        warn(format!("{} spp: denoising needs at least 2; the image is not denoised", record.spp));
+    if settings.output.denoise && !layers.iter().any(|(name, _)| name == "noisy.R") {
+        let block = crate::farm::fingerprint::half_block(settings);
+        warn(format!("{} spp: denoising needs samples in both half buffers (blocks of {block}: more than {block} spp); the image is not denoised", record.spp));
     }
     let aovs = layout.as_ref().map(|_| AovChannels { layers: &layers, sums: sums.is_some().then_some((names.as_slice(), aov_sums.as_slice())) });
     write_exr_image(&paths.output, &ExrImage { width, height, crop, pixels: &pixels, sums: sums.as_deref(), aovs, metadata: &metadata })?;

@@ -457,7 +457,8 @@ fn write_outputs(job: &Job<'_>, paths: &FramePaths, loaded: &LoadedScene, result
     let (width, height) = (record.width, record.height);
     let crop = job.pixels();
     let noisy = result.film.average(record.spp);
-    let sums = (job.write_sums || status != Completion::Complete).then(|| result.film.sums());
+    let film_sums = result.film.sums();
+    let sums = (job.write_sums || status != Completion::Complete).then_some(film_sums.as_slice());
     let mut metadata = stats_metadata(record);
     match crate::scene::file::to_toml(job.shot) {
         Ok(text) => metadata.push(("plume:scene".into(), text)),
@@ -466,13 +467,13 @@ fn write_outputs(job: &Job<'_>, paths: &FramePaths, loaded: &LoadedScene, result
     let aov_sums = result.film.aov_sums();
     let layout = aov_layout(job, loaded);
     let names = layout.as_ref().map(AovLayout::channel_names).unwrap_or_default();
-    let (pixels, layers) = beauty_and_layers(layout.as_ref(), (&result.film.sums(), &aov_sums), noisy, record.spp, crop);
+    let (pixels, layers) = beauty_and_layers(layout.as_ref(), (&film_sums, &aov_sums), noisy, record.spp, crop);
     if settings.output.denoise && !layers.iter().any(|(name, _)| name == "noisy.R") {
         let block = crate::farm::fingerprint::half_block(settings);
         warn(format!("{} spp: denoising needs samples in both half buffers (blocks of {block}: more than {block} spp); the image is not denoised", record.spp));
     }
     let aovs = layout.as_ref().map(|_| AovChannels { layers: &layers, sums: sums.is_some().then_some((names.as_slice(), aov_sums.as_slice())) });
-    write_exr_image(&paths.output, &ExrImage { width, height, crop, pixels: &pixels, sums: sums.as_deref(), aovs, metadata: &metadata })?;
+    write_exr_image(&paths.output, &ExrImage { width, height, crop, pixels: &pixels, sums, aovs, metadata: &metadata })?;
     if let Some(p) = &paths.preview {
         let exposure = settings.output.exposure.map_or_else(|| crate::output::auto_exposure(&pixels), |ev| 2f32.powf(ev));
         crate::output::write_png(p, crop.width(), crop.height(), &pixels, exposure)?;
@@ -504,8 +505,8 @@ pub type Layers = Vec<(String, Vec<f32>)>;
 
 /// The beauty and the AOV layers of an image (`crop`) from its exact sums `(RGBA, AOV
 /// channels)` over `spp` samples and its noisy beauty: with half sums in the layout (and
-/// `spp ≥ 2`) the beauty is denoised ([`crate::denoise::from_sums`]) and the noisy one
-/// becomes the layer `noisy`. Used by `plume render` and `plume merge`, so that a merged
+/// samples in both halves) the beauty is denoised ([`crate::denoise::from_sums`]) and the
+/// noisy one becomes the layer `noisy`. Used by `plume render` and `plume merge`, so that a merged
 /// frame is the single render's.
 #[must_use]
 pub fn beauty_and_layers(layout: Option<&AovLayout>, sums: (&[[i128; 4]], &[i128]), noisy: Vec<[f32; 4]>, spp: u64, crop: Crop) -> (Vec<[f32; 4]>, Layers) {

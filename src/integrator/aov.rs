@@ -27,8 +27,8 @@
 //! puts in the second half buffer. They are summed like every channel, so sums files and
 //! merges carry them, and the first half is the total minus them; they are not a layer.
 //!
-//! Without `--aovs` or `--denoise` the integrator is instantiated with [`NoAovs`], whose methods are
-//! empty: it compiles to the code it was before AOVs existed.
+//! Without `--aovs` or `--denoise` the integrator is instantiated with [`NoAovs`], whose
+//! methods are empty: it compiles to the code it was before AOVs existed.
 
 /// Where a contribution's light came from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -80,8 +80,9 @@ impl Aovs for NoAovs {
 /// Names of the fixed colour layers.
 pub const FIXED_LAYERS: [&str; 2] = ["emission", "scattered"];
 
-/// Layers no light group may be named (the fixed ones and the beauty's).
-pub const RESERVED: [&str; 5] = ["emission", "scattered", "alpha", "depth", "sum"];
+/// Layers no light group may be named (the fixed ones, the beauty's, and `--denoise`'s
+/// half sums and noisy beauty).
+pub const RESERVED: [&str; 7] = ["emission", "scattered", "alpha", "depth", "sum", "half", "noisy"];
 
 /// Names of the half sums' channels (`--denoise`), after the layers' channels.
 pub const HALF_CHANNELS: [&str; 5] = ["half.R", "half.G", "half.B", "half.A", "half.n"];

@@ -3,10 +3,13 @@
 //! the filter family Cycles used before OpenImageDenoise.
 //!
 //! **Inputs.** For every pixel the means `a` and `b` of two disjoint halves of its samples
-//! (which sample goes to which half: [`half_of`]), so `u = (a + b)/2` is the pixel. Their
+//! (which sample goes to which half: [`half_of`]), so `u = (a + b)/2` is the pixel (for
+//! equal halves; `(n_a a + n_b b)/(n_a + n_b)` in general). Their
 //! difference measures the noise without a model of it: for a channel,
-//! `E[(a − b)²] = σ²_a + σ²_b`, and the variance of one half's mean is estimated as `v = box₅((a − b)²/2)`, the
-//! mean over the 5×5 pixels around (one pair alone is a one-degree-of-freedom estimate).
+//! `E[(a − b)²] = σ²_a + σ²_b`, and the variance of one half's mean is estimated as
+//! `v = box₅((a − b)²/2)`, the mean over the 5×5 pixels around (one pair alone is a
+//! one-degree-of-freedom estimate). Halves of unequal size (an spp that is not a power of
+//! two) split `(a − b)²` in proportion, `σ²_a : σ²_b = n_b : n_a`.
 //!
 //! **Weights.** Pixel `q` of the `(2r+1)²` window around `p` gets
 //!
@@ -32,8 +35,8 @@
 //! **Cross filtering.** Weights computed on half `b` average half `a`, and weights from
 //! `a` average `b`; the output is the mean of the two. A half's own noise never chooses
 //! the weights that average it, which removes the bias of weights correlated with the
-//! values they weigh (the paper's dual-buffer filtering). Alpha is averaged with the same
-//! weights as the colour.
+//! values they weigh (the paper's dual-buffer filtering); unequal halves are combined in
+//! proportion to their samples. Alpha is averaged with the same weights as the colour.
 //!
 //! A noise-free input (`a = b`) has `v = 0`: every pixel whose patch is not identical gets
 //! weight 0 and the image comes back unchanged. The cost is `(2r+1)²` patch distances per
@@ -110,18 +113,23 @@ pub struct Rgba<'a> {
 }
 
 /// The denoised image of the two half buffers `a` and `b` (the same size), as the module
-/// docs describe.
+/// docs describe. `b_share`: per pixel, `n_a / (n_a + n_b)` for halves of `n_a` and `n_b`
+/// samples, the part of `E[(a − b)²]` that is `b`'s variance; `None`: equal halves (½).
 ///
 /// # Panics
-/// If `a` and `b` differ in size or do not hold `width × height` pixels.
+/// If `a`, `b` and `b_share` differ in size or do not hold `width × height` pixels.
 #[must_use]
-pub fn denoise(a: Rgba<'_>, b: Rgba<'_>, nlm: &Nlm) -> Vec<[f32; 4]> {
+pub fn denoise(a: Rgba<'_>, b: Rgba<'_>, b_share: Option<&[f32]>, nlm: &Nlm) -> Vec<[f32; 4]> {
     let (w, h) = (a.width, a.height);
     assert!((b.width, b.height) == (w, h) && a.pixels.len() == w * h && b.pixels.len() == w * h, "invariant: halves of one image");
-    let var = half_variance(a, b);
-    let fa = filter(b, &var, a, nlm);
-    let fb = filter(a, &var, b, nlm);
-    fa.iter().zip(&fb).map(|(x, y)| std::array::from_fn(|c| 0.5 * (x[c] + y[c]))).collect()
+    assert!(b_share.is_none_or(|s| s.len() == w * h), "invariant: a share per pixel");
+    let share = |i: usize| b_share.map_or(0.5, |s| s[i]);
+    let var_b = half_variance(a, b, share);
+    let var_a = half_variance(a, b, |i| 1.0 - share(i));
+    let fa = filter(b, &var_b, a, nlm);
+    let fb = filter(a, &var_a, b, nlm);
+    // Each filtered half weighted by its sample count, as the pixel weighs the halves
+    fa.iter().zip(&fb).enumerate().map(|(i, (x, y))| std::array::from_fn(|c| share(i) * x[c] + (1.0 - share(i)) * y[c])).collect()
 }
 
 /// The denoised beauty of an image (`crop` pixels, row-major) from its exact sums over
@@ -139,11 +147,13 @@ pub fn from_sums(layout: &AovLayout, sums: &[[i128; 4]], aov_sums: &[i128], spp:
     let at = layout.half_at()?;
     let n = layout.channels();
     let (mut a, mut b) = (Vec::with_capacity(sums.len()), Vec::with_capacity(sums.len()));
+    let mut b_share = Vec::with_capacity(sums.len());
     let mut both = false;
     for (total, aov) in sums.iter().zip(aov_sums.chunks_exact(n)) {
         let half = &aov[at..at + 5];
         let nb = u64::try_from(half[4] >> FIXED_POINT_BITS).unwrap_or(0).min(spp);
         both |= nb > 0 && nb < spp;
+        b_share.push(((spp - nb) as f64 / spp as f64) as f32);
         if nb == 0 || nb == spp {
             let u: [f32; 4] = std::array::from_fn(|c| pixel_value(total[c], spp));
             a.push(u);
@@ -156,12 +166,15 @@ pub fn from_sums(layout: &AovLayout, sums: &[[i128; 4]], aov_sums: &[i128], spp:
     if !both {
         return None;
     }
-    Some(denoise(Rgba { width, height, pixels: &a }, Rgba { width, height, pixels: &b }, &Nlm::default()))
+    Some(denoise(Rgba { width, height, pixels: &a }, Rgba { width, height, pixels: &b }, Some(&b_share), &Nlm::default()))
 }
 
-/// Per pixel and colour channel, the variance of one half's mean: `box₅((a − b)²/2)`.
-fn half_variance(a: Rgba<'_>, b: Rgba<'_>) -> Vec<[f32; 3]> {
-    let raw: Vec<[f32; 3]> = a.pixels.iter().zip(b.pixels).map(|(x, y)| std::array::from_fn(|c| 0.5 * (x[c] - y[c]) * (x[c] - y[c]))).collect();
+/// Per pixel and colour channel, the variance of one half's mean: `box₅((a − b)² ·
+/// share)`, where `share(pixel)` is that half's part of the difference's variance (½ for
+/// equal halves; a half of `n` of `N` samples has the part `(N − n)/N`).
+fn half_variance(a: Rgba<'_>, b: Rgba<'_>, share: impl Fn(usize) -> f32) -> Vec<[f32; 3]> {
+    let raw: Vec<[f32; 3]> =
+        a.pixels.iter().zip(b.pixels).enumerate().map(|(i, (x, y))| std::array::from_fn(|c| (x[c] - y[c]) * (x[c] - y[c]) * share(i))).collect();
     box_mean(&raw, a.width, a.height, 2)
 }
 
@@ -322,7 +335,7 @@ mod tests {
         let (a, b) = (half(), half());
         let u: Vec<[f32; 4]> = a.iter().zip(&b).map(|(x, y)| std::array::from_fn(|c| 0.5 * (x[c] + y[c]))).collect();
         let img = |p| Rgba { width: w, height: h, pixels: p };
-        let d = denoise(img(&a), img(&b), &Nlm::default());
+        let d = denoise(img(&a), img(&b), None, &Nlm::default());
         let all = rms(&d, &t, |_| true);
         let noisy = rms(&u, &t, |_| true);
         // The mean of two halves has deviation 0.2/√2 ≈ 0.141; the filter averages many
@@ -343,12 +356,23 @@ mod tests {
         let (w, h) = (40, 24);
         let t = truth(w, h);
         let img = Rgba { width: w, height: h, pixels: &t };
-        let d = denoise(img, img, &Nlm::default());
+        let d = denoise(img, img, None, &Nlm::default());
         for (p, q) in d.iter().zip(&t) {
             for c in 0..4 {
                 assert!((p[c] - q[c]).abs() <= 1e-6 * q[c].abs(), "{p:?} against {q:?}");
             }
         }
+    }
+
+    #[test]
+    fn unequal_halves_are_combined_as_the_pixel_combines_them() {
+        // 32 samples of mean 1 and 16 of mean 2: the pixel is (32 + 32)/48 = 4/3, and
+        // the filter, averaging constants, must give it back (an equal mix gives 3/2)
+        let (w, h) = (24, 16);
+        let (a, b) = (vec![[1.0f32; 4]; w * h], vec![[2.0f32; 4]; w * h]);
+        let share = vec![32.0f32 / 48.0; w * h];
+        let d = denoise(Rgba { width: w, height: h, pixels: &a }, Rgba { width: w, height: h, pixels: &b }, Some(&share), &Nlm::default());
+        assert!(d.iter().all(|p| p.iter().all(|v| (v - 4.0 / 3.0).abs() < 1e-6)), "{:?}", d[0]);
     }
 
     #[test]

@@ -44,7 +44,7 @@
 
 use rayon::prelude::*;
 
-use crate::film::{pixel_value, FIXED_POINT_BITS};
+use crate::film::{count, pixel_value};
 use crate::integrator::AovLayout;
 
 /// The non-local means filter's parameters.
@@ -150,7 +150,7 @@ pub fn from_sums(layout: &AovLayout, sums: &[[i128; 4]], aov_sums: &[i128], spp:
     let mut both = false;
     for (total, aov) in sums.iter().zip(aov_sums.chunks_exact(n)) {
         let half = &aov[at..at + 5];
-        let nb = u64::try_from(half[4] >> FIXED_POINT_BITS).unwrap_or(0).min(spp);
+        let nb = count(half[4]).min(spp);
         both |= nb > 0 && nb < spp;
         b_share.push(((spp - nb) as f64 / spp as f64) as f32);
         if nb == 0 || nb == spp {
@@ -177,31 +177,36 @@ fn half_variance(a: Rgba<'_>, b: Rgba<'_>, share: impl Fn(usize) -> f32) -> Vec<
     box_mean(&raw, a.width, a.height, 2)
 }
 
+/// `i` clamped to `0..n` (image edges repeat their last row or column).
+#[inline]
+fn clamp_index(i: isize, n: usize) -> usize {
+    i.clamp(0, n as isize - 1) as usize
+}
+
 /// The mean of each pixel's `(2f+1)²` neighbourhood, rows and columns clamped at the
-/// edges (separable running sums).
-fn box_mean<const N: usize>(img: &[[f32; N]], w: usize, h: usize, f: usize) -> Vec<[f32; N]> {
-    let clamp = |i: isize, n: usize| i.clamp(0, n as isize - 1) as usize;
+/// edges (a row pass, then a column pass).
+fn box_mean(img: &[[f32; 3]], w: usize, h: usize, f: usize) -> Vec<[f32; 3]> {
     let n = (2 * f + 1) as f32;
-    let mut rows = vec![[0f32; N]; w * h];
+    let mut rows = vec![[0f32; 3]; w * h];
     for y in 0..h {
         for x in 0..w {
-            let mut s = [0f32; N];
+            let mut s = [0f32; 3];
             for dx in -(f as isize)..=f as isize {
-                let p = img[y * w + clamp(x as isize + dx, w)];
-                for c in 0..N {
+                let p = img[y * w + clamp_index(x as isize + dx, w)];
+                for c in 0..3 {
                     s[c] += p[c];
                 }
             }
             rows[y * w + x] = s;
         }
     }
-    let mut out = vec![[0f32; N]; w * h];
+    let mut out = vec![[0f32; 3]; w * h];
     for y in 0..h {
         for x in 0..w {
-            let mut s = [0f32; N];
+            let mut s = [0f32; 3];
             for dy in -(f as isize)..=f as isize {
-                let p = rows[clamp(y as isize + dy, h) * w + x];
-                for c in 0..N {
+                let p = rows[clamp_index(y as isize + dy, h) * w + x];
+                for c in 0..3 {
                     s[c] += p[c];
                 }
             }
@@ -230,7 +235,6 @@ fn filter_strip(guide: Rgba<'_>, var: &[[f32; 3]], target: Rgba<'_>, nlm: &Nlm, 
     let rows = out.len() / w;
     let (r, f) = (nlm.radius as isize, nlm.patch as usize);
     let k2 = nlm.k * nlm.k;
-    let clamp = |i: isize, n: usize| i.clamp(0, n as isize - 1) as usize;
     // Patch distances are needed for rows y0 − f .. y0 + rows + f (clamped to the image)
     let halo = rows + 2 * f;
     let mut dist = vec![0f32; halo * w];
@@ -244,11 +248,11 @@ fn filter_strip(guide: Rgba<'_>, var: &[[f32; 3]], target: Rgba<'_>, nlm: &Nlm, 
         for dx in -r..=r {
             // d for every pixel p of the halo rows against q = p + (dx, dy)
             for j in 0..halo {
-                let y = clamp(y0 as isize - f as isize + j as isize, h);
-                let qy = clamp(y as isize + dy, h);
+                let y = clamp_index(y0 as isize - f as isize + j as isize, h);
+                let qy = clamp_index(y as isize + dy, h);
                 for x in 0..w {
                     let p = y * w + x;
-                    let q = qy * w + clamp(x as isize + dx, w);
+                    let q = qy * w + clamp_index(x as isize + dx, w);
                     let (vp, vq) = (var[p], var[q]);
                     let mut d = 0f32;
                     for c in 0..3 {
@@ -259,17 +263,17 @@ fn filter_strip(guide: Rgba<'_>, var: &[[f32; 3]], target: Rgba<'_>, nlm: &Nlm, 
                 }
                 let row = &dist[j * w..(j + 1) * w];
                 for x in 0..w {
-                    hsum[j * w + x] = (-(f as isize)..=f as isize).map(|o| row[clamp(x as isize + o, w)]).sum();
+                    hsum[j * w + x] = (-(f as isize)..=f as isize).map(|o| row[clamp_index(x as isize + o, w)]).sum();
                 }
             }
             for j in 0..rows {
-                let qy = clamp((y0 + j) as isize + dy, h);
+                let qy = clamp_index((y0 + j) as isize + dy, h);
                 let src = &target.pixels[qy * w..(qy + 1) * w];
                 for x in 0..w {
                     // The patch mean of d: the halo rows j .. j + 2f around output row j
                     let patch: f32 = (0..=2 * f).map(|k| hsum[(j + k) * w + x]).sum::<f32>() * inv_patch;
                     let wt = f64::from((-patch.max(0.0)).exp());
-                    let q = src[clamp(x as isize + dx, w)];
+                    let q = src[clamp_index(x as isize + dx, w)];
                     let a = &mut acc[j * w + x];
                     for c in 0..4 {
                         a[c] += wt * f64::from(q[c]);

@@ -56,6 +56,14 @@ pub fn pixel_value(sum: i128, spp: u64) -> f32 {
     ((sum as f64 * INV_SCALE) / spp as f64) as f32
 }
 
+/// The count in a sum of samples that each added 1 (an AOV's `depth.hits`, `half.n`):
+/// `sum · 2^−F`, exact (0 for a sum outside the `u64` range).
+#[must_use]
+#[inline]
+pub fn count(sum: i128) -> u64 {
+    u64::try_from(sum >> FIXED_POINT_BITS).unwrap_or(0)
+}
+
 /// A pixel rectangle `[x0, x1) × [y0, y1)` of the full image (a crop or a film tile).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct Crop {

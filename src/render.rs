@@ -228,7 +228,7 @@ fn render_tile_with<F: Field, A: Aovs>(scene: &Scene<F>, settings: &RenderSettin
                 let PixelSample { ray, mut sampler, time } = pixel_sample(scene, settings.sampler, settings.seed, x, y, s);
                 aovs.begin();
                 let l = settings.integrator.li_aovs(scene, &ray, &mut sampler, (time, &mut counters), &mut NoTrace, aovs);
-                if let Some((at, _)) = tile.half.filter(|&(_, block)| crate::denoise::half_of(s, block)) {
+                if let Some((at, _)) = tile.half.filter(|&(_, block)| A::ON && crate::denoise::half_of(s, block)) {
                     aovs.half(at, l);
                 }
                 counters.samples += 1;

@@ -467,8 +467,8 @@ fn write_outputs(job: &Job<'_>, paths: &FramePaths, loaded: &LoadedScene, result
     let aov_sums = result.film.aov_sums();
     let layout = aov_layout(job, loaded);
     let names = layout.as_ref().map(AovLayout::channel_names).unwrap_or_default();
-    let (pixels, layers) = beauty_and_layers(layout.as_ref(), (&film_sums, &aov_sums), noisy, record.spp, crop);
-    if settings.output.denoise && !layers.iter().any(|(name, _)| name == "noisy.R") {
+    let Written { pixels, layers, denoised } = beauty_and_layers(layout.as_ref(), (&film_sums, &aov_sums), noisy, record.spp, crop);
+    if settings.output.denoise && !denoised {
         let block = crate::farm::fingerprint::half_block(settings);
         warn(format!("{} spp: denoising needs samples in both half buffers (blocks of {block}: more than {block} spp); the image is not denoised", record.spp));
     }
@@ -503,23 +503,34 @@ fn aov_layout(job: &Job<'_>, loaded: &LoadedScene) -> Option<AovLayout> {
 /// Named `f32` channels (`emission.R`, …), each row-major over the image.
 pub type Layers = Vec<(String, Vec<f32>)>;
 
+/// What is written of an image: its beauty and its AOV layers.
+#[derive(Debug)]
+pub struct Written {
+    /// The beauty, row-major over the image.
+    pub pixels: Vec<[f32; 4]>,
+    /// The AOV layers (with `noisy` when denoised).
+    pub layers: Layers,
+    /// Whether the beauty was denoised.
+    pub denoised: bool,
+}
+
 /// The beauty and the AOV layers of an image (`crop`) from its exact sums `(RGBA, AOV
 /// channels)` over `spp` samples and its noisy beauty: with half sums in the layout (and
 /// samples in both halves) the beauty is denoised ([`crate::denoise::from_sums`]) and the
-/// noisy one becomes the layer `noisy`. Used by `plume render` and `plume merge`, so that a merged
-/// frame is the single render's.
+/// noisy one becomes the layer `noisy`. Used by `plume render` and `plume merge`, so that
+/// a merged frame is the single render's.
 #[must_use]
-pub fn beauty_and_layers(layout: Option<&AovLayout>, sums: (&[[i128; 4]], &[i128]), noisy: Vec<[f32; 4]>, spp: u64, crop: Crop) -> (Vec<[f32; 4]>, Layers) {
-    let Some(layout) = layout else { return (noisy, Vec::new()) };
+pub fn beauty_and_layers(layout: Option<&AovLayout>, sums: (&[[i128; 4]], &[i128]), noisy: Vec<[f32; 4]>, spp: u64, crop: Crop) -> Written {
+    let Some(layout) = layout else { return Written { pixels: noisy, layers: Vec::new(), denoised: false } };
     let mut layers = aov_layers(layout, sums.1, &noisy, spp);
     match crate::denoise::from_sums(layout, sums.0, sums.1, spp, crop.width() as usize, crop.height() as usize) {
         Some(denoised) => {
             for (c, name) in ["R", "G", "B", "A"].iter().enumerate() {
                 layers.push((format!("noisy.{name}"), noisy.iter().map(|p| p[c]).collect()));
             }
-            (denoised, layers)
+            Written { pixels: denoised, layers, denoised: true }
         }
-        None => (noisy, layers),
+        None => Written { pixels: noisy, layers, denoised: false },
     }
 }
 

@@ -243,7 +243,8 @@ pub fn merge_command(args: &MergeOptions, command_line: &str) -> Result<()> {
     // Parts rendered with --denoise carry the half sums: the merged frame is denoised as
     // the single render would be
     let aov_sums = merged.aovs.as_ref().map_or(&[][..], |(_, sums)| sums.as_slice());
-    let (pixels, layers) = crate::farm::frame::beauty_and_layers(layout.as_ref(), (&merged.sums, aov_sums), merged.pixels(), spp, full);
+    let crate::farm::frame::Written { pixels, layers, .. } =
+        crate::farm::frame::beauty_and_layers(layout.as_ref(), (&merged.sums, aov_sums), merged.pixels(), spp, full);
     let aovs = merged
         .aovs
         .as_ref()

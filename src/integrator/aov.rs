@@ -163,7 +163,7 @@ impl AovLayout {
     pub fn pixel(&self, sums: &[i128], spp: u64, value: impl Fn(i128, u64) -> f32) -> Vec<f32> {
         let n = self.layer_channels();
         let mut out: Vec<f32> = sums[..n - 2].iter().map(|&s| value(s, spp)).collect();
-        let hits = u64::try_from(sums[n - 1] >> crate::film::FIXED_POINT_BITS).unwrap_or(0);
+        let hits = crate::film::count(sums[n - 1]);
         out.push(if hits == 0 { 0.0 } else { value(sums[n - 2], hits) });
         out
     }

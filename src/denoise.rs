@@ -141,15 +141,32 @@ pub fn denoise(a: Rgba<'_>, b: Rgba<'_>, b_share: Option<&[f32]>, nlm: &Nlm) -> 
 /// both from the exact sums (so a merged frame denoises to the same bits as one render).
 /// A dropped non-finite sample counts as a zero in the first half, as it counts as a zero
 /// in the beauty; a pixel whose second half was all dropped gets its mean for both.
+///
+/// With [`Filtered::LessEmission`] (the layout's `half.rest` sums) the camera segment's
+/// emission (the `emission` layer) is taken out of both halves, the rest filtered, and
+/// the emission added back as rendered: the ray-march estimator makes it exact along
+/// each ray, so it has no noise to remove and keeps the fire's texture, which the
+/// filter would soften.
 #[must_use]
-pub fn from_sums(layout: &AovLayout, sums: &[[i128; 4]], aov_sums: &[i128], spp: u64, width: usize, height: usize) -> Option<Vec<[f32; 4]>> {
+pub fn from_sums(layout: &AovLayout, sums: &[[i128; 4]], aov_sums: &[i128], spp: u64, size: (usize, usize)) -> Option<Vec<[f32; 4]>> {
     let at = layout.half_at()?;
+    let rest = layout.halves == Some(Filtered::LessEmission);
     let n = layout.channels();
     let (mut a, mut b) = (Vec::with_capacity(sums.len()), Vec::with_capacity(sums.len()));
     let mut b_share = Vec::with_capacity(sums.len());
+    let mut kept = Vec::with_capacity(if rest { sums.len() } else { 0 });
     let mut both = false;
     for (total, aov) in sums.iter().zip(aov_sums.chunks_exact(n)) {
         let half = &aov[at..at + 5];
+        // The filtered part's total: the beauty, less the emission layer's sums (its
+        // channels come first) when those are kept out
+        let mut total = *total;
+        if rest {
+            for c in 0..3 {
+                total[c] -= aov[c];
+            }
+            kept.push(std::array::from_fn::<f32, 3, _>(|c| pixel_value(aov[c], spp)));
+        }
         let nb = count(half[4]).min(spp);
         both |= nb > 0 && nb < spp;
         b_share.push(((spp - nb) as f64 / spp as f64) as f32);
@@ -165,7 +182,37 @@ pub fn from_sums(layout: &AovLayout, sums: &[[i128; 4]], aov_sums: &[i128], spp:
     if !both {
         return None;
     }
-    Some(denoise(Rgba { width, height, pixels: &a }, Rgba { width, height, pixels: &b }, Some(&b_share), &Nlm::default()))
+    let (width, height) = size;
+    let mut out = denoise(Rgba { width, height, pixels: &a }, Rgba { width, height, pixels: &b }, Some(&b_share), &Nlm::default());
+    for (p, e) in out.iter_mut().zip(&kept) {
+        for c in 0..3 {
+            p[c] += e[c];
+        }
+    }
+    Some(out)
+}
+
+/// What [`from_sums`] filters.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Filtered {
+    /// The whole beauty.
+    Beauty,
+    /// The beauty less the camera segment's emission, which is added back unfiltered
+    /// (a ray-march camera segment: `--camera-estimator ray-march`).
+    LessEmission,
+}
+
+impl Filtered {
+    /// What to filter for a camera segment tracked with `estimator`: only the
+    /// expected-value estimator's emission is exact along each ray.
+    #[must_use]
+    pub fn for_camera(estimator: crate::medium::Estimator) -> Filtered {
+        if estimator == crate::medium::Estimator::RayMarch {
+            Filtered::LessEmission
+        } else {
+            Filtered::Beauty
+        }
+    }
 }
 
 /// Per pixel and colour channel, the variance of one half's mean: `box₅((a − b)² ·

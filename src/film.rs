@@ -172,13 +172,24 @@ pub struct Tile {
     pub aov: Vec<i128>,
     /// AOV channels per pixel (0: none).
     pub aov_channels: usize,
-    /// With half sums (`integrator::aov`, `--denoise`): their first AOV channel and the
-    /// half block (`denoise::half_of`).
-    pub half: Option<(usize, u64)>,
+    /// With half sums (`integrator::aov`, `--denoise`): their first AOV channel, the
+    /// half block (`denoise::half_of`) and what they hold.
+    pub half: Option<HalfSums>,
     /// Sample values or sums that did not fit and were clamped to the `i128` range.
     pub saturated: u64,
     /// Non-zero sample values smaller than half a unit (2^−65), stored as 0.
     pub underflowed: u64,
+}
+
+/// Where and what a tile records of the second half buffer (`--denoise`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct HalfSums {
+    /// The first of the half sums' AOV channels ([`crate::integrator::AovLayout::half_at`]).
+    pub at: usize,
+    /// The half block ([`crate::denoise::half_of`]).
+    pub block: u64,
+    /// What the colour half sums hold.
+    pub filtered: crate::denoise::Filtered,
 }
 
 impl Tile {
@@ -291,15 +302,15 @@ impl Film {
         Film { width, height, crop, tiles }
     }
 
-    /// `Some((at, block))`: record each sample's beauty in the half sums at AOV channel
-    /// `at` too, when it goes to the second half buffer (`denoise::half_of(sample,
-    /// block)`, `--denoise`); `None`: no half sums.
+    /// `Some(half)`: record each sample's beauty (or what `half.filtered` says) in the
+    /// half sums at AOV channel `half.at` too, when it goes to the second half buffer
+    /// (`denoise::half_of(sample, half.block)`, `--denoise`); `None`: no half sums.
     ///
     /// # Panics
     /// If the half sums (5 channels from `at`) do not fit the AOV channels, or `block` is 0.
-    pub fn set_half(&mut self, half: Option<(usize, u64)>) {
+    pub fn set_half(&mut self, half: Option<HalfSums>) {
         assert!(
-            half.is_none_or(|(at, block)| block > 0 && at + crate::integrator::aov::HALF_CHANNELS.len() <= self.aov_channels()),
+            half.is_none_or(|h| h.block > 0 && h.at + crate::integrator::aov::HALF_CHANNELS.len() <= self.aov_channels()),
             "invariant: half sums within the AOV channels"
         );
         for t in &mut self.tiles {

@@ -21,7 +21,7 @@ use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
-use crate::film::{Crop, Film, Tile};
+use crate::film::{Crop, Film, HalfSums, Tile};
 use crate::integrator::{AovLayout, AovSample, Aovs, Counters, Integrator, NoAovs, NoTrace, Scene};
 use crate::sampling::{Dim, Sampler, SamplerKind};
 use crate::volume::field::{Field, RayGrid};
@@ -213,7 +213,7 @@ fn render_tile<F: Field>(scene: &Scene<F>, settings: &RenderSettings, samples: s
     if tile.aov_channels == 0 {
         render_tile_with(scene, settings, samples, tile, &mut NoAovs)
     } else {
-        let mut aovs = AovSample::new(tile.aov_channels, tile.half.map(|(at, _)| at));
+        let mut aovs = AovSample::new(tile.aov_channels, tile.half.map(|h| (h.at, h.filtered)));
         render_tile_with(scene, settings, samples, tile, &mut aovs)
     }
 }
@@ -228,8 +228,8 @@ fn render_tile_with<F: Field, A: Aovs>(scene: &Scene<F>, settings: &RenderSettin
                 let PixelSample { ray, mut sampler, time } = pixel_sample(scene, settings.sampler, settings.seed, x, y, s);
                 aovs.begin();
                 let l = settings.integrator.li_aovs(scene, &ray, &mut sampler, (time, &mut counters), &mut NoTrace, aovs);
-                if let Some((at, _)) = tile.half.filter(|&(_, block)| A::ON && crate::denoise::half_of(s, block)) {
-                    aovs.half(at, l);
+                if let Some(h) = tile.half.filter(|h| A::ON && crate::denoise::half_of(s, h.block)) {
+                    aovs.half(h.at, l);
                 }
                 counters.samples += 1;
                 if l.iter().all(|v| v.is_finite()) && (!A::ON || aovs.values().iter().all(|v| v.is_finite())) {
@@ -284,7 +284,8 @@ pub fn render_with<F: Field>(scene: &Scene<F>, settings: &RenderSettings, contro
     let aov_channels = control.aovs.as_ref().map_or(0, AovLayout::channels);
     let mut film = control.film.unwrap_or_else(|| Film::with_aovs(width, height, crop, aov_channels));
     assert_eq!(film.aov_channels(), aov_channels, "invariant: resumed film has the AOV channels asked for");
-    film.set_half(control.aovs.as_ref().and_then(AovLayout::half_at).map(|at| (at, control.half_block.unwrap_or_else(|| crate::denoise::half_block(None)))));
+    let block = control.half_block.unwrap_or_else(|| crate::denoise::half_block(None));
+    film.set_half(control.aovs.as_ref().and_then(|l| Some(HalfSums { at: l.half_at()?, block, filtered: l.halves? })));
     assert!(film.crop == crop && film.width == width && film.height == height, "invariant: resumed film matches the crop");
     let mut counters = Counters::default();
     // The first non-finite sample in (row, column, sample) order: each tile reports its

@@ -129,15 +129,22 @@ fn depth_is_the_expected_distance_to_the_first_collision() {
     let medium = Medium { sigma_t: sigma, albedo: 0.0, g: 0.0, emission: Emission { kind: EmissionKind::None, ..e } };
     let cam = Camera::look_at(DVec3::new(0.0, 0.0, -1.0), DVec3::ZERO, DVec3::Y, 1.0, 1, 1).unwrap();
     let scene = Scene { field: vol, medium, camera: cam, lights: Lights::default(), motion: None, majorants: None };
-    let layout = AovLayout { groups: vec![], halves: false };
+    let layout = AovLayout { groups: vec![], halves: None };
     let expected = 1.0 + 1.0 / sigma - depth * (-sigma * depth).exp() / (1.0 - (-sigma * depth).exp());
     let ray = Ray { origin: DVec3::new(0.0, 0.0, -1.0), direction: DVec3::Z };
     for estimator in [Estimator::Line, Estimator::RayMarch, Estimator::Point] {
-        let integ =
-            Integrator { estimator, light_sampling: LightSampling::None, mis: MisHeuristic::Power, max_depth: 0, tracking: Tracking::Regular, split: 1 };
+        let integ = Integrator {
+            estimator,
+            camera_estimator: None,
+            light_sampling: LightSampling::None,
+            mis: MisHeuristic::Power,
+            max_depth: 0,
+            tracking: Tracking::Regular,
+            split: 1,
+        };
         let mut ts = Vec::new();
         let mut c = Counters::default();
-        let mut a = AovSample::new(layout.channels(), layout.half_at());
+        let mut a = AovSample::new(layout.channels(), layout.half_at().zip(layout.halves));
         for i in 0..20_000u64 {
             a.values.fill(0.0);
             integ.li_aovs(&scene, &ray, &mut Sampler::new(3, 0, i), (None, &mut c), &mut NoTrace, &mut a);

@@ -69,25 +69,50 @@ fn the_denoised_beauty_is_closer_to_the_converged_image_and_the_noisy_one_is_the
 fn denoised_frames_are_bit_identical_across_threads_and_merged_sample_ranges() {
     let d = tmpdir("denoise", "split");
     let ex = explosion(&d, 32, None);
-    let whole = d.join("whole.exr");
-    render(&ex, &whole, &["--spp", "32", "--denoise", "--threads", "2"]);
-    let one = d.join("one.exr");
-    render(&ex, &one, &["--spp", "32", "--denoise", "--threads", "1"]);
-    let want = bits(&channels(&whole));
-    assert_eq!(want, bits(&channels(&one)), "thread count changed the denoised frame");
-    // Two sample ranges (the half blocks: 0–15 and 16–31, as for --spp 32), merged
-    let mut parts = Vec::new();
-    for range in ["0..16", "16..32"] {
-        let p = d.join(format!("part_{}.exr", &range[..1]));
-        render(&ex, &p, &["--sample-range", range, "--denoise"]);
-        parts.push(p);
+    // The whole beauty filtered, and the beauty less a ray-marched camera emission
+    for (name, camera) in [("beauty", &[][..]), ("rest", &["--camera-estimator", "ray-march"][..])] {
+        let with = |extra: &[&'static str]| [extra, camera].concat();
+        let whole = d.join(format!("{name}_whole.exr"));
+        render(&ex, &whole, &with(&["--spp", "32", "--denoise", "--threads", "2"]));
+        let one = d.join(format!("{name}_one.exr"));
+        render(&ex, &one, &with(&["--spp", "32", "--denoise", "--threads", "1"]));
+        let want = bits(&channels(&whole));
+        assert_eq!(want, bits(&channels(&one)), "{name}: thread count changed the denoised frame");
+        // Two sample ranges (the half blocks: 0–15 and 16–31, as for --spp 32), merged
+        let mut parts = Vec::new();
+        for range in ["0..16", "16..32"] {
+            let p = d.join(format!("{name}_part_{}.exr", &range[..1]));
+            render(&ex, &p, &with(&["--sample-range", range, "--denoise"]));
+            parts.push(p);
+        }
+        let merged = d.join(format!("{name}_merged.exr"));
+        let o = plume(&["merge", "-o", s(&merged), "-q", s(&parts[0]), s(&parts[1])]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        assert_eq!(want, bits(&channels(&merged)), "{name}: merged parts differ from one denoised render");
+        // The denoised frame is not the noisy one (the test would pass without a filter)
+        assert_ne!(want["R"], want["noisy.R"], "{name}");
     }
-    let merged = d.join("merged.exr");
-    let o = plume(&["merge", "-o", s(&merged), "-q", s(&parts[0]), s(&parts[1])]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    assert_eq!(want, bits(&channels(&merged)), "merged parts differ from one denoised render");
-    // The denoised frame is not the noisy one (the test would pass without a filter)
-    assert_ne!(want["R"], want["noisy.R"]);
+}
+
+#[test]
+fn a_ray_marched_camera_emission_is_kept_out_of_the_filter() {
+    // Emission–absorption with a ray-marched camera segment: the beauty is the camera
+    // emission, exact along each ray, and only its pixel-footprint noise differs between
+    // the halves. It is left as rendered, so the denoised colour is the noisy colour bit
+    // for bit (the filtered rest is 0), while alpha is still filtered. Filtering the whole
+    // beauty (the line estimator's camera emission) changes the colour.
+    let d = tmpdir("denoise", "kept");
+    let ex = explosion(&d, 16, None);
+    let ea = ["--spp", "32", "--max-depth", "0", "--denoise"];
+    let (marched, line) = (d.join("marched.exr"), d.join("line.exr"));
+    render(&ex, &marched, &[&ea[..], &["--camera-estimator", "ray-march"]].concat());
+    render(&ex, &line, &ea);
+    let (m, l) = (bits(&channels(&marched)), bits(&channels(&line)));
+    for ch in ["R", "G", "B"] {
+        assert_eq!(m[ch], m[&format!("noisy.{ch}")], "{ch}: the kept emission was filtered");
+        assert_ne!(l[ch], l[&format!("noisy.{ch}")], "{ch}: the line estimator's emission was not filtered");
+    }
+    assert_ne!(m["A"], m["noisy.A"], "alpha was not filtered");
 }
 
 #[test]

@@ -256,7 +256,8 @@ fn linear_scattering_renders_are_bit_identical_for_any_thread_count() {
         let scene = AnyScene::new(Scene { field: vol, medium, camera, lights, motion: None, majorants: None }, Interpolation::Linear);
         assert_eq!(scene.interpolation(), Interpolation::Linear);
         let estimator = if ls == LightSampling::Nee { Estimator::Point } else { Estimator::Line };
-        let integrator = Integrator { estimator, light_sampling: ls, mis: MisHeuristic::Power, max_depth: 8, tracking: Tracking::Regular, split: 1 };
+        let integrator =
+            Integrator { estimator, camera_estimator: None, light_sampling: ls, mis: MisHeuristic::Power, max_depth: 8, tracking: Tracking::Regular, split: 1 };
         let one = pixels(&scene, integrator, 3, 21, 1);
         let two = pixels(&scene, integrator, 3, 21, 2);
         assert!(one.iter().any(|p| p[0] > 0.0), "{ls:?}: the image is black");

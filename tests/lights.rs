@@ -52,7 +52,15 @@ fn scene(lights: Vec<Light>) -> Scene<Volume> {
 /// Mean radiance (red) and its standard error along the camera's central ray, single
 /// scattering only (`max_depth = 1`).
 fn single_scattering(scene: &Scene<Volume>, estimator: Estimator, n: u64, seed: u64) -> (f64, f64) {
-    let integ = Integrator { estimator, light_sampling: LightSampling::None, mis: MisHeuristic::Power, max_depth: 1, tracking: Tracking::Regular, split: 1 };
+    let integ = Integrator {
+        estimator,
+        camera_estimator: None,
+        light_sampling: LightSampling::None,
+        mis: MisHeuristic::Power,
+        max_depth: 1,
+        tracking: Tracking::Regular,
+        split: 1,
+    };
     let ray = Ray { origin: DVec3::new(0.0, 0.0, -1.0), direction: DVec3::Z };
     let (mut s, mut s2) = (0.0, 0.0);
     let mut c = Counters::default();
@@ -114,7 +122,15 @@ fn wide_distant_light_matches_single_scattering_with_mis() {
     }
     for mis in [MisHeuristic::Power, MisHeuristic::Balance] {
         let sc = scene(vec![Light::Distant(light.clone())]);
-        let integ = Integrator { estimator: Estimator::Line, light_sampling: LightSampling::None, mis, max_depth: 1, tracking: Tracking::Regular, split: 1 };
+        let integ = Integrator {
+            estimator: Estimator::Line,
+            camera_estimator: None,
+            light_sampling: LightSampling::None,
+            mis,
+            max_depth: 1,
+            tracking: Tracking::Regular,
+            split: 1,
+        };
         let ray = Ray { origin: DVec3::new(0.0, 0.0, -1.0), direction: DVec3::Z };
         let (mut s, mut s2, n) = (0.0, 0.0, 60_000u64);
         let mut c = Counters::default();

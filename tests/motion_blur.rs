@@ -68,7 +68,7 @@ fn largest_z(a: &[[f64; 5]], b: &[[f64; 5]]) -> f64 {
 }
 
 fn integrator(estimator: Estimator, light_sampling: LightSampling, max_depth: u32) -> Integrator {
-    Integrator { estimator, light_sampling, mis: MisHeuristic::Power, max_depth, tracking: Tracking::Regular, split: 1 }
+    Integrator { estimator, camera_estimator: None, light_sampling, mis: MisHeuristic::Power, max_depth, tracking: Tracking::Regular, split: 1 }
 }
 
 #[test]

@@ -26,8 +26,15 @@ fn brick_table_gives_the_image_means_of_the_voxel_table() {
     for interpolation in [Interpolation::Nearest, Interpolation::Linear] {
         let (voxels, bricks) = (scene(NeeTable::Voxel, interpolation), scene(NeeTable::Brick, interpolation));
         for estimator in [Estimator::Point, Estimator::Line] {
-            let integrator =
-                Integrator { estimator, light_sampling: LightSampling::Nee, mis: MisHeuristic::Power, max_depth: 64, tracking: Tracking::Regular, split: 1 };
+            let integrator = Integrator {
+                estimator,
+                camera_estimator: None,
+                light_sampling: LightSampling::Nee,
+                mis: MisHeuristic::Power,
+                max_depth: 64,
+                tracking: Tracking::Regular,
+                split: 1,
+            };
             let a = region_means_with(SamplerKind::Sobol, &voxels, integrator, 16, 16, 11);
             let b = region_means_with(SamplerKind::Sobol, &bricks, integrator, 16, 16, 500);
             assert!(a[0].0 > 0.0);

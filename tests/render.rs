@@ -69,6 +69,7 @@ fn scattering_blob() -> (Scene<Volume>, Integrator) {
         scene,
         Integrator {
             estimator: Estimator::Line,
+            camera_estimator: None,
             light_sampling: LightSampling::Fnee,
             mis: MisHeuristic::Power,
             max_depth: 16,

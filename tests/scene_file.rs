@@ -42,6 +42,8 @@ const FLAGS: &[&str] = &[
     "35",
     "--estimator",
     "blend",
+    "--camera-estimator",
+    "ray-march",
     "--kappa",
     "2",
     "--environment",
@@ -89,6 +91,7 @@ scale = 1.5
 environment = [0.1, 0.2, 0.3]
 [integrator]
 estimator = "blend"
+camera_estimator = "ray-march"
 kappa = 2
 mis = "balance"
 proxy_resolution = 8
@@ -108,7 +111,7 @@ image = "file.exr"
     // The header says how the image was made: the resolved scene, itself a scene file
     let meta = plume::output::read_exr_contents(&from_file).unwrap().metadata;
     let scene = meta.get("plume:scene").expect("plume:scene attribute");
-    assert!(scene.contains("estimator = \"blend\"") && scene.contains("density_scale = 4.0"), "{scene}");
+    assert!(scene.contains("estimator = \"blend\"") && scene.contains("camera_estimator = \"ray-march\"") && scene.contains("density_scale = 4.0"), "{scene}");
     let again = dir.join("from-header.toml");
     std::fs::write(&again, scene).unwrap();
     let out = dir.join("from-header.exr");
@@ -222,11 +225,21 @@ fn the_example_scene_file_is_complete_and_valid() {
     let written = dir.join("resolved.toml");
     ok(&plume(&["render", s(&example), "--write-scene", s(&written)]));
     let text = std::fs::read_to_string(&written).unwrap();
-    for key in ["density_scale = 4.0", "albedo = 0.8", "g = 0.3", "spp = 32", "method = \"line-fnee\"", "split = 8", "width = 640", "denoise = true"] {
+    for key in [
+        "density_scale = 4.0",
+        "albedo = 0.8",
+        "g = 0.3",
+        "spp = 32",
+        "method = \"line-fnee\"",
+        "split = 8",
+        "camera_estimator = \"ray-march\"",
+        "width = 640",
+        "denoise = true",
+    ] {
         assert!(text.contains(key), "{key} in {text}");
     }
     let demo = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/demo.sh")).unwrap();
-    for flag in ["--spp 32", "--width 640", "--height 480", "--density-scale 4", "--albedo 0.8", "--g 0.3", "--denoise"] {
+    for flag in ["--spp 32", "--width 640", "--height 480", "--density-scale 4", "--albedo 0.8", "--g 0.3", "--camera-estimator ray-march", "--denoise"] {
         assert!(demo.contains(flag), "the example scene renders what demo.sh renders: {flag}");
     }
 }

@@ -24,7 +24,7 @@ fn scene(sigma_t: f64, ls: LightSampling, interpolation: Interpolation) -> AnySc
 }
 
 fn integrator(estimator: Estimator, light_sampling: LightSampling, tracking: Tracking) -> Integrator {
-    Integrator { estimator, light_sampling, mis: MisHeuristic::Power, max_depth: 64, tracking, split: 1 }
+    Integrator { estimator, camera_estimator: None, light_sampling, mis: MisHeuristic::Power, max_depth: 64, tracking, split: 1 }
 }
 
 #[test]
@@ -168,6 +168,16 @@ fn combinations_null_collisions_cannot_serve_are_refused() {
         );
         assert!(!out.exists(), "{tracking} {method:?} wrote an image");
     }
+    // A blend camera segment cannot be tracked by null collisions either (`null`; `mixed`
+    // tracks camera rays exactly and takes it)
+    plume_exits(
+        &["render", s(&vdb), "--albedo", "0.8", "--tracking", "null", "--camera-estimator", "blend", "-o", s(&out)],
+        2,
+        &["--camera-estimator", "ray-march"],
+    );
+    assert!(!out.exists(), "a blend camera segment under null tracking wrote an image");
+    let o = plume(&["render", s(&vdb), "--albedo", "0.8", "--width", "16", "--height", "12", "--spp", "2", "--camera-estimator", "blend", "-o", s(&out)]);
+    assert!(o.status.success(), "blend camera segment, mixed tracking: {}", String::from_utf8_lossy(&o.stderr));
     // auto falls back to regular tracking for them
     for method in [["--method", "point-nee"], ["--estimator", "blend"]] {
         let o =

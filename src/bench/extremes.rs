@@ -266,6 +266,7 @@ fn density_sweep(cfg: &ExtremesConfig, check: &mut Check) -> Result<()> {
         scene.lights = Lights::build(&scene.field, &emission, LightSampling::Fnee, 8)?;
         let integ = Integrator {
             estimator: Estimator::Line,
+            camera_estimator: None,
             light_sampling: LightSampling::Fnee,
             mis: MisHeuristic::Power,
             max_depth: 64,

@@ -89,7 +89,7 @@ fn scene(resolution: u32, sigma_t: f64, ls: LightSampling, width: u32, height: u
 }
 
 fn integrator(estimator: Estimator, light_sampling: LightSampling, mis: MisHeuristic) -> Integrator {
-    Integrator { estimator, light_sampling, mis, max_depth: 64, tracking: Tracking::Regular, split: 1 }
+    Integrator { estimator, camera_estimator: None, light_sampling, mis, max_depth: 64, tracking: Tracking::Regular, split: 1 }
 }
 
 pub use super::metrics::rmse;

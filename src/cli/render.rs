@@ -89,6 +89,10 @@ pub struct RenderArgs {
     /// Emission estimator (default: from --method).
     #[arg(long, value_parser = choice::<EstimatorKind>())]
     pub estimator: Option<EstimatorKind>,
+    /// The camera segment's estimator (default: --estimator); ray-march makes its emission
+    /// exact, and --denoise then leaves it unfiltered.
+    #[arg(long, value_parser = choice::<EstimatorKind>())]
+    pub camera_estimator: Option<EstimatorKind>,
     /// Next event technique at scattering vertices (default: from --method).
     #[arg(long, value_parser = choice::<LightSampling>())]
     pub light_sampling: Option<LightSampling>,
@@ -350,6 +354,7 @@ flags_to_keys! { RENDER_ONLY_FLAGS, apply_render_only, RenderArgs, s, a;
     "up_axis" => "camera.up_axis": s.scene.camera.up_axis => a.up_axis;
     "method" => "integrator.method": s.scene.integrator.method => a.method;
     "estimator" => "integrator.estimator": s.scene.integrator.estimator => a.estimator;
+    "camera_estimator" => "integrator.camera_estimator": s.scene.integrator.camera_estimator => a.camera_estimator;
     "light_sampling" => "integrator.light_sampling": s.scene.integrator.light_sampling => a.light_sampling;
     "mis" => "integrator.mis": s.scene.integrator.mis => a.mis;
     "tracking" => "integrator.tracking": s.scene.integrator.tracking => a.tracking;

@@ -78,10 +78,13 @@ pub fn settings_hash(shot: &Shot, seed: u64) -> String {
     } else {
         format!("{environment:?} {map:?} {sky:?} {distant:?} {sphere:?}")
     };
-    let IntegratorSettings { method, estimator, light_sampling, mis, proxy_resolution, max_depth, kappa, tracking, nee_table, split } = integrator;
+    let IntegratorSettings { method, estimator, camera_estimator, light_sampling, mis, proxy_resolution, max_depth, kappa, tracking, nee_table, split } =
+        integrator;
     // A brick table draws other voxels than a voxel table from the same numbers; the
     // default adds nothing, so earlier hashes stay valid
     let nee_table = if nee_table.is_voxel() { String::new() } else { format!(" nee-table {nee_table}") };
+    // Likewise the camera segment's own estimator
+    let camera_estimator = camera_estimator.map_or(String::new(), |e| format!(" camera {e}"));
     // Of the job's settings only the seed (an argument) and the sampler change pixels
     let JobSettings { render, farm, output, reading } = settings;
     let RenderOptions {
@@ -111,7 +114,7 @@ pub fn settings_hash(shot: &Shot, seed: u64) -> String {
          medium {density_scale:?} {albedo:?} {g:?}\n\
          camera {from:?} {at:?} {up:?} {fov:?} {width} {height} {up_axis}\n\
          lights {lights}\n\
-         integrator {method} {estimator:?} {light_sampling:?} {mis} {proxy_resolution:?} {max_depth} {kappa:?} {tracking}{nee_table} split {split}{}{}{motion}",
+         integrator {method} {estimator:?} {light_sampling:?} {mis} {proxy_resolution:?} {max_depth} {kappa:?} {tracking}{nee_table}{camera_estimator} split {split}{}{}{motion}",
         env!("CARGO_PKG_VERSION"),
         crate::film::FIXED_POINT_BITS,
         if *aovs { "\naovs" } else { "" },

@@ -488,7 +488,8 @@ fn write_outputs(job: &Job<'_>, paths: &FramePaths, loaded: &LoadedScene, result
 /// The AOV layout that `output` asks for (`--aovs`, `--denoise`): one layer per light
 /// group of the job's lights, and the half sums with `--denoise`.
 fn layout_for(output: &crate::scene::OutputSettings, job: &Job<'_>) -> Option<AovLayout> {
-    (output.aovs || output.denoise).then(|| AovLayout { groups: job.shot.scene.lights.groups(), halves: output.denoise })
+    let filtered = crate::denoise::Filtered::for_camera(job.shot.scene.integrator().camera_estimator());
+    (output.aovs || output.denoise).then(|| AovLayout { groups: job.shot.scene.lights.groups(), halves: output.denoise.then_some(filtered) })
 }
 
 /// The AOV layout of this frame ([`layout_for`]).
@@ -523,7 +524,7 @@ pub struct Written {
 pub fn beauty_and_layers(layout: Option<&AovLayout>, sums: (&[[i128; 4]], &[i128]), noisy: Vec<[f32; 4]>, spp: u64, crop: Crop) -> Written {
     let Some(layout) = layout else { return Written { pixels: noisy, layers: Vec::new(), denoised: false } };
     let mut layers = aov_layers(layout, sums.1, &noisy, spp);
-    match crate::denoise::from_sums(layout, sums.0, sums.1, spp, crop.width() as usize, crop.height() as usize) {
+    match crate::denoise::from_sums(layout, sums.0, sums.1, spp, (crop.width() as usize, crop.height() as usize)) {
         Some(denoised) => {
             for (c, name) in ["R", "G", "B", "A"].iter().enumerate() {
                 layers.push((format!("noisy.{name}"), noisy.iter().map(|p| p[c]).collect()));

@@ -26,9 +26,14 @@
 //! `half.A`, `half.n`): the beauty and count of the samples that [`crate::denoise::half_of`]
 //! puts in the second half buffer. They are summed like every channel, so sums files and
 //! merges carry them, and the first half is the total minus them; they are not a layer.
+//! When the denoiser leaves the camera segment's emission out of the filter
+//! ([`Filtered::LessEmission`]), the colour half sums hold the beauty less that emission
+//! and are named `half.rest.R`, `half.rest.G`, `half.rest.B`, so a sums file says which.
 //!
 //! Without `--aovs` or `--denoise` the integrator is instantiated with [`NoAovs`], whose
 //! methods are empty: it compiles to the code it was before AOVs existed.
+
+pub use crate::denoise::Filtered;
 
 /// Where a contribution's light came from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -54,7 +59,8 @@ pub trait Aovs {
     /// The sample's channel values (`AovLayout::channels`).
     fn values(&self) -> &[f64];
     /// The sample's beauty `l` goes to the second half buffer, whose sums start at channel
-    /// `at` ([`AovLayout::half_at`]).
+    /// `at` ([`AovLayout::half_at`]; less the sample's emission with
+    /// [`Filtered::LessEmission`]).
     fn half(&mut self, at: usize, l: [f64; 4]);
 }
 
@@ -87,14 +93,19 @@ pub const RESERVED: [&str; 7] = ["emission", "scattered", "alpha", "depth", "sum
 /// Names of the half sums' channels (`--denoise`), after the layers' channels.
 pub const HALF_CHANNELS: [&str; 5] = ["half.R", "half.G", "half.B", "half.A", "half.n"];
 
+/// Names of the half sums' channels when the camera emission is not filtered
+/// ([`Filtered::LessEmission`]): the colour is the beauty less that emission.
+pub const REST_HALF_CHANNELS: [&str; 5] = ["half.rest.R", "half.rest.G", "half.rest.B", "half.A", "half.n"];
+
 /// The AOV channels of a render: the fixed colour layers, one colour layer per light
 /// group, depth's two sums, and with `--denoise` the half sums.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct AovLayout {
     /// Light groups, in the order of their layers.
     pub groups: Vec<String>,
-    /// Whether the half sums follow the layers' channels (`--denoise`).
-    pub halves: bool,
+    /// Whether the half sums follow the layers' channels (`--denoise`), and what the
+    /// denoiser filters (which their colour channels hold).
+    pub halves: Option<Filtered>,
 }
 
 impl AovLayout {
@@ -107,13 +118,13 @@ impl AovLayout {
     /// Number of summed channels per pixel: the layers', then the half sums if any.
     #[must_use]
     pub fn channels(&self) -> usize {
-        self.layer_channels() + if self.halves { HALF_CHANNELS.len() } else { 0 }
+        self.layer_channels() + if self.halves.is_some() { HALF_CHANNELS.len() } else { 0 }
     }
 
     /// The first of the half sums' channels, if the layout has them.
     #[must_use]
     pub fn half_at(&self) -> Option<usize> {
-        self.halves.then(|| self.layer_channels())
+        self.halves.map(|_| self.layer_channels())
     }
 
     /// The channels' names, in sum order: `emission.R`, …, `<group>.B`, `depth.Z`,
@@ -128,8 +139,10 @@ impl AovLayout {
         }
         names.push("depth.Z".into());
         names.push("depth.hits".into());
-        if self.halves {
-            names.extend(HALF_CHANNELS.iter().map(|c| (*c).to_string()));
+        match self.halves {
+            Some(Filtered::Beauty) => names.extend(HALF_CHANNELS.iter().map(|c| (*c).to_string())),
+            Some(Filtered::LessEmission) => names.extend(REST_HALF_CHANNELS.iter().map(|c| (*c).to_string())),
+            None => {}
         }
         names
     }
@@ -137,8 +150,10 @@ impl AovLayout {
     /// The layout whose [`AovLayout::channel_names`] are `names`, if they are one.
     #[must_use]
     pub fn from_channel_names(names: &[String]) -> Option<AovLayout> {
-        let halves = names.last().is_some_and(|c| c == HALF_CHANNELS[HALF_CHANNELS.len() - 1]);
-        let n = names.len() - if halves { HALF_CHANNELS.len().min(names.len()) } else { 0 };
+        let has_halves = names.last().is_some_and(|c| c == HALF_CHANNELS[HALF_CHANNELS.len() - 1]);
+        let n = names.len() - if has_halves { HALF_CHANNELS.len().min(names.len()) } else { 0 };
+        let rest = names.get(n).is_some_and(|c| c == REST_HALF_CHANNELS[0]);
+        let halves = has_halves.then_some(if rest { Filtered::LessEmission } else { Filtered::Beauty });
         if n < 8 || (n - 2) % 3 != 0 {
             return None;
         }
@@ -176,14 +191,17 @@ pub struct AovSample {
     pub values: Vec<f64>,
     /// Where depth's two sums are: the last two of the layers' channels.
     depth_at: usize,
+    /// Whether the half sums' colour is the beauty less the sample's emission.
+    rest: bool,
 }
 
 impl AovSample {
     /// Zeroed values for `channels` channels (`AovLayout::channels`), with the half sums
-    /// from channel `half_at` if any ([`AovLayout::half_at`]).
+    /// from channel `at` if any ([`AovLayout::half_at`]), holding what `filtered` says.
     #[must_use]
-    pub fn new(channels: usize, half_at: Option<usize>) -> AovSample {
-        AovSample { values: vec![0.0; channels], depth_at: half_at.unwrap_or(channels) - 2 }
+    pub fn new(channels: usize, half: Option<(usize, Filtered)>) -> AovSample {
+        let depth_at = half.map_or(channels, |(at, _)| at) - 2;
+        AovSample { values: vec![0.0; channels], depth_at, rest: half.is_some_and(|(_, f)| f == Filtered::LessEmission) }
     }
 }
 
@@ -210,8 +228,48 @@ impl Aovs for AovSample {
         &self.values
     }
 
-    fn half(&mut self, at: usize, l: [f64; 4]) {
+    fn half(&mut self, at: usize, mut l: [f64; 4]) {
+        if self.rest {
+            let o = AovLayout::offset(Component::Emission);
+            for (v, e) in l.iter_mut().zip(&self.values[o..o + 3]) {
+                *v -= e;
+            }
+        }
         self.values[at..at + 4].copy_from_slice(&l);
         self.values[at + 4] = 1.0;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A layout's channel names read back as that layout, for each kind of half sums; the
+    /// names say what the half sums hold.
+    #[test]
+    fn channel_names_round_trip_and_name_what_the_halves_hold() {
+        for halves in [None, Some(Filtered::Beauty), Some(Filtered::LessEmission)] {
+            let layout = AovLayout { groups: vec!["sun".into()], halves };
+            let names = layout.channel_names();
+            assert_eq!(AovLayout::from_channel_names(&names), Some(layout.clone()), "{names:?}");
+            assert_eq!(names.iter().any(|n| n == "half.rest.R"), halves == Some(Filtered::LessEmission), "{names:?}");
+        }
+    }
+
+    /// With [`Filtered::LessEmission`] the half sums hold the beauty less the sample's
+    /// camera emission (alpha and the count as they are); with [`Filtered::Beauty`] the
+    /// beauty.
+    #[test]
+    fn rest_half_sums_leave_out_the_samples_emission() {
+        for (filtered, want) in [(Filtered::Beauty, [3.0, 5.0, 7.0, 0.5, 1.0]), (Filtered::LessEmission, [2.0, 3.0, 4.0, 0.5, 1.0])] {
+            let layout = AovLayout { groups: vec![], halves: Some(filtered) };
+            let at = layout.half_at().unwrap();
+            let mut a = AovSample::new(layout.channels(), Some((at, filtered)));
+            a.begin();
+            a.add(Component::Emission, 1.0, [1.0, 2.0, 3.0]);
+            a.add(Component::Scattered, 0.5, [4.0, 6.0, 8.0]);
+            a.half(at, [3.0, 5.0, 7.0, 0.5]);
+            assert_eq!(&a.values()[at..at + 5], &want, "{filtered:?}");
+        }
     }
 }

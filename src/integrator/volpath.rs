@@ -177,8 +177,14 @@ pub fn light_power(emission: &crate::medium::Emission) -> impl Fn(f32, f32) -> f
 /// The path integrator and its settings.
 #[derive(Clone, Copy, Debug)]
 pub struct Integrator {
-    /// Emission estimator on every free-path segment.
+    /// Emission estimator on every free-path segment (but the camera segment's, when
+    /// `camera_estimator` is given).
     pub estimator: Estimator,
+    /// Emission estimator on the camera segment (`None`: `estimator`). The camera segment
+    /// has no light-sampling partner, so any estimator serves it; the expected-value one
+    /// (ray-march) makes its emission exact along each ray, which `--denoise` then keeps
+    /// out of the filter (`crate::denoise`).
+    pub camera_estimator: Option<Estimator>,
     /// Next event technique.
     pub light_sampling: LightSampling,
     /// MIS heuristic.
@@ -231,10 +237,25 @@ fn contribute<A: Aovs>(l: &mut [f64; 3], aovs: &mut A, component: Component, w: 
 }
 
 impl Integrator {
+    /// The camera segment's emission estimator.
+    #[inline]
+    #[must_use]
+    pub fn camera_estimator(&self) -> Estimator {
+        self.camera_estimator.unwrap_or(self.estimator)
+    }
+
     /// Emission–absorption only: no scattering, no light sampling.
     #[must_use]
     pub fn emission_only(estimator: Estimator) -> Integrator {
-        Integrator { estimator, light_sampling: LightSampling::None, mis: MisHeuristic::Power, max_depth: 0, tracking: Tracking::Regular, split: 1 }
+        Integrator {
+            estimator,
+            camera_estimator: None,
+            light_sampling: LightSampling::None,
+            mis: MisHeuristic::Power,
+            max_depth: 0,
+            tracking: Tracking::Regular,
+            split: 1,
+        }
     }
 
     /// Radiance `[r, g, b]` and alpha along a camera ray.
@@ -266,7 +287,7 @@ impl Integrator {
         let u = sampler.get_1d(Dim::FreePath);
         // The depth layer wants the camera ray's first collision (ray-march draws it
         // with the same number; nothing else changes)
-        let r = camera.track(m, camera_ray, t_max, self.estimator, scatters || A::ON, u, sampler);
+        let r = camera.track(m, camera_ray, t_max, self.camera_estimator(), scatters || A::ON, u, sampler);
         c.segments += u64::from(r.segments);
         c.voxel_steps += r.voxel_steps;
         contribute(&mut l, aovs, Component::Emission, 1.0, r.emission);
@@ -320,7 +341,9 @@ impl Integrator {
         let null = scene.majorants.as_ref().map(|majorants| Tracker::Null { field: &scene.field, majorants });
         let serves = Tracking::applies(self.estimator, self.light_sampling);
         let pick = |use_null: bool| if use_null && serves { null.unwrap_or(regular) } else { regular };
-        (pick(self.tracking.null_on_camera()), pick(self.tracking.null_after_scattering()))
+        // The camera segment's own estimator must be one null collisions serve, too
+        let camera_null = self.tracking.null_on_camera() && Tracking::applies(self.camera_estimator(), self.light_sampling);
+        (pick(camera_null), pick(self.tracking.null_after_scattering()))
     }
 
     /// The path from a collision on: at each vertex light sampling, Russian roulette and

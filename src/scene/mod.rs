@@ -169,6 +169,7 @@ impl SceneDescription {
     pub fn integrator_with(&self, estimator: Estimator, light_sampling: LightSampling) -> Integrator {
         Integrator {
             estimator,
+            camera_estimator: self.integrator.camera_estimator.map(|k| k.with_kappa(self.integrator.kappa)),
             light_sampling,
             mis: self.integrator.mis,
             max_depth: if self.albedo() > 0.0 { self.integrator.max_depth } else { 0 },
@@ -341,6 +342,9 @@ pub struct IntegratorSettings {
     /// Overrides the preset's estimator.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub estimator: Option<EstimatorKind>,
+    /// The camera segment's estimator (default: `estimator`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub camera_estimator: Option<EstimatorKind>,
     /// Overrides the preset's light sampling.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub light_sampling: Option<LightSampling>,
@@ -367,6 +371,7 @@ impl Default for IntegratorSettings {
         IntegratorSettings {
             method: Method::LineFnee,
             estimator: None,
+            camera_estimator: None,
             light_sampling: None,
             mis: MisHeuristic::Power,
             proxy_resolution: None,

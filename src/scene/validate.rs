@@ -119,6 +119,15 @@ impl Shot {
                 ),
             ));
         }
+        // The camera segment tracks by null collisions under `null` and with motion blur,
+        // which blend (a per-voxel mix) cannot use
+        let camera_null = scene.integrator.tracking == super::TrackingChoice::Null || scene.volume.velocity_grid.is_some();
+        if camera_null && scene.integrator.camera_estimator == Some(super::EstimatorKind::Blend) {
+            return Err(Error::invalid(
+                "integrator.camera_estimator",
+                "blend mixes per voxel, which null-collision tracking of camera rays (tracking = null, motion blur) has not: use line, point or ray-march",
+            ));
+        }
         if let Some(name) = &scene.volume.velocity_grid {
             selector("volume.velocity_grid", name)?;
             if !scene.volume.velocity_scale.is_finite() {

@@ -183,7 +183,7 @@ pub fn prepare_command(args: &PrepareArgs) -> Result<()> {
     }
     // The grid flags set the same keys as for `plume render`
     let mut shot = plume::scene::Shot::new(&args.file, "");
-    super::render::apply_grids(&mut shot, &args.grids, &|_| true);
+    super::keys::apply_grids(&mut shot, &args.grids, &|_| true);
     let (scene, reading) = (&shot.scene, &shot.settings.reading);
     let input_bytes = std::fs::metadata(&args.file).map(|m| m.len()).unwrap_or(0);
     let flags = super::render::Origin { scene_file: None, given: Vec::new() };

@@ -6,6 +6,7 @@
 //! | file | command |
 //! |---|---|
 //! | `render.rs` | `plume render` flags → [`plume::scene::Shot`] (with scene files and `--write-scene`) |
+//! | `keys.rs` | the table of render flag → scene key, and back (for error messages) |
 //! | `flags.rs` | value parsers shared by the commands (vectors, sizes, named choices) |
 //! | `bench.rs` | `plume bench …` |
 //! | `files.rs` | `plume info`, `plume prepare`, `plume merge`, `plume synth …` |
@@ -15,6 +16,7 @@ pub mod bench;
 pub mod commands;
 pub mod files;
 pub mod flags;
+pub mod keys;
 pub mod render;
 
 use clap::{Parser, Subcommand};

@@ -3,7 +3,7 @@
 //!
 //! Without a scene file every flag, defaults included, gives its key. With one
 //! (`plume render shot.toml`), the file gives the keys and only the flags typed on the
-//! command line override them. [`render_flags`] is the one table of flag → key; it also
+//! command line override them. [`render_flags`] (`keys.rs`) is the one table of flag → key; it also
 //! turns the keys that library errors name back into the flags a user typed, or into
 //! the scene file's line.
 
@@ -23,6 +23,7 @@ use plume::scene::{
 };
 
 use super::flags::{choice, parse_environment_map, parse_keys, parse_pair, parse_size, parse_vec3};
+use super::keys::{apply, flag_and_rest, flag_name, flag_of, render_flags};
 
 /// `plume render`.
 #[derive(Clone, Debug, Args)]
@@ -319,139 +320,6 @@ pub struct GridArgs {
     /// time and survives crashes (saves a few ms; trusted files only).
     #[arg(long)]
     pub no_isolation: bool,
-}
-
-/// Flag id (clap's, the field name) → scene key, and how the flag sets the key. The
-/// positional FILE sets `volume.file` (unless it is a scene file); `-o` sets
-/// `output.image`.
-macro_rules! flags_to_keys {
-    ($table:ident, $apply:ident, $args:ty, $s:ident, $a:ident; $($id:literal => $key:literal: $target:expr => $value:expr;)*) => {
-        /// Flag ids and the keys they set.
-        pub const $table: &[(&str, &str)] = &[$(($id, $key)),*];
-
-        /// Set the key of every flag that `given` says counts.
-        pub fn $apply($s: &mut Shot, $a: &$args, given: &dyn Fn(&str) -> bool) {
-            $(if given($id) {
-                $target = $value;
-            })*
-        }
-    };
-}
-
-flags_to_keys! { RENDER_ONLY_FLAGS, apply_render_only, RenderArgs, s, a;
-    "output" => "output.image": s.settings.output.image => a.output.clone().unwrap_or_default();
-    "spp" => "render.spp": s.settings.render.spp => a.spp;
-    "time" => "render.time": s.settings.render.time => a.time;
-    "seed" => "render.seed": s.settings.render.seed => a.seed;
-    "sampler" => "render.sampler": s.settings.render.sampler => a.sampler;
-    "threads" => "render.threads": s.settings.render.threads => a.threads;
-    "width" => "camera.width": s.scene.camera.width => a.width;
-    "height" => "camera.height": s.scene.camera.height => a.height;
-    "camera_from" => "camera.from": s.scene.camera.from => a.camera_from;
-    "camera_at" => "camera.at": s.scene.camera.at => a.camera_at;
-    "camera_up" => "camera.up": s.scene.camera.up => a.camera_up;
-    "fov" => "camera.fov": s.scene.camera.fov => a.fov;
-    "up_axis" => "camera.up_axis": s.scene.camera.up_axis => a.up_axis;
-    "method" => "integrator.method": s.scene.integrator.method => a.method;
-    "estimator" => "integrator.estimator": s.scene.integrator.estimator => a.estimator;
-    "camera_estimator" => "integrator.camera_estimator": s.scene.integrator.camera_estimator => a.camera_estimator;
-    "light_sampling" => "integrator.light_sampling": s.scene.integrator.light_sampling => a.light_sampling;
-    "mis" => "integrator.mis": s.scene.integrator.mis => a.mis;
-    "tracking" => "integrator.tracking": s.scene.integrator.tracking => a.tracking;
-    "nee_table" => "integrator.nee_table": s.scene.integrator.nee_table => a.nee_table;
-    "proxy_resolution" => "integrator.proxy_resolution": s.scene.integrator.proxy_resolution => a.proxy_resolution;
-    "albedo" => "medium.albedo": s.scene.medium.albedo => a.albedo;
-    "g" => "medium.g": s.scene.medium.g => a.g;
-    "max_depth" => "integrator.max_depth": s.scene.integrator.max_depth => a.max_depth;
-    "split" => "integrator.split": s.scene.integrator.split => a.split;
-    "environment" => "lights.environment": s.scene.lights.environment => a.environment;
-    "environment_map" => "lights.environment_map": s.scene.lights.environment_map => a.environment_map.clone();
-    "sky" => "lights.sky": s.scene.lights.sky => a.sky.clone();
-    "distant_light" => "lights.distant": s.scene.lights.distant => a.distant_light.clone();
-    "sphere_light" => "lights.sphere": s.scene.lights.sphere => a.sphere_light.clone();
-    "debug_pixel" => "render.debug_pixel": s.settings.render.debug_pixel => a.debug_pixel;
-    "velocity_grid" => "volume.velocity_grid": s.scene.volume.velocity_grid => a.velocity_grid.clone();
-    "velocity_scale" => "volume.velocity_scale": s.scene.volume.velocity_scale => a.velocity_scale;
-    "shutter" => "camera.shutter": s.scene.camera.shutter => a.shutter;
-    "fps" => "camera.fps": s.scene.camera.fps => a.fps;
-    "kappa" => "integrator.kappa": s.scene.integrator.kappa => a.kappa;
-    "density_scale" => "medium.density_scale": s.scene.medium.density_scale => a.density_scale;
-    "emission_scale" => "emission.scale": s.scene.emission.scale => a.emission_scale;
-    "emission_color" => "emission.color": s.scene.emission.color => a.emission_color.as_vec3().to_array();
-    "preview" => "output.preview": s.settings.output.preview => a.preview.clone();
-    "exposure" => "output.exposure": s.settings.output.exposure => a.exposure;
-    "stats" => "output.stats": s.settings.output.stats => a.stats.clone();
-    "memory_budget" => "render.memory_budget": s.settings.render.memory_budget => a.memory_budget;
-    "cache_dir" => "render.cache_dir": s.settings.render.cache_dir => a.cache_dir.clone();
-    "cache_lock_timeout" => "render.cache_lock_timeout": s.settings.render.cache_lock_timeout => a.cache_lock_timeout;
-    "sample_order" => "render.sample_order": s.settings.render.sample_order => a.sample_order;
-    "quiet" => "render.quiet": s.settings.render.quiet => a.quiet;
-    "frames" => "farm.frames": s.settings.farm.frames => a.frames.clone();
-    "overwrite" => "farm.overwrite": s.settings.farm.overwrite => a.overwrite;
-    "time_limit" => "farm.time_limit": s.settings.farm.time_limit => a.time_limit;
-    "crop" => "farm.crop": s.settings.farm.crop => a.crop;
-    "tile" => "farm.tile": s.settings.farm.tile => a.tile;
-    "sample_range" => "farm.sample_range": s.settings.farm.sample_range => a.sample_range.clone();
-    "sums" => "output.sums": s.settings.output.sums => a.sums;
-    "aovs" => "output.aovs": s.settings.output.aovs => a.aovs;
-    "denoise" => "output.denoise": s.settings.output.denoise => a.denoise;
-    "interpolation" => "volume.interpolation": s.scene.volume.interpolation => a.interpolation;
-    "progress" => "render.progress": s.settings.render.progress => a.progress;
-}
-
-flags_to_keys! { GRID_FLAGS, apply_grids, GridArgs, s, a;
-    "density_grid" => "volume.density_grid": s.scene.volume.density_grid => a.density_grid.clone();
-    "emission" => "emission.source": s.scene.emission.source => a.emission;
-    "temperature_grid" => "volume.temperature_grid": s.scene.volume.temperature_grid => a.temperature_grid.clone();
-    "temperature_map" => "emission.temperature_map": s.scene.emission.temperature_map => a.temperature_map.clone();
-    "temperature_cutoff" => "emission.temperature_cutoff": s.scene.emission.temperature_cutoff => a.temperature_cutoff;
-    "emission_grid" => "volume.emission_grid": s.scene.volume.emission_grid => a.emission_grid.clone();
-    "convention" => "emission.convention": s.scene.emission.convention => a.convention;
-    "albedo_grid" => "volume.albedo_grid": s.scene.volume.albedo_grid => a.albedo_grid.clone();
-    "max_input_memory" => "reading.max_input_memory": s.settings.reading.max_input_memory => a.max_input_memory;
-    "read_timeout" => "reading.read_timeout": s.settings.reading.read_timeout => a.read_timeout;
-    "no_isolation" => "reading.no_isolation": s.settings.reading.no_isolation => a.no_isolation;
-}
-
-/// Every render flag's id and key.
-pub fn render_flags() -> impl Iterator<Item = &'static (&'static str, &'static str)> {
-    RENDER_ONLY_FLAGS.iter().chain(GRID_FLAGS)
-}
-
-/// Set the key of every render flag that `given` says counts.
-fn apply(shot: &mut Shot, args: &RenderArgs, given: &dyn Fn(&str) -> bool) {
-    apply_render_only(shot, args, given);
-    apply_grids(shot, &args.grids, given);
-}
-
-/// `--flag-name` of a flag id (`FILE` for the positional).
-fn flag_name(id: &str) -> String {
-    if id == "file" {
-        "FILE".into()
-    } else {
-        format!("--{}", id.replace('_', "-"))
-    }
-}
-
-/// The flag that sets `key`, if one does: a key inside a flag's table (`lights.sky.turbidity`)
-/// is set by that flag (`--sky`).
-fn flag_of(key: &str) -> Option<&'static str> {
-    flag_and_rest(key).map(|(id, _)| id)
-}
-
-/// The flag that sets `key`, and the rest of the key inside the flag's table
-/// (`lights.sky.turbidity` → `("sky", "turbidity")`; empty for the flag's own key).
-fn flag_and_rest(key: &str) -> Option<(&'static str, &str)> {
-    if key == "volume.file" {
-        return Some(("file", ""));
-    }
-    let mut k = key;
-    loop {
-        if let Some((id, _)) = render_flags().find(|(_, f)| *f == k) {
-            return Some((id, key[k.len()..].trim_start_matches('.')));
-        }
-        k = k.rsplit_once('.')?.0;
-    }
 }
 
 /// A render command line as library types.

@@ -236,3 +236,29 @@ fn extreme_densities_and_temperatures_stay_finite() {
         }
     }
 }
+
+/// The point estimator scores only at collisions, so with Cycles' convention (emission
+/// where density is 0) it misses light: a render warns, naming the flag that chose it,
+/// whether every segment uses it or only the camera segment.
+#[test]
+fn the_point_estimator_warns_where_it_misses_emission_without_density() {
+    let d = common::tmpdir("estimators", "point-warning");
+    let ex = common::explosion(&d, 16, None);
+    let out = d.join("x.exr");
+    let cycles = ["--convention", "cycles", "--emission", "grid", "--emission-grid", "temperature", "--width", "8", "--height", "6", "--spp", "1"];
+    for (flags, named) in
+        [(&["--estimator", "point"][..], "--estimator point"), (&["--camera-estimator", "point"][..], "--camera-estimator point"), (&[][..], "")]
+    {
+        let mut args = vec!["render", common::s(&ex), "-o", common::s(&out), "--overwrite"];
+        args.extend(cycles);
+        args.extend(flags);
+        let o = common::plume(&args);
+        let err = common::stderr(&o);
+        assert!(o.status.success(), "{err}");
+        if named.is_empty() {
+            assert!(!err.contains("scores only at collisions"), "{flags:?}: {err}");
+        } else {
+            assert!(err.contains(&format!("{named} scores only at collisions")), "{flags:?}: {err}");
+        }
+    }
+}

@@ -231,8 +231,11 @@ fn warn_about(job: &Job<'_>, paths: &FramePaths, loaded: &LoadedScene) {
     if loaded.emission_kind == EmissionKind::None && job.scene().emission.source == EmissionSource::Auto {
         warn(format!("{input}: no temperature or emission grid found; rendering absorption only"));
     }
-    if job.scene().integrator().estimator == Estimator::Point && loaded.scene.medium().emission.emits_without_density() {
-        warn("--estimator point scores only at collisions: emission where density is 0 (allowed by --convention cycles) is not rendered".into());
+    let integrator = job.scene().integrator();
+    let point =
+        [(integrator.estimator, "--estimator"), (integrator.camera_estimator(), "--camera-estimator")].into_iter().find(|(e, _)| *e == Estimator::Point);
+    if let Some((_, flag)) = point.filter(|_| loaded.scene.medium().emission.emits_without_density()) {
+        warn(format!("{flag} point scores only at collisions: emission where density is 0 (allowed by --convention cycles) is not rendered"));
     }
 }
 

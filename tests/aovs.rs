@@ -10,7 +10,7 @@ use std::path::Path;
 use common::{bits, channels, explosion, grid, grid_emission, mean_stderr, plume, s, tmpdir};
 use glam::{DAffine3, DMat3, DVec3, IVec3};
 use plume::camera::Camera;
-use plume::integrator::{AovLayout, AovSample, Counters, Integrator, LightSampling, Lights, MisHeuristic, NoTrace, Scene, Tracking};
+use plume::integrator::{AovLayout, AovSample, Counters, Integrator, Lights, NoTrace, Scene};
 use plume::medium::{Convention, Emission, EmissionKind, Estimator, Medium};
 use plume::sampling::Sampler;
 use plume::volume::field::Ray;
@@ -133,15 +133,7 @@ fn depth_is_the_expected_distance_to_the_first_collision() {
     let expected = 1.0 + 1.0 / sigma - depth * (-sigma * depth).exp() / (1.0 - (-sigma * depth).exp());
     let ray = Ray { origin: DVec3::new(0.0, 0.0, -1.0), direction: DVec3::Z };
     for estimator in [Estimator::Line, Estimator::RayMarch, Estimator::Point] {
-        let integ = Integrator {
-            estimator,
-            camera_estimator: None,
-            light_sampling: LightSampling::None,
-            mis: MisHeuristic::Power,
-            max_depth: 0,
-            tracking: Tracking::Regular,
-            split: 1,
-        };
+        let integ = Integrator::emission_only(estimator);
         let mut ts = Vec::new();
         let mut c = Counters::default();
         let mut a = AovSample::new(layout.channels(), layout.half_at().zip(layout.halves));

@@ -38,6 +38,13 @@
 //! values they weigh (the paper's dual-buffer filtering); unequal halves are combined in
 //! proportion to their samples. Alpha is averaged with the same weights as the colour.
 //!
+//! **What is filtered** ([`Filtered`]). Normally the whole beauty. When the camera
+//! segment is ray-marched (`--camera-estimator ray-march`), its emission is exact along
+//! each ray, with only the pixel footprint's noise (0.002 of the README demo's mean at 32
+//! spp): the halves then hold the beauty less it, the filter sees only the rest (the
+//! scattered light, external lights) and the emission is added back as rendered, so the
+//! fire keeps its texture (README demo: relRMSE 0.072 → 0.049; docs/BENCHMARKS.md).
+//!
 //! A noise-free input (`a = b`) has `v = 0`: every pixel whose patch is not identical gets
 //! weight 0 and the image comes back unchanged. The cost is `(2r+1)²` patch distances per
 //! pixel, twice: 2.5 CPU s (1.5 s wall on 2 cores) for 640×480 with the defaults.

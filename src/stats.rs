@@ -111,7 +111,7 @@ pub struct RenderStats {
     pub peak_rss_bytes: u64,
     /// Worker threads.
     pub threads: usize,
-    /// Estimator used.
+    /// Estimator used (`Line`; with a camera segment's own, `Line, camera RayMarch`).
     pub estimator: String,
     /// Heap bytes of the brick volume.
     pub volume_bytes: u64,

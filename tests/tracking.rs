@@ -178,6 +178,8 @@ fn combinations_null_collisions_cannot_serve_are_refused() {
     assert!(!out.exists(), "a blend camera segment under null tracking wrote an image");
     let o = plume(&["render", s(&vdb), "--albedo", "0.8", "--width", "16", "--height", "12", "--spp", "2", "--camera-estimator", "blend", "-o", s(&out)]);
     assert!(o.status.success(), "blend camera segment, mixed tracking: {}", String::from_utf8_lossy(&o.stderr));
+    // The summary line names both estimators
+    assert!(String::from_utf8_lossy(&o.stderr).contains("spp, Line, camera Blend"), "{}", String::from_utf8_lossy(&o.stderr));
     // auto falls back to regular tracking for them
     for method in [["--method", "point-nee"], ["--estimator", "blend"]] {
         let o =

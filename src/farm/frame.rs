@@ -420,7 +420,7 @@ fn stats_record(
         samples_per_cpu_second: samples / timing.cpu.max(1e-9),
         peak_rss_bytes: peak_rss_since_reset_bytes(),
         threads,
-        estimator: format!("{:?}", job.scene().integrator().estimator),
+        estimator: job.scene().integrator().estimator_name(),
         volume_bytes: volume.memory_bytes() as u64,
         counters: result.counters,
         saturated_samples: result.film.saturated(),

@@ -244,6 +244,16 @@ impl Integrator {
         self.camera_estimator.unwrap_or(self.estimator)
     }
 
+    /// The estimators as stats and the summary line name them: `Line`, or `Line, camera
+    /// RayMarch` when the camera segment has its own.
+    #[must_use]
+    pub fn estimator_name(&self) -> String {
+        match self.camera_estimator() {
+            camera if camera == self.estimator => format!("{:?}", self.estimator),
+            camera => format!("{:?}, camera {camera:?}", self.estimator),
+        }
+    }
+
     /// Emission–absorption only: no scattering, no light sampling.
     #[must_use]
     pub fn emission_only(estimator: Estimator) -> Integrator {

@@ -43,7 +43,8 @@
 //! each ray, with only the pixel footprint's noise (0.002 of the README demo's mean at 32
 //! spp): the halves then hold the beauty less it, the filter sees only the rest (the
 //! scattered light, external lights) and the emission is added back as rendered, so the
-//! fire keeps its texture (README demo: relRMSE 0.072 → 0.049; docs/BENCHMARKS.md).
+//! fire keeps its texture (README demo: relRMSE 0.072 → 0.049, measured before the
+//! roulette change; docs/BENCHMARKS.md).
 //!
 //! A noise-free input (`a = b`) has `v = 0`: every pixel whose patch is not identical gets
 //! weight 0 and the image comes back unchanged. The cost is `(2r+1)²` patch distances per

@@ -56,8 +56,9 @@ fn the_denoised_beauty_is_closer_to_the_converged_image_and_the_noisy_one_is_the
     let gain = (noisy - reference_var) / (filtered - reference_var).max(1e-30);
     let mean = covered.iter().map(|&i| luminance(&r, "", i)).sum::<f64>() / covered.len() as f64;
     eprintln!("relRMSE noisy {:.4}, denoised {:.4}: squared error ÷ {gain:.1}", noisy.sqrt() / mean, filtered.sqrt() / mean);
-    // Measured: 2.9 (on the README demo, 640×480, 10)
-    assert!(gain > 2.0, "denoising divided the squared error by only {gain:.2}");
+    // Measured: 1.9 (3.1 before the roulette waited for β < 0.3, which lowered the noise
+    // there is to remove; on the README demo, 640×480, 16). No filter gives 1
+    assert!(gain > 1.5, "denoising divided the squared error by only {gain:.2}");
     // The image's energy is kept: the mean over all pixels within 2 % (measured: −0.8 %;
     // with the paper's asymmetric weights −3.9 %)
     let total = |layer: &str| (0..r["A"].len()).map(|i| luminance(&dn, layer, i)).sum::<f64>();

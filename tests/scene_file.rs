@@ -231,7 +231,7 @@ fn the_example_scene_file_is_complete_and_valid() {
         "g = 0.3",
         "spp = 32",
         "method = \"line-fnee\"",
-        "split = 8",
+        "split = 6",
         "camera_estimator = \"ray-march\"",
         "width = 640",
         "denoise = true",
@@ -239,7 +239,9 @@ fn the_example_scene_file_is_complete_and_valid() {
         assert!(text.contains(key), "{key} in {text}");
     }
     let demo = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/demo.sh")).unwrap();
-    for flag in ["--spp 32", "--width 640", "--height 480", "--density-scale 4", "--albedo 0.8", "--g 0.3", "--camera-estimator ray-march", "--denoise"] {
+    for flag in
+        ["--spp 32", "--width 640", "--height 480", "--density-scale 4", "--albedo 0.8", "--g 0.3", "--split 6", "--camera-estimator ray-march", "--denoise"]
+    {
         assert!(demo.contains(flag), "the example scene renders what demo.sh renders: {flag}");
     }
 }

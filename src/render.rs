@@ -228,8 +228,8 @@ fn render_tile_with<F: Field, A: Aovs>(scene: &Scene<F>, settings: &RenderSettin
                 let PixelSample { ray, mut sampler, time } = pixel_sample(scene, settings.sampler, settings.seed, x, y, s);
                 aovs.begin();
                 let l = settings.integrator.li_aovs(scene, &ray, &mut sampler, (time, &mut counters), &mut NoTrace, aovs);
-                if let Some(h) = tile.half.filter(|h| A::ON && crate::denoise::half_of(s, h.block)) {
-                    aovs.half(h.at, l);
+                if tile.half.is_some_and(|h| A::ON && crate::denoise::half_of(s, h.block)) {
+                    aovs.half(l);
                 }
                 counters.samples += 1;
                 if l.iter().all(|v| v.is_finite()) && (!A::ON || aovs.values().iter().all(|v| v.is_finite())) {

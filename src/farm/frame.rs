@@ -542,11 +542,11 @@ pub fn beauty_and_layers(layout: Option<&AovLayout>, sums: (&[[i128; 4]], &[i128
 /// per pixel) over `spp` samples, with `alpha` from the beauty: `(name, values)` per
 /// channel.
 #[must_use]
-pub fn aov_layers(layout: &AovLayout, aov_sums: &[i128], beauty: &[[f32; 4]], spp: u64) -> Vec<(String, Vec<f32>)> {
+pub fn aov_layers(layout: &AovLayout, aov_sums: &[i128], beauty: &[[f32; 4]], spp: u64) -> Layers {
     let (n, n_layers) = (layout.channels(), layout.layer_channels());
     let names = layout.channel_names();
-    let mut layers: Vec<(String, Vec<f32>)> =
-        names[..n_layers - 2].iter().chain(std::iter::once(&names[n_layers - 2])).map(|c| (c.clone(), Vec::with_capacity(beauty.len()))).collect();
+    // Every layer channel but depth's hit count, which `depth.Z` divides by
+    let mut layers: Layers = names[..n_layers - 1].iter().map(|c| (c.clone(), Vec::with_capacity(beauty.len()))).collect();
     for sums in aov_sums.chunks_exact(n) {
         for (layer, v) in layers.iter_mut().zip(layout.pixel(sums, spp, crate::film::pixel_value)) {
             layer.1.push(v);

@@ -58,10 +58,9 @@ pub trait Aovs {
     fn begin(&mut self);
     /// The sample's channel values (`AovLayout::channels`).
     fn values(&self) -> &[f64];
-    /// The sample's beauty `l` goes to the second half buffer, whose sums start at channel
-    /// `at` ([`AovLayout::half_at`]; less the sample's emission with
-    /// [`Filtered::LessEmission`]).
-    fn half(&mut self, at: usize, l: [f64; 4]);
+    /// The sample's beauty `l` goes to the second half buffer: the half sums' channels
+    /// ([`AovLayout::half_at`]; less the sample's emission with [`Filtered::LessEmission`]).
+    fn half(&mut self, l: [f64; 4]);
 }
 
 /// No AOVs: records nothing, costs nothing.
@@ -80,7 +79,7 @@ impl Aovs for NoAovs {
         &[]
     }
     #[inline(always)]
-    fn half(&mut self, _at: usize, _l: [f64; 4]) {}
+    fn half(&mut self, _l: [f64; 4]) {}
 }
 
 /// Names of the fixed colour layers.
@@ -228,7 +227,9 @@ impl Aovs for AovSample {
         &self.values
     }
 
-    fn half(&mut self, at: usize, mut l: [f64; 4]) {
+    fn half(&mut self, mut l: [f64; 4]) {
+        // The half sums follow depth's two sums (`AovLayout::half_at`)
+        let at = self.depth_at + 2;
         if self.rest {
             let o = AovLayout::offset(Component::Emission);
             for (v, e) in l.iter_mut().zip(&self.values[o..o + 3]) {
@@ -268,7 +269,7 @@ mod tests {
             a.begin();
             a.add(Component::Emission, 1.0, [1.0, 2.0, 3.0]);
             a.add(Component::Scattered, 0.5, [4.0, 6.0, 8.0]);
-            a.half(at, [3.0, 5.0, 7.0, 0.5]);
+            a.half([3.0, 5.0, 7.0, 0.5]);
             assert_eq!(&a.values()[at..at + 5], &want, "{filtered:?}");
         }
     }

@@ -21,13 +21,28 @@ relRMSE = sqrt(mean((I - R)^2)) / mean(R) over the RGB channels. The reference i
 rendered with another seed than the rungs, so its noise is independent of theirs and adds
 to the measured error; with Monte Carlo error ~ 1/spp in MSE, the measured relMSE is the
 true one times (1 + N/N_ref), which is divided out ("corrected").
-CPU time is the render's process CPU time minus what a 1-spp render costs when the scene
-is already set up; the set-up (the first 1-spp render: file load, scene sync, volume build)
-is reported apart. Each rung and the overhead render run `--repeats` times (3) and the
-least CPU time counts: load from other processes only ever adds time. The repeats go
-round the ladder, so a stretch of load slows one render of each rung, not all of one. At equal CPU: for
-each Cycles budget B (its CPU time at each rung of `--cycles-spp`), plume's error is taken
-from the rung whose CPU time is closest to B and scaled by sqrt(cpu/B).
+CPU time is what a render's samples cost. Every render's process CPU time is modelled as
+o + c * spp: a fixed cost o that every render pays besides its samples (for Cycles with
+persistent data, the film and output; for plume, loading the file) and a cost c per sample
+per pixel, fitted over the ladder (its 1-spp render and rungs, through the 1-spp point:
+c = sum((n - 1)(t_n - t_1)) / sum((n - 1)^2), o = t_1 - c). A rung's CPU is c * n. The
+1-spp render is itself the ladder's first rung. Two things this replaces: subtracting the
+whole 1-spp render left a rung of n spp charged for n - 1 samples (a quarter off a 4-spp
+rung, a sixteenth off a 16-spp one), and each small rung's own time, a difference of two
+renders of a few tenths of a second, varied by up to 40 % between runs while the fitted
+per-sample cost stays within a few per cent across the ladder. The set-up (the first 1-spp
+render: file load, scene sync, volume build) is reported apart. Each render runs
+`--repeats` times (3) and the least CPU time counts: load from other processes only ever
+adds time. The repeats go round the ladder, so a stretch of load slows one render of each
+rung, not all of one.
+
+At equal CPU: for each Cycles budget B (its CPU time at each rung of `--cycles-spp`),
+plume's error is interpolated between the two rungs whose CPU times bracket B, linearly in
+log error against log CPU, i.e. at the convergence rate measured there; only outside the
+ladder is it scaled as sqrt(cpu/B) from the nearest end. With Owen-scrambled Sobol points
+plume's error falls faster than 1/sqrt(spp) at a few samples per pixel (about as 1/spp
+from 2 to 16 spp on the Mantaflow explosions), so scaling one rung by sqrt(cpu/B) across a
+factor of 2 in time misstates the error at B by up to 1.4x, either way.
 """
 
 import argparse
@@ -79,14 +94,14 @@ def parse_args():
     p.add_argument("--threads", type=int, default=2)
     p.add_argument("--max-depth", type=int, default=64)
     p.add_argument("--cycles-spp", default="16,64,256", help="Cycles' rungs; their CPU times are the budgets")
-    p.add_argument("--plume-spp", default="16,64,256,1024", help="plume's rungs")
+    p.add_argument("--plume-spp", default="2,4,8,16,32,64,256", help="plume's rungs above 1 spp (the 1-spp render is the first): dense where Cycles' budgets fall")
     p.add_argument("--ref-spp", type=int, default=4096, help="spp of each renderer's reference")
     p.add_argument("--repeats", type=int, default=3, help="renders of each rung (and of the 1-spp overhead render); the least CPU time counts")
     p.add_argument("--quick", action="store_true", help="blender40 and kelvin40, ea and a0.8, short ladders and references")
     a = p.parse_args()
     if a.quick:
         a.files, a.settings = "blender40,kelvin40", "ea,a0.8"
-        a.cycles_spp, a.plume_spp, a.ref_spp = "4,16", "4,16,64", 256
+        a.cycles_spp, a.plume_spp, a.ref_spp = "4,16", "2,4,8,16,64", 256
     a.files = a.files.split(",")
     a.settings = a.settings.split(",")
     for f in a.files:
@@ -263,12 +278,14 @@ def least_cpu(render, spp, path, repeats):
 
 def ladder(render, spps, ref_spp, out, name, repeats):
     """Set-up CPU (a first 1-spp render), then each rung's CPU and relRMSE against a
-    `ref_spp` reference, corrected for the reference's noise. A rung's CPU is its render's
-    less a second 1-spp render's (what every render pays besides its samples: for Cycles
-    with persistent data, the film and output; for plume, loading the file), each the
-    least of `repeats` renders."""
+    `ref_spp` reference, corrected for the reference's noise. CPU follows the module docs'
+    model o + c * spp, fitted over the 1-spp render (the first rung) and the rungs, each
+    the least of `repeats` renders; a rung's CPU is c * n, its measured time less o is
+    kept beside it."""
+    spps = sorted(set(spps) - {1})
+    if not spps:
+        sys.exit(f"compare_cycles: {name}: the ladder needs a rung above 1 spp to measure the per-sample cost")
     setup = render(1, os.path.join(out, f"{name}_setup.exr"))
-    overhead = least_cpu(render, 1, os.path.join(out, f"{name}_overhead.exr"), repeats)
     ref_path = os.path.join(out, f"{name}_ref.exr")
     # Another seed than the rungs': with the same one a rung's samples would be the first
     # of the reference's, and the correction below assumes independent errors
@@ -276,26 +293,52 @@ def ladder(render, spps, ref_spp, out, name, repeats):
     ref = read_rgb(ref_path)
     # The repeats go round the ladder (every rung once, then again), so that a stretch of
     # load from other processes slows one render of several rungs, not every render of one
-    paths = {spp: os.path.join(out, f"{name}_{spp}.exr") for spp in spps}
-    least = {spp: math.inf for spp in spps}
+    ladder_spps = [1, *spps]
+    paths = {spp: os.path.join(out, f"{name}_{'overhead' if spp == 1 else spp}.exr") for spp in ladder_spps}
+    least = {spp: math.inf for spp in ladder_spps}
     for _ in range(repeats):
-        for spp in spps:
+        for spp in ladder_spps:
             least[spp] = min(least[spp], render(spp, paths[spp]))
+    per_sample, overhead = cpu_model(least)
+    if per_sample <= 0.0:
+        sys.exit(f"compare_cycles: {name}: the rungs took no measurable CPU time beyond a 1-spp render; use more spp or a larger --size")
     rungs = []
-    for spp in spps:
-        path = paths[spp]
-        cpu = least[spp] - overhead
-        if cpu <= 0.0:
-            sys.exit(f"compare_cycles: {name}: {spp} spp took no measurable CPU time beyond a 1-spp render; use more spp or a larger --size")
-        measured = rel_mse(read_rgb(path), ref)
-        rungs.append({"spp": spp, "cpu": cpu, "relrmse_measured": math.sqrt(measured), "relrmse": math.sqrt(measured / (1 + spp / ref_spp))})
-    return {"setup_cpu": setup, "overhead_cpu": overhead, "ref_spp": ref_spp, "ref_cpu": ref_cpu, "ref_mean": float(ref.mean()), "rungs": rungs}
+    for spp in ladder_spps:
+        measured = rel_mse(read_rgb(paths[spp]), ref)
+        rungs.append(
+            {
+                "spp": spp,
+                "cpu": per_sample * spp,
+                "cpu_measured": least[spp] - overhead,
+                "relrmse_measured": math.sqrt(measured),
+                "relrmse": math.sqrt(measured / (1 + spp / ref_spp)),
+            }
+        )
+    return {"setup_cpu": setup, "overhead_cpu": overhead, "cpu_per_spp": per_sample, "ref_spp": ref_spp, "ref_cpu": ref_cpu, "ref_mean": float(ref.mean()), "rungs": rungs}
+
+
+def cpu_model(least):
+    """`(c, o)` of the module docs' model from {spp: least CPU}, which holds 1 spp: the
+    least-squares line through the 1-spp point."""
+    t1 = least[1]
+    c = sum((n - 1) * (t - t1) for n, t in least.items()) / sum((n - 1) ** 2 for n in least)
+    return c, t1 - c
 
 
 def at_budget(result, budget):
-    """Error at CPU `budget`, scaled as 1/sqrt(time) from the rung nearest in log time."""
-    rung = min(result["rungs"], key=lambda r: abs(math.log(r["cpu"] / budget)))
-    return rung["relrmse"] * math.sqrt(rung["cpu"] / budget)
+    """Error at CPU `budget`: interpolated linearly in (log CPU, log error) between the two
+    rungs that bracket it; outside the ladder, scaled as 1/sqrt(time) from its nearest end."""
+    rungs = sorted(result["rungs"], key=lambda r: r["cpu"])
+    lo = [r for r in rungs if r["cpu"] <= budget]
+    hi = [r for r in rungs if r["cpu"] >= budget]
+    if not lo or not hi:
+        end = hi[0] if hi else lo[-1]
+        return end["relrmse"] * math.sqrt(end["cpu"] / budget)
+    a, b = lo[-1], hi[0]
+    if a["cpu"] == b["cpu"]:
+        return a["relrmse"]
+    s = math.log(budget / a["cpu"]) / math.log(b["cpu"] / a["cpu"])
+    return math.exp((1 - s) * math.log(a["relrmse"]) + s * math.log(b["relrmse"]))
 
 
 def main():
@@ -314,7 +357,7 @@ def main():
             print(f"compare_cycles: {name}: plume", file=sys.stderr, flush=True)
             p = ladder(lambda spp, path, seed=0: plume_render(args, spec, cycles.camera, albedo, spp, path, seed), args.plume_spp, args.ref_spp, args.out, f"{name}_plume", args.repeats)
             rows = []
-            for rung in c["rungs"]:
+            for rung in (r for r in c["rungs"] if r["spp"] in args.cycles_spp):
                 budget = rung["cpu"]
                 pe = at_budget(p, budget)
                 rows.append({"cycles_spp": rung["spp"], "cpu": budget, "cycles": rung["relrmse"], "plume": pe, "ratio": pe / rung["relrmse"]})

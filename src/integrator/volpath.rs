@@ -18,8 +18,11 @@
 //! with 1, or it would undo the split at the first vertex. In thin media the camera walk,
 //! which integrates the emission seen directly with almost no variance, is most of a
 //! sample's cost while the scattered light carries almost all of its variance: `N = 8`
-//! (the default) gives 3.0–3.1× the efficiency on the three Mantaflow explosions at
-//! albedo 0.8 and 1.55× on the dense README demo (docs/BENCHMARKS.md, "Splitting").
+//! (the default) gave 3.0–3.1× the efficiency on the three Mantaflow explosions at
+//! albedo 0.8 and 1.55× on the dense README demo (docs/BENCHMARKS.md, "Splitting"); since
+//! the roulette change below, 1.8–2.9× at 22–37 spp. At one or two samples per pixel
+//! fewer paths win (`--split 2`: 1.7–2× lower error at equal CPU; "Budget model
+//! corrected").
 //!
 //! **Tracking** (`integrator::tracker`, `--tracking`): the camera segment and the
 //! segments after a scattering event each get their tracker once per sample, regular or

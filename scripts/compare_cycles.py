@@ -29,8 +29,9 @@ c = sum((n - 1)(t_n - t_1)) / sum((n - 1)^2), o = t_1 - c). A rung's CPU is c * 
 1-spp render is itself the ladder's first rung. Two things this replaces: subtracting the
 whole 1-spp render left a rung of n spp charged for n - 1 samples (a quarter off a 4-spp
 rung, a sixteenth off a 16-spp one), and each small rung's own time, a difference of two
-renders of a few tenths of a second, varied by up to 40 % between runs while the fitted
-per-sample cost stays within a few per cent across the ladder. The set-up (the first 1-spp
+renders of a few tenths of a second, which varied by up to 40 % between runs; the
+per-sample cost each rung implies scatters about the fitted one by about 10 % (more for
+the shortest rungs), and the fit averages that. The set-up (the first 1-spp
 render: file load, scene sync, volume build) is reported apart. Each render runs
 `--repeats` times (3) and the least CPU time counts: load from other processes only ever
 adds time. The repeats go round the ladder, so a stretch of load slows one render of each

@@ -37,6 +37,9 @@ render: file load, scene sync, volume build) is reported apart. Each render runs
 adds time. The repeats go round the ladder, so a stretch of load slows one render of each
 rung, not all of one.
 
+Both rules live in `scripts/budget.py` (standard library only; the test suite runs its
+self-test).
+
 At equal CPU: for each Cycles budget B (its CPU time at each rung of `--cycles-spp`),
 plume's error is interpolated between the two rungs whose CPU times bracket B, linearly in
 log error against log CPU, i.e. at the convergence rate measured there; only outside the
@@ -56,6 +59,8 @@ import time
 
 import numpy as np
 import OpenEXR
+
+from budget import at_budget, cpu_model
 
 FILES = {
     "blender40": {
@@ -318,30 +323,6 @@ def ladder(render, spps, ref_spp, out, name, repeats):
     return {"setup_cpu": setup, "overhead_cpu": overhead, "cpu_per_spp": per_sample, "ref_spp": ref_spp, "ref_cpu": ref_cpu, "ref_mean": float(ref.mean()), "rungs": rungs}
 
 
-def cpu_model(least):
-    """`(c, o)` of the module docs' model from {spp: least CPU}, which holds 1 spp: the
-    least-squares line through the 1-spp point."""
-    t1 = least[1]
-    c = sum((n - 1) * (t - t1) for n, t in least.items()) / sum((n - 1) ** 2 for n in least)
-    return c, t1 - c
-
-
-def at_budget(result, budget):
-    """Error at CPU `budget`: interpolated linearly in (log CPU, log error) between the two
-    rungs that bracket it; outside the ladder, scaled as 1/sqrt(time) from its nearest end."""
-    rungs = sorted(result["rungs"], key=lambda r: r["cpu"])
-    lo = [r for r in rungs if r["cpu"] <= budget]
-    hi = [r for r in rungs if r["cpu"] >= budget]
-    if not lo or not hi:
-        end = hi[0] if hi else lo[-1]
-        return end["relrmse"] * math.sqrt(end["cpu"] / budget)
-    a, b = lo[-1], hi[0]
-    if a["cpu"] == b["cpu"]:
-        return a["relrmse"]
-    s = math.log(budget / a["cpu"]) / math.log(b["cpu"] / a["cpu"])
-    return math.exp((1 - s) * math.log(a["relrmse"]) + s * math.log(b["relrmse"]))
-
-
 def main():
     args = parse_args()
     os.makedirs(args.out, exist_ok=True)
@@ -360,7 +341,7 @@ def main():
             rows = []
             for rung in (r for r in c["rungs"] if r["spp"] in args.cycles_spp):
                 budget = rung["cpu"]
-                pe = at_budget(p, budget)
+                pe = at_budget(p["rungs"], budget)
                 rows.append({"cycles_spp": rung["spp"], "cpu": budget, "cycles": rung["relrmse"], "plume": pe, "ratio": pe / rung["relrmse"]})
             results.append({"file": fname, "setting": sname, "albedo": albedo, "camera": cycles.camera, "cycles": c, "plume": p, "rows": rows, "mean_ratio": p["ref_mean"] / c["ref_mean"]})
             with open(os.path.join(args.out, "results.json"), "w") as f:

@@ -299,3 +299,20 @@ fn interpolation_bench_runs_at_a_tiny_size_with_sane_figures() {
     assert!(String::from_utf8_lossy(&o.stderr).contains("--files"));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The peer comparison's equal-CPU rules (`scripts/budget.py`: the CPU model fitted over a
+/// ladder, and the error at a budget read between the rungs that bracket it) pass their
+/// self-test. Without `python3` the test skips loudly.
+#[test]
+fn the_peer_comparisons_budget_rules_pass_their_self_test() {
+    let script = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/budget.py");
+    let output = match std::process::Command::new("python3").arg(&script).output() {
+        Ok(o) => o,
+        Err(e) => {
+            eprintln!("\n!!!!!!!!!! SKIPPED budget.py self-test: cannot run python3: {e} !!!!!!!!!!\n");
+            return;
+        }
+    };
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(output.status.success() && stdout.contains("self-test ok"), "{}: {stdout}{}", script.display(), String::from_utf8_lossy(&output.stderr));
+}

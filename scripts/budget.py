@@ -41,6 +41,9 @@ def at_budget(rungs, budget):
     if a["cpu"] == b["cpu"]:
         return a["relrmse"]
     s = math.log(budget / a["cpu"]) / math.log(b["cpu"] / a["cpu"])
+    if min(a["relrmse"], b["relrmse"]) <= 0.0:
+        # A rung equal to its reference has no logarithm: linear in s instead
+        return (1 - s) * a["relrmse"] + s * b["relrmse"]
     return math.exp((1 - s) * math.log(a["relrmse"]) + s * math.log(b["relrmse"]))
 
 
@@ -71,6 +74,8 @@ def _self_test():
     # Outside the ladder, sqrt(time) from the nearest end, above and below
     assert close(at_budget(rungs, 2.4), 0.25 * math.sqrt(0.6 / 2.4))
     assert close(at_budget(rungs, 0.075), 1.0 * math.sqrt(0.15 / 0.075))
+    # A rung with no error at all (an image equal to its reference) still interpolates
+    assert close(at_budget([{"cpu": 1.0, "relrmse": 0.2}, {"cpu": 2.0, "relrmse": 0.0}], math.sqrt(2.0)), 0.1)
     # Interpolation is monotone between rungs whose error falls
     xs = [at_budget(rungs, 0.15 * 1.1**k) for k in range(15)]
     assert all(x >= y for x, y in zip(xs, xs[1:])), xs

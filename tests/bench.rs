@@ -1,5 +1,6 @@
 //! `plume bench`: the error metrics against hand-computed values, the numerical-extremes
-//! sweep at small sizes, and the comparison pipeline end to end (library and binary).
+//! sweep at small sizes, and the comparison pipeline end to end (library and binary); and
+//! the equal-CPU rules of the peer comparison with Cycles (`scripts/budget.py`).
 //! Timings are never asserted (STYLE.md §8); only structure, finiteness and means.
 
 mod common;

@@ -72,7 +72,7 @@ pub enum Slot {
 /// pattern decodes to *some* slot (unknown tags read as constants), so a damaged file
 /// cannot make decoding undefined.
 #[repr(C)]
-#[derive(Clone, Copy, Debug, PartialEq, Eq, bytemuck::Pod, bytemuck::Zeroable)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct PackedSlot {
     tag: u32,
     bits: u32,
@@ -112,7 +112,7 @@ impl PackedSlot {
 
 /// The three channels of one brick.
 #[repr(C)]
-#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct Brick {
     /// Density channel.
     pub density: PackedSlot,

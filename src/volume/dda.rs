@@ -96,8 +96,9 @@ pub trait Cells: Copy {
     fn cell_box(&self) -> CellBox;
     /// Fills `dense` with the data handles of table brick `brick` (brick coordinate), in
     /// place: a dual brick's are some 500 bytes, which returning them by value copied
-    /// twice per brick entered (3 % of a linear ray-marched render). False when the brick
-    /// has no data (then it is crossed as empty, and `dense` holds anything).
+    /// twice per brick entered (`memcpy` at 4 % of a linear ray-marched render's profile,
+    /// against 1.5 % without those copies). False when the brick has no data (then it is
+    /// crossed as empty, and `dense` holds anything).
     fn dense(&self, brick: IVec3, dense: &mut Self::Dense) -> bool;
     /// The piece of `line` over `[t0, t1]` inside cell `ijk` of the dense brick whose
     /// first cell is `origin`. `dense` may remember what the previous cell read (the walk

@@ -53,6 +53,7 @@
 use rayon::prelude::*;
 
 use crate::film::{count, pixel_value};
+use crate::integrator::aov::Component;
 use crate::integrator::AovLayout;
 
 /// The non-local means filter's parameters.
@@ -164,16 +165,18 @@ pub fn from_sums(layout: &AovLayout, sums: &[[i128; 4]], aov_sums: &[i128], spp:
     let mut b_share = Vec::with_capacity(sums.len());
     let mut kept = Vec::with_capacity(if rest { sums.len() } else { 0 });
     let mut both = false;
+    let emission = AovLayout::offset(Component::Emission);
     for (total, aov) in sums.iter().zip(aov_sums.chunks_exact(n)) {
         let half = &aov[at..at + 5];
-        // The filtered part's total: the beauty, less the emission layer's sums (its
-        // channels come first) when those are kept out
+        // The filtered part's total: the beauty, less the emission layer's sums when those
+        // are kept out (as `AovSample::half` leaves them out of the half sums)
         let mut total = *total;
         if rest {
+            let e = &aov[emission..emission + 3];
             for c in 0..3 {
-                total[c] -= aov[c];
+                total[c] -= e[c];
             }
-            kept.push(std::array::from_fn::<f32, 3, _>(|c| pixel_value(aov[c], spp)));
+            kept.push(std::array::from_fn::<f32, 3, _>(|c| pixel_value(e[c], spp)));
         }
         let nb = count(half[4]).min(spp);
         both |= nb > 0 && nb < spp;

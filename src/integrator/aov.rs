@@ -163,7 +163,7 @@ impl AovLayout {
 
     /// The offset of `component`'s red channel.
     #[inline]
-    fn offset(component: Component) -> usize {
+    pub(crate) fn offset(component: Component) -> usize {
         match component {
             Component::Emission => 0,
             Component::Scattered => 3,

@@ -340,19 +340,17 @@ impl<C: Cells> CellWalk<C> {
                         cell = C::uniform(&node.bounds);
                         t_exit = self.exit_box(node.lo, node.size);
                     }
-                    None => match self.cells.dense(bc, self.dense.get_or_insert_with(C::Dense::default)) {
-                        true => {
+                    None => {
+                        if self.cells.dense(bc, self.dense.get_or_insert_with(C::Dense::default)) {
                             self.origin = Some(bc * BRICK);
                             self.t_next = DVec3::new(self.face_crossing(0), self.face_crossing(1), self.face_crossing(2));
                             continue;
                         }
-                        false => {
-                            // A non-uniform node without a brick: only a damaged cache file
-                            // says so (its checksums fail the render); cross it as empty.
-                            cell = C::empty();
-                            t_exit = self.exit_box(bc * BRICK, BRICK);
-                        }
-                    },
+                        // A non-uniform node without a brick: only a damaged cache file says
+                        // so (its checksums fail the render); cross it as empty.
+                        cell = C::empty();
+                        t_exit = self.exit_box(bc * BRICK, BRICK);
+                    }
                 }
             }
             let t1 = t_exit.min(self.t_end);
@@ -487,7 +485,9 @@ impl Cells for NearestVoxels<'_> {
 
     #[inline]
     fn dense(&self, brick: IVec3, dense: &mut Brick) -> bool {
-        self.volume.brick(brick).map(|b| *dense = *b).is_some()
+        let Some(b) = self.volume.brick(brick) else { return false };
+        *dense = *b;
+        true
     }
 
     #[inline]

@@ -8,7 +8,7 @@ use common::{grid_emission, mean_stderr_from_sums};
 use glam::DVec3;
 use plume::color::Rgb;
 use plume::medium::tracking::{phi, sample_exponential};
-use plume::medium::{track, Convention, DistanceSample, Emission, EmissionKind, Estimator, Medium, TemperatureMap};
+use plume::medium::{track, Collision, Convention, DistanceSample, Emission, EmissionKind, Estimator, Medium, TemperatureMap};
 use plume::sampling::Sampler;
 use plume::volume::field::{Constant, Ray, Segment, Strip};
 use plume::volume::Field;
@@ -25,7 +25,7 @@ fn mc_emission<F: Field>(field: &F, m: &Medium, ray: &Ray, est: Estimator, n: u6
     for i in 0..n {
         let mut sampler = Sampler::new(seed, 0, i);
         let u = sampler.next_f64();
-        let r = track(field, m, ray, f64::INFINITY, est, false, u, &mut sampler);
+        let r = track(field, m, ray, f64::INFINITY, est, Collision::Skip, u, &mut sampler);
         s += r.emission[0];
         s2 += r.emission[0] * r.emission[0];
         tr += r.transmittance;
@@ -113,7 +113,7 @@ fn free_path_samples_invert_optical_depth() {
     let mut collided = 0;
     for i in 0..2000 {
         let u = (i as f64 + 0.5) / 2000.0;
-        let r = track(&field, &m, &ray, f64::INFINITY, Estimator::Line, false, u, &mut sampler);
+        let r = track(&field, &m, &ray, f64::INFINITY, Estimator::Line, Collision::Skip, u, &mut sampler);
         let e = sample_exponential(u);
         match r.event {
             DistanceSample::Collided { t, density, .. } => {
@@ -137,14 +137,14 @@ fn linear_ramp_transmittance_is_exact() {
     let ray = Ray { origin: DVec3::new(-0.5, 0.5, 0.5), direction: DVec3::X };
     let expected_od = 0.7 * (0..32).map(|i| f64::from(i as f32 * 0.1)).sum::<f64>() * 0.25;
     let mut sampler = Sampler::new(0, 0, 0);
-    let r = track(&field, &m, &ray, f64::INFINITY, Estimator::RayMarch, false, 0.5, &mut sampler);
+    let r = track(&field, &m, &ray, f64::INFINITY, Estimator::RayMarch, Collision::Skip, 0.5, &mut sampler);
     // OD ≈ 8.7: τ = 1.7e-4 is below the roulette threshold, so the estimate is either 0 or
     // τ·(1/q); its mean over many runs is τ.
     let mut mean = 0.0;
     let n = 20_000;
     for i in 0..n {
         let mut s = Sampler::new(1, 0, i);
-        mean += track(&field, &m, &ray, f64::INFINITY, Estimator::RayMarch, false, 0.5, &mut s).transmittance;
+        mean += track(&field, &m, &ray, f64::INFINITY, Estimator::RayMarch, Collision::Skip, 0.5, &mut s).transmittance;
     }
     mean /= n as f64;
     let tau = (-expected_od).exp();
@@ -152,7 +152,7 @@ fn linear_ramp_transmittance_is_exact() {
     assert!(r.transmittance == 0.0 || (r.transmittance - 1e-2).abs() < 1e-2);
     // A thinner ramp stays above the threshold: exact.
     let m = medium(0.07, Convention::Physical);
-    let r = track(&field, &m, &ray, f64::INFINITY, Estimator::RayMarch, false, 0.5, &mut sampler);
+    let r = track(&field, &m, &ray, f64::INFINITY, Estimator::RayMarch, Collision::Skip, 0.5, &mut sampler);
     assert!((r.transmittance - (-expected_od / 10.0).exp()).abs() < 1e-12);
 }
 
@@ -224,7 +224,7 @@ fn extreme_densities_and_temperatures_stay_finite() {
                     for i in 0..50 {
                         let mut s = Sampler::new(9, 1, i);
                         let u = s.next_f64();
-                        let r = track(&field, &m, &ray, f64::INFINITY, est, false, u, &mut s);
+                        let r = track(&field, &m, &ray, f64::INFINITY, est, Collision::Skip, u, &mut s);
                         // Cycles' blackbody colour is not gamut-clamped: below ~1900 K its blue
                         // channel is negative, as in Cycles. Physical emission never is.
                         let nonneg = conv == Convention::Cycles || r.emission.iter().all(|v| *v >= 0.0);

@@ -12,7 +12,7 @@ use common::{explosion, exr_pixels, grid, grid_emission, mean_stderr, pixel_bits
 use glam::{DAffine3, DVec3, IVec3};
 use plume::camera::Camera;
 use plume::integrator::{AnyScene, Integrator, LightSampling, Lights, MisHeuristic, Scene, Tracking};
-use plume::medium::{Convention, Emission, EmissionKind, Estimator, Medium};
+use plume::medium::{Collision, Convention, Emission, EmissionKind, Estimator, Medium};
 use plume::render::{render, RenderSettings, SampleBudget};
 use plume::sampling::SamplerKind;
 use plume::volume::{Interpolation, Volume};
@@ -256,8 +256,16 @@ fn linear_scattering_renders_are_bit_identical_for_any_thread_count() {
         let scene = AnyScene::new(Scene { field: vol, medium, camera, lights, motion: None, majorants: None }, Interpolation::Linear);
         assert_eq!(scene.interpolation(), Interpolation::Linear);
         let estimator = if ls == LightSampling::Nee { Estimator::Point } else { Estimator::Line };
-        let integrator =
-            Integrator { estimator, camera_estimator: None, light_sampling: ls, mis: MisHeuristic::Power, max_depth: 8, tracking: Tracking::Regular, split: 1 };
+        let integrator = Integrator {
+            estimator,
+            camera_estimator: None,
+            light_sampling: ls,
+            mis: MisHeuristic::Power,
+            max_depth: 8,
+            tracking: Tracking::Regular,
+            split: 1,
+            camera_collision: Collision::Analog,
+        };
         let one = pixels(&scene, integrator, 3, 21, 1);
         let two = pixels(&scene, integrator, 3, 21, 2);
         assert!(one.iter().any(|p| p[0] > 0.0), "{ls:?}: the image is black");
@@ -448,7 +456,7 @@ fn cycles_convention_interpolates_each_voxels_emission() {
     for i in 0..16u64 {
         let mut sampler = plume::sampling::Sampler::new(77, 0, i);
         let u = sampler.next_f64();
-        let r = plume::medium::track(&field, &medium, &ray, f64::INFINITY, Estimator::Line, false, u, &mut sampler);
+        let r = plume::medium::track(&field, &medium, &ray, f64::INFINITY, Estimator::Line, Collision::Skip, u, &mut sampler);
         let line = r.emission[0];
         assert!((line - per_voxel).abs() <= 1e-6 * per_voxel, "path {i}: line estimator {line}, per-voxel rule {per_voxel}");
     }

@@ -11,7 +11,7 @@ use plume::camera::Camera;
 use plume::color::Rgb;
 use plume::integrator::{Counters, Integrator, LightSampling, Lights, MisHeuristic, NoTrace, Scene, Tracking};
 use plume::light::external::{Distant, Environment, ExternalLights, Light, Radiance, Sphere};
-use plume::medium::{Convention, Emission, EmissionKind, Estimator, Medium};
+use plume::medium::{Collision, Convention, Emission, EmissionKind, Estimator, Medium};
 use plume::sampling::phase::hg_pdf;
 use plume::sampling::Sampler;
 use plume::volume::field::Ray;
@@ -60,6 +60,7 @@ fn single_scattering(scene: &Scene<Volume>, estimator: Estimator, n: u64, seed: 
         max_depth: 1,
         tracking: Tracking::Regular,
         split: 1,
+        camera_collision: Collision::Analog,
     };
     let ray = Ray { origin: DVec3::new(0.0, 0.0, -1.0), direction: DVec3::Z };
     let (mut s, mut s2) = (0.0, 0.0);
@@ -130,6 +131,7 @@ fn wide_distant_light_matches_single_scattering_with_mis() {
             max_depth: 1,
             tracking: Tracking::Regular,
             split: 1,
+            camera_collision: Collision::Analog,
         };
         let ray = Ray { origin: DVec3::new(0.0, 0.0, -1.0), direction: DVec3::Z };
         let (mut s, mut s2, n) = (0.0, 0.0, 60_000u64);

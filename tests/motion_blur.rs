@@ -10,7 +10,7 @@ use common::{explosion_emission, exr_pixels, mean_stderr, pixel_bits, plume, plu
 use glam::{DAffine3, DVec3};
 use plume::camera::Camera;
 use plume::integrator::{AnyScene, Integrator, LightSampling, Lights, MisHeuristic, Scene, Tracking};
-use plume::medium::{Estimator, Medium};
+use plume::medium::{Collision, Estimator, Medium};
 use plume::sampling::{Sampler, SamplerKind};
 use plume::synth::{explosion, ExplosionParams};
 use plume::vdb::FloatGrid;
@@ -68,7 +68,16 @@ fn largest_z(a: &[[f64; 5]], b: &[[f64; 5]]) -> f64 {
 }
 
 fn integrator(estimator: Estimator, light_sampling: LightSampling, max_depth: u32) -> Integrator {
-    Integrator { estimator, camera_estimator: None, light_sampling, mis: MisHeuristic::Power, max_depth, tracking: Tracking::Regular, split: 1 }
+    Integrator {
+        estimator,
+        camera_estimator: None,
+        light_sampling,
+        mis: MisHeuristic::Power,
+        max_depth,
+        tracking: Tracking::Regular,
+        split: 1,
+        camera_collision: Collision::Analog,
+    }
 }
 
 #[test]

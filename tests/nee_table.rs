@@ -9,7 +9,7 @@ mod common;
 
 use common::{explosion, plume, plume_exits, region_means_with, s, tmpdir};
 use plume::integrator::{AnyScene, Integrator, LightSampling, Lights, MisHeuristic, Tracking};
-use plume::medium::Estimator;
+use plume::medium::{Collision, Estimator};
 use plume::sampling::SamplerKind;
 use plume::scene::NeeTable;
 use plume::volume::Interpolation;
@@ -34,6 +34,7 @@ fn brick_table_gives_the_image_means_of_the_voxel_table() {
                 max_depth: 64,
                 tracking: Tracking::Regular,
                 split: 1,
+                camera_collision: Collision::Analog,
             };
             let a = region_means_with(SamplerKind::Sobol, &voxels, integrator, 16, 16, 11);
             let b = region_means_with(SamplerKind::Sobol, &bricks, integrator, 16, 16, 500);

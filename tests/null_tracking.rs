@@ -9,7 +9,7 @@ use common::{chi2_test, mean_stderr};
 use glam::DVec3;
 use plume::medium::null_tracking::{null_track, ratio_transmittance, PointSample};
 use plume::medium::tracking::optical_depth;
-use plume::medium::{track, Convention, DistanceSample, Emission, EmissionKind, Estimator, Medium, TemperatureMap};
+use plume::medium::{track, Collision, Convention, DistanceSample, Emission, EmissionKind, Estimator, Medium, TemperatureMap};
 use plume::sampling::Sampler;
 use plume::synth::{explosion, ExplosionParams};
 use plume::volume::field::{Field, Ray};
@@ -189,11 +189,13 @@ fn every_estimator_agrees_with_regular_tracking_in_mean() {
             [r.emission[0], r.transmittance]
         };
         let (en, et) = (sampler_of(&vol, &m), sampler_of(&tri, &m));
-        check(&format!("{estimator:?} nearest"), &|i| run_regular(&|s, u| track(&vol, &m, &ray, f64::INFINITY, estimator, true, u, s), i), &|i| {
+        check(&format!("{estimator:?} nearest"), &|i| run_regular(&|s, u| track(&vol, &m, &ray, f64::INFINITY, estimator, Collision::Analog, u, s), i), &|i| {
             run_regular(&|s, u| null_track(&grid, &en, &m, &ray, f64::INFINITY, estimator, true, u, s), i + n)
         });
-        check(&format!("{estimator:?} trilinear"), &|i| run_regular(&|s, u| track(&tri, &m, &ray, f64::INFINITY, estimator, true, u, s), i), &|i| {
-            run_regular(&|s, u| null_track(&grid, &et, &m, &ray, f64::INFINITY, estimator, true, u, s), i + n)
-        });
+        check(
+            &format!("{estimator:?} trilinear"),
+            &|i| run_regular(&|s, u| track(&tri, &m, &ray, f64::INFINITY, estimator, Collision::Analog, u, s), i),
+            &|i| run_regular(&|s, u| null_track(&grid, &et, &m, &ray, f64::INFINITY, estimator, true, u, s), i + n),
+        );
     }
 }

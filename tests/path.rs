@@ -11,7 +11,7 @@ use plume::camera::Camera;
 use plume::color::Rgb;
 use plume::integrator::{AnyScene, Counters, Integrator, LightSampling, Lights, MisHeuristic, NoTrace, Scene, Tracking};
 use plume::light::external::{Environment, ExternalLights, Light, Radiance};
-use plume::medium::{Convention, Emission, EmissionKind, Estimator, Medium};
+use plume::medium::{Collision, Convention, Emission, EmissionKind, Estimator, Medium};
 use plume::render::{render, RenderSettings, SampleBudget};
 use plume::sampling::phase::sample_uniform_sphere;
 use plume::sampling::Sampler;
@@ -37,7 +37,7 @@ fn cube(n: i32, size: f64, density: f32, source: f32) -> Volume {
 }
 
 fn integrator(estimator: Estimator, light_sampling: LightSampling, mis: MisHeuristic, max_depth: u32) -> Integrator {
-    Integrator { estimator, camera_estimator: None, light_sampling, mis, max_depth, tracking: Tracking::Regular, split: 1 }
+    Integrator { estimator, camera_estimator: None, light_sampling, mis, max_depth, tracking: Tracking::Regular, split: 1, camera_collision: Collision::Analog }
 }
 
 /// Every estimator × light strategy.

@@ -8,7 +8,7 @@ use glam::{DAffine3, DMat3, DVec3, IVec3};
 use plume::camera::Camera;
 use plume::color::Rgb;
 use plume::integrator::{Counters, Integrator, LightSampling, Lights, MisHeuristic, NoTrace, Scene, Tracking};
-use plume::medium::{Convention, Emission, EmissionKind, Estimator, Medium, TemperatureMap};
+use plume::medium::{Collision, Convention, Emission, EmissionKind, Estimator, Medium, TemperatureMap};
 use plume::render::{pixel_sample, render, render_with, PixelSample, RenderControl, RenderSettings, SampleBudget, SampleOrder, StopReason};
 use plume::sampling::SamplerKind;
 use plume::volume::Volume;
@@ -75,6 +75,7 @@ fn scattering_blob() -> (Scene<Volume>, Integrator) {
             max_depth: 16,
             tracking: Tracking::Regular,
             split: 1,
+            camera_collision: Collision::Analog,
         },
     )
 }

@@ -11,7 +11,7 @@ mod common;
 use common::{explosion, explosion_volume, plume, plume_exits, region_means_with, s, tmpdir};
 use glam::DVec3;
 use plume::integrator::{AnyScene, Integrator, LightSampling, Lights, MisHeuristic, Tracking};
-use plume::medium::Estimator;
+use plume::medium::{Collision, Estimator};
 use plume::sampling::{Sampler, SamplerKind};
 use plume::scene::TrackingChoice;
 use plume::volume::field::{Field, Ray};
@@ -24,7 +24,16 @@ fn scene(sigma_t: f64, ls: LightSampling, interpolation: Interpolation) -> AnySc
 }
 
 fn integrator(estimator: Estimator, light_sampling: LightSampling, tracking: Tracking) -> Integrator {
-    Integrator { estimator, camera_estimator: None, light_sampling, mis: MisHeuristic::Power, max_depth: 64, tracking, split: 1 }
+    Integrator {
+        estimator,
+        camera_estimator: None,
+        light_sampling,
+        mis: MisHeuristic::Power,
+        max_depth: 64,
+        tracking,
+        split: 1,
+        camera_collision: Collision::Analog,
+    }
 }
 
 #[test]

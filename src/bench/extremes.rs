@@ -41,7 +41,7 @@ use crate::color::Rgb;
 use crate::error::{Error, Result};
 use crate::integrator::{Integrator, LightSampling, Lights, MisHeuristic, Scene, Tracking};
 use crate::medium::tracking::phi;
-use crate::medium::{Convention, Emission, EmissionKind, Estimator, Medium, TemperatureMap};
+use crate::medium::{Collision, Convention, Emission, EmissionKind, Estimator, Medium, TemperatureMap};
 use crate::render::{render, RenderSettings, SampleBudget};
 use crate::vdb::{leaf_offset, FloatGrid, LEAF_VOXELS};
 use crate::volume::{Field, Volume};
@@ -264,14 +264,16 @@ fn density_sweep(cfg: &ExtremesConfig, check: &mut Check) -> Result<()> {
         // Scattering: between the emission-only value and the equilibrium L_e/μ_a
         scene.medium.albedo = 0.5;
         scene.lights = Lights::build(&scene.field, &emission, LightSampling::Fnee, 8)?;
+        // The defaults' camera segment: ray-marched, its collision forced
         let integ = Integrator {
             estimator: Estimator::Line,
-            camera_estimator: None,
+            camera_estimator: Some(Estimator::RayMarch),
             light_sampling: LightSampling::Fnee,
             mis: MisHeuristic::Power,
             max_depth: 64,
             tracking: Tracking::Regular,
             split: 1,
+            camera_collision: Collision::Forced,
         };
         let img = render_image(&scene, integ, cfg.spp, 1);
         let (mean, se) = central(&img, cfg.size, None);

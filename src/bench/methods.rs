@@ -21,7 +21,7 @@ use crate::camera::Camera;
 use crate::color::Rgb;
 use crate::error::Result;
 use crate::integrator::{Integrator, LightSampling, Lights, MisHeuristic, Scene, Tracking};
-use crate::medium::{Convention, Emission, EmissionKind, Estimator, Medium, TemperatureMap};
+use crate::medium::{Collision, Convention, Emission, EmissionKind, Estimator, Medium, TemperatureMap};
 use crate::render::{render, RenderSettings, SampleBudget};
 use crate::stats::cpu_seconds;
 use crate::synth::{explosion, ExplosionParams};
@@ -89,7 +89,16 @@ fn scene(resolution: u32, sigma_t: f64, ls: LightSampling, width: u32, height: u
 }
 
 fn integrator(estimator: Estimator, light_sampling: LightSampling, mis: MisHeuristic) -> Integrator {
-    Integrator { estimator, camera_estimator: None, light_sampling, mis, max_depth: 64, tracking: Tracking::Regular, split: 1 }
+    Integrator {
+        estimator,
+        camera_estimator: None,
+        light_sampling,
+        mis,
+        max_depth: 64,
+        tracking: Tracking::Regular,
+        split: 1,
+        camera_collision: Collision::Analog,
+    }
 }
 
 pub use super::metrics::rmse;

@@ -39,6 +39,7 @@ flags_to_keys! { RENDER_ONLY_FLAGS, apply_render_only, RenderArgs, s, a;
     "method" => "integrator.method": s.scene.integrator.method => a.method;
     "estimator" => "integrator.estimator": s.scene.integrator.estimator => a.estimator;
     "camera_estimator" => "integrator.camera_estimator": s.scene.integrator.camera_estimator => a.camera_estimator;
+    "camera_collision" => "integrator.camera_collision": s.scene.integrator.camera_collision => a.camera_collision;
     "light_sampling" => "integrator.light_sampling": s.scene.integrator.light_sampling => a.light_sampling;
     "mis" => "integrator.mis": s.scene.integrator.mis => a.mis;
     "tracking" => "integrator.tracking": s.scene.integrator.tracking => a.tracking;

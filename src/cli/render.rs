@@ -17,9 +17,9 @@ use plume::integrator::{LightSampling, MisHeuristic};
 use plume::medium::Convention;
 use plume::scene::file::{is_scene_file, SceneFile};
 use plume::scene::{
-    ByteSize, CameraSettings, DistantSettings, EmissionSettings, EmissionSource, EnvironmentMapSettings, EstimatorKind, IntegratorSettings, Interpolation,
-    MediumSettings, Method, NeeTable, ProgressFormat, ReadSettings, RenderOptions, SampleOrderChoice, SamplerKind, Shot, SkySettings, SphereSettings,
-    TileIndex, TrackingChoice, UpAxis, ValidShot, VolumeInput,
+    ByteSize, CameraCollision, CameraSettings, DistantSettings, EmissionSettings, EmissionSource, EnvironmentMapSettings, EstimatorKind, IntegratorSettings,
+    Interpolation, MediumSettings, Method, NeeTable, ProgressFormat, ReadSettings, RenderOptions, SampleOrderChoice, SamplerKind, Shot, SkySettings,
+    SphereSettings, TileIndex, TrackingChoice, UpAxis, ValidShot, VolumeInput,
 };
 
 use super::flags::{choice, parse_environment_map, parse_keys, parse_pair, parse_size, parse_vec3};
@@ -90,10 +90,16 @@ pub struct RenderArgs {
     /// Emission estimator (default: from --method).
     #[arg(long, value_parser = choice::<EstimatorKind>())]
     pub estimator: Option<EstimatorKind>,
-    /// The camera segment's estimator (default: --estimator); ray-march makes its emission
-    /// exact, and --denoise then leaves it unfiltered.
+    /// The camera segment's estimator (default: ray-march where paths scatter, else
+    /// --estimator); ray-march makes its emission exact, and --denoise then leaves it
+    /// unfiltered.
     #[arg(long, value_parser = choice::<EstimatorKind>())]
     pub camera_estimator: Option<EstimatorKind>,
+    /// How a camera ray's collision is drawn when paths scatter: forced (every ray that
+    /// meets the medium may scatter, weighted by its collision probability; where the
+    /// camera segment is ray-marched by regular tracking, analog elsewhere) or analog.
+    #[arg(long, value_parser = choice::<CameraCollision>(), default_value_t = IntegratorSettings::default().camera_collision)]
+    pub camera_collision: CameraCollision,
     /// Next event technique at scattering vertices (default: from --method).
     #[arg(long, value_parser = choice::<LightSampling>())]
     pub light_sampling: Option<LightSampling>,

@@ -78,8 +78,20 @@ pub fn settings_hash(shot: &Shot, seed: u64) -> String {
     } else {
         format!("{environment:?} {map:?} {sky:?} {distant:?} {sphere:?}")
     };
-    let IntegratorSettings { method, estimator, camera_estimator, light_sampling, mis, proxy_resolution, max_depth, kappa, tracking, nee_table, split } =
-        integrator;
+    let IntegratorSettings {
+        method,
+        estimator,
+        camera_estimator,
+        camera_collision,
+        light_sampling,
+        mis,
+        proxy_resolution,
+        max_depth,
+        kappa,
+        tracking,
+        nee_table,
+        split,
+    } = integrator;
     // A brick table draws other voxels than a voxel table from the same numbers; the
     // default adds nothing, so earlier hashes stay valid
     let nee_table = if nee_table.is_voxel() { String::new() } else { format!(" nee-table {nee_table}") };
@@ -106,7 +118,9 @@ pub fn settings_hash(shot: &Shot, seed: u64) -> String {
     let OutputSettings { image: _, preview: _, exposure: _, stats: _, sums: _, aovs, denoise } = output;
     let ReadSettings { max_input_memory: _, read_timeout: _, no_isolation: _ } = reading;
     // The split count is always hashed: its default (8) changed every scattering render's
-    // pixels, so parts rendered before it existed must not merge with parts rendered after
+    // pixels, so parts rendered before it existed must not merge with parts rendered after.
+    // So is the camera collision, whose default (forced, with a ray-marched camera segment)
+    // did the same
     let text = format!(
         "plume {}\nseed {seed}\nsampler {sampler}\nfixed point {}\n\
          volume {density_grid:?} {temperature_grid:?} {emission_grid:?} {albedo_grid:?} {interpolation}\n\
@@ -114,7 +128,7 @@ pub fn settings_hash(shot: &Shot, seed: u64) -> String {
          medium {density_scale:?} {albedo:?} {g:?}\n\
          camera {from:?} {at:?} {up:?} {fov:?} {width} {height} {up_axis}\n\
          lights {lights}\n\
-         integrator {method} {estimator:?} {light_sampling:?} {mis} {proxy_resolution:?} {max_depth} {kappa:?} {tracking}{nee_table}{camera_estimator} split {split}{}{}{motion}",
+         integrator {method} {estimator:?} {light_sampling:?} {mis} {proxy_resolution:?} {max_depth} {kappa:?} {tracking}{nee_table}{camera_estimator} split {split} camera-collision {camera_collision}{}{}{motion}",
         env!("CARGO_PKG_VERSION"),
         crate::film::FIXED_POINT_BITS,
         if *aovs { "\naovs" } else { "" },

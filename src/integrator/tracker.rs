@@ -21,7 +21,7 @@ use crate::integrator::LightSampling;
 use crate::medium::emission::EmissionMemo;
 use crate::medium::null_tracking::{null_track, ratio_transmittance, PointField, PointSample};
 use crate::medium::tracking::{optical_depth, OpticalDepth};
-use crate::medium::{track, Estimator, Medium, TrackResult};
+use crate::medium::{track, Collision, Estimator, Medium, TrackResult};
 use crate::sampling::Sampler;
 use crate::volume::field::{Field, Ray};
 use crate::volume::majorant::MajorantGrid;
@@ -180,9 +180,11 @@ impl<F: Field> Tracker<'_, F> {
     /// ([`track`] or [`null_track`]).
     #[allow(clippy::too_many_arguments)]
     #[inline]
-    pub fn track(&self, medium: &Medium, ray: &Ray, t_max: f64, estimator: Estimator, need_collision: bool, u: f64, sampler: &mut Sampler) -> TrackResult {
+    pub fn track(&self, medium: &Medium, ray: &Ray, t_max: f64, estimator: Estimator, collision: Collision, u: f64, sampler: &mut Sampler) -> TrackResult {
+        // Null collisions draw every collision as the analog one (`medium::forced`)
+        let need_collision = collision.needed();
         match *self {
-            Tracker::Regular(field) => track(field, medium, ray, t_max, estimator, need_collision, u, sampler),
+            Tracker::Regular(field) => track(field, medium, ray, t_max, estimator, collision, u, sampler),
             Tracker::Null { field, majorants } => {
                 if let Some(volume) = field.voxels().filter(|v| v.reading_ahead()) {
                     let recorder = Recorder::default();

@@ -60,7 +60,7 @@ use super::tracker::{Tracker, Tracking};
 use crate::light::external::{ChosenLight, ExternalLights};
 use crate::light::nee::EmitterDistribution;
 use crate::medium::tracking::emission_at_point;
-use crate::medium::{DistanceSample, Estimator, Medium};
+use crate::medium::{Collision, DistanceSample, Estimator, Medium};
 use crate::sampling::phase::{hg_pdf, sample_hg};
 use crate::sampling::{Dim, Sampler};
 use crate::scene::NeeTable;
@@ -211,6 +211,10 @@ pub struct Integrator {
     /// Paths traced from a camera segment's collision, each carrying `1/split` (1: one
     /// path, as the paper has it; the module docs).
     pub split: u32,
+    /// How the camera segment draws its collision when paths scatter: forced collisions
+    /// (`medium::forced`) need the expected-value walk (`camera_estimator` ray-march) and
+    /// regular tracking, and are drawn as analog ones elsewhere.
+    pub camera_collision: Collision,
 }
 
 /// The MIS weight owed to a forward segment's emission.
@@ -280,6 +284,7 @@ impl Integrator {
             max_depth: 0,
             tracking: Tracking::Regular,
             split: 1,
+            camera_collision: Collision::Analog,
         }
     }
 
@@ -311,15 +316,21 @@ impl Integrator {
         let t_max = hit.map_or(f64::INFINITY, |(t, _)| t);
         let u = sampler.get_1d(Dim::FreePath);
         // The depth layer wants the camera ray's first collision (ray-march draws it
-        // with the same number; nothing else changes)
-        let r = camera.track(m, camera_ray, t_max, self.camera_estimator(), scatters || A::ON, u, sampler);
+        // with the same number; nothing else changes). A forced collision has the analog
+        // one's law given that one happens, so the layer's mean depth is the same.
+        let collision = match (scatters, A::ON) {
+            (true, _) => self.camera_collision,
+            (false, true) => Collision::Analog,
+            (false, false) => Collision::Skip,
+        };
+        let r = camera.track(m, camera_ray, t_max, self.camera_estimator(), collision, u, sampler);
         c.segments += u64::from(r.segments);
         c.voxel_steps += r.voxel_steps;
         contribute(&mut l, aovs, Component::Emission, 1.0, r.emission);
         trace.event(|| {
             format!(
-                "segment depth 0: origin {:?} dir {:?} -> {:?}, F {:?}, w_fwd 1, beta 1, tau {}",
-                camera_ray.origin, camera_ray.direction, r.event, r.emission, r.transmittance
+                "segment depth 0: origin {:?} dir {:?} -> {:?} (weight {}), F {:?}, w_fwd 1, beta 1, tau {}",
+                camera_ray.origin, camera_ray.direction, r.event, r.collision_weight, r.emission, r.transmittance
             )
         });
         let alpha = 1.0 - r.transmittance;
@@ -338,7 +349,9 @@ impl Integrator {
             // with numbers of its own (`Sampler::split`)
             let n = self.split.max(1);
             let scale = 1.0 / f64::from(n);
-            let vertex = Vertex { incoming: *camera_ray, t, albedo, beta: scale, scale };
+            // A forced collision carries its weight W/q (`medium::forced`); roulette still
+            // compares β with `scale`, so a light one is played for at its first vertex
+            let vertex = Vertex { incoming: *camera_ray, t, albedo, beta: scale * r.collision_weight, scale };
             for k in 0..n {
                 if n > 1 {
                     trace.event(|| format!("split path {} of {n}", k + 1));
@@ -409,7 +422,7 @@ impl Integrator {
                         if let Some(wi) = proxy.sample_direction_only(x, u_cell, u_pos) {
                             c.fnee_samples += 1;
                             let u2 = sampler.get_1d(Dim::FreePath);
-                            let rl = tracker.track(m, &Ray { origin: x, direction: wi }, f64::INFINITY, self.estimator, false, u2, sampler);
+                            let rl = tracker.track(m, &Ray { origin: x, direction: wi }, f64::INFINITY, self.estimator, Collision::Skip, u2, sampler);
                             c.segments += u64::from(rl.segments);
                             c.voxel_steps += rl.voxel_steps;
                             // p_σ only when the free path collected emission
@@ -485,7 +498,8 @@ impl Integrator {
             let hit = external.and_then(|e| e.hit(&ray));
             let t_max = hit.map_or(f64::INFINITY, |(t, _)| t);
             let u = sampler.get_1d(Dim::FreePath);
-            let r = tracker.track(m, &ray, t_max, self.estimator, need_collision, u, sampler);
+            let collision = if need_collision { Collision::Analog } else { Collision::Skip };
+            let r = tracker.track(m, &ray, t_max, self.estimator, collision, u, sampler);
             c.segments += u64::from(r.segments);
             c.voxel_steps += r.voxel_steps;
             // Add emission along the segment

@@ -7,10 +7,12 @@
 //! length (W m⁻³ sr⁻¹ per RGB channel) and already contains its coefficient.
 
 pub mod emission;
+pub mod forced;
 pub mod null_tracking;
 pub mod tracking;
 
 pub use emission::{Convention, Emission, EmissionKind, TemperatureMap};
+pub use forced::Collision;
 pub use tracking::{track, DistanceSample, Estimator, TrackResult};
 
 /// Coefficients and emission of the volume's medium.

@@ -172,7 +172,7 @@ pub fn null_track(
     } else {
         0.0
     };
-    TrackResult { event, emission: f, transmittance, optical_depth: od_to_collision, segments, voxel_steps: u64::from(segments) }
+    TrackResult { event, emission: f, transmittance, optical_depth: od_to_collision, segments, voxel_steps: u64::from(segments), collision_weight: 1.0 }
 }
 
 /// Ratio-tracking estimate of `τ(0, t_max)` along `ray` (module docs); stops early once

@@ -20,6 +20,7 @@ use std::ops::ControlFlow;
 
 use crate::color::Rgb;
 use crate::medium::emission::EmissionMemo;
+use crate::medium::forced::{Collision, ForcedCollision};
 use crate::medium::Medium;
 use crate::sampling::Sampler;
 use crate::volume::field::{Field, Piece, PointValues, Ray, SegmentIter};
@@ -76,6 +77,9 @@ pub struct TrackResult {
     pub segments: u32,
     /// Voxel steps of the traversal (see [`SegmentIter::voxel_steps`]).
     pub voxel_steps: u64,
+    /// The collision's weight: 1 for an analog free path, `W/q` for a forced one
+    /// (`medium::forced`).
+    pub collision_weight: f64,
 }
 
 /// Transmittance below which the ray-march estimator plays Russian roulette.
@@ -109,7 +113,9 @@ fn add(acc: &mut [f64; 3], le: Rgb, w: f64) {
 /// Sample a free path along `ray` over `[0, t_max]` and estimate the emission collected.
 ///
 /// `u` drives the free path; `sampler` supplies roulette decisions for ray-march. With
-/// `need_collision == false` (no scattering), ray-march does not locate the collision.
+/// [`Collision::Skip`] (no scattering), ray-march does not locate the collision; with
+/// [`Collision::Forced`] it forces one (`medium::forced`), and the other estimators draw
+/// it as [`Collision::Analog`].
 // Each argument is a distinct input of the estimator; randomness stays an argument (STYLE §3).
 #[allow(clippy::too_many_arguments)]
 pub fn track<F: Field>(
@@ -118,12 +124,12 @@ pub fn track<F: Field>(
     ray: &Ray,
     t_max: f64,
     estimator: Estimator,
-    need_collision: bool,
+    collision: Collision,
     u: f64,
     sampler: &mut Sampler,
 ) -> TrackResult {
     match estimator {
-        Estimator::RayMarch => track_expected(field, medium, ray, t_max, need_collision, u, sampler),
+        Estimator::RayMarch => track_expected(field, medium, ray, t_max, collision, u, sampler),
         _ => track_free_path(field, medium, ray, t_max, estimator, u),
     }
 }
@@ -172,10 +178,18 @@ fn track_free_path<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, 
         ControlFlow::Continue(())
     });
     match collision {
-        ControlFlow::Break(event) => TrackResult { event, emission: f, transmittance: 0.0, optical_depth: e, segments, voxel_steps: it.voxel_steps() },
-        ControlFlow::Continue(()) => {
-            TrackResult { event: DistanceSample::Escaped, emission: f, transmittance: 1.0, optical_depth: od, segments, voxel_steps: it.voxel_steps() }
+        ControlFlow::Break(event) => {
+            TrackResult { event, emission: f, transmittance: 0.0, optical_depth: e, segments, voxel_steps: it.voxel_steps(), collision_weight: 1.0 }
         }
+        ControlFlow::Continue(()) => TrackResult {
+            event: DistanceSample::Escaped,
+            emission: f,
+            transmittance: 1.0,
+            optical_depth: od,
+            segments,
+            voxel_steps: it.voxel_steps(),
+            collision_weight: 1.0,
+        },
     }
 }
 
@@ -262,8 +276,11 @@ fn free_path_polynomial<P: Piece>(
     None
 }
 
-fn track_expected<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, need_collision: bool, u: f64, sampler: &mut Sampler) -> TrackResult {
+fn track_expected<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, collision: Collision, u: f64, sampler: &mut Sampler) -> TrackResult {
     let memo = EmissionMemo::new(&medium.emission);
+    // The analog free path is drawn on the way; a forced one once the walk is done
+    let need_collision = collision == Collision::Analog;
+    let mut forced = (collision == Collision::Forced).then(ForcedCollision::new);
     let e = sample_exponential(u);
     let mut od = 0.0f64;
     let mut weight = 1.0f64; // roulette weight
@@ -308,6 +325,9 @@ fn track_expected<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, n
                     tau = RAY_MARCH_ROULETTE_THRESHOLD;
                 }
             }
+            if let (true, Some(forced)) = (marching, forced.as_mut()) {
+                forced.push(piece, x, od, tau);
+            }
             if marching {
                 match constant {
                     Some(seg) => {
@@ -334,8 +354,14 @@ fn track_expected<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, n
         ControlFlow::Continue(())
     });
     let transmittance = if marching { (-od).exp() * weight } else { 0.0 };
-    let optical_depth = if matches!(event, DistanceSample::Collided { .. }) { e } else { od };
-    TrackResult { event, emission: f, transmittance, optical_depth, segments, voxel_steps: it.voxel_steps() }
+    let mut optical_depth = if matches!(event, DistanceSample::Collided { .. }) { e } else { od };
+    let mut collision_weight = 1.0;
+    if let Some(drawn) = forced.and_then(|forced| forced.draw(medium, u)) {
+        event = drawn.event;
+        optical_depth = drawn.optical_depth;
+        collision_weight = drawn.weight;
+    }
+    TrackResult { event, emission: f, transmittance, optical_depth, segments, voxel_steps: it.voxel_steps(), collision_weight }
 }
 
 /// What [`optical_depth`] measured along a shadow ray.

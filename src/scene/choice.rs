@@ -7,7 +7,7 @@
 //! [`Choice::CHOICES`]), so a name is written once.
 
 use crate::integrator::{LightSampling, MisHeuristic, Tracking};
-use crate::medium::{Convention, Estimator};
+use crate::medium::{Collision, Convention, Estimator};
 pub use crate::sampling::SamplerKind;
 pub use crate::volume::Interpolation;
 
@@ -137,6 +137,31 @@ choice!(LightSampling {
     "nee" => LightSampling::Nee, "Classic NEE to emissive voxels (volume measure)";
     "fnee" => LightSampling::Fnee, "Forward NEE: proxy direction + free path, MIS in solid angle";
 });
+
+/// How a camera ray's collision is drawn when paths scatter (`medium::forced`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CameraCollision {
+    /// Forced collisions, where the camera segment is ray-marched by regular tracking.
+    Forced,
+    /// The analog free path.
+    Analog,
+}
+
+choice!(CameraCollision {
+    "forced" => CameraCollision::Forced, "Every camera ray that meets the medium may scatter, weighted by its collision probability (needs a ray-marched camera segment)";
+    "analog" => CameraCollision::Analog, "A camera ray scatters only where its free path ends (the paper's)";
+});
+
+impl CameraCollision {
+    /// What the walk is asked for.
+    #[must_use]
+    pub fn collision(self) -> Collision {
+        match self {
+            CameraCollision::Forced => Collision::Forced,
+            CameraCollision::Analog => Collision::Analog,
+        }
+    }
+}
 
 /// Resolution of classic NEE's table (`light::nee`, `light::nee_bricks`): a voxel is
 /// drawn from one table entry per emitting voxel, or from its brick's entry and then the

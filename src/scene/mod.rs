@@ -27,7 +27,8 @@ use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
 pub use choice::{
-    Choice, EmissionSource, EstimatorKind, Interpolation, Method, NeeTable, ProgressFormat, SampleOrderChoice, SamplerKind, TrackingChoice, UpAxis,
+    CameraCollision, Choice, EmissionSource, EstimatorKind, Interpolation, Method, NeeTable, ProgressFormat, SampleOrderChoice, SamplerKind, TrackingChoice,
+    UpAxis,
 };
 pub use lights::{DistantSettings, EnvironmentMapSettings, LightSettings, SkySettings, SphereSettings};
 pub use settings::{FarmOptions, JobSettings, OutputSettings, ReadSettings, RenderOptions};
@@ -167,14 +168,18 @@ impl SceneDescription {
     /// sampling (benchmarks compare them on one scene); the tracking is resolved for them.
     #[must_use]
     pub fn integrator_with(&self, estimator: Estimator, light_sampling: LightSampling) -> Integrator {
+        // Where paths scatter the camera segment is ray-marched unless asked otherwise: its
+        // emission is then exact along each ray, and its collision can be forced
+        let camera_estimator = self.integrator.camera_estimator.map(|k| k.with_kappa(self.integrator.kappa));
         Integrator {
             estimator,
-            camera_estimator: self.integrator.camera_estimator.map(|k| k.with_kappa(self.integrator.kappa)),
+            camera_estimator: camera_estimator.or(self.scatters().then_some(Estimator::RayMarch)),
             light_sampling,
             mis: self.integrator.mis,
             max_depth: if self.albedo() > 0.0 { self.integrator.max_depth } else { 0 },
             tracking: self.integrator.tracking.resolve(estimator, light_sampling),
             split: self.integrator.split,
+            camera_collision: self.integrator.camera_collision.collision(),
         }
     }
 }
@@ -342,9 +347,12 @@ pub struct IntegratorSettings {
     /// Overrides the preset's estimator.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub estimator: Option<EstimatorKind>,
-    /// The camera segment's estimator (default: `estimator`).
+    /// The camera segment's estimator (default: ray-march where paths scatter, else
+    /// `estimator`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub camera_estimator: Option<EstimatorKind>,
+    /// How a camera ray's collision is drawn when paths scatter.
+    pub camera_collision: CameraCollision,
     /// Overrides the preset's light sampling.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub light_sampling: Option<LightSampling>,
@@ -372,6 +380,7 @@ impl Default for IntegratorSettings {
             method: Method::LineFnee,
             estimator: None,
             camera_estimator: None,
+            camera_collision: CameraCollision::Forced,
             light_sampling: None,
             mis: MisHeuristic::Power,
             proxy_resolution: None,

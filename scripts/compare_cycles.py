@@ -103,6 +103,11 @@ def parse_args():
     p.add_argument("--plume-spp", default="2,4,8,16,32,64,256", help="plume's rungs above 1 spp (the 1-spp render is the first): dense where Cycles' budgets fall")
     p.add_argument("--ref-spp", type=int, default=4096, help="spp of each renderer's reference")
     p.add_argument("--repeats", type=int, default=3, help="renders of each rung (and of the 1-spp overhead render); the least CPU time counts")
+    p.add_argument(
+        "--cycles-from",
+        metavar="DIR",
+        help="rerun plume only: take Cycles' ladders, the cameras and plume's references from an earlier run's DIR (its results.json and *_plume_ref.exr)",
+    )
     p.add_argument("--quick", action="store_true", help="blender40 and kelvin40, ea and a0.8, short ladders and references")
     a = p.parse_args()
     if a.quick:
@@ -282,7 +287,7 @@ def least_cpu(render, spp, path, repeats):
     return min(render(spp, path) for _ in range(repeats))
 
 
-def ladder(render, spps, ref_spp, out, name, repeats):
+def ladder(render, spps, ref_spp, out, name, repeats, ref_from=None):
     """Set-up CPU (a first 1-spp render), then each rung's CPU and relRMSE against a
     `ref_spp` reference, corrected for the reference's noise. CPU follows the module docs'
     model o + c * spp, fitted over the 1-spp render (the first rung) and the rungs, each
@@ -292,10 +297,14 @@ def ladder(render, spps, ref_spp, out, name, repeats):
     if not spps:
         sys.exit(f"compare_cycles: {name}: the ladder needs a rung above 1 spp to measure the per-sample cost")
     setup = render(1, os.path.join(out, f"{name}_setup.exr"))
-    ref_path = os.path.join(out, f"{name}_ref.exr")
-    # Another seed than the rungs': with the same one a rung's samples would be the first
-    # of the reference's, and the correction below assumes independent errors
-    ref_cpu = render(ref_spp, ref_path, REF_SEED)
+    if ref_from is not None:
+        # An earlier run's reference (`--cycles-from`): (path, its spp, its CPU)
+        ref_path, ref_spp, ref_cpu = ref_from
+    else:
+        ref_path = os.path.join(out, f"{name}_ref.exr")
+        # Another seed than the rungs': with the same one a rung's samples would be the
+        # first of the reference's, and the correction below assumes independent errors
+        ref_cpu = render(ref_spp, ref_path, REF_SEED)
     ref = read_rgb(ref_path)
     # The repeats go round the ladder (every rung once, then again), so that a stretch of
     # load from other processes slows one render of several rungs, not every render of one
@@ -327,23 +336,47 @@ def main():
     args = parse_args()
     os.makedirs(args.out, exist_ok=True)
     results = []
+    prior = None
+    if args.cycles_from:
+        # plume alone against an earlier run's Cycles ladders and plume references
+        with open(os.path.join(args.cycles_from, "results.json")) as f:
+            prior = {(r["file"], r["setting"]): r for r in json.load(f)["results"]}
+        args.cycles_spp = [s for s in args.cycles_spp if all(any(r["spp"] == s for r in p["cycles"]["rungs"]) for p in prior.values())]
     for fname in args.files:
         spec = FILES[fname]
-        cycles = Cycles(args, spec)
+        cycles = Cycles(args, spec) if prior is None else None
         for sname in args.settings:
             albedo = SETTINGS[sname]
             name = f"{fname}_{sname}"
-            print(f"compare_cycles: {name}: Cycles", file=sys.stderr, flush=True)
-            cycles.set_albedo(albedo)
-            c = ladder(cycles.render, args.cycles_spp, args.ref_spp, args.out, f"{name}_cycles", args.repeats)
+            ref_from = None
+            if prior is None:
+                print(f"compare_cycles: {name}: Cycles", file=sys.stderr, flush=True)
+                cycles.set_albedo(albedo)
+                camera = cycles.camera
+                c = ladder(cycles.render, args.cycles_spp, args.ref_spp, args.out, f"{name}_cycles", args.repeats)
+            elif (fname, sname) not in prior:
+                sys.exit(f"compare_cycles: --cycles-from {args.cycles_from}: no {name} in its results.json")
+            else:
+                earlier = prior[(fname, sname)]
+                camera, c = earlier["camera"], earlier["cycles"]
+                p0 = earlier["plume"]
+                ref_from = (os.path.join(args.cycles_from, f"{name}_plume_ref.exr"), p0["ref_spp"], p0["ref_cpu"])
             print(f"compare_cycles: {name}: plume", file=sys.stderr, flush=True)
-            p = ladder(lambda spp, path, seed=0: plume_render(args, spec, cycles.camera, albedo, spp, path, seed), args.plume_spp, args.ref_spp, args.out, f"{name}_plume", args.repeats)
+            p = ladder(
+                lambda spp, path, seed=0: plume_render(args, spec, camera, albedo, spp, path, seed),
+                args.plume_spp,
+                args.ref_spp,
+                args.out,
+                f"{name}_plume",
+                args.repeats,
+                ref_from,
+            )
             rows = []
             for rung in (r for r in c["rungs"] if r["spp"] in args.cycles_spp):
                 budget = rung["cpu"]
                 pe = at_budget(p["rungs"], budget)
                 rows.append({"cycles_spp": rung["spp"], "cpu": budget, "cycles": rung["relrmse"], "plume": pe, "ratio": pe / rung["relrmse"]})
-            results.append({"file": fname, "setting": sname, "albedo": albedo, "camera": cycles.camera, "cycles": c, "plume": p, "rows": rows, "mean_ratio": p["ref_mean"] / c["ref_mean"]})
+            results.append({"file": fname, "setting": sname, "albedo": albedo, "camera": camera, "cycles": c, "plume": p, "rows": rows, "mean_ratio": p["ref_mean"] / c["ref_mean"]})
             with open(os.path.join(args.out, "results.json"), "w") as f:
                 json.dump({"args": {k: v for k, v in vars(args).items()}, "results": results}, f, indent=1)
     table = render_table(args, results)

@@ -24,6 +24,14 @@
 //! fewer paths win (`--split 2`: 1.7–2× lower error at equal CPU; "Budget model
 //! corrected").
 //!
+//! **Forced camera collisions** (`medium::forced`, `--camera-collision`): where paths
+//! scatter the camera segment is ray-marched by default, and its walk forces the
+//! collision: with probability `min(1, K W)` (`W` the analog collision's probability) at the
+//! analog law given a collision, weighted `W/q`, which the split paths' `β` carries. In thin
+//! smoke few camera rays collide, so at a few samples per pixel this, not the split, is
+//! what lowers the scattered light's noise (0.54–1.00× → 0.27–0.44× Cycles' error at the
+//! Cycles comparison's smallest budget; docs/BENCHMARKS.md, "Forced camera collisions").
+//!
 //! **Tracking** (`integrator::tracker`, `--tracking`): the camera segment and the
 //! segments after a scattering event each get their tracker once per sample, regular or
 //! null collisions; every estimator above is unbiased under either, so the split changes

@@ -129,7 +129,10 @@ pub fn track<F: Field>(
     sampler: &mut Sampler,
 ) -> TrackResult {
     match estimator {
-        Estimator::RayMarch => track_expected(field, medium, ray, t_max, collision, u, sampler),
+        // A forced walk is its own instance, so that walks without one run the code they ran
+        // before forcing existed, with no branch or buffer of it
+        Estimator::RayMarch if collision == Collision::Forced => track_expected::<F, true>(field, medium, ray, t_max, collision, u, sampler),
+        Estimator::RayMarch => track_expected::<F, false>(field, medium, ray, t_max, collision, u, sampler),
         _ => track_free_path(field, medium, ray, t_max, estimator, u),
     }
 }
@@ -276,11 +279,19 @@ fn free_path_polynomial<P: Piece>(
     None
 }
 
-fn track_expected<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, collision: Collision, u: f64, sampler: &mut Sampler) -> TrackResult {
+fn track_expected<F: Field, const FORCED: bool>(
+    field: &F,
+    medium: &Medium,
+    ray: &Ray,
+    t_max: f64,
+    collision: Collision,
+    u: f64,
+    sampler: &mut Sampler,
+) -> TrackResult {
     let memo = EmissionMemo::new(&medium.emission);
     // The analog free path is drawn on the way; a forced one once the walk is done
     let need_collision = collision == Collision::Analog;
-    let mut forced = (collision == Collision::Forced).then(ForcedCollision::new);
+    let mut forced = FORCED.then(ForcedCollision::new);
     let e = sample_exponential(u);
     let mut od = 0.0f64;
     let mut weight = 1.0f64; // roulette weight

@@ -20,9 +20,9 @@
 //! sample's cost while the scattered light carries almost all of its variance: `N = 8`
 //! (the default) gave 3.0–3.1× the efficiency on the three Mantaflow explosions at
 //! albedo 0.8 and 1.55× on the dense README demo (docs/BENCHMARKS.md, "Splitting"); since
-//! the roulette change below, 1.8–2.9× at 22–37 spp. At one or two samples per pixel
-//! fewer paths win (`--split 2`: 1.7–2× lower error at equal CPU; "Budget model
-//! corrected").
+//! the roulette change below, 1.8–2.9× at 22–37 spp. At about one sample per pixel
+//! fewer paths win, by 10–15 % since the camera collision is forced (`--split 4`;
+//! "Forced camera collisions").
 //!
 //! **Forced camera collisions** (`medium::forced`, `--camera-collision`): where paths
 //! scatter the camera segment is ray-marched by default, and its walk forces the

@@ -29,7 +29,7 @@
 //! collision: with probability `min(1, K W)` (`W` the analog collision's probability) at the
 //! analog law given a collision, weighted `W/q`, which the split paths' `β` carries. In thin
 //! smoke few camera rays collide, so at a few samples per pixel this, not the split, is
-//! what lowers the scattered light's noise (0.54–1.00× → 0.27–0.44× Cycles' error at the
+//! what lowers the scattered light's noise (0.54–1.00× → 0.28–0.42× Cycles' error at the
 //! Cycles comparison's smallest budget; docs/BENCHMARKS.md, "Forced camera collisions").
 //!
 //! **Tracking** (`integrator::tracker`, `--tracking`): the camera segment and the

@@ -192,10 +192,7 @@ fn forced_camera_collisions_give_the_same_image_means() {
             let reference = region_means_with(SamplerKind::Sobol, &scene, analog, 8, 12, 900);
             let got = region_means_with(SamplerKind::Sobol, &scene, forced, 8, 12, 900);
             assert_ne!(got, reference, "forcing the camera collision changed nothing");
-            for (k, ((m, se), (rm, rse))) in got.iter().zip(&reference).enumerate() {
-                let z = (m - rm) / (se * se + rse * rse).sqrt().max(1e-12);
-                assert!(z.abs() < 4.2, "{interpolation} σ_t={sigma_t} {est:?}/{ls:?} region {k}: forced {m} ± {se} vs analog {rm} ± {rse} (z = {z:.2})");
-            }
+            common::assert_same_means(&format!("{interpolation} σ_t={sigma_t} {est:?}/{ls:?}, forced vs analog"), &got, &reference, 4.2);
         }
     }
 }
@@ -224,19 +221,7 @@ fn camera_collision_is_a_flag_a_scene_key_and_part_of_the_settings_hash() {
     let dir = tmpdir("forced", "cli");
     let vdb = common::explosion(&dir, 32, Some(3));
     let base = ["render", s(&vdb), "--width", "24", "--height", "16", "--spp", "4", "--albedo", "0.8", "--stats"];
-    let mut hashes = Vec::new();
-    for name in ["forced", "analog", "default"] {
-        let (out, stats) = (dir.join(format!("{name}.exr")), dir.join(format!("{name}.json")));
-        let mut args = base.to_vec();
-        args.extend([s(&stats), "-o", s(&out)]);
-        if name != "default" {
-            args.extend(["--camera-collision", name]);
-        }
-        let o = plume(&args);
-        assert!(o.status.success(), "{name}: {}", String::from_utf8_lossy(&o.stderr));
-        let json: serde_json::Value = serde_json::from_str(std::fs::read_to_string(&stats).unwrap().lines().last().unwrap()).unwrap();
-        hashes.push(json["settings_hash"].as_str().unwrap().to_string());
-    }
+    let hashes = common::settings_hashes(&dir, &base, "--camera-collision", &[("forced", Some("forced")), ("analog", Some("analog")), ("default", None)]);
     assert_eq!(exr_pixels(&dir.join("default.exr")), exr_pixels(&dir.join("forced.exr")), "forced is the default");
     assert_ne!(exr_pixels(&dir.join("analog.exr")), exr_pixels(&dir.join("forced.exr")));
     assert_eq!(hashes[0], hashes[2]);

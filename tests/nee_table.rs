@@ -39,10 +39,7 @@ fn brick_table_gives_the_image_means_of_the_voxel_table() {
             let a = region_means_with(SamplerKind::Sobol, &voxels, integrator, 16, 16, 11);
             let b = region_means_with(SamplerKind::Sobol, &bricks, integrator, 16, 16, 500);
             assert!(a[0].0 > 0.0);
-            for (k, ((m, se), (rm, rse))) in b.iter().zip(&a).enumerate() {
-                let z = (m - rm) / (se * se + rse * rse).sqrt().max(1e-12);
-                assert!(z.abs() < 3.5, "{interpolation} {estimator:?} region {k}: brick table {m} ± {se} vs voxel table {rm} ± {rse} (z = {z:.2})");
-            }
+            common::assert_same_means(&format!("{interpolation} {estimator:?}, brick table vs voxel table"), &b, &a, 3.5);
         }
     }
 }
@@ -52,19 +49,7 @@ fn nee_table_is_a_flag_a_scene_key_and_part_of_the_settings_hash() {
     let dir = tmpdir("nee_table", "cli");
     let vdb = explosion(&dir, 32, Some(3));
     let base = ["render", s(&vdb), "--width", "24", "--height", "16", "--spp", "4", "--albedo", "0.8", "--method", "line-nee", "--stats"];
-    let mut hashes = Vec::new();
-    for name in ["default", "voxel", "brick"] {
-        let (out, stats) = (dir.join(format!("{name}.exr")), dir.join(format!("{name}.json")));
-        let mut args = base.to_vec();
-        args.extend([s(&stats), "-o", s(&out)]);
-        if name != "default" {
-            args.extend(["--nee-table", name]);
-        }
-        let o = plume(&args);
-        assert!(o.status.success(), "{name}: {}", String::from_utf8_lossy(&o.stderr));
-        let json: serde_json::Value = serde_json::from_str(std::fs::read_to_string(&stats).unwrap().lines().last().unwrap()).unwrap();
-        hashes.push(json["settings_hash"].as_str().unwrap().to_string());
-    }
+    let hashes = common::settings_hashes(&dir, &base, "--nee-table", &[("default", None), ("voxel", Some("voxel")), ("brick", Some("brick"))]);
     let pixels = |name: &str| common::exr_pixels(&dir.join(format!("{name}.exr")));
     assert_eq!(pixels("default"), pixels("voxel"));
     assert_ne!(pixels("voxel"), pixels("brick"));

@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{explosion_emission, grid_emission, mean_stderr, mean_stderr_from_sums, region_means_with};
+use common::{assert_same_means, explosion_emission, grid_emission, mean_stderr, mean_stderr_from_sums, region_means_with};
 use glam::{DAffine3, DMat3, DVec3, IVec3};
 use plume::camera::Camera;
 use plume::color::Rgb;
@@ -162,10 +162,7 @@ fn every_method_gives_the_same_image_means_on_thin_and_dense_explosions() {
                 }
                 let scene = explosion_scene(sigma_t, ls, 8, interpolation);
                 let got = region_means(&scene, integrator(est, ls, mis, 64), 8, 12, 7);
-                for (k, ((m, se), (rm, rse))) in got.iter().zip(&reference).enumerate() {
-                    let z = (m - rm) / (se * se + rse * rse).sqrt().max(1e-12);
-                    assert!(z.abs() < 4.2, "{interpolation} σ_t={sigma_t} {est:?}/{ls:?}/{mis:?} region {k}: {m} ± {se} vs {rm} ± {rse} (z = {z:.2})");
-                }
+                assert_same_means(&format!("{interpolation} σ_t={sigma_t} {est:?}/{ls:?}/{mis:?}"), &got, &reference, 4.2);
             }
         }
     }
@@ -181,10 +178,7 @@ fn sobol_and_random_samplers_converge_to_the_same_means() {
             let integ = integrator(est, ls, MisHeuristic::Power, 64);
             let sobol = region_means_with(SamplerKind::Sobol, &scene, integ, 8, 12, 300);
             let random = region_means_with(SamplerKind::Random, &scene, integ, 8, 12, 400);
-            for (k, ((m, se), (rm, rse))) in sobol.iter().zip(&random).enumerate() {
-                let z = (m - rm) / (se * se + rse * rse).sqrt().max(1e-12);
-                assert!(z.abs() < 4.2, "{interpolation} σ_t={sigma_t} {est:?}/{ls:?} region {k}: sobol {m} ± {se} vs random {rm} ± {rse} (z = {z:.2})");
-            }
+            assert_same_means(&format!("{interpolation} σ_t={sigma_t} {est:?}/{ls:?}, sobol vs random"), &sobol, &random, 4.2);
         }
     }
 }
@@ -206,10 +200,7 @@ fn splitting_changes_variance_not_the_mean() {
             let split = Integrator { split: 4, ..one };
             let reference = region_means(&scene, one, 8, 12, 500);
             let got = region_means(&scene, split, 8, 12, 600);
-            for (k, ((m, se), (rm, rse))) in got.iter().zip(&reference).enumerate() {
-                let z = (m - rm) / (se * se + rse * rse).sqrt().max(1e-12);
-                assert!(z.abs() < 4.2, "{interpolation} σ_t={sigma_t} {est:?}/{ls:?} region {k}: split 4 {m} ± {se} vs 1 {rm} ± {rse} (z = {z:.2})");
-            }
+            assert_same_means(&format!("{interpolation} σ_t={sigma_t} {est:?}/{ls:?}, split 4 vs 1"), &got, &reference, 4.2);
         }
     }
 }
@@ -231,10 +222,7 @@ fn a_ray_marched_camera_segment_gives_the_same_means() {
             let reference = region_means(&scene, one, 8, 12, 700);
             let got = region_means(&scene, marched, 8, 12, 700);
             assert_ne!(got, reference, "the camera estimator changed nothing");
-            for (k, ((m, se), (rm, rse))) in got.iter().zip(&reference).enumerate() {
-                let z = (m - rm) / (se * se + rse * rse).sqrt().max(1e-12);
-                assert!(z.abs() < 4.2, "{interpolation} σ_t={sigma_t} {est:?}/{ls:?} region {k}: ray-marched camera {m} ± {se} vs {rm} ± {rse} (z = {z:.2})");
-            }
+            assert_same_means(&format!("{interpolation} σ_t={sigma_t} {est:?}/{ls:?}, ray-marched camera vs not"), &got, &reference, 4.2);
         }
     }
 }
@@ -387,10 +375,7 @@ fn every_method_gives_the_same_image_means_under_external_lights() {
         for (est, ls) in COMBOS {
             let scene = lit_explosion_scene(1.5, ls, interpolation);
             let got = region_means(&scene, integrator(est, ls, MisHeuristic::Power, 64), 8, 12, 2007);
-            for (k, ((m, se), (rm, rse))) in got.iter().zip(&reference).enumerate() {
-                let z = (m - rm) / (se * se + rse * rse).sqrt().max(1e-12);
-                assert!(z.abs() < 4.2, "{interpolation} {est:?}/{ls:?} region {k}: {m} ± {se} vs {rm} ± {rse} (z = {z:.2})");
-            }
+            assert_same_means(&format!("{interpolation} {est:?}/{ls:?}"), &got, &reference, 4.2);
         }
     }
 }

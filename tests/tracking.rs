@@ -64,13 +64,7 @@ fn null_collisions_give_the_image_means_of_regular_tracking() {
             let sc = scene(sigma_t, ls, interpolation);
             for tracking in [Tracking::Mixed, Tracking::Null] {
                 let got = region_means_with(SamplerKind::Sobol, &sc, integrator(est, ls, tracking), 16, 24, 7);
-                for (k, ((m, se), (rm, rse))) in got.iter().zip(&reference).enumerate() {
-                    let z = (m - rm) / (se * se + rse * rse).sqrt().max(1e-12);
-                    assert!(
-                        z.abs() < 4.2,
-                        "{interpolation} σ_t={sigma_t} {est:?}/{ls:?} {tracking:?} region {k}: {m} ± {se} vs regular {rm} ± {rse} (z = {z:.2})"
-                    );
-                }
+                common::assert_same_means(&format!("{interpolation} σ_t={sigma_t} {est:?}/{ls:?}, {tracking:?} vs regular"), &got, &reference, 4.2);
             }
         }
     }
@@ -132,17 +126,8 @@ fn tracking_is_a_flag_a_scene_key_and_part_of_the_settings_hash() {
     let dir = tmpdir("tracking", "cli");
     let vdb = explosion(&dir, 32, Some(3));
     let base = ["render", s(&vdb), "--width", "24", "--height", "16", "--spp", "4", "--albedo", "0.8", "--stats"];
-    let mut hashes = Vec::new();
-    for (name, tracking) in [("auto", "auto"), ("regular", "regular"), ("mixed", "mixed"), ("null", "null")] {
-        let out = dir.join(format!("{name}.exr"));
-        let stats = dir.join(format!("{name}.json"));
-        let mut args = base.to_vec();
-        args.extend([s(&stats), "-o", s(&out), "--tracking", tracking]);
-        let o = plume(&args);
-        assert!(o.status.success(), "{name}: {}", String::from_utf8_lossy(&o.stderr));
-        let json: serde_json::Value = serde_json::from_str(std::fs::read_to_string(&stats).unwrap().lines().last().unwrap()).unwrap();
-        hashes.push(json["settings_hash"].as_str().unwrap().to_string());
-    }
+    let values = ["auto", "regular", "mixed", "null"].map(|v| (v, Some(v)));
+    let hashes = common::settings_hashes(&dir, &base, "--tracking", &values);
     // auto is mixed here (line-fnee), so its pixels are mixed's; every named value is hashed
     assert_eq!(common::exr_pixels(&dir.join("auto.exr")), common::exr_pixels(&dir.join("mixed.exr")));
     assert_ne!(common::exr_pixels(&dir.join("regular.exr")), common::exr_pixels(&dir.join("mixed.exr")));

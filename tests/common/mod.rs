@@ -457,3 +457,36 @@ pub fn region_means_with(sampler: SamplerKind, scene: &AnyScene, integrator: Int
     let per_run: Vec<[f64; 5]> = (0..runs).map(|run| regions(scene, integrator, sampler, spp, seed0 + run)).collect();
     (0..5).map(|k| mean_stderr(&per_run.iter().map(|r| r[k]).collect::<Vec<_>>())).collect()
 }
+
+/// Asserts that every region's mean in `got` agrees with `reference`'s within `z_max`
+/// combined standard errors (`|m − r| / √(se_m² + se_r²)`), naming `label` and the region.
+pub fn assert_same_means(label: &str, got: &[(f64, f64)], reference: &[(f64, f64)], z_max: f64) {
+    for (k, ((m, se), (rm, rse))) in got.iter().zip(reference).enumerate() {
+        let z = (m - rm) / (se * se + rse * rse).sqrt().max(1e-12);
+        assert!(z.abs() < z_max, "{label} region {k}: {m} ± {se} vs {rm} ± {rse} (z = {z:.2})");
+    }
+}
+
+/// Renders `base` (a `plume render` command line ending in `--stats`) once per
+/// `(name, value)`: with `flag value`, or without the flag where `value` is `None`, to
+/// `dir/name.exr` with its stats in `dir/name.json`. Returns each render's settings hash.
+///
+/// # Panics
+/// If a render fails or its stats have no settings hash.
+pub fn settings_hashes(dir: &Path, base: &[&str], flag: &str, values: &[(&str, Option<&str>)]) -> Vec<String> {
+    values
+        .iter()
+        .map(|&(name, value)| {
+            let (out, stats) = (dir.join(format!("{name}.exr")), dir.join(format!("{name}.json")));
+            let mut args = base.to_vec();
+            args.extend([s(&stats), "-o", s(&out)]);
+            if let Some(value) = value {
+                args.extend([flag, value]);
+            }
+            let o = plume(&args);
+            assert!(o.status.success(), "{name}: {}", String::from_utf8_lossy(&o.stderr));
+            let json: serde_json::Value = serde_json::from_str(std::fs::read_to_string(&stats).unwrap().lines().last().unwrap()).unwrap();
+            json["settings_hash"].as_str().expect("a settings hash").to_string()
+        })
+        .collect()
+}

@@ -73,13 +73,13 @@ fn null_collisions_give_the_image_means_of_regular_tracking() {
 #[test]
 fn still_majorants_bound_every_reconstructed_density() {
     // Random rays through the explosion: at points along every majorant stretch the field
-    // (nearest and trilinear, whose support reaches one voxel past a voxel's box) is at
-    // most the stretch's density bound; on the brick level, and on the coarser levels a
-    // large volume's grid moves to (here forced by a limit of 8 and of 1 cells)
+    // (nearest and trilinear) is at most the stretch's density bound; on the brick level,
+    // and on the coarser levels a large volume's grid moves to (here forced by limits of
+    // 27, 8 and 1 cells: a level of n³ nodes takes (n + 1)³ cells)
     let vol = explosion_volume();
     let linear = plume::volume::trilinear::Trilinear::new(explosion_volume());
     let b = vol.world_bounds();
-    for (max_cells, edge) in [(MAX_CELLS, 8), (8, 16), (1, 32)] {
+    for (max_cells, edge) in [(MAX_CELLS, 8), (27, 16), (8, 32), (1, 32)] {
         let grid = MajorantGrid::with_max_cells(&vol, 0.0, max_cells);
         assert_eq!(grid.cell_edge_voxels(), edge, "limit {max_cells}");
         assert!(grid.memory_bytes() as i64 <= 8 * (max_cells.min(1 << 16) + 1) * 27, "limit {max_cells}: {} bytes", grid.memory_bytes());

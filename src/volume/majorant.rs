@@ -1,21 +1,33 @@
-//! Majorants for null-collision tracking (METHOD.md §13): a coarse grid, one cell per
-//! brick (8³ voxels), holding bounds on the density and the emission source over
-//! everything a point of the cell can see. A brick table of more than [`MAX_CELLS`]
-//! bricks (volumes beyond about 1024³ voxels, e.g. a 4096³ cache) takes the first
-//! coarser pyramid level that fits instead, one cell per node of `2^k` bricks a side:
-//! looser bounds (more null collisions) but a grid of at most 16 MiB, where the brick
-//! level would hold one anonymous 8-byte cell per brick (1 GiB at 4096³).
+//! Majorants for null-collision tracking (METHOD.md §13): a coarse grid holding bounds
+//! on the density and the emission source over everything a point of a cell can read.
+//! Built from the volume's pyramid alone: no voxel is read (a cache may be tens of GB).
 //!
-//! A point `p` of cell `c` reads the field at `p' = p − t·v(p)` (motion blur: a
-//! displacement of at most `D` voxels on every index axis) through a reconstruction whose
-//! support reaches one voxel beyond the point (trilinear; nearest needs half). So
-//! `μ(p') ≤ σ_t · max` over the cells within `D + 1` voxels of the cell, per axis: with
-//! cells of `e` voxels (8, or `8·2^k` on a coarser level), the cell's box
-//! `[e c − ½, e c + e − ½]` dilated by `D + 1` meets cells `c − R … c + R` with
-//! `R = ⌈(D + 1)/e⌉`. The grid is that pyramid level (`volume::pyramid`; a node's bounds
-//! hold over every brick beneath it) under a separable box maximum of radius `R`, padded
-//! by `R` cells on every side, so displaced lookups from outside the volume's table are
-//! bounded too.
+//! **Cells.** The cells lie between voxel centres, like the trilinear walk's dual cells
+//! (`volume::trilinear::dual`): on pyramid level `k`, with edge `e = 8·2^k` voxels, cell
+//! `c` spans index space `[o + e c, o + e (c + 1)]` per axis, `o = 8(brick_lo − 1)`. A
+//! point `p` there reads voxels `⌊p⌋` and `⌊p⌋ + 1` (trilinear) or `⌊p + ½⌋` (nearest):
+//! all within `o + e c … o + e (c + 1) + 1`, i.e. in bricks `2^k c − 1 … 2^k (c + 1) − 1`
+//! (relative to `brick_lo`), which lie in the level's nodes `c − 1` and `c`. So a cell's
+//! bound is the union of nodes `c − 1 + {0,1}³`: on level 0 the 8 bricks a dual brick
+//! reads (exactly the dual pyramid's node), for both reconstructions; the grid has one
+//! more cell per axis than the level has nodes.
+//!
+//! *Measured:* until `2026-11-26` the cells were the bricks, `[8b − ½, 8b + 7½]`, and the
+//! one voxel of reach beyond them took the maximum over the 27 bricks around. On the
+//! README demo's smoke (128³) the majorant integrated over the volume's box fell from
+//! 5.5× the density to 3.9×, and null-collision tracking's instructions by 7.7 %
+//! (docs/BENCHMARKS.md, "Null-collision majorants").
+//!
+//! **Level.** A table of more than [`MAX_CELLS`] cells (volumes beyond about 1024³
+//! voxels, e.g. a 4096³ cache) takes the first coarser pyramid level that fits: looser
+//! bounds (more null collisions) but a grid of at most 16 MiB, where the finest level
+//! would hold one 8-byte cell per brick (1 GiB at 4096³).
+//!
+//! **Motion.** A point reads the field at `p' = p − t·v(p)` (motion blur: a displacement
+//! of at most `D` voxels on every index axis), so its bound is the maximum over the cells
+//! within `D` voxels of it: cells `c − R … c + R`, `R = ⌈D/e⌉`. The grid is the union
+//! above under a separable box maximum of radius `R`, padded by `R` cells on every side,
+//! so displaced lookups from outside the volume's table are bounded too.
 //!
 //! [`MajorantGrid::segments`] walks a ray through the cells (Amanatides–Woo in index
 //! space; the ray parameter `t` is the world ray's) and yields `(t0, t1, bounds)`, merging
@@ -26,6 +38,8 @@ use glam::{DAffine3, DVec3, IVec3};
 
 use super::brick::{Volume, BRICK};
 use super::field::{clip_to_box, Ray};
+use super::pyramid::NodeBounds;
+use super::trilinear::dual::corner_offset;
 
 /// Bounds over a majorant cell.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -102,21 +116,27 @@ impl MajorantGrid {
     pub fn with_max_cells(volume: &Volume, displacement: f64, max_cells: i64) -> MajorantGrid {
         assert!(displacement.is_finite() && displacement >= 0.0, "displacement {displacement} must be finite and ≥ 0");
         let levels = volume.pyramid_levels();
-        let count = |d: IVec3| i64::from(d.x) * i64::from(d.y) * i64::from(d.z);
+        let count = |d: IVec3| i64::from(d.x + 1) * i64::from(d.y + 1) * i64::from(d.z + 1);
         let k = levels.iter().position(|l| count(l.dims) <= max_cells).unwrap_or(levels.len().saturating_sub(1));
         let level = levels.get(k);
         let edge = BRICK << k;
-        let r = ((displacement + 1.0) / f64::from(edge)).ceil() as i32;
+        let r = (displacement / f64::from(edge)).ceil() as i32;
+        // One more cell than the level has nodes: dual cell c reads nodes c − 1 and c
         let vd = level.map_or(IVec3::ZERO, |l| l.dims);
-        let dims = vd + 2 * r;
+        let nd = if level.is_some() { vd + 1 } else { IVec3::ZERO };
+        let dims = nd + 2 * r;
         let mut cells = vec![CellBounds::default(); (dims.x * dims.y * dims.z).max(0) as usize];
         if let Some(level) = level {
-            for z in 0..vd.z {
-                for y in 0..vd.y {
-                    for x in 0..vd.x {
-                        let n = level.get(IVec3::new(x, y, z));
-                        let c = IVec3::new(x, y, z) + r;
-                        cells[(c.x + dims.x * (c.y + dims.y * c.z)) as usize] = CellBounds { density: n.density_max, source: n.source_max };
+            let node = |n: IVec3| if n.cmpge(IVec3::ZERO).all() && n.cmplt(vd).all() { *level.get(n) } else { NodeBounds::ZERO };
+            for z in 0..nd.z {
+                for y in 0..nd.y {
+                    for x in 0..nd.x {
+                        // The union of the level's nodes c − 1 + {0,1}³ (the dual pyramid's
+                        // node on level 0; a superset of it on coarser levels)
+                        let c = IVec3::new(x, y, z);
+                        let n = (0..8).fold(NodeBounds::ZERO, |acc, i| acc.union(node(c - 1 + corner_offset(i))));
+                        let g = c + r;
+                        cells[(g.x + dims.x * (g.y + dims.y * g.z)) as usize] = CellBounds { density: n.density_max, source: n.source_max };
                     }
                 }
             }
@@ -124,7 +144,8 @@ impl MajorantGrid {
         for axis in 0..3 {
             cells = max_filter(&cells, dims, axis, r);
         }
-        let origin = (volume.brick_lo * BRICK - r * edge).as_dvec3() - 0.5;
+        // Cell c (before the padding) spans [8(brick_lo − 1) + e c, 8(brick_lo − 1) + e (c + 1)]
+        let origin = ((volume.brick_lo - 1) * BRICK - r * edge).as_dvec3();
         MajorantGrid { index_from_world: volume.index_from_world(), origin, edge, dims, cells }
     }
 

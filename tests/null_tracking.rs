@@ -91,6 +91,7 @@ fn majorants_are_the_dual_cells_bounds() {
     let grid = MajorantGrid::new(&vol, 0.0);
     assert_eq!(grid.cell_edge_voxels(), 8);
     let dual = &tri.dual_pyramid_levels()[0];
+    let level0 = &vol.pyramid_levels()[0];
     let base = vol.index_bounds().lo + 0.5 - 8.0; // 8(brick_lo − 1)
     let world_from_index = vol.world_from_index();
     let mut looser = 0;
@@ -105,15 +106,16 @@ fn majorants_are_the_dual_cells_bounds() {
                 assert_eq!(segs.len(), 1, "cell {c}: {segs:?}");
                 let node = dual.get(c);
                 assert_eq!((segs[0].bounds.density, segs[0].bounds.source), (node.density_max, node.source_max), "cell {c}");
-                // The 27 bricks around brick c − 1 (the cells before): at least as much
+                // The bound the point had before: its brick's cell, the 27 bricks around
+                // brick c − 1 (relative to the table), which hold the 8 of the dual cell
                 let mut old = 0.0f32;
                 for n in 0..27 {
-                    let o = glam::IVec3::new(n % 3, (n / 3) % 3, n / 9) - 1;
-                    let q = c + o;
-                    if q.cmpge(glam::IVec3::ZERO).all() && q.cmplt(dual.dims).all() {
-                        old = old.max(dual.get(q).density_max);
+                    let q = c - 1 + glam::IVec3::new(n % 3, (n / 3) % 3, n / 9) - 1;
+                    if q.cmpge(glam::IVec3::ZERO).all() && q.cmplt(level0.dims).all() {
+                        old = old.max(level0.get(q).density_max);
                     }
                 }
+                assert!(old >= node.density_max, "cell {c}: the dual bound {} above the old {old}", node.density_max);
                 looser += usize::from(old > node.density_max);
             }
         }

@@ -38,8 +38,7 @@ use glam::{DAffine3, DVec3, IVec3};
 
 use super::brick::{Volume, BRICK};
 use super::field::{clip_to_box, Ray};
-use super::pyramid::NodeBounds;
-use super::trilinear::dual::corner_offset;
+use super::trilinear::dual::dual_union;
 
 /// Bounds over a majorant cell.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -127,14 +126,13 @@ impl MajorantGrid {
         let dims = nd + 2 * r;
         let mut cells = vec![CellBounds::default(); (dims.x * dims.y * dims.z).max(0) as usize];
         if let Some(level) = level {
-            let node = |n: IVec3| if n.cmpge(IVec3::ZERO).all() && n.cmplt(vd).all() { *level.get(n) } else { NodeBounds::ZERO };
             for z in 0..nd.z {
                 for y in 0..nd.y {
                     for x in 0..nd.x {
                         // The union of the level's nodes c − 1 + {0,1}³ (the dual pyramid's
                         // node on level 0; a superset of it on coarser levels)
                         let c = IVec3::new(x, y, z);
-                        let n = (0..8).fold(NodeBounds::ZERO, |acc, i| acc.union(node(c - 1 + corner_offset(i))));
+                        let n = dual_union(level, c);
                         let g = c + r;
                         cells[(g.x + dims.x * (g.y + dims.y * g.z)) as usize] = CellBounds { density: n.density_max, source: n.source_max };
                     }

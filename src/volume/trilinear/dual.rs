@@ -32,7 +32,7 @@ use crate::vdb::LEAF_VOXELS;
 use crate::volume::brick::{brick_offset, PackedSlot, Slot, Volume, BRICK};
 use crate::volume::dda::{CellBox, CellTable, Cells, IndexLine};
 use crate::volume::field::VoxelValues;
-use crate::volume::pyramid::{NodeBounds, Pyramid};
+use crate::volume::pyramid::{Level, NodeBounds, Pyramid};
 
 /// Corner `c` of a dual cell as an offset: bit 0 → +x, bit 1 → +y, bit 2 → +z.
 #[inline]
@@ -268,6 +268,17 @@ impl<'a> Cells for DualCells<'a> {
     }
 }
 
+/// The union of `level`'s nodes `c − 1 + {0,1}³` (nodes outside it count as
+/// [`NodeBounds::ZERO`]): what dual entry `c` of that level's table reads. On level 0 it is
+/// the dual pyramid's node `c` ([`dual_pyramid`]); on a coarser level, a superset of it
+/// (`volume::majorant`).
+#[must_use]
+pub(crate) fn dual_union(level: &Level, c: IVec3) -> NodeBounds {
+    let at = |n: IVec3| if n.cmpge(IVec3::ZERO).all() && n.cmplt(level.dims).all() { *level.get(n) } else { NodeBounds::ZERO };
+    let r = c - 1;
+    (1..8).fold(at(r), |acc, i| acc.union(at(r + corner_offset(i))))
+}
+
 /// The dual pyramid of `volume` (see the module docs): level 0 over the dual table of
 /// `dims + 1` bricks from `brick_lo − 1`, built in parallel from the volume's level 0.
 #[must_use]
@@ -278,13 +289,11 @@ pub(crate) fn dual_pyramid(volume: &Volume) -> Pyramid {
     };
     let nd = dims + 1;
     let slab = (nd.x * nd.y) as usize;
-    let bounds_at = |rel: IVec3| if rel.cmpge(IVec3::ZERO).all() && rel.cmplt(dims).all() { *level0.get(rel) } else { NodeBounds::ZERO };
     let mut base = vec![NodeBounds::ZERO; slab * nd.z as usize];
     base.par_chunks_mut(slab).enumerate().for_each(|(z, nodes)| {
         for (k, node) in nodes.iter_mut().enumerate() {
-            // Dual table entry r reads volume table entries r − 1 + {0,1}³
-            let r = IVec3::new((k % nd.x as usize) as i32, (k / nd.x as usize) as i32, z as i32) - 1;
-            *node = (1..8).fold(bounds_at(r), |acc, c| acc.union(bounds_at(r + corner_offset(c))));
+            // Dual table entry c reads volume table entries c − 1 + {0,1}³
+            *node = dual_union(level0, IVec3::new((k % nd.x as usize) as i32, (k / nd.x as usize) as i32, z as i32));
         }
     });
     Pyramid::from_base(nd, base)

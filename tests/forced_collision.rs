@@ -187,6 +187,7 @@ fn forced_camera_collisions_give_the_same_image_means() {
                 tracking: Tracking::Regular,
                 split: 4,
                 camera_collision: Collision::Analog,
+                point_lookup: plume::integrator::PointLookup::Exact,
             };
             let forced = Integrator { camera_collision: Collision::Forced, ..analog };
             let reference = region_means_with(SamplerKind::Sobol, &scene, analog, 8, 12, 900);

@@ -265,6 +265,7 @@ fn linear_scattering_renders_are_bit_identical_for_any_thread_count() {
             tracking: Tracking::Regular,
             split: 1,
             camera_collision: Collision::Analog,
+            point_lookup: plume::integrator::PointLookup::Exact,
         };
         let one = pixels(&scene, integrator, 3, 21, 1);
         let two = pixels(&scene, integrator, 3, 21, 2);

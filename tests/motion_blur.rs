@@ -9,7 +9,7 @@ mod common;
 use common::{explosion_emission, exr_pixels, mean_stderr, pixel_bits, plume, plume_exits, refused_in_one_line, s, tmpdir};
 use glam::{DAffine3, DVec3};
 use plume::camera::Camera;
-use plume::integrator::{AnyScene, Integrator, LightSampling, Lights, MisHeuristic, Scene, Tracking};
+use plume::integrator::{AnyScene, Integrator, LightSampling, Lights, MisHeuristic, PointLookup, Scene, Tracking};
 use plume::medium::{Collision, Estimator, Medium};
 use plume::sampling::{Sampler, SamplerKind};
 use plume::synth::{explosion, ExplosionParams};
@@ -77,25 +77,29 @@ fn integrator(estimator: Estimator, light_sampling: LightSampling, max_depth: u3
         tracking: Tracking::Regular,
         split: 1,
         camera_collision: Collision::Analog,
+        point_lookup: PointLookup::Exact,
     }
 }
 
 #[test]
 fn zero_velocity_agrees_with_regular_tracking() {
-    // 2 reconstructions × 4 method set-ups × 5 regions = 40 comparisons, |z| < 4.2
-    for interpolation in [Interpolation::Nearest, Interpolation::Linear] {
+    // 3 reconstructions (trilinear with exact and stochastic point lookups) × 4 method
+    // set-ups × 5 regions = 60 comparisons, |z| < 4.2
+    for (interpolation, lookup) in
+        [(Interpolation::Nearest, PointLookup::Exact), (Interpolation::Linear, PointLookup::Exact), (Interpolation::Linear, PointLookup::Stochastic)]
+    {
         for (est, ls, albedo) in [
             (Estimator::Line, LightSampling::Fnee, 0.8),
             (Estimator::Point, LightSampling::None, 0.8),
             (Estimator::RayMarch, LightSampling::Fnee, 0.8),
             (Estimator::Line, LightSampling::None, 0.0),
         ] {
-            let integ = integrator(est, ls, if albedo > 0.0 { 16 } else { 0 });
+            let integ = Integrator { point_lookup: lookup, ..integrator(est, ls, if albedo > 0.0 { 16 } else { 0 }) };
             let still = scene(DVec3::ZERO, None, ls, interpolation, albedo);
             let moving = scene(DVec3::ZERO, Some((DVec3::ZERO, [-0.01, 0.01])), ls, interpolation, albedo);
             let a: Vec<[f64; 5]> = (0..8).map(|r| regions(&still, integ, 8, 100 + r)).collect();
             let b: Vec<[f64; 5]> = (0..8).map(|r| regions(&moving, integ, 8, 200 + r)).collect();
-            compare(&format!("{interpolation} {est:?}/{ls:?} albedo {albedo}"), &a, &b);
+            compare(&format!("{interpolation} {lookup:?} {est:?}/{ls:?} albedo {albedo}"), &a, &b);
         }
     }
 }
@@ -109,7 +113,8 @@ fn uniform_velocity_blurs_like_the_average_of_translated_volumes() {
     let v = DVec3::new(8.0, 0.0, 0.0);
     let shutter = [0.0, 0.1];
     for interpolation in [Interpolation::Nearest, Interpolation::Linear] {
-        let integ = integrator(Estimator::Line, LightSampling::Fnee, 16);
+        // The blurred render with the default stochastic point lookups
+        let integ = Integrator { point_lookup: PointLookup::Stochastic, ..integrator(Estimator::Line, LightSampling::Fnee, 16) };
         let blurred = scene(DVec3::ZERO, Some((v, shutter)), LightSampling::Fnee, interpolation, 0.8);
         let a: Vec<[f64; 5]> = (0..12).map(|r| regions(&blurred, integ, 16, 300 + r)).collect();
         let mut times = Sampler::new(77, 0, 0);

@@ -37,7 +37,17 @@ fn cube(n: i32, size: f64, density: f32, source: f32) -> Volume {
 }
 
 fn integrator(estimator: Estimator, light_sampling: LightSampling, mis: MisHeuristic, max_depth: u32) -> Integrator {
-    Integrator { estimator, camera_estimator: None, light_sampling, mis, max_depth, tracking: Tracking::Regular, split: 1, camera_collision: Collision::Analog }
+    Integrator {
+        estimator,
+        camera_estimator: None,
+        light_sampling,
+        mis,
+        max_depth,
+        tracking: Tracking::Regular,
+        split: 1,
+        camera_collision: Collision::Analog,
+        point_lookup: plume::integrator::PointLookup::Exact,
+    }
 }
 
 /// Every estimator × light strategy.

@@ -76,6 +76,7 @@ fn scattering_blob() -> (Scene<Volume>, Integrator) {
             tracking: Tracking::Regular,
             split: 1,
             camera_collision: Collision::Analog,
+            point_lookup: plume::integrator::PointLookup::Exact,
         },
     )
 }

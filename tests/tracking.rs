@@ -33,6 +33,7 @@ fn integrator(estimator: Estimator, light_sampling: LightSampling, tracking: Tra
         tracking,
         split: 1,
         camera_collision: Collision::Analog,
+        point_lookup: plume::integrator::PointLookup::Exact,
     }
 }
 

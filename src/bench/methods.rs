@@ -98,6 +98,7 @@ fn integrator(estimator: Estimator, light_sampling: LightSampling, mis: MisHeuri
         tracking: Tracking::Regular,
         split: 1,
         camera_collision: Collision::Analog,
+        point_lookup: crate::integrator::PointLookup::Exact,
     }
 }
 

@@ -44,6 +44,7 @@ flags_to_keys! { RENDER_ONLY_FLAGS, apply_render_only, RenderArgs, s, a;
     "mis" => "integrator.mis": s.scene.integrator.mis => a.mis;
     "tracking" => "integrator.tracking": s.scene.integrator.tracking => a.tracking;
     "nee_table" => "integrator.nee_table": s.scene.integrator.nee_table => a.nee_table;
+    "point_lookup" => "integrator.point_lookup": s.scene.integrator.point_lookup => a.point_lookup;
     "proxy_resolution" => "integrator.proxy_resolution": s.scene.integrator.proxy_resolution => a.proxy_resolution;
     "albedo" => "medium.albedo": s.scene.medium.albedo => a.albedo;
     "g" => "medium.g": s.scene.medium.g => a.g;

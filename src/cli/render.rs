@@ -18,8 +18,8 @@ use plume::medium::Convention;
 use plume::scene::file::{is_scene_file, SceneFile};
 use plume::scene::{
     ByteSize, CameraCollision, CameraSettings, DistantSettings, EmissionSettings, EmissionSource, EnvironmentMapSettings, EstimatorKind, IntegratorSettings,
-    Interpolation, MediumSettings, Method, NeeTable, ProgressFormat, ReadSettings, RenderOptions, SampleOrderChoice, SamplerKind, Shot, SkySettings,
-    SphereSettings, TileIndex, TrackingChoice, UpAxis, ValidShot, VolumeInput,
+    Interpolation, MediumSettings, Method, NeeTable, PointLookup, ProgressFormat, ReadSettings, RenderOptions, SampleOrderChoice, SamplerKind, Shot,
+    SkySettings, SphereSettings, TileIndex, TrackingChoice, UpAxis, ValidShot, VolumeInput,
 };
 
 use super::flags::{choice, parse_environment_map, parse_keys, parse_pair, parse_size, parse_vec3};
@@ -117,6 +117,12 @@ pub struct RenderArgs {
     /// for volumes whose voxel table does not fit the memory budget. Same law either way.
     #[arg(long, value_parser = choice::<NeeTable>(), default_value_t = IntegratorSettings::default().nee_table)]
     pub nee_table: NeeTable,
+    /// How null collisions (--tracking mixed or null) read a trilinear volume at their
+    /// tentative points: one voxel picked with its interpolation weight (unbiased: the
+    /// free-path law is the interpolated field's exactly; one read instead of eight), or
+    /// the interpolated value itself. Nothing changes with --interpolation nearest.
+    #[arg(long, value_parser = choice::<PointLookup>(), default_value_t = IntegratorSettings::default().point_lookup)]
+    pub point_lookup: PointLookup,
     /// FNEE proxy grid resolution (cells along the longest axis; a power of two, 8 up to
     /// the data resolution). Default 64, or the data resolution if that is smaller.
     #[arg(long)]

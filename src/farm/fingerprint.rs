@@ -91,10 +91,17 @@ pub fn settings_hash(shot: &Shot, seed: u64) -> String {
         tracking,
         nee_table,
         split,
+        point_lookup,
     } = integrator;
     // A brick table draws other voxels than a voxel table from the same numbers; the
     // default adds nothing, so earlier hashes stay valid
     let nee_table = if nee_table.is_voxel() { String::new() } else { format!(" nee-table {nee_table}") };
+    // Stochastic point lookups (the default since they existed) draw other numbers than
+    // exact ones on a trilinear volume: hashed there, so parts of either kind do not
+    // merge; elsewhere (nearest, or exact lookups) they add nothing, so hashes of renders
+    // from before stay valid (the same pixels)
+    let picks = *point_lookup == crate::integrator::PointLookup::Stochastic && *interpolation == crate::volume::Interpolation::Linear;
+    let point_lookup = if picks { " point-lookup stochastic" } else { "" };
     // Likewise the camera segment's own estimator
     let camera_estimator = camera_estimator.map_or(String::new(), |e| format!(" camera {e}"));
     // Of the job's settings only the seed (an argument) and the sampler change pixels
@@ -128,7 +135,7 @@ pub fn settings_hash(shot: &Shot, seed: u64) -> String {
          medium {density_scale:?} {albedo:?} {g:?}\n\
          camera {from:?} {at:?} {up:?} {fov:?} {width} {height} {up_axis}\n\
          lights {lights}\n\
-         integrator {method} {estimator:?} {light_sampling:?} {mis} {proxy_resolution:?} {max_depth} {kappa:?} {tracking}{nee_table}{camera_estimator} split {split} camera-collision {camera_collision}{}{}{motion}",
+         integrator {method} {estimator:?} {light_sampling:?} {mis} {proxy_resolution:?} {max_depth} {kappa:?} {tracking}{nee_table}{point_lookup}{camera_estimator} split {split} camera-collision {camera_collision}{}{}{motion}",
         env!("CARGO_PKG_VERSION"),
         crate::film::FIXED_POINT_BITS,
         if *aovs { "\naovs" } else { "" },

@@ -16,7 +16,7 @@ use crate::volume::trilinear::Trilinear;
 use crate::volume::{Interpolation, Volume};
 
 pub use aov::{AovLayout, AovSample, Aovs, Component, NoAovs};
-pub use tracker::Tracking;
+pub use tracker::{PointLookup, Tracking};
 pub use volpath::{light_power, Integrator, LightSampling, Lights, MisHeuristic};
 
 /// Everything a render reads: immutable and `Sync`, built once.

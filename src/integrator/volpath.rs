@@ -64,7 +64,7 @@
 //!   full weight would count in-scattered emission twice.
 
 use super::aov::{Aovs, Component, NoAovs};
-use super::tracker::{Tracker, Tracking};
+use super::tracker::{PointLookup, Tracker, Tracking};
 use crate::light::external::{ChosenLight, ExternalLights};
 use crate::light::nee::EmitterDistribution;
 use crate::medium::tracking::emission_at_point;
@@ -223,6 +223,9 @@ pub struct Integrator {
     /// (`medium::forced`) need the expected-value walk (`camera_estimator` ray-march) and
     /// regular tracking, and are drawn as analog ones elsewhere.
     pub camera_collision: Collision,
+    /// How null collisions read a trilinear field at tentative points (exact, or one
+    /// voxel picked by its weight; `integrator::tracker`).
+    pub point_lookup: PointLookup,
 }
 
 /// The MIS weight owed to a forward segment's emission.
@@ -293,6 +296,7 @@ impl Integrator {
             tracking: Tracking::Regular,
             split: 1,
             camera_collision: Collision::Analog,
+            point_lookup: PointLookup::Exact,
         }
     }
 
@@ -380,11 +384,12 @@ impl Integrator {
     fn trackers<'s, F: Field>(&self, scene: &'s Scene<F>, time: Option<f64>, sampler: &mut Sampler) -> (Tracker<'s, F>, Tracker<'s, F>) {
         if let Some(motion) = &scene.motion {
             // Null collisions at this sample's shutter time
-            let t = Tracker::Moving { field: &scene.field, motion, time: time.unwrap_or_else(|| motion.time(sampler.get_1d(Dim::Time))) };
+            let time = time.unwrap_or_else(|| motion.time(sampler.get_1d(Dim::Time)));
+            let t = Tracker::Moving { field: &scene.field, motion, time, lookup: self.point_lookup };
             return (t, t);
         }
         let regular = Tracker::Regular(&scene.field);
-        let null = scene.majorants.as_ref().map(|majorants| Tracker::Null { field: &scene.field, majorants });
+        let null = scene.majorants.as_ref().map(|majorants| Tracker::Null { field: &scene.field, majorants, lookup: self.point_lookup });
         let serves = Tracking::applies(self.estimator, self.light_sampling);
         let pick = |use_null: bool| if use_null && serves { null.unwrap_or(regular) } else { regular };
         // The camera segment's own estimator must be one null collisions serve, too

@@ -20,6 +20,13 @@
 //! nesting argument holds). Ray-march keeps its Russian roulette on small `W`, and finds
 //! its collision (when the path scatters) by delta tracking on the same tentative points.
 //!
+//! **Stochastic point lookups** ([`PointField::picks`]; `integrator::tracker::PointLookup`):
+//! a field may read a tentative point's density as one voxel picked with its
+//! reconstruction weight, from one more number of the stream. What a tentative point's
+//! density serves is linear in it (an acceptance probability, a ratio-tracking factor),
+//! so an unbiased value keeps every estimate unbiased, and delta tracking's free-path law
+//! is unchanged exactly. Real collisions and emission points read the exact value.
+//!
 //! The point estimator scores `L_e(x)/μ(x)` at the real collision. Blend (a per-voxel
 //! mix) has no voxels to mix over here and is refused before rendering.
 //!
@@ -56,6 +63,25 @@ pub trait PointField {
     fn emission(&self, p: glam::DVec3) -> [f64; 3];
     /// Everything at a real collision.
     fn sample(&self, p: glam::DVec3) -> PointSample;
+    /// Whether the field reads tentative points by stochastic filtering
+    /// ([`PointField::density_picked`]): [`null_track`] then draws one number per read.
+    fn picks(&self) -> bool {
+        false
+    }
+    /// An unbiased one-term estimate of [`PointField::density`] from the uniform `u`.
+    fn density_picked(&self, p: glam::DVec3, _u: f64) -> f32 {
+        self.density(p)
+    }
+}
+
+/// `field`'s density at `p`, picked with a number of `sampler`'s when the field picks.
+#[inline]
+fn density_of(field: &impl PointField, p: glam::DVec3, sampler: &mut Sampler) -> f32 {
+    if field.picks() {
+        field.density_picked(p, sampler.next_f64())
+    } else {
+        field.density(p)
+    }
 }
 
 /// A closure giving the whole [`PointSample`] is a [`PointField`] (tests, analytic fields).
@@ -130,14 +156,16 @@ pub fn null_track(
             // A tentative collision at `next`
             e = sample_exponential(sampler.next_f64());
             s = next;
-            let density = field.density(ray.at(next));
+            let density = density_of(field, ray.at(next), sampler);
             let ratio = (medium.mu_t(density) / mu_bar).clamp(0.0, 1.0);
             if event == DistanceSample::Escaped && (need_collision || !expected) && sampler.next_f64() < ratio {
+                // The exact values (a picked density served the acceptance only): the
+                // collision's law is the exact field's, and so must its record and score be
                 let p = field.sample(ray.at(next));
-                event = DistanceSample::Collided { t: next, density, source: p.source, albedo: p.albedo };
+                event = DistanceSample::Collided { t: next, density: p.density, source: p.source, albedo: p.albedo };
                 od_to_collision = f64::NAN; // not tracked by null collisions
                 if estimator == Estimator::Point {
-                    let mu = medium.mu_t(density);
+                    let mu = medium.mu_t(p.density);
                     add(&mut f, p.emission, 1.0 / mu);
                 }
                 if !expected {
@@ -190,7 +218,7 @@ pub fn ratio_transmittance(majorants: &MajorantGrid, field: &impl PointField, me
             if s >= seg.t1 {
                 break;
             }
-            weight *= 1.0 - (medium.mu_t(field.density(ray.at(s))) / mu_bar).clamp(0.0, 1.0);
+            weight *= 1.0 - (medium.mu_t(density_of(field, ray.at(s), sampler)) / mu_bar).clamp(0.0, 1.0);
             if weight < RAY_MARCH_ROULETTE_THRESHOLD {
                 let q = weight / RAY_MARCH_ROULETTE_THRESHOLD;
                 if sampler.next_f64() >= q {

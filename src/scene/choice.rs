@@ -6,7 +6,7 @@
 //! list of possible values with their help (the binary builds its value parsers from
 //! [`Choice::CHOICES`]), so a name is written once.
 
-use crate::integrator::{LightSampling, MisHeuristic, Tracking};
+use crate::integrator::{LightSampling, MisHeuristic, PointLookup, Tracking};
 use crate::medium::{Collision, Convention, Estimator};
 pub use crate::sampling::SamplerKind;
 pub use crate::volume::Interpolation;
@@ -223,6 +223,11 @@ impl TrackingChoice {
     }
 }
 
+choice!(PointLookup {
+    "stochastic" => PointLookup::Stochastic, "One voxel per tentative point, picked with its trilinear weight: unbiased, one read instead of eight";
+    "exact" => PointLookup::Exact, "The trilinear value (eight voxels) at every tentative point";
+});
+
 choice!(MisHeuristic {
     "balance" => MisHeuristic::Balance, "Balance heuristic";
     "power" => MisHeuristic::Power, "Power heuristic (exponent 2)";
@@ -338,6 +343,7 @@ mod tests {
         round_trips::<MisHeuristic>();
         round_trips::<TrackingChoice>();
         round_trips::<NeeTable>();
+        round_trips::<PointLookup>();
         round_trips::<Convention>();
         round_trips::<EmissionSource>();
         round_trips::<SampleOrderChoice>();

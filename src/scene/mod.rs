@@ -35,6 +35,7 @@ pub use settings::{FarmOptions, JobSettings, OutputSettings, ReadSettings, Rende
 pub use validate::ValidShot;
 pub use values::{parse_bytes, ByteSize, TileIndex};
 
+pub use crate::integrator::PointLookup;
 use crate::integrator::{Integrator, LightSampling, MisHeuristic};
 use crate::medium::{Convention, Estimator};
 
@@ -180,6 +181,7 @@ impl SceneDescription {
             tracking: self.integrator.tracking.resolve(estimator, light_sampling),
             split: self.integrator.split,
             camera_collision: self.integrator.camera_collision.collision(),
+            point_lookup: self.integrator.point_lookup,
         }
     }
 }
@@ -372,6 +374,8 @@ pub struct IntegratorSettings {
     pub nee_table: NeeTable,
     /// Paths traced from each collision of a camera ray, each carrying `1/split`.
     pub split: u32,
+    /// How null collisions read a trilinear volume at tentative points.
+    pub point_lookup: PointLookup,
 }
 
 impl Default for IntegratorSettings {
@@ -389,6 +393,7 @@ impl Default for IntegratorSettings {
             tracking: TrackingChoice::Auto,
             nee_table: NeeTable::Voxel,
             split: 8,
+            point_lookup: PointLookup::Stochastic,
         }
     }
 }

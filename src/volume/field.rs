@@ -311,6 +311,20 @@ pub trait Field: Sync {
     /// Density and source at a world point (the voxel's values: nearest reconstruction).
     fn values_at(&self, p_world: DVec3) -> VoxelValues;
 
+    /// One voxel's density and source, picked at random with the reconstruction's
+    /// weights at `p_world` by the uniform `u`: `E_u[g(values_picked(p, u))]` is the
+    /// reconstruction of `g` at `p` for any `g` of a voxel's values (stochastic filtering;
+    /// `integrator::tracker::PointLookup`). Nearest: the voxel.
+    fn values_picked(&self, p_world: DVec3, _u: f64) -> VoxelValues {
+        self.values_at(p_world)
+    }
+
+    /// Whether a point value combines several voxels, so that [`Field::values_picked`]
+    /// reads fewer than [`Field::values_at`] (trilinear: one of eight).
+    fn picks_fewer(&self) -> bool {
+        false
+    }
+
     /// Density and emission density at a world point as the field reconstructs them
     /// along rays (for next-event estimation at a sampled point). `le` is the per-voxel
     /// emission density (see [`Piece`]).

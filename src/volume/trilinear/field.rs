@@ -158,6 +158,30 @@ impl Field for Trilinear {
         VoxelValues { density: it.density() as f32, source: it.source() as f32 }
     }
 
+    fn picks_fewer(&self) -> bool {
+        true
+    }
+
+    /// Corner `c` with probability `w_c = Π_k (c_k f_k + (1 − c_k)(1 − f_k))`: along each
+    /// axis the upper voxel with probability `f_k`, `u` rescaled to a fresh uniform on the
+    /// part it fell in after each choice.
+    fn values_picked(&self, p_world: DVec3, u: f64) -> VoxelValues {
+        let p = self.volume.index_from_world.transform_point3(p_world);
+        let floor = p.floor();
+        let f = p - floor;
+        let mut cell = floor.as_ivec3();
+        let mut u = u;
+        for k in 0..3 {
+            if u < f[k] {
+                cell[k] += 1;
+                u /= f[k];
+            } else {
+                u = (u - f[k]) / (1.0 - f[k]);
+            }
+        }
+        self.volume.voxel(cell)
+    }
+
     /// Interpolated density, and the interpolation of the corners' `le(ρ_c, s_c)`.
     fn reconstruct(&self, p_world: DVec3, le: &impl Fn(f32, f32) -> Rgb) -> PointValues {
         let it = self.interpolate_world(p_world);

@@ -1,0 +1,166 @@
+//! Stochastic point lookups (`--point-lookup`, `integrator::tracker::PointLookup`): one
+//! voxel picked with its trilinear weight is an unbiased estimate of the interpolated
+//! value (exactly, over a stratified `u`), images tracked by null collisions with it have
+//! the means of regular tracking for every estimator and light strategy null collisions
+//! serve, and the choice is a flag, a scene key and part of the settings hash where it
+//! changes pixels (trilinear), and nothing where it does not (nearest). Fixed seeds; k·σ
+//! tolerances from independent runs.
+
+mod common;
+
+use common::{explosion, explosion_volume, region_means_with, s, tmpdir};
+use glam::DVec3;
+use plume::integrator::{AnyScene, Integrator, LightSampling, Lights, MisHeuristic, PointLookup, Tracking};
+use plume::medium::{Collision, Estimator};
+use plume::sampling::{Sampler, SamplerKind};
+use plume::volume::field::Field;
+use plume::volume::trilinear::Trilinear;
+use plume::volume::Interpolation;
+
+#[test]
+fn a_picked_voxel_is_an_unbiased_estimate_of_the_interpolated_one() {
+    // The pick splits [0, 1) into 8 intervals of lengths w_c (axis by axis), so over N
+    // stratified u every corner is picked w_c·N times to within 1: the mean of any
+    // function of the picked voxel is its trilinear interpolation to within 8/N of the
+    // corners' range. Checked for density, source and their product (not linear in the
+    // interpolated values, as a corner's L_e is not), at points inside the volume, on
+    // its edges (half the corners outside, read as 0) and on exact voxel centres.
+    let linear = Trilinear::new(explosion_volume());
+    let b = linear.world_bounds();
+    let mut rng = Sampler::new(3, 0, 0);
+    let n = 4096;
+    let (mut checked, mut mixed) = (0, 0);
+    for k in 0..600 {
+        let u = DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64());
+        let mut p = b.lo + (b.hi - b.lo) * (u * 1.1 - 0.05);
+        if k % 50 == 0 {
+            // A voxel centre: weight 1 on one corner
+            let index = linear.volume().index_from_world().transform_point3(p).round();
+            p = linear.volume().world_from_index().transform_point3(index);
+        }
+        let it = linear.interpolate_world(p);
+        let exact = [it.density(), it.source(), it.corners.iter().zip(&it.weights).map(|(v, w)| w * f64::from(v.density) * f64::from(v.source)).sum()];
+        let mut sum = [0.0f64; 3];
+        let mut distinct = std::collections::BTreeSet::new();
+        for i in 0..n {
+            let v = linear.values_picked(p, (f64::from(i) + 0.5) / f64::from(n));
+            assert!(it.corners.contains(&v), "at {p}: picked {v:?}, not one of the corners");
+            distinct.insert((v.density.to_bits(), v.source.to_bits()));
+            for (s, x) in sum.iter_mut().zip([f64::from(v.density), f64::from(v.source), f64::from(v.density) * f64::from(v.source)]) {
+                *s += x;
+            }
+        }
+        let range = |g: &dyn Fn(&plume::volume::field::VoxelValues) -> f64| {
+            let vals: Vec<f64> = it.corners.iter().map(g).collect();
+            vals.iter().copied().fold(f64::MIN, f64::max) - vals.iter().copied().fold(f64::MAX, f64::min)
+        };
+        let ranges = [range(&|v| f64::from(v.density)), range(&|v| f64::from(v.source)), range(&|v| f64::from(v.density) * f64::from(v.source))];
+        for c in 0..3 {
+            let mean = sum[c] / f64::from(n);
+            assert!(
+                (mean - exact[c]).abs() <= 8.0 / f64::from(n) * ranges[c] + 1e-6 * exact[c].abs(),
+                "at {p}, quantity {c}: picked mean {mean} against {}",
+                exact[c]
+            );
+        }
+        checked += 1;
+        mixed += usize::from(distinct.len() > 2);
+    }
+    assert!(checked == 600 && mixed > 40, "only {mixed} points with corners of several values");
+    // Nearest has one voxel per point: the pick is the voxel
+    let nearest = explosion_volume();
+    for k in 0..200 {
+        let p = b.lo + (b.hi - b.lo) * DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64());
+        assert_eq!(nearest.values_picked(p, f64::from(k) / 200.0), nearest.values_at(p));
+    }
+    assert!(!nearest.picks_fewer() && linear.picks_fewer());
+}
+
+fn integrator(estimator: Estimator, light_sampling: LightSampling, tracking: Tracking, point_lookup: PointLookup) -> Integrator {
+    Integrator {
+        estimator,
+        camera_estimator: None,
+        light_sampling,
+        mis: MisHeuristic::Power,
+        max_depth: 64,
+        tracking,
+        split: 1,
+        camera_collision: Collision::Analog,
+        point_lookup,
+    }
+}
+
+#[test]
+fn stochastic_lookups_give_the_image_means_of_regular_tracking() {
+    // Trilinear, thin and dense: a regular line-fnee reference, then every estimator ×
+    // light strategy null collisions serve, mixed and null, with picked voxels. 2 × 6 ×
+    // 2 × 5 regions = 110 comparisons (line + classic NEE only in the thin one); Šidák at
+    // α = 0.01 gives |z| < 4.0 per test, 4.2 kept as tests/tracking.rs has it.
+    let combos = [
+        (Estimator::Line, LightSampling::Fnee),
+        (Estimator::Line, LightSampling::None),
+        (Estimator::Point, LightSampling::Fnee),
+        (Estimator::RayMarch, LightSampling::None),
+        (Estimator::RayMarch, LightSampling::Fnee),
+        (Estimator::Line, LightSampling::Nee),
+    ];
+    let scene = |sigma_t: f64, ls: LightSampling| -> AnyScene {
+        common::explosion_scene(sigma_t, Interpolation::Linear, true, |vol, e| Lights::build(vol, e, ls, 8).unwrap())
+    };
+    for sigma_t in [1.5, 25.0] {
+        let reference = region_means_with(
+            SamplerKind::Sobol,
+            &scene(sigma_t, LightSampling::Fnee),
+            integrator(Estimator::Line, LightSampling::Fnee, Tracking::Regular, PointLookup::Exact),
+            16,
+            32,
+            1000,
+        );
+        assert!(reference[0].0 > 0.0);
+        for (est, ls) in combos {
+            // Line + classic NEE in dense emitters has infinite variance (tests/path.rs)
+            if sigma_t > 10.0 && ls == LightSampling::Nee {
+                continue;
+            }
+            let sc = scene(sigma_t, ls);
+            for tracking in [Tracking::Mixed, Tracking::Null] {
+                let got = region_means_with(SamplerKind::Sobol, &sc, integrator(est, ls, tracking, PointLookup::Stochastic), 16, 24, 7);
+                common::assert_same_means(&format!("σ_t={sigma_t} {est:?}/{ls:?}, {tracking:?}, stochastic vs regular"), &got, &reference, 4.2);
+            }
+        }
+    }
+}
+
+#[test]
+fn the_point_lookup_is_a_flag_a_scene_key_and_hashed_where_it_changes_pixels() {
+    let dir = tmpdir("point_lookup", "cli");
+    let vdb = explosion(&dir, 32, Some(3));
+    let base = ["render", s(&vdb), "--width", "24", "--height", "16", "--spp", "4", "--albedo", "0.8", "--stats"];
+    let values = [("default", None), ("stochastic", Some("stochastic")), ("exact", Some("exact"))];
+    let linear = common::settings_hashes(&dir, &base, "--point-lookup", &values);
+    let pixels = |name: &str| common::exr_pixels(&dir.join(format!("{name}.exr")));
+    // Stochastic is the default; it changes a trilinear render's pixels and its hash
+    assert_eq!(pixels("default"), pixels("stochastic"));
+    assert_eq!(linear[0], linear[1]);
+    assert_ne!(pixels("exact"), pixels("stochastic"));
+    assert_ne!(linear[2], linear[1]);
+    let exact = pixels("exact");
+    // A scene file's key
+    let scene_file = dir.join("scene.toml");
+    std::fs::write(
+        &scene_file,
+        format!("[volume]\nfile = {:?}\n[integrator]\npoint_lookup = \"exact\"\n[medium]\nalbedo = 0.8\n[camera]\nwidth = 24\nheight = 16\n", s(&vdb)),
+    )
+    .unwrap();
+    let out = dir.join("scene.exr");
+    let o = common::plume(&["render", s(&scene_file), "--spp", "4", "-o", s(&out)]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(common::exr_pixels(&out), exact);
+    // Nearest: one voxel per point either way; the same pixels and the same hash
+    let nearest_base = ["render", s(&vdb), "--width", "24", "--height", "16", "--spp", "4", "--albedo", "0.8", "--interpolation", "nearest", "--stats"];
+    let nearest = common::settings_hashes(&dir, &nearest_base, "--point-lookup", &values);
+    assert_eq!(pixels("exact"), pixels("stochastic"));
+    assert!(nearest[0] == nearest[1] && nearest[1] == nearest[2], "nearest hashes differ: {nearest:?}");
+    // A bad value is refused naming the flag
+    common::plume_exits(&["render", s(&vdb), "--point-lookup", "sometimes", "-o", s(&dir.join("bad.exr"))], 2, &["--point-lookup"]);
+}

@@ -1,21 +1,19 @@
 //! Stochastic point lookups (`--point-lookup`, `integrator::tracker::PointLookup`): one
 //! voxel picked with its trilinear weight is an unbiased estimate of the interpolated
-//! value (exactly, over a stratified `u`), images tracked by null collisions with it have
-//! the means of regular tracking for every estimator and light strategy null collisions
-//! serve, and the choice is a flag, a scene key and part of the settings hash where it
-//! changes pixels (trilinear), and nothing where it does not (nearest). Fixed seeds; k·σ
-//! tolerances from independent runs.
+//! value (exactly, over a stratified `u`), and the choice is a flag, a scene key and part
+//! of the settings hash where it changes pixels (trilinear), and nothing where it does not
+//! (nearest). That images tracked by null collisions with it have the means of regular
+//! tracking, for every estimator and light strategy null collisions serve, is tested with
+//! the exact lookups in `tests/tracking.rs` (and with motion blur in
+//! `tests/motion_blur.rs`).
 
 mod common;
 
-use common::{explosion, explosion_volume, region_means_with, s, tmpdir};
+use common::{explosion, explosion_volume, s, tmpdir};
 use glam::DVec3;
-use plume::integrator::{AnyScene, Integrator, LightSampling, Lights, MisHeuristic, PointLookup, Tracking};
-use plume::medium::{Collision, Estimator};
-use plume::sampling::{Sampler, SamplerKind};
+use plume::sampling::Sampler;
 use plume::volume::field::Field;
 use plume::volume::trilinear::Trilinear;
-use plume::volume::Interpolation;
 
 #[test]
 fn a_picked_voxel_is_an_unbiased_estimate_of_the_interpolated_one() {
@@ -74,61 +72,6 @@ fn a_picked_voxel_is_an_unbiased_estimate_of_the_interpolated_one() {
         assert_eq!(nearest.values_picked(p, f64::from(k) / 200.0), nearest.values_at(p));
     }
     assert!(!nearest.picks_fewer() && linear.picks_fewer());
-}
-
-fn integrator(estimator: Estimator, light_sampling: LightSampling, tracking: Tracking, point_lookup: PointLookup) -> Integrator {
-    Integrator {
-        estimator,
-        camera_estimator: None,
-        light_sampling,
-        mis: MisHeuristic::Power,
-        max_depth: 64,
-        tracking,
-        split: 1,
-        camera_collision: Collision::Analog,
-        point_lookup,
-    }
-}
-
-#[test]
-fn stochastic_lookups_give_the_image_means_of_regular_tracking() {
-    // Trilinear, thin and dense: a regular line-fnee reference, then every estimator ×
-    // light strategy null collisions serve, mixed and null, with picked voxels. 2 × 6 ×
-    // 2 × 5 regions = 110 comparisons (line + classic NEE only in the thin one); Šidák at
-    // α = 0.01 gives |z| < 4.0 per test, 4.2 kept as tests/tracking.rs has it.
-    let combos = [
-        (Estimator::Line, LightSampling::Fnee),
-        (Estimator::Line, LightSampling::None),
-        (Estimator::Point, LightSampling::Fnee),
-        (Estimator::RayMarch, LightSampling::None),
-        (Estimator::RayMarch, LightSampling::Fnee),
-        (Estimator::Line, LightSampling::Nee),
-    ];
-    let scene = |sigma_t: f64, ls: LightSampling| -> AnyScene {
-        common::explosion_scene(sigma_t, Interpolation::Linear, true, |vol, e| Lights::build(vol, e, ls, 8).unwrap())
-    };
-    for sigma_t in [1.5, 25.0] {
-        let reference = region_means_with(
-            SamplerKind::Sobol,
-            &scene(sigma_t, LightSampling::Fnee),
-            integrator(Estimator::Line, LightSampling::Fnee, Tracking::Regular, PointLookup::Exact),
-            16,
-            32,
-            1000,
-        );
-        assert!(reference[0].0 > 0.0);
-        for (est, ls) in combos {
-            // Line + classic NEE in dense emitters has infinite variance (tests/path.rs)
-            if sigma_t > 10.0 && ls == LightSampling::Nee {
-                continue;
-            }
-            let sc = scene(sigma_t, ls);
-            for tracking in [Tracking::Mixed, Tracking::Null] {
-                let got = region_means_with(SamplerKind::Sobol, &sc, integrator(est, ls, tracking, PointLookup::Stochastic), 16, 24, 7);
-                common::assert_same_means(&format!("σ_t={sigma_t} {est:?}/{ls:?}, {tracking:?}, stochastic vs regular"), &got, &reference, 4.2);
-            }
-        }
-    }
 }
 
 #[test]

@@ -10,7 +10,7 @@ mod common;
 
 use common::{explosion, explosion_volume, plume, plume_exits, region_means_with, s, tmpdir};
 use glam::DVec3;
-use plume::integrator::{AnyScene, Integrator, LightSampling, Lights, MisHeuristic, Tracking};
+use plume::integrator::{AnyScene, Integrator, LightSampling, Lights, MisHeuristic, PointLookup, Tracking};
 use plume::medium::{Collision, Estimator};
 use plume::sampling::{Sampler, SamplerKind};
 use plume::scene::TrackingChoice;
@@ -33,17 +33,19 @@ fn integrator(estimator: Estimator, light_sampling: LightSampling, tracking: Tra
         tracking,
         split: 1,
         camera_collision: Collision::Analog,
-        point_lookup: plume::integrator::PointLookup::Exact,
+        point_lookup: PointLookup::Exact,
     }
 }
 
 #[test]
 fn null_collisions_give_the_image_means_of_regular_tracking() {
     // Per reconstruction and density: a regular line-fnee reference, then every estimator
-    // × light strategy null collisions serve, mixed and null. 2 × 2 × 6 × 2 × 5 regions =
-    // 240 comparisons; Šidák at α = 0.01 gives |z| < 4.2 per test. Null collisions draw
-    // their tentative points from the hashed stream (not Sobol), so their run means have
-    // heavier tails: 24 runs of 16 spp keep the spread an honest standard error.
+    // × light strategy null collisions serve, mixed and null; trilinear with exact and
+    // with stochastic point lookups (`tests/point_lookup.rs`). 3 × 2 × 6 × 2 × 5 regions
+    // = 330 comparisons (line + classic NEE only in the thin ones); Šidák at α = 0.01
+    // gives |z| < 4.3 per test. Null collisions draw their tentative points from the
+    // hashed stream (not Sobol), so their run means have heavier tails: 24 runs of 16 spp
+    // keep the spread an honest standard error.
     let combos = [
         (Estimator::Line, LightSampling::Fnee),
         (Estimator::Line, LightSampling::None),
@@ -52,7 +54,9 @@ fn null_collisions_give_the_image_means_of_regular_tracking() {
         (Estimator::RayMarch, LightSampling::Fnee),
         (Estimator::Line, LightSampling::Nee),
     ];
-    for (interpolation, sigma_t) in [Interpolation::Nearest, Interpolation::Linear].into_iter().flat_map(|i| [(i, 1.5), (i, 25.0)]) {
+    let reconstructions =
+        [(Interpolation::Nearest, PointLookup::Exact), (Interpolation::Linear, PointLookup::Exact), (Interpolation::Linear, PointLookup::Stochastic)];
+    for ((interpolation, lookup), sigma_t) in reconstructions.into_iter().flat_map(|r| [(r, 1.5), (r, 25.0)]) {
         let reference_scene = scene(sigma_t, LightSampling::Fnee, interpolation);
         let reference =
             region_means_with(SamplerKind::Sobol, &reference_scene, integrator(Estimator::Line, LightSampling::Fnee, Tracking::Regular), 16, 32, 1000);
@@ -64,8 +68,9 @@ fn null_collisions_give_the_image_means_of_regular_tracking() {
             }
             let sc = scene(sigma_t, ls, interpolation);
             for tracking in [Tracking::Mixed, Tracking::Null] {
-                let got = region_means_with(SamplerKind::Sobol, &sc, integrator(est, ls, tracking), 16, 24, 7);
-                common::assert_same_means(&format!("{interpolation} σ_t={sigma_t} {est:?}/{ls:?}, {tracking:?} vs regular"), &got, &reference, 4.2);
+                let integ = Integrator { point_lookup: lookup, ..integrator(est, ls, tracking) };
+                let got = region_means_with(SamplerKind::Sobol, &sc, integ, 16, 24, 7);
+                common::assert_same_means(&format!("{interpolation} {lookup:?} σ_t={sigma_t} {est:?}/{ls:?}, {tracking:?} vs regular"), &got, &reference, 4.3);
             }
         }
     }

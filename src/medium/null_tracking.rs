@@ -74,10 +74,11 @@ pub trait PointField {
     }
 }
 
-/// `field`'s density at `p`, picked with a number of `sampler`'s when the field picks.
+/// `field`'s density at `p`, picked with a number of `sampler`'s when `picks` (the
+/// field's [`PointField::picks`], asked once per walk).
 #[inline]
-fn density_of(field: &impl PointField, p: glam::DVec3, sampler: &mut Sampler) -> f32 {
-    if field.picks() {
+fn density_of(field: &impl PointField, picks: bool, p: glam::DVec3, sampler: &mut Sampler) -> f32 {
+    if picks {
         field.density_picked(p, sampler.next_f64())
     } else {
         field.density(p)
@@ -124,6 +125,7 @@ pub fn null_track(
     let expected = estimator == Estimator::RayMarch;
     // Line and ray-march integrate along the stretches; point scores at the collision
     let integrates = estimator != Estimator::Point;
+    let picks = field.picks();
     let mut f = [0.0f64; 3];
     let mut weight = 1.0f64; // ratio-tracking W (ray-march)
     let mut event = DistanceSample::Escaped;
@@ -156,7 +158,7 @@ pub fn null_track(
             // A tentative collision at `next`
             e = sample_exponential(sampler.next_f64());
             s = next;
-            let density = density_of(field, ray.at(next), sampler);
+            let density = density_of(field, picks, ray.at(next), sampler);
             let ratio = (medium.mu_t(density) / mu_bar).clamp(0.0, 1.0);
             if event == DistanceSample::Escaped && (need_collision || !expected) && sampler.next_f64() < ratio {
                 // The exact values (a picked density served the acceptance only): the
@@ -206,6 +208,7 @@ pub fn null_track(
 /// Ratio-tracking estimate of `τ(0, t_max)` along `ray` (module docs); stops early once
 /// it is 0.
 pub fn ratio_transmittance(majorants: &MajorantGrid, field: &impl PointField, medium: &Medium, ray: &Ray, t_max: f64, sampler: &mut Sampler) -> f64 {
+    let picks = field.picks();
     let mut weight = 1.0f64;
     for seg in majorants.segments(ray, 0.0, t_max) {
         let mu_bar = medium.mu_t(seg.bounds.density);
@@ -218,7 +221,7 @@ pub fn ratio_transmittance(majorants: &MajorantGrid, field: &impl PointField, me
             if s >= seg.t1 {
                 break;
             }
-            weight *= 1.0 - (medium.mu_t(density_of(field, ray.at(s), sampler)) / mu_bar).clamp(0.0, 1.0);
+            weight *= 1.0 - (medium.mu_t(density_of(field, picks, ray.at(s), sampler)) / mu_bar).clamp(0.0, 1.0);
             if weight < RAY_MARCH_ROULETTE_THRESHOLD {
                 let q = weight / RAY_MARCH_ROULETTE_THRESHOLD;
                 if sampler.next_f64() >= q {

@@ -34,7 +34,7 @@
 use glam::{DVec3, IVec3};
 
 use crate::volume::field::clip_to_box;
-use crate::volume::proxy::{ProxyGrid, BLOCK, EMPTY};
+use crate::volume::proxy::{ProxyGrid, BLOCK};
 
 /// A point sampled from the proxy's point density `p_V`.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -144,18 +144,17 @@ impl ProxyGrid {
             }
             k
         };
-        // Exit of the cell box [lo, hi): per-axis crossing of the face ahead
-        let exits = |lo: IVec3, hi: IVec3| -> [f64; 3] {
-            let mut ta = [f64::INFINITY; 3];
-            for (a, t_axis) in ta.iter_mut().enumerate() {
-                if d[a] > 0.0 {
-                    *t_axis = (boundary(a, hi[a]) - o[a]) * inv_d[a];
-                } else if d[a] < 0.0 {
-                    *t_axis = (boundary(a, lo[a]) - o[a]) * inv_d[a];
-                }
+        // Crossing of the face ahead along axis `a` of a box whose cells run lo..hi on it
+        let face_ahead = |a: usize, lo: i32, hi: i32| -> f64 {
+            if d[a] > 0.0 {
+                (boundary(a, hi) - o[a]) * inv_d[a]
+            } else if d[a] < 0.0 {
+                (boundary(a, lo) - o[a]) * inv_d[a]
+            } else {
+                f64::INFINITY
             }
-            ta
         };
+        let exits = |lo: IVec3, hi: IVec3| -> [f64; 3] { std::array::from_fn(|a| face_ahead(a, lo[a], hi[a])) };
         let (occupied_lo, occupied_hi) = (self.occupied_lo, self.occupied_hi);
         let inside = |c: IVec3| c.cmpge(occupied_lo).all() && c.cmplt(occupied_hi).all();
         let mut c = IVec3::ZERO;
@@ -166,19 +165,22 @@ impl ProxyGrid {
         let (bx, by) = (self.block_dims.x as usize, self.block_dims.y as usize);
         let mut t = t_start;
         let mut sum = 0.0f64;
+        // The current cell's exits, kept from step to step: a step recomputes only the
+        // axes it crossed (from the exact face, as every crossing is)
+        let mut ta = exits(c, c + 1);
         loop {
             let b = c / BLOCK;
             if !self.block_occupied[b.x as usize + bx * (b.y as usize + by * b.z as usize)] {
                 // Cross a block without emission in one step
                 let (lo, hi) = (b * BLOCK, (b * BLOCK + BLOCK).min(self.dims));
-                let ta = exits(lo, hi);
-                let t_exit = ta[0].min(ta[1]).min(ta[2]);
+                let tb = exits(lo, hi);
+                let t_exit = tb[0].min(tb[1]).min(tb[2]);
                 if t_exit >= t_end {
                     break;
                 }
                 t = t.max(t_exit);
                 for a in 0..3 {
-                    c[a] = if ta[a] == t_exit {
+                    c[a] = if tb[a] == t_exit {
                         if d[a] > 0.0 {
                             hi[a]
                         } else {
@@ -191,17 +193,17 @@ impl ProxyGrid {
                 if !inside(c) {
                     break;
                 }
+                ta = exits(c, c + 1);
                 continue;
             }
             // Step one cell
-            let ta = exits(c, c + 1);
             let t_exit = ta[0].min(ta[1]).min(ta[2]);
             let t1 = t_exit.min(t_end);
             if t1 > t {
                 // Add this cell's share P_j (t₁³ − t₀³)/3 (divided by V_j once at the end)
-                let entry = self.entry[c.x as usize + nx * (c.y as usize + ny * c.z as usize)];
-                if entry != EMPTY {
-                    sum += self.alias.pmf(entry as usize) * shell(t, t1);
+                let pmf = self.cell_pmf[c.x as usize + nx * (c.y as usize + ny * c.z as usize)];
+                if pmf != 0.0 {
+                    sum += pmf * shell(t, t1);
                 }
                 t = t1;
             }
@@ -211,6 +213,7 @@ impl ProxyGrid {
             for a in 0..3 {
                 if ta[a] == t_exit {
                     c[a] += if d[a] > 0.0 { 1 } else { -1 };
+                    ta[a] = face_ahead(a, c[a], c[a] + 1);
                 }
             }
             if !inside(c) {

@@ -29,6 +29,7 @@ pub mod mapfault;
 pub mod medium;
 pub mod memory;
 pub mod output;
+pub mod pilot;
 pub mod render;
 pub mod sampling;
 pub mod scene;

@@ -22,7 +22,7 @@ use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
 use crate::film::{Crop, Film, HalfSums, Tile};
-use crate::integrator::{AovLayout, AovSample, Aovs, Counters, Integrator, NoAovs, NoTrace, Scene};
+use crate::integrator::{AovLayout, AovSample, Aovs, Counters, Integrator, NoAovs, NoTrace, Scene, SplitMap};
 use crate::sampling::{Dim, Sampler, SamplerKind};
 use crate::volume::field::{Field, RayGrid};
 
@@ -209,25 +209,45 @@ pub fn pixel_sample<F: Field>(scene: &Scene<F>, kind: SamplerKind, seed: u64, x:
     PixelSample { ray: camera.ray(f64::from(x) + jx, f64::from(y) + jy), sampler, time }
 }
 
-fn render_tile<F: Field>(scene: &Scene<F>, settings: &RenderSettings, samples: std::ops::Range<u64>, tile: &mut Tile) -> Counters {
+/// The integrator of pixel `(x, y)`: `integrator` with the pixel's split count when
+/// splitting by brightness (`split_map`, [`crate::pilot::split_map`]).
+#[must_use]
+#[inline]
+pub fn pixel_integrator(integrator: &Integrator, split_map: Option<&SplitMap>, x: u32, y: u32) -> Integrator {
+    split_map.map_or(*integrator, |m| Integrator { split: m.paths(x, y), ..*integrator })
+}
+
+fn render_tile<F: Field>(
+    scene: &Scene<F>,
+    (settings, split_map): (&RenderSettings, Option<&SplitMap>),
+    samples: std::ops::Range<u64>,
+    tile: &mut Tile,
+) -> Counters {
     if tile.aov_channels == 0 {
-        render_tile_with(scene, settings, samples, tile, &mut NoAovs)
+        render_tile_with(scene, (settings, split_map), samples, tile, &mut NoAovs)
     } else {
         let mut aovs = AovSample::new(tile.aov_channels, tile.half.map(|h| (h.at, h.filtered)));
-        render_tile_with(scene, settings, samples, tile, &mut aovs)
+        render_tile_with(scene, (settings, split_map), samples, tile, &mut aovs)
     }
 }
 
-fn render_tile_with<F: Field, A: Aovs>(scene: &Scene<F>, settings: &RenderSettings, samples: std::ops::Range<u64>, tile: &mut Tile, aovs: &mut A) -> Counters {
+fn render_tile_with<F: Field, A: Aovs>(
+    scene: &Scene<F>,
+    (settings, split_map): (&RenderSettings, Option<&SplitMap>),
+    samples: std::ops::Range<u64>,
+    tile: &mut Tile,
+    aovs: &mut A,
+) -> Counters {
     let mut counters = Counters::default();
     for ty in 0..tile.height {
         for tx in 0..tile.width {
             let (x, y) = (tile.x0 + tx, tile.y0 + ty);
             let index = (ty * tile.width + tx) as usize;
+            let integrator = pixel_integrator(&settings.integrator, split_map, x, y);
             for s in samples.clone() {
                 let PixelSample { ray, mut sampler, time } = pixel_sample(scene, settings.sampler, settings.seed, x, y, s);
                 aovs.begin();
-                let l = settings.integrator.li_aovs(scene, &ray, &mut sampler, (time, &mut counters), &mut NoTrace, aovs);
+                let l = integrator.li_aovs(scene, &ray, &mut sampler, (time, &mut counters), &mut NoTrace, aovs);
                 if tile.half.is_some_and(|h| A::ON && crate::denoise::half_of(s, h.block)) {
                     aovs.half(l);
                 }
@@ -304,6 +324,9 @@ pub fn render_with<F: Field>(scene: &Scene<F>, settings: &RenderSettings, contro
     // Each tile's wall seconds in the last pass: the next pass takes the costliest first
     let mut tile_seconds = vec![0.0f64; film.tiles.len()];
     let mut busy_seconds = 0.0;
+    // Splitting by brightness: the pilot renders the whole frame, whatever this call renders
+    let split_map = pool.install(|| crate::pilot::split_map(scene, settings));
+    let split_map = split_map.as_ref();
     let stopped = loop {
         let remaining = match settings.budget {
             SampleBudget::Spp(_) => total - done,
@@ -355,13 +378,13 @@ pub fn render_with<F: Field>(scene: &Scene<F>, settings: &RenderSettings, contro
         let pass_cpu_start = crate::stats::cpu_seconds();
         let tile_counters: Vec<Counters> = if tile_major {
             let abandon = || control.stop.is_some_and(|stop| stop()) || control.deadline.is_some_and(|d| Instant::now() >= d);
-            match tile_major_pass(scene, settings, &pool, &mut film, (&range, control.read_ahead_window), &abandon, &mut tile_seconds) {
+            match tile_major_pass(scene, (settings, split_map), &pool, &mut film, (&range, control.read_ahead_window), &abandon, &mut tile_seconds) {
                 Some(c) => c,
                 None if control.deadline.is_some_and(|d| Instant::now() >= d) => break StopReason::TimeLimit,
                 None => break StopReason::Interrupted,
             }
         } else {
-            progressive_pass(scene, settings, &pool, &mut film, &range, &mut tile_seconds)
+            progressive_pass(scene, (settings, split_map), &pool, &mut film, &range, &mut tile_seconds)
         };
         busy_seconds += tile_seconds.iter().sum::<f64>();
         for c in &tile_counters {
@@ -395,7 +418,7 @@ pub fn render_with<F: Field>(scene: &Scene<F>, settings: &RenderSettings, contro
 /// changes no pixel: each tile's sums are its own exact integers.
 fn progressive_pass<F: Field>(
     scene: &Scene<F>,
-    settings: &RenderSettings,
+    settings: (&RenderSettings, Option<&SplitMap>),
     pool: &rayon::ThreadPool,
     film: &mut Film,
     samples: &std::ops::Range<u64>,
@@ -431,7 +454,7 @@ fn progressive_pass<F: Field>(
 /// `abandon` said so between tiles.
 fn tile_major_pass<F: Field>(
     scene: &Scene<F>,
-    settings: &RenderSettings,
+    settings: (&RenderSettings, Option<&SplitMap>),
     pool: &rayon::ThreadPool,
     film: &mut Film,
     (samples, read_ahead_window): (&std::ops::Range<u64>, Option<u64>),

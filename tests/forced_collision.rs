@@ -188,6 +188,7 @@ fn forced_camera_collisions_give_the_same_image_means() {
                 split: 4,
                 camera_collision: Collision::Analog,
                 point_lookup: plume::integrator::PointLookup::Exact,
+                split_by: plume::integrator::SplitBy::Uniform,
             };
             let forced = Integrator { camera_collision: Collision::Forced, ..analog };
             let reference = region_means_with(SamplerKind::Sobol, &scene, analog, 8, 12, 900);

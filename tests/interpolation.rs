@@ -266,6 +266,7 @@ fn linear_scattering_renders_are_bit_identical_for_any_thread_count() {
             split: 1,
             camera_collision: Collision::Analog,
             point_lookup: plume::integrator::PointLookup::Exact,
+            split_by: plume::integrator::SplitBy::Uniform,
         };
         let one = pixels(&scene, integrator, 3, 21, 1);
         let two = pixels(&scene, integrator, 3, 21, 2);

@@ -62,6 +62,7 @@ fn single_scattering(scene: &Scene<Volume>, estimator: Estimator, n: u64, seed: 
         split: 1,
         camera_collision: Collision::Analog,
         point_lookup: plume::integrator::PointLookup::Exact,
+        split_by: plume::integrator::SplitBy::Uniform,
     };
     let ray = Ray { origin: DVec3::new(0.0, 0.0, -1.0), direction: DVec3::Z };
     let (mut s, mut s2) = (0.0, 0.0);
@@ -134,6 +135,7 @@ fn wide_distant_light_matches_single_scattering_with_mis() {
             split: 1,
             camera_collision: Collision::Analog,
             point_lookup: plume::integrator::PointLookup::Exact,
+            split_by: plume::integrator::SplitBy::Uniform,
         };
         let ray = Ray { origin: DVec3::new(0.0, 0.0, -1.0), direction: DVec3::Z };
         let (mut s, mut s2, n) = (0.0, 0.0, 60_000u64);

@@ -78,6 +78,7 @@ fn integrator(estimator: Estimator, light_sampling: LightSampling, max_depth: u3
         split: 1,
         camera_collision: Collision::Analog,
         point_lookup: PointLookup::Exact,
+        split_by: plume::integrator::SplitBy::Uniform,
     }
 }
 

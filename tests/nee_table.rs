@@ -36,6 +36,7 @@ fn brick_table_gives_the_image_means_of_the_voxel_table() {
                 split: 1,
                 camera_collision: Collision::Analog,
                 point_lookup: plume::integrator::PointLookup::Exact,
+                split_by: plume::integrator::SplitBy::Uniform,
             };
             let a = region_means_with(SamplerKind::Sobol, &voxels, integrator, 16, 16, 11);
             let b = region_means_with(SamplerKind::Sobol, &bricks, integrator, 16, 16, 500);

@@ -47,6 +47,7 @@ fn integrator(estimator: Estimator, light_sampling: LightSampling, mis: MisHeuri
         split: 1,
         camera_collision: Collision::Analog,
         point_lookup: plume::integrator::PointLookup::Exact,
+        split_by: plume::integrator::SplitBy::Uniform,
     }
 }
 

@@ -77,6 +77,7 @@ fn scattering_blob() -> (Scene<Volume>, Integrator) {
             split: 1,
             camera_collision: Collision::Analog,
             point_lookup: plume::integrator::PointLookup::Exact,
+            split_by: plume::integrator::SplitBy::Uniform,
         },
     )
 }

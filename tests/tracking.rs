@@ -34,6 +34,7 @@ fn integrator(estimator: Estimator, light_sampling: LightSampling, tracking: Tra
         split: 1,
         camera_collision: Collision::Analog,
         point_lookup: PointLookup::Exact,
+        split_by: plume::integrator::SplitBy::Uniform,
     }
 }
 

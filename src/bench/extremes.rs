@@ -275,6 +275,7 @@ fn density_sweep(cfg: &ExtremesConfig, check: &mut Check) -> Result<()> {
             split: 1,
             camera_collision: Collision::Forced,
             point_lookup: crate::integrator::PointLookup::Exact,
+            split_by: crate::integrator::SplitBy::Uniform,
         };
         let img = render_image(&scene, integ, cfg.spp, 1);
         let (mean, se) = central(&img, cfg.size, None);

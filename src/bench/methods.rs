@@ -99,6 +99,7 @@ fn integrator(estimator: Estimator, light_sampling: LightSampling, mis: MisHeuri
         split: 1,
         camera_collision: Collision::Analog,
         point_lookup: crate::integrator::PointLookup::Exact,
+        split_by: crate::integrator::SplitBy::Uniform,
     }
 }
 

@@ -50,6 +50,7 @@ flags_to_keys! { RENDER_ONLY_FLAGS, apply_render_only, RenderArgs, s, a;
     "g" => "medium.g": s.scene.medium.g => a.g;
     "max_depth" => "integrator.max_depth": s.scene.integrator.max_depth => a.max_depth;
     "split" => "integrator.split": s.scene.integrator.split => a.split;
+    "split_by" => "integrator.split_by": s.scene.integrator.split_by => a.split_by;
     "environment" => "lights.environment": s.scene.lights.environment => a.environment;
     "environment_map" => "lights.environment_map": s.scene.lights.environment_map => a.environment_map.clone();
     "sky" => "lights.sky": s.scene.lights.sky => a.sky.clone();

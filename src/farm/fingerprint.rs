@@ -91,8 +91,12 @@ pub fn settings_hash(shot: &Shot, seed: u64) -> String {
         tracking,
         nee_table,
         split,
+        split_by,
         point_lookup,
     } = integrator;
+    // Splitting by brightness changes every scattering pixel's count; uniform (the
+    // default) adds nothing, so earlier hashes stay valid
+    let split_by = if split_by.is_uniform() { String::new() } else { format!(" by {split_by}") };
     // A brick table draws other voxels than a voxel table from the same numbers; the
     // default adds nothing, so earlier hashes stay valid
     let nee_table = if nee_table.is_voxel() { String::new() } else { format!(" nee-table {nee_table}") };
@@ -135,7 +139,7 @@ pub fn settings_hash(shot: &Shot, seed: u64) -> String {
          medium {density_scale:?} {albedo:?} {g:?}\n\
          camera {from:?} {at:?} {up:?} {fov:?} {width} {height} {up_axis}\n\
          lights {lights}\n\
-         integrator {method} {estimator:?} {light_sampling:?} {mis} {proxy_resolution:?} {max_depth} {kappa:?} {tracking}{nee_table}{point_lookup}{camera_estimator} split {split} camera-collision {camera_collision}{}{}{motion}",
+         integrator {method} {estimator:?} {light_sampling:?} {mis} {proxy_resolution:?} {max_depth} {kappa:?} {tracking}{nee_table}{point_lookup}{camera_estimator} split {split}{split_by} camera-collision {camera_collision}{}{}{motion}",
         env!("CARGO_PKG_VERSION"),
         crate::film::FIXED_POINT_BITS,
         if *aovs { "\naovs" } else { "" },

@@ -64,6 +64,7 @@
 //!   full weight would count in-scattered emission twice.
 
 use super::aov::{Aovs, Component, NoAovs};
+use super::split_map::SplitBy;
 use super::tracker::{PointLookup, Tracker, Tracking};
 use crate::light::external::{ChosenLight, ExternalLights};
 use crate::light::nee::EmitterDistribution;
@@ -219,6 +220,9 @@ pub struct Integrator {
     /// Paths traced from a camera segment's collision, each carrying `1/split` (1: one
     /// path, as the paper has it; the module docs).
     pub split: u32,
+    /// Whether `split` holds at every collision or is the mean of per-pixel counts from a
+    /// pilot render (`integrator::split_map`; the renderer sets `split` per pixel).
+    pub split_by: SplitBy,
     /// How the camera segment draws its collision when paths scatter: forced collisions
     /// (`medium::forced`) need the expected-value walk (`camera_estimator` ray-march) and
     /// regular tracking, and are drawn as analog ones elsewhere.
@@ -295,6 +299,7 @@ impl Integrator {
             max_depth: 0,
             tracking: Tracking::Regular,
             split: 1,
+            split_by: SplitBy::Uniform,
             camera_collision: Collision::Analog,
             point_lookup: PointLookup::Exact,
         }

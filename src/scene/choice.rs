@@ -6,7 +6,7 @@
 //! list of possible values with their help (the binary builds its value parsers from
 //! [`Choice::CHOICES`]), so a name is written once.
 
-use crate::integrator::{LightSampling, MisHeuristic, PointLookup, Tracking};
+use crate::integrator::{LightSampling, MisHeuristic, PointLookup, SplitBy, Tracking};
 use crate::medium::{Collision, Convention, Estimator};
 pub use crate::sampling::SamplerKind;
 pub use crate::volume::Interpolation;
@@ -228,6 +228,11 @@ choice!(PointLookup {
     "exact" => PointLookup::Exact, "The trilinear value (eight voxels) at every tentative point";
 });
 
+choice!(SplitBy {
+    "uniform" => SplitBy::Uniform, "--split paths at every camera collision";
+    "brightness" => SplitBy::Brightness, "Per pixel, more paths where the scattered light is brighter (from a low-resolution pilot render), --split on average over the smoke";
+});
+
 choice!(MisHeuristic {
     "balance" => MisHeuristic::Balance, "Balance heuristic";
     "power" => MisHeuristic::Power, "Power heuristic (exponent 2)";
@@ -344,6 +349,7 @@ mod tests {
         round_trips::<TrackingChoice>();
         round_trips::<NeeTable>();
         round_trips::<PointLookup>();
+        round_trips::<SplitBy>();
         round_trips::<Convention>();
         round_trips::<EmissionSource>();
         round_trips::<SampleOrderChoice>();

@@ -35,8 +35,8 @@ pub use settings::{FarmOptions, JobSettings, OutputSettings, ReadSettings, Rende
 pub use validate::ValidShot;
 pub use values::{parse_bytes, ByteSize, TileIndex};
 
-pub use crate::integrator::PointLookup;
 use crate::integrator::{Integrator, LightSampling, MisHeuristic};
+pub use crate::integrator::{PointLookup, SplitBy};
 use crate::medium::{Convention, Estimator};
 
 /// Everything a `plume render` command says: the scene and how the job runs.
@@ -180,6 +180,7 @@ impl SceneDescription {
             max_depth: if self.albedo() > 0.0 { self.integrator.max_depth } else { 0 },
             tracking: self.integrator.tracking.resolve(estimator, light_sampling),
             split: self.integrator.split,
+            split_by: self.integrator.split_by,
             camera_collision: self.integrator.camera_collision.collision(),
             point_lookup: self.integrator.point_lookup,
         }
@@ -374,6 +375,9 @@ pub struct IntegratorSettings {
     pub nee_table: NeeTable,
     /// Paths traced from each collision of a camera ray, each carrying `1/split`.
     pub split: u32,
+    /// Whether `split` holds everywhere or is the mean of per-pixel counts.
+    #[serde(skip_serializing_if = "SplitBy::is_uniform")]
+    pub split_by: SplitBy,
     /// How null collisions read a trilinear volume at tentative points.
     pub point_lookup: PointLookup,
 }
@@ -393,6 +397,7 @@ impl Default for IntegratorSettings {
             tracking: TrackingChoice::Auto,
             nee_table: NeeTable::Voxel,
             split: 8,
+            split_by: SplitBy::Uniform,
             point_lookup: PointLookup::Stochastic,
         }
     }

@@ -9,5 +9,5 @@ cargo build --release
 mkdir -p out
 ./target/release/plume synth explosion --resolution 128 --seed 1 -o out/explosion.vdb
 ./target/release/plume render out/explosion.vdb -o out/explosion.exr --preview out/explosion.png \
-    --stats out/explosion.json --spp 32 --width 640 --height 480 --density-scale 4 --albedo 0.8 --g 0.3 --split 6 --camera-estimator ray-march --denoise "$@"
+    --stats out/explosion.json --spp 32 --width 640 --height 480 --density-scale 4 --albedo 0.8 --g 0.3 --split 6 --split-by brightness --camera-estimator ray-march --denoise "$@"
 echo "wrote out/explosion.exr and out/explosion.png"

@@ -7,7 +7,7 @@
 //! demo the log of the per-pixel deviation correlates 0.98 with the log of the scattered
 //! light), so the bright smoke beside the fire carries most of the squared error while
 //! the dim smoke gets as many paths. Spending paths where the noise is lowers the error
-//! at the same cost.
+//! for the cost.
 //!
 //! **The rule.** A pixel of block `b` (blocks of [`BLOCK`]² pixels) splits into
 //!
@@ -18,11 +18,18 @@
 //! where `S̄_b` is the luminance of the light the pilot did not see directly (the beauty
 //! less the camera segment's emission) at block `b`, averaged over the 3×3 blocks around
 //! it, and "covered" means a pilot opacity above [`COVERED_ALPHA`]. So the mean count over
-//! the smoke stays `N` and the cost about the same. Neyman allocation would take
-//! `n ∝ σ`; the square root hedges against a pilot that is itself noisy and against paths
-//! that cost more where it is bright. Measured on the README demo at 32 spp with an oracle
-//! map from the noise of earlier renders: `n ∝ σ` 1.0×, `n ∝ √σ` 1.19× the denoised
-//! efficiency; with this pilot 1.24× (docs/BENCHMARKS.md, "Splitting by brightness").
+//! the covered blocks stays `N`. Paths in the bright smoke beside the fire live longer, so
+//! the cost grows anyway: +17 % instructions on the README demo.
+//!
+//! **What it gives** (README demo, 32 spp, `--split 6`, seeds 0, 2 and 3; docs/BENCHMARKS.md,
+//! "Splitting by brightness"): denoised relRMSE 0.0278–0.0288 against 0.0316–0.0320 with
+//! uniform splitting, noisy 0.139–0.141 against 0.160: at +17 % cost, 1.09× the
+//! efficiency denoised and 1.12× noisy (efficiency = 1/(error² · cost)). Tried at 8 spp (noisy efficiency against uniform, instructions from
+//! callgrind): exponent ½ 1.05×, ¼ 1.08×, ½ divided by the root of the pilot's cost per
+//! sample 1.05×, Neyman's `n ∝ S/√cost` 0.84× (the pilot's noise and the longer paths
+//! undo it); a mean weighted by the blocks' opacity (fewer paths in all) 1.04× denoised
+//! at 32 spp.
+//! An oracle map from the noise of earlier renders did no better than this pilot.
 //!
 //! **Unbiased.** Any count fixed before a collision's paths are drawn keeps the split
 //! unbiased (each path estimates the same in-scattered radiance; volpath's module docs).
@@ -33,8 +40,8 @@
 //! centre, [`PILOT_SPP`] samples) whatever part of the image, tile or sample range a
 //! render computes, and the map is a function of its exact sums: the image stays a pure
 //! function of (seed, pixel, sample), bit-identical for any thread count, tile, crop and
-//! sample split, and a `--debug-pixel` replay builds the same map. The pilot costs
-//! `1/(64·spp/4)` of the render's samples (0.2 % of the README demo's).
+//! sample split, and a `--debug-pixel` replay builds the same map. The pilot takes
+//! `4/(64·spp)` of the render's samples (0.2 % of the README demo's).
 //!
 //! This module is the map's data and rule; the pilot render itself is
 //! `render::split_map`.

@@ -22,6 +22,7 @@ use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
 use crate::film::{Crop, Film, HalfSums, Tile};
+use crate::integrator::split_map::pixel_integrator;
 use crate::integrator::{AovLayout, AovSample, Aovs, Counters, Integrator, NoAovs, NoTrace, Scene, SplitMap};
 use crate::sampling::{Dim, Sampler, SamplerKind};
 use crate::volume::field::{Field, RayGrid};
@@ -207,14 +208,6 @@ pub fn pixel_sample<F: Field>(scene: &Scene<F>, kind: SamplerKind, seed: u64, x:
     let time = shutter.map(|[open, close]| open + sampler.get_1d(Dim::Time) * (close - open));
     let camera = time.map_or(scene.camera, |t| scene.camera.at_time(t));
     PixelSample { ray: camera.ray(f64::from(x) + jx, f64::from(y) + jy), sampler, time }
-}
-
-/// The integrator of pixel `(x, y)`: `integrator` with the pixel's split count when
-/// splitting by brightness (`split_map`, [`crate::pilot::split_map`]).
-#[must_use]
-#[inline]
-pub fn pixel_integrator(integrator: &Integrator, split_map: Option<&SplitMap>, x: u32, y: u32) -> Integrator {
-    split_map.map_or(*integrator, |m| Integrator { split: m.paths(x, y), ..*integrator })
 }
 
 fn render_tile<F: Field>(

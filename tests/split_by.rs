@@ -9,9 +9,10 @@ mod common;
 use common::{assert_same_means, explosion, explosion_emission, explosion_volume, pixel_bits, region_means_with, s, tmpdir};
 use glam::DVec3;
 use plume::film::Crop;
+use plume::integrator::split_map::pixel_integrator;
 use plume::integrator::{AnyScene, Counters, Integrator, LightSampling, Lights, MisHeuristic, NoTrace, PointLookup, SplitBy, Tracking};
 use plume::medium::{Collision, Estimator, Medium};
-use plume::render::{pixel_integrator, pixel_sample, render, render_with, PixelSample, RenderControl, RenderSettings, SampleBudget};
+use plume::render::{pixel_sample, render, render_with, PixelSample, RenderControl, RenderSettings, SampleBudget};
 use plume::sampling::SamplerKind;
 use plume::volume::Interpolation;
 

@@ -271,7 +271,7 @@ fn replay(loaded: &LoadedScene, settings: &RenderSettings, dp: crate::render::Sa
         let crate::render::PixelSample { ray, mut sampler, time } = crate::render::pixel_sample(scene, settings.sampler, settings.seed, x, y, s);
         // The pixel's split count when splitting by brightness: the same pilot as the render's
         let split_map = crate::pilot::split_map(scene, settings);
-        crate::render::pixel_integrator(&settings.integrator, split_map.as_ref(), x, y).li_aovs(scene, &ray, &mut sampler, (time, &mut counters), &mut trace, &mut crate::integrator::NoAovs)
+        crate::integrator::split_map::pixel_integrator(&settings.integrator, split_map.as_ref(), x, y).li_aovs(scene, &ray, &mut sampler, (time, &mut counters), &mut trace, &mut crate::integrator::NoAovs)
     });
     for line in &trace.0 {
         eprintln!("plume: debug {x},{y},{s}: {line}");

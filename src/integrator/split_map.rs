@@ -44,7 +44,9 @@
 //! `4/(64·spp)` of the render's samples (0.2 % of the README demo's).
 //!
 //! This module is the map's data and rule; the pilot render itself is
-//! `render::split_map`.
+//! [`crate::pilot::split_map`].
+
+use super::volpath::Integrator;
 
 /// How many paths leave each camera collision (`--split-by`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -162,6 +164,14 @@ impl SplitMap {
     pub fn counts(&self) -> &[u32] {
         &self.paths
     }
+}
+
+/// The integrator of pixel `(x, y)`: `integrator` with the pixel's count from `split_map`
+/// when splitting by brightness ([`crate::pilot::split_map`]), else `integrator` itself.
+#[must_use]
+#[inline]
+pub fn pixel_integrator(integrator: &Integrator, split_map: Option<&SplitMap>, x: u32, y: u32) -> Integrator {
+    split_map.map_or(*integrator, |m| Integrator { split: m.paths(x, y), ..*integrator })
 }
 
 #[cfg(test)]

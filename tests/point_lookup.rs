@@ -89,16 +89,7 @@ fn the_point_lookup_is_a_flag_a_scene_key_and_hashed_where_it_changes_pixels() {
     assert_ne!(linear[2], linear[1]);
     let exact = pixels("exact");
     // A scene file's key
-    let scene_file = dir.join("scene.toml");
-    std::fs::write(
-        &scene_file,
-        format!("[volume]\nfile = {:?}\n[integrator]\npoint_lookup = \"exact\"\n[medium]\nalbedo = 0.8\n[camera]\nwidth = 24\nheight = 16\n", s(&vdb)),
-    )
-    .unwrap();
-    let out = dir.join("scene.exr");
-    let o = common::plume(&["render", s(&scene_file), "--spp", "4", "-o", s(&out)]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    assert_eq!(common::exr_pixels(&out), exact);
+    assert_eq!(common::render_integrator_keys(&dir, &vdb, "point_lookup = \"exact\"", (24, 16)), exact);
     // Nearest: one voxel per point either way; the same pixels and the same hash
     let nearest_base = ["render", s(&vdb), "--width", "24", "--height", "16", "--spp", "4", "--albedo", "0.8", "--interpolation", "nearest", "--stats"];
     let nearest = common::settings_hashes(&dir, &nearest_base, "--point-lookup", &values);

@@ -125,16 +125,7 @@ fn split_by_is_a_flag_a_scene_key_and_hashed_when_not_uniform() {
     assert_ne!(pixels("brightness"), pixels("uniform"));
     assert_ne!(hashes[2], hashes[1]);
     // The scene key gives the flag's image
-    let scene_file = dir.join("scene.toml");
-    std::fs::write(
-        &scene_file,
-        format!("[volume]\nfile = {:?}\n[integrator]\nsplit_by = \"brightness\"\n[medium]\nalbedo = 0.8\n[camera]\nwidth = 48\nheight = 32\n", s(&vdb)),
-    )
-    .unwrap();
-    let out = dir.join("scene.exr");
-    let o = common::plume(&["render", s(&scene_file), "--spp", "4", "-o", s(&out)]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    assert_eq!(common::exr_pixels(&out), pixels("brightness"));
+    assert_eq!(common::render_integrator_keys(&dir, &vdb, "split_by = \"brightness\"", (48, 32)), pixels("brightness"));
     // A bad value is refused naming the flag
     common::plume_exits(&["render", s(&vdb), "--split-by", "luck", "-o", s(&dir.join("bad.exr"))], 2, &["--split-by"]);
 }

@@ -144,16 +144,7 @@ fn tracking_is_a_flag_a_scene_key_and_part_of_the_settings_hash() {
         }
     }
     // A scene file's key
-    let scene_file = dir.join("scene.toml");
-    std::fs::write(
-        &scene_file,
-        format!("[volume]\nfile = {:?}\n[integrator]\ntracking = \"null\"\n[medium]\nalbedo = 0.8\n[camera]\nwidth = 24\nheight = 16\n", s(&vdb)),
-    )
-    .unwrap();
-    let out = dir.join("scene.exr");
-    let o = plume(&["render", s(&scene_file), "--spp", "4", "-o", s(&out)]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    assert_eq!(common::exr_pixels(&out), common::exr_pixels(&dir.join("null.exr")));
+    assert_eq!(common::render_integrator_keys(&dir, &vdb, "tracking = \"null\"", (24, 16)), common::exr_pixels(&dir.join("null.exr")));
 }
 
 #[test]

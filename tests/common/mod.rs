@@ -490,3 +490,19 @@ pub fn settings_hashes(dir: &Path, base: &[&str], flag: &str, values: &[(&str, O
         })
         .collect()
 }
+
+/// Renders `vdb` from a scene file `dir/scene.toml` whose `[integrator]` section holds
+/// `keys` (TOML lines), albedo 0.8, `width × height`, at 4 spp, to `dir/scene.exr`, and
+/// returns its pixels: a scene key's image, to compare with its flag's.
+///
+/// # Panics
+/// If the file cannot be written or the render fails.
+pub fn render_integrator_keys(dir: &Path, vdb: &Path, keys: &str, (width, height): (u32, u32)) -> Vec<[f32; 4]> {
+    let scene_file = dir.join("scene.toml");
+    let text = format!("[volume]\nfile = {:?}\n[integrator]\n{keys}\n[medium]\nalbedo = 0.8\n[camera]\nwidth = {width}\nheight = {height}\n", s(vdb));
+    std::fs::write(&scene_file, text).unwrap();
+    let out = dir.join("scene.exr");
+    let o = plume(&["render", s(&scene_file), "--spp", "4", "-o", s(&out)]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    exr_pixels(&out)
+}

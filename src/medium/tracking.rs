@@ -389,18 +389,6 @@ pub struct OpticalDepth {
 /// Exact optical depth along `ray` over `[0, t_max]` (for shadow rays: `τ = e^{−OD}`).
 /// Stops early once OD exceeds `od_stop` (then `τ` is negligible anyway).
 pub fn optical_depth<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, od_stop: f64) -> OpticalDepth {
-    let mut od = 0.0;
-    let mut it = field.segments(ray, 0.0, t_max);
-    let _ = it.visit(|piece| {
-        od += match piece.constant() {
-            Some(seg) => medium.mu_t(seg.density) * seg.length(),
-            None => piece.optical_depth(medium.sigma_t, piece.length()),
-        };
-        if od > od_stop {
-            ControlFlow::Break(())
-        } else {
-            ControlFlow::Continue(())
-        }
-    });
-    OpticalDepth { optical_depth: od, voxel_steps: it.voxel_steps() }
+    let (optical_depth, voxel_steps) = field.optical_depth(medium.sigma_t, ray, t_max, od_stop);
+    OpticalDepth { optical_depth, voxel_steps }
 }

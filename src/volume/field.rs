@@ -333,6 +333,14 @@ pub trait Field: Sync {
         PointValues { density: v.density, emission: le(v.density, v.source).to_f64() }
     }
 
+    /// Optical depth `∫ σ_t ρ ds` along `ray` over `[0, t_max]`, stopped once it exceeds
+    /// `od_stop`, and the traversal's voxel steps: a shadow ray's `τ = e^{−OD}`. By default
+    /// the sum over [`Field::segments`]; a field may walk a lighter view of itself that
+    /// reads density alone (trilinear: `volume::trilinear::density`).
+    fn optical_depth(&self, sigma_t: f64, ray: &Ray, t_max: f64, od_stop: f64) -> (f64, u64) {
+        optical_depth_along(self.segments(ray, 0.0, t_max), sigma_t, od_stop)
+    }
+
     /// Albedo factor at a world point (the nearest voxel's; 1 without an albedo grid).
     fn albedo_at(&self, _p_world: DVec3) -> f32 {
         1.0
@@ -495,6 +503,24 @@ impl Field for Strip {
         let (density, source) = self.cells[(((p.x - self.lo.x) / width) as usize).min(n - 1)];
         VoxelValues { density, source }
     }
+}
+
+/// `Σ σ_t ∫ ρ` over the pieces of `pieces`, stopped once past `od_stop`, and the walk's
+/// voxel steps ([`Field::optical_depth`]).
+pub fn optical_depth_along<I: SegmentIter<Item = P>, P: Piece>(mut pieces: I, sigma_t: f64, od_stop: f64) -> (f64, u64) {
+    let mut od = 0.0;
+    let _ = pieces.visit(|piece| {
+        od += match piece.constant() {
+            Some(seg) => sigma_t * f64::from(seg.density) * seg.length(),
+            None => piece.optical_depth(sigma_t, piece.length()),
+        };
+        if od > od_stop {
+            ControlFlow::Break(())
+        } else {
+            ControlFlow::Continue(())
+        }
+    });
+    (od, pieces.voxel_steps())
 }
 
 #[cfg(test)]

@@ -11,12 +11,13 @@
 
 use glam::{DVec3, IVec3};
 
+use super::density::DensityCells;
 use super::dual::{dual_pyramid, DualCells};
 use super::poly;
 use super::CubicSegment;
 use crate::color::Rgb;
 use crate::volume::dda::{world_box, CellWalk};
-use crate::volume::field::{Bounds3, Field, PointValues, Ray, RayGrid, VoxelValues};
+use crate::volume::field::{optical_depth_along, Bounds3, Field, PointValues, Ray, RayGrid, VoxelValues};
 use crate::volume::pyramid::{Level, Pyramid};
 use crate::volume::Volume;
 
@@ -150,6 +151,12 @@ impl Field for Trilinear {
 
     fn segments(&self, ray: &Ray, t_min: f64, t_max: f64) -> Self::Segments<'_> {
         CellWalk::new(DualCells::new(&self.volume, &self.dual), ray, t_min, t_max)
+    }
+
+    /// The dual cells' walk reading density alone ([`DensityCells`]).
+    fn optical_depth(&self, sigma_t: f64, ray: &Ray, t_max: f64, od_stop: f64) -> (f64, u64) {
+        let cells = DensityCells::new(DualCells::new(&self.volume, &self.dual));
+        optical_depth_along(CellWalk::new(cells, ray, 0.0, t_max), sigma_t, od_stop)
     }
 
     /// Trilinearly interpolated density and source.

@@ -28,9 +28,13 @@
 //! `b + {0,1}³`, and coarser nodes are unions of their children: a node that is uniform
 //! there is constant over every dual cell beneath it, and is crossed as one piece.
 //!
+//! **Shadow rays.** Optical depth alone needs only density: [`density`] walks the same
+//! dual cells reading one value per corner, with the same sum per piece.
+//!
 //! **Memory.** No second copy of the voxels: corners are read from the volume's bricks;
 //! the dual pyramid is one more pyramid (a few bytes per brick).
 
+pub mod density;
 pub mod dual;
 pub mod field;
 pub mod piece;

@@ -338,3 +338,23 @@ pub(crate) fn dual_pyramid(volume: &Volume) -> Pyramid {
     });
     Pyramid::from_base(nd, base)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The table of where each of a dual brick's 9³ voxels lies is the Morton offset in
+    /// the right one of the 8 voxel bricks, for every voxel.
+    #[test]
+    fn dual_slots_name_the_brick_and_offset_of_every_voxel() {
+        for z in 0..9 {
+            for y in 0..9 {
+                for x in 0..9 {
+                    let v = IVec3::new(x, y, z);
+                    let k = usize::from(x >= 8) | usize::from(y >= 8) << 1 | usize::from(z >= 8) << 2;
+                    assert_eq!(dual_slot(v), (k, brick_offset(x & 7, y & 7, z & 7)), "voxel {v}");
+                }
+            }
+        }
+    }
+}

@@ -16,7 +16,7 @@
 
 use glam::{DVec3, IVec3};
 
-use super::dual::{corner_offset, dual_slot, face_of, Channel, DualCell, DualCells, FACE, NO_CELL};
+use super::dual::{corner_offset, dual_slot, step_corners, Channel, CornerRecord, DualCell, DualCells, NO_CELL};
 use super::poly;
 use crate::color::Rgb;
 use crate::volume::brick::Volume;
@@ -126,7 +126,17 @@ impl Default for DensityBricks<'_> {
     }
 }
 
-impl DensityBricks<'_> {
+impl CornerRecord for DensityBricks<'_> {
+    #[inline]
+    fn last(&self) -> IVec3 {
+        self.last
+    }
+
+    #[inline]
+    fn shift(&mut self, to: usize, from: usize) {
+        self.density[to] = self.density[from];
+    }
+
     /// Reads the density of corner `c` of local cell `l`.
     #[inline]
     fn load(&mut self, l: IVec3, c: usize) {
@@ -190,22 +200,7 @@ impl<'a> Cells for DensityCells<'a> {
     #[inline]
     fn dense_piece(&self, dense: &mut DensityBricks<'a>, origin: IVec3, i: IVec3, t0: f64, t1: f64, line: &IndexLine) -> DensityPiece {
         let l = i - origin;
-        match face_of(l - dense.last) {
-            Some((a, forward)) => {
-                let bit = 1 << a;
-                for &c in &FACE[a][usize::from(!forward)] {
-                    dense.density[c] = dense.density[c ^ bit];
-                }
-                for &c in &FACE[a][usize::from(forward)] {
-                    dense.load(l, c);
-                }
-            }
-            None => {
-                for c in 0..8 {
-                    dense.load(l, c);
-                }
-            }
-        }
+        step_corners(dense, l);
         dense.last = l;
         let f0 = (line.o + line.d * t0 - i.as_dvec3()).clamp(DVec3::ZERO, DVec3::ONE);
         let first = dense.density[0].to_bits();

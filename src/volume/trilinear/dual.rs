@@ -91,7 +91,7 @@ const EMPTY_BRICK: BrickChannels<'static> = BrickChannels { density: Channel::co
 /// Stepping forward along `a`, the new cell reads its high face and its low face is the
 /// old high face (corner `c` of the new cell is corner `c ^ (1 << a)` of the old one);
 /// stepping back, the other way round.
-pub(super) const FACE: [[[usize; 4]; 2]; 3] = [[[0, 2, 4, 6], [1, 3, 5, 7]], [[0, 1, 4, 5], [2, 3, 6, 7]], [[0, 1, 2, 3], [4, 5, 6, 7]]];
+const FACE: [[[usize; 4]; 2]; 3] = [[[0, 2, 4, 6], [1, 3, 5, 7]], [[0, 1, 4, 5], [2, 3, 6, 7]], [[0, 1, 2, 3], [4, 5, 6, 7]]];
 
 /// The dual cells of a volume as a lattice for the hierarchical DDA (shift 0), with the
 /// dual pyramid built by `dual_pyramid`.
@@ -153,15 +153,45 @@ pub(super) fn dual_slot(v: IVec3) -> (usize, usize) {
     (usize::from(slot >> 9) & 7, usize::from(slot) & (LEAF_VOXELS - 1))
 }
 
-/// The face a step of `step` (new cell − old cell) crosses, as (axis, forward), when it
-/// is one face: the new cell shares 4 corners with the old one ([`FACE`]).
+/// What a walk keeps of the last dual cell's corners ([`DualBricks`], and
+/// `density::DensityBricks`): a cell's corners are read into it, or moved across from
+/// the neighbour cell that shares them ([`step_corners`]).
+pub(super) trait CornerRecord {
+    /// The cell whose corners the record holds ([`NO_CELL`] for none).
+    fn last(&self) -> IVec3;
+    /// Corner `to` takes what corner `from` holds.
+    fn shift(&mut self, to: usize, from: usize);
+    /// Reads corner `c` of local cell `l`.
+    fn load(&mut self, l: IVec3, c: usize);
+}
+
+/// Fills `record` with the corners of local cell `l`: only the 4 new ones when the walk
+/// stepped across one face from the last cell (the other 4 move across: corner `c` of the
+/// new cell is corner `c ^ (1 << a)` of the old one), all 8 otherwise.
 #[inline]
-pub(super) fn face_of(step: IVec3) -> Option<(usize, bool)> {
-    match (step.x, step.y, step.z) {
+pub(super) fn step_corners(record: &mut impl CornerRecord, l: IVec3) {
+    let step = l - record.last();
+    let face = match (step.x, step.y, step.z) {
         (s, 0, 0) if s.abs() == 1 => Some((0, s > 0)),
         (0, s, 0) if s.abs() == 1 => Some((1, s > 0)),
         (0, 0, s) if s.abs() == 1 => Some((2, s > 0)),
         _ => None,
+    };
+    match face {
+        Some((a, forward)) => {
+            let bit = 1 << a;
+            for &c in &FACE[a][usize::from(!forward)] {
+                record.shift(c, c ^ bit);
+            }
+            for &c in &FACE[a][usize::from(forward)] {
+                record.load(l, c);
+            }
+        }
+        None => {
+            for c in 0..8 {
+                record.load(l, c);
+            }
+        }
     }
 }
 
@@ -172,7 +202,18 @@ impl Default for DualBricks<'_> {
     }
 }
 
-impl DualBricks<'_> {
+impl CornerRecord for DualBricks<'_> {
+    #[inline]
+    fn last(&self) -> IVec3 {
+        self.last
+    }
+
+    #[inline]
+    fn shift(&mut self, to: usize, from: usize) {
+        self.corners[to] = self.corners[from];
+        self.albedo[to] = self.albedo[from];
+    }
+
     /// Reads corner `c` of local cell `l`: voxel `l + c` of the 9³ the dual brick reads,
     /// in voxel brick `(l + c) / 8` at local `(l + c) mod 8`.
     #[inline]
@@ -250,24 +291,7 @@ impl<'a> Cells for DualCells<'a> {
     #[inline]
     fn dense_piece(&self, dense: &mut DualBricks<'a>, origin: IVec3, i: IVec3, t0: f64, t1: f64, line: &IndexLine) -> CubicSegment {
         let l = i - origin;
-        match face_of(l - dense.last) {
-            Some((a, forward)) => {
-                // The face shared with the old cell moves across; the far face is read
-                let bit = 1 << a;
-                for &c in &FACE[a][usize::from(!forward)] {
-                    dense.corners[c] = dense.corners[c ^ bit];
-                    dense.albedo[c] = dense.albedo[c ^ bit];
-                }
-                for &c in &FACE[a][usize::from(forward)] {
-                    dense.load(l, c);
-                }
-            }
-            None => {
-                for c in 0..8 {
-                    dense.load(l, c);
-                }
-            }
-        }
+        step_corners(dense, l);
         dense.last = l;
         // Cell-local coordinates at the entry, from the unshifted index-space line
         let f0 = (line.o + line.d * t0 - i.as_dvec3()).clamp(DVec3::ZERO, DVec3::ONE);

@@ -24,11 +24,11 @@
 //! **What it gives** (README demo, 32 spp, `--split 6`, seeds 0, 2 and 3; docs/BENCHMARKS.md,
 //! "Splitting by brightness"): denoised relRMSE 0.0278–0.0288 against 0.0316–0.0320 with
 //! uniform splitting, noisy 0.139–0.141 against 0.160: at +17 % cost, 1.09× the
-//! efficiency denoised and 1.12× noisy (efficiency = 1/(error² · cost)). Tried at 8 spp (noisy efficiency against uniform, instructions from
-//! callgrind): exponent ½ 1.05×, ¼ 1.08×, ½ divided by the root of the pilot's cost per
-//! sample 1.05×, Neyman's `n ∝ S/√cost` 0.84× (the pilot's noise and the longer paths
-//! undo it); a mean weighted by the blocks' opacity (fewer paths in all) 1.04× denoised
-//! at 32 spp.
+//! efficiency denoised and 1.12× noisy (efficiency = 1/(error² · cost)). Tried at 8 spp
+//! (noisy efficiency against uniform, instructions from callgrind): exponent ½ 1.05×,
+//! ¼ 1.08×, ½ divided by the root of the pilot's cost per sample 1.05×, Neyman's
+//! `n ∝ S/√cost` 0.84× (the pilot's noise and the longer paths undo it); a mean weighted
+//! by the blocks' opacity (fewer paths in all) 1.04× denoised at 32 spp.
 //! An oracle map from the noise of earlier renders did no better than this pilot. On thin
 //! smoke it gives nothing (kelvin40 at albedo 0.8: the same noise for 5 % more
 //! instructions), so it is not the default.

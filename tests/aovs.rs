@@ -3,7 +3,7 @@
 //! the same bits in every layer; the depth layer is the expected distance to the first
 //! collision.
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 

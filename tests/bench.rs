@@ -3,7 +3,7 @@
 //! the equal-CPU rules of the peer comparison with Cycles (`scripts/budget.py`).
 //! Timings are never asserted (STYLE.md §8); only structure, finiteness and means.
 
-mod common;
+use crate::common;
 
 use common::{data, exr_pixels, plume, s, tmpdir};
 use glam::IVec3;

@@ -1,7 +1,7 @@
 //! Brick cache files (`plume prepare`, `.plume` inputs, automatic caches): bit-identical
 //! renders to in-core ones, and damaged, truncated, stale or mismatched caches detected.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 

@@ -1,6 +1,6 @@
 //! The `plume` binary as users and farms run it: real child processes, real files.
 
-mod common;
+use crate::common;
 
 use std::path::PathBuf;
 

@@ -2,7 +2,7 @@
 //! through the binary, scene files round-trip them bit-identically, and bad light input
 //! gets one line naming the flag or file, exit 2 or 3, and no output.
 
-mod common;
+use crate::common;
 
 use common::{explosion, exr_pixels, pixel_bits, plume, refused_in_one_line, s, tmpdir};
 

@@ -1,7 +1,7 @@
 //! The scattering / light-sampling surface of `plume render`: presets, diagnostics in
 //! `--stats`, `--debug-pixel` replay, flag validation.
 
-mod common;
+use crate::common;
 
 use common::{explosion, exr_pixels, plume, s, synth_explosion, tmpdir};
 

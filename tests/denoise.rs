@@ -4,7 +4,7 @@
 //! when merged from sample ranges; too few samples leave the image as it is, with a
 //! warning.
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 

@@ -13,7 +13,7 @@
 //! Fixed seeds; each chi² test rejects at p < 0.01.
 //! `cargo test --test environment_map -- --nocapture` prints the statistics.
 
-mod common;
+use crate::common;
 
 use std::f64::consts::PI;
 use std::path::Path;

@@ -2,7 +2,7 @@
 //! (METHOD.md §3, §4, §11.1, §11.4) on analytic fields. Fixed seeds; Monte Carlo means are
 //! compared with k·σ tolerances using the sample standard error.
 
-mod common;
+use crate::common;
 
 use common::{grid_emission, mean_stderr_from_sums};
 use glam::DVec3;

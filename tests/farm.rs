@@ -2,7 +2,7 @@
 //! real files, real signals. Volumes are generated 32³ explosions and images are tiny, so
 //! the whole file runs in seconds.
 
-mod common;
+use crate::common;
 
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};

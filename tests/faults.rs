@@ -18,7 +18,7 @@
 //! That needs root and `CAP_SYS_ADMIN`; without them those tests print `SKIPPED: <reason>`
 //! to stderr and pass. The concurrency and lock tests run anywhere.
 
-mod common;
+use crate::common;
 
 use std::ffi::CString;
 use std::io::Write as _;

@@ -4,7 +4,7 @@
 //! one; and images keep their means when the camera's collision is forced. Fixed seeds,
 //! k·σ tolerances.
 
-mod common;
+use crate::common;
 
 use common::{explosion_scene, explosion_volume, region_means_with};
 use glam::DVec3;

@@ -17,7 +17,7 @@
 //! cargo test --release --test fuzz_mutants -- --ignored --nocapture
 //! ```
 
-mod common;
+use crate::common;
 
 use std::fmt;
 use std::fs;

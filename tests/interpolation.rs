@@ -4,7 +4,7 @@
 //! choose it, are recorded and hashed; and every bit-identity plume promises (threads,
 //! sample order, automatic caches) holds with `linear` and scattering. Fixed seeds.
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 

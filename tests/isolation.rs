@@ -4,7 +4,7 @@
 //! [`Error::ReaderFailed`]. The failing children are small shell scripts standing in for
 //! a reader that OpenVDB has derailed.
 
-mod common;
+use crate::common;
 
 use std::fs;
 use std::path::{Path, PathBuf};

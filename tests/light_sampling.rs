@@ -11,7 +11,7 @@
 //! tests at family-wise false-failure rate [`ALPHA`] (Šidák).
 //! `cargo test --test light_sampling -- --nocapture` prints p-values.
 
-mod common;
+use crate::common;
 
 use std::f64::consts::PI;
 

@@ -3,7 +3,7 @@
 //! weights summing to one; a scene without lights rendering exactly as before.
 //! Fixed seeds; k·σ tolerances from the samples' own spread.
 
-mod common;
+use crate::common;
 
 use common::{grid, grid_emission, mean_stderr_from_sums};
 use glam::{DAffine3, DMat3, DVec3, IVec3};

@@ -9,7 +9,7 @@
 //! Whatever plume was doing at that moment, it finds the change: a lost page faults, the
 //! checksum pass cannot read it, or the final check of the file sees it.
 
-mod common;
+use crate::common;
 
 use std::fs::File;
 use std::os::unix::fs::MetadataExt;

@@ -10,7 +10,7 @@
 //! memory controller, a read-only cgroupfs, a cgroup that refuses processes) the test
 //! prints `SKIPPED: <reason>` to stderr and passes.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};

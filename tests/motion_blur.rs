@@ -4,7 +4,7 @@
 //! bit-identical; bad motion input gets one line and no output. Fixed seeds; k·σ
 //! tolerances from independent runs.
 
-mod common;
+use crate::common;
 
 use common::{explosion_emission, exr_pixels, mean_stderr, pixel_bits, plume, plume_exits, refused_in_one_line, s, tmpdir};
 use glam::{DAffine3, DVec3};

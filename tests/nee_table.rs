@@ -5,7 +5,7 @@
 //! named as the way out, which then renders. The sampling law itself is chi²-tested in
 //! `tests/light_sampling.rs`. Fixed seeds; k·σ tolerances from independent runs.
 
-mod common;
+use crate::common;
 
 use common::{explosion, plume, plume_exits, region_means_with, s, tmpdir};
 use plume::integrator::{AnyScene, Integrator, LightSampling, Lights, MisHeuristic, Tracking};

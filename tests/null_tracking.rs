@@ -3,7 +3,7 @@
 //! depth, nearest and trilinear), ratio tracking averages to τ, and every estimator's
 //! emission agrees in mean with regular tracking. Fixed seeds; k·σ tolerances.
 
-mod common;
+use crate::common;
 
 use common::{chi2_test, mean_stderr};
 use glam::DVec3;

@@ -3,7 +3,7 @@
 //! the same image means on thin and dense explosions; the FNEE proxy resolution changes
 //! variance only; extremes stay finite. Fixed seeds; k·σ tolerances from independent runs.
 
-mod common;
+use crate::common;
 
 use common::{assert_same_means, explosion_emission, grid_emission, mean_stderr, mean_stderr_from_sums, region_means_with};
 use glam::{DAffine3, DMat3, DVec3, IVec3};

@@ -7,7 +7,7 @@
 //! the exact lookups in `tests/tracking.rs` (and with motion blur in
 //! `tests/motion_blur.rs`).
 
-mod common;
+use crate::common;
 
 use common::{explosion, explosion_volume, s, tmpdir};
 use glam::DVec3;

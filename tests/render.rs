@@ -1,7 +1,7 @@
 //! Render-level checks: determinism across thread counts, the image of a voxel-aligned
 //! emissive box against its closed form, and atomic EXR/PNG output.
 
-mod common;
+use crate::common;
 
 use common::{grid, names_in, pixel_bits, tmpdir};
 use glam::{DAffine3, DMat3, DVec3, IVec3};

@@ -12,7 +12,7 @@
 //! [`TESTS`] tests at family-wise false-failure rate [`ALPHA`] (Šidák).
 //! `cargo test --test sampling -- --nocapture` prints p-values.
 
-mod common;
+use crate::common;
 
 use std::f64::consts::PI;
 

@@ -3,7 +3,7 @@
 //! scene, and a bad file gets one line naming the file, the line and the key (exit 2, no
 //! output).
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 

@@ -4,7 +4,7 @@
 //! thread count, sample range and crop, a replayed sample equals the rendered one, and the
 //! choice is a flag, a scene key and part of the settings hash.
 
-mod common;
+use crate::common;
 
 use common::{assert_same_means, explosion, explosion_emission, explosion_volume, pixel_bits, region_means_with, s, tmpdir};
 use glam::DVec3;

@@ -3,7 +3,7 @@
 //! by the topology, hostile files and broken replies refused cleanly, visitor errors
 //! returned.
 
-mod common;
+use crate::common;
 
 use std::ffi::OsString;
 use std::fs;

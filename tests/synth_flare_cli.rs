@@ -1,7 +1,7 @@
 //! `plume synth flare` as users run it: a small .vdb, and the refusals that point large
 //! flares elsewhere.
 
-mod common;
+use crate::common;
 
 use common::{plume, tmpdir};
 

@@ -1,7 +1,7 @@
 //! `plume synth sky` as users run it: a lat-long EXR with a blue sky over a black ground
 //! that carries the sun's energy, and refusals of bad values that name the flag.
 
-mod common;
+use crate::common;
 
 use common::{plume, plume_exits, tmpdir};
 use plume::light::sky::{latlong_pixel_solid_angle, Sky, SkyParams};

@@ -6,7 +6,7 @@
 //! hash, and combinations null collisions cannot serve are refused with one line. Fixed
 //! seeds; k·σ tolerances from independent runs.
 
-mod common;
+use crate::common;
 
 use common::{explosion, explosion_volume, plume, plume_exits, region_means_with, s, tmpdir};
 use glam::DVec3;

@@ -4,7 +4,7 @@
 //! and missing grids. Each is read as OpenVDB reads it or refused with a clear error,
 //! never allocated blindly.
 
-mod common;
+use crate::common;
 
 use std::fs;
 use std::path::Path;

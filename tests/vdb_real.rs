@@ -9,7 +9,7 @@
 //! Malformed, truncated, foreign and missing files are in `vdb_hostile.rs`; writing grids
 //! in `vdb_write.rs`.
 
-mod common;
+use crate::common;
 
 use std::collections::HashSet;
 

@@ -3,7 +3,7 @@
 //! duplicate names addressed by index), writes are atomic (no temp file left, an existing
 //! file replaced) and failed writes leave no file.
 
-mod common;
+use crate::common;
 
 use std::fs;
 

@@ -13,7 +13,7 @@
 //! Blender's cache `explosion/blender_fluid_noise_0040.vdb` holds no velocity at all (only
 //! the noise grids); both are checked as what they are.
 
-mod common;
+use crate::common;
 
 use std::collections::HashMap;
 use std::fs;

@@ -1,7 +1,7 @@
 //! Volume data tier: DDA segment invariants (proptest), pyramid bounds, voxel-centre
 //! convention, constant tiles and extreme rays.
 
-mod common;
+use crate::common;
 
 use common::{grid, hash};
 use glam::{DAffine3, DMat3, DVec3, IVec3};

@@ -2,7 +2,7 @@
 //! invariants (proptest), density cubics against point interpolation, skipping at node
 //! faces (the dual pyramid's dilation), constant volumes, dual pyramid bounds and memory.
 
-mod common;
+use crate::common;
 
 use common::{grid, hash};
 use glam::{DAffine3, DMat3, DVec3, IVec3};

@@ -1,0 +1,50 @@
+//! Every integration test, in one test binary: each `tests/<name>.rs` is the module
+//! `<name>` here (run one with `cargo test --test suite <name>::`), and all share
+//! [`common`].
+//!
+//! One binary instead of one per file: the 38 links of the plume library and OpenVDB took
+//! longer than compiling the tests (`scripts/test.sh`, 2-core machine), and the tests of
+//! different files now share the cores instead of each binary running alone. No test sets
+//! process-wide state (environment, working directory, global thread pool, signal
+//! handlers), and each file's scratch directories have their own prefix.
+
+mod common;
+
+mod aovs;
+mod bench;
+mod cache;
+mod cli;
+mod cli_lights;
+mod cli_method;
+mod denoise;
+mod environment_map;
+mod estimators;
+mod farm;
+mod faults;
+mod forced_collision;
+mod fuzz_mutants;
+mod interpolation;
+mod isolation;
+mod light_sampling;
+mod lights;
+mod mapped_faults;
+mod memory_limits;
+mod motion_blur;
+mod nee_table;
+mod null_tracking;
+mod path;
+mod point_lookup;
+mod render;
+mod sampling;
+mod scene_file;
+mod split_by;
+mod stream;
+mod synth_flare_cli;
+mod synth_sky_cli;
+mod tracking;
+mod vdb_hostile;
+mod vdb_real;
+mod vdb_write;
+mod vec3_grids;
+mod volume;
+mod volume_trilinear;

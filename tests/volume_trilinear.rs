@@ -362,8 +362,8 @@ fn dual_pyramid_is_small_next_to_the_volume() {
     assert_eq!(tri.data_bytes(), dual + volume);
 }
 
-/// `Volume::voxel_block` (one brick lookup when the 8 corners share a brick) gives what 8
-/// `Volume::voxel` lookups give, for every cell of the sparse volume and a layer around
+/// `Volume::voxel_block` (each brick the corners lie in found once, the corners placed by
+/// the 9³ window's table) gives what 8 `Volume::voxel` lookups give, for every cell of the sparse volume and a layer around
 /// it: inside bricks, on their high faces (where the corners span 2–8 bricks), at missing
 /// and constant bricks, and outside the table (negative coordinates included).
 #[test]

@@ -173,8 +173,10 @@ impl<F: Field> PointField for Points<'_, F> {
 
     fn sample(&self, p: glam::DVec3) -> PointSample {
         let q = self.source_point(p);
+        // The source comes with the reconstruction: a trilinear field gathers its 8 corners
+        // once (reading them again for `values_at` was 3.6 % of the README demo)
         let v = self.field.reconstruct(q, &|d, s| self.memo.le(d, s));
-        PointSample { density: v.density, source: self.field.values_at(q).source, emission: v.emission, albedo: self.field.albedo_at(q) }
+        PointSample { density: v.density, source: v.source, emission: v.emission, albedo: self.field.albedo_at(q) }
     }
 }
 

@@ -473,7 +473,7 @@ impl Integrator {
                             if tau > 0.0 {
                                 // L_e and ρ at y as the field reconstructs them (the table's
                                 // pdf follows the same reconstruction: light/nee.rs)
-                                let PointValues { density: dy, emission: le } = emission_at_point(&scene.field, m, vs.p_world);
+                                let PointValues { density: dy, emission: le, .. } = emission_at_point(&scene.field, m, vs.p_world);
                                 let f = hg_pdf(m.g, ray.direction.dot(wi));
                                 let w_l = if point_nee { self.mis.weight(vs.pdf, f * m.mu_t(dy) * tau / r2) } else { 1.0 };
                                 contribute(l, aovs, Component::Scattered, beta * f * tau * w_l / (vs.pdf * r2), le);

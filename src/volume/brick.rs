@@ -18,7 +18,7 @@ pub use super::builder::{check_same_transform, table_dims, BlockSink, BrickTable
 use super::field::{Bounds3, VoxelValues};
 use super::pyramid::Pyramid;
 use super::storage::Buffer;
-use super::trilinear::dual::corner_offset;
+use super::trilinear::dual::{corner_offset, window_index, window_slot, CORNER_STEP};
 use crate::error::{Error, Result};
 use crate::vdb::FloatGrid;
 
@@ -386,20 +386,33 @@ impl Volume {
 
     /// Density and source of the 8 voxels `cell + c`, `c ∈ {0,1}³` (bit 0: +x, bit 1: +y,
     /// bit 2: +z), each what [`Volume::voxel`] gives: the corners of a trilinear lookup.
-    /// When all 8 lie in one brick (7 cells in 8 along each axis) the brick is found once.
+    ///
+    /// Each brick the corners lie in is found once: one when all 8 lie in one brick (7
+    /// cells in 8 along each axis), else 2, 4 or 8. A corner's brick and offset come from
+    /// the table of the 9³ voxels a cell's corners can reach (`trilinear::dual`), not
+    /// from interleaving its coordinates' bits (the README demo: −3.5 % instructions).
     pub fn voxel_block(&self, cell: IVec3) -> [VoxelValues; 8] {
         let l = IVec3::new(cell.x.rem_euclid(BRICK), cell.y.rem_euclid(BRICK), cell.z.rem_euclid(BRICK));
-        if l.cmplt(IVec3::splat(BRICK - 1)).all() {
-            let b = IVec3::new(floor_div(cell.x, BRICK), floor_div(cell.y, BRICK), floor_div(cell.z, BRICK));
+        let b = IVec3::new(floor_div(cell.x, BRICK), floor_div(cell.y, BRICK), floor_div(cell.z, BRICK));
+        let base = window_index(l);
+        let edge = l.cmpeq(IVec3::splat(BRICK - 1)).bitmask() as usize;
+        let read = |br: &Brick, o: usize| VoxelValues { density: slot_at(&self.values, br.density, o), source: slot_at(&self.values, br.source, o) };
+        if edge == 0 {
             let Some(br) = self.brick(b) else { return [VoxelValues::ZERO; 8] };
-            let (density, source) = (br.density, br.source);
-            return std::array::from_fn(|c| {
-                let v = l + corner_offset(c);
-                let o = brick_offset(v.x, v.y, v.z);
-                VoxelValues { density: slot_at(&self.values, density, o), source: slot_at(&self.values, source, o) }
-            });
+            return std::array::from_fn(|c| read(br, window_slot(base + CORNER_STEP[c]).1));
         }
-        std::array::from_fn(|c| self.voxel(cell + corner_offset(c)))
+        // On a brick edge along the axes in `edge`: the corners' bricks are `b + k` for
+        // the `k` within those axes
+        let mut bricks: [Option<&Brick>; 8] = [None; 8];
+        for (k, brick) in bricks.iter_mut().enumerate() {
+            if k & !edge == 0 {
+                *brick = self.brick(b + corner_offset(k));
+            }
+        }
+        std::array::from_fn(|c| {
+            let (k, o) = window_slot(base + CORNER_STEP[c]);
+            bricks[k].map_or(VoxelValues::ZERO, |br| read(br, o))
+        })
     }
 
     /// Albedo factor of voxel `ijk` (1 outside bricks or without an albedo grid).

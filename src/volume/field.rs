@@ -155,6 +155,9 @@ impl Piece for Segment {
 pub struct PointValues {
     /// Density ρ.
     pub density: f32,
+    /// Emission source (temperature or grid value), reconstructed as the density is:
+    /// [`Field::values_at`]'s `source`, bit for bit.
+    pub source: f32,
     /// Emission density `L_e` per channel.
     pub emission: [f64; 3],
 }
@@ -330,7 +333,7 @@ pub trait Field: Sync {
     /// emission density (see [`Piece`]).
     fn reconstruct(&self, p_world: DVec3, le: &impl Fn(f32, f32) -> Rgb) -> PointValues {
         let v = self.values_at(p_world);
-        PointValues { density: v.density, emission: le(v.density, v.source).to_f64() }
+        PointValues { density: v.density, source: v.source, emission: le(v.density, v.source).to_f64() }
     }
 
     /// Optical depth `∫ σ_t ρ ds` along `ray` over `[0, t_max]`, stopped once it exceeds

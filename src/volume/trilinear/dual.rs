@@ -149,7 +149,22 @@ pub(super) const DUAL_SLOTS: [u16; 729] = {
 /// Voxel brick and offset of local voxel `v` of a dual brick ([`DUAL_SLOTS`]).
 #[inline]
 pub(super) fn dual_slot(v: IVec3) -> (usize, usize) {
-    let slot = DUAL_SLOTS[((v.z * 9 + v.y) * 9 + v.x) as usize % 729];
+    window_slot(window_index(v))
+}
+
+/// Index in [`DUAL_SLOTS`] of local voxel `v` (each coordinate `0..=8`).
+#[inline]
+pub(crate) fn window_index(v: IVec3) -> usize {
+    ((v.z * 9 + v.y) * 9 + v.x) as usize
+}
+
+/// What corner `c` of a cell adds to the cell's [`window_index`].
+pub(crate) const CORNER_STEP: [usize; 8] = [0, 1, 9, 10, 81, 82, 90, 91];
+
+/// Voxel brick and offset at [`DUAL_SLOTS`] index `i`.
+#[inline]
+pub(crate) fn window_slot(i: usize) -> (usize, usize) {
+    let slot = DUAL_SLOTS[i % 729];
     (usize::from(slot >> 9) & 7, usize::from(slot) & (LEAF_VOXELS - 1))
 }
 

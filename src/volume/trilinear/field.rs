@@ -189,10 +189,11 @@ impl Field for Trilinear {
         self.volume.voxel(cell)
     }
 
-    /// Interpolated density, and the interpolation of the corners' `le(ρ_c, s_c)`.
+    /// Interpolated density and source, and the interpolation of the corners'
+    /// `le(ρ_c, s_c)`: one gather of the 8 corners for all three.
     fn reconstruct(&self, p_world: DVec3, le: &impl Fn(f32, f32) -> Rgb) -> PointValues {
         let it = self.interpolate_world(p_world);
-        PointValues { density: it.density() as f32, emission: it.emission(le) }
+        PointValues { density: it.density() as f32, source: it.source() as f32, emission: it.emission(le) }
     }
 
     fn prefetch(&self, grid: &RayGrid) -> u64 {

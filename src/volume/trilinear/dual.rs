@@ -133,7 +133,8 @@ pub(super) const NO_CELL: IVec3 = IVec3::splat(-1000);
 /// `(9 v.z + v.y)·9 + v.x`: `(k << 9) | o`, voxel brick `k` of the 8 (bit 0: +x, bit 1: +y,
 /// bit 2: +z) and offset `o` ([`brick_offset`]) in it. One load instead of the Morton
 /// interleaving per corner read (kelvin40 ray-marched, linear: −8 % of the render's
-/// instructions, bit-identical).
+/// instructions, bit-identical). [`Volume::voxel_block`] places a point lookup's corners
+/// with it too: a cell at local `l` of any brick reaches the 9³ voxels from `l`.
 pub(super) const DUAL_SLOTS: [u16; 729] = {
     let mut table = [0u16; 729];
     let mut i = 0;

@@ -49,3 +49,21 @@ mod vdb_write;
 mod vec3_grids;
 mod volume;
 mod volume_trilinear;
+
+/// With `autotests = false` cargo no longer finds test files by itself: a file in `tests/`
+/// that this root does not declare would compile into nothing and its tests never run.
+#[test]
+fn every_test_file_is_a_module_of_the_suite() {
+    let root = include_str!("suite.rs");
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests");
+    let mut files = 0;
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path();
+        let Some(name) = path.file_stem().and_then(|s| s.to_str()) else { continue };
+        if path.extension().is_some_and(|e| e == "rs") && name != "suite" {
+            assert!(root.lines().any(|l| l == format!("mod {name};")), "tests/{name}.rs is not declared in tests/suite.rs: add `mod {name};`");
+            files += 1;
+        }
+    }
+    assert!(files >= 38, "only {files} test files found in {}", dir.display());
+}

@@ -16,7 +16,7 @@
 
 use glam::{DVec3, IVec3};
 
-use super::dual::{corner_offset, dual_slot, step_corners, Channel, CornerRecord, DualCell, DualCells, NO_CELL};
+use super::dual::{cell_local, corner_offset, dual_slot, step_corners, Channel, CornerRecord, DualCell, DualCells, NO_CELL};
 use super::poly;
 use crate::color::Rgb;
 use crate::volume::brick::Volume;
@@ -133,6 +133,11 @@ impl CornerRecord for DensityBricks<'_> {
     }
 
     #[inline]
+    fn set_last(&mut self, l: IVec3) {
+        self.last = l;
+    }
+
+    #[inline]
     fn shift(&mut self, to: usize, from: usize) {
         self.density[to] = self.density[from];
     }
@@ -199,10 +204,8 @@ impl<'a> Cells for DensityCells<'a> {
     /// Reads the 8 corner densities, or the 4 new ones after a step across one face.
     #[inline]
     fn dense_piece(&self, dense: &mut DensityBricks<'a>, origin: IVec3, i: IVec3, t0: f64, t1: f64, line: &IndexLine) -> DensityPiece {
-        let l = i - origin;
-        step_corners(dense, l);
-        dense.last = l;
-        let f0 = (line.o + line.d * t0 - i.as_dvec3()).clamp(DVec3::ZERO, DVec3::ONE);
+        step_corners(dense, i - origin);
+        let f0 = cell_local(line, t0, i);
         let first = dense.density[0].to_bits();
         let constant = dense.density.iter().all(|v| v.to_bits() == first);
         DensityPiece { t0, t1, f0, d: line.d, density: dense.density, constant }

@@ -175,6 +175,8 @@ pub(crate) fn window_slot(i: usize) -> (usize, usize) {
 pub(super) trait CornerRecord {
     /// The cell whose corners the record holds ([`NO_CELL`] for none).
     fn last(&self) -> IVec3;
+    /// Marks the record as holding the corners of local cell `l`.
+    fn set_last(&mut self, l: IVec3);
     /// Corner `to` takes what corner `from` holds.
     fn shift(&mut self, to: usize, from: usize);
     /// Reads corner `c` of local cell `l`.
@@ -183,7 +185,8 @@ pub(super) trait CornerRecord {
 
 /// Fills `record` with the corners of local cell `l`: only the 4 new ones when the walk
 /// stepped across one face from the last cell (the other 4 move across: corner `c` of the
-/// new cell is corner `c ^ (1 << a)` of the old one), all 8 otherwise.
+/// new cell is corner `c ^ (1 << a)` of the old one), all 8 otherwise; the record then
+/// holds cell `l`.
 #[inline]
 pub(super) fn step_corners(record: &mut impl CornerRecord, l: IVec3) {
     let step = l - record.last();
@@ -209,6 +212,14 @@ pub(super) fn step_corners(record: &mut impl CornerRecord, l: IVec3) {
             }
         }
     }
+    record.set_last(l);
+}
+
+/// Cell-local coordinates of the index-space line at `t` in dual cell `i` (shift 0: the
+/// unshifted line), clamped to the cell against rounding.
+#[inline]
+pub(super) fn cell_local(line: &IndexLine, t: f64, i: IVec3) -> DVec3 {
+    (line.o + line.d * t - i.as_dvec3()).clamp(DVec3::ZERO, DVec3::ONE)
 }
 
 impl Default for DualBricks<'_> {
@@ -222,6 +233,11 @@ impl CornerRecord for DualBricks<'_> {
     #[inline]
     fn last(&self) -> IVec3 {
         self.last
+    }
+
+    #[inline]
+    fn set_last(&mut self, l: IVec3) {
+        self.last = l;
     }
 
     #[inline]
@@ -306,12 +322,8 @@ impl<'a> Cells for DualCells<'a> {
     /// (the other 4 are the previous cell's: 12 value reads instead of 24).
     #[inline]
     fn dense_piece(&self, dense: &mut DualBricks<'a>, origin: IVec3, i: IVec3, t0: f64, t1: f64, line: &IndexLine) -> CubicSegment {
-        let l = i - origin;
-        step_corners(dense, l);
-        dense.last = l;
-        // Cell-local coordinates at the entry, from the unshifted index-space line
-        let f0 = (line.o + line.d * t0 - i.as_dvec3()).clamp(DVec3::ZERO, DVec3::ONE);
-        CubicSegment::cell(t0, t1, f0, line.d, dense.corners, dense.albedo)
+        step_corners(dense, i - origin);
+        CubicSegment::cell(t0, t1, cell_local(line, t0, i), line.d, dense.corners, dense.albedo)
     }
 
     #[inline]

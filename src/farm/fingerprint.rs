@@ -100,12 +100,16 @@ pub fn settings_hash(shot: &Shot, seed: u64) -> String {
     // A brick table draws other voxels than a voxel table from the same numbers; the
     // default adds nothing, so earlier hashes stay valid
     let nee_table = if nee_table.is_voxel() { String::new() } else { format!(" nee-table {nee_table}") };
-    // Stochastic point lookups (the default since they existed) draw other numbers than
-    // exact ones on a trilinear volume: hashed there, so parts of either kind do not
-    // merge; elsewhere (nearest, or exact lookups) they add nothing, so hashes of renders
-    // from before stay valid (the same pixels)
-    let picks = *point_lookup == crate::integrator::PointLookup::Stochastic && *interpolation == crate::volume::Interpolation::Linear;
-    let point_lookup = if picks { " point-lookup stochastic" } else { "" };
+    // Picked point lookups draw other numbers than exact ones on a trilinear volume:
+    // hashed there, so parts of different kinds do not merge; elsewhere (nearest, or exact
+    // lookups) they add nothing, so hashes of renders from before stay valid (the same
+    // pixels). `tentative` renders what `stochastic` rendered before emission points were
+    // picked, and keeps its text
+    let point_lookup = match (point_lookup, interpolation) {
+        (_, crate::volume::Interpolation::Nearest) | (crate::integrator::PointLookup::Exact, _) => "",
+        (crate::integrator::PointLookup::Tentative, _) => " point-lookup stochastic",
+        (crate::integrator::PointLookup::Stochastic, _) => " point-lookup stochastic emission",
+    };
     // Likewise the camera segment's own estimator
     let camera_estimator = camera_estimator.map_or(String::new(), |e| format!(" camera {e}"));
     // Of the job's settings only the seed (an argument) and the sampler change pixels

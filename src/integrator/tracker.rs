@@ -66,7 +66,7 @@ impl Tracking {
 }
 
 /// How null collisions read a field whose point values combine several voxels (the
-/// trilinear one) at their tentative points (`--point-lookup`).
+/// trilinear one) at their tentative points and emission points (`--point-lookup`).
 ///
 /// **Stochastic filtering.** A trilinear density is `Σ_c w_c ρ_c` over the 8 voxels
 /// around the point. Picking one corner with probability `w_c` and reading `ρ_c` alone is
@@ -75,20 +75,56 @@ impl Tracking {
 /// so the free-path law is *exactly* the interpolated field's and its noise unchanged;
 /// ratio tracking multiplies independent factors `1 − μ_c/μ̄` whose means are
 /// `1 − μ(x)/μ̄`. The majorants bound every corner of a dual cell (`volume::majorant`),
-/// so `μ_c ≤ μ̄` holds as `μ(x) ≤ μ̄` does. Real collisions (albedo, the point
-/// estimator's score), emission points and every regularly tracked segment read the exact
-/// value. One corner's `L_e` would be unbiased for an emission point too, but a fire's
-/// corners differ by orders of magnitude (a blackbody), so its noise is heavy-tailed:
-/// tried, it cost the README demo 6 % less time for fireflies in emission-only motion
-/// blur. One voxel instead of eight at every tentative point: the README demo renders
-/// in 12 % less CPU time with the same noise (docs/BENCHMARKS.md, "Stochastic point
-/// lookups").
+/// so `μ_c ≤ μ̄` holds as `μ(x) ≤ μ̄` does.
+///
+/// **Emission points.** An emission point scores `ℓ W L_e(x)`, linear in the corners'
+/// per-voxel emission `L_e(x) = Σ_c w_c le(ρ_c, s_c)`, so one picked corner's `le` is
+/// unbiased there too: the expected value of Cycles' one-tap stochastic lookup, which is
+/// how Cycles reads a volume's emission. It is bounded by the cell's brightest corner
+/// (no weight divides it), but a fire's corners differ by orders of magnitude (a
+/// blackbody's `T⁴` and more), so on a camera ray, whose emission reaches the pixel
+/// directly, it was heavy-tailed: emission-only motion blur (null collisions on camera
+/// rays) showed fireflies (docs/BENCHMARKS.md, "Stochastic point lookups"). After a
+/// scattering event the emission an emission point adds is one of many terms that the
+/// path's throughput and the phase function already spread: there the README demo keeps
+/// its noise (denoised relRMSE 0.0279 / 0.0289 against 0.0278 / 0.0288, seeds 0 / 2) for
+/// 18 % fewer instructions. So [`PointLookup::Stochastic`] picks emission corners on
+/// scattered segments only ([`PointLookup::on_camera`]).
+///
+/// Real collisions (albedo, the point estimator's score) and every regularly tracked
+/// segment read the exact value.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum PointLookup {
-    /// The interpolated value (8 voxels).
+    /// The interpolated value (8 voxels) everywhere.
     Exact,
-    /// One voxel picked with its interpolation weight (unbiased, one read).
+    /// One voxel picked with its interpolation weight at tentative points; emission points
+    /// exact (the default before emission points were picked).
+    Tentative,
+    /// One voxel picked at tentative points, and at emission points after scattering.
     Stochastic,
+}
+
+impl PointLookup {
+    /// Whether tentative points read one picked voxel.
+    #[must_use]
+    pub fn picks_density(self) -> bool {
+        self != PointLookup::Exact
+    }
+
+    /// Whether emission points read one picked voxel.
+    #[must_use]
+    pub fn picks_emission(self) -> bool {
+        self == PointLookup::Stochastic
+    }
+
+    /// The lookup of a camera segment: emission points stay exact there (the type's docs).
+    #[must_use]
+    pub fn on_camera(self) -> PointLookup {
+        match self {
+            PointLookup::Stochastic => PointLookup::Tentative,
+            other => other,
+        }
+    }
 }
 
 /// How a sample tracks rays.
@@ -133,15 +169,18 @@ struct Points<'a, F: Field> {
     field: &'a F,
     motion: Option<(&'a Motion, f64)>,
     memo: EmissionMemo<'a>,
-    /// Tentative points read one voxel picked by its weight ([`PointLookup::Stochastic`]
+    /// Tentative points read one voxel picked by its weight ([`PointLookup::picks_density`]
     /// on a field whose points combine several voxels).
     picks: bool,
+    /// Emission points too ([`PointLookup::picks_emission`]).
+    picks_emission: bool,
 }
 
 impl<'a, F: Field> Points<'a, F> {
     fn new(field: &'a F, medium: &'a Medium, motion: Option<(&'a Motion, f64)>, lookup: PointLookup) -> Self {
-        let picks = lookup == PointLookup::Stochastic && field.picks_fewer();
-        Points { field, motion, memo: EmissionMemo::new(&medium.emission), picks }
+        let fewer = field.picks_fewer();
+        let (picks, picks_emission) = (fewer && lookup.picks_density(), fewer && lookup.picks_emission());
+        Points { field, motion, memo: EmissionMemo::new(&medium.emission), picks, picks_emission }
     }
 
     #[inline]
@@ -171,6 +210,19 @@ impl<F: Field> PointField for Points<'_, F> {
         self.field.values_picked(self.source_point(p), u).density
     }
 
+    #[inline]
+    fn picks_emission(&self) -> bool {
+        self.picks_emission
+    }
+
+    /// The picked corner's `le`: `E_u[le(ρ_c, s_c)] = Σ_c w_c le(ρ_c, s_c)`, the
+    /// trilinear field's per-voxel emission.
+    #[inline]
+    fn emission_picked(&self, p: glam::DVec3, u: f64) -> [f64; 3] {
+        let v = self.field.values_picked(self.source_point(p), u);
+        self.memo.le(v.density, v.source).to_f64()
+    }
+
     fn sample(&self, p: glam::DVec3) -> PointSample {
         let q = self.source_point(p);
         // The source comes with the reconstruction: a trilinear field gathers its 8 corners
@@ -196,6 +248,7 @@ struct Recorder {
     points: std::cell::RefCell<Vec<glam::DVec3>>,
     /// As the real walk's field: the walk draws a number per read when it picks.
     picks: bool,
+    picks_emission: bool,
 }
 
 impl Recorder {
@@ -210,6 +263,9 @@ impl Recorder {
 impl PointField for Recorder {
     fn picks(&self) -> bool {
         self.picks
+    }
+    fn picks_emission(&self) -> bool {
+        self.picks_emission
     }
     fn density(&self, p: glam::DVec3) -> f32 {
         self.record(p);
@@ -238,7 +294,7 @@ impl<F: Field> Tracker<'_, F> {
             Tracker::Null { field, majorants, lookup } => {
                 let points = Points::new(field, medium, None, lookup);
                 if let Some(volume) = field.voxels().filter(|v| v.reading_ahead()) {
-                    let recorder = Recorder { points: std::cell::RefCell::default(), picks: points.picks };
+                    let recorder = Recorder { points: std::cell::RefCell::default(), picks: points.picks, picks_emission: points.picks_emission };
                     null_track(majorants, &recorder, medium, ray, t_max, estimator, need_collision, u, &mut sampler.clone());
                     volume.read_ahead_points(&recorder.points.into_inner());
                 }
@@ -355,6 +411,74 @@ mod tests {
         assert!(emitting > 200, "only {emitting} emitting points checked");
     }
 
+    /// A picked emission point is an unbiased estimate of the exact one: over `N`
+    /// stratified `u` every corner is picked `w_c N` times to within 1, so the mean of the
+    /// picked corners' `le` is the interpolated emission to within `8/N` of the corners'
+    /// largest `le`, per channel, at points in and around a hot explosion (blackbody, whose
+    /// corners differ by orders of magnitude). Only `stochastic` on a trilinear field picks
+    /// emission points, and a camera segment's lookup never does.
+    #[test]
+    fn picked_emission_points_average_to_the_interpolated_emission() {
+        let (ex, emission) = hot_explosion();
+        let volume = || Volume::build(&ex.density, Some(&ex.temperature), |v| emission.map_source(v)).unwrap();
+        let medium = Medium { sigma_t: 2.0, albedo: 0.8, g: 0.0, emission };
+        let nearest = volume();
+        let linear = Trilinear::new(volume());
+        let points = Points::new(&linear, &medium, None, PointLookup::Stochastic);
+        assert!(points.picks_emission() && points.picks());
+        assert!(!Points::new(&linear, &medium, None, PointLookup::Tentative).picks_emission());
+        assert!(!Points::new(&linear, &medium, None, PointLookup::Exact).picks_emission());
+        assert!(!Points::new(&nearest, &medium, None, PointLookup::Stochastic).picks_emission());
+        assert_eq!(PointLookup::Stochastic.on_camera(), PointLookup::Tentative);
+        assert_eq!(PointLookup::Exact.on_camera(), PointLookup::Exact);
+        let b = nearest.world_bounds();
+        let mut rng = Sampler::new(11, 0, 0);
+        let n = 4096;
+        let (mut dark, mut emitting, mut spread) = (0, 0, 0);
+        for _ in 0..100_000 {
+            let u = glam::DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64());
+            let p = b.lo + (b.hi - b.lo) * (u * 1.1 - 0.05);
+            let exact = points.emission(p);
+            let corners = linear.interpolate_world(p).corners.map(|v| medium.emission.le(v.density, v.source).to_f64());
+            if corners.iter().all(|e| *e == [0.0; 3]) {
+                // No corner emits: every pick reads 0
+                if dark < 200 {
+                    assert!((0..8).all(|i| points.emission_picked(p, (f64::from(i) + 0.5) / 8.0) == [0.0; 3]), "at {p}");
+                    dark += 1;
+                }
+                continue;
+            }
+            let mut sum = [0.0f64; 3];
+            for i in 0..n {
+                let e = points.emission_picked(p, (f64::from(i) + 0.5) / f64::from(n));
+                assert!(corners.contains(&e), "at {p}: picked {e:?}, not one corner's le");
+                add_to(&mut sum, e);
+            }
+            for c in 0..3 {
+                let largest = corners.iter().map(|e| e[c]).fold(0.0, f64::max);
+                let mean = sum[c] / f64::from(n);
+                assert!(
+                    (mean - exact[c]).abs() <= 8.0 / f64::from(n) * largest + 1e-12 * largest,
+                    "at {p}, channel {c}: picked mean {mean} against {}",
+                    exact[c]
+                );
+            }
+            emitting += 1;
+            let (lo, hi) = corners.iter().map(|e| e[0]).fold((f64::MAX, 0.0f64), |(lo, hi), e| (lo.min(e), hi.max(e)));
+            spread += usize::from(hi > 10.0 * lo);
+            if emitting == 300 {
+                break;
+            }
+        }
+        assert!(dark == 200 && emitting == 300 && spread > 30, "{dark} dark points, {emitting} emitting, {spread} with corners 10× apart");
+    }
+
+    fn add_to(sum: &mut [f64; 3], e: [f64; 3]) {
+        for (s, e) in sum.iter_mut().zip(e) {
+            *s += e;
+        }
+    }
+
     /// Shadow rays of a still volume are exact under null collisions: the same τ and steps
     /// as regular tracking, bit for bit, and no random number drawn.
     #[test]
@@ -407,6 +531,13 @@ mod tests {
                 self.points.borrow_mut().push(p);
                 self.inner.density_picked(p, u)
             }
+            fn picks_emission(&self) -> bool {
+                self.inner.picks_emission()
+            }
+            fn emission_picked(&self, p: glam::DVec3, u: f64) -> [f64; 3] {
+                self.points.borrow_mut().push(p);
+                self.inner.emission_picked(p, u)
+            }
         }
         /// Collisions and lookups compared on 400 rays per density scale.
         fn compare<F: Field>(field: &F, emission: Emission, lookup: PointLookup) -> (usize, usize) {
@@ -424,7 +555,7 @@ mod tests {
                     let points = Points::new(field, &medium, None, lookup);
                     let tap = Tap { inner: &points, points: std::cell::RefCell::new(Vec::new()) };
                     let real = null_track(&majorants, &tap, &medium, &ray, f64::INFINITY, estimator, need_collision, u, &mut Sampler::new(3, k, 0));
-                    let recorder = Recorder { points: std::cell::RefCell::default(), picks: points.picks };
+                    let recorder = Recorder { points: std::cell::RefCell::default(), picks: points.picks, picks_emission: points.picks_emission };
                     null_track(&majorants, &recorder, &medium, &ray, f64::INFINITY, estimator, need_collision, u, &mut Sampler::new(3, k, 0));
                     let (real_points, recorded) = (tap.points.into_inner(), recorder.points.into_inner());
                     let n = real_points.len().min(MAX_READ_AHEAD_POINTS);
@@ -442,6 +573,7 @@ mod tests {
         for (collided, compared) in [
             compare(&volume(), emission, PointLookup::Exact),
             compare(&linear, emission, PointLookup::Exact),
+            compare(&linear, emission, PointLookup::Tentative),
             compare(&linear, emission, PointLookup::Stochastic),
         ] {
             assert!(collided > 100 && compared > 2000, "{collided} collisions, {compared} lookups compared");

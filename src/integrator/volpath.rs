@@ -390,16 +390,16 @@ impl Integrator {
         if let Some(motion) = &scene.motion {
             // Null collisions at this sample's shutter time
             let time = time.unwrap_or_else(|| motion.time(sampler.get_1d(Dim::Time)));
-            let t = Tracker::Moving { field: &scene.field, motion, time, lookup: self.point_lookup };
-            return (t, t);
+            let t = |lookup| Tracker::Moving { field: &scene.field, motion, time, lookup };
+            return (t(self.point_lookup.on_camera()), t(self.point_lookup));
         }
         let regular = Tracker::Regular(&scene.field);
-        let null = scene.majorants.as_ref().map(|majorants| Tracker::Null { field: &scene.field, majorants, lookup: self.point_lookup });
+        let null = |lookup| scene.majorants.as_ref().map(|majorants| Tracker::Null { field: &scene.field, majorants, lookup });
         let serves = Tracking::applies(self.estimator, self.light_sampling);
-        let pick = |use_null: bool| if use_null && serves { null.unwrap_or(regular) } else { regular };
+        let pick = |use_null: bool, lookup| if use_null && serves { null(lookup).unwrap_or(regular) } else { regular };
         // The camera segment's own estimator must be one null collisions serve, too
         let camera_null = self.tracking.null_on_camera() && Tracking::applies(self.camera_estimator(), self.light_sampling);
-        (pick(camera_null), pick(self.tracking.null_after_scattering()))
+        (pick(camera_null, self.point_lookup.on_camera()), pick(self.tracking.null_after_scattering(), self.point_lookup))
     }
 
     /// The path from a collision on: at each vertex light sampling, Russian roulette and

@@ -25,7 +25,10 @@
 //! reconstruction weight, from one more number of the stream. What a tentative point's
 //! density serves is linear in it (an acceptance probability, a ratio-tracking factor),
 //! so an unbiased value keeps every estimate unbiased, and delta tracking's free-path law
-//! is unchanged exactly. Real collisions and emission points read the exact value.
+//! is unchanged exactly. An emission point's `ℓ W L_e(s_j)` is linear in the corners'
+//! `L_e` too, so a field may pick one corner there as well ([`PointField::picks_emission`],
+//! one more number; after scattering only, `integrator::tracker::PointLookup`). Real
+//! collisions read the exact value.
 //!
 //! The point estimator scores `L_e(x)/μ(x)` at the real collision. Blend (a per-voxel
 //! mix) has no voxels to mix over here and is refused before rendering.
@@ -71,6 +74,15 @@ pub trait PointField {
     /// An unbiased one-term estimate of [`PointField::density`] from the uniform `u`.
     fn density_picked(&self, p: glam::DVec3, _u: f64) -> f32 {
         self.density(p)
+    }
+    /// Whether emission points read by [`PointField::emission_picked`]: [`null_track`]
+    /// then draws one more number per emission point.
+    fn picks_emission(&self) -> bool {
+        false
+    }
+    /// An unbiased one-term estimate of [`PointField::emission`] from the uniform `u`.
+    fn emission_picked(&self, p: glam::DVec3, _u: f64) -> [f64; 3] {
+        self.emission(p)
     }
 }
 
@@ -126,6 +138,7 @@ pub fn null_track(
     // Line and ray-march integrate along the stretches; point scores at the collision
     let integrates = estimator != Estimator::Point;
     let picks = field.picks();
+    let picks_emission = field.picks_emission();
     let mut f = [0.0f64; 3];
     let mut weight = 1.0f64; // ratio-tracking W (ray-march)
     let mut event = DistanceSample::Escaped;
@@ -146,7 +159,8 @@ pub fn null_track(
             let end = next.min(seg.t1);
             if integrates && emits && end > s && (event == DistanceSample::Escaped || expected) && weight > 0.0 {
                 let x = s + sampler.next_f64() * (end - s);
-                add(&mut f, field.emission(ray.at(x)), (end - s) * weight);
+                let e = if picks_emission { field.emission_picked(ray.at(x), sampler.next_f64()) } else { field.emission(ray.at(x)) };
+                add(&mut f, e, (end - s) * weight);
             }
             if next >= seg.t1 {
                 // Carry the unused part of the exponential into the next stretch

@@ -224,8 +224,9 @@ impl TrackingChoice {
 }
 
 choice!(PointLookup {
-    "stochastic" => PointLookup::Stochastic, "One voxel per tentative point, picked with its trilinear weight: unbiased, one read instead of eight";
-    "exact" => PointLookup::Exact, "The trilinear value (eight voxels) at every tentative point";
+    "stochastic" => PointLookup::Stochastic, "One voxel per tentative point, and per emission point after scattering, picked with its trilinear weight: unbiased, one read instead of eight";
+    "tentative" => PointLookup::Tentative, "One picked voxel per tentative point; emission points read the trilinear value";
+    "exact" => PointLookup::Exact, "The trilinear value (eight voxels) at every tentative and emission point";
 });
 
 choice!(SplitBy {

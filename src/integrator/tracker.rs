@@ -223,12 +223,19 @@ impl<F: Field> PointField for Points<'_, F> {
         self.memo.le(v.density, v.source).to_f64()
     }
 
-    fn sample(&self, p: glam::DVec3) -> PointSample {
+    fn sample(&self, p: glam::DVec3, emission: bool) -> PointSample {
         let q = self.source_point(p);
-        // The source comes with the reconstruction: a trilinear field gathers its 8 corners
-        // once (reading them again for `values_at` was 3.6 % of the README demo)
-        let v = self.field.reconstruct(q, &|d, s| self.memo.le(d, s));
-        PointSample { density: v.density, source: v.source, emission: v.emission, albedo: self.field.albedo_at(q) }
+        let albedo = self.field.albedo_at(q);
+        if emission {
+            // The source comes with the reconstruction: a trilinear field gathers its 8
+            // corners once (reading them again for `values_at` was 3.6 % of the README demo)
+            let v = self.field.reconstruct(q, &|d, s| self.memo.le(d, s));
+            PointSample { density: v.density, source: v.source, emission: v.emission, albedo }
+        } else {
+            // The same gather without the corners' `L_e`, which only the point estimator uses
+            let v = self.field.values_at(q);
+            PointSample { density: v.density, source: v.source, emission: [0.0; 3], albedo }
+        }
     }
 }
 
@@ -275,7 +282,7 @@ impl PointField for Recorder {
         self.record(p);
         [0.0; 3]
     }
-    fn sample(&self, p: glam::DVec3) -> PointSample {
+    fn sample(&self, p: glam::DVec3, _emission: bool) -> PointSample {
         self.record(p);
         PointSample::default()
     }
@@ -379,12 +386,12 @@ mod tests {
             let p = b.lo + (b.hi - b.lo) * (u * 1.2 - 0.1) + 1e-3 * sample_uniform_sphere([rng.next_f64(), rng.next_f64()]);
             for (still, moving) in [
                 (
-                    Points::new(&nearest, &medium, None, PointLookup::Exact).sample(p),
-                    Points::new(&nearest, &medium, Some((&motion, 0.0)), PointLookup::Exact).sample(p),
+                    Points::new(&nearest, &medium, None, PointLookup::Exact).sample(p, true),
+                    Points::new(&nearest, &medium, Some((&motion, 0.0)), PointLookup::Exact).sample(p, true),
                 ),
                 (
-                    Points::new(&linear, &medium, None, PointLookup::Exact).sample(p),
-                    Points::new(&linear, &medium, Some((&motion, 0.0)), PointLookup::Exact).sample(p),
+                    Points::new(&linear, &medium, None, PointLookup::Exact).sample(p, true),
+                    Points::new(&linear, &medium, Some((&motion, 0.0)), PointLookup::Exact).sample(p, true),
                 ),
             ] {
                 assert_eq!(still, moving, "at {p}");
@@ -392,7 +399,8 @@ mod tests {
             let check = |field: &dyn Fn(glam::DVec3) -> (crate::volume::field::PointValues, crate::volume::field::VoxelValues, f32),
                          points: &dyn PointField| {
                 let (v, values, albedo) = field(p);
-                let s = points.sample(p);
+                let s = points.sample(p, true);
+                assert_eq!(points.sample(p, false), PointSample { emission: [0.0; 3], ..s }, "sample without emission at {p}");
                 assert_eq!(points.density(p).to_bits(), v.density.to_bits(), "density at {p}");
                 assert_eq!(points.emission(p).map(f64::to_bits), v.emission.map(f64::to_bits), "emission at {p}");
                 assert_eq!(s, PointSample { density: v.density, source: values.source, emission: v.emission, albedo }, "sample at {p}");
@@ -521,8 +529,8 @@ mod tests {
                 self.points.borrow_mut().push(p);
                 self.inner.emission(p)
             }
-            fn sample(&self, p: glam::DVec3) -> PointSample {
-                self.inner.sample(p)
+            fn sample(&self, p: glam::DVec3, emission: bool) -> PointSample {
+                self.inner.sample(p, emission)
             }
             fn picks(&self) -> bool {
                 self.inner.picks()

@@ -64,8 +64,9 @@ pub trait PointField {
     fn density(&self, p: glam::DVec3) -> f32;
     /// Emission density `L_e` at `p`.
     fn emission(&self, p: glam::DVec3) -> [f64; 3];
-    /// Everything at a real collision.
-    fn sample(&self, p: glam::DVec3) -> PointSample;
+    /// Everything at a real collision; its `L_e` only when `emission` (the point
+    /// estimator scores it; zero otherwise, and a trilinear field reads no corner's `L_e`).
+    fn sample(&self, p: glam::DVec3, emission: bool) -> PointSample;
     /// Whether the field reads tentative points by stochastic filtering
     /// ([`PointField::density_picked`]): [`null_track`] then draws one number per read.
     fn picks(&self) -> bool {
@@ -105,8 +106,9 @@ impl<T: Fn(glam::DVec3) -> PointSample> PointField for T {
     fn emission(&self, p: glam::DVec3) -> [f64; 3] {
         self(p).emission
     }
-    fn sample(&self, p: glam::DVec3) -> PointSample {
-        self(p)
+    fn sample(&self, p: glam::DVec3, emission: bool) -> PointSample {
+        let s = self(p);
+        PointSample { emission: if emission { s.emission } else { [0.0; 3] }, ..s }
     }
 }
 
@@ -177,7 +179,7 @@ pub fn null_track(
             if event == DistanceSample::Escaped && (need_collision || !expected) && sampler.next_f64() < ratio {
                 // The exact values (a picked density served the acceptance only): the
                 // collision's law is the exact field's, and so must its record and score be
-                let p = field.sample(ray.at(next));
+                let p = field.sample(ray.at(next), estimator == Estimator::Point);
                 event = DistanceSample::Collided { t: next, density: p.density, source: p.source, albedo: p.albedo };
                 od_to_collision = f64::NAN; // not tracked by null collisions
                 if estimator == Estimator::Point {

@@ -366,17 +366,21 @@ mod tests {
         (ex, emission)
     }
 
+    /// The hot explosion's volume, nearest and trilinear, and a scattering medium with its
+    /// blackbody.
+    fn hot_fields() -> (Volume, Trilinear, Medium) {
+        let (ex, emission) = hot_explosion();
+        let volume = || Volume::build(&ex.density, Some(&ex.temperature), |v| emission.map_source(v)).unwrap();
+        (volume(), Trilinear::new(volume()), Medium { sigma_t: 2.0, albedo: 0.8, g: 0.0, emission })
+    }
+
     /// What null collisions read of a still volume is exactly what the field
     /// reconstructs there (bit for bit), nearest and trilinear, at random points in and
     /// around a hot explosion; and a moving volume at time 0 with zero velocity reads the
     /// same.
     #[test]
     fn points_read_what_the_field_reconstructs() {
-        let (ex, emission) = hot_explosion();
-        let volume = || Volume::build(&ex.density, Some(&ex.temperature), |v| emission.map_source(v)).unwrap();
-        let medium = Medium { sigma_t: 2.0, albedo: 0.8, g: 0.0, emission };
-        let nearest = volume();
-        let linear = Trilinear::new(volume());
+        let (nearest, linear, medium) = hot_fields();
         let motion = Motion::new(&nearest, crate::volume::velocity::Velocity::Uniform(glam::DVec3::ZERO), 1.0, [0.0, 0.0]);
         let b = nearest.world_bounds();
         let mut rng = Sampler::new(5, 0, 0);
@@ -427,11 +431,7 @@ mod tests {
     /// emission points, and a camera segment's lookup never does.
     #[test]
     fn picked_emission_points_average_to_the_interpolated_emission() {
-        let (ex, emission) = hot_explosion();
-        let volume = || Volume::build(&ex.density, Some(&ex.temperature), |v| emission.map_source(v)).unwrap();
-        let medium = Medium { sigma_t: 2.0, albedo: 0.8, g: 0.0, emission };
-        let nearest = volume();
-        let linear = Trilinear::new(volume());
+        let (nearest, linear, medium) = hot_fields();
         let points = Points::new(&linear, &medium, None, PointLookup::Stochastic);
         assert!(points.picks_emission() && points.picks());
         assert!(!Points::new(&linear, &medium, None, PointLookup::Tentative).picks_emission());

@@ -84,10 +84,11 @@ fn integrator(estimator: Estimator, light_sampling: LightSampling, max_depth: u3
 
 #[test]
 fn zero_velocity_agrees_with_regular_tracking() {
-    // 3 reconstructions (trilinear with exact and stochastic point lookups) × 4 method
+    // 3 reconstructions (trilinear with exact point lookups, and with emission points
+    // picked too after scattering) × 4 method
     // set-ups × 5 regions = 60 comparisons, |z| < 4.2
     for (interpolation, lookup) in
-        [(Interpolation::Nearest, PointLookup::Exact), (Interpolation::Linear, PointLookup::Exact), (Interpolation::Linear, PointLookup::Stochastic)]
+        [(Interpolation::Nearest, PointLookup::Exact), (Interpolation::Linear, PointLookup::Exact), (Interpolation::Linear, PointLookup::StochasticEmission)]
     {
         for (est, ls, albedo) in [
             (Estimator::Line, LightSampling::Fnee, 0.8),

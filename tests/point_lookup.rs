@@ -5,8 +5,8 @@
 //! key and part of the settings hash where it changes pixels (trilinear), and nothing
 //! where it does not (nearest). That images tracked by null collisions with it have the
 //! means of regular tracking, for every estimator and light strategy null collisions
-//! serve, is tested with the exact lookups in `tests/tracking.rs` (and with motion blur
-//! in `tests/motion_blur.rs`).
+//! serve, is tested in `tests/tracking.rs` (`stochastic`, the default, and `stochastic-emission`)
+//! and, with motion blur, in `tests/motion_blur.rs`.
 
 use crate::common;
 
@@ -80,12 +80,12 @@ fn the_point_lookup_is_a_flag_a_scene_key_and_hashed_where_it_changes_pixels() {
     let dir = tmpdir("point_lookup", "cli");
     let vdb = explosion(&dir, 32, Some(3));
     let base = ["render", s(&vdb), "--width", "24", "--height", "16", "--spp", "4", "--albedo", "0.8", "--stats"];
-    let values = [("default", None), ("stochastic", Some("stochastic")), ("tentative", Some("tentative")), ("exact", Some("exact"))];
+    let values = [("default", None), ("stochastic-emission", Some("stochastic-emission")), ("stochastic", Some("stochastic")), ("exact", Some("exact"))];
     let linear = common::settings_hashes(&dir, &base, "--point-lookup", &values);
     let pixels = |name: &str| common::exr_pixels(&dir.join(format!("{name}.exr")));
     // Stochastic is the default; each kind changes a trilinear render's pixels and its hash
     assert_eq!(pixels("default"), pixels("stochastic"));
-    assert_eq!(linear[0], linear[1]);
+    assert_eq!(linear[0], linear[2]);
     for (a, b) in [(1, 2), (1, 3), (2, 3)] {
         assert_ne!(pixels(values[a].0), pixels(values[b].0), "{} and {}", values[a].0, values[b].0);
         assert_ne!(linear[a], linear[b], "{} and {}", values[a].0, values[b].0);
@@ -93,11 +93,11 @@ fn the_point_lookup_is_a_flag_a_scene_key_and_hashed_where_it_changes_pixels() {
     let exact = pixels("exact");
     // A scene file's key
     assert_eq!(common::render_integrator_keys(&dir, &vdb, "point_lookup = \"exact\"", (24, 16)), exact);
-    assert_eq!(common::render_integrator_keys(&dir, &vdb, "point_lookup = \"tentative\"", (24, 16)), pixels("tentative"));
+    assert_eq!(common::render_integrator_keys(&dir, &vdb, "point_lookup = \"stochastic\"", (24, 16)), pixels("stochastic"));
     // Nearest: one voxel per point either way; the same pixels and the same hash
     let nearest_base = ["render", s(&vdb), "--width", "24", "--height", "16", "--spp", "4", "--albedo", "0.8", "--interpolation", "nearest", "--stats"];
     let nearest = common::settings_hashes(&dir, &nearest_base, "--point-lookup", &values);
-    assert!(pixels("exact") == pixels("stochastic") && pixels("tentative") == pixels("stochastic"));
+    assert!(pixels("exact") == pixels("stochastic-emission") && pixels("stochastic") == pixels("stochastic-emission"));
     assert!(nearest.iter().all(|h| *h == nearest[0]), "nearest hashes differ: {nearest:?}");
     // A bad value is refused naming the flag
     common::plume_exits(&["render", s(&vdb), "--point-lookup", "sometimes", "-o", s(&dir.join("bad.exr"))], 2, &["--point-lookup"]);
@@ -106,9 +106,9 @@ fn the_point_lookup_is_a_flag_a_scene_key_and_hashed_where_it_changes_pixels() {
 #[test]
 fn camera_segments_keep_exact_emission_points() {
     // Null collisions on the camera segment (`--tracking null`): without scattering the
-    // only emission points are the camera rays', which `stochastic` reads exactly, so it
-    // renders `tentative`'s pixels; with scattering its paths pick their emission points
-    // and the pixels differ
+    // only emission points are the camera rays', which `stochastic-emission` reads exactly,
+    // so it renders `stochastic`'s pixels; with scattering its paths pick their emission
+    // points and the pixels differ
     let dir = tmpdir("point_lookup", "camera");
     let vdb = explosion(&dir, 32, Some(3));
     let render = |albedo: &str, lookup: &str| {
@@ -135,7 +135,7 @@ fn camera_segments_keep_exact_emission_points() {
         assert!(o.status.success(), "albedo {albedo}, {lookup}: {}", common::stderr(&o));
         common::exr_pixels(&out)
     };
-    assert_eq!(render("0", "stochastic"), render("0", "tentative"));
-    assert_ne!(render("0", "tentative"), render("0", "exact"));
-    assert_ne!(render("0.8", "stochastic"), render("0.8", "tentative"));
+    assert_eq!(render("0", "stochastic-emission"), render("0", "stochastic"));
+    assert_ne!(render("0", "stochastic"), render("0", "exact"));
+    assert_ne!(render("0.8", "stochastic-emission"), render("0.8", "stochastic"));
 }

@@ -41,8 +41,9 @@ fn integrator(estimator: Estimator, light_sampling: LightSampling, tracking: Tra
 #[test]
 fn null_collisions_give_the_image_means_of_regular_tracking() {
     // Per reconstruction and density: a regular line-fnee reference, then every estimator
-    // × light strategy null collisions serve, mixed and null; trilinear with exact and
-    // with stochastic point lookups (`tests/point_lookup.rs`). 3 × 2 × 6 × 2 × 5 regions
+    // × light strategy null collisions serve, mixed and null; trilinear with the default
+    // point lookups (picked densities) and with emission points picked too
+    // (`tests/point_lookup.rs`; exact lookups: `tests/motion_blur.rs`). 3 × 2 × 6 × 2 × 5 regions
     // = 330 comparisons (line + classic NEE only in the thin ones); Šidák at α = 0.01
     // gives |z| < 4.3 per test. Null collisions draw their tentative points from the
     // hashed stream (not Sobol), so their run means have heavier tails: 24 runs of 16 spp
@@ -55,8 +56,11 @@ fn null_collisions_give_the_image_means_of_regular_tracking() {
         (Estimator::RayMarch, LightSampling::Fnee),
         (Estimator::Line, LightSampling::Nee),
     ];
-    let reconstructions =
-        [(Interpolation::Nearest, PointLookup::Exact), (Interpolation::Linear, PointLookup::Exact), (Interpolation::Linear, PointLookup::Stochastic)];
+    let reconstructions = [
+        (Interpolation::Nearest, PointLookup::Exact),
+        (Interpolation::Linear, PointLookup::Stochastic),
+        (Interpolation::Linear, PointLookup::StochasticEmission),
+    ];
     for ((interpolation, lookup), sigma_t) in reconstructions.into_iter().flat_map(|r| [(r, 1.5), (r, 25.0)]) {
         let reference_scene = scene(sigma_t, LightSampling::Fnee, interpolation);
         let reference =

@@ -118,11 +118,11 @@ pub struct RenderArgs {
     #[arg(long, value_parser = choice::<NeeTable>(), default_value_t = IntegratorSettings::default().nee_table)]
     pub nee_table: NeeTable,
     /// How null collisions (--tracking mixed or null) read a trilinear volume at their
-    /// tentative points, and at their emission points after scattering: one voxel picked
-    /// with its interpolation weight (unbiased: the free-path law is the interpolated
-    /// field's exactly; one read instead of eight), or the interpolated value itself.
-    /// Camera segments' emission points are always exact. Nothing changes with
-    /// --interpolation nearest.
+    /// tentative points (and, with `stochastic-emission`, at their emission points after
+    /// scattering): one voxel picked with its interpolation weight (unbiased: the
+    /// free-path law is the interpolated field's exactly; one read instead of eight), or
+    /// the interpolated value itself. Camera segments' emission points are always exact.
+    /// Nothing changes with --interpolation nearest.
     #[arg(long, value_parser = choice::<PointLookup>(), default_value_t = IntegratorSettings::default().point_lookup)]
     pub point_lookup: PointLookup,
     /// FNEE proxy grid resolution (cells along the longest axis; a power of two, 8 up to

@@ -103,12 +103,11 @@ pub fn settings_hash(shot: &Shot, seed: u64) -> String {
     // Picked point lookups draw other numbers than exact ones on a trilinear volume:
     // hashed there, so parts of different kinds do not merge; elsewhere (nearest, or exact
     // lookups) they add nothing, so hashes of renders from before stay valid (the same
-    // pixels). `tentative` renders what `stochastic` rendered before emission points were
-    // picked, and keeps its text
+    // pixels)
     let point_lookup = match (point_lookup, interpolation) {
         (_, crate::volume::Interpolation::Nearest) | (crate::integrator::PointLookup::Exact, _) => "",
-        (crate::integrator::PointLookup::Tentative, _) => " point-lookup stochastic",
-        (crate::integrator::PointLookup::Stochastic, _) => " point-lookup stochastic emission",
+        (crate::integrator::PointLookup::Stochastic, _) => " point-lookup stochastic",
+        (crate::integrator::PointLookup::StochasticEmission, _) => " point-lookup stochastic emission",
     };
     // Likewise the camera segment's own estimator
     let camera_estimator = camera_estimator.map_or(String::new(), |e| format!(" camera {e}"));

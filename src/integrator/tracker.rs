@@ -80,16 +80,17 @@ impl Tracking {
 /// **Emission points.** An emission point scores `ℓ W L_e(x)`, linear in the corners'
 /// per-voxel emission `L_e(x) = Σ_c w_c le(ρ_c, s_c)`, so one picked corner's `le` is
 /// unbiased there too: the expected value of Cycles' one-tap stochastic lookup, which is
-/// how Cycles reads a volume's emission. It is bounded by the cell's brightest corner
-/// (no weight divides it), but a fire's corners differ by orders of magnitude (a
-/// blackbody's `T⁴` and more), so on a camera ray, whose emission reaches the pixel
-/// directly, it was heavy-tailed: emission-only motion blur (null collisions on camera
-/// rays) showed fireflies (docs/BENCHMARKS.md, "Stochastic point lookups"). After a
-/// scattering event the emission an emission point adds is one of many terms that the
-/// path's throughput and the phase function already spread: there the README demo keeps
-/// its noise (denoised relRMSE 0.0279 / 0.0289 against 0.0278 / 0.0288, seeds 0 / 2) for
-/// 18 % fewer instructions. So [`PointLookup::Stochastic`] picks emission corners on
-/// scattered segments only ([`PointLookup::on_camera`]).
+/// how Cycles reads a volume's emission. It is bounded by the cell's brightest corner (no
+/// weight divides it), but a fire's corners differ by orders of magnitude (a blackbody's
+/// `T⁴` and more), so its tail is heavy. On a camera ray, whose emission reaches the pixel
+/// directly, emission-only motion blur showed fireflies; after scattering, on the README
+/// demo, it saves 18 % of the instructions at the same denoised error, but single samples
+/// in the fire reach twice the largest values of exact emission points (1.1 M samples:
+/// largest 2601 against 1128 times the reference, variance +8 %), and one of three
+/// denoised 32-spp renders kept such a sample as a visible speck (docs/BENCHMARKS.md,
+/// "Stochastic point lookups"). So the default, [`PointLookup::Stochastic`], reads emission
+/// points exactly; [`PointLookup::StochasticEmission`] picks them on scattered segments only
+/// ([`PointLookup::on_camera`]), for renders that trade that tail for speed.
 ///
 /// Real collisions (albedo, the point estimator's score) and every regularly tracked
 /// segment read the exact value.
@@ -98,10 +99,11 @@ pub enum PointLookup {
     /// The interpolated value (8 voxels) everywhere.
     Exact,
     /// One voxel picked with its interpolation weight at tentative points; emission points
-    /// exact (the default before emission points were picked).
-    Tentative,
-    /// One voxel picked at tentative points, and at emission points after scattering.
+    /// exact (the default).
     Stochastic,
+    /// One voxel picked at tentative points, and at emission points after scattering
+    /// (faster, with a heavier tail: see above).
+    StochasticEmission,
 }
 
 impl PointLookup {
@@ -114,14 +116,14 @@ impl PointLookup {
     /// Whether emission points read one picked voxel.
     #[must_use]
     pub fn picks_emission(self) -> bool {
-        self == PointLookup::Stochastic
+        self == PointLookup::StochasticEmission
     }
 
     /// The lookup of a camera segment: emission points stay exact there (the type's docs).
     #[must_use]
     pub fn on_camera(self) -> PointLookup {
         match self {
-            PointLookup::Stochastic => PointLookup::Tentative,
+            PointLookup::StochasticEmission => PointLookup::Stochastic,
             other => other,
         }
     }
@@ -432,12 +434,12 @@ mod tests {
     #[test]
     fn picked_emission_points_average_to_the_interpolated_emission() {
         let (nearest, linear, medium) = hot_fields();
-        let points = Points::new(&linear, &medium, None, PointLookup::Stochastic);
+        let points = Points::new(&linear, &medium, None, PointLookup::StochasticEmission);
         assert!(points.picks_emission() && points.picks());
-        assert!(!Points::new(&linear, &medium, None, PointLookup::Tentative).picks_emission());
+        assert!(!Points::new(&linear, &medium, None, PointLookup::Stochastic).picks_emission());
         assert!(!Points::new(&linear, &medium, None, PointLookup::Exact).picks_emission());
-        assert!(!Points::new(&nearest, &medium, None, PointLookup::Stochastic).picks_emission());
-        assert_eq!(PointLookup::Stochastic.on_camera(), PointLookup::Tentative);
+        assert!(!Points::new(&nearest, &medium, None, PointLookup::StochasticEmission).picks_emission());
+        assert_eq!(PointLookup::StochasticEmission.on_camera(), PointLookup::Stochastic);
         assert_eq!(PointLookup::Exact.on_camera(), PointLookup::Exact);
         let b = nearest.world_bounds();
         let mut rng = Sampler::new(11, 0, 0);
@@ -503,7 +505,8 @@ mod tests {
             let t_max = 4.0 * rng.next_f64();
             let (mut a, mut b2) = (Sampler::new(1, 2, 3), Sampler::new(1, 2, 3));
             let exact = Tracker::Regular(&volume).transmittance(&medium, &ray, t_max, &mut a);
-            let null = Tracker::Null { field: &volume, majorants: &majorants, lookup: PointLookup::Stochastic }.transmittance(&medium, &ray, t_max, &mut b2);
+            let null =
+                Tracker::Null { field: &volume, majorants: &majorants, lookup: PointLookup::StochasticEmission }.transmittance(&medium, &ray, t_max, &mut b2);
             assert_eq!((exact.0.to_bits(), exact.1), (null.0.to_bits(), null.1));
             assert_eq!(a.next_u64(), b2.next_u64(), "null shadow ray drew random numbers");
         }
@@ -581,8 +584,8 @@ mod tests {
         for (collided, compared) in [
             compare(&volume(), emission, PointLookup::Exact),
             compare(&linear, emission, PointLookup::Exact),
-            compare(&linear, emission, PointLookup::Tentative),
             compare(&linear, emission, PointLookup::Stochastic),
+            compare(&linear, emission, PointLookup::StochasticEmission),
         ] {
             assert!(collided > 100 && compared > 2000, "{collided} collisions, {compared} lookups compared");
         }

@@ -224,8 +224,8 @@ impl TrackingChoice {
 }
 
 choice!(PointLookup {
-    "stochastic" => PointLookup::Stochastic, "One voxel per tentative point, and per emission point after scattering, picked with its trilinear weight: unbiased, one read instead of eight";
-    "tentative" => PointLookup::Tentative, "One picked voxel per tentative point; emission points read the trilinear value";
+    "stochastic" => PointLookup::Stochastic, "One voxel per tentative point, picked with its trilinear weight (unbiased, one read instead of eight); emission points read the trilinear value";
+    "stochastic-emission" => PointLookup::StochasticEmission, "Also one picked voxel per emission point after scattering: faster, but single samples in a fire reach larger values (fireflies)";
     "exact" => PointLookup::Exact, "The trilinear value (eight voxels) at every tentative and emission point";
 });
 

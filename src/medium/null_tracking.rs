@@ -27,8 +27,8 @@
 //! so an unbiased value keeps every estimate unbiased, and delta tracking's free-path law
 //! is unchanged exactly. An emission point's `ℓ W L_e(s_j)` is linear in the corners'
 //! `L_e` too, so a field may pick one corner there as well ([`PointField::picks_emission`],
-//! one more number; after scattering only, `integrator::tracker::PointLookup`). Real
-//! collisions read the exact value.
+//! one more number; an option, after scattering only, with a heavier tail:
+//! `integrator::tracker::PointLookup`). Real collisions read the exact value.
 //!
 //! The point estimator scores `L_e(x)/μ(x)` at the real collision. Blend (a per-voxel
 //! mix) has no voxels to mix over here and is refused before rendering.

@@ -462,7 +462,7 @@ mod tests {
             for i in 0..n {
                 let e = points.emission_picked(p, (f64::from(i) + 0.5) / f64::from(n));
                 assert!(corners.contains(&e), "at {p}: picked {e:?}, not one corner's le");
-                add_to(&mut sum, e);
+                sum.iter_mut().zip(e).for_each(|(s, e)| *s += e);
             }
             for c in 0..3 {
                 let largest = corners.iter().map(|e| e[c]).fold(0.0, f64::max);
@@ -481,12 +481,6 @@ mod tests {
             }
         }
         assert!(dark == 200 && emitting == 300 && spread > 30, "{dark} dark points, {emitting} emitting, {spread} with corners 10× apart");
-    }
-
-    fn add_to(sum: &mut [f64; 3], e: [f64; 3]) {
-        for (s, e) in sum.iter_mut().zip(e) {
-            *s += e;
-        }
     }
 
     /// Shadow rays of a still volume are exact under null collisions: the same τ and steps

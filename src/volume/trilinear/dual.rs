@@ -155,12 +155,21 @@ pub(super) fn dual_slot(v: IVec3) -> (usize, usize) {
 
 /// Index in [`DUAL_SLOTS`] of local voxel `v` (each coordinate `0..=8`).
 #[inline]
-pub(crate) fn window_index(v: IVec3) -> usize {
+pub(crate) const fn window_index(v: IVec3) -> usize {
     ((v.z * 9 + v.y) * 9 + v.x) as usize
 }
 
-/// What corner `c` of a cell adds to the cell's [`window_index`].
-pub(crate) const CORNER_STEP: [usize; 8] = [0, 1, 9, 10, 81, 82, 90, 91];
+/// What corner `c` of a cell adds to the cell's [`window_index`]: the index of
+/// [`corner_offset`]`(c)`.
+pub(crate) const CORNER_STEP: [usize; 8] = {
+    let mut steps = [0; 8];
+    let mut c = 0;
+    while c < 8 {
+        steps[c] = window_index(corner_offset(c));
+        c += 1;
+    }
+    steps
+};
 
 /// Voxel brick and offset at [`DUAL_SLOTS`] index `i`.
 #[inline]

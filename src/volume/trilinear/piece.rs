@@ -56,17 +56,6 @@ impl CubicSegment {
         CubicSegment { t0, t1, f0, d, corners, albedo, constant: false }
     }
 
-    /// `ρ(u) = Σ_j a_j uʲ` along the piece ([`poly::cubic_along`]; `[ρ, 0, 0, 0]` for a
-    /// constant piece): for free paths and point densities, which only the piece holding
-    /// a collision needs, so it is not kept in the piece.
-    #[must_use]
-    pub fn density_cubic(&self) -> [f64; 4] {
-        if self.constant {
-            return [f64::from(self.corners[0].density), 0.0, 0.0, 0.0];
-        }
-        poly::cubic_along(self.densities(), self.f0, self.d)
-    }
-
     /// The corners' densities.
     #[inline]
     fn densities(&self) -> [f64; 8] {
@@ -79,32 +68,23 @@ impl CubicSegment {
         (self.f0 + self.d * u).clamp(DVec3::ZERO, DVec3::ONE)
     }
 
-    /// `le` of each corner voxel, channel by channel (0 where a corner has no source).
-    /// `None` when no corner has a source (`le` is 0 there: the contract of
-    /// [`crate::medium::Emission::le`]).
+    /// `Σ_c w_c le(ρ_c, s_c)` per channel, for per-corner weights `w` (trilinear weights
+    /// at a point, or integrated weights over a stretch). Corners without a source are
+    /// skipped (`le` is 0 there: the contract of [`crate::medium::Emission::le`]).
+    // A plain loop accumulating straight into the channels (this runs for every emitting
+    // piece): no array of the corners' emission per channel in between
     #[inline]
-    fn corner_emission(&self, le: &impl Fn(f32, f32) -> Rgb) -> Option<[[f64; 8]; 3]> {
-        if self.corners.iter().all(|c| c.source == 0.0) {
-            return None;
-        }
-        // Plain loops: array maps of arrays did not optimize, and this runs for every
-        // emitting piece
-        let mut by_channel = [[0.0f64; 8]; 3];
-        for (c, v) in self.corners.iter().enumerate() {
+    fn weighted_emission(&self, le: &impl Fn(f32, f32) -> Rgb, w: &[f64; 8]) -> [f64; 3] {
+        let mut out = [0.0f64; 3];
+        for (v, &wc) in self.corners.iter().zip(w) {
             if v.source != 0.0 {
                 let e = le(v.density, v.source).0;
-                by_channel[0][c] = f64::from(e[0]);
-                by_channel[1][c] = f64::from(e[1]);
-                by_channel[2][c] = f64::from(e[2]);
+                out[0] += wc * f64::from(e[0]);
+                out[1] += wc * f64::from(e[1]);
+                out[2] += wc * f64::from(e[2]);
             }
         }
-        Some(by_channel)
-    }
-
-    /// `Σ_c v_c W_c` per channel, for the corners' emission `e` and integrated weights `w`.
-    #[inline]
-    fn channels(e: &[[f64; 8]; 3], w: &[f64; 8]) -> [f64; 3] {
-        [poly::dot(&e[0], w), poly::dot(&e[1], w), poly::dot(&e[2], w)]
+        out
     }
 }
 
@@ -148,7 +128,7 @@ impl Piece for CubicSegment {
         }
         let w = poly::integrated_weights(self.f0, self.d, u);
         let optical_depth = sigma_t * poly::dot(&self.densities(), &w);
-        let emission = self.corner_emission(le).map_or([0.0; 3], |e| Self::channels(&e, &w));
+        let emission = self.weighted_emission(le, &w);
         PieceIntegrals { optical_depth, emission }
     }
 
@@ -158,8 +138,19 @@ impl Piece for CubicSegment {
     fn free_path(&self, sigma_t: f64, od: f64) -> f64 {
         match self.constant() {
             Some(seg) => seg.free_path(sigma_t, od),
-            None => poly::solve_integral(&self.density_cubic(), self.length(), od / sigma_t),
+            None => poly::solve_integral(&self.density_polynomial(), self.length(), od / sigma_t),
         }
+    }
+
+    /// [`poly::cubic_along`] of the corners' densities (`[ρ, 0, 0, 0]` for a constant
+    /// piece), computed when asked for (free paths, point densities, the ray-march's
+    /// optical depths) and not kept in the piece: most pieces need none of these.
+    #[inline]
+    fn density_polynomial(&self) -> [f64; 4] {
+        if self.constant {
+            return [f64::from(self.corners[0].density), 0.0, 0.0, 0.0];
+        }
+        poly::cubic_along(self.densities(), self.f0, self.d)
     }
 
     /// The cubic at `u`, never below 0 (rounding can dip it there at a zero face).
@@ -168,7 +159,7 @@ impl Piece for CubicSegment {
         if self.constant {
             return self.corners[0].density;
         }
-        poly::eval(&self.density_cubic(), u).max(0.0) as f32
+        poly::eval(&self.density_polynomial(), u).max(0.0) as f32
     }
 
     #[inline]
@@ -200,15 +191,14 @@ impl Piece for CubicSegment {
         if let Some(seg) = self.constant() {
             return seg.emission_at(le, u);
         }
-        let f = self.local(u);
-        self.corner_emission(le).map_or([0.0; 3], |e| e.map(|v| poly::trilinear(&v, f)))
+        self.weighted_emission(le, &poly::weights(self.local(u)))
     }
 
     fn emission_integral(&self, le: &impl Fn(f32, f32) -> Rgb, u: f64) -> [f64; 3] {
         if let Some(seg) = self.constant() {
             return seg.emission_integral(le, u);
         }
-        self.corner_emission(le).map_or([0.0; 3], |e| Self::channels(&e, &poly::integrated_weights(self.f0, self.d, u)))
+        self.weighted_emission(le, &poly::integrated_weights(self.f0, self.d, u))
     }
 }
 
@@ -288,7 +278,7 @@ mod tests {
             let ray = random_ray(&mut s);
             let piece = random_cell(&mut s, &ray);
             let total = 1.0 + 2.0 * s.next_f64();
-            let sigma = total / poly::integral(&piece.density_cubic(), ray.len);
+            let sigma = total / poly::integral(&piece.density_polynomial(), ray.len);
             let mut observed = [0u64; BINS + 1];
             for _ in 0..SAMPLES {
                 let e = -(-s.next_f64()).ln_1p();

@@ -6,7 +6,7 @@ use crate::common;
 
 use common::{grid, hash};
 use glam::{DAffine3, DMat3, DVec3, IVec3};
-use plume::volume::field::{clip_to_box, optical_depth_along, Piece, Ray};
+use plume::volume::field::{clip_to_box, optical_depth_along, Ray};
 use plume::volume::trilinear::{poly, CubicSegment, Trilinear};
 use plume::volume::{Bounds3, Field, Volume};
 use proptest::prelude::*;
@@ -58,7 +58,7 @@ fn clipped(tri: &Trilinear, ray: &Ray, t_min: f64, t_max: f64) -> Option<(f64, f
 
 /// `∫₀ᴸ ρ(u) du` of a piece's density cubic.
 fn density_integral(p: &CubicSegment) -> f64 {
-    let (a, l) = (p.density_polynomial(), p.t1 - p.t0);
+    let (a, l) = (p.density_cubic(), p.t1 - p.t0);
     l * (a[0] + l * (a[1] / 2.0 + l * (a[2] / 3.0 + l * a[3] / 4.0)))
 }
 
@@ -86,7 +86,7 @@ fn check_pieces(tri: &Trilinear, ray: &Ray, t_min: f64, t_max: f64) -> Result<()
     for p in &pieces {
         prop_assert!(p.t0 < p.t1, "non-empty, increasing: {:?}", p);
         if p.constant {
-            prop_assert_eq!(p.density_polynomial(), [f64::from(p.corners[0].density), 0.0, 0.0, 0.0]);
+            prop_assert_eq!(p.density_cubic(), [f64::from(p.corners[0].density), 0.0, 0.0, 0.0]);
             prop_assert!(p.corners.iter().all(|c| *c == p.corners[0]) && p.albedo.iter().all(|&x| x == p.albedo[0]));
         } else {
             prop_assert!(p.f0.cmpge(DVec3::ZERO).all() && p.f0.cmple(DVec3::ONE).all(), "f0 in the cell: {:?}", p);
@@ -114,7 +114,7 @@ fn check_cubics(tri: &Trilinear, ray: &Ray, t_min: f64, t_max: f64, u_seed: u64)
         let len = p.t1 - p.t0;
         for f in uniforms(u_seed + k as u64, 4) {
             let u = f * len;
-            let got = poly::eval(&p.density_polynomial(), u);
+            let got = poly::eval(&p.density_cubic(), u);
             let want = f64::from(tri.values_at(ray.at(p.t0 + u)).density);
             prop_assert!((got - want).abs() <= 1e-5 * want.abs() + 1e-6, "ρ(u = {u}) = {got}, interpolated {want}, piece {:?}", p);
         }
@@ -305,7 +305,7 @@ fn constant_volume_gives_constant_pieces() {
         let (t0, t1) = clip_to_box(ifw.transform_point3(a), ifw.transform_vector3(ray.direction), lo, hi, -1e9, 1e9).expect("origin inside");
         let pieces: Vec<CubicSegment> = tri.segments(&ray, t0, t1).collect();
         assert_eq!(pieces.len(), 1, "ray {k}: {pieces:?}");
-        assert!(pieces[0].constant && pieces[0].density_polynomial() == [2.0, 0.0, 0.0, 0.0], "ray {k}: {:?}", pieces[0]);
+        assert!(pieces[0].constant && pieces[0].density_cubic() == [2.0, 0.0, 0.0, 0.0], "ray {k}: {:?}", pieces[0]);
         let near: f64 = nearest.segments(&ray, t0, t1).map(|s| f64::from(s.density) * s.length()).sum();
         assert!((density_integral(&pieces[0]) - near).abs() <= 1e-12 * near, "ray {k}");
     }

@@ -24,7 +24,6 @@ use crate::medium::forced::{Collision, ForcedCollision};
 use crate::medium::Medium;
 use crate::sampling::Sampler;
 use crate::volume::field::{Field, Piece, PointValues, Ray, SegmentIter};
-use crate::volume::trilinear::poly;
 
 /// Emission estimator along a free-path segment.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -307,12 +306,9 @@ fn track_expected<F: Field, const FORCED: bool>(
         segments += 1;
         let len = piece.length();
         let constant = piece.constant();
-        // A polynomial piece's density cubic serves both its optical depth and the one-point
-        // rule's below: one cubic instead of two sets of integrated weights
-        let cubic = if constant.is_none() { piece.density_polynomial() } else { [0.0; 4] };
         let x = match constant {
             Some(seg) => medium.mu_t(seg.density) * len,
-            None => medium.sigma_t * poly::integral(&cubic, len),
+            None => piece.optical_depth(medium.sigma_t, len),
         };
         if need_collision && event == DistanceSample::Escaped && od + x > e {
             event = match constant {
@@ -356,7 +352,7 @@ fn track_expected<F: Field, const FORCED: bool>(
                         // uniform in it).
                         let xi = *xi.get_or_insert_with(|| sampler.get_1d(crate::sampling::Dim::OnePoint));
                         let u = xi * len;
-                        let tau_u = tau * (-medium.sigma_t * poly::integral(&cubic, u)).exp();
+                        let tau_u = tau * (-piece.optical_depth(medium.sigma_t, u)).exp();
                         add_scaled(&mut f, emission_at(piece, &memo, u), tau_u * len);
                     }
                 }

@@ -72,13 +72,6 @@ pub trait Piece: Copy + std::fmt::Debug {
     /// The `u ∈ [0, length]` with `optical_depth(sigma_t, u) = od`, for
     /// `0 ≤ od < optical_depth(sigma_t, length)`: where a free path ends in this piece.
     fn free_path(&self, sigma_t: f64, od: f64) -> f64;
-    /// The density along the piece as a cubic, `ρ(u) = Σ_j a_j uʲ` (`[ρ, 0, 0, 0]` for a
-    /// constant piece), so that `σ_t` [`poly::integral`]`(a, u)` is the optical depth to
-    /// any `u`: for an estimator that needs it at several points of one piece, one cubic
-    /// instead of a set of integrated weights per point.
-    ///
-    /// [`poly::integral`]: crate::volume::trilinear::poly::integral
-    fn density_polynomial(&self) -> [f64; 4];
     /// Density ρ at `u`.
     fn density_at(&self, u: f64) -> f32;
     /// Emission source at `u` (reported with collisions; emission itself comes from
@@ -134,10 +127,6 @@ impl Piece for Segment {
     #[inline]
     fn free_path(&self, sigma_t: f64, od: f64) -> f64 {
         (od / (sigma_t * f64::from(self.density))).clamp(0.0, self.length())
-    }
-    #[inline]
-    fn density_polynomial(&self) -> [f64; 4] {
-        [f64::from(self.density), 0.0, 0.0, 0.0]
     }
     #[inline]
     fn density_at(&self, _u: f64) -> f32 {

@@ -41,6 +41,16 @@ pub struct DensityPiece {
     pub constant: bool,
 }
 
+impl DensityPiece {
+    /// The density cubic along the piece (`[ρ, 0, 0, 0]` when constant).
+    fn cubic(&self) -> [f64; 4] {
+        if self.constant {
+            return [f64::from(self.density[0]), 0.0, 0.0, 0.0];
+        }
+        poly::cubic_along(self.density.map(f64::from), self.f0, self.d)
+    }
+}
+
 impl Piece for DensityPiece {
     #[inline]
     fn t0(&self) -> f64 {
@@ -69,20 +79,12 @@ impl Piece for DensityPiece {
     fn free_path(&self, sigma_t: f64, od: f64) -> f64 {
         match self.constant() {
             Some(seg) => seg.free_path(sigma_t, od),
-            None => poly::solve_integral(&self.density_polynomial(), self.length(), od / sigma_t),
+            None => poly::solve_integral(&self.cubic(), self.length(), od / sigma_t),
         }
-    }
-
-    /// The density cubic along the piece (`[ρ, 0, 0, 0]` when constant).
-    fn density_polynomial(&self) -> [f64; 4] {
-        if self.constant {
-            return [f64::from(self.density[0]), 0.0, 0.0, 0.0];
-        }
-        poly::cubic_along(self.density.map(f64::from), self.f0, self.d)
     }
 
     fn density_at(&self, u: f64) -> f32 {
-        poly::eval(&self.density_polynomial(), u).max(0.0) as f32
+        poly::eval(&self.cubic(), u).max(0.0) as f32
     }
 
     /// No source is read: 0.

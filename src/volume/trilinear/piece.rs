@@ -56,6 +56,17 @@ impl CubicSegment {
         CubicSegment { t0, t1, f0, d, corners, albedo, constant: false }
     }
 
+    /// `ρ(u) = Σ_j a_j uʲ` along the piece ([`poly::cubic_along`]; `[ρ, 0, 0, 0]` for a
+    /// constant piece): for free paths and point densities, which only the piece holding
+    /// a collision needs, so it is not kept in the piece.
+    #[must_use]
+    pub fn density_cubic(&self) -> [f64; 4] {
+        if self.constant {
+            return [f64::from(self.corners[0].density), 0.0, 0.0, 0.0];
+        }
+        poly::cubic_along(self.densities(), self.f0, self.d)
+    }
+
     /// The corners' densities.
     #[inline]
     fn densities(&self) -> [f64; 8] {
@@ -138,19 +149,8 @@ impl Piece for CubicSegment {
     fn free_path(&self, sigma_t: f64, od: f64) -> f64 {
         match self.constant() {
             Some(seg) => seg.free_path(sigma_t, od),
-            None => poly::solve_integral(&self.density_polynomial(), self.length(), od / sigma_t),
+            None => poly::solve_integral(&self.density_cubic(), self.length(), od / sigma_t),
         }
-    }
-
-    /// [`poly::cubic_along`] of the corners' densities (`[ρ, 0, 0, 0]` for a constant
-    /// piece), computed when asked for (free paths, point densities, the ray-march's
-    /// optical depths) and not kept in the piece: most pieces need none of these.
-    #[inline]
-    fn density_polynomial(&self) -> [f64; 4] {
-        if self.constant {
-            return [f64::from(self.corners[0].density), 0.0, 0.0, 0.0];
-        }
-        poly::cubic_along(self.densities(), self.f0, self.d)
     }
 
     /// The cubic at `u`, never below 0 (rounding can dip it there at a zero face).
@@ -159,7 +159,7 @@ impl Piece for CubicSegment {
         if self.constant {
             return self.corners[0].density;
         }
-        poly::eval(&self.density_polynomial(), u).max(0.0) as f32
+        poly::eval(&self.density_cubic(), u).max(0.0) as f32
     }
 
     #[inline]
@@ -278,7 +278,7 @@ mod tests {
             let ray = random_ray(&mut s);
             let piece = random_cell(&mut s, &ray);
             let total = 1.0 + 2.0 * s.next_f64();
-            let sigma = total / poly::integral(&piece.density_polynomial(), ray.len);
+            let sigma = total / poly::integral(&piece.density_cubic(), ray.len);
             let mut observed = [0u64; BINS + 1];
             for _ in 0..SAMPLES {
                 let e = -(-s.next_f64()).ln_1p();

@@ -341,6 +341,10 @@ fn track_expected<F: Field, const FORCED: bool>(
             }
             if marching {
                 match constant {
+                    // A piece without a source adds nothing (`le` is 0 there): no φ, and for a
+                    // polynomial piece no point and no transmittance to it
+                    Some(seg) if seg.source == 0.0 => {}
+                    None if !piece.may_emit() => {}
                     Some(seg) => {
                         let le = medium.emission.le(seg.density, seg.source);
                         add(&mut f, le, tau * len * phi(x));

@@ -261,6 +261,11 @@ struct Recorder {
 }
 
 impl Recorder {
+    /// A recorder that draws what the walk through `points` draws.
+    fn mirroring<F: Field>(points: &Points<'_, F>) -> Recorder {
+        Recorder { points: std::cell::RefCell::default(), picks: points.picks, picks_emission: points.picks_emission }
+    }
+
     fn record(&self, p: glam::DVec3) {
         let mut points = self.points.borrow_mut();
         if points.len() < MAX_READ_AHEAD_POINTS {
@@ -303,7 +308,7 @@ impl<F: Field> Tracker<'_, F> {
             Tracker::Null { field, majorants, lookup } => {
                 let points = Points::new(field, medium, None, lookup);
                 if let Some(volume) = field.voxels().filter(|v| v.reading_ahead()) {
-                    let recorder = Recorder { points: std::cell::RefCell::default(), picks: points.picks, picks_emission: points.picks_emission };
+                    let recorder = Recorder::mirroring(&points);
                     null_track(majorants, &recorder, medium, ray, t_max, estimator, need_collision, u, &mut sampler.clone());
                     volume.read_ahead_points(&recorder.points.into_inner());
                 }
@@ -429,8 +434,8 @@ mod tests {
     /// stratified `u` every corner is picked `w_c N` times to within 1, so the mean of the
     /// picked corners' `le` is the interpolated emission to within `8/N` of the corners'
     /// largest `le`, per channel, at points in and around a hot explosion (blackbody, whose
-    /// corners differ by orders of magnitude). Only `stochastic` on a trilinear field picks
-    /// emission points, and a camera segment's lookup never does.
+    /// corners differ by orders of magnitude). Only `stochastic-emission` on a trilinear field
+    /// picks emission points, and a camera segment's lookup never does.
     #[test]
     fn picked_emission_points_average_to_the_interpolated_emission() {
         let (nearest, linear, medium) = hot_fields();
@@ -560,7 +565,7 @@ mod tests {
                     let points = Points::new(field, &medium, None, lookup);
                     let tap = Tap { inner: &points, points: std::cell::RefCell::new(Vec::new()) };
                     let real = null_track(&majorants, &tap, &medium, &ray, f64::INFINITY, estimator, need_collision, u, &mut Sampler::new(3, k, 0));
-                    let recorder = Recorder { points: std::cell::RefCell::default(), picks: points.picks, picks_emission: points.picks_emission };
+                    let recorder = Recorder::mirroring(&points);
                     null_track(&majorants, &recorder, &medium, &ray, f64::INFINITY, estimator, need_collision, u, &mut Sampler::new(3, k, 0));
                     let (real_points, recorded) = (tap.points.into_inner(), recorder.points.into_inner());
                     let n = real_points.len().min(MAX_READ_AHEAD_POINTS);

@@ -8,6 +8,7 @@ export PATH="$HOME/.cargo/bin:$PATH"
 cargo build --release
 mkdir -p out
 ./target/release/plume synth explosion --resolution 128 --seed 1 -o out/explosion.vdb
-./target/release/plume render out/explosion.vdb -o out/explosion.exr --preview out/explosion.png \
-    --stats out/explosion.json --spp 32 --width 640 --height 480 --density-scale 4 --albedo 0.8 --g 0.3 --split 6 --split-by brightness --camera-estimator ray-march --denoise "$@"
+# The shot is the sample scene file (640×480, 32 spp, scattering, denoised; its comments
+# say why each key), so `plume bench demo` times and judges exactly what this renders
+./target/release/plume render data/explosion.toml "$@"
 echo "wrote out/explosion.exr and out/explosion.png"

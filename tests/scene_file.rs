@@ -232,18 +232,17 @@ fn the_example_scene_file_is_complete_and_valid() {
         "spp = 32",
         "method = \"line-fnee\"",
         "split = 6",
+        "split_by = \"brightness\"",
         "camera_estimator = \"ray-march\"",
         "width = 640",
         "denoise = true",
     ] {
         assert!(text.contains(key), "{key} in {text}");
     }
+    // The README's main command renders this file (and `plume bench demo` times it), so
+    // the two cannot drift apart
     let demo = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/demo.sh")).unwrap();
-    for flag in
-        ["--spp 32", "--width 640", "--height 480", "--density-scale 4", "--albedo 0.8", "--g 0.3", "--split 6", "--camera-estimator ray-march", "--denoise"]
-    {
-        assert!(demo.contains(flag), "the example scene renders what demo.sh renders: {flag}");
-    }
+    assert!(demo.lines().any(|l| l.trim_start().starts_with("./target/release/plume render data/explosion.toml")), "{demo}");
 }
 
 #[test]

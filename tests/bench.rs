@@ -317,3 +317,69 @@ fn the_peer_comparisons_budget_rules_pass_their_self_test() {
     let stdout = String::from_utf8_lossy(&output.stdout);
     assert!(output.status.success() && stdout.contains("self-test ok"), "{}: {stdout}{}", script.display(), String::from_utf8_lossy(&output.stderr));
 }
+
+/// `plume bench demo` on a tiny scene file: it times each seed's render, judges it against
+/// references it renders once and keeps, and refuses references that cannot measure noise.
+#[test]
+fn demo_bench_judges_each_seed_and_keeps_its_references() {
+    let dir = tmpdir("bench-test", "demo");
+    let vdb = common::explosion(&dir, 16, Some(3));
+    let scene = dir.join("shot.toml");
+    std::fs::write(
+        &scene,
+        "[volume]\nfile = \"ex.vdb\"\n[medium]\nalbedo = 0.8\n[camera]\nwidth = 24\nheight = 18\n[integrator]\ncamera_estimator = \"ray-march\"\nsplit = 2\n\
+         [render]\nspp = 4\n[output]\nimage = \"shot.exr\"\ndenoise = true\n",
+    )
+    .unwrap();
+    assert!(vdb.exists());
+    let (work, json) = (dir.join("work"), dir.join("demo.json"));
+    let args = [
+        "bench",
+        "demo",
+        "--scene",
+        s(&scene),
+        "--seeds",
+        "0,1",
+        "--reference-spp",
+        "16",
+        "--work-dir",
+        s(&work),
+        "--json",
+        s(&json),
+        "--target-rel-rmse",
+        "5",
+    ];
+    let o = plume(&args);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert_eq!(err.matches("rendering reference").count(), 2, "{err}");
+    let table = String::from_utf8_lossy(&o.stdout);
+    assert!(table.contains("| seed | wall s |") && table.contains("relRMSE ≤ 5 on every seed: yes"), "{table}");
+    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    let runs = report["runs"].as_array().unwrap();
+    assert_eq!(runs.len(), 2);
+    for run in runs {
+        let e = &run["error"];
+        let rel = e["rel_rmse"].as_f64().unwrap();
+        // 4 spp of a scattering render against two 16-spp references: noisy, not wrong
+        assert!(rel.is_finite() && rel > 0.0 && rel < 5.0, "{run}");
+        assert!((e["mean_ratio"].as_f64().unwrap() - 1.0).abs() < 0.5, "{run}");
+        assert!(run["wall_seconds"].as_f64().unwrap() > 0.0 && run["cpu_seconds"].as_f64().unwrap() > 0.0, "{run}");
+        assert!(e["speck"]["ratio"].as_f64().unwrap() >= 1.0, "{run}");
+    }
+    // The user's image is untouched: every render went to the work directory
+    assert!(!dir.join("shot.exr").exists());
+    // A second run renders no reference
+    let o = plume(&args);
+    assert!(o.status.success() && !String::from_utf8_lossy(&o.stderr).contains("rendering reference"), "{}", String::from_utf8_lossy(&o.stderr));
+    // A reference seed among the demo's would share its noise; one reference image has no spread
+    common::plume_exits(&["bench", "demo", "--scene", s(&scene), "--seeds", "11", "--work-dir", s(&work)], 2, &["--reference-seeds", "11"]);
+    let one = work
+        .read_dir()
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| p.to_string_lossy().contains("reference-") && p.extension().is_some_and(|e| e == "exr"))
+        .unwrap();
+    common::plume_exits(&["bench", "demo", "--scene", s(&scene), "--references", s(&one), "--work-dir", s(&work)], 2, &["--references"]);
+    let _ = std::fs::remove_dir_all(&dir);
+}

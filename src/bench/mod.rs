@@ -7,12 +7,15 @@
 //! - `compare`: any scene and flags, any methods, equal CPU time and equal spp against a
 //!   given or computed reference, several seeds, RMSE / relMSE / bias, CSV, JSON, plots;
 //! - `extremes`: the numerical-extremes sweep with closed forms;
+//! - `demo`: the README's demo timed per seed, and its error against long references
+//!   (issue #16's clean first picture);
 //! - `interpolation`: trilinear against nearest reconstruction on real files: cost per
 //!   sample, memory, plume's emission rule against Cycles', a close-up picture;
 //! - `report`: the whole suite behind `docs/BENCHMARKS.md`.
 
 pub mod compare;
 pub mod core;
+pub mod demo;
 pub mod extremes;
 pub mod interpolation;
 pub mod methods;

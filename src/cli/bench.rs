@@ -41,6 +41,10 @@ pub enum BenchCommand {
     /// FNEE against classic NEE (brick table) at equal spp: RMSE against a longer
     /// reference, core-hours, picture. `bench compare` with this preset.
     Flare(FlareArgs),
+    /// The README's demo (issue #16's clean first picture): the sample scene file rendered
+    /// as `scripts/demo.sh` renders it, timed per seed, and its relRMSE against long
+    /// references (rendered once into --work-dir, then kept), with the largest speck.
+    Demo(DemoArgs),
     /// The whole benchmark suite behind docs/BENCHMARKS.md (tables and plots).
     Report(ReportArgs),
 }
@@ -207,6 +211,40 @@ pub struct ExtremesArgs {
     pub json: Option<PathBuf>,
 }
 
+/// `plume bench demo`.
+#[derive(Debug, Args)]
+pub struct DemoArgs {
+    /// The scene file the README's main command renders (run scripts/demo.sh once first:
+    /// it makes the volume).
+    #[arg(long, default_value = "data/explosion.toml")]
+    pub scene: PathBuf,
+    /// Seeds of the timed renders, comma-separated.
+    #[arg(long, value_delimiter = ',', default_value = "0,2,3")]
+    pub seeds: Vec<u64>,
+    /// Samples per pixel of each reference render.
+    #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(1..))]
+    pub reference_spp: u32,
+    /// Seeds of the reference renders (at least 2; none of --seeds).
+    #[arg(long, value_delimiter = ',', default_value = "11,12")]
+    pub reference_seeds: Vec<u64>,
+    /// Converged renders of the same scene with other seeds, made elsewhere (at least 2,
+    /// comma-separated): used instead of rendering --reference-seeds.
+    #[arg(long, value_delimiter = ',')]
+    pub references: Vec<PathBuf>,
+    /// Where the renders go and the references are kept.
+    #[arg(long, default_value_os_t = default_work_dir().join("demo"))]
+    pub work_dir: PathBuf,
+    /// The time target: wall seconds of one render.
+    #[arg(long, default_value_t = 60.0)]
+    pub target_seconds: f64,
+    /// The error target: relRMSE over the smoke.
+    #[arg(long, default_value_t = 0.03)]
+    pub target_rel_rmse: f64,
+    /// Also write the figures as JSON here.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+}
+
 /// `plume bench interpolation`.
 #[derive(Debug, Args)]
 pub struct InterpolationArgs {
@@ -357,6 +395,23 @@ pub fn run(command: BenchCommand, _matches: Option<&ArgMatches>) -> Result<()> {
             InterpolationOptions { config: args.config(), json: args.json.clone() }.run()
         }
         BenchCommand::Flare(args) => flare(&args),
+        BenchCommand::Demo(args) => {
+            let exe = std::env::current_exe().map_err(|e| Error::Scene(format!("cannot find the plume binary: {e}")))?;
+            let config = plume::bench::demo::DemoConfig {
+                exe,
+                scene: args.scene,
+                seeds: args.seeds,
+                reference_spp: args.reference_spp,
+                reference_seeds: args.reference_seeds,
+                references: args.references,
+                work_dir: args.work_dir,
+                target_seconds: args.target_seconds,
+                target_rel_rmse: args.target_rel_rmse,
+            };
+            let report = plume::bench::demo::run(&config)?;
+            print!("{}", report.table());
+            write_json(&args.json, &report)
+        }
         BenchCommand::Report(args) => {
             ReportOptions { out: args.out, time_scale: args.time_scale, resolution: args.resolution, data: args.data, work_dir: args.work_dir }.run()
         }

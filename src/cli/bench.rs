@@ -396,6 +396,11 @@ pub fn run(command: BenchCommand, _matches: Option<&ArgMatches>) -> Result<()> {
         }
         BenchCommand::Flare(args) => flare(&args),
         BenchCommand::Demo(args) => {
+            for (flag, v) in [("--target-seconds", args.target_seconds), ("--target-rel-rmse", args.target_rel_rmse)] {
+                if !(v.is_finite() && v > 0.0) {
+                    return Err(Error::invalid(flag, format!("{v} must be a positive number")));
+                }
+            }
             let exe = std::env::current_exe().map_err(|e| Error::Scene(format!("cannot find the plume binary: {e}")))?;
             let config = plume::bench::demo::DemoConfig {
                 exe,

@@ -381,6 +381,11 @@ fn demo_bench_judges_each_seed_and_keeps_its_references() {
         .find(|p| p.to_string_lossy().contains("reference-") && p.extension().is_some_and(|e| e == "exr"))
         .unwrap();
     common::plume_exits(&["bench", "demo", "--scene", s(&scene), "--references", s(&one), "--work-dir", s(&work)], 2, &["--references"]);
+    // A damaged reference (or an interrupted render's partial one) is rendered again
+    std::fs::write(&one, b"not an image").unwrap();
+    let o = plume(&args);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success() && err.matches("rendering reference").count() == 1, "{err}");
     common::plume_exits(&["bench", "demo", "--scene", s(&scene), "--target-seconds", "0", "--work-dir", s(&work)], 2, &["--target-seconds"]);
     let _ = std::fs::remove_dir_all(&dir);
 }

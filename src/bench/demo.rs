@@ -179,7 +179,7 @@ pub fn run(config: &DemoConfig) -> Result<DemoReport> {
     if config.references.is_empty() && config.reference_seeds.len() < 2 {
         return Err(Error::invalid("--reference-seeds", "needs at least 2 seeds (their spread is the references' noise)"));
     }
-    if let Some(s) = config.seeds.iter().find(|s| config.reference_seeds.contains(s)) {
+    if let Some(s) = config.seeds.iter().find(|s| config.references.is_empty() && config.reference_seeds.contains(s)) {
         return Err(Error::invalid("--reference-seeds", format!("seed {s} is also a demo seed: the reference would share its noise")));
     }
     let (shot, _) = SceneFile::read(&config.scene)?;
@@ -238,7 +238,8 @@ pub fn run(config: &DemoConfig) -> Result<DemoReport> {
 
 /// The reference of `seed`: the scene at `reference_spp`, not denoised, kept in the work
 /// directory under its settings hash (which covers the seed and every setting that
-/// changes pixels) and spp, and rendered only when missing.
+/// changes pixels) and spp, and rendered when missing or incomplete (an interrupted
+/// render's partial image, which `plume render` then continues).
 fn reference(config: &DemoConfig, shot: &Shot, seed: u64) -> Result<crate::output::RgbaImage> {
     let mut r = shot.clone();
     r.settings.render.seed = Some(seed);
@@ -249,7 +250,8 @@ fn reference(config: &DemoConfig, shot: &Shot, seed: u64) -> Result<crate::outpu
     let hash = crate::farm::fingerprint::settings_hash(&r, seed);
     let name = format!("reference-{hash}-{}spp", config.reference_spp);
     let image = config.work_dir.join(format!("{name}.exr"));
-    if !image.exists() {
+    let complete = |p: &Path| crate::output::read_exr_contents(p).is_ok_and(|c| c.metadata.get("plume:status").is_some_and(|s| s == "complete"));
+    if !complete(&image) {
         eprintln!("plume: rendering reference seed {seed} ({} spp) to {}", config.reference_spp, image.display());
         let stats = config.work_dir.join(format!("{name}.json"));
         r.settings.output.image.clone_from(&image);

@@ -319,7 +319,8 @@ fn the_peer_comparisons_budget_rules_pass_their_self_test() {
 }
 
 /// `plume bench demo` on a tiny scene file: it times each seed's render, judges it against
-/// references it renders once and keeps, and refuses references that cannot measure noise.
+/// references it renders once and keeps (and again when one is damaged), and refuses
+/// references that cannot measure noise.
 #[test]
 fn demo_bench_judges_each_seed_and_keeps_its_references() {
     let dir = tmpdir("bench-test", "demo");

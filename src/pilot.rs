@@ -9,6 +9,8 @@
 
 use rayon::prelude::*;
 
+use crate::color::rec709_luminance;
+
 use crate::integrator::aov::{Aovs, Component};
 use crate::integrator::split_map::{PilotBlock, SplitMap, PILOT_SPP};
 use crate::integrator::{Counters, NoTrace, Scene, SplitBy};
@@ -17,9 +19,6 @@ use crate::volume::field::Field;
 
 /// Mixed into the render's seed for the pilot's numbers.
 pub const PILOT_STREAM: u64 = 0x51f1_7a9c_3d2e_8b47;
-
-/// Rec.709 luminance weights.
-const LUMINANCE: [f64; 3] = [0.2126, 0.7152, 0.0722];
 
 /// The emission the camera segment adds (`Component::Emission`), summed over a sample.
 #[derive(Default)]
@@ -44,11 +43,6 @@ impl Aovs for SeenDirectly {
         &[]
     }
     fn half(&mut self, _l: [f64; 4]) {}
-}
-
-/// Luminance of an RGB triple.
-fn luminance(c: [f64; 3]) -> f64 {
-    c.iter().zip(LUMINANCE).map(|(v, w)| v * w).sum()
 }
 
 /// The split counts of `settings`' integrator on `scene`, or `None` when it splits
@@ -77,7 +71,7 @@ pub fn split_map<F: Field>(scene: &Scene<F>, settings: &RenderSettings) -> Optio
                 let l = integrator.li_aovs(scene, &ray, &mut sampler, (time, &mut counters), &mut NoTrace, &mut seen);
                 // A non-finite sample is dropped, as the render drops it
                 if l.iter().all(|v| v.is_finite()) && seen.emission.iter().all(|v| v.is_finite()) {
-                    block.scattered += (luminance([l[0], l[1], l[2]]) - luminance(seen.emission)).max(0.0);
+                    block.scattered += (rec709_luminance([l[0], l[1], l[2]]) - rec709_luminance(seen.emission)).max(0.0);
                     block.alpha += l[3];
                 }
             }

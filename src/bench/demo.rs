@@ -28,13 +28,11 @@ use std::time::Instant;
 
 use serde::Serialize;
 
+use crate::color::rec709_luminance;
 use crate::error::{Error, Result};
-use crate::output::read_exr;
+use crate::output::{read_exr, read_exr_contents, ExrContents, RgbaImage};
 use crate::scene::file::SceneFile;
 use crate::scene::Shot;
-
-/// Rec.709 luminance weights.
-const LUMINANCE: [f64; 3] = [0.2126, 0.7152, 0.0722];
 
 /// Pixels whose reference alpha exceeds this are the ones the smoke covers.
 pub const COVERED_ALPHA: f32 = 0.05;
@@ -129,12 +127,6 @@ pub struct DemoReport {
 }
 
 impl DemoReport {
-    /// Whether every run met both targets.
-    #[must_use]
-    pub fn met(&self) -> bool {
-        self.runs.iter().all(|r| r.wall_seconds < self.target_seconds && r.error.rel_rmse <= self.target_rel_rmse)
-    }
-
     /// The table and the verdict, as printed.
     #[must_use]
     pub fn table(&self) -> String {
@@ -240,7 +232,7 @@ pub fn run(config: &DemoConfig) -> Result<DemoReport> {
 /// directory under its settings hash (which covers the seed and every setting that
 /// changes pixels) and spp, and rendered when missing or incomplete (an interrupted
 /// render's partial image, which `plume render` then continues).
-fn reference(config: &DemoConfig, shot: &Shot, seed: u64) -> Result<crate::output::RgbaImage> {
+fn reference(config: &DemoConfig, shot: &Shot, seed: u64) -> Result<RgbaImage> {
     let mut r = shot.clone();
     r.settings.render.seed = Some(seed);
     r.settings.render.spp = Some(config.reference_spp);
@@ -250,14 +242,16 @@ fn reference(config: &DemoConfig, shot: &Shot, seed: u64) -> Result<crate::outpu
     let hash = crate::farm::fingerprint::settings_hash(&r, seed);
     let name = format!("reference-{hash}-{}spp", config.reference_spp);
     let image = config.work_dir.join(format!("{name}.exr"));
-    let complete = |p: &Path| crate::output::read_exr_contents(p).is_ok_and(|c| c.metadata.get("plume:status").is_some_and(|s| s == "complete"));
-    if !complete(&image) {
-        eprintln!("plume: rendering reference seed {seed} ({} spp) to {}", config.reference_spp, image.display());
-        let stats = config.work_dir.join(format!("{name}.json"));
-        r.settings.output.image.clone_from(&image);
-        r.settings.output.stats = Some(stats.clone());
-        render(config, &r, &config.work_dir.join(format!("{name}.toml")), &stats)?;
+    // A kept reference is read once: for its status and, when complete, its pixels
+    let complete = |c: &ExrContents| c.metadata.get("plume:status").is_some_and(|s| s == "complete");
+    if let Some(kept) = read_exr_contents(&image).ok().filter(complete) {
+        return Ok(RgbaImage { width: kept.crop.x1 - kept.crop.x0, height: kept.crop.y1 - kept.crop.y0, pixels: kept.pixels });
     }
+    eprintln!("plume: rendering reference seed {seed} ({} spp) to {}", config.reference_spp, image.display());
+    let stats = config.work_dir.join(format!("{name}.json"));
+    r.settings.output.image.clone_from(&image);
+    r.settings.output.stats = Some(stats.clone());
+    render(config, &r, &config.work_dir.join(format!("{name}.toml")), &stats)?;
     read_exr(&image)
 }
 
@@ -290,9 +284,9 @@ fn render(config: &DemoConfig, shot: &Shot, toml: &Path, stats: &Path) -> Result
     Ok((wall, cpu))
 }
 
-/// Luminance of a pixel.
+/// Luminance of a pixel ([`rec709_luminance`] of its colour).
 fn luminance(p: &[f32; 4]) -> f64 {
-    (0..3).map(|c| LUMINANCE[c] * f64::from(p[c])).sum()
+    rec709_luminance([f64::from(p[0]), f64::from(p[1]), f64::from(p[2])])
 }
 
 /// `x` against the references `refs` (all `width × height`): see the module docs.

@@ -58,7 +58,7 @@ use std::f64::consts::PI;
 use std::sync::OnceLock;
 
 use super::cie1931::{CIE1931_2DEG, CIE1931_LAMBDA_MAX_NM, CIE1931_LAMBDA_MIN_NM};
-use super::Rgb;
+use super::{rec709_luminance, Rgb};
 
 /// First radiation constant for spectral radiance, `2hc²`, in W m² sr⁻¹ (METHOD §2).
 pub const TWO_HC2: f64 = 1.19104e-16;
@@ -71,9 +71,6 @@ pub const STEFAN_BOLTZMANN: f64 = 5.670373e-8;
 
 /// XYZ → linear Rec.709 (D65) matrix, row major (METHOD §2).
 pub const XYZ_TO_REC709: [[f64; 3]; 3] = [[3.2410, -1.5374, -0.4986], [-0.9692, 1.8760, 0.0416], [0.0556, -0.2040, 1.0570]];
-
-/// Rec.709 luminance weights `(0.2126, 0.7152, 0.0722)` in `f64`, as in [`Rgb::luminance`].
-const REC709_LUMINANCE: [f64; 3] = [0.2126, 0.7152, 0.0722];
 
 /// Suggested blackbody cutoff temperature T_cut in kelvin: emission is 0 below it.
 ///
@@ -162,11 +159,6 @@ pub fn xyz_to_rec709(xyz: [f64; 3]) -> [f64; 3] {
 #[must_use]
 pub fn blackbody_rgb_exact(t_kelvin: f64) -> [f64; 3] {
     xyz_to_rec709(blackbody_xyz(t_kelvin)).map(|c| c.max(0.0))
-}
-
-/// Rec.709 luminance of an `f64` triple (weights of [`Rgb::luminance`]).
-fn rec709_luminance(rgb: [f64; 3]) -> f64 {
-    REC709_LUMINANCE[0] * rgb[0] + REC709_LUMINANCE[1] * rgb[1] + REC709_LUMINANCE[2] * rgb[2]
 }
 
 /// [`blackbody_xyz`] with the per‑wavelength factors hoisted out, for building the table.

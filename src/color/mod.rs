@@ -5,6 +5,13 @@ pub(crate) mod cie1931;
 
 use std::ops::{Add, AddAssign, Div, Mul, MulAssign};
 
+/// Rec.709 luminance of an `f64` triple: the weights of [`Rgb::luminance`], in `f64`.
+#[must_use]
+#[inline]
+pub fn rec709_luminance(rgb: [f64; 3]) -> f64 {
+    0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2]
+}
+
 /// Linear Rec.709 RGB triple (radiance or emission density; never a position).
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
 pub struct Rgb(pub [f32; 3]);

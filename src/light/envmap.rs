@@ -60,7 +60,7 @@ use std::path::Path;
 
 use glam::DVec3;
 
-use crate::color::Rgb;
+use crate::color::{rec709_luminance, Rgb};
 use crate::error::{Error, Result};
 use crate::sampling::distribution2d::{bin_of, Distribution2D};
 
@@ -111,11 +111,10 @@ fn sin_theta(d: DVec3) -> f64 {
     (d.x * d.x + d.y * d.y).sqrt()
 }
 
-/// Luminance in `f64` (Rec.709 coefficients, as [`Rgb::luminance`]); positive for any
-/// non-negative, non-black pixel.
+/// Luminance in `f64` ([`rec709_luminance`]); positive for any non-negative, non-black
+/// pixel.
 fn luminance(p: Rgb) -> f64 {
-    let [r, g, b] = p.to_f64();
-    0.2126 * r + 0.7152 * g + 0.0722 * b
+    rec709_luminance(p.to_f64())
 }
 
 impl EnvironmentMap {

@@ -242,3 +242,34 @@ fn every_estimator_agrees_with_regular_tracking_in_mean() {
         );
     }
 }
+
+#[test]
+fn a_collision_record_holds_what_its_estimator_reads() {
+    // The point estimator scores `L_e/μ` at the collision, so its record has the exact
+    // density and source there; line and ray-march read only the albedo factor (their
+    // record's density and source are NaN, by contract: nothing downstream reads them)
+    let (vol, m) = (volume(), medium());
+    let grid = MajorantGrid::new(&vol, 0.0);
+    let exact = sampler_of(&vol, &m);
+    let field = |p: DVec3| PointSample { albedo: 0.37, ..exact(p) };
+    let ray = rays()[2];
+    for estimator in [Estimator::Point, Estimator::Line, Estimator::RayMarch] {
+        let mut collided = 0;
+        for i in 0..200u64 {
+            let mut s = Sampler::new(5, 0, i);
+            let u = s.next_f64();
+            let r = null_track(&grid, &field, &m, &ray, f64::INFINITY, estimator, true, u, &mut s);
+            let DistanceSample::Collided { t, density, source, albedo } = r.event else { continue };
+            collided += 1;
+            assert_eq!(albedo, 0.37, "{estimator:?}: the albedo factor at the collision");
+            if estimator == Estimator::Point {
+                let v = vol.values_at(ray.at(t));
+                assert_eq!((density, source), (v.density, v.source), "{estimator:?} at t = {t}");
+                assert!(density > 0.0, "{estimator:?}: a collision where the density is 0");
+            } else {
+                assert!(density.is_nan() && source.is_nan(), "{estimator:?}: read {density}, {source} it does not use");
+            }
+        }
+        assert!(collided > 50, "{estimator:?}: only {collided} of 200 paths collided");
+    }
+}

@@ -92,8 +92,8 @@ impl Tracking {
 /// points exactly; [`PointLookup::StochasticEmission`] picks them on scattered segments only
 /// ([`PointLookup::on_camera`]), for renders that trade that tail for speed.
 ///
-/// Real collisions (albedo, the point estimator's score) and every regularly tracked
-/// segment read the exact value.
+/// Real collisions (albedo, the point estimator's score: all they read) and every
+/// regularly tracked segment read the exact value.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum PointLookup {
     /// The interpolated value (8 voxels) everywhere.
@@ -223,6 +223,11 @@ impl<F: Field> PointField for Points<'_, F> {
     fn emission_picked(&self, p: glam::DVec3, u: f64) -> [f64; 3] {
         let v = self.field.values_picked(self.source_point(p), u);
         self.memo.le(v.density, v.source).to_f64()
+    }
+
+    #[inline]
+    fn albedo(&self, p: glam::DVec3) -> f32 {
+        self.field.albedo_at(self.source_point(p))
     }
 
     fn sample(&self, p: glam::DVec3, emission: bool) -> PointSample {

@@ -49,9 +49,11 @@ pub enum DistanceSample {
     Collided {
         /// Distance along the ray.
         t: f64,
-        /// Density of the segment that holds the collision.
+        /// Density of the segment that holds the collision (NaN from null-collision
+        /// tracking under every estimator but point, which alone scores with it:
+        /// `medium::null_tracking`).
         density: f32,
-        /// Source of that segment.
+        /// Source of that segment (NaN where the density is).
         source: f32,
         /// Albedo factor of that segment.
         albedo: f32,

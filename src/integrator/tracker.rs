@@ -20,7 +20,8 @@
 use crate::integrator::LightSampling;
 use crate::medium::emission::EmissionMemo;
 use crate::medium::null_tracking::{null_track, ratio_transmittance, PointField, PointSample};
-use crate::medium::tracking::{optical_depth, OpticalDepth};
+use crate::medium::forced::Forced;
+use crate::medium::tracking::{optical_depth, track_split, OpticalDepth};
 use crate::medium::{track, Collision, Estimator, Medium, TrackResult};
 use crate::sampling::Sampler;
 use crate::volume::field::{Field, Ray};
@@ -301,6 +302,27 @@ impl PointField for Recorder {
 }
 
 impl<F: Field> Tracker<'_, F> {
+    /// [`Tracker::track`] for the camera segment of `paths` split paths: where regular
+    /// tracking forces the collision, their first vertices are appended to `firsts`
+    /// (`medium::tracking::track_split`); null collisions draw the analog collision,
+    /// which the paths share, and leave `firsts` as it is.
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn track_split(
+        &self,
+        medium: &Medium,
+        ray: &Ray,
+        t_max: f64,
+        (estimator, collision): (Estimator, Collision),
+        u: f64,
+        sampler: &mut Sampler,
+        paths: (u32, &mut Vec<Forced>),
+    ) -> TrackResult {
+        match *self {
+            Tracker::Regular(field) => track_split(field, medium, ray, t_max, (estimator, collision), u, sampler, paths),
+            _ => self.track(medium, ray, t_max, estimator, collision, u, sampler),
+        }
+    }
+
     /// A free path and the estimator's emission along `ray` over `[0, t_max]`
     /// ([`track`] or [`null_track`]).
     #[allow(clippy::too_many_arguments)]

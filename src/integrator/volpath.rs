@@ -340,7 +340,15 @@ impl Integrator {
             (false, true) => Collision::Analog,
             (false, false) => Collision::Skip,
         };
-        let r = camera.track(m, camera_ray, t_max, self.camera_estimator(), collision, u, sampler);
+        // Split paths from a forced collision start at vertices of their own
+        // (`medium::forced`); otherwise they share the walk's collision
+        let paths = if scatters { self.split.max(1) } else { 1 };
+        let mut firsts = Vec::new();
+        let r = if paths > 1 {
+            camera.track_split(m, camera_ray, t_max, (self.camera_estimator(), collision), u, sampler, (paths, &mut firsts))
+        } else {
+            camera.track(m, camera_ray, t_max, self.camera_estimator(), collision, u, sampler)
+        };
         c.segments += u64::from(r.segments);
         c.voxel_steps += r.voxel_steps;
         contribute(&mut l, aovs, Component::Emission, 1.0, r.emission);
@@ -363,8 +371,9 @@ impl Integrator {
         }
         if let (true, DistanceSample::Collided { t, albedo, .. }) = (scatters, r.event) {
             // Splitting: `split` paths share the camera walk, each of weight 1/split and
-            // with numbers of its own (`Sampler::split`)
-            let n = self.split.max(1);
+            // with numbers of its own (`Sampler::split`); from a forced collision each
+            // starts at its own vertex, of the same weight
+            let n = paths;
             let scale = 1.0 / f64::from(n);
             // A forced collision carries its weight W/q (`medium::forced`); roulette still
             // compares β with `scale`, so a light one is played for at its first vertex
@@ -373,6 +382,13 @@ impl Integrator {
                 if n > 1 {
                     trace.event(|| format!("split path {} of {n}", k + 1));
                 }
+                let vertex = match firsts.get(k as usize).map(|first| first.event) {
+                    Some(DistanceSample::Collided { t, albedo, .. }) => {
+                        trace.event(|| format!("  first vertex at t {t}"));
+                        Vertex { t, albedo, ..vertex }
+                    }
+                    _ => vertex,
+                };
                 // One path (n = 1) draws the sample's own numbers: `split` is then a copy
                 let mut path_sampler = sampler.split(k, n);
                 self.scattered_path(scene, &tracker, vertex, &mut path_sampler, (&mut *c, &mut *trace), (&mut l, &mut *aovs));

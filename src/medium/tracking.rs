@@ -20,7 +20,7 @@ use std::ops::ControlFlow;
 
 use crate::color::Rgb;
 use crate::medium::emission::EmissionMemo;
-use crate::medium::forced::{Collision, ForcedCollision};
+use crate::medium::forced::{Collision, Forced, ForcedCollision};
 use crate::medium::Medium;
 use crate::sampling::Sampler;
 use crate::volume::field::{Field, Piece, PointValues, Ray, SegmentIter};
@@ -133,9 +133,31 @@ pub fn track<F: Field>(
     match estimator {
         // A forced walk is its own instance, so that walks without one run the code they ran
         // before forcing existed, with no branch or buffer of it
-        Estimator::RayMarch if collision == Collision::Forced => track_expected::<F, true>(field, medium, ray, t_max, collision, u, sampler),
-        Estimator::RayMarch => track_expected::<F, false>(field, medium, ray, t_max, collision, u, sampler),
+        Estimator::RayMarch if collision == Collision::Forced => track_expected::<F, true>(field, medium, ray, t_max, collision, u, sampler, None),
+        Estimator::RayMarch => track_expected::<F, false>(field, medium, ray, t_max, collision, u, sampler, None),
         _ => track_free_path(field, medium, ray, t_max, estimator, u),
+    }
+}
+
+/// [`track`], and where it forces the collision (ray-march, [`Collision::Forced`]) the
+/// first vertices of `paths` split paths appended to `firsts`, one stratum of the
+/// collision law each (`medium::forced`, "Split paths start apart"); `firsts` stays as
+/// it is where the walk does not force or does not collide. The result is [`track`]'s.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn track_split<F: Field>(
+    field: &F,
+    medium: &Medium,
+    ray: &Ray,
+    t_max: f64,
+    (estimator, collision): (Estimator, Collision),
+    u: f64,
+    sampler: &mut Sampler,
+    (paths, firsts): (u32, &mut Vec<Forced>),
+) -> TrackResult {
+    if estimator == Estimator::RayMarch && collision == Collision::Forced {
+        track_expected::<F, true>(field, medium, ray, t_max, collision, u, sampler, Some((paths, firsts)))
+    } else {
+        track(field, medium, ray, t_max, estimator, collision, u, sampler)
     }
 }
 
@@ -281,6 +303,7 @@ fn free_path_polynomial<P: Piece>(
     None
 }
 
+#[allow(clippy::too_many_arguments)]
 fn track_expected<F: Field, const FORCED: bool>(
     field: &F,
     medium: &Medium,
@@ -289,6 +312,7 @@ fn track_expected<F: Field, const FORCED: bool>(
     collision: Collision,
     u: f64,
     sampler: &mut Sampler,
+    split: Option<(u32, &mut Vec<Forced>)>,
 ) -> TrackResult {
     let memo = EmissionMemo::new(&medium.emission);
     // The analog free path is drawn on the way; a forced one once the walk is done
@@ -373,10 +397,15 @@ fn track_expected<F: Field, const FORCED: bool>(
     let transmittance = if marching { (-od).exp() * weight } else { 0.0 };
     let mut optical_depth = if matches!(event, DistanceSample::Collided { .. }) { e } else { od };
     let mut collision_weight = 1.0;
-    if let Some(drawn) = forced.and_then(|forced| forced.draw(medium, u)) {
-        event = drawn.event;
-        optical_depth = drawn.optical_depth;
-        collision_weight = drawn.weight;
+    if let Some(forced) = forced {
+        if let Some((paths, firsts)) = split {
+            forced.draw_split(medium, u, paths, firsts);
+        }
+        if let Some(drawn) = forced.draw(medium, u) {
+            event = drawn.event;
+            optical_depth = drawn.optical_depth;
+            collision_weight = drawn.weight;
+        }
     }
     TrackResult { event, emission: f, transmittance, optical_depth, segments, voxel_steps: it.voxel_steps(), collision_weight }
 }

@@ -19,8 +19,8 @@
 
 use crate::integrator::LightSampling;
 use crate::medium::emission::EmissionMemo;
-use crate::medium::null_tracking::{null_track, ratio_transmittance, PointField, PointSample};
 use crate::medium::forced::Forced;
+use crate::medium::null_tracking::{null_track, ratio_transmittance, PointField, PointSample};
 use crate::medium::tracking::{optical_depth, track_split, OpticalDepth};
 use crate::medium::{track, Collision, Estimator, Medium, TrackResult};
 use crate::sampling::Sampler;

@@ -31,6 +31,9 @@
 //! smoke few camera rays collide, so at a few samples per pixel this, not the split, is
 //! what lowers the scattered light's noise (0.54–1.00× → 0.28–0.42× Cycles' error at the
 //! Cycles comparison's smallest budget; docs/BENCHMARKS.md, "Forced camera collisions").
+//! The split paths of a forced collision start apart, path `k` in stratum `k` of the
+//! collision law (`medium::forced`, "Split paths start apart"); an analog or null-tracked
+//! camera collision is shared by its paths.
 //!
 //! **Tracking** (`integrator::tracker`, `--tracking`): the camera segment and the
 //! segments after a scattering event each get their tracker once per sample, regular or

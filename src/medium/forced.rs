@@ -175,8 +175,14 @@ mod tests {
     use crate::volume::Volume;
 
     fn medium(sigma_t: f64) -> Medium {
-        let emission =
-            Emission { kind: EmissionKind::Blackbody, convention: Convention::Physical, scale: 1e-3, color: Rgb::ONE, temperature_map: TemperatureMap::Kelvin, cutoff_kelvin: 500.0 };
+        let emission = Emission {
+            kind: EmissionKind::Blackbody,
+            convention: Convention::Physical,
+            scale: 1e-3,
+            color: Rgb::ONE,
+            temperature_map: TemperatureMap::Kelvin,
+            cutoff_kelvin: 500.0,
+        };
         Medium { sigma_t, albedo: 0.8, g: 0.0, emission }
     }
 

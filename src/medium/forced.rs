@@ -165,25 +165,17 @@ mod tests {
     use glam::DVec3;
 
     use super::*;
-    use crate::color::Rgb;
     use crate::medium::tracking::{track, track_split};
-    use crate::medium::{Convention, Emission, EmissionKind, Estimator, TemperatureMap};
+    use crate::medium::{Emission, Estimator};
     use crate::sampling::Sampler;
     use crate::synth::{explosion, ExplosionParams};
     use crate::volume::field::{Constant, Field, Ray};
     use crate::volume::trilinear::Trilinear;
     use crate::volume::Volume;
 
+    /// The collision law needs only the density: no emission.
     fn medium(sigma_t: f64) -> Medium {
-        let emission = Emission {
-            kind: EmissionKind::Blackbody,
-            convention: Convention::Physical,
-            scale: 1e-3,
-            color: Rgb::ONE,
-            temperature_map: TemperatureMap::Kelvin,
-            cutoff_kelvin: 500.0,
-        };
-        Medium { sigma_t, albedo: 0.8, g: 0.0, emission }
+        Medium { sigma_t, albedo: 0.8, g: 0.0, emission: Emission::none() }
     }
 
     /// `n` first vertices of a forced walk with number `u`, and the walk's own result.
@@ -201,7 +193,7 @@ mod tests {
         // render with one path per collision is the render before split paths started apart
         let ex = explosion(&ExplosionParams { resolution: 16, seed: 3, ..Default::default() });
         let m = medium(20.0);
-        let vol = Volume::build(&ex.density, Some(&ex.temperature), |v| m.emission.map_source(v)).unwrap();
+        let vol = Volume::build(&ex.density, None, |v| v).unwrap();
         let field = Trilinear::new(vol);
         let ray = Ray { origin: DVec3::new(-3.0, 0.1, 0.05), direction: DVec3::new(1.0, 0.02, -0.03).normalize() };
         let mut collided = 0;

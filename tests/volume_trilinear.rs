@@ -95,6 +95,26 @@ fn check_pieces(tri: &Trilinear, ray: &Ray, t_min: f64, t_max: f64) -> Result<()
     Ok(())
 }
 
+/// Every dense piece carries its cell's 8 corner albedo factors (the voxel's where its
+/// density is positive, else 1), whether its dual brick reads the albedo channel or knows
+/// all of it is 1 (`DualBricks::albedo_one`: the sparse volume's albedo grid covers some
+/// bricks only).
+fn check_albedo(tri: &Trilinear, ray: &Ray, t_min: f64, t_max: f64) -> Result<(), TestCaseError> {
+    let vol = tri.volume();
+    let xf = vol.index_from_world();
+    for p in tri.segments(ray, t_min, t_max).filter(|p| !p.constant) {
+        // The cell: the corner voxel the piece's local origin is measured from
+        let mid = xf.transform_point3(ray.at(0.5 * (p.t0 + p.t1)));
+        let cell = mid.floor().as_ivec3();
+        for (c, (&albedo, corner)) in p.albedo.iter().zip(&p.corners).enumerate() {
+            let v = cell + IVec3::new((c & 1) as i32, ((c >> 1) & 1) as i32, ((c >> 2) & 1) as i32);
+            let want = if corner.density > 0.0 { vol.voxel_albedo(v) } else { 1.0 };
+            prop_assert_eq!(albedo.to_bits(), want.to_bits(), "corner {} (voxel {}) of {:?}", c, v, p);
+        }
+    }
+    Ok(())
+}
+
 /// `n` deterministic uniforms in `[0, 1)` (splitmix64).
 fn uniforms(seed: u64, n: usize) -> Vec<f64> {
     let mut s = seed;
@@ -181,6 +201,21 @@ proptest! {
         let ray = make_ray(xf, DVec3::new(ox, oy, oz), [sx, sy, sz], DVec3::new(dx, dy, dz));
         prop_assume!(ray.is_some());
         check_cubics(&tri, &ray.unwrap(), t_min, t_min + len, u_seed)?;
+    }
+
+    #[test]
+    fn dual_pieces_carry_their_corners_albedo(
+        seed in 0u32..40,
+        ox in -30.0f64..30.0, oy in -20.0f64..25.0, oz in -10.0f64..25.0,
+        dx in axis_component(), dy in axis_component(), dz in axis_component(),
+        len in 0.1f64..200.0,
+        is_scaled in any::<bool>(),
+    ) {
+        let xf = if is_scaled { scaled() } else { DAffine3::IDENTITY };
+        let tri = sparse_volume(seed, xf);
+        let ray = make_ray(xf, DVec3::new(ox, oy, oz), [0, 0, 0], DVec3::new(dx, dy, dz));
+        prop_assume!(ray.is_some());
+        check_albedo(&tri, &ray.unwrap(), 0.0, len)?;
     }
 
     /// Shadow rays walk the dual cells reading density alone

@@ -42,7 +42,7 @@
 //! which a shared vertex left to the pixel's samples alone. The README demo (32 spp, 6
 //! paths a collision): relRMSE 0.0279 / 0.0286 → 0.0260 / 0.0265 (seeds 0 / 2) for the
 //! `n` inversions per camera collision (docs/BENCHMARKS.md, "Split paths start apart").
-//! Path 0 of one path is the walk's own collision, bit for bit.
+//! With one path (`n = 1`) its vertex is the walk's own collision, bit for bit.
 
 use crate::medium::tracking::DistanceSample;
 use crate::medium::Medium;

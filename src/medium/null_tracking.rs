@@ -188,7 +188,8 @@ pub fn null_track(
             if event == DistanceSample::Escaped && (need_collision || !expected) && sampler.next_f64() < ratio {
                 // The exact values (a picked density served the acceptance only): the
                 // collision's law is the exact field's, and so must its record and score
-                // be. Only the point estimator scores here; the others carry the albedo on
+                // be. Only the point estimator scores here; the others need only the
+                // albedo factor, to carry the path on
                 let x = ray.at(next);
                 event = if estimator == Estimator::Point {
                     let p = field.sample(x, true);

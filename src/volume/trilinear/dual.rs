@@ -132,7 +132,7 @@ pub struct DualBricks<'a> {
     albedo: [f32; 8],
     /// Every voxel of the 8 bricks has albedo factor 1 (no albedo grid there): `albedo`
     /// then holds 1s and corner reads skip the channel (emission–absorption on kelvin40,
-    /// linear: −3.5 % of the render's instructions, the same image).
+    /// linear: −3.3 % of the render's instructions, the same image).
     albedo_one: bool,
 }
 

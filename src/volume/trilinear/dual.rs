@@ -144,9 +144,12 @@ pub(super) const NO_CELL: IVec3 = IVec3::splat(-1000);
 /// bit 2: +z) and offset `o` ([`brick_offset`]) in it. One load instead of the Morton
 /// interleaving per corner read (kelvin40 ray-marched, linear: −8 % of the render's
 /// instructions, bit-identical). [`Volume::voxel_block`] places a point lookup's corners
-/// with it too: a cell at local `l` of any brick reaches the 9³ voxels from `l`.
-pub(super) const DUAL_SLOTS: [u16; 729] = {
-    let mut table = [0u16; 729];
+/// with it too: a cell at local `l` of any brick reaches the 9³ voxels from `l`. Padded
+/// to 1024 entries, so a read masks its index instead of taking it modulo 729 (the
+/// compiler cannot see that the index is below 729; the mask keeps the read in bounds
+/// without a check).
+pub(super) const DUAL_SLOTS: [u16; 1024] = {
+    let mut table = [0u16; 1024];
     let mut i = 0;
     while i < 729 {
         let (x, y, z) = ((i % 9) as i32, ((i / 9) % 9) as i32, (i / 81) as i32);
@@ -184,7 +187,7 @@ pub(crate) const CORNER_STEP: [usize; 8] = {
 /// Voxel brick and offset at [`DUAL_SLOTS`] index `i`.
 #[inline]
 pub(crate) fn window_slot(i: usize) -> (usize, usize) {
-    let slot = DUAL_SLOTS[i % 729];
+    let slot = DUAL_SLOTS[i & 1023];
     (usize::from(slot >> 9) & 7, usize::from(slot) & (LEAF_VOXELS - 1))
 }
 

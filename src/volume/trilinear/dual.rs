@@ -272,21 +272,21 @@ impl CornerRecord for DualBricks<'_> {
     /// in voxel brick `(l + c) / 8` at local `(l + c) mod 8`.
     #[inline]
     fn load(&mut self, l: IVec3, c: usize) {
-        let density = self.load_values(l, c);
-        let (k, o) = dual_slot(l + corner_offset(c));
+        let (k, o, density) = self.load_values(l, c);
         self.albedo[c] = if density > 0.0 { self.bricks[k].albedo.at(o) } else { 1.0 };
     }
 }
 
 impl DualBricks<'_> {
-    /// Reads corner `c`'s density and source (not its albedo); returns the density.
+    /// Reads corner `c`'s density and source (not its albedo); returns its voxel brick,
+    /// offset and density.
     #[inline]
-    fn load_values(&mut self, l: IVec3, c: usize) -> f32 {
+    fn load_values(&mut self, l: IVec3, c: usize) -> (usize, usize, f32) {
         let (k, o) = dual_slot(l + corner_offset(c));
         let brick = &self.bricks[k];
         let density = brick.density.at(o);
         self.corners[c] = VoxelValues { density, source: brick.source.at(o) };
-        density
+        (k, o, density)
     }
 }
 

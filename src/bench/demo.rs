@@ -299,13 +299,14 @@ pub fn image_error(x: &[[f32; 4]], refs: &[&[[f32; 4]]], width: usize, height: u
     assert!(refs.iter().all(|r| r.len() == x.len()) && x.len() == width * height, "invariant: images of one size");
     let n = refs.len() as f64;
     let covered: Vec<bool> = (0..x.len()).map(|i| refs.iter().map(|r| r[i][3]).sum::<f32>() / refs.len() as f32 > COVERED_ALPHA).collect();
+    let lum: Vec<f64> = x.iter().map(luminance).collect();
     let (mut sum_ref, mut sum_x, mut sq, mut var, mut count) = (0.0, 0.0, 0.0, 0.0, 0usize);
     for i in (0..x.len()).filter(|&i| covered[i]) {
         let l: Vec<f64> = refs.iter().map(|r| luminance(&r[i])).collect();
         let mean = l.iter().sum::<f64>() / n;
         // Variance of the references' mean: the sample variance over n renders, ÷ n
         var += l.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0) / n;
-        let lx = luminance(&x[i]);
+        let lx = lum[i];
         sq += (lx - mean).powi(2);
         sum_ref += mean;
         sum_x += lx;
@@ -316,7 +317,6 @@ pub fn image_error(x: &[[f32; 4]], refs: &[&[[f32; 4]]], width: usize, height: u
     }
     let c = count as f64;
     let mean = sum_ref / c;
-    let lum: Vec<f64> = x.iter().map(luminance).collect();
     ImageError {
         rel_rmse: (sq / c - var / c).max(0.0).sqrt() / mean,
         mean_ratio: sum_x / sum_ref,

@@ -366,6 +366,30 @@ impl Volume {
         self.bricks.get(i as usize)
     }
 
+    /// The bricks at `b + c`, `c ∈ {0,1}³` (bit 0: +x, bit 1: +y, bit 2: +z), each what
+    /// [`Volume::brick`] gives: the voxel bricks a dual brick's cells read. The table cell
+    /// of `b` and the range checks are worked out once per axis, not once per brick (the
+    /// trilinear walk enters half a million dual bricks on kelvin40 at 160×120, 8 spp).
+    #[inline]
+    pub(crate) fn brick_block(&self, b: IVec3) -> [Option<&Brick>; 8] {
+        let r = b - self.brick_lo;
+        let dims = self.dims;
+        // Whether offset 0 and offset 1 stay inside the table, per axis
+        let inside = |v: i32, n: i32| [v >= 0 && v < n, v + 1 >= 0 && v + 1 < n];
+        let (ix, iy, iz) = (inside(r.x, dims.x), inside(r.y, dims.y), inside(r.z, dims.z));
+        let (sy, sz) = (dims.x as isize, dims.x as isize * dims.y as isize);
+        let base = r.x as isize + sy * r.y as isize + sz * r.z as isize;
+        std::array::from_fn(|c| {
+            let (ox, oy, oz) = (c & 1, (c >> 1) & 1, c >> 2);
+            if !(ix[ox] && iy[oy] && iz[oz]) {
+                return None;
+            }
+            // In range: every coordinate of `r + offset` is inside the table
+            let cell = (base + ox as isize + sy * oy as isize + sz * oz as isize) as usize;
+            self.bricks.get(*self.table.get(cell)? as usize)
+        })
+    }
+
     /// Value of a slot at local voxel `(x,y,z)`.
     #[inline]
     pub(crate) fn slot_value(&self, slot: PackedSlot, x: i32, y: i32, z: i32) -> f32 {

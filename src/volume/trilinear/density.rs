@@ -16,7 +16,7 @@
 
 use glam::{DVec3, IVec3};
 
-use super::dual::{cell_local, corner_offset, dual_slot, step_corners, Channel, CornerRecord, DualCell, DualCells, NO_CELL};
+use super::dual::{cell_local, step_corners, window_slot, Channel, CornerRecord, DualCell, DualCells, CORNER_STEP, NO_CELL};
 use super::poly;
 use crate::color::Rgb;
 use crate::volume::brick::Volume;
@@ -142,10 +142,10 @@ impl CornerRecord for DensityBricks<'_> {
         self.density[to] = self.density[from];
     }
 
-    /// Reads the density of corner `c` of local cell `l`.
+    /// Reads the density of corner `c` of the local cell at window index `cell`.
     #[inline]
-    fn load(&mut self, l: IVec3, c: usize) {
-        let (k, o) = dual_slot(l + corner_offset(c));
+    fn load(&mut self, cell: usize, c: usize) {
+        let (k, o) = window_slot(cell + CORNER_STEP[c]);
         self.density[c] = self.bricks[k].at(o);
     }
 }
@@ -188,8 +188,8 @@ impl<'a> Cells for DensityCells<'a> {
     fn dense(&self, b: IVec3, dense: &mut DensityBricks<'a>) -> bool {
         let volume = self.cells.voxels();
         let mut any = false;
-        for (c, channel) in dense.bricks.iter_mut().enumerate() {
-            *channel = match volume.brick(b + corner_offset(c)) {
+        for (channel, brick) in dense.bricks.iter_mut().zip(volume.brick_block(b)) {
+            *channel = match brick {
                 Some(brick) => {
                     any = true;
                     Channel::new(volume, brick.density)

@@ -66,12 +66,6 @@ impl<'a> Channel<'a> {
         Channel { block: None, constant: v }
     }
 
-    /// Whether every value is `v` (a constant slot of `v`, bit for bit).
-    #[inline]
-    pub(super) fn is_constant(&self, v: f32) -> bool {
-        self.block.is_none() && self.constant.to_bits() == v.to_bits()
-    }
-
     /// The value at brick-order offset `o` (`< 512`).
     #[inline]
     pub(super) fn at(&self, o: usize) -> f32 {
@@ -160,8 +154,9 @@ pub(super) const DUAL_SLOTS: [u16; 1024] = {
     table
 };
 
-/// Voxel brick and offset of local voxel `v` of a dual brick ([`DUAL_SLOTS`]).
-#[inline]
+/// Voxel brick and offset of local voxel `v` of a dual brick ([`DUAL_SLOTS`]). The walk
+/// reads corners by window index ([`CORNER_STEP`]); the tests check the table with this.
+#[cfg(test)]
 pub(super) fn dual_slot(v: IVec3) -> (usize, usize) {
     window_slot(window_index(v))
 }
@@ -201,8 +196,8 @@ pub(super) trait CornerRecord {
     fn set_last(&mut self, l: IVec3);
     /// Corner `to` takes what corner `from` holds.
     fn shift(&mut self, to: usize, from: usize);
-    /// Reads corner `c` of local cell `l`.
-    fn load(&mut self, l: IVec3, c: usize);
+    /// Reads corner `c` of the local cell whose [`window_index`] is `cell`.
+    fn load(&mut self, cell: usize, c: usize);
 }
 
 /// Fills `record` with the corners of local cell `l`: only the 4 new ones when the walk
@@ -218,6 +213,9 @@ pub(super) fn step_corners(record: &mut impl CornerRecord, l: IVec3) {
         (0, 0, s) if s.abs() == 1 => Some((2, s > 0)),
         _ => None,
     };
+    // Corner `c` is at window index `cell + CORNER_STEP[c]`: one index per cell, not one
+    // vector sum per corner
+    let cell = window_index(l);
     match face {
         Some((a, forward)) => {
             let bit = 1 << a;
@@ -225,12 +223,12 @@ pub(super) fn step_corners(record: &mut impl CornerRecord, l: IVec3) {
                 record.shift(c, c ^ bit);
             }
             for &c in &FACE[a][usize::from(forward)] {
-                record.load(l, c);
+                record.load(cell, c);
             }
         }
         None => {
             for c in 0..8 {
-                record.load(l, c);
+                record.load(cell, c);
             }
         }
     }
@@ -271,8 +269,8 @@ impl CornerRecord for DualBricks<'_> {
     /// Reads corner `c` of local cell `l`: voxel `l + c` of the 9³ the dual brick reads,
     /// in voxel brick `(l + c) / 8` at local `(l + c) mod 8`.
     #[inline]
-    fn load(&mut self, l: IVec3, c: usize) {
-        let (k, o, density) = self.load_values(l, c);
+    fn load(&mut self, cell: usize, c: usize) {
+        let (k, o, density) = self.load_values(cell, c);
         self.albedo[c] = if density > 0.0 { self.bricks[k].albedo.at(o) } else { 1.0 };
     }
 }
@@ -281,8 +279,8 @@ impl DualBricks<'_> {
     /// Reads corner `c`'s density and source (not its albedo); returns its voxel brick,
     /// offset and density.
     #[inline]
-    fn load_values(&mut self, l: IVec3, c: usize) -> (usize, usize, f32) {
-        let (k, o) = dual_slot(l + corner_offset(c));
+    fn load_values(&mut self, cell: usize, c: usize) -> (usize, usize, f32) {
+        let (k, o) = window_slot(cell + CORNER_STEP[c]);
         let brick = &self.bricks[k];
         let density = brick.density.at(o);
         self.corners[c] = VoxelValues { density, source: brick.source.at(o) };
@@ -311,8 +309,8 @@ impl CornerRecord for ValuesOnly<'_, '_> {
     }
 
     #[inline]
-    fn load(&mut self, l: IVec3, c: usize) {
-        self.0.load_values(l, c);
+    fn load(&mut self, cell: usize, c: usize) {
+        self.0.load_values(cell, c);
     }
 }
 
@@ -358,14 +356,19 @@ impl<'a> Cells for DualCells<'a> {
         // A plain loop: as `array::from_fn` the per-corner closure was at times left out of
         // line, an extra call and a copy of each record per dual brick entered (4 % of a
         // linear ray-marched render's profile, depending on how unrelated code was inlined)
-        for (c, record) in dense.bricks.iter_mut().enumerate() {
-            *record = match volume.brick(b + corner_offset(c)) {
+        let bricks = volume.brick_block(b);
+        // Albedo 1 everywhere (a missing brick reads as 1, and so does a constant slot of
+        // 1.0 whatever its tag, as `Channel::new` decodes it): then the albedo channels are
+        // never read, and not decoded either.
+        let albedo_one = bricks.iter().all(|b| b.is_none_or(|b| matches!(b.albedo.get(), Slot::Constant(v) if v.to_bits() == 1.0f32.to_bits())));
+        for (record, brick) in dense.bricks.iter_mut().zip(bricks) {
+            *record = match brick {
                 Some(brick) => {
                     any = true;
                     BrickChannels {
                         density: Channel::new(volume, brick.density),
                         source: Channel::new(volume, brick.source),
-                        albedo: Channel::new(volume, brick.albedo),
+                        albedo: if albedo_one { Channel::constant(1.0) } else { Channel::new(volume, brick.albedo) },
                     }
                 }
                 None => EMPTY_BRICK,
@@ -373,8 +376,8 @@ impl<'a> Cells for DualCells<'a> {
         }
         // No cell of this brick read yet: the first reads all 8 corners
         dense.last = NO_CELL;
-        dense.albedo_one = dense.bricks.iter().all(|b| b.albedo.is_constant(1.0));
-        if dense.albedo_one {
+        dense.albedo_one = albedo_one;
+        if albedo_one {
             dense.albedo = [1.0; 8];
         }
         any

@@ -332,8 +332,37 @@ fn track_expected<F: Field, const FORCED: bool>(
         segments += 1;
         let len = piece.length();
         let constant = piece.constant();
+        // Roulette first: it reads only the optical depth before the piece, and it decides
+        // whether the piece is marched
+        let mut tau = 0.0;
+        if marching {
+            tau = (-od).exp() * weight;
+            if tau < RAY_MARCH_ROULETTE_THRESHOLD {
+                // Russian roulette on small transmittance keeps the walk finite
+                let q = tau / RAY_MARCH_ROULETTE_THRESHOLD;
+                if sampler.next_f64() >= q {
+                    marching = false;
+                    weight = 0.0;
+                } else {
+                    weight /= q;
+                    tau = RAY_MARCH_ROULETTE_THRESHOLD;
+                }
+            }
+        }
+        // A marched emitting polynomial piece needs its optical depth at the one-point
+        // rule's point too: both from one density cubic. Its point is drawn where it always
+        // was (after the roulette, at the first such piece), so the random sampler's stream
+        // keeps its order.
+        let mut x_at_point = None;
         let x = match constant {
             Some(seg) => medium.mu_t(seg.density) * len,
+            None if marching && piece.may_emit() => {
+                let xi = *xi.get_or_insert_with(|| sampler.get_1d(crate::sampling::Dim::OnePoint));
+                let u = xi * len;
+                let [x, x_u] = piece.optical_depths(medium.sigma_t, [len, u]);
+                x_at_point = Some((u, x_u));
+                x
+            }
             None => piece.optical_depth(medium.sigma_t, len),
         };
         if need_collision && event == DistanceSample::Escaped && od + x > e {
@@ -350,18 +379,6 @@ fn track_expected<F: Field, const FORCED: bool>(
             };
         }
         if marching {
-            let mut tau = (-od).exp() * weight;
-            if tau < RAY_MARCH_ROULETTE_THRESHOLD {
-                // Russian roulette on small transmittance keeps the walk finite
-                let q = tau / RAY_MARCH_ROULETTE_THRESHOLD;
-                if sampler.next_f64() >= q {
-                    marching = false;
-                    weight = 0.0;
-                } else {
-                    weight /= q;
-                    tau = RAY_MARCH_ROULETTE_THRESHOLD;
-                }
-            }
             if let (true, Some(forced)) = (marching, forced.as_mut()) {
                 forced.push(piece, x, od, tau);
             }
@@ -379,10 +396,9 @@ fn track_expected<F: Field, const FORCED: bool>(
                         // One-point rule (METHOD.md §12): Δ τ(u_ξ) L_e(u_ξ) with u_ξ uniform
                         // in the piece is unbiased for ∫ τ L_e over it. One ξ serves every
                         // piece of the ray (systematic sampling: each piece's point is still
-                        // uniform in it).
-                        let xi = *xi.get_or_insert_with(|| sampler.get_1d(crate::sampling::Dim::OnePoint));
-                        let u = xi * len;
-                        let tau_u = tau * (-piece.optical_depth(medium.sigma_t, u)).exp();
+                        // uniform in it). The point and its optical depth were found above.
+                        let (u, x_u) = x_at_point.expect("invariant: a marched emitting polynomial piece has its point");
+                        let tau_u = tau * (-x_u).exp();
                         add_scaled(&mut f, emission_at(piece, &memo, u), tau_u * len);
                     }
                 }

@@ -69,6 +69,13 @@ pub trait Piece: Copy + std::fmt::Debug {
     fn constant(&self) -> Option<Segment>;
     /// Optical depth `∫₀ᵘ σ_t ρ ds` from the piece's start.
     fn optical_depth(&self, sigma_t: f64, u: f64) -> f64;
+    /// [`Piece::optical_depth`] at several `u` of the same piece: what the expected-value
+    /// estimator needs at the piece's end and at its one-point rule's point (a polynomial
+    /// piece forms its density cubic once for both).
+    #[inline]
+    fn optical_depths<const N: usize>(&self, sigma_t: f64, u: [f64; N]) -> [f64; N] {
+        u.map(|u| self.optical_depth(sigma_t, u))
+    }
     /// The `u ∈ [0, length]` with `optical_depth(sigma_t, u) = od`, for
     /// `0 ≤ od < optical_depth(sigma_t, length)`: where a free path ends in this piece.
     fn free_path(&self, sigma_t: f64, od: f64) -> f64;

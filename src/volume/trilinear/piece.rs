@@ -131,6 +131,18 @@ impl Piece for CubicSegment {
         }
     }
 
+    /// `σ_t ∫₀ᵘ ρ` from the density cubic ([`poly::integral`]), formed once for all `u`:
+    /// for two points about 40 % fewer operations than two sets of integrated weights. A
+    /// constant piece gives exactly what its [`Segment`] gives.
+    #[inline]
+    fn optical_depths<const N: usize>(&self, sigma_t: f64, u: [f64; N]) -> [f64; N] {
+        if let Some(seg) = self.constant() {
+            return u.map(|u| seg.optical_depth(sigma_t, u));
+        }
+        let a = self.density_cubic();
+        u.map(|u| sigma_t * poly::integral(&a, u))
+    }
+
     /// Both integrals from one set of integrated weights.
     #[inline]
     fn integrals(&self, sigma_t: f64, le: &impl Fn(f32, f32) -> Rgb, u: f64) -> PieceIntegrals {
@@ -368,6 +380,43 @@ mod tests {
         }
     }
 
+    /// [`Piece::optical_depths`] (one density cubic for several `u`) against
+    /// [`Piece::optical_depth`] (integrated weights per `u`) on 2000 random cells: to 1e-12
+    /// relative with corners in `[0, 2]`, and with corners spread over twelve decades
+    /// (1e-6 … 1e6, where the cubic's differences of corners cancel) to 1e-13 of the
+    /// largest corner's optical depth over the piece, far below what a transmittance shows.
+    #[test]
+    fn optical_depths_agree_with_optical_depth() {
+        let mut s = Sampler::new(0x0d5, 0, 0);
+        let (mut worst, mut worst_spread) = (0.0f64, 0.0f64);
+        for k in 0..2000 {
+            let ray = random_ray(&mut s);
+            let piece = if k % 2 == 0 {
+                random_cell(&mut s, &ray)
+            } else {
+                let rho = random_corners(&mut s, -6.0, 6.0).map(|e| 10f64.powf(e) as f32);
+                let corners = std::array::from_fn(|c| VoxelValues { density: rho[c], source: 0.0 });
+                CubicSegment::cell(10.0, 10.0 + ray.len, ray.f0, ray.d, corners, [1.0; 8])
+            };
+            let sigma = 2.5;
+            let u = [piece.length(), piece.length() * s.next_f64(), 0.0];
+            let pair = piece.optical_depths(sigma, u);
+            let scale = sigma * piece.corners.iter().map(|c| f64::from(c.density)).fold(0.0, f64::max) * piece.length();
+            for (&ui, &od) in u.iter().zip(&pair) {
+                let exact = piece.optical_depth(sigma, ui);
+                if k % 2 == 0 {
+                    worst = worst.max((od - exact).abs() / exact.abs().max(1e-300));
+                } else {
+                    worst_spread = worst_spread.max((od - exact).abs() / scale);
+                }
+            }
+            assert_eq!(pair[2], 0.0);
+        }
+        println!("optical_depths against optical_depth: {worst:.2e} relative, {worst_spread:.2e} of the largest corner's (twelve decades)");
+        assert!(worst <= 1e-12, "{worst}");
+        assert!(worst_spread <= 1e-13, "{worst_spread}");
+    }
+
     /// Constant pieces (built either way) answer exactly as their [`Segment`]; one differing
     /// corner (here its albedo) makes a cell polynomial; no source means no emission.
     #[test]
@@ -380,6 +429,7 @@ mod tests {
             assert_eq!(piece.constant(), Some(seg));
             for u in [0.0, 0.1, 0.5] {
                 assert_eq!(piece.optical_depth(3.0, u), seg.optical_depth(3.0, u));
+                assert_eq!(piece.optical_depths(3.0, [u, 0.5]), [seg.optical_depth(3.0, u), seg.optical_depth(3.0, 0.5)]);
                 assert_eq!(piece.free_path(3.0, u), seg.free_path(3.0, u));
                 assert_eq!((piece.density_at(u), piece.source_at(u), piece.albedo_at(u)), (0.7, 1500.0, 0.8));
                 assert_eq!(piece.emission_at(&le, u), seg.emission_at(&le, u));

@@ -6,6 +6,7 @@
 //! (estimated: the escape indicator, or the exact ray-marched transmittance).
 
 pub mod aov;
+pub mod lights;
 pub mod split_map;
 pub mod tracker;
 pub mod volpath;
@@ -17,9 +18,10 @@ use crate::volume::trilinear::Trilinear;
 use crate::volume::{Interpolation, Volume};
 
 pub use aov::{AovLayout, AovSample, Aovs, Component, NoAovs};
+pub use lights::{light_power, LightSampling, Lights, MisHeuristic};
 pub use split_map::{SplitBy, SplitMap};
 pub use tracker::{PointLookup, Tracking};
-pub use volpath::{light_power, Integrator, LightSampling, Lights, MisHeuristic};
+pub use volpath::Integrator;
 
 /// Everything a render reads: immutable and `Sync`, built once.
 #[derive(Debug)]

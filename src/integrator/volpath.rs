@@ -67,128 +67,17 @@
 //!   full weight would count in-scattered emission twice.
 
 use super::aov::{Aovs, Component, NoAovs};
+use super::lights::{LightSampling, MisHeuristic};
 use super::split_map::SplitBy;
 use super::tracker::{PointLookup, Tracker, Tracking};
 use crate::light::external::{ChosenLight, ExternalLights};
-use crate::light::nee::EmitterDistribution;
 use crate::medium::tracking::emission_at_point;
 use crate::medium::{Collision, DistanceSample, Estimator, Medium};
 use crate::sampling::phase::{hg_pdf, sample_hg};
 use crate::sampling::{Dim, Sampler};
-use crate::scene::NeeTable;
 use crate::volume::field::{Field, PointValues, Ray};
-use crate::volume::proxy::ProxyGrid;
 
 use super::{Counters, Scene, Trace};
-
-/// Which next event technique runs at scattering vertices.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum LightSampling {
-    /// Forward paths only.
-    None,
-    /// Classic NEE to emissive voxels in volume measure.
-    Nee,
-    /// Forward NEE: proxy direction + free path.
-    Fnee,
-}
-
-/// MIS heuristic.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum MisHeuristic {
-    /// `k = 1`.
-    Balance,
-    /// `k = 2`.
-    Power,
-}
-
-impl MisHeuristic {
-    /// Weight of technique `a` against `b`: `aᵏ/(aᵏ + bᵏ)`, 1 when `b = 0`, 0 when `a = 0`.
-    #[inline]
-    #[must_use]
-    pub fn weight(self, a: f64, b: f64) -> f64 {
-        // NaN or non-positive pdfs count as "cannot sample this".
-        if b.is_nan() || b <= 0.0 || a == f64::INFINITY {
-            return 1.0;
-        }
-        if a.is_nan() || a <= 0.0 || b == f64::INFINITY {
-            return 0.0;
-        }
-        let r = b / a;
-        match self {
-            MisHeuristic::Balance => 1.0 / (1.0 + r),
-            MisHeuristic::Power => 1.0 / (1.0 + r * r),
-        }
-    }
-}
-
-/// The lights of a scene and their sampling structures (built once, immutable).
-#[derive(Debug, Default)]
-pub struct Lights {
-    /// Full-resolution emitter distribution for classic NEE.
-    pub nee: Option<EmitterDistribution>,
-    /// FNEE proxy grid.
-    pub proxy: Option<ProxyGrid>,
-    /// Lights besides the volume (`light::external`); `None` costs nothing.
-    pub external: Option<ExternalLights>,
-}
-
-impl Lights {
-    /// Build what `light_sampling` needs over `volume`, with cell/voxel power = luminance
-    /// of the emission density (`Y(L_e)`, METHOD §7). Nothing for `None`, or when nothing
-    /// emits.
-    ///
-    /// # Errors
-    /// An invalid proxy resolution (`--proxy-resolution`) or invalid emission power.
-    pub fn build(
-        volume: &crate::volume::Volume,
-        emission: &crate::medium::Emission,
-        light_sampling: LightSampling,
-        proxy_resolution: u32,
-    ) -> crate::error::Result<Lights> {
-        Lights::build_with(volume, emission, light_sampling, proxy_resolution, NeeTable::Voxel)
-    }
-
-    /// [`Lights::build`] with classic NEE's table at the resolution `nee_table` asks for.
-    ///
-    /// # Errors
-    /// As [`Lights::build`].
-    pub fn build_with(
-        volume: &crate::volume::Volume,
-        emission: &crate::medium::Emission,
-        light_sampling: LightSampling,
-        proxy_resolution: u32,
-        nee_table: NeeTable,
-    ) -> crate::error::Result<Lights> {
-        Ok(match light_sampling {
-            LightSampling::None => Lights::default(),
-            LightSampling::Nee => {
-                Lights { nee: EmitterDistribution::build_as(volume, crate::light::LightPower::new(emission), nee_table)?, ..Lights::default() }
-            }
-            LightSampling::Fnee => Lights { proxy: ProxyGrid::build(volume, proxy_resolution, light_power(emission))?, ..Lights::default() },
-        })
-    }
-}
-
-impl Lights {
-    /// The same structures for a volume reconstructed by `interpolation`: NEE draws its
-    /// points from the voxel's box or from the trilinear hat (`light/nee.rs`); FNEE's proxy
-    /// only guides directions and stays as it is (METHOD.md §12).
-    #[must_use]
-    pub fn for_interpolation(self, interpolation: crate::volume::Interpolation) -> Lights {
-        Lights { nee: self.nee.map(|n| n.for_interpolation(interpolation)), ..self }
-    }
-}
-
-/// Power that light sampling distributes by: the luminance `Y(L_e)` of the emission
-/// density with unit `--emission-scale` and white `--emission-color`. The scale only
-/// multiplies every voxel's power, and the tint is a mild reweighting that any valid pdf
-/// absorbs, so leaving both out keeps the estimators unbiased while letting a brick cache
-/// store the FNEE proxy's cell sums once for any scale or tint. Blackbody luminance is
-/// tabulated (`light::power`).
-pub fn light_power(emission: &crate::medium::Emission) -> impl Fn(f32, f32) -> f64 + Sync {
-    let power = crate::light::LightPower::new(emission);
-    move |d: f32, s: f32| power.power(d, s)
-}
 
 /// Roulette plays only once a path's throughput `β` falls below this part of its start
 /// (`1`, or `1/N` for split paths), with survival `β/(t·start)`; survivors carry `t·start`.

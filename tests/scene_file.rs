@@ -233,6 +233,7 @@ fn the_example_scene_file_is_complete_and_valid() {
         "method = \"line-fnee\"",
         "split = 6",
         "split_by = \"brightness\"",
+        "proxy_resolution = 32",
         "camera_estimator = \"ray-march\"",
         "width = 640",
         "denoise = true",

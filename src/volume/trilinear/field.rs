@@ -61,12 +61,15 @@ impl PointCorners {
     }
 
     /// Interpolated per-voxel emission density `Σ w_c le(ρ_c, s_c)` per channel (what a
-    /// piece interpolates, `volume::trilinear`).
+    /// piece interpolates, `volume::trilinear`). Corners without a source are skipped, as
+    /// pieces skip them (`le` is 0 there: the contract of [`crate::medium::Emission::le`]):
+    /// the README demo's null-tracked emission points asked for 5 M of them at 160×120,
+    /// 4 spp.
     #[must_use]
     pub fn emission(&self, le: &impl Fn(f32, f32) -> Rgb) -> [f64; 3] {
         let mut out = [0.0; 3];
         for (&v, &w) in self.corners.iter().zip(&self.weights) {
-            if w != 0.0 {
+            if w != 0.0 && v.source != 0.0 {
                 let e = le(v.density, v.source).to_f64();
                 for (o, e) in out.iter_mut().zip(e) {
                     *o += w * e;

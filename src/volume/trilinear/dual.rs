@@ -464,6 +464,40 @@ pub(crate) fn dual_pyramid(volume: &Volume) -> Pyramid {
 mod tests {
     use super::*;
 
+    /// [`Volume::brick_block`] gives what 8 calls of [`Volume::brick`] give (the same brick
+    /// records, or none), for every dual brick of a sparse generated explosion and two
+    /// layers of bricks around its table, where some corners fall outside it.
+    #[test]
+    fn brick_block_finds_the_bricks_brick_finds() {
+        let ex = crate::synth::explosion(&crate::synth::ExplosionParams { resolution: 40, seed: 3, ..Default::default() });
+        let volume = Volume::build(&ex.density, Some(&ex.temperature), |v| v).unwrap();
+        let (lo, hi) = (volume.brick_lo - 2, volume.brick_lo + volume.dims + 1);
+        let (mut found, mut missing) = (0, 0);
+        for z in lo.z..=hi.z {
+            for y in lo.y..=hi.y {
+                for x in lo.x..=hi.x {
+                    let b = IVec3::new(x, y, z);
+                    for (c, got) in volume.brick_block(b).into_iter().enumerate() {
+                        let want = volume.brick(b + corner_offset(c));
+                        match (got, want) {
+                            (Some(g), Some(w)) => assert!(std::ptr::eq(g, w), "dual brick {b}, corner {c}"),
+                            (None, None) => {}
+                            _ => panic!("dual brick {b}, corner {c}: {} against {}", got.is_some(), want.is_some()),
+                        }
+                        if want.is_some() {
+                            found += 1;
+                        } else {
+                            missing += 1;
+                        }
+                    }
+                }
+            }
+        }
+        // Not vacuous: both kinds occur, inside the table too
+        assert!(found > 0 && missing > 0, "{found} found, {missing} missing");
+        assert!(volume.dims.cmpgt(IVec3::splat(1)).all() && volume.brick_count() < (volume.dims.x * volume.dims.y * volume.dims.z) as usize);
+    }
+
     /// The table of where each of a dual brick's 9³ voxels lies is the Morton offset in
     /// the right one of the 8 voxel bricks, for every voxel.
     #[test]

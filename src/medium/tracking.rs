@@ -336,17 +336,9 @@ fn track_expected<F: Field, const FORCED: bool>(
         // whether the piece is marched
         let mut tau = 0.0;
         if marching {
-            tau = (-od).exp() * weight;
-            if tau < RAY_MARCH_ROULETTE_THRESHOLD {
-                // Russian roulette on small transmittance keeps the walk finite
-                let q = tau / RAY_MARCH_ROULETTE_THRESHOLD;
-                if sampler.next_f64() >= q {
-                    marching = false;
-                    weight = 0.0;
-                } else {
-                    weight /= q;
-                    tau = RAY_MARCH_ROULETTE_THRESHOLD;
-                }
+            match march_roulette((-od).exp() * weight, &mut weight, sampler) {
+                Some(t) => tau = t,
+                None => marching = false,
             }
         }
         // A marched emitting polynomial piece needs its optical depth at the one-point
@@ -366,41 +358,29 @@ fn track_expected<F: Field, const FORCED: bool>(
             None => piece.optical_depth(medium.sigma_t, len),
         };
         if need_collision && event == DistanceSample::Escaped && od + x > e {
-            event = match constant {
-                Some(seg) => {
-                    let t = (seg.t0 + (e - od) / medium.mu_t(seg.density)).clamp(seg.t0, seg.t1);
-                    DistanceSample::Collided { t, density: seg.density, source: seg.source, albedo: seg.albedo }
-                }
-                None => {
-                    let u = piece.free_path(medium.sigma_t, e - od);
-                    let t = (piece.t0() + u).clamp(piece.t0(), piece.t1());
-                    DistanceSample::Collided { t, density: piece.density_at(u), source: piece.source_at(u), albedo: piece.albedo_at(u) }
-                }
-            };
+            event = analog_collision(piece, medium, e - od);
         }
         if marching {
-            if let (true, Some(forced)) = (marching, forced.as_mut()) {
+            if let Some(forced) = forced.as_mut() {
                 forced.push(piece, x, od, tau);
             }
-            if marching {
-                match constant {
-                    // A piece without a source adds nothing (`le` is 0 there): no φ, and for a
-                    // polynomial piece no point and no transmittance to it
-                    Some(seg) if seg.source == 0.0 => {}
-                    None if !piece.may_emit() => {}
-                    Some(seg) => {
-                        let le = medium.emission.le(seg.density, seg.source);
-                        add(&mut f, le, tau * len * phi(x));
-                    }
-                    None => {
-                        // One-point rule (METHOD.md §12): Δ τ(u_ξ) L_e(u_ξ) with u_ξ uniform
-                        // in the piece is unbiased for ∫ τ L_e over it. One ξ serves every
-                        // piece of the ray (systematic sampling: each piece's point is still
-                        // uniform in it). The point and its optical depth were found above.
-                        let (u, x_u) = x_at_point.expect("invariant: a marched emitting polynomial piece has its point");
-                        let tau_u = tau * (-x_u).exp();
-                        add_scaled(&mut f, emission_at(piece, &memo, u), tau_u * len);
-                    }
+            match constant {
+                // A piece without a source adds nothing (`le` is 0 there): no φ, and for a
+                // polynomial piece no point and no transmittance to it
+                Some(seg) if seg.source == 0.0 => {}
+                None if !piece.may_emit() => {}
+                Some(seg) => {
+                    let le = medium.emission.le(seg.density, seg.source);
+                    add(&mut f, le, tau * len * phi(x));
+                }
+                None => {
+                    // One-point rule (METHOD.md §12): Δ τ(u_ξ) L_e(u_ξ) with u_ξ uniform
+                    // in the piece is unbiased for ∫ τ L_e over it. One ξ serves every
+                    // piece of the ray (systematic sampling: each piece's point is still
+                    // uniform in it). The point and its optical depth were found above.
+                    let (u, x_u) = x_at_point.expect("invariant: a marched emitting polynomial piece has its point");
+                    let tau_u = tau * (-x_u).exp();
+                    add_scaled(&mut f, emission_at(piece, &memo, u), tau_u * len);
                 }
             }
         }
@@ -424,6 +404,41 @@ fn track_expected<F: Field, const FORCED: bool>(
         }
     }
     TrackResult { event, emission: f, transmittance, optical_depth, segments, voxel_steps: it.voxel_steps(), collision_weight }
+}
+
+/// Russian roulette on the ray-march's transmittance `tau` (its roulette weight folded
+/// in): below [`RAY_MARCH_ROULETTE_THRESHOLD`] the march goes on with probability
+/// `tau / threshold`, `weight` scaled up by the inverse, and the piece is weighted by the
+/// threshold; `None` ends it (`weight` 0). Keeps the walk finite.
+#[inline]
+fn march_roulette(tau: f64, weight: &mut f64, sampler: &mut Sampler) -> Option<f64> {
+    if tau < RAY_MARCH_ROULETTE_THRESHOLD {
+        let q = tau / RAY_MARCH_ROULETTE_THRESHOLD;
+        if sampler.next_f64() >= q {
+            *weight = 0.0;
+            return None;
+        }
+        *weight /= q;
+        return Some(RAY_MARCH_ROULETTE_THRESHOLD);
+    }
+    Some(tau)
+}
+
+/// The analog collision `od_left` of optical depth into `piece` (`od_left` below the
+/// piece's own): in closed form on a constant piece, from the quartic on a polynomial one.
+#[inline]
+fn analog_collision<P: Piece>(piece: &P, medium: &Medium, od_left: f64) -> DistanceSample {
+    match piece.constant() {
+        Some(seg) => {
+            let t = (seg.t0 + od_left / medium.mu_t(seg.density)).clamp(seg.t0, seg.t1);
+            DistanceSample::Collided { t, density: seg.density, source: seg.source, albedo: seg.albedo }
+        }
+        None => {
+            let u = piece.free_path(medium.sigma_t, od_left);
+            let t = (piece.t0() + u).clamp(piece.t0(), piece.t1());
+            DistanceSample::Collided { t, density: piece.density_at(u), source: piece.source_at(u), albedo: piece.albedo_at(u) }
+        }
+    }
 }
 
 /// What [`optical_depth`] measured along a shadow ray.

@@ -44,7 +44,7 @@
 //! `n` inversions per camera collision (docs/BENCHMARKS.md, "Split paths start apart").
 //! With one path (`n = 1`) its vertex is the walk's own collision, bit for bit.
 
-use crate::medium::tracking::DistanceSample;
+use crate::medium::tracking::{analog_collision, DistanceSample};
 use crate::medium::Medium;
 use crate::volume::field::Piece;
 
@@ -145,18 +145,7 @@ impl<P: Piece> ForcedCollision<P> {
         // Uniform in [0, 1) within the piece's mass (rounding can put target a hair outside)
         let v = ((target - before) / (through - before)).clamp(0.0, 1.0 - f64::EPSILON / 2.0);
         let y = -(v * (-x).exp_m1()).ln_1p();
-        let event = match piece.constant() {
-            Some(seg) => {
-                let t = (seg.t0 + y / medium.mu_t(seg.density)).clamp(seg.t0, seg.t1);
-                DistanceSample::Collided { t, density: seg.density, source: seg.source, albedo: seg.albedo }
-            }
-            None => {
-                let s = piece.free_path(medium.sigma_t, y);
-                let t = (piece.t0() + s).clamp(piece.t0(), piece.t1());
-                DistanceSample::Collided { t, density: piece.density_at(s), source: piece.source_at(s), albedo: piece.albedo_at(s) }
-            }
-        };
-        Forced { event, optical_depth: od + y, weight: self.total / q }
+        Forced { event: analog_collision(&piece, medium, y), optical_depth: od + y, weight: self.total / q }
     }
 }
 

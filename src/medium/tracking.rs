@@ -424,10 +424,11 @@ fn march_roulette(tau: f64, weight: &mut f64, sampler: &mut Sampler) -> Option<f
     Some(tau)
 }
 
-/// The analog collision `od_left` of optical depth into `piece` (`od_left` below the
-/// piece's own): in closed form on a constant piece, from the quartic on a polynomial one.
+/// The collision `od_left` of optical depth into `piece` (`od_left` below the piece's
+/// own): in closed form on a constant piece, from the quartic on a polynomial one. The
+/// analog collision, and where a forced one falls (`medium::forced`).
 #[inline]
-fn analog_collision<P: Piece>(piece: &P, medium: &Medium, od_left: f64) -> DistanceSample {
+pub(crate) fn analog_collision<P: Piece>(piece: &P, medium: &Medium, od_left: f64) -> DistanceSample {
     match piece.constant() {
         Some(seg) => {
             let t = (seg.t0 + od_left / medium.mu_t(seg.density)).clamp(seg.t0, seg.t1);

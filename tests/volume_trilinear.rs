@@ -6,7 +6,7 @@ use crate::common;
 
 use common::{grid, hash};
 use glam::{DAffine3, DMat3, DVec3, IVec3};
-use plume::volume::field::{clip_to_box, optical_depth_along, Ray};
+use plume::volume::field::{clip_to_box, optical_depth_along, Piece, Ray};
 use plume::volume::trilinear::{poly, CubicSegment, Trilinear};
 use plume::volume::{Bounds3, Field, Volume};
 use proptest::prelude::*;
@@ -43,6 +43,19 @@ fn sparse_volume(seed: u32, xf: DAffine3) -> Trilinear {
     let a_leaves: Vec<IVec3> = leaves.iter().copied().filter(|o| hash(*o, seed + 4) % 3 != 0).collect();
     let a = grid("albedo", xf, &a_leaves, |p| if kind(p) == 0 { 0.5 } else { (hash(p, seed + 6) % 100) as f32 / 99.0 });
     Trilinear::new(Volume::build_with_albedo(&d, Some(&s), |v| v, Some(&a)).unwrap())
+}
+
+/// Sparse volume over bricks `[-2, 2) × [-1, 2) × [0, 2)` whose dense bricks are empty in
+/// most blocks of 2³ voxels (each block empty or filled as a whole, some filled blocks
+/// with a source): what the walk's empty-block masks (`volume::trilinear::dual`, "Empty
+/// cells") skip, next to blocks it must not skip, also across brick faces.
+fn blocky_volume(seed: u32, xf: DAffine3) -> Trilinear {
+    let leaves: Vec<IVec3> =
+        (-2..2).flat_map(|x| (-1..2).flat_map(move |y| (0..2).map(move |z| IVec3::new(x, y, z)))).filter(|b| hash(*b, seed) % 4 != 0).map(|b| b * 8).collect();
+    let block = move |p: IVec3, salt: u32| hash(p.div_euclid(IVec3::splat(2)), seed + salt);
+    let d = grid("density", xf, &leaves, |p| if block(p, 1) % 5 < 2 { 0.1 + (hash(p, seed + 2) % 100) as f32 / 20.0 } else { 0.0 });
+    let s = grid("temperature", xf, &leaves, |p| if block(p, 1) % 5 < 2 && block(p, 3) % 2 == 0 { 1500.0 } else { 0.0 });
+    Trilinear::new(Volume::build(&d, Some(&s), |v| v).unwrap())
 }
 
 fn scaled() -> DAffine3 {
@@ -201,6 +214,38 @@ proptest! {
         let ray = make_ray(xf, DVec3::new(ox, oy, oz), [sx, sy, sz], DVec3::new(dx, dy, dz));
         prop_assume!(ray.is_some());
         check_cubics(&tri, &ray.unwrap(), t_min, t_min + len, u_seed)?;
+    }
+
+    /// Pieces from cells the empty-block masks skip are what reading their corners gives:
+    /// density and source along every piece equal point interpolation, and the density
+    /// walk's optical depth the full walk's.
+    #[test]
+    fn empty_blocks_are_skipped_exactly(
+        seed in 0u32..40,
+        ox in -30.0f64..30.0, oy in -20.0f64..25.0, oz in -10.0f64..25.0,
+        dx in axis_component(), dy in axis_component(), dz in axis_component(),
+        len in 0.1f64..200.0,
+        is_scaled in any::<bool>(),
+        u_seed in any::<u64>(),
+    ) {
+        let xf = if is_scaled { scaled() } else { DAffine3::IDENTITY };
+        let tri = blocky_volume(seed, xf);
+        let ray = make_ray(xf, DVec3::new(ox, oy, oz), [0, 0, 0], DVec3::new(dx, dy, dz));
+        prop_assume!(ray.is_some());
+        let ray = ray.unwrap();
+        check_pieces(&tri, &ray, 0.0, len)?;
+        check_cubics(&tri, &ray, 0.0, len, u_seed)?;
+        for (k, p) in tri.segments(&ray, 0.0, len).enumerate() {
+            for f in uniforms(u_seed ^ (k as u64 + 1), 4) {
+                let u = f * (p.t1 - p.t0);
+                let want = f64::from(tri.values_at(ray.at(p.t0 + u)).source);
+                let got = f64::from(p.source_at(u));
+                prop_assert!((got - want).abs() <= 1e-4 * want.abs() + 1e-6, "source at u = {u}: {got}, interpolated {want}, piece {:?}", p);
+            }
+        }
+        let (od, _) = tri.optical_depth(0.7, &ray, len, f64::INFINITY);
+        let (want, _) = optical_depth_along(tri.segments(&ray, 0.0, len), 0.7, f64::INFINITY);
+        prop_assert!((od - want).abs() <= 1e-12 * (1.0 + want), "density walk {od} against {want}");
     }
 
     #[test]
@@ -384,16 +429,16 @@ fn dual_pyramid_bounds_cover_every_corner() {
     }
 }
 
-/// The dual pyramid costs a few per cent of the volume (one pyramid more, on a table one
-/// brick larger per axis).
+/// The dual pyramid and the block masks cost a few per cent of the volume (one pyramid
+/// more, on a table one brick larger per axis, and 8 bytes per brick).
 #[test]
 fn dual_pyramid_is_small_next_to_the_volume() {
     let ex = plume::synth::explosion(&plume::synth::ExplosionParams { resolution: 128, ..Default::default() });
     let tri = Trilinear::new(Volume::build(&ex.density, Some(&ex.temperature), |v| v).unwrap());
-    let (dual, volume) = (tri.dual_pyramid_bytes(), tri.volume().memory_bytes());
+    let (dual, volume) = (tri.dual_bytes(), tri.volume().memory_bytes());
     let ratio = dual as f64 / volume as f64;
-    println!("128³ explosion: dual pyramid {dual} B, volume {volume} B: {:.2} %", 100.0 * ratio);
-    assert!(ratio <= 0.10, "dual pyramid {dual} B is {:.1} % of the volume's {volume} B", 100.0 * ratio);
+    println!("128³ explosion: dual pyramid and block masks {dual} B, volume {volume} B: {:.2} %", 100.0 * ratio);
+    assert!(ratio <= 0.10, "dual pyramid and block masks {dual} B is {:.1} % of the volume's {volume} B", 100.0 * ratio);
     assert_eq!(tri.data_bytes(), dual + volume);
 }
 

@@ -247,8 +247,8 @@ pub struct MemoryRow {
     pub file: String,
     /// Bytes of the volume: bricks, table, values and pyramid.
     pub volume_bytes: u64,
-    /// Bytes of the dual pyramid (all that trilinear adds).
-    pub dual_pyramid_bytes: u64,
+    /// Bytes of the dual pyramid and the block masks (all that trilinear adds).
+    pub dual_bytes: u64,
     /// `100 · dual / volume`.
     pub percent: f64,
 }
@@ -350,12 +350,11 @@ fn measure_file(file: &CostFile, cfg: &InterpolationConfig, log: &dyn Fn(&str)) 
     let proxy_resolution = ProxyGrid::resolution_for(loaded.loaded.scene.volume(), loaded.shot.scene.integrator.proxy_resolution);
     let mut scene = Switch(Some(loaded.loaded.scene));
     let volume_bytes = scene.to(Interpolation::Nearest).volume().memory_bytes() as u64;
-    let dual_pyramid_bytes = match scene.to(Interpolation::Linear) {
-        AnyScene::Linear(s) => s.field.dual_pyramid_bytes() as u64,
+    let dual_bytes = match scene.to(Interpolation::Linear) {
+        AnyScene::Linear(s) => s.field.dual_bytes() as u64,
         AnyScene::Nearest(_) => unreachable!("invariant: switched to linear"),
     };
-    let memory =
-        MemoryRow { file: file.name.into(), volume_bytes, dual_pyramid_bytes, percent: 100.0 * dual_pyramid_bytes as f64 / volume_bytes.max(1) as f64 };
+    let memory = MemoryRow { file: file.name.into(), volume_bytes, dual_bytes, percent: 100.0 * dual_bytes as f64 / volume_bytes.max(1) as f64 };
     let mut rows = Vec::new();
     for method in CostMethod::ALL {
         // Light structures for this method, outside the timed renders
@@ -450,14 +449,15 @@ impl InterpolationReport {
     /// The memory table (Markdown).
     #[must_use]
     pub fn memory_table(&self) -> String {
-        let mut s = String::from("| file | volume (bricks, table, values, pyramid) | dual pyramid | dual ÷ volume | ≤ 10 % |\n|---|---|---|---|---|\n");
+        let mut s =
+            String::from("| file | volume (bricks, table, values, pyramid) | dual pyramid and block masks | dual ÷ volume | ≤ 10 % |\n|---|---|---|---|---|\n");
         for m in &self.memory {
             let _ = writeln!(
                 s,
                 "| {} | {:.2} MiB | {:.1} KiB | **{:.2} %** | {} |",
                 m.file,
                 m.volume_bytes as f64 / 1048576.0,
-                m.dual_pyramid_bytes as f64 / 1024.0,
+                m.dual_bytes as f64 / 1024.0,
                 m.percent,
                 if m.percent <= 10.0 { "yes" } else { "**no**" }
             );
@@ -486,7 +486,7 @@ impl InterpolationReport {
             }
             let _ = writeln!(md, "\n{}", self.cost_table());
             let _ =
-                writeln!(md, "**Memory.** Trilinear reads the corners from the volume's own bricks; it adds only the dual pyramid.\n\n{}", self.memory_table());
+                writeln!(md, "**Memory.** Trilinear reads the corners from the volume's own bricks; it adds only the dual pyramid and 8 bytes per brick of block masks.\n\n{}", self.memory_table());
         }
         let _ = writeln!(md, "{}", self.rule.markdown());
         if let (Some(c), Some(link)) = (&self.closeup, picture_link) {

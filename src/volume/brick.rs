@@ -371,7 +371,7 @@ impl Volume {
     /// of `b` and the range checks are worked out once per axis, not once per brick (the
     /// trilinear walk enters half a million dual bricks on kelvin40 at 160×120, 8 spp).
     #[inline]
-    pub(crate) fn brick_block(&self, b: IVec3) -> [Option<&Brick>; 8] {
+    pub(crate) fn brick_block(&self, b: IVec3) -> [Option<(u32, &Brick)>; 8] {
         let r = b - self.brick_lo;
         let dims = self.dims;
         // Whether offset 0 and offset 1 stay inside the table, per axis
@@ -386,7 +386,8 @@ impl Volume {
             }
             // In range: every coordinate of `r + offset` is inside the table
             let cell = (base + ox as isize + sy * oy as isize + sz * oz as isize) as usize;
-            self.bricks.get(*self.table.get(cell)? as usize)
+            let index = *self.table.get(cell)?;
+            Some((index, self.bricks.get(index as usize)?))
         })
     }
 

@@ -16,7 +16,7 @@
 
 use glam::{DVec3, IVec3};
 
-use super::dual::{cell_local, step_corners, window_slot, Channel, CornerRecord, DualCell, DualCells, CORNER_STEP, NO_CELL};
+use super::dual::{block_bit, cell_local, step_corners, window_slot, Channel, CornerRecord, DualCell, DualCells, CORNER_STEP, NO_CELL};
 use super::poly;
 use crate::color::Rgb;
 use crate::volume::brick::Volume;
@@ -117,12 +117,14 @@ pub struct DensityBricks<'a> {
     bricks: [Channel<'a>; 8],
     last: IVec3,
     density: [f32; 8],
+    /// [`dual_block_mask`] of the dual brick.
+    blocks: u64,
 }
 
 impl Default for DensityBricks<'_> {
     /// Empty space, no cell read.
     fn default() -> Self {
-        DensityBricks { bricks: [Channel::constant(0.0); 8], last: NO_CELL, density: [0.0; 8] }
+        DensityBricks { bricks: [Channel::constant(0.0); 8], last: NO_CELL, density: [0.0; 8], blocks: 0 }
     }
 }
 
@@ -188,9 +190,11 @@ impl<'a> Cells for DensityCells<'a> {
     fn dense(&self, b: IVec3, dense: &mut DensityBricks<'a>) -> bool {
         let volume = self.cells.voxels();
         let mut any = false;
-        for (channel, brick) in dense.bricks.iter_mut().zip(volume.brick_block(b)) {
+        let bricks = volume.brick_block(b);
+        dense.blocks = self.cells.block_mask(&bricks);
+        for (channel, brick) in dense.bricks.iter_mut().zip(bricks) {
             *channel = match brick {
-                Some(brick) => {
+                Some((_, brick)) => {
                     any = true;
                     Channel::new(volume, brick.density)
                 }
@@ -204,7 +208,14 @@ impl<'a> Cells for DensityCells<'a> {
     /// Reads the 8 corner densities, or the 4 new ones after a step across one face.
     #[inline]
     fn dense_piece(&self, dense: &mut DensityBricks<'a>, origin: IVec3, i: IVec3, t0: f64, t1: f64, line: &IndexLine) -> DensityPiece {
-        step_corners(dense, i - origin);
+        let l = i - origin;
+        if dense.blocks & block_bit(l) == 0 {
+            // Every corner empty ([`super::dual`], "Empty cells")
+            dense.density = [0.0; 8];
+            dense.last = l;
+            return DensityPiece { t0, t1, f0: DVec3::ZERO, d: DVec3::ZERO, density: [0.0; 8], constant: true };
+        }
+        step_corners(dense, l);
         let f0 = cell_local(line, t0, i);
         let first = dense.density[0].to_bits();
         let constant = dense.density.iter().all(|v| v.to_bits() == first);

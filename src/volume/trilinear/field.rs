@@ -12,7 +12,7 @@
 use glam::{DVec3, IVec3};
 
 use super::density::DensityCells;
-use super::dual::{dual_pyramid, DualCells};
+use super::dual::{dual_pyramid, BlockMasks, DualCells};
 use super::poly;
 use super::CubicSegment;
 use crate::color::Rgb;
@@ -27,6 +27,8 @@ use crate::volume::Volume;
 pub struct Trilinear {
     volume: Volume,
     dual: Pyramid,
+    /// Which blocks of each brick are empty, learnt as walks go (`dual`, "Empty cells").
+    blocks: BlockMasks,
 }
 
 /// The 8 voxels around an index-space point and their trilinear weights
@@ -86,7 +88,8 @@ impl Trilinear {
     #[must_use]
     pub fn new(volume: Volume) -> Trilinear {
         let dual = dual_pyramid(&volume);
-        Trilinear { volume, dual }
+        let blocks = BlockMasks::new(&volume);
+        Trilinear { volume, dual, blocks }
     }
 
     /// The volume whose voxels are interpolated.
@@ -101,10 +104,11 @@ impl Trilinear {
         self.volume
     }
 
-    /// Bytes of the dual pyramid (all levels).
+    /// Bytes trilinear adds to the volume: the dual pyramid (all levels) and the block
+    /// masks (8 bytes per brick).
     #[must_use]
-    pub fn dual_pyramid_bytes(&self) -> usize {
-        self.dual.memory_bytes()
+    pub fn dual_bytes(&self) -> usize {
+        self.dual.memory_bytes() + self.blocks.bytes()
     }
 
     /// Dual pyramid levels, finest first: level 0 has one node per dual brick, from brick
@@ -153,12 +157,12 @@ impl Field for Trilinear {
     }
 
     fn segments(&self, ray: &Ray, t_min: f64, t_max: f64) -> Self::Segments<'_> {
-        CellWalk::new(DualCells::new(&self.volume, &self.dual), ray, t_min, t_max)
+        CellWalk::new(DualCells::new(&self.volume, &self.dual, &self.blocks), ray, t_min, t_max)
     }
 
     /// The dual cells' walk reading density alone ([`DensityCells`]).
     fn optical_depth(&self, sigma_t: f64, ray: &Ray, t_max: f64, od_stop: f64) -> (f64, u64) {
-        let cells = DensityCells::new(DualCells::new(&self.volume, &self.dual));
+        let cells = DensityCells::new(DualCells::new(&self.volume, &self.dual, &self.blocks));
         optical_depth_along(CellWalk::new(cells, ray, 0.0, t_max), sigma_t, od_stop)
     }
 
@@ -212,7 +216,7 @@ impl Field for Trilinear {
     }
 
     fn data_bytes(&self) -> usize {
-        self.volume.memory_bytes() + self.dual.memory_bytes()
+        self.volume.memory_bytes() + self.dual_bytes()
     }
 
     fn voxels(&self) -> Option<&Volume> {

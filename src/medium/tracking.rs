@@ -327,18 +327,33 @@ fn track_expected<F: Field, const FORCED: bool>(
     let mut marching = true;
     // Position of the one-point rule in every polynomial piece, drawn at the first one
     let mut xi: Option<f64> = None;
+    // Below this optical depth the roulette cannot fire at the current weight
+    let mut roulette_free_below = roulette_free_depth(weight);
     let mut it = field.segments(ray, 0.0, t_max);
     let _ = it.visit(|piece| {
         segments += 1;
         let len = piece.length();
         let constant = piece.constant();
         // Roulette first: it reads only the optical depth before the piece, and it decides
-        // whether the piece is marched
-        let mut tau = 0.0;
-        if marching {
+        // whether the piece is marched. Below `roulette_free_below` it cannot fire (no
+        // random number is drawn while `τ · weight` is above the threshold), so `τ` is
+        // formed only where something reads it: a forced collision's candidate, a
+        // constant emitting piece; an emitting polynomial piece takes the transmittance
+        // to its point in one `exp` (below). Elsewhere no `exp` is called.
+        let emits = match constant {
+            Some(seg) => seg.source != 0.0,
+            None => piece.may_emit(),
+        };
+        // `τ` before the piece, roulette weight folded in; `None` where not formed
+        let mut tau = None;
+        if marching && (FORCED || od >= roulette_free_below || (emits && constant.is_some())) {
+            let before = weight;
             match march_roulette((-od).exp() * weight, &mut weight, sampler) {
-                Some(t) => tau = t,
+                Some(t) => tau = Some(t),
                 None => marching = false,
+            }
+            if weight != before {
+                roulette_free_below = roulette_free_depth(weight);
             }
         }
         // A marched emitting polynomial piece needs its optical depth at the one-point
@@ -348,7 +363,7 @@ fn track_expected<F: Field, const FORCED: bool>(
         let mut x_at_point = None;
         let x = match constant {
             Some(seg) => medium.mu_t(seg.density) * len,
-            None if marching && piece.may_emit() => {
+            None if marching && emits => {
                 let xi = *xi.get_or_insert_with(|| sampler.get_1d(crate::sampling::Dim::OnePoint));
                 let u = xi * len;
                 let [x, x_u] = piece.optical_depths(medium.sigma_t, [len, u]);
@@ -362,15 +377,15 @@ fn track_expected<F: Field, const FORCED: bool>(
         }
         if marching {
             if let Some(forced) = forced.as_mut() {
-                forced.push(piece, x, od, tau);
+                forced.push(piece, x, od, tau.expect("invariant: a forced walk forms τ at every marched piece"));
             }
             match constant {
                 // A piece without a source adds nothing (`le` is 0 there): no φ, and for a
                 // polynomial piece no point and no transmittance to it
-                Some(seg) if seg.source == 0.0 => {}
-                None if !piece.may_emit() => {}
+                _ if !emits => {}
                 Some(seg) => {
                     let le = medium.emission.le(seg.density, seg.source);
+                    let tau = tau.expect("invariant: a marched constant emitting piece forms τ");
                     add(&mut f, le, tau * len * phi(x));
                 }
                 None => {
@@ -379,7 +394,11 @@ fn track_expected<F: Field, const FORCED: bool>(
                     // piece of the ray (systematic sampling: each piece's point is still
                     // uniform in it). The point and its optical depth were found above.
                     let (u, x_u) = x_at_point.expect("invariant: a marched emitting polynomial piece has its point");
-                    let tau_u = tau * (-x_u).exp();
+                    // Where the roulette did not need `τ`, it is `e^{−od} · weight`: one `exp`
+                    let tau_u = match tau {
+                        Some(tau) => tau * (-x_u).exp(),
+                        None => (-(od + x_u)).exp() * weight,
+                    };
                     add_scaled(&mut f, emission_at(piece, &memo, u), tau_u * len);
                 }
             }
@@ -404,6 +423,15 @@ fn track_expected<F: Field, const FORCED: bool>(
         }
     }
     TrackResult { event, emission: f, transmittance, optical_depth, segments, voxel_steps: it.voxel_steps(), collision_weight }
+}
+
+/// An optical depth below which [`march_roulette`] cannot fire at roulette weight
+/// `weight` (`e^{−od} · weight` stays above the threshold): `ln(weight / threshold)`, less
+/// a margin far above the rounding of `exp` and `ln`, so that skipping the roulette there
+/// never changes its outcome.
+#[inline]
+fn roulette_free_depth(weight: f64) -> f64 {
+    (weight / RAY_MARCH_ROULETTE_THRESHOLD).ln() - 1e-9
 }
 
 /// Russian roulette on the ray-march's transmittance `tau` (its roulette weight folded

@@ -4,9 +4,11 @@
 //! The walk is the one of [`super::dual`] (the same cells, dual pyramid, skipping and
 //! merging), but each corner read is one value instead of three (density, source,
 //! albedo) and each piece carries 8 densities instead of 8 voxels' three values: a
-//! shadow ray never looks at emission or albedo. The optical depth of a piece is the same
-//! sum `σ_t Σ_c ρ_c W_c` as [`super::CubicSegment`]'s, so transmittance is bit for bit what
-//! the full walk gives wherever their pieces agree. They can differ by rounding only where
+//! shadow ray never looks at emission or albedo. It does not skip empty blocks of cells
+//! (`dual`, "Empty cells"): it crosses too few cells per dual brick for that to pay. The
+//! optical depth of a piece is the same sum `σ_t Σ_c ρ_c W_c` as
+//! [`super::CubicSegment`]'s, so transmittance is bit for bit what the full walk gives
+//! wherever their pieces agree. They can differ by rounding only where
 //! densities agree and sources or albedos do not: such a cell is a constant piece here
 //! (`σ_t ρ Δ`) and a cubic one there, and such neighbouring constant pieces merge here.
 //!
@@ -16,7 +18,7 @@
 
 use glam::{DVec3, IVec3};
 
-use super::dual::{block_bit, cell_local, step_corners, window_slot, Channel, CornerRecord, DualCell, DualCells, CORNER_STEP, NO_CELL};
+use super::dual::{cell_local, step_corners, window_slot, Channel, CornerRecord, DualCell, DualCells, CORNER_STEP, NO_CELL};
 use super::poly;
 use crate::color::Rgb;
 use crate::volume::brick::Volume;
@@ -117,14 +119,12 @@ pub struct DensityBricks<'a> {
     bricks: [Channel<'a>; 8],
     last: IVec3,
     density: [f32; 8],
-    /// [`dual_block_mask`] of the dual brick.
-    blocks: u64,
 }
 
 impl Default for DensityBricks<'_> {
     /// Empty space, no cell read.
     fn default() -> Self {
-        DensityBricks { bricks: [Channel::constant(0.0); 8], last: NO_CELL, density: [0.0; 8], blocks: 0 }
+        DensityBricks { bricks: [Channel::constant(0.0); 8], last: NO_CELL, density: [0.0; 8] }
     }
 }
 
@@ -191,7 +191,6 @@ impl<'a> Cells for DensityCells<'a> {
         let volume = self.cells.voxels();
         let mut any = false;
         let bricks = volume.brick_block(b);
-        dense.blocks = self.cells.block_mask(&bricks);
         for (channel, brick) in dense.bricks.iter_mut().zip(bricks) {
             *channel = match brick {
                 Some((_, brick)) => {
@@ -208,14 +207,7 @@ impl<'a> Cells for DensityCells<'a> {
     /// Reads the 8 corner densities, or the 4 new ones after a step across one face.
     #[inline]
     fn dense_piece(&self, dense: &mut DensityBricks<'a>, origin: IVec3, i: IVec3, t0: f64, t1: f64, line: &IndexLine) -> DensityPiece {
-        let l = i - origin;
-        if dense.blocks & block_bit(l) == 0 {
-            // Every corner empty ([`super::dual`], "Empty cells")
-            dense.density = [0.0; 8];
-            dense.last = l;
-            return DensityPiece { t0, t1, f0: DVec3::ZERO, d: DVec3::ZERO, density: [0.0; 8], constant: true };
-        }
-        step_corners(dense, l);
+        step_corners(dense, i - origin);
         let f0 = cell_local(line, t0, i);
         let first = dense.density[0].to_bits();
         let constant = dense.density.iter().all(|v| v.to_bits() == first);

@@ -19,11 +19,11 @@
 use std::ops::ControlFlow;
 
 use crate::color::Rgb;
-use crate::medium::emission::EmissionMemo;
+use crate::medium::emission::{EmissionMemo, LeTask};
 use crate::medium::forced::{Collision, Forced, ForcedCollision};
 use crate::medium::Medium;
 use crate::sampling::Sampler;
-use crate::volume::field::{Field, Piece, PointValues, Ray, SegmentIter};
+use crate::volume::field::{Field, Piece, PieceIntegrals, PointValues, Ray, SegmentIter};
 
 /// Emission estimator along a free-path segment.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -231,7 +231,16 @@ fn add_scaled(acc: &mut [f64; 3], v: [f64; 3], w: f64) {
 /// (`volume/trilinear/mod.rs`, "What is interpolated").
 #[inline]
 fn emission_at<P: Piece>(piece: &P, le: &EmissionMemo<'_>, u: f64) -> [f64; 3] {
-    piece.emission_at(&|d: f32, s: f32| le.le(d, s), u)
+    /// [`Piece::emission_at`] as a task of the memo.
+    struct At<'p, P>(&'p P, f64);
+    impl<P: Piece> LeTask for At<'_, P> {
+        type Out = [f64; 3];
+        #[inline]
+        fn run(self, le: &impl Fn(f32, f32) -> Rgb) -> [f64; 3] {
+            self.0.emission_at(le, self.1)
+        }
+    }
+    le.run(At(piece, u))
 }
 
 /// Density and `L_e` at a world point (a next-event sample), by the same rule as
@@ -244,10 +253,34 @@ pub fn emission_at_point<F: Field>(field: &F, medium: &Medium, p_world: glam::DV
 /// `∫₀ᵘ L_e ds` on a polynomial piece, in closed form (a cubic per channel).
 #[inline]
 fn emission_integral<P: Piece>(piece: &P, le: &EmissionMemo<'_>, u: f64) -> [f64; 3] {
+    /// [`Piece::emission_integral`] as a task of the memo.
+    struct Integral<'p, P>(&'p P, f64);
+    impl<P: Piece> LeTask for Integral<'_, P> {
+        type Out = [f64; 3];
+        #[inline]
+        fn run(self, le: &impl Fn(f32, f32) -> Rgb) -> [f64; 3] {
+            self.0.emission_integral(le, self.1)
+        }
+    }
     if !piece.may_emit() || u <= 0.0 {
         return [0.0; 3];
     }
-    piece.emission_integral(&|d: f32, s: f32| le.le(d, s), u)
+    le.run(Integral(piece, u))
+}
+
+/// [`Piece::integrals`] over `[0, u]` with the memo's `L_e`.
+#[inline]
+fn integrals<P: Piece>(piece: &P, sigma_t: f64, le: &EmissionMemo<'_>, u: f64) -> PieceIntegrals {
+    /// [`Piece::integrals`] as a task of the memo.
+    struct Both<'p, P>(&'p P, f64, f64);
+    impl<P: Piece> LeTask for Both<'_, P> {
+        type Out = PieceIntegrals;
+        #[inline]
+        fn run(self, le: &impl Fn(f32, f32) -> Rgb) -> PieceIntegrals {
+            self.0.integrals(self.1, le, self.2)
+        }
+    }
+    le.run(Both(piece, sigma_t, u))
 }
 
 /// One polynomial piece of a free path: the same estimators as the constant case, with
@@ -273,7 +306,7 @@ fn free_path_polynomial<P: Piece>(
     // with its optical depth (one set of trilinear weights), and unused in that one piece
     let (x, whole_emission) = match estimator {
         Estimator::Line | Estimator::Blend { .. } => {
-            let whole = piece.integrals(medium.sigma_t, &|d: f32, s: f32| le.le(d, s), len);
+            let whole = integrals(piece, medium.sigma_t, le, len);
             (whole.optical_depth, whole.emission)
         }
         Estimator::Point | Estimator::RayMarch => (piece.optical_depth(medium.sigma_t, len), [0.0; 3]),

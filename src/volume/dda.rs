@@ -104,6 +104,19 @@ pub trait Cells: Copy {
     /// first cell is `origin`. `dense` may remember what the previous cell read (the walk
     /// steps to a neighbour each time).
     fn dense_piece(&self, dense: &mut Self::Dense, origin: IVec3, ijk: IVec3, t0: f64, t1: f64, line: &IndexLine) -> Self::Piece;
+    /// True when local cell `l` of the dense brick is known to be [`Cells::empty`] without
+    /// reading it (trilinear's empty blocks, `volume::trilinear::dual`). The walk then
+    /// steps through the run of such cells without asking for their pieces, gives the
+    /// run as one empty piece (what their pieces would have merged into), and tells
+    /// `dense` with [`Cells::after_empty`]. None by default.
+    #[inline]
+    fn known_empty(_dense: &Self::Dense, _l: IVec3) -> bool {
+        false
+    }
+    /// `dense` after a run of [`Cells::known_empty`] cells ending with local cell `l`: what
+    /// [`Cells::dense_piece`] would have left there.
+    #[inline]
+    fn after_empty(_dense: &mut Self::Dense, _l: IVec3) {}
     /// The cell every cell beneath a uniform pyramid node is.
     fn uniform(node: &NodeBounds) -> Self::Cell;
     /// An empty cell (density, source 0; albedo 1).
@@ -296,6 +309,12 @@ impl<C: Cells> CellWalk<C> {
             let t0 = self.t;
             let (t_exit, cell);
             if let (Some(origin), Some(dense)) = (self.origin, self.dense.as_mut()) {
+                if C::known_empty(dense, self.ijk - origin) {
+                    if let Some(piece) = self.empty_run(origin) {
+                        return Some(piece);
+                    }
+                    continue;
+                }
                 // Step one cell of a dense brick; its piece is built from the brick's data
                 // before the walk may leave the brick
                 let ijk = self.ijk;
@@ -361,6 +380,41 @@ impl<C: Cells> CellWalk<C> {
             }
         }
         None
+    }
+
+    /// From the current cell, [`Cells::known_empty`], through the run of such cells of the
+    /// dense brick at `origin`: the same cell steps, crossings and step count as stepping
+    /// them one piece at a time, and one empty piece over the run (`None` if it has no
+    /// length), which merges with its neighbours as theirs would have.
+    fn empty_run(&mut self, origin: IVec3) -> Option<C::Piece> {
+        let t0 = self.t;
+        let mut last = self.ijk - origin;
+        loop {
+            let t_exit = self.t_next.x.min(self.t_next.y).min(self.t_next.z);
+            for a in 0..3 {
+                if self.t_next[a] == t_exit {
+                    self.ijk[a] += self.step[a];
+                    self.t_next[a] = (f64::from(self.ijk[a]) + self.face[a] - self.o[a]) * self.inv_d[a];
+                }
+            }
+            let t1 = t_exit.min(self.t_end);
+            if t1 > self.t {
+                self.t = t1;
+                self.raw_steps += 1;
+            }
+            let l = self.ijk - origin;
+            let leaves = (l.x as u32 | l.y as u32 | l.z as u32) >= BRICK as u32;
+            let Some(dense) = self.dense.as_mut() else { break };
+            if leaves || self.t >= self.t_end || !C::known_empty(dense, l) {
+                C::after_empty(dense, last);
+                if leaves {
+                    self.origin = None;
+                }
+                break;
+            }
+            last = l;
+        }
+        (self.t > t0).then(|| self.cells.piece(C::empty(), t0, self.t, &self.line()))
     }
 
     #[inline]

@@ -508,21 +508,29 @@ impl<'a> Cells for DualCells<'a> {
     /// (the other 4 are the previous cell's: 12 value reads instead of 24).
     #[inline]
     fn dense_piece(&self, dense: &mut DualBricks<'a>, origin: IVec3, i: IVec3, t0: f64, t1: f64, line: &IndexLine) -> CubicSegment {
-        let l = i - origin;
-        if dense.blocks & block_bit(l) == 0 {
-            // Every corner empty (density and source +0, so albedo factor 1): what reading
-            // them would give, the record included
-            dense.corners = [VoxelValues::ZERO; 8];
-            dense.albedo = [1.0; 8];
-            dense.last = l;
-            return CubicSegment::constant_piece(t0, t1, VoxelValues::ZERO, 1.0);
-        }
+        // Cells in empty blocks never come here ([`Cells::known_empty`])
         if dense.albedo_one {
             step_corners(&mut ValuesOnly(dense), i - origin);
         } else {
             step_corners(dense, i - origin);
         }
         CubicSegment::cell(t0, t1, cell_local(line, t0, i), line.d, dense.corners, dense.albedo)
+    }
+
+    /// A cell in a block of the dual brick whose voxels all read as empty (module docs,
+    /// "Empty cells").
+    #[inline]
+    fn known_empty(dense: &DualBricks<'a>, l: IVec3) -> bool {
+        dense.blocks & block_bit(l) == 0
+    }
+
+    /// Every corner of the last empty cell is empty (density and source +0, so albedo
+    /// factor 1): what reading them would have left in the record.
+    #[inline]
+    fn after_empty(dense: &mut DualBricks<'a>, l: IVec3) {
+        dense.corners = [VoxelValues::ZERO; 8];
+        dense.albedo = [1.0; 8];
+        dense.last = l;
     }
 
     #[inline]

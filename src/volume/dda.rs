@@ -149,6 +149,29 @@ fn cell_of(p: f64, d: f64, shift: f64) -> i32 {
     c as i32 // saturating
 }
 
+/// One step of the cell DDA inside a dense brick ([`CellWalk`]'s fields): moves `ijk`
+/// across the nearest exit face (every axis whose face is crossed at that same `t`),
+/// updates those axes' `t_next` from the integer index, and returns the exit parameter of
+/// the cell it left.
+#[inline(always)]
+fn step_cell(ijk: &mut IVec3, t_next: &mut DVec3, step: IVec3, face: DVec3, o: DVec3, inv_d: DVec3) -> f64 {
+    let t_exit = t_next.x.min(t_next.y).min(t_next.z);
+    for a in 0..3 {
+        if t_next[a] == t_exit {
+            ijk[a] += step[a];
+            t_next[a] = (f64::from(ijk[a]) + face[a] - o[a]) * inv_d[a];
+        }
+    }
+    t_exit
+}
+
+/// True when cell `ijk` lies outside the dense brick whose first cell is `origin`.
+#[inline(always)]
+fn outside_brick(ijk: IVec3, origin: IVec3) -> bool {
+    let l = ijk - origin;
+    (l.x as u32 | l.y as u32 | l.z as u32) >= BRICK as u32
+}
+
 /// Iterator over the pieces of one ray through a lattice of cells. See the module docs.
 #[derive(Debug)]
 pub struct CellWalk<C: Cells> {
@@ -318,18 +341,8 @@ impl<C: Cells> CellWalk<C> {
                 // Step one cell of a dense brick; its piece is built from the brick's data
                 // before the walk may leave the brick
                 let ijk = self.ijk;
-                let t_exit = self.t_next.x.min(self.t_next.y).min(self.t_next.z);
-                for a in 0..3 {
-                    if self.t_next[a] == t_exit {
-                        self.ijk[a] += self.step[a];
-                        self.t_next[a] = (f64::from(self.ijk[a]) + self.face[a] - self.o[a]) * self.inv_d[a];
-                    }
-                }
-                let t1 = t_exit.min(self.t_end);
-                let leaves = {
-                    let l = self.ijk - origin;
-                    (l.x as u32 | l.y as u32 | l.z as u32) >= BRICK as u32
-                };
+                let t1 = step_cell(&mut self.ijk, &mut self.t_next, self.step, self.face, self.o, self.inv_d).min(self.t_end);
+                let leaves = outside_brick(self.ijk, origin);
                 if t1 > t0 {
                     let piece = self.cells.dense_piece(dense, origin, ijk, t0, t1, &IndexLine { o: self.o, d: self.d });
                     if leaves {
@@ -390,20 +403,13 @@ impl<C: Cells> CellWalk<C> {
         let t0 = self.t;
         let mut last = self.ijk - origin;
         loop {
-            let t_exit = self.t_next.x.min(self.t_next.y).min(self.t_next.z);
-            for a in 0..3 {
-                if self.t_next[a] == t_exit {
-                    self.ijk[a] += self.step[a];
-                    self.t_next[a] = (f64::from(self.ijk[a]) + self.face[a] - self.o[a]) * self.inv_d[a];
-                }
-            }
-            let t1 = t_exit.min(self.t_end);
+            let t1 = step_cell(&mut self.ijk, &mut self.t_next, self.step, self.face, self.o, self.inv_d).min(self.t_end);
             if t1 > self.t {
                 self.t = t1;
                 self.raw_steps += 1;
             }
+            let leaves = outside_brick(self.ijk, origin);
             let l = self.ijk - origin;
-            let leaves = (l.x as u32 | l.y as u32 | l.z as u32) >= BRICK as u32;
             let Some(dense) = self.dense.as_mut() else { break };
             if leaves || self.t >= self.t_end || !C::known_empty(dense, l) {
                 C::after_empty(dense, last);

@@ -15,9 +15,10 @@
 //!
 //! **Empty cells.** Entering a dual brick also forms which of its 64 blocks of 2³ cells
 //! may read a voxel that is not empty ([`dual_block_mask`], from the 8 voxel bricks'
-//! [`BlockMasks`]). A cell in a clear block has 8 empty corners: its piece is the
-//! constant empty piece at once, without reading a corner (38 % of the dense cells of
-//! kelvin40's emission–absorption render; the pieces are the same, bit for bit). Shadow
+//! [`BlockMasks`]). A cell in a clear block has 8 empty corners, and the walk steps
+//! through a run of such cells without reading a corner or building a piece, giving one
+//! empty piece for the run (`Cells::known_empty`; 38 % of the dense cells of kelvin40's
+//! emission–absorption render; the pieces are what theirs merged into, bit for bit). Shadow
 //! rays' density walk (`density`) does not ask: it crosses few cells per dual brick, and
 //! the masks cost it more than they saved (callgrind, point estimates with NEE: smoke1
 //! +4.1 %, kelvin40 +1.4 % of the render with them; the full walk's free paths still
@@ -190,7 +191,7 @@ impl<'a> DualCells<'a> {
     /// The dual block mask of a dual brick whose voxel bricks are `bricks`
     /// ([`Volume::brick_block`]).
     #[inline]
-    pub(super) fn block_mask(&self, bricks: &[Option<(u32, &Brick)>; 8]) -> u64 {
+    fn block_mask(&self, bricks: &[Option<(u32, &Brick)>; 8]) -> u64 {
         dual_block_mask(bricks.map(|b| b.map_or(0, |(index, brick)| self.blocks.get(self.volume, index, brick))))
     }
 
@@ -355,7 +356,7 @@ const Z0: u64 = 0xffff;
 /// axis at a time (a shift within a row or slab, and the next brick's first row or slab
 /// moved in at the end).
 #[must_use]
-pub(crate) fn dual_block_mask(voxel: [u64; 8]) -> u64 {
+fn dual_block_mask(voxel: [u64; 8]) -> u64 {
     let along_x = |lo: u64, hi: u64| lo | ((lo >> 1) & !(X0 << 3)) | ((hi & X0) << 3);
     let along_y = |lo: u64, hi: u64| lo | ((lo >> 4) & !(Y0 << 12)) | ((hi & Y0) << 12);
     let x = [along_x(voxel[0], voxel[1]), along_x(voxel[2], voxel[3]), along_x(voxel[4], voxel[5]), along_x(voxel[6], voxel[7])];

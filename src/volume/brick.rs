@@ -367,7 +367,8 @@ impl Volume {
     }
 
     /// The bricks at `b + c`, `c ∈ {0,1}³` (bit 0: +x, bit 1: +y, bit 2: +z), each what
-    /// [`Volume::brick`] gives: the voxel bricks a dual brick's cells read. The table cell
+    /// [`Volume::brick`] gives with its number in the brick array: the voxel bricks a dual
+    /// brick's cells read. The table cell
     /// of `b` and the range checks are worked out once per axis, not once per brick (the
     /// trilinear walk enters half a million dual bricks on kelvin40 at 160×120, 8 spp).
     #[inline]

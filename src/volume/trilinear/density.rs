@@ -190,8 +190,7 @@ impl<'a> Cells for DensityCells<'a> {
     fn dense(&self, b: IVec3, dense: &mut DensityBricks<'a>) -> bool {
         let volume = self.cells.voxels();
         let mut any = false;
-        let bricks = volume.brick_block(b);
-        for (channel, brick) in dense.bricks.iter_mut().zip(bricks) {
+        for (channel, brick) in dense.bricks.iter_mut().zip(volume.brick_block(b)) {
             *channel = match brick {
                 Some((_, brick)) => {
                     any = true;

@@ -22,9 +22,11 @@ use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
 use crate::film::{Crop, Film, HalfSums, Tile};
+use crate::integrator::deferred::PendingSample;
 use crate::integrator::split_map::pixel_integrator;
 use crate::integrator::{AovLayout, AovSample, Aovs, Counters, Integrator, NoAovs, NoTrace, Scene, SplitMap};
 use crate::sampling::{Dim, Sampler, SamplerKind};
+use crate::scene::DeferPaths;
 use crate::volume::field::{Field, RayGrid};
 
 /// How many samples to take.
@@ -147,6 +149,9 @@ pub struct RenderControl<'a> {
     /// finished yet (see [`SampleOrder::TileMajor`]); `None`: no bound but the number of
     /// tiles ahead. Never changes a result.
     pub read_ahead_window: Option<u64>,
+    /// Whether scattered paths are traced in rounds (`integrator::deferred`). Never
+    /// changes a result.
+    pub defer_paths: DeferPaths,
     /// With half sums in `aovs` (`--denoise`): the half block ([`crate::denoise::half_of`];
     /// `None`: [`crate::denoise::half_block`]`(None)`).
     pub half_block: Option<u64>,
@@ -210,17 +215,22 @@ pub fn pixel_sample<F: Field>(scene: &Scene<F>, kind: SamplerKind, seed: u64, x:
     PixelSample { ray: camera.ray(f64::from(x) + jx, f64::from(y) + jy), sampler, time }
 }
 
+/// Where a tile's samples whose scattered paths are deferred go (`integrator::deferred`):
+/// the tile's number in the film, and the list.
+type Deferring<'p> = Option<(usize, &'p mut Vec<PendingSample>)>;
+
 fn render_tile<F: Field>(
     scene: &Scene<F>,
     (settings, split_map): (&RenderSettings, Option<&SplitMap>),
     samples: std::ops::Range<u64>,
     tile: &mut Tile,
+    defer: Deferring<'_>,
 ) -> Counters {
     if tile.aov_channels == 0 {
-        render_tile_with(scene, (settings, split_map), samples, tile, &mut NoAovs)
+        render_tile_with(scene, (settings, split_map), samples, tile, &mut NoAovs, defer)
     } else {
         let mut aovs = AovSample::new(tile.aov_channels, tile.half.map(|h| (h.at, h.filtered)));
-        render_tile_with(scene, (settings, split_map), samples, tile, &mut aovs)
+        render_tile_with(scene, (settings, split_map), samples, tile, &mut aovs, None)
     }
 }
 
@@ -230,6 +240,7 @@ fn render_tile_with<F: Field, A: Aovs>(
     samples: std::ops::Range<u64>,
     tile: &mut Tile,
     aovs: &mut A,
+    mut defer: Deferring<'_>,
 ) -> Counters {
     let mut counters = Counters::default();
     for ty in 0..tile.height {
@@ -240,7 +251,19 @@ fn render_tile_with<F: Field, A: Aovs>(
             for s in samples.clone() {
                 let PixelSample { ray, mut sampler, time } = pixel_sample(scene, settings.sampler, settings.seed, x, y, s);
                 aovs.begin();
-                let l = integrator.li_aovs(scene, &ray, &mut sampler, (time, &mut counters), &mut NoTrace, aovs);
+                let l = if let Some((tile_index, pending)) = defer.as_mut() {
+                    let mut paths = Vec::new();
+                    let l = integrator.li_deferring(scene, &ray, &mut sampler, (time, &mut counters), &mut paths);
+                    if !paths.is_empty() {
+                        // Added to the film when its paths are done
+                        counters.samples += 1;
+                        pending.push(PendingSample::new(*tile_index, index, SampleId { x, y, sample: s }, integrator, l, paths));
+                        continue;
+                    }
+                    l
+                } else {
+                    integrator.li_aovs(scene, &ray, &mut sampler, (time, &mut counters), &mut NoTrace, aovs)
+                };
                 if tile.half.is_some_and(|h| A::ON && crate::denoise::half_of(s, h.block)) {
                     aovs.half(l);
                 }
@@ -320,6 +343,19 @@ pub fn render_with<F: Field>(scene: &Scene<F>, settings: &RenderSettings, contro
     // Splitting by brightness: the pilot renders the whole frame, whatever this call renders
     let split_map = pool.install(|| crate::pilot::split_map(scene, settings));
     let split_map = split_map.as_ref();
+    // Scattered paths in rounds, reading the file in order (`integrator::deferred`)
+    let defer = control.order == SampleOrder::TileMajor
+        && control.aovs.is_none()
+        && settings.integrator.defers(scene)
+        && match control.defer_paths {
+            // One path per camera collision: with more, the paths' lookups outgrow what a
+            // few fills serve (the 2048³ flare in a 1.5 GiB cgroup, 16 spp: `--split 1`
+            // 80–87 s deferred against 126 s direct; `--split 8` about 56 fills, over
+            // 380 s against 195–217 s direct; docs/BENCHMARKS.md)
+            DeferPaths::Auto => out_of_core && settings.integrator.split == 1 && split_map.is_none(),
+            DeferPaths::Always => true,
+            DeferPaths::Never => false,
+        };
     let stopped = loop {
         let remaining = match settings.budget {
             SampleBudget::Spp(_) => total - done,
@@ -371,7 +407,7 @@ pub fn render_with<F: Field>(scene: &Scene<F>, settings: &RenderSettings, contro
         let pass_cpu_start = crate::stats::cpu_seconds();
         let tile_counters: Vec<Counters> = if tile_major {
             let abandon = || control.stop.is_some_and(|stop| stop()) || control.deadline.is_some_and(|d| Instant::now() >= d);
-            match tile_major_pass(scene, (settings, split_map), &pool, &mut film, (&range, control.read_ahead_window), &abandon, &mut tile_seconds) {
+            match tile_major_pass(scene, (settings, split_map), &pool, &mut film, (&range, control.read_ahead_window), &abandon, &mut tile_seconds, defer) {
                 Some(c) => c,
                 None if control.deadline.is_some_and(|d| Instant::now() >= d) => break StopReason::TimeLimit,
                 None => break StopReason::Interrupted,
@@ -426,7 +462,7 @@ fn progressive_pass<F: Field>(
         let Some(&i) = order.get(next.fetch_add(1, Ordering::Relaxed)) else { return };
         let start = Instant::now();
         let mut tile = tiles[i].lock().unwrap_or_else(std::sync::PoisonError::into_inner);
-        let c = render_tile(scene, settings, samples.clone(), &mut tile);
+        let c = render_tile(scene, settings, samples.clone(), &mut tile, None);
         *results[i].lock().unwrap_or_else(std::sync::PoisonError::into_inner) = (c, start.elapsed().as_secs_f64());
     });
     results
@@ -445,6 +481,7 @@ fn progressive_pass<F: Field>(
 /// the camera rays of the next tiles through `scene.field`, within `read_ahead_window`.
 /// Returns the tiles' counters in tile order, or `None` with `film` unchanged when
 /// `abandon` said so between tiles.
+#[allow(clippy::too_many_arguments)]
 fn tile_major_pass<F: Field>(
     scene: &Scene<F>,
     settings: (&RenderSettings, Option<&SplitMap>),
@@ -453,6 +490,7 @@ fn tile_major_pass<F: Field>(
     (samples, read_ahead_window): (&std::ops::Range<u64>, Option<u64>),
     abandon: &(dyn Fn() -> bool + Sync),
     tile_seconds: &mut [f64],
+    defer: bool,
 ) -> Option<Vec<Counters>> {
     let before = film.clone();
     let rects: Vec<(u32, u32, u32, u32)> = film.tiles.iter().map(|t| (t.x0, t.y0, t.width, t.height)).collect();
@@ -463,6 +501,7 @@ fn tile_major_pass<F: Field>(
     let results: Mutex<Vec<(usize, Counters, f64)>> = Mutex::new(Vec::with_capacity(rects.len()));
     let done: Vec<AtomicBool> = rects.iter().map(|_| AtomicBool::new(false)).collect();
     let window = ReadAheadWindow { ahead: pool.current_num_threads() + PREFETCH_AHEAD, bytes: read_ahead_window.unwrap_or(u64::MAX) };
+    let pending: Mutex<Vec<PendingSample>> = Mutex::new(Vec::new());
     std::thread::scope(|s| {
         if scene.field.is_mapped() {
             scene.field.expect_prefetch();
@@ -480,7 +519,11 @@ fn tile_major_pass<F: Field>(
             let Some((i, tile)) = next else { return };
             taken.fetch_max(i + 1, Ordering::Relaxed);
             let start = Instant::now();
-            let c = render_tile(scene, settings, samples.clone(), tile);
+            let mut deferred = Vec::new();
+            let c = render_tile(scene, settings, samples.clone(), tile, defer.then_some((i, &mut deferred)));
+            if !deferred.is_empty() {
+                pending.lock().unwrap_or_else(std::sync::PoisonError::into_inner).append(&mut deferred);
+            }
             done[i].store(true, Ordering::Relaxed);
             results.lock().unwrap_or_else(std::sync::PoisonError::into_inner).push((i, c, start.elapsed().as_secs_f64()));
         });
@@ -492,15 +535,20 @@ fn tile_major_pass<F: Field>(
     }
     let mut results = results.into_inner().unwrap_or_else(std::sync::PoisonError::into_inner);
     results.sort_unstable_by_key(|&(i, ..)| i);
-    Some(
-        results
-            .into_iter()
-            .map(|(i, c, seconds)| {
-                tile_seconds[i] = seconds;
-                c
-            })
-            .collect(),
-    )
+    let mut counters: Vec<Counters> = results
+        .into_iter()
+        .map(|(i, c, seconds)| {
+            tile_seconds[i] = seconds;
+            c
+        })
+        .collect();
+    let pending = pending.into_inner().unwrap_or_else(std::sync::PoisonError::into_inner);
+    if !pending.is_empty() {
+        // The scattered paths, in rounds (the film's sums do not depend on when)
+        let lookup = settings.0.integrator.point_lookup;
+        counters.push(crate::integrator::deferred::finish(scene, (pool, read_ahead_window), film, pending, lookup));
+    }
+    Some(counters)
 }
 
 /// How far the prefetch thread of a tile-major pass may run ahead of the workers.

@@ -17,6 +17,7 @@ mod cache;
 mod cli;
 mod cli_lights;
 mod cli_method;
+mod deferred_paths;
 mod denoise;
 mod environment_map;
 mod estimators;

@@ -72,6 +72,7 @@ flags_to_keys! { RENDER_ONLY_FLAGS, apply_render_only, RenderArgs, s, a;
     "cache_dir" => "render.cache_dir": s.settings.render.cache_dir => a.cache_dir.clone();
     "cache_lock_timeout" => "render.cache_lock_timeout": s.settings.render.cache_lock_timeout => a.cache_lock_timeout;
     "sample_order" => "render.sample_order": s.settings.render.sample_order => a.sample_order;
+    "defer_paths" => "render.defer_paths": s.settings.render.defer_paths => a.defer_paths;
     "quiet" => "render.quiet": s.settings.render.quiet => a.quiet;
     "frames" => "farm.frames": s.settings.farm.frames => a.frames.clone();
     "overwrite" => "farm.overwrite": s.settings.farm.overwrite => a.overwrite;

@@ -17,9 +17,9 @@ use plume::integrator::{LightSampling, MisHeuristic};
 use plume::medium::Convention;
 use plume::scene::file::{is_scene_file, SceneFile};
 use plume::scene::{
-    ByteSize, CameraCollision, CameraSettings, DistantSettings, EmissionSettings, EmissionSource, EnvironmentMapSettings, EstimatorKind, IntegratorSettings,
-    Interpolation, MediumSettings, Method, NeeTable, PointLookup, ProgressFormat, ReadSettings, RenderOptions, SampleOrderChoice, SamplerKind, Shot,
-    SkySettings, SphereSettings, SplitBy, TileIndex, TrackingChoice, UpAxis, ValidShot, VolumeInput,
+    ByteSize, CameraCollision, CameraSettings, DeferPaths, DistantSettings, EmissionSettings, EmissionSource, EnvironmentMapSettings, EstimatorKind,
+    IntegratorSettings, Interpolation, MediumSettings, Method, NeeTable, PointLookup, ProgressFormat, ReadSettings, RenderOptions, SampleOrderChoice,
+    SamplerKind, Shot, SkySettings, SphereSettings, SplitBy, TileIndex, TrackingChoice, UpAxis, ValidShot, VolumeInput,
 };
 
 use super::flags::{choice, parse_environment_map, parse_keys, parse_pair, parse_size, parse_vec3};
@@ -248,6 +248,16 @@ pub struct RenderArgs {
     /// or time limit abandons the frame (nothing of it is written).
     #[arg(long, value_parser = choice::<SampleOrderChoice>(), default_value_t = RenderOptions::default().sample_order)]
     pub sample_order: SampleOrderChoice,
+    /// Out of core, scattered paths are traced in rounds: each round reruns every
+    /// unfinished path on the values gathered for it, records the lookups of the segment
+    /// it could not finish, and reads them all in the order of the cache file, so a page
+    /// is read about once per round instead of once per lookup (the image is the same
+    /// bit for bit). `auto`: where the volume is paged from a cache file in tile-major
+    /// order; `always`: in every tile-major render; `never`. Only paths null-tracked after
+    /// scattering with FNEE or no light sampling, no external lights or motion blur, and
+    /// an estimator other than point are deferred; others are traced where they scatter.
+    #[arg(long, value_parser = choice::<DeferPaths>(), default_value_t = RenderOptions::default().defer_paths)]
+    pub defer_paths: DeferPaths,
     /// No progress bar or summary.
     #[arg(long, short)]
     pub quiet: bool,

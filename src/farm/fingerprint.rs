@@ -120,6 +120,7 @@ pub fn settings_hash(shot: &Shot, seed: u64) -> String {
         sampler,
         threads: _,
         sample_order: _,
+        defer_paths: _,
         memory_budget: _,
         cache_dir: _,
         cache_lock_timeout: _,

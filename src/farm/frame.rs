@@ -333,6 +333,7 @@ fn run_passes(
         stop: Some(&stop),
         deadline: job_settings.farm.time_limit.map(|t| start + Duration::from_secs_f64(t)),
         order,
+        defer_paths: job_settings.render.defer_paths,
         read_ahead_window: read_ahead_window(crate::scene::bind::memory_budget(job_settings)),
         aovs,
         half_block: Some(crate::farm::fingerprint::half_block(job_settings)),

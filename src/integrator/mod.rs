@@ -6,6 +6,7 @@
 //! (estimated: the escape indicator, or the exact ray-marched transmittance).
 
 pub mod aov;
+pub mod deferred;
 pub mod lights;
 pub mod split_map;
 pub mod tracker;
@@ -183,6 +184,14 @@ pub struct Counters {
     pub external_light_samples: u64,
     /// Samples dropped because they were NaN or infinite.
     pub nonfinite_samples: u64,
+    /// Samples whose scattered paths were deferred (`integrator::deferred`).
+    pub deferred_samples: u64,
+    /// Rounds of rerun and fill of deferred paths.
+    pub deferred_rounds: u64,
+    /// Values read in file order for deferred paths.
+    pub deferred_lookups: u64,
+    /// Deferred samples whose paths were traced directly after the last round.
+    pub deferred_direct: u64,
     /// The first dropped sample, for `--debug-pixel` (serialized as
     /// `{"x": …, "y": …, "sample": …}`, or `null`).
     pub first_nonfinite: Option<crate::render::SampleId>,
@@ -199,6 +208,10 @@ impl Counters {
         self.nee_samples += o.nee_samples;
         self.external_light_samples += o.external_light_samples;
         self.nonfinite_samples += o.nonfinite_samples;
+        self.deferred_samples += o.deferred_samples;
+        self.deferred_rounds += o.deferred_rounds;
+        self.deferred_lookups += o.deferred_lookups;
+        self.deferred_direct += o.deferred_direct;
         if self.first_nonfinite.is_none() {
             self.first_nonfinite = o.first_nonfinite;
         }

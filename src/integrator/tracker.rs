@@ -17,6 +17,7 @@
 //! they only sum optical depth, and an exact `τ` adds no noise to the light it carries.
 //! A moving volume is tracked by null collisions everywhere (no closed form exists).
 
+use crate::integrator::deferred::{Ask, BufferedPoints, Request};
 use crate::integrator::LightSampling;
 use crate::medium::emission::EmissionMemo;
 use crate::medium::forced::Forced;
@@ -154,6 +155,15 @@ pub enum Tracker<'a, F: Field> {
         /// How tentative points read the volume.
         lookup: PointLookup,
     },
+    /// Null collisions through a still volume whose values are served from what earlier
+    /// rounds read for this path (`integrator::deferred`): a segment whose values are
+    /// not all there is recorded instead of walked.
+    Deferred {
+        /// The volume's majorants.
+        majorants: &'a MajorantGrid,
+        /// The values read so far, and what the path still needs.
+        points: &'a BufferedPoints<'a>,
+    },
 }
 
 impl<F: Field> Clone for Tracker<'_, F> {
@@ -168,7 +178,7 @@ impl<F: Field> Copy for Tracker<'_, F> {}
 /// world point `p` reads the frame's field at `motion.source_point(p, time)`, or at `p`
 /// in a still volume. Emission goes through a memo of the corners' `L_e` (consecutive
 /// points along a ray share voxels).
-struct Points<'a, F: Field> {
+pub(super) struct Points<'a, F: Field> {
     field: &'a F,
     motion: Option<(&'a Motion, f64)>,
     memo: EmissionMemo<'a>,
@@ -180,7 +190,7 @@ struct Points<'a, F: Field> {
 }
 
 impl<'a, F: Field> Points<'a, F> {
-    fn new(field: &'a F, medium: &'a Medium, motion: Option<(&'a Motion, f64)>, lookup: PointLookup) -> Self {
+    pub(super) fn new(field: &'a F, medium: &'a Medium, motion: Option<(&'a Motion, f64)>, lookup: PointLookup) -> Self {
         let fewer = field.picks_fewer();
         let (picks, picks_emission) = (fewer && lookup.picks_density(), fewer && lookup.picks_emission());
         Points { field, motion, memo: EmissionMemo::new(&medium.emission), picks, picks_emission }
@@ -247,7 +257,8 @@ impl<F: Field> PointField for Points<'_, F> {
     }
 }
 
-/// Most points a [`Recorder`] keeps: at most a few megabytes of pages asked for per segment.
+/// Most points a [`Recorder`] keeps for a read-ahead: at most a few megabytes of pages
+/// asked for per segment.
 const MAX_READ_AHEAD_POINTS: usize = 512;
 
 /// Out of core, a scattered segment asks for its pages before it reads any (one batch of
@@ -259,24 +270,41 @@ const MAX_READ_AHEAD_POINTS: usize = 512;
 /// are the real walk's up to its collision, then those of the rest of the segment.
 /// Ray-march's ratio-tracking roulette does depend on the values: there the hint is
 /// approximate. A hint either way: nothing recorded changes a result.
-struct Recorder {
-    points: std::cell::RefCell<Vec<glam::DVec3>>,
+///
+/// Deferred paths (`integrator::deferred`) use the same walk to learn which values a
+/// segment will ask for, each with what it asks ([`Ask`]) and the number a picked lookup
+/// draws.
+pub(super) struct Recorder {
+    requests: std::cell::RefCell<Vec<Request>>,
+    /// Most requests kept.
+    cap: usize,
     /// As the real walk's field: the walk draws a number per read when it picks.
     picks: bool,
     picks_emission: bool,
 }
 
 impl Recorder {
-    /// A recorder that draws what the walk through `points` draws.
-    fn mirroring<F: Field>(points: &Points<'_, F>) -> Recorder {
-        Recorder { points: std::cell::RefCell::default(), picks: points.picks, picks_emission: points.picks_emission }
+    /// A recorder that draws what the walk through `points` draws, keeping at most `cap`
+    /// requests.
+    fn mirroring<F: Field>(points: &Points<'_, F>, cap: usize) -> Recorder {
+        Recorder::with_picks(points.picks, points.picks_emission, cap)
     }
 
-    fn record(&self, p: glam::DVec3) {
-        let mut points = self.points.borrow_mut();
-        if points.len() < MAX_READ_AHEAD_POINTS {
-            points.push(p);
+    /// A recorder of a walk whose field picks as said.
+    pub(super) fn with_picks(picks: bool, picks_emission: bool, cap: usize) -> Recorder {
+        Recorder { requests: std::cell::RefCell::default(), cap, picks, picks_emission }
+    }
+
+    fn record(&self, p: glam::DVec3, ask: Ask, u: f64) {
+        let mut requests = self.requests.borrow_mut();
+        if requests.len() < self.cap {
+            requests.push(Request { p, ask, u });
         }
+    }
+
+    /// What the walk asked for, in order.
+    pub(super) fn into_requests(self) -> Vec<Request> {
+        self.requests.into_inner()
     }
 }
 
@@ -288,15 +316,27 @@ impl PointField for Recorder {
         self.picks_emission
     }
     fn density(&self, p: glam::DVec3) -> f32 {
-        self.record(p);
+        self.record(p, Ask::Density, 0.0);
+        0.0
+    }
+    fn density_picked(&self, p: glam::DVec3, u: f64) -> f32 {
+        self.record(p, Ask::DensityPicked, u);
         0.0
     }
     fn emission(&self, p: glam::DVec3) -> [f64; 3] {
-        self.record(p);
+        self.record(p, Ask::Emission, 0.0);
         [0.0; 3]
     }
+    fn emission_picked(&self, p: glam::DVec3, u: f64) -> [f64; 3] {
+        self.record(p, Ask::EmissionPicked, u);
+        [0.0; 3]
+    }
+    fn albedo(&self, p: glam::DVec3) -> f32 {
+        self.record(p, Ask::Albedo, 0.0);
+        1.0
+    }
     fn sample(&self, p: glam::DVec3, _emission: bool) -> PointSample {
-        self.record(p);
+        self.record(p, Ask::Albedo, 0.0);
         PointSample::default()
     }
 }
@@ -335,11 +375,28 @@ impl<F: Field> Tracker<'_, F> {
             Tracker::Null { field, majorants, lookup } => {
                 let points = Points::new(field, medium, None, lookup);
                 if let Some(volume) = field.voxels().filter(|v| v.reading_ahead()) {
-                    let recorder = Recorder::mirroring(&points);
+                    let recorder = Recorder::mirroring(&points, MAX_READ_AHEAD_POINTS);
                     null_track(majorants, &recorder, medium, ray, t_max, estimator, need_collision, u, &mut sampler.clone());
-                    volume.read_ahead_points(&recorder.points.into_inner());
+                    let points: Vec<glam::DVec3> = recorder.into_requests().iter().map(|r| r.p).collect();
+                    volume.read_ahead_points(&points);
                 }
                 null_track(majorants, &points, medium, ray, t_max, estimator, need_collision, u, sampler)
+            }
+            Tracker::Deferred { majorants, points } => {
+                // Which values the segment asks for (the walk above draws the same
+                // numbers); where one is missing, the segment is recorded, not walked,
+                // and the sampler moves on as the recording walk drew: the path's next
+                // segment is then recorded as if this one had no real collision, which
+                // in thin media it mostly has not (a guess, checked when it is rerun)
+                let recorder = Recorder::with_picks(points.picks(), points.picks_emission(), usize::MAX);
+                let mut ahead = sampler.clone();
+                null_track(majorants, &recorder, medium, ray, t_max, estimator, need_collision, u, &mut ahead);
+                if points.has_all(&recorder.into_requests()) {
+                    null_track(majorants, points, medium, ray, t_max, estimator, need_collision, u, sampler)
+                } else {
+                    *sampler = ahead;
+                    TrackResult::nothing()
+                }
             }
             Tracker::Moving { field, motion, time, lookup } => null_track(
                 &motion.majorants,
@@ -370,6 +427,12 @@ impl<F: Field> Tracker<'_, F> {
                 }
                 let OpticalDepth { optical_depth: od, voxel_steps } = optical_depth(field, medium, ray, t_max, 745.0);
                 ((-od).exp(), voxel_steps)
+            }
+            Tracker::Deferred { points, .. } => {
+                // Not deferred: shadow rays are exact walks (light sampling that needs
+                // them keeps its paths out of deferral); the path is rerun directly
+                points.give_up();
+                (0.0, 0)
             }
             Tracker::Moving { field, motion, time, lookup } => {
                 (ratio_transmittance(&motion.majorants, &Points::new(field, medium, Some((motion, time)), lookup), medium, ray, t_max, sampler), 0)

@@ -67,6 +67,7 @@
 //!   full weight would count in-scattered emission twice.
 
 use super::aov::{Aovs, Component, NoAovs};
+use super::deferred::BufferedPoints;
 use super::lights::{LightSampling, MisHeuristic};
 use super::split_map::SplitBy;
 use super::tracker::{PointLookup, Tracker, Tracking};
@@ -142,7 +143,7 @@ enum ForwardWeight {
 /// albedo factor `albedo`, carrying throughput `beta` (before the albedo) of a path whose
 /// nominal weight is `scale`.
 #[derive(Clone, Copy, Debug)]
-struct Vertex {
+pub(crate) struct Vertex {
     incoming: Ray,
     t: f64,
     albedo: f32,
@@ -205,7 +206,6 @@ impl Integrator {
     /// [`Integrator::li`] at shutter time `time` (seconds; drawn here when the scene moves
     /// and it is `None`), also handing every contribution to `aovs` by its component
     /// (`integrator::aov`). With `None` and [`NoAovs`] this is `li`.
-    #[allow(clippy::too_many_lines)]
     pub fn li_aovs<F: Field, T: Trace, A: Aovs>(
         &self,
         scene: &Scene<F>,
@@ -214,6 +214,78 @@ impl Integrator {
         (time, c): (Option<f64>, &mut Counters),
         trace: &mut T,
         aovs: &mut A,
+    ) -> [f64; 4] {
+        self.li_camera(scene, camera_ray, sampler, (time, c), (trace, aovs), None)
+    }
+
+    /// [`Integrator::li`] up to the camera segment's collision: the scattered paths that
+    /// leave it are appended to `paths`, each with its sampler, for
+    /// `integrator::deferred` to trace (only where [`Integrator::defers`] the scene's
+    /// paths). The radiance returned is the camera segment's; each path adds to it.
+    pub(crate) fn li_deferring<F: Field>(
+        &self,
+        scene: &Scene<F>,
+        camera_ray: &Ray,
+        sampler: &mut Sampler,
+        (time, c): (Option<f64>, &mut Counters),
+        paths: &mut Vec<(Vertex, Sampler)>,
+    ) -> [f64; 4] {
+        self.li_camera(scene, camera_ray, sampler, (time, c), (&mut super::NoTrace, &mut NoAovs), Some(paths))
+    }
+
+    /// Whether the paths of `scene` can be deferred (`integrator::deferred`): they
+    /// scatter, every segment after a scattering event is null-tracked through a still
+    /// volume, and nothing on them walks the volume exactly (no classic NEE, no external
+    /// lights) or scores a real collision's emission (not the point estimator).
+    #[must_use]
+    pub(crate) fn defers<F: Field>(&self, scene: &Scene<F>) -> bool {
+        let scatters = scene.medium.albedo > 0.0 && self.max_depth > 0;
+        let null_after = self.tracking.null_after_scattering() && Tracking::applies(self.estimator, self.light_sampling) && scene.majorants.is_some();
+        scatters
+            && null_after
+            && scene.motion.is_none()
+            && scene.lights.external.is_none()
+            && self.estimator != Estimator::Point
+            && matches!(self.light_sampling, LightSampling::Fnee | LightSampling::None)
+    }
+
+    /// A deferred path (one that [`Integrator::li_deferring`] handed out) traced with the
+    /// values in `points`, adding to `l`. Whether it got every value it asked for is
+    /// `points`' to say; where it did not, `l` and `c` hold nothing meaningful.
+    pub(crate) fn deferred_path<F: Field>(
+        &self,
+        scene: &Scene<F>,
+        points: &BufferedPoints<'_>,
+        (vertex, sampler): (Vertex, &mut Sampler),
+        c: &mut Counters,
+        l: &mut [f64; 3],
+    ) {
+        let Some(majorants) = scene.majorants.as_ref() else {
+            points.give_up();
+            return;
+        };
+        let tracker = Tracker::Deferred { majorants, points };
+        self.scattered_path(scene, &tracker, vertex, sampler, (c, &mut super::NoTrace), (l, &mut NoAovs));
+    }
+
+    /// A deferred path traced directly, reading the volume as [`Integrator::li`] would.
+    pub(crate) fn direct_path<F: Field>(&self, scene: &Scene<F>, (vertex, sampler): (Vertex, &mut Sampler), c: &mut Counters, l: &mut [f64; 3]) {
+        // Without motion blur, choosing the trackers draws no number
+        let (_, tracker) = self.trackers(scene, None, &mut sampler.clone());
+        self.scattered_path(scene, &tracker, vertex, sampler, (c, &mut super::NoTrace), (l, &mut NoAovs));
+    }
+
+    /// [`Integrator::li_aovs`], or with `defer`, up to the camera segment's collision
+    /// ([`Integrator::li_deferring`]).
+    #[allow(clippy::too_many_lines)]
+    fn li_camera<F: Field, T: Trace, A: Aovs>(
+        &self,
+        scene: &Scene<F>,
+        camera_ray: &Ray,
+        sampler: &mut Sampler,
+        (time, c): (Option<f64>, &mut Counters),
+        (trace, aovs): (&mut T, &mut A),
+        mut defer: Option<&mut Vec<(Vertex, Sampler)>>,
     ) -> [f64; 4] {
         let m = &scene.medium;
         let mut l = [0.0f64; 3];
@@ -283,6 +355,10 @@ impl Integrator {
                 };
                 // One path (n = 1) draws the sample's own numbers: `split` is then a copy
                 let mut path_sampler = sampler.split(k, n);
+                if let Some(paths) = defer.as_deref_mut() {
+                    paths.push((vertex, path_sampler));
+                    continue;
+                }
                 self.scattered_path(scene, &tracker, vertex, &mut path_sampler, (&mut *c, &mut *trace), (&mut l, &mut *aovs));
             }
         }

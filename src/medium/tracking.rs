@@ -84,6 +84,22 @@ pub struct TrackResult {
     pub collision_weight: f64,
 }
 
+impl TrackResult {
+    /// A segment that was not walked: no collision, no emission, nothing crossed.
+    #[must_use]
+    pub fn nothing() -> TrackResult {
+        TrackResult {
+            event: DistanceSample::Escaped,
+            emission: [0.0; 3],
+            transmittance: 1.0,
+            optical_depth: 0.0,
+            segments: 0,
+            voxel_steps: 0,
+            collision_weight: 1.0,
+        }
+    }
+}
+
 /// Transmittance below which the ray-march estimator plays Russian roulette.
 pub const RAY_MARCH_ROULETTE_THRESHOLD: f64 = 1e-2;
 

@@ -284,6 +284,28 @@ choice!(SampleOrderChoice {
     "tile-major" => SampleOrderChoice::TileMajor, "Each tile's samples together, tiles in order, bricks read ahead";
 });
 
+/// When the scattered paths of a tile-major render are traced in rounds that read the
+/// cache file in order (`integrator::deferred`) instead of each where it scatters. Only
+/// paths that `Integrator::defers` can be (null-tracked after scattering, FNEE or no
+/// light sampling, no external lights, no motion blur, not the point estimator); the
+/// image is the same bit for bit either way.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum DeferPaths {
+    /// Where the volume is paged from a cache file in tile-major order.
+    #[default]
+    Auto,
+    /// In every tile-major render (for tests and measurements in core).
+    Always,
+    /// Never.
+    Never,
+}
+
+choice!(DeferPaths {
+    "auto" => DeferPaths::Auto, "In rounds where the volume is paged from a cache file in tile-major order";
+    "always" => DeferPaths::Always, "In rounds in every tile-major render";
+    "never" => DeferPaths::Never, "Each path where it scatters";
+});
+
 /// Up axis of automatic framing.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum UpAxis {
@@ -354,6 +376,7 @@ mod tests {
         round_trips::<Convention>();
         round_trips::<EmissionSource>();
         round_trips::<SampleOrderChoice>();
+        round_trips::<DeferPaths>();
         round_trips::<UpAxis>();
         round_trips::<ProgressFormat>();
         round_trips::<Interpolation>();

@@ -27,8 +27,8 @@ use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
 pub use choice::{
-    CameraCollision, Choice, EmissionSource, EstimatorKind, Interpolation, Method, NeeTable, ProgressFormat, SampleOrderChoice, SamplerKind, TrackingChoice,
-    UpAxis,
+    CameraCollision, Choice, DeferPaths, EmissionSource, EstimatorKind, Interpolation, Method, NeeTable, ProgressFormat, SampleOrderChoice, SamplerKind,
+    TrackingChoice, UpAxis,
 };
 pub use lights::{DistantSettings, EnvironmentMapSettings, LightSettings, SkySettings, SphereSettings};
 pub use settings::{FarmOptions, JobSettings, OutputSettings, ReadSettings, RenderOptions};

@@ -8,7 +8,7 @@ use std::path::PathBuf;
 
 use serde::{Deserialize, Serialize};
 
-use super::choice::{ProgressFormat, SampleOrderChoice, SamplerKind};
+use super::choice::{DeferPaths, ProgressFormat, SampleOrderChoice, SamplerKind};
 use super::values::{sample_range_text, ByteSize, TileIndex};
 use crate::film::Crop;
 use crate::render::SampleId;
@@ -53,6 +53,9 @@ pub struct RenderOptions {
     pub threads: usize,
     /// Order of the samples (the image does not depend on it).
     pub sample_order: SampleOrderChoice,
+    /// When scattered paths are traced in rounds that read the cache file in order (the
+    /// image does not depend on it).
+    pub defer_paths: DeferPaths,
     /// Bound on resident anonymous memory (default: half of RAM or of the process's
     /// cgroup memory limit, whichever is smaller; `memory::MemoryLimits`).
     #[serde(skip_serializing_if = "Option::is_none")]

@@ -242,6 +242,33 @@ impl Volume {
         self.will_need_blocks(blocks);
     }
 
+    /// Where in the cache file the values around world point `p` lie: the dense value
+    /// blocks of the brick holding `p`'s voxel, by channel (density, source, albedo;
+    /// `u32::MAX` for a constant channel, or outside). Sorting lookups by them reads the
+    /// file in order (`integrator::deferred`).
+    #[must_use]
+    pub fn value_blocks_at(&self, p: DVec3) -> [u32; 3] {
+        let q = self.index_from_world.transform_point3(p).floor();
+        let limit = f64::from(i32::MAX - 2 * BRICK);
+        let none = [u32::MAX; 3];
+        if !(q.is_finite() && q.abs().max_element() < limit) {
+            return none;
+        }
+        let Some(&Brick { density, source, albedo }) = self.brick(q.as_ivec3().div_euclid(IVec3::splat(BRICK))) else { return none };
+        [density, source, albedo].map(|slot| match slot.get() {
+            Slot::Dense(block) => block,
+            Slot::Constant(_) => u32::MAX,
+        })
+    }
+
+    /// Ask the OS to read value blocks `blocks` (all channels' blocks in that range of
+    /// the file). Nothing for an in-core volume.
+    pub fn read_ahead_blocks(&self, blocks: std::ops::Range<usize>) {
+        if self.is_mapped() {
+            self.values.will_need(std::iter::once(blocks.start * BRICK_VALUES..blocks.end * BRICK_VALUES));
+        }
+    }
+
     /// Whether the render reads ahead ([`Volume::expect_read_ahead`] was called on a
     /// mapped volume).
     #[must_use]

@@ -155,24 +155,26 @@ fn still_shadow_rays_are_exact_under_null_collisions() {
     }
 }
 
-/// The read-ahead walk ([`Recorder`]) asks for every point the real walk reads, in
-/// the same order: the real walk's density and emission lookups are a prefix of the
-/// recorded ones, for the line and point estimators, with and without a needed
-/// collision, on a thin and a dense explosion, nearest and trilinear, with exact and
-/// stochastic point lookups (which draw a number per read: the recorder must too).
+/// The read-ahead walk ([`Recorder`]) asks for every value the real walk reads, in
+/// the same order: the real walk's density and emission lookups (point, what is asked,
+/// the number a picked read draws) are a prefix of the recorded ones, for the line and
+/// point estimators, with and without a needed collision, on a thin and a dense
+/// explosion, nearest and trilinear, with exact and stochastic point lookups (which draw
+/// a number per read: the recorder must too). Deferred paths (`integrator::deferred`)
+/// rely on it: a segment is walked only once every recorded value is there.
 #[test]
 fn read_ahead_records_the_real_walks_lookups_first() {
     struct Tap<'a, P: PointField> {
         inner: &'a P,
-        points: std::cell::RefCell<Vec<glam::DVec3>>,
+        points: std::cell::RefCell<Vec<Request>>,
     }
     impl<P: PointField> PointField for Tap<'_, P> {
         fn density(&self, p: glam::DVec3) -> f32 {
-            self.points.borrow_mut().push(p);
+            self.points.borrow_mut().push(Request { p, ask: Ask::Density, u: 0.0 });
             self.inner.density(p)
         }
         fn emission(&self, p: glam::DVec3) -> [f64; 3] {
-            self.points.borrow_mut().push(p);
+            self.points.borrow_mut().push(Request { p, ask: Ask::Emission, u: 0.0 });
             self.inner.emission(p)
         }
         fn sample(&self, p: glam::DVec3, emission: bool) -> PointSample {
@@ -182,14 +184,14 @@ fn read_ahead_records_the_real_walks_lookups_first() {
             self.inner.picks()
         }
         fn density_picked(&self, p: glam::DVec3, u: f64) -> f32 {
-            self.points.borrow_mut().push(p);
+            self.points.borrow_mut().push(Request { p, ask: Ask::DensityPicked, u });
             self.inner.density_picked(p, u)
         }
         fn picks_emission(&self) -> bool {
             self.inner.picks_emission()
         }
         fn emission_picked(&self, p: glam::DVec3, u: f64) -> [f64; 3] {
-            self.points.borrow_mut().push(p);
+            self.points.borrow_mut().push(Request { p, ask: Ask::EmissionPicked, u });
             self.inner.emission_picked(p, u)
         }
     }
@@ -209,11 +211,16 @@ fn read_ahead_records_the_real_walks_lookups_first() {
                 let points = Points::new(field, &medium, None, lookup);
                 let tap = Tap { inner: &points, points: std::cell::RefCell::new(Vec::new()) };
                 let real = null_track(&majorants, &tap, &medium, &ray, f64::INFINITY, estimator, need_collision, u, &mut Sampler::new(3, k, 0));
-                let recorder = Recorder::mirroring(&points);
+                let recorder = Recorder::mirroring(&points, usize::MAX);
                 null_track(&majorants, &recorder, &medium, &ray, f64::INFINITY, estimator, need_collision, u, &mut Sampler::new(3, k, 0));
-                let (real_points, recorded) = (tap.points.into_inner(), recorder.points.into_inner());
-                let n = real_points.len().min(MAX_READ_AHEAD_POINTS);
-                assert_eq!(real_points[..n], recorded[..n], "ray {k}, σ_t {sigma_t}, {lookup:?}: recorded lookups differ from the real walk's");
+                let (real_points, recorded) = (tap.points.into_inner(), recorder.into_requests());
+                let n = real_points.len();
+                let bits = |r: &Request| (r.p.to_array().map(f64::to_bits), r.ask, r.u.to_bits());
+                assert!(recorded.len() >= n, "ray {k}: fewer recorded lookups than real ones");
+                assert!(
+                    real_points.iter().map(bits).eq(recorded[..n].iter().map(bits)),
+                    "ray {k}, σ_t {sigma_t}, {lookup:?}: recorded lookups differ from the real walk's"
+                );
                 collided += usize::from(matches!(real.event, crate::medium::DistanceSample::Collided { .. }));
                 compared += n;
             }

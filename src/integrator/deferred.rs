@@ -1,0 +1,652 @@
+//! Scattered paths of an out-of-core render, traced in rounds: record, fill, rerun
+//! (issue #17; docs/BENCHMARKS.md, "Scattering in a memory limit").
+//!
+//! **Why.** A volume larger than memory is paged from its cache file. The camera pass
+//! reads it tile by tile, in order; a scattered path instead looks the volume up at
+//! about a hundred points spread over it, each a page read at random (≈ 9 µs of kernel
+//! time per 4 KiB page in a cgroup, against ≈ 0.7 µs for a page read in file order).
+//!
+//! **How.** Four facts make the paths replayable without a resumable tracker:
+//! - a null-tracked segment's lookups are known before it runs: a walk through a field
+//!   that records instead of reading ([`Recorder`](super::tracker)) draws the same numbers
+//!   and asks at every point the real walk will ask at (a superset: it never collides);
+//! - a scattered path is a pure function of its first vertex and its sampler
+//!   ([`Integrator::li_deferring`] hands both out instead of tracing the path);
+//! - so it can be run again, and takes the same way for as long as its lookups return the
+//!   same values;
+//! - the film sums samples as exact fixed-point integers, in any order.
+//!
+//! Each round reruns every unfinished path from its first vertex against the values its
+//! sample has gathered ([`Answers`], served by [`BufferedPoints`]). The first segment
+//! whose values are not all there is recorded, not walked; the sampler moves on as the
+//! recording drew, so a light (FNEE) segment's miss still lets the path's next segment be
+//! recorded in the same round, as if the light segment had no real collision (which a
+//! rerun checks). Then every recorded lookup of every path is answered in the order of
+//! the cache file ([`Volume::value_block_at`](crate::volume::Volume::value_block_at)),
+//! its pages asked for a little ahead, by the same code a direct walk reads with: a
+//! value served later is the value a direct walk would read, bit for bit. A sample's
+//! paths are committed in order, each onto the radiance its predecessors left, so the
+//! sample reaches the film with the sums a direct render makes: **images are
+//! bit-identical** to the in-core render's, for any thread count and split.
+//!
+//! After [`MAX_ROUNDS`] rounds, or once few samples remain, the rest are traced directly.
+//! Paths whose scene needs exact walks after scattering (classic NEE, external lights),
+//! motion blur, or the point estimator are never deferred ([`Integrator::defers`]).
+
+use std::cell::{Cell, RefCell};
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Mutex;
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+use super::tracker::{PointLookup, Points};
+use super::volpath::Vertex;
+use super::{Counters, Integrator, Scene};
+use crate::film::Film;
+use crate::medium::null_tracking::{PointField, PointSample};
+use crate::render::SampleId;
+use crate::sampling::{mix64, Sampler};
+use crate::volume::field::Field;
+
+/// Rounds of record, fill and rerun before the samples left are traced directly.
+pub const MAX_ROUNDS: usize = 256;
+
+/// Samples left below which the rest are traced directly: a pass over the file costs
+/// more than their random reads.
+const FEW_SAMPLES: usize = 64;
+
+/// Lookups answered per piece of work of the fill.
+const FILL_CHUNK: usize = 4096;
+
+/// The fill orders lookups by the file's value blocks in buckets of `2^BUCKET_SHIFT`
+/// blocks (512 KiB): pages in a bucket are read together, in any order.
+const BUCKET_SHIFT: u32 = 8;
+
+/// Buckets of the file asked for ahead of the one being answered (64 MiB).
+const FILL_AHEAD_BUCKETS: usize = 128;
+
+/// What a walk asks of the field at a point.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Ask {
+    /// A tentative point's density.
+    Density,
+    /// A tentative point's density, one voxel picked by its weight with the request's `u`.
+    DensityPicked,
+    /// A real collision's albedo factor.
+    Albedo,
+    /// An emission point's `L_e`.
+    Emission,
+    /// An emission point's `L_e`, one voxel picked with the request's `u`.
+    EmissionPicked,
+}
+
+/// One value a walk asks for.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Request {
+    /// World point.
+    pub(crate) p: DVec3,
+    /// What is asked there.
+    pub(crate) ask: Ask,
+    /// The number a picked lookup draws (0 for the others).
+    pub(crate) u: f64,
+}
+
+impl Request {
+    /// The request's key: 128 bits of hash over the exact bits of what it asks, from two
+    /// independent multiply–rotate lanes, each finished by [`mix64`] (a path holds a few
+    /// hundred keys: two of them agree with probability about 2⁻¹²⁰).
+    fn key(&self) -> u128 {
+        let bits = [self.p.x, self.p.y, self.p.z, self.u].map(f64::to_bits);
+        let lane = |seed: u64, k: u64| mix64(bits.iter().fold(seed ^ self.ask as u64, |h, &b| (h ^ b).wrapping_mul(k).rotate_left(29)));
+        (u128::from(lane(0x243f_6a88_85a3_08d3, 0x9e37_79b9_7f4a_7c15)) << 64) | u128::from(lane(0x1319_8a2e_0370_7344, 0xc2b2_ae3d_27d4_eb4f))
+    }
+
+    /// The value a direct walk reads: an `L_e`; an albedo factor in the first slot; or
+    /// a tentative point's density in the first and, since the walk may collide there and
+    /// then ask for it, the albedo factor in the second.
+    fn answer<F: Field>(&self, points: &Points<'_, F>) -> [f64; 3] {
+        let first = |v: f32| [f64::from(v), 0.0, 0.0];
+        let density = |v: f32| [f64::from(v), f64::from(points.albedo(self.p)), 0.0];
+        match self.ask {
+            Ask::Density => density(points.density(self.p)),
+            Ask::DensityPicked => density(points.density_picked(self.p, self.u)),
+            Ask::Albedo => first(points.albedo(self.p)),
+            Ask::Emission => points.emission(self.p),
+            Ask::EmissionPicked => points.emission_picked(self.p, self.u),
+        }
+    }
+}
+
+/// A request's key and the value a direct walk reads for it.
+type Answer = (u128, [f64; 3]);
+
+/// The values a path has been served, by request key.
+#[derive(Debug, Default)]
+pub(crate) struct Answers {
+    entries: Vec<Answer>,
+}
+
+impl Answers {
+    fn get(&self, key: u128) -> Option<[f64; 3]> {
+        self.entries.binary_search_by_key(&key, |e| e.0).ok().map(|i| self.entries[i].1)
+    }
+
+    /// Sort the entries by key after pushing new ones (a key answered twice keeps one).
+    fn sort(&mut self) {
+        self.entries.sort_unstable_by_key(|e| e.0);
+        self.entries.dedup_by_key(|e| e.0);
+    }
+}
+
+/// The field as a deferred path's null collisions read it: from its sample's [`Answers`].
+/// A value not there reads as 0 and is noted; the walk's result is then void.
+pub struct BufferedPoints<'a> {
+    answers: &'a Answers,
+    picks: bool,
+    picks_emission: bool,
+    missing: RefCell<Vec<Request>>,
+    complete: Cell<bool>,
+    gave_up: Cell<bool>,
+    /// The last tentative point read and the albedo factor its answer carries: a real
+    /// collision asks for it next.
+    last: Cell<Option<(DVec3, f32)>>,
+}
+
+impl<'a> BufferedPoints<'a> {
+    /// Values from `answers`, picked as a direct walk through `points` picks.
+    fn mirroring<F: Field>(answers: &'a Answers, points: &Points<'_, F>) -> Self {
+        BufferedPoints {
+            answers,
+            picks: points.picks(),
+            picks_emission: points.picks_emission(),
+            missing: RefCell::default(),
+            complete: Cell::new(true),
+            gave_up: Cell::new(false),
+            last: Cell::new(None),
+        }
+    }
+
+    /// Whether every one of `requests` (a recorded segment's) is answered; the rest are
+    /// noted as missing.
+    pub(crate) fn has_all(&self, requests: &[Request]) -> bool {
+        let mut all = true;
+        for r in requests {
+            if self.answers.get(r.key()).is_none() {
+                all = false;
+                self.missing.borrow_mut().push(*r);
+            }
+        }
+        if !all {
+            self.complete.set(false);
+        }
+        all
+    }
+
+    /// The path needs what deferral cannot serve: it is traced directly.
+    pub(crate) fn give_up(&self) {
+        self.complete.set(false);
+        self.gave_up.set(true);
+    }
+
+    /// A tentative point's density, keeping the albedo factor its answer carries.
+    fn tentative(&self, r: Request) -> f32 {
+        let v = self.answer(r);
+        self.last.set(Some((r.p, v[1] as f32)));
+        v[0] as f32
+    }
+
+    fn answer(&self, r: Request) -> [f64; 3] {
+        self.answers.get(r.key()).unwrap_or_else(|| {
+            self.complete.set(false);
+            self.missing.borrow_mut().push(r);
+            [0.0; 3]
+        })
+    }
+}
+
+impl PointField for BufferedPoints<'_> {
+    fn picks(&self) -> bool {
+        self.picks
+    }
+    fn picks_emission(&self) -> bool {
+        self.picks_emission
+    }
+    fn density(&self, p: DVec3) -> f32 {
+        self.tentative(Request { p, ask: Ask::Density, u: 0.0 })
+    }
+    fn density_picked(&self, p: DVec3, u: f64) -> f32 {
+        self.tentative(Request { p, ask: Ask::DensityPicked, u })
+    }
+    fn albedo(&self, p: DVec3) -> f32 {
+        match self.last.get() {
+            Some((q, albedo)) if q.to_array().map(f64::to_bits) == p.to_array().map(f64::to_bits) => albedo,
+            _ => self.answer(Request { p, ask: Ask::Albedo, u: 0.0 })[0] as f32,
+        }
+    }
+    fn emission(&self, p: DVec3) -> [f64; 3] {
+        self.answer(Request { p, ask: Ask::Emission, u: 0.0 })
+    }
+    fn emission_picked(&self, p: DVec3, u: f64) -> [f64; 3] {
+        self.answer(Request { p, ask: Ask::EmissionPicked, u })
+    }
+    /// A real collision's whole record: only the point estimator asks, and its paths are
+    /// not deferred.
+    fn sample(&self, _p: DVec3, _emission: bool) -> PointSample {
+        self.give_up();
+        PointSample::default()
+    }
+}
+
+/// A deferred path: its first vertex and sampler, the values gathered for it, and what
+/// its last run missed.
+struct PendingPath {
+    vertex: Vertex,
+    sampler: Sampler,
+    answers: Answers,
+    missing: Vec<Request>,
+}
+
+/// A pixel sample whose camera segment is done and whose scattered paths are not.
+pub(crate) struct PendingSample {
+    /// The film tile and the pixel's index in it.
+    tile: usize,
+    index: usize,
+    /// The sample, for the report of a non-finite one.
+    id: SampleId,
+    /// The pixel's integrator (its split may be the pixel's own).
+    integrator: Integrator,
+    /// Radiance of the camera segment and of the paths committed so far, and alpha.
+    l: [f64; 3],
+    alpha: f64,
+    /// The paths in the order a direct render traces them; `next` is the first not
+    /// committed.
+    paths: Vec<PendingPath>,
+    next: usize,
+    /// Whether values came for the paths since they last ran.
+    stale: bool,
+    /// Whether the paths need what deferral cannot serve.
+    direct: bool,
+}
+
+impl PendingSample {
+    /// A sample whose camera segment gave `l` (radiance and alpha) and left `paths`.
+    pub(crate) fn new(tile: usize, index: usize, id: SampleId, integrator: Integrator, l: [f64; 4], paths: Vec<(Vertex, Sampler)>) -> Self {
+        let paths = paths.into_iter().map(|(vertex, sampler)| PendingPath { vertex, sampler, answers: Answers::default(), missing: Vec::new() }).collect();
+        PendingSample { tile, index, id, integrator, l: [l[0], l[1], l[2]], alpha: l[3], paths, next: 0, stale: true, direct: false }
+    }
+
+    fn done(&self) -> bool {
+        self.next == self.paths.len()
+    }
+
+    /// Lookups the paths wait for.
+    fn missing(&self) -> usize {
+        self.paths[self.next..].iter().map(|p| p.missing.len()).sum()
+    }
+
+    /// Rerun the paths not committed, committing those that got every value, in order
+    /// (a committed path's values are dropped); the others note what they miss. The
+    /// committed paths' counters.
+    fn rerun<F: Field>(&mut self, scene: &Scene<F>, lookup: PointLookup) -> Counters {
+        let mut counters = Counters::default();
+        if self.direct || !self.stale {
+            return counters;
+        }
+        self.stale = false;
+        let points = Points::new(&scene.field, &scene.medium, None, lookup);
+        let mut in_order = true;
+        for k in self.next..self.paths.len() {
+            let path = &mut self.paths[k];
+            let buffered = BufferedPoints::mirroring(&path.answers, &points);
+            let mut sampler = path.sampler.clone();
+            let (mut l, mut c) = (self.l, Counters::default());
+            self.integrator.deferred_path(scene, &buffered, (path.vertex, &mut sampler), &mut c, &mut l);
+            if buffered.gave_up.get() {
+                self.direct = true;
+                return counters;
+            }
+            if buffered.complete.get() && in_order {
+                self.l = l;
+                self.next = k + 1;
+                counters.merge(&c);
+                path.answers = Answers::default();
+                path.missing = Vec::new();
+            } else {
+                // A path after an unfinished one runs only to record what it will need
+                in_order = false;
+                let mut missing = buffered.missing.into_inner();
+                missing.sort_unstable_by_key(Request::key);
+                missing.dedup_by_key(|r| r.key());
+                path.missing = missing;
+            }
+        }
+        counters
+    }
+
+    /// Trace the paths not committed directly, reading the volume.
+    fn trace_direct<F: Field>(&mut self, scene: &Scene<F>) -> Counters {
+        let mut counters = Counters::default();
+        for path in &self.paths[self.next..] {
+            let mut sampler = path.sampler.clone();
+            self.integrator.direct_path(scene, (path.vertex, &mut sampler), &mut counters, &mut self.l);
+        }
+        self.next = self.paths.len();
+        counters
+    }
+
+    /// Add the finished sample to `film` (a non-finite one is dropped and counted).
+    fn add_to(&self, film: &mut Film, counters: &mut Counters) {
+        let l = [self.l[0], self.l[1], self.l[2], self.alpha];
+        if l.iter().all(|v| v.is_finite()) {
+            film.tiles[self.tile].add_sample(self.index, l);
+        } else {
+            counters.nonfinite_samples += 1;
+            let id = self.id;
+            if counters.first_nonfinite.is_none_or(|f| (id.y, id.x, id.sample) < (f.y, f.x, f.sample)) {
+                counters.first_nonfinite = Some(id);
+            }
+        }
+    }
+}
+
+/// Bytes a lookup holds at most, from its recording until its path is committed: the
+/// request (40), its place in the file order (12 + 12), its key and value in the fill
+/// (40) and in its path's answers (48).
+const BYTES_PER_LOOKUP: u64 = 152;
+
+/// The rounds are given up, and every path traced directly, when the first round's
+/// lookups, extrapolated to all samples, would take more fills than this. A fill costs
+/// about a pass over the pages its lookups touch; in the 2048³ flare's 1.5 GiB cgroup
+/// (`docs/BENCHMARKS.md`), `--split 1` needs about 7 fills of 2.5 M lookups and renders
+/// in 80–87 s instead of 126 s, while `--split 8` would need about 56, some 385 s against
+/// 195–217 s direct.
+const MAX_PASSES: usize = 8;
+
+/// Samples rerun together, between checks of how many lookups they recorded.
+const RERUN_BATCH: usize = 2048;
+
+/// Trace the paths of `pending` in rounds (module docs) and add each sample to `film`
+/// when its paths are done. A round reruns the samples in order until they have recorded
+/// `memory / BYTES_PER_LOOKUP` lookups (`None`: all samples), then answers those. Returns
+/// the paths' counters, with what the rounds did.
+pub(crate) fn finish<F: Field>(
+    scene: &Scene<F>,
+    (pool, memory): (&rayon::ThreadPool, Option<u64>),
+    film: &mut Film,
+    mut pending: Vec<PendingSample>,
+    lookup: PointLookup,
+) -> Counters {
+    let mut counters = Counters { deferred_samples: pending.len() as u64, ..Counters::default() };
+    let most = memory.map_or(usize::MAX, |m| usize::try_from(m / BYTES_PER_LOOKUP).unwrap_or(usize::MAX).max(1 << 16));
+    let log = std::env::var_os("PLUME_DEFER_LOG").is_some();
+    let mut buffers = FillBuffers::default();
+
+    for round in 0..MAX_ROUNDS {
+        let t0 = std::time::Instant::now();
+        // Rerun the samples in order while what they record fits
+        let mut recorded = 0;
+        let mut start = 0;
+        while start < pending.len() && recorded < most {
+            let end = (start + RERUN_BATCH).min(pending.len());
+            let batch: Vec<(Counters, usize)> = pool.install(|| {
+                pending[start..end]
+                    .par_iter_mut()
+                    .map(|s| {
+                        let c = s.rerun(scene, lookup);
+                        (c, s.missing())
+                    })
+                    .collect()
+            });
+            for (c, n) in &batch {
+                counters.merge(c);
+                recorded += n;
+            }
+            start = end;
+        }
+        counters.deferred_rounds += 1;
+        if round == 0 && start > 0 && recorded.saturating_mul(pending.len()) / start > MAX_PASSES.saturating_mul(most) {
+            // The first segments alone would take more fills than random reads cost:
+            // every path is traced directly
+            break;
+        }
+        let before = pending.len();
+        pending.retain(|s| {
+            if s.done() {
+                s.add_to(film, &mut counters);
+            }
+            !s.done()
+        });
+        let t1 = std::time::Instant::now();
+        if pending.len() <= FEW_SAMPLES || (recorded == 0 && pending.len() == before) {
+            break;
+        }
+        let cpu = crate::stats::cpu_seconds();
+        let n = fill(scene, pool, lookup, &mut pending, &mut buffers);
+        let cpu = crate::stats::cpu_seconds() - cpu;
+        counters.deferred_lookups += n;
+        if log {
+            eprintln!(
+                "round {round}: rerun {:.2} s ({} samples done, {} left, {recorded} lookups recorded), fill {:.2} s, {cpu:.2} CPU s ({n} lookups)",
+                (t1 - t0).as_secs_f64(),
+                before - pending.len(),
+                pending.len(),
+                t1.elapsed().as_secs_f64()
+            );
+        }
+    }
+    counters.deferred_direct = pending.len() as u64;
+    let direct: Vec<Counters> = pool.install(|| pending.par_iter_mut().map(|s| s.trace_direct(scene)).collect());
+    direct.iter().for_each(|c| counters.merge(c));
+    for s in &pending {
+        s.add_to(film, &mut counters);
+    }
+    counters
+}
+
+/// The fill's work lists, kept from round to round (fresh pages cost the kernel their
+/// zeroing).
+#[derive(Default)]
+struct FillBuffers {
+    /// The lookups in file order.
+    order: Vec<Entry>,
+    /// Their keys and values.
+    out: Vec<Answer>,
+}
+
+/// One lookup of the fill: whose it is.
+#[derive(Clone, Copy, Debug, Default)]
+struct Entry {
+    sample: u32,
+    path: u32,
+    request: u32,
+}
+
+/// Answer every missing request, bucket by bucket of the cache file in order, and add
+/// the values to their paths' [`Answers`]. Returns how many were answered.
+fn fill<F: Field>(scene: &Scene<F>, pool: &rayon::ThreadPool, lookup: PointLookup, pending: &mut [PendingSample], buffers: &mut FillBuffers) -> u64 {
+    let volume = scene.field.voxels();
+    let t0 = std::time::Instant::now();
+    // Each request's value blocks, by channel; its bucket is its first dense block's
+    let blocks: Vec<Vec<[u32; 3]>> = pool.install(|| {
+        pending
+            .par_iter_mut()
+            .map(|s| {
+                let wait = !s.direct && s.paths[s.next..].iter().any(|p| !p.missing.is_empty());
+                s.stale |= wait;
+                let requests = s.paths[s.next..].iter().flat_map(|p| &p.missing);
+                requests.map(|r| volume.map_or([u32::MAX; 3], |v| v.value_blocks_at(r.p))).collect()
+            })
+            .collect()
+    });
+    // Bucket 0: lookups that read no block
+    let bucket = |b: &[u32; 3]| b.iter().find(|&&b| b != u32::MAX).map_or(0, |&b| (b >> BUCKET_SHIFT) as usize + 1);
+    let n_buckets = blocks.iter().flatten().map(bucket).max().map_or(0, |b| b + 1);
+    // Per bucket and channel, the range of blocks its lookups read (their bricks')
+    let mut ranges = vec![[(u32::MAX, 0u32); 3]; n_buckets];
+    let mut starts = vec![0usize; n_buckets + 1];
+    for b in blocks.iter().flatten() {
+        let k = bucket(b);
+        starts[k + 1] += 1;
+        for (range, &block) in ranges[k].iter_mut().zip(b).filter(|(_, &block)| block != u32::MAX) {
+            *range = (range.0.min(block), range.1.max(block));
+        }
+    }
+    for k in 0..n_buckets {
+        starts[k + 1] += starts[k];
+    }
+    buffers.order.clear();
+    buffers.order.resize(starts[n_buckets], Entry::default());
+    let order = &mut buffers.order;
+    let mut at = starts.clone();
+    for (i, (s, b)) in pending.iter().zip(&blocks).enumerate() {
+        let mut b = b.iter();
+        for (k, path) in s.paths.iter().enumerate().skip(s.next) {
+            for j in 0..path.missing.len() {
+                let slot = &mut at[bucket(b.next().expect("invariant: blocks per request"))];
+                order[*slot] = Entry { sample: i as u32, path: k as u32, request: j as u32 };
+                *slot += 1;
+            }
+        }
+    }
+    drop(blocks);
+    let t1 = std::time::Instant::now();
+    // The bucket of each piece of work's last lookup
+    let bucket_at = |i: usize| starts.partition_point(|&s| s <= i).saturating_sub(1);
+    // Answer in order, the file's pages asked for a few buckets ahead
+    let order = &buffers.order;
+    buffers.out.clear();
+    buffers.out.resize(order.len(), (0, [0.0; 3]));
+    let work: Vec<Mutex<&mut [Answer]>> = buffers.out.chunks_mut(FILL_CHUNK).map(Mutex::new).collect();
+    let next = AtomicUsize::new(0);
+    let asked = AtomicUsize::new(0);
+    let shared: &[PendingSample] = pending;
+    let request = |e: &Entry| shared[e.sample as usize].paths[e.path as usize].missing[e.request as usize];
+    let mapped = volume.filter(|v| v.is_mapped());
+    pool.broadcast(|_| {
+        let points = Points::new(&scene.field, &scene.medium, None, lookup);
+        loop {
+            let c = next.fetch_add(1, Ordering::Relaxed);
+            let Some(slots) = work.get(c) else { return };
+            let entries = &order[c * FILL_CHUNK..(c * FILL_CHUNK + FILL_CHUNK).min(order.len())];
+            if let Some(v) = mapped.filter(|_| !entries.is_empty()) {
+                let here = bucket_at(c * FILL_CHUNK + entries.len() - 1);
+                let upto = (here + FILL_AHEAD_BUCKETS).min(n_buckets);
+                let from = asked.fetch_max(upto, Ordering::Relaxed);
+                for range in ranges.get(from..upto).unwrap_or_default().iter().flatten().filter(|r| r.0 <= r.1) {
+                    v.read_ahead_blocks(range.0 as usize..range.1 as usize + 1);
+                }
+            }
+            let mut slots = slots.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+            for (slot, e) in slots.iter_mut().zip(entries) {
+                let r = request(e);
+                *slot = (r.key(), r.answer(&points));
+            }
+        }
+    });
+    drop(work);
+    let t2 = std::time::Instant::now();
+    pool.install(|| {
+        pending.par_iter_mut().filter(|s| s.stale).for_each(|s| {
+            for path in &mut s.paths[s.next..] {
+                path.answers.entries.reserve_exact(path.missing.len());
+            }
+        });
+    });
+    for (e, &answer) in order.iter().zip(&buffers.out) {
+        pending[e.sample as usize].paths[e.path as usize].answers.entries.push(answer);
+    }
+    pool.install(|| {
+        pending.par_iter_mut().filter(|s| s.stale && !s.direct).for_each(|s| {
+            for path in &mut s.paths {
+                path.missing = Vec::new();
+                path.answers.sort();
+            }
+        });
+    });
+    if std::env::var_os("PLUME_DEFER_LOG").is_some() {
+        eprintln!("  fill: gather {:.2} s, answer {:.2} s, hand out {:.2} s", (t1 - t0).as_secs_f64(), (t2 - t1).as_secs_f64(), t2.elapsed().as_secs_f64());
+    }
+    buffers.order.len() as u64
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn buffered(answers: &Answers) -> BufferedPoints<'_> {
+        BufferedPoints {
+            answers,
+            picks: false,
+            picks_emission: false,
+            missing: RefCell::default(),
+            complete: Cell::new(true),
+            gave_up: Cell::new(false),
+            last: Cell::new(None),
+        }
+    }
+
+    #[test]
+    fn keys_tell_apart_every_bit_of_a_request() {
+        let r = Request { p: DVec3::new(1.5, -2.0, 3.25), ask: Ask::DensityPicked, u: 0.375 };
+        let next = |v: f64| f64::from_bits(v.to_bits() + 1);
+        let others = [
+            Request { p: DVec3::new(next(1.5), -2.0, 3.25), ..r },
+            Request { p: DVec3::new(1.5, next(-2.0), 3.25), ..r },
+            Request { p: DVec3::new(1.5, -2.0, next(3.25)), ..r },
+            Request { u: next(0.375), ..r },
+            Request { ask: Ask::Density, ..r },
+            Request { ask: Ask::EmissionPicked, ..r },
+            Request { p: DVec3::new(-2.0, 1.5, 3.25), ..r },
+        ];
+        assert_eq!(r.key(), Request { ..r }.key());
+        for o in others {
+            assert_ne!(r.key(), o.key(), "{o:?}");
+        }
+    }
+
+    #[test]
+    fn buffered_points_serve_what_was_answered_and_note_the_rest() {
+        let (p, q) = (DVec3::new(1.0, 2.0, 3.0), DVec3::new(1.0, 2.0, 3.5));
+        let mut answers = Answers::default();
+        answers.entries.push((Request { p, ask: Ask::Density, u: 0.0 }.key(), [0.5, 0.25, 0.0]));
+        answers.entries.push((Request { p: q, ask: Ask::Emission, u: 0.0 }.key(), [1.0, 2.0, 3.0]));
+        answers.sort();
+        let b = buffered(&answers);
+        assert_eq!(b.density(p), 0.5);
+        // A real collision at the tentative point: its albedo came with the density
+        assert_eq!(b.albedo(p), 0.25);
+        assert_eq!(b.emission(q), [1.0, 2.0, 3.0]);
+        assert!(b.complete.get() && b.missing.borrow().is_empty());
+        // Another ask at an answered point, a picked read, an albedo elsewhere: missing
+        assert_eq!(b.emission(p), [0.0; 3]);
+        assert_eq!(b.density_picked(p, 0.5), 0.0);
+        assert_eq!(b.albedo(q), 0.0);
+        assert!(!b.complete.get());
+        let asks: Vec<Ask> = b.missing.borrow().iter().map(|r| r.ask).collect();
+        assert_eq!(asks, [Ask::Emission, Ask::DensityPicked, Ask::Albedo]);
+        assert!(!b.gave_up.get());
+        // A recorded segment: answered only if every request is
+        let b = buffered(&answers);
+        assert!(b.has_all(&[Request { p, ask: Ask::Density, u: 0.0 }, Request { p: q, ask: Ask::Emission, u: 0.0 }]));
+        assert!(b.complete.get());
+        assert!(!b.has_all(&[Request { p, ask: Ask::Density, u: 0.0 }, Request { p: q, ask: Ask::Density, u: 0.0 }]));
+        assert!(!b.complete.get() && b.missing.borrow().len() == 1);
+        // The point estimator's whole record is never served: the path goes direct
+        let b = buffered(&answers);
+        let _ = b.sample(p, true);
+        assert!(b.gave_up.get() && !b.complete.get());
+    }
+
+    #[test]
+    fn answers_keep_one_value_per_key() {
+        let mut answers = Answers::default();
+        let r = Request { p: DVec3::ONE, ask: Ask::Emission, u: 0.0 };
+        answers.entries.extend([(r.key(), [1.0; 3]), (7, [2.0; 3]), (r.key(), [1.0; 3])]);
+        answers.sort();
+        assert_eq!(answers.entries.len(), 2);
+        assert_eq!(answers.get(r.key()), Some([1.0; 3]));
+        assert_eq!(answers.get(7), Some([2.0; 3]));
+        assert_eq!(answers.get(8), None);
+    }
+}

@@ -1,0 +1,96 @@
+//! Scattered paths traced in rounds (`--defer-paths`, `integrator::deferred`, issue #17):
+//! the image is the direct render's bit for bit, for any thread count, split, point lookup
+//! and estimator that defers; paths that cannot be deferred are traced as before; and a
+//! mapped cache in tile-major order defers by default.
+
+use crate::common;
+
+use std::path::Path;
+
+use common::{explosion, plume, s, stderr, tmpdir};
+
+/// Render `input` with `extra` flags; the pixels' bits and the stats' counters.
+fn render(input: &Path, dir: &Path, name: &str, extra: &[&str]) -> (Vec<u32>, serde_json::Value) {
+    let (out, stats) = (dir.join(format!("{name}.exr")), dir.join(format!("{name}.json")));
+    // A stats file gains a line per render
+    let _ = std::fs::remove_file(&stats);
+    let mut args = vec!["render", s(input), "-o", s(&out), "--overwrite", "--stats", s(&stats), "--spp", "4", "--width", "40", "--height", "30", "--seed", "5", "-q"];
+    args.extend_from_slice(extra);
+    let o = plume(&args);
+    assert!(o.status.success(), "{name}: {}", stderr(&o));
+    let pixels = common::exr_pixels(&out);
+    assert!(pixels.iter().any(|p| p[0] > 0.0), "{name}: the image is black, the test proves nothing");
+    let stats: serde_json::Value = serde_json::from_slice(&std::fs::read(&stats).unwrap()).unwrap();
+    (pixels.iter().flatten().map(|v| v.to_bits()).collect(), stats["counters"].clone())
+}
+
+fn counter(c: &serde_json::Value, key: &str) -> u64 {
+    c[key].as_u64().unwrap_or_else(|| panic!("counters lack {key}: {c}"))
+}
+
+#[test]
+fn deferred_paths_give_the_direct_images_bit_for_bit() {
+    let dir = tmpdir("deferred", "bits");
+    let ex = explosion(&dir, 32, Some(3));
+    let tile_major = ["--sample-order", "tile-major"];
+    for (name, flags) in [
+        ("line-fnee, one path", &["--albedo", "0.8", "--split", "1", "--threads", "1"][..]),
+        ("line-fnee, 3 split paths, 3 threads", &["--albedo", "0.8", "--g", "0.3", "--split", "3", "--threads", "3"]),
+        ("exact point lookups", &["--albedo", "0.9", "--point-lookup", "exact", "--threads", "2"]),
+        ("picked emission points", &["--albedo", "0.9", "--point-lookup", "stochastic-emission"]),
+        ("no light sampling, deep paths", &["--albedo", "0.95", "--light-sampling", "none", "--max-depth", "32"]),
+        ("ray-march after scattering", &["--albedo", "0.8", "--estimator", "ray-march"]),
+        ("nearest", &["--albedo", "0.8", "--interpolation", "nearest"]),
+    ] {
+        let progressive = render(&ex, &dir, "progressive", flags);
+        let direct = render(&ex, &dir, "direct", &[flags, &tile_major[..], &["--defer-paths", "never"]].concat());
+        let deferred = render(&ex, &dir, "deferred", &[flags, &tile_major[..], &["--defer-paths", "always"]].concat());
+        assert!(progressive.0 == direct.0, "{name}: tile-major differs from progressive");
+        assert!(deferred.0 == direct.0, "{name}: deferred paths change the image");
+        let c = &deferred.1;
+        assert!(counter(c, "deferred_samples") > 0, "{name}: nothing was deferred: {c}");
+        assert!(counter(c, "deferred_rounds") >= 2 && counter(c, "deferred_lookups") > 0, "{name}: no round read values: {c}");
+        assert_eq!(counter(&direct.1, "deferred_samples"), 0, "{name}: --defer-paths never deferred");
+        // The paths' own counters are those of the direct render: each path is counted
+        // once, from the run that committed it
+        for key in ["samples", "segments", "collisions", "fnee_samples", "voxel_steps"] {
+            assert_eq!(counter(c, key), counter(&direct.1, key), "{name}: {key}");
+        }
+    }
+}
+
+#[test]
+fn paths_that_need_exact_walks_are_traced_where_they_scatter() {
+    let dir = tmpdir("deferred", "refused");
+    let ex = explosion(&dir, 32, Some(4));
+    let always = ["--sample-order", "tile-major", "--defer-paths", "always"];
+    for (name, flags) in [
+        ("classic NEE (exact shadow rays)", &["--method", "point-nee", "--albedo", "0.8"][..]),
+        ("regular tracking after scattering", &["--albedo", "0.8", "--tracking", "regular"]),
+        ("a distant light (exact shadow rays)", &["--albedo", "0.8", "--distant-light", "direction = [0.3, -0.2, -1], irradiance = 5"]),
+    ] {
+        let direct = render(&ex, &dir, "direct", flags);
+        let asked = render(&ex, &dir, "asked", &[flags, &always[..]].concat());
+        assert!(asked.0 == direct.0, "{name}: the image changed");
+        assert_eq!(counter(&asked.1, "deferred_samples"), 0, "{name}: deferred");
+    }
+}
+
+#[test]
+fn a_mapped_cache_in_tile_major_order_defers_one_path_per_collision_by_default() {
+    let dir = tmpdir("deferred", "cache");
+    let ex = explosion(&dir, 32, Some(5));
+    let cache = dir.join("ex.plume");
+    let o = plume(&["prepare", s(&ex), "-o", s(&cache), "-q"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let flags = ["--albedo", "0.8", "--threads", "2", "--split", "1"];
+    let in_core = render(&ex, &dir, "core", &flags);
+    let mapped = render(&cache, &dir, "mapped", &[&flags[..], &["--sample-order", "tile-major"]].concat());
+    assert!(mapped.0 == in_core.0, "the mapped, deferred render differs from the in-core one");
+    assert!(counter(&mapped.1, "deferred_samples") > 0, "auto did not defer: {}", mapped.1);
+    let progressive = render(&cache, &dir, "mapped-progressive", &flags);
+    assert_eq!(counter(&progressive.1, "deferred_samples"), 0, "progressive order deferred");
+    // Several paths per collision outgrow the fills (module docs): traced where they scatter
+    let split = render(&cache, &dir, "mapped-split", &["--albedo", "0.8", "--sample-order", "tile-major", "--split", "4"]);
+    assert_eq!(counter(&split.1, "deferred_samples"), 0, "split paths deferred by default");
+}

@@ -14,7 +14,8 @@ fn render(input: &Path, dir: &Path, name: &str, extra: &[&str]) -> (Vec<u32>, se
     let (out, stats) = (dir.join(format!("{name}.exr")), dir.join(format!("{name}.json")));
     // A stats file gains a line per render
     let _ = std::fs::remove_file(&stats);
-    let mut args = vec!["render", s(input), "-o", s(&out), "--overwrite", "--stats", s(&stats), "--spp", "4", "--width", "40", "--height", "30", "--seed", "5", "-q"];
+    let mut args =
+        vec!["render", s(input), "-o", s(&out), "--overwrite", "--stats", s(&stats), "--spp", "4", "--width", "40", "--height", "30", "--seed", "5", "-q"];
     args.extend_from_slice(extra);
     let o = plume(&args);
     assert!(o.status.success(), "{name}: {}", stderr(&o));

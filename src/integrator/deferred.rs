@@ -16,18 +16,27 @@
 //!   same values;
 //! - the film sums samples as exact fixed-point integers, in any order.
 //!
-//! Each round reruns every unfinished path from its first vertex against the values its
-//! sample has gathered ([`Answers`], served by [`BufferedPoints`]). The first segment
-//! whose values are not all there is recorded, not walked; the sampler moves on as the
+//! Each round reruns every unfinished path from its first vertex against the values
+//! gathered for it ([`Answers`], served by [`BufferedPoints`]). The first segment whose
+//! values are not all there is recorded, not walked; the sampler moves on as the
 //! recording drew, so a light (FNEE) segment's miss still lets the path's next segment be
 //! recorded in the same round, as if the light segment had no real collision (which a
-//! rerun checks). Then every recorded lookup of every path is answered in the order of
-//! the cache file ([`Volume::value_block_at`](crate::volume::Volume::value_block_at)),
-//! its pages asked for a little ahead, by the same code a direct walk reads with: a
-//! value served later is the value a direct walk would read, bit for bit. A sample's
-//! paths are committed in order, each onto the radiance its predecessors left, so the
-//! sample reaches the film with the sums a direct render makes: **images are
-//! bit-identical** to the in-core render's, for any thread count and split.
+//! rerun checks). A round reruns samples in order until what they recorded reaches the
+//! memory budget (`BYTES_PER_LOOKUP` each). Then every recorded lookup is answered in
+//! the order of the cache file (buckets of its value blocks,
+//! [`Volume::value_blocks_at`](crate::volume::Volume::value_blocks_at)), each bucket's
+//! pages asked for 64 MiB ahead, by the same code a direct walk reads with: a value
+//! served later is the value a direct walk would read, bit for bit. A sample's paths are
+//! committed in order, each onto the radiance its predecessors left, so the sample
+//! reaches the film with the sums a direct render makes: **images and counters are the
+//! direct render's**, bit for bit, for any thread count and split.
+//!
+//! **Cost** (docs/BENCHMARKS.md, "Deferred paths"). A fill costs about a pass over the
+//! pages its lookups touch. The 2048³ flare in a 1.5 GiB cgroup, `--split 1`: 80–87 s
+//! against 126 s direct (cached 21.5 s). Split paths multiply the lookups past what a few
+//! fills serve (`--split 8`: about 56 fills, slower than direct), so `--defer-paths auto`
+//! defers one path per camera collision only (`render`), and the rounds are given up
+//! when the first one's lookups extrapolate to more than [`MAX_PASSES`] fills.
 //!
 //! After [`MAX_ROUNDS`] rounds, or once few samples remain, the rest are traced directly.
 //! Paths whose scene needs exact walks after scattering (classic NEE, external lights),
@@ -112,7 +121,7 @@ impl Request {
             Ask::Density => density(points.density(self.p)),
             Ask::DensityPicked => density(points.density_picked(self.p, self.u)),
             Ask::Albedo => first(points.albedo(self.p)),
-            Ask::Emission => points.emission(self.p),
+            Ask::Emission => points.emission_for_fill(self.p),
             Ask::EmissionPicked => points.emission_picked(self.p, self.u),
         }
     }
@@ -379,11 +388,8 @@ pub(crate) fn finish<F: Field>(
 ) -> Counters {
     let mut counters = Counters { deferred_samples: pending.len() as u64, ..Counters::default() };
     let most = memory.map_or(usize::MAX, |m| usize::try_from(m / BYTES_PER_LOOKUP).unwrap_or(usize::MAX).max(1 << 16));
-    let log = std::env::var_os("PLUME_DEFER_LOG").is_some();
     let mut buffers = FillBuffers::default();
-
     for round in 0..MAX_ROUNDS {
-        let t0 = std::time::Instant::now();
         // Rerun the samples in order while what they record fits
         let mut recorded = 0;
         let mut start = 0;
@@ -417,23 +423,11 @@ pub(crate) fn finish<F: Field>(
             }
             !s.done()
         });
-        let t1 = std::time::Instant::now();
         if pending.len() <= FEW_SAMPLES || (recorded == 0 && pending.len() == before) {
             break;
         }
-        let cpu = crate::stats::cpu_seconds();
         let n = fill(scene, pool, lookup, &mut pending, &mut buffers);
-        let cpu = crate::stats::cpu_seconds() - cpu;
         counters.deferred_lookups += n;
-        if log {
-            eprintln!(
-                "round {round}: rerun {:.2} s ({} samples done, {} left, {recorded} lookups recorded), fill {:.2} s, {cpu:.2} CPU s ({n} lookups)",
-                (t1 - t0).as_secs_f64(),
-                before - pending.len(),
-                pending.len(),
-                t1.elapsed().as_secs_f64()
-            );
-        }
     }
     counters.deferred_direct = pending.len() as u64;
     let direct: Vec<Counters> = pool.install(|| pending.par_iter_mut().map(|s| s.trace_direct(scene)).collect());
@@ -466,7 +460,6 @@ struct Entry {
 /// the values to their paths' [`Answers`]. Returns how many were answered.
 fn fill<F: Field>(scene: &Scene<F>, pool: &rayon::ThreadPool, lookup: PointLookup, pending: &mut [PendingSample], buffers: &mut FillBuffers) -> u64 {
     let volume = scene.field.voxels();
-    let t0 = std::time::Instant::now();
     // Each request's value blocks, by channel; its bucket is its first dense block's
     let blocks: Vec<Vec<[u32; 3]>> = pool.install(|| {
         pending
@@ -510,7 +503,6 @@ fn fill<F: Field>(scene: &Scene<F>, pool: &rayon::ThreadPool, lookup: PointLooku
         }
     }
     drop(blocks);
-    let t1 = std::time::Instant::now();
     // The bucket of each piece of work's last lookup
     let bucket_at = |i: usize| starts.partition_point(|&s| s <= i).saturating_sub(1);
     // Answer in order, the file's pages asked for a few buckets ahead
@@ -545,7 +537,6 @@ fn fill<F: Field>(scene: &Scene<F>, pool: &rayon::ThreadPool, lookup: PointLooku
         }
     });
     drop(work);
-    let t2 = std::time::Instant::now();
     pool.install(|| {
         pending.par_iter_mut().filter(|s| s.stale).for_each(|s| {
             for path in &mut s.paths[s.next..] {
@@ -564,89 +555,8 @@ fn fill<F: Field>(scene: &Scene<F>, pool: &rayon::ThreadPool, lookup: PointLooku
             }
         });
     });
-    if std::env::var_os("PLUME_DEFER_LOG").is_some() {
-        eprintln!("  fill: gather {:.2} s, answer {:.2} s, hand out {:.2} s", (t1 - t0).as_secs_f64(), (t2 - t1).as_secs_f64(), t2.elapsed().as_secs_f64());
-    }
     buffers.order.len() as u64
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn buffered(answers: &Answers) -> BufferedPoints<'_> {
-        BufferedPoints {
-            answers,
-            picks: false,
-            picks_emission: false,
-            missing: RefCell::default(),
-            complete: Cell::new(true),
-            gave_up: Cell::new(false),
-            last: Cell::new(None),
-        }
-    }
-
-    #[test]
-    fn keys_tell_apart_every_bit_of_a_request() {
-        let r = Request { p: DVec3::new(1.5, -2.0, 3.25), ask: Ask::DensityPicked, u: 0.375 };
-        let next = |v: f64| f64::from_bits(v.to_bits() + 1);
-        let others = [
-            Request { p: DVec3::new(next(1.5), -2.0, 3.25), ..r },
-            Request { p: DVec3::new(1.5, next(-2.0), 3.25), ..r },
-            Request { p: DVec3::new(1.5, -2.0, next(3.25)), ..r },
-            Request { u: next(0.375), ..r },
-            Request { ask: Ask::Density, ..r },
-            Request { ask: Ask::EmissionPicked, ..r },
-            Request { p: DVec3::new(-2.0, 1.5, 3.25), ..r },
-        ];
-        assert_eq!(r.key(), Request { ..r }.key());
-        for o in others {
-            assert_ne!(r.key(), o.key(), "{o:?}");
-        }
-    }
-
-    #[test]
-    fn buffered_points_serve_what_was_answered_and_note_the_rest() {
-        let (p, q) = (DVec3::new(1.0, 2.0, 3.0), DVec3::new(1.0, 2.0, 3.5));
-        let mut answers = Answers::default();
-        answers.entries.push((Request { p, ask: Ask::Density, u: 0.0 }.key(), [0.5, 0.25, 0.0]));
-        answers.entries.push((Request { p: q, ask: Ask::Emission, u: 0.0 }.key(), [1.0, 2.0, 3.0]));
-        answers.sort();
-        let b = buffered(&answers);
-        assert_eq!(b.density(p), 0.5);
-        // A real collision at the tentative point: its albedo came with the density
-        assert_eq!(b.albedo(p), 0.25);
-        assert_eq!(b.emission(q), [1.0, 2.0, 3.0]);
-        assert!(b.complete.get() && b.missing.borrow().is_empty());
-        // Another ask at an answered point, a picked read, an albedo elsewhere: missing
-        assert_eq!(b.emission(p), [0.0; 3]);
-        assert_eq!(b.density_picked(p, 0.5), 0.0);
-        assert_eq!(b.albedo(q), 0.0);
-        assert!(!b.complete.get());
-        let asks: Vec<Ask> = b.missing.borrow().iter().map(|r| r.ask).collect();
-        assert_eq!(asks, [Ask::Emission, Ask::DensityPicked, Ask::Albedo]);
-        assert!(!b.gave_up.get());
-        // A recorded segment: answered only if every request is
-        let b = buffered(&answers);
-        assert!(b.has_all(&[Request { p, ask: Ask::Density, u: 0.0 }, Request { p: q, ask: Ask::Emission, u: 0.0 }]));
-        assert!(b.complete.get());
-        assert!(!b.has_all(&[Request { p, ask: Ask::Density, u: 0.0 }, Request { p: q, ask: Ask::Density, u: 0.0 }]));
-        assert!(!b.complete.get() && b.missing.borrow().len() == 1);
-        // The point estimator's whole record is never served: the path goes direct
-        let b = buffered(&answers);
-        let _ = b.sample(p, true);
-        assert!(b.gave_up.get() && !b.complete.get());
-    }
-
-    #[test]
-    fn answers_keep_one_value_per_key() {
-        let mut answers = Answers::default();
-        let r = Request { p: DVec3::ONE, ask: Ask::Emission, u: 0.0 };
-        answers.entries.extend([(r.key(), [1.0; 3]), (7, [2.0; 3]), (r.key(), [1.0; 3])]);
-        answers.sort();
-        assert_eq!(answers.entries.len(), 2);
-        assert_eq!(answers.get(r.key()), Some([1.0; 3]));
-        assert_eq!(answers.get(7), Some([2.0; 3]));
-        assert_eq!(answers.get(8), None);
-    }
-}
+mod tests;

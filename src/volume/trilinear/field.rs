@@ -68,6 +68,7 @@ impl PointCorners {
     /// the README demo's null-tracked emission points asked for 5 M of them at 160×120,
     /// 4 spp.
     #[must_use]
+    #[inline]
     pub fn emission(&self, le: &impl Fn(f32, f32) -> Rgb) -> [f64; 3] {
         let mut out = [0.0; 3];
         for (&v, &w) in self.corners.iter().zip(&self.weights) {
@@ -198,6 +199,7 @@ impl Field for Trilinear {
 
     /// Interpolated density and source, and the interpolation of the corners'
     /// `le(ρ_c, s_c)`: one gather of the 8 corners for all three.
+    #[inline(always)]
     fn reconstruct(&self, p_world: DVec3, le: &impl Fn(f32, f32) -> Rgb) -> PointValues {
         let it = self.interpolate_world(p_world);
         PointValues { density: it.density() as f32, source: it.source() as f32, emission: it.emission(le) }

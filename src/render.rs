@@ -350,7 +350,7 @@ pub fn render_with<F: Field>(scene: &Scene<F>, settings: &RenderSettings, contro
         && match control.defer_paths {
             // One path per camera collision: with more, the paths' lookups outgrow what a
             // few fills serve (the 2048³ flare in a 1.5 GiB cgroup, 16 spp: `--split 1`
-            // 80–87 s deferred against 126 s direct; `--split 8` about 56 fills, over
+            // 80–90 s deferred against 126–131 s direct; `--split 8` about 56 fills, over
             // 380 s against 195–217 s direct; docs/BENCHMARKS.md)
             DeferPaths::Auto => out_of_core && settings.integrator.split == 1 && split_map.is_none(),
             DeferPaths::Always => true,

@@ -31,9 +31,10 @@
 //! reaches the film with the sums a direct render makes: **images and counters are the
 //! direct render's**, bit for bit, for any thread count and split.
 //!
-//! **Cost** (docs/BENCHMARKS.md, "Deferred paths"). A fill costs about a pass over the
-//! pages its lookups touch. The 2048³ flare in a 1.5 GiB cgroup, `--split 1`: 80–87 s
-//! against 126 s direct (cached 21.5 s). Split paths multiply the lookups past what a few
+//! **Cost** (docs/BENCHMARKS.md, "Deferred paths"). A fill's time grows with its lookups
+//! (about 2.3 µs each in a tight cgroup, 0.8 µs in core), and each fill brings most of
+//! the file's pages in again. The 2048³ flare in a 1.5 GiB cgroup, `--split 1`: 80–90 s
+//! against 126–131 s direct (cached 21.5 s). Split paths multiply the lookups past what a few
 //! fills serve (`--split 8`: about 56 fills, slower than direct), so `--defer-paths auto`
 //! defers one path per camera collision only (`render`), and the rounds are given up
 //! when the first one's lookups extrapolate to more than [`MAX_PASSES`] fills.
@@ -365,10 +366,10 @@ impl PendingSample {
 const BYTES_PER_LOOKUP: u64 = 152;
 
 /// The rounds are given up, and every path traced directly, when the first round's
-/// lookups, extrapolated to all samples, would take more fills than this. A fill costs
-/// about a pass over the pages its lookups touch; in the 2048³ flare's 1.5 GiB cgroup
+/// lookups, extrapolated to all samples, would take more fills than this. Each fill
+/// brings most of the file's pages in again; in the 2048³ flare's 1.5 GiB cgroup
 /// (`docs/BENCHMARKS.md`), `--split 1` needs about 7 fills of 2.5 M lookups and renders
-/// in 80–87 s instead of 126 s, while `--split 8` would need about 56, some 385 s against
+/// in 80–90 s instead of 126–131 s, while `--split 8` would need about 56, some 385 s against
 /// 195–217 s direct.
 const MAX_PASSES: usize = 8;
 

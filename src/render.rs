@@ -479,8 +479,10 @@ fn progressive_pass<F: Field>(
 /// One tile-major pass of `samples` over `film` (see [`SampleOrder::TileMajor`]): the
 /// workers take tiles in raster order from a shared queue while a prefetch thread walks
 /// the camera rays of the next tiles through `scene.field`, within `read_ahead_window`.
-/// Returns the tiles' counters in tile order, or `None` with `film` unchanged when
-/// `abandon` said so between tiles.
+/// With `defer`, the samples whose paths scatter are finished after the tiles, in rounds
+/// (`integrator::deferred`). Returns the tiles' counters in tile order (the deferred
+/// paths' last), or `None` with `film` unchanged when `abandon` said so between tiles or
+/// rounds.
 #[allow(clippy::too_many_arguments)]
 fn tile_major_pass<F: Field>(
     scene: &Scene<F>,
@@ -546,7 +548,13 @@ fn tile_major_pass<F: Field>(
     if !pending.is_empty() {
         // The scattered paths, in rounds (the film's sums do not depend on when)
         let lookup = settings.0.integrator.point_lookup;
-        counters.push(crate::integrator::deferred::finish(scene, (pool, read_ahead_window), film, pending, lookup));
+        match crate::integrator::deferred::finish(scene, (pool, read_ahead_window), film, pending, (lookup, abandon)) {
+            Some(c) => counters.push(c),
+            None => {
+                *film = before;
+                return None;
+            }
+        }
     }
     Some(counters)
 }

@@ -95,3 +95,47 @@ fn a_mapped_cache_in_tile_major_order_defers_one_path_per_collision_by_default()
     let split = render(&cache, &dir, "mapped-split", &["--albedo", "0.8", "--sample-order", "tile-major", "--split", "4"]);
     assert_eq!(counter(&split.1, "deferred_samples"), 0, "split paths deferred by default");
 }
+
+/// A stop (or a deadline) abandons a tile-major pass also while its deferred paths are in
+/// rounds: nothing of the pass is kept. In process, one worker, one 16×16 tile: the stop is
+/// asked before the pass (1), before and after the tile (2, 3), then before the first round
+/// (4), where it says stop.
+#[test]
+fn a_stop_during_the_rounds_keeps_nothing_of_the_pass() {
+    use plume::integrator::{Integrator, LightSampling, Lights, MisHeuristic, PointLookup, SplitBy, Tracking};
+    use plume::medium::{Collision, Estimator};
+    use plume::render::{render_with, RenderControl, RenderSettings, SampleBudget, SampleOrder, StopReason};
+    use plume::scene::DeferPaths;
+    use std::sync::atomic::{AtomicUsize, Ordering};
+
+    let scene = common::explosion_scene(4.0, plume::volume::Interpolation::Linear, true, |vol, e| Lights::build(vol, e, LightSampling::Fnee, 8).unwrap());
+    let integrator = Integrator {
+        estimator: Estimator::Line,
+        camera_estimator: None,
+        light_sampling: LightSampling::Fnee,
+        mis: MisHeuristic::Power,
+        max_depth: 16,
+        tracking: Tracking::Mixed,
+        split: 1,
+        split_by: SplitBy::Uniform,
+        camera_collision: Collision::Analog,
+        point_lookup: PointLookup::Stochastic,
+    };
+    let settings =
+        RenderSettings { budget: SampleBudget::Spp(4), seed: 3, sampler: plume::sampling::SamplerKind::Sobol, threads: 1, first_sample: 0, integrator };
+    plume::with_scene!(&scene, s => {
+        let control = |defer_paths| RenderControl { order: SampleOrder::TileMajor, defer_paths, ..Default::default() };
+        let direct = render_with(s, &settings, control(DeferPaths::Never), &|_, _| {});
+        let deferred = render_with(s, &settings, control(DeferPaths::Always), &|_, _| {});
+        assert!(deferred.counters.deferred_samples > 0 && deferred.counters.deferred_rounds >= 2, "{:?}", deferred.counters);
+        let sums = |f: &plume::film::Film| f.tiles.iter().map(|t| t.sums.clone()).collect::<Vec<_>>();
+        assert_eq!(sums(&direct.film), sums(&deferred.film), "deferred paths change the sums");
+        assert!(sums(&direct.film).iter().flatten().any(|p| p[0] != 0), "the image is black");
+        let calls = AtomicUsize::new(0);
+        let stop = || calls.fetch_add(1, Ordering::SeqCst) >= 3;
+        let stopped = render_with(s, &settings, RenderControl { stop: Some(&stop), ..control(DeferPaths::Always) }, &|_, _| {});
+        assert_eq!(calls.load(Ordering::SeqCst), 4, "the stop was asked before the first round");
+        assert_eq!((stopped.spp, stopped.stopped), (0, StopReason::Interrupted));
+        assert!(sums(&stopped.film).iter().flatten().all(|p| *p == [0; 4]), "the abandoned pass left sums");
+    });
+}

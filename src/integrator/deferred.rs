@@ -379,18 +379,23 @@ const RERUN_BATCH: usize = 2048;
 /// Trace the paths of `pending` in rounds (module docs) and add each sample to `film`
 /// when its paths are done. A round reruns the samples in order until they have recorded
 /// `memory / BYTES_PER_LOOKUP` lookups (`None`: all samples), then answers those. Returns
-/// the paths' counters, with what the rounds did.
+/// the paths' counters, with what the rounds did, or `None` as soon as `abandon` says so
+/// between rounds (the caller then restores the film: a stop or a deadline abandons a
+/// tile-major pass, rounds included).
 pub(crate) fn finish<F: Field>(
     scene: &Scene<F>,
     (pool, memory): (&rayon::ThreadPool, Option<u64>),
     film: &mut Film,
     mut pending: Vec<PendingSample>,
-    lookup: PointLookup,
-) -> Counters {
+    (lookup, abandon): (PointLookup, &(dyn Fn() -> bool + Sync)),
+) -> Option<Counters> {
     let mut counters = Counters { deferred_samples: pending.len() as u64, ..Counters::default() };
     let most = memory.map_or(usize::MAX, |m| usize::try_from(m / BYTES_PER_LOOKUP).unwrap_or(usize::MAX).max(1 << 16));
     let mut buffers = FillBuffers::default();
     for round in 0..MAX_ROUNDS {
+        if abandon() {
+            return None;
+        }
         // Rerun the samples in order while what they record fits
         let mut recorded = 0;
         let mut start = 0;
@@ -436,7 +441,7 @@ pub(crate) fn finish<F: Field>(
     for s in &pending {
         s.add_to(film, &mut counters);
     }
-    counters
+    Some(counters)
 }
 
 /// The fill's work lists, kept from round to round (fresh pages cost the kernel their

@@ -313,7 +313,11 @@ impl PendingSample {
             let (mut l, mut c) = (self.l, Counters::default());
             self.integrator.deferred_path(scene, &buffered, (path.vertex, &mut sampler), &mut c, &mut l);
             if buffered.gave_up.get() {
+                // Traced directly at the end: nothing of it is asked for or kept
                 self.direct = true;
+                for path in &mut self.paths {
+                    (path.answers, path.missing) = (Answers::default(), Vec::new());
+                }
                 return counters;
             }
             if buffered.complete.get() && in_order {

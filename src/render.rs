@@ -169,6 +169,16 @@ pub struct SampleId {
     pub sample: u64,
 }
 
+impl SampleId {
+    /// Keep in `first` the earlier of it and `self` in (row, column, sample) order: the
+    /// order in which a single-threaded render would meet them.
+    pub(crate) fn keep_earliest(self, first: &mut Option<SampleId>) {
+        if first.is_none_or(|f| (self.y, self.x, self.sample) < (f.y, f.x, f.sample)) {
+            *first = Some(self);
+        }
+    }
+}
+
 impl std::fmt::Display for SampleId {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(f, "{},{},{}", self.x, self.y, self.sample)
@@ -419,9 +429,7 @@ pub fn render_with<F: Field>(scene: &Scene<F>, settings: &RenderSettings, contro
         for c in &tile_counters {
             counters.merge(c);
             if let Some(id) = c.first_nonfinite {
-                if first_nonfinite.is_none_or(|f| (id.y, id.x, id.sample) < (f.y, f.x, f.sample)) {
-                    first_nonfinite = Some(id);
-                }
+                id.keep_earliest(&mut first_nonfinite);
             }
         }
         let elapsed = pass_start.elapsed().as_secs_f64();

@@ -103,11 +103,16 @@ pub(crate) struct Request {
 }
 
 impl Request {
+    /// The exact bits of what the request asks.
+    fn bits(&self) -> ([u64; 4], Ask) {
+        ([self.p.x, self.p.y, self.p.z, self.u].map(f64::to_bits), self.ask)
+    }
+
     /// The request's key: 128 bits of hash over the exact bits of what it asks, from two
     /// independent multiply–rotate lanes, each finished by [`mix64`] (a path holds a few
     /// hundred keys: two of them agree with probability about 2⁻¹²⁰).
     fn key(&self) -> u128 {
-        let bits = [self.p.x, self.p.y, self.p.z, self.u].map(f64::to_bits);
+        let (bits, _) = self.bits();
         let lane = |seed: u64, k: u64| mix64(bits.iter().fold(seed ^ self.ask as u64, |h, &b| (h ^ b).wrapping_mul(k).rotate_left(29)));
         (u128::from(lane(0x243f_6a88_85a3_08d3, 0x9e37_79b9_7f4a_7c15)) << 64) | u128::from(lane(0x1319_8a2e_0370_7344, 0xc2b2_ae3d_27d4_eb4f))
     }
@@ -180,17 +185,8 @@ impl<'a> BufferedPoints<'a> {
     /// Whether every one of `requests` (a recorded segment's) is answered; the rest are
     /// noted as missing.
     pub(crate) fn has_all(&self, requests: &[Request]) -> bool {
-        let mut all = true;
-        for r in requests {
-            if self.answers.get(r.key()).is_none() {
-                all = false;
-                self.missing.borrow_mut().push(*r);
-            }
-        }
-        if !all {
-            self.complete.set(false);
-        }
-        all
+        // Every request is looked up, so that all the missing ones are noted
+        requests.iter().filter(|&&r| self.look_up(r).is_none()).count() == 0
     }
 
     /// The path needs what deferral cannot serve: it is traced directly.
@@ -206,12 +202,20 @@ impl<'a> BufferedPoints<'a> {
         v[0] as f32
     }
 
+    /// The answer to `r`, or 0 where there is none.
     fn answer(&self, r: Request) -> [f64; 3] {
-        self.answers.get(r.key()).unwrap_or_else(|| {
+        self.look_up(r).unwrap_or([0.0; 3])
+    }
+
+    /// The answer to `r`; a request without one is noted as missing, and the walk as
+    /// incomplete.
+    fn look_up(&self, r: Request) -> Option<[f64; 3]> {
+        let answer = self.answers.get(r.key());
+        if answer.is_none() {
             self.complete.set(false);
             self.missing.borrow_mut().push(r);
-            [0.0; 3]
-        })
+        }
+        answer
     }
 }
 
@@ -330,8 +334,9 @@ impl PendingSample {
                 // A path after an unfinished one runs only to record what it will need
                 in_order = false;
                 let mut missing = buffered.missing.into_inner();
-                missing.sort_unstable_by_key(Request::key);
-                missing.dedup_by_key(|r| r.key());
+                // One key per request (a key is ten multiplications), equal keys equal bits
+                missing.sort_by_cached_key(Request::key);
+                missing.dedup_by(|a, b| a.bits() == b.bits());
                 path.missing = missing;
             }
         }
@@ -356,10 +361,7 @@ impl PendingSample {
             film.tiles[self.tile].add_sample(self.index, l);
         } else {
             counters.nonfinite_samples += 1;
-            let id = self.id;
-            if counters.first_nonfinite.is_none_or(|f| (id.y, id.x, id.sample) < (f.y, f.x, f.sample)) {
-                counters.first_nonfinite = Some(id);
-            }
+            self.id.keep_earliest(&mut counters.first_nonfinite);
         }
     }
 }

@@ -240,7 +240,7 @@ impl Integrator {
     #[must_use]
     pub(crate) fn defers<F: Field>(&self, scene: &Scene<F>) -> bool {
         let scatters = scene.medium.albedo > 0.0 && self.max_depth > 0;
-        let null_after = self.tracking.null_after_scattering() && Tracking::applies(self.estimator, self.light_sampling) && scene.majorants.is_some();
+        let null_after = matches!(self.still_tracker(scene, self.tracking.null_after_scattering(), self.point_lookup), Tracker::Null { .. });
         scatters
             && null_after
             && scene.motion.is_none()
@@ -270,8 +270,8 @@ impl Integrator {
 
     /// A deferred path traced directly, reading the volume as [`Integrator::li`] would.
     pub(crate) fn direct_path<F: Field>(&self, scene: &Scene<F>, (vertex, sampler): (Vertex, &mut Sampler), c: &mut Counters, l: &mut [f64; 3]) {
-        // Without motion blur, choosing the trackers draws no number
-        let (_, tracker) = self.trackers(scene, None, &mut sampler.clone());
+        // Deferred paths are of a still volume (`defers`)
+        let tracker = self.still_tracker(scene, self.tracking.null_after_scattering(), self.point_lookup);
         self.scattered_path(scene, &tracker, vertex, sampler, (c, &mut super::NoTrace), (l, &mut NoAovs));
     }
 
@@ -377,13 +377,22 @@ impl Integrator {
             let t = |lookup| Tracker::Moving { field: &scene.field, motion, time, lookup };
             return (t(self.point_lookup.on_camera()), t(self.point_lookup));
         }
-        let regular = Tracker::Regular(&scene.field);
-        let null = |lookup| scene.majorants.as_ref().map(|majorants| Tracker::Null { field: &scene.field, majorants, lookup });
-        let serves = Tracking::applies(self.estimator, self.light_sampling);
-        let pick = |use_null: bool, lookup| if use_null && serves { null(lookup).unwrap_or(regular) } else { regular };
         // The camera segment's own estimator must be one null collisions serve, too
         let camera_null = self.tracking.null_on_camera() && Tracking::applies(self.camera_estimator(), self.light_sampling);
-        (pick(camera_null, self.point_lookup.on_camera()), pick(self.tracking.null_after_scattering(), self.point_lookup))
+        (
+            self.still_tracker(scene, camera_null, self.point_lookup.on_camera()),
+            self.still_tracker(scene, self.tracking.null_after_scattering(), self.point_lookup),
+        )
+    }
+
+    /// The tracker of a still volume's segments: null collisions where `use_null`, the
+    /// estimator and light sampling let them serve and the scene has majorants; regular
+    /// tracking otherwise.
+    fn still_tracker<'s, F: Field>(&self, scene: &'s Scene<F>, use_null: bool, lookup: PointLookup) -> Tracker<'s, F> {
+        match &scene.majorants {
+            Some(majorants) if use_null && Tracking::applies(self.estimator, self.light_sampling) => Tracker::Null { field: &scene.field, majorants, lookup },
+            _ => Tracker::Regular(&scene.field),
+        }
     }
 
     /// The path from a collision on: at each vertex light sampling, Russian roulette and

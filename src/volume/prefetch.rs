@@ -224,13 +224,9 @@ impl Volume {
             return;
         }
         let mut blocks: Vec<usize> = Vec::with_capacity(points.len() * 3);
-        let limit = f64::from(i32::MAX - 2 * BRICK);
         for p in points {
-            let q = self.index_from_world.transform_point3(*p).floor();
-            if !(q.is_finite() && q.abs().max_element() < limit) {
-                continue;
-            }
-            let (lo, hi) = (q.as_ivec3().div_euclid(IVec3::splat(BRICK)), (q.as_ivec3() + 1).div_euclid(IVec3::splat(BRICK)));
+            let Some(q) = self.voxel_below(*p) else { continue };
+            let (lo, hi) = (q.div_euclid(IVec3::splat(BRICK)), (q + 1).div_euclid(IVec3::splat(BRICK)));
             for z in lo.z..=hi.z {
                 for y in lo.y..=hi.y {
                     for x in lo.x..=hi.x {
@@ -242,19 +238,23 @@ impl Volume {
         self.will_need_blocks(blocks);
     }
 
+    /// The low corner of the dual cell holding world point `p` (the voxel whose centre is
+    /// below `p` on every axis; a lookup at `p` reads it and its +1 neighbours), or `None`
+    /// for a point too far out to index.
+    fn voxel_below(&self, p: DVec3) -> Option<IVec3> {
+        let q = self.index_from_world.transform_point3(p).floor();
+        let limit = f64::from(i32::MAX - 2 * BRICK);
+        (q.is_finite() && q.abs().max_element() < limit).then(|| q.as_ivec3())
+    }
+
     /// Where in the cache file the values around world point `p` lie: the dense value
     /// blocks of the brick holding `p`'s voxel, by channel (density, source, albedo;
     /// `u32::MAX` for a constant channel, or outside). Sorting lookups by them reads the
     /// file in order (`integrator::deferred`).
     #[must_use]
     pub fn value_blocks_at(&self, p: DVec3) -> [u32; 3] {
-        let q = self.index_from_world.transform_point3(p).floor();
-        let limit = f64::from(i32::MAX - 2 * BRICK);
-        let none = [u32::MAX; 3];
-        if !(q.is_finite() && q.abs().max_element() < limit) {
-            return none;
-        }
-        let Some(&Brick { density, source, albedo }) = self.brick(q.as_ivec3().div_euclid(IVec3::splat(BRICK))) else { return none };
+        let brick = self.voxel_below(p).and_then(|q| self.brick(q.div_euclid(IVec3::splat(BRICK))));
+        let Some(&Brick { density, source, albedo }) = brick else { return [u32::MAX; 3] };
         [density, source, albedo].map(|slot| match slot.get() {
             Slot::Dense(block) => block,
             Slot::Constant(_) => u32::MAX,

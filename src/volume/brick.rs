@@ -423,9 +423,17 @@ impl Volume {
         let base = window_index(l);
         let edge = l.cmpeq(IVec3::splat(BRICK - 1)).bitmask() as usize;
         let read = |br: &Brick, o: usize| VoxelValues { density: slot_at(&self.values, br.density, o), source: slot_at(&self.values, br.source, o) };
+        // Plain loops: as `array::from_fn` the per-corner closure was at times left out of
+        // line, depending on how unrelated code fell into codegen units (the README demo:
+        // +3 % of its instructions; `docs/BENCHMARKS.md`, "Cost when unused, found")
         if edge == 0 {
-            let Some(br) = self.brick(b) else { return [VoxelValues::ZERO; 8] };
-            return std::array::from_fn(|c| read(br, window_slot(base + CORNER_STEP[c]).1));
+            let mut out = [VoxelValues::ZERO; 8];
+            if let Some(br) = self.brick(b) {
+                for (c, v) in out.iter_mut().enumerate() {
+                    *v = read(br, window_slot(base + CORNER_STEP[c]).1);
+                }
+            }
+            return out;
         }
         // On a brick edge along the axes in `edge`: the corners' bricks are `b + k` for
         // the `k` within those axes
@@ -435,10 +443,12 @@ impl Volume {
                 *brick = self.brick(b + corner_offset(k));
             }
         }
-        std::array::from_fn(|c| {
+        let mut out = [VoxelValues::ZERO; 8];
+        for (c, v) in out.iter_mut().enumerate() {
             let (k, o) = window_slot(base + CORNER_STEP[c]);
-            bricks[k].map_or(VoxelValues::ZERO, |br| read(br, o))
-        })
+            *v = bricks[k].map_or(VoxelValues::ZERO, |br| read(br, o));
+        }
+        out
     }
 
     /// Albedo factor of voxel `ijk` (1 outside bricks or without an albedo grid).

@@ -1,7 +1,8 @@
 //! Scattered paths traced in rounds (`--defer-paths`, `integrator::deferred`, issue #17):
 //! the image is the direct render's bit for bit, for any thread count, split, point lookup
 //! and estimator that defers; paths that cannot be deferred are traced as before; and a
-//! mapped cache in tile-major order defers by default.
+//! cache that fits in memory defers only when asked (one larger than a cgroup limit defers
+//! by default: `memory_limits`).
 
 use crate::common;
 
@@ -77,8 +78,11 @@ fn paths_that_need_exact_walks_are_traced_where_they_scatter() {
     }
 }
 
+/// `auto` defers only a cache larger than the memory available (tested in a cgroup by
+/// `memory_limits::a_cache_larger_than_the_cgroup_limit_renders_tile_by_tile`); this
+/// one fits, so its renders defer only when asked to.
 #[test]
-fn a_mapped_cache_in_tile_major_order_defers_one_path_per_collision_by_default() {
+fn a_mapped_cache_that_fits_in_memory_defers_only_when_asked() {
     let dir = tmpdir("deferred", "cache");
     let ex = explosion(&dir, 32, Some(5));
     let cache = dir.join("ex.plume");
@@ -86,14 +90,16 @@ fn a_mapped_cache_in_tile_major_order_defers_one_path_per_collision_by_default()
     assert!(o.status.success(), "{}", stderr(&o));
     let flags = ["--albedo", "0.8", "--threads", "2", "--split", "1"];
     let in_core = render(&ex, &dir, "core", &flags);
-    let mapped = render(&cache, &dir, "mapped", &[&flags[..], &["--sample-order", "tile-major"]].concat());
-    assert!(mapped.0 == in_core.0, "the mapped, deferred render differs from the in-core one");
-    assert!(counter(&mapped.1, "deferred_samples") > 0, "auto did not defer: {}", mapped.1);
-    let progressive = render(&cache, &dir, "mapped-progressive", &flags);
+    let tile_major = [&flags[..], &["--sample-order", "tile-major"]].concat();
+    let mapped = render(&cache, &dir, "mapped", &tile_major);
+    assert_eq!(counter(&mapped.1, "deferred_samples"), 0, "auto deferred a cache that fits: {}", mapped.1);
+    let asked = render(&cache, &dir, "mapped-always", &[&tile_major[..], &["--defer-paths", "always"]].concat());
+    assert!(counter(&asked.1, "deferred_samples") > 0, "always did not defer: {}", asked.1);
+    for (name, r) in [("auto", &mapped), ("always", &asked)] {
+        assert!(r.0 == in_core.0, "the mapped tile-major render ({name}) differs from the in-core one");
+    }
+    let progressive = render(&cache, &dir, "mapped-progressive", &[&flags[..], &["--defer-paths", "always"]].concat());
     assert_eq!(counter(&progressive.1, "deferred_samples"), 0, "progressive order deferred");
-    // Several paths per collision outgrow the fills (module docs): traced where they scatter
-    let split = render(&cache, &dir, "mapped-split", &["--albedo", "0.8", "--sample-order", "tile-major", "--split", "4"]);
-    assert_eq!(counter(&split.1, "deferred_samples"), 0, "split paths deferred by default");
 }
 
 /// A stop (or a deadline) abandons a tile-major pass also while its deferred paths are in

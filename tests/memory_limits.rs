@@ -188,3 +188,38 @@ fn the_default_memory_budget_is_half_the_cgroup_limit() {
     drop(cgroup);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `--defer-paths auto` traces a scattering render's paths in rounds where the cache is
+/// larger than what the cgroup leaves, with one path per camera collision, and not with
+/// several (`integrator::deferred`); the image is the same as with `never`.
+#[test]
+fn a_cache_larger_than_the_cgroup_limit_defers_one_path_per_collision() {
+    let limit = 32 * MIB;
+    let Some(cgroup) = cgroup_or_skip("defer", limit) else { return };
+    let dir = tmpdir("memory", "defer");
+    let cache = flare(&dir, 384);
+    // The pixels' bits and the number of deferred samples, or why the cgroup refused
+    let render = |name: &str, extra: &[&str]| -> Result<(Vec<u32>, u64), String> {
+        let (out, stats) = (dir.join(format!("{name}.exr")), dir.join(format!("{name}.json")));
+        let args =
+            ["render", s(&cache), "-o", s(&out), "--stats", s(&stats), "--width", "32", "--height", "24", "--spp", "2", "--threads", "2", "--albedo", "0.5"];
+        let o = cgroup.plume(&[&args[..], extra].concat())?;
+        assert!(o.status.success(), "{name} in a {} MiB cgroup: {}", limit / MIB, stderr(&o));
+        let stats: serde_json::Value = serde_json::from_slice(&std::fs::read(&stats).unwrap()).unwrap();
+        let deferred = stats["counters"]["deferred_samples"].as_u64().unwrap_or_else(|| panic!("{name}: no deferred_samples in {stats}"));
+        Ok((pixel_bits(&exr_pixels(&out)), deferred))
+    };
+    let (auto, deferred) = match render("auto", &["--split", "1"]) {
+        Ok(r) => r,
+        Err(reason) => return skip(&reason),
+    };
+    assert!(deferred > 0, "auto did not defer a cache larger than the limit");
+    let (never, none) = render("never", &["--split", "1", "--defer-paths", "never"]).expect("joined once already");
+    assert_eq!(none, 0, "--defer-paths never deferred");
+    assert_eq!(auto, never, "deferral changed the image");
+    // Several paths per collision outgrow the fills (`integrator::deferred`)
+    let (_, split) = render("split", &["--split", "4"]).expect("joined once already");
+    assert_eq!(split, 0, "auto deferred split paths");
+    drop(cgroup);
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -252,8 +252,9 @@ pub struct RenderArgs {
     /// unfinished path on the values gathered for it, records the lookups of the segment
     /// it could not finish, and reads them all in the order of the cache file, so a page
     /// is read about once per round instead of once per lookup (the image is the same
-    /// bit for bit). `auto`: where the volume is paged from a cache file in tile-major
-    /// order; `always`: in every tile-major render; `never`. Only paths null-tracked after
+    /// bit for bit). `auto`: where the volume is paged, in tile-major order, from a cache
+    /// file larger than the memory available, with `--split 1`; `always`: in every
+    /// tile-major render; `never`. Only paths null-tracked after
     /// scattering with FNEE or no light sampling, no external lights or motion blur, and
     /// an estimator other than point are deferred; others are traced where they scatter.
     #[arg(long, value_parser = choice::<DeferPaths>(), default_value_t = RenderOptions::default().defer_paths)]

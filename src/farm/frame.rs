@@ -36,7 +36,7 @@ use crate::medium::{EmissionKind, Estimator};
 use crate::memory::{MemoryBound, MemoryLimits};
 use crate::output::{write_exr_image, AovChannels, ExrImage};
 use crate::render::{read_ahead_window, render_with, RenderControl, RenderResult, RenderSettings, SampleBudget, SampleOrder, StopReason};
-use crate::scene::{EmissionSource, SampleOrderChoice};
+use crate::scene::{DeferPaths, EmissionSource, SampleOrderChoice};
 use crate::stats::{cpu_seconds, peak_rss_since_reset_bytes, reset_peak_rss, RenderStats};
 use crate::volume::Volume;
 
@@ -316,7 +316,8 @@ fn run_passes(
     let stop = || signals::stop_requested().is_some();
     let volume = loaded.scene.volume();
     let auto = job_settings.render.sample_order == SampleOrderChoice::Auto;
-    let available = if auto { MemoryLimits::read().available() } else { None };
+    let defer_auto = job_settings.render.defer_paths == DeferPaths::Auto;
+    let available = if auto || defer_auto { MemoryLimits::read().available() } else { None };
     let order = sample_order(job, volume, matches!(plan.budget, SampleBudget::Spp(_)), available);
     if order == SampleOrder::TileMajor && auto && !job_settings.render.quiet {
         // Names the cgroup limit when that is what decided
@@ -333,7 +334,12 @@ fn run_passes(
         stop: Some(&stop),
         deadline: job_settings.farm.time_limit.map(|t| start + Duration::from_secs_f64(t)),
         order,
-        defer_paths: job_settings.render.defer_paths,
+        // Deferral costs a render whose pages stay in memory (the flare, cached: 39.4 s
+        // against 27.7 s direct): `auto` is only for a cache larger than what is available
+        defer_paths: match job_settings.render.defer_paths {
+            DeferPaths::Auto if !larger_than_available(volume, available) => DeferPaths::Never,
+            choice => choice,
+        },
         read_ahead_window: read_ahead_window(crate::scene::bind::memory_budget(job_settings)),
         aovs,
         half_block: Some(crate::farm::fingerprint::half_block(job_settings)),
@@ -559,20 +565,24 @@ pub fn aov_layers(layout: &AovLayout, aov_sums: &[i128], beauty: &[[f32; 4]], sp
     layers
 }
 
+/// Whether `volume` is paged from a cache file larger than the memory `available` (its
+/// pages could not all stay in the page cache: `MemAvailable`, or what this process's
+/// cgroup limit leaves, whichever is smaller; see [`MemoryLimits::available`]).
+fn larger_than_available(volume: &Volume, available: Option<MemoryBound>) -> bool {
+    volume.is_mapped() && volume.memory_bytes() as u64 > available.map_or(u64::MAX, |a| a.bytes)
+}
+
 /// The sample order for this frame: `auto` is tile-major for a mapped volume larger than
-/// the memory `available` now (its pages could not all stay in the page cache:
-/// `MemAvailable`, or what this process's cgroup limit leaves, whichever is smaller;
-/// see [`MemoryLimits::available`]), when the render has a fixed spp and no time limit
-/// (which tile-major order cannot honour without abandoning the frame).
+/// the memory `available` now ([`larger_than_available`]), when the render has a fixed
+/// spp and no time limit (which tile-major order cannot honour without abandoning the
+/// frame).
 fn sample_order(job: &Job<'_>, volume: &Volume, fixed_spp: bool, available: Option<MemoryBound>) -> SampleOrder {
     let settings = &job.shot.settings;
     match settings.render.sample_order {
         SampleOrderChoice::Progressive => SampleOrder::Progressive,
         SampleOrderChoice::TileMajor => SampleOrder::TileMajor,
         SampleOrderChoice::Auto => {
-            let available = available.map_or(u64::MAX, |a| a.bytes);
-            let larger = volume.is_mapped() && volume.memory_bytes() as u64 > available;
-            if larger && fixed_spp && settings.farm.time_limit.is_none() {
+            if larger_than_available(volume, available) && fixed_spp && settings.farm.time_limit.is_none() {
                 SampleOrder::TileMajor
             } else {
                 SampleOrder::Progressive

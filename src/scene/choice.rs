@@ -291,7 +291,9 @@ choice!(SampleOrderChoice {
 /// image is the same bit for bit either way.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum DeferPaths {
-    /// Where the volume is paged from a cache file in tile-major order.
+    /// Where the volume is paged, in tile-major order, from a cache file larger than the
+    /// memory available (as `--sample-order auto` judges), with one path per camera
+    /// collision (`render::render_with` and `farm::frame`).
     #[default]
     Auto,
     /// In every tile-major render (for tests and measurements in core).

@@ -79,8 +79,8 @@ fn paths_that_need_exact_walks_are_traced_where_they_scatter() {
 }
 
 /// `auto` defers only a cache larger than the memory available (tested in a cgroup by
-/// `memory_limits::a_cache_larger_than_the_cgroup_limit_renders_tile_by_tile`); this
-/// one fits, so its renders defer only when asked to.
+/// `memory_limits::a_cache_larger_than_the_cgroup_limit_defers_one_path_per_collision`);
+/// this one fits, so its renders defer only when asked to.
 #[test]
 fn a_mapped_cache_that_fits_in_memory_defers_only_when_asked() {
     let dir = tmpdir("deferred", "cache");

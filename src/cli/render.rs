@@ -254,9 +254,9 @@ pub struct RenderArgs {
     /// is read about once per round instead of once per lookup (the image is the same
     /// bit for bit). `auto`: where the volume is paged, in tile-major order, from a cache
     /// file larger than the memory available, with `--split 1`; `always`: in every
-    /// tile-major render; `never`. Only paths null-tracked after
-    /// scattering with FNEE or no light sampling, no external lights or motion blur, and
-    /// an estimator other than point are deferred; others are traced where they scatter.
+    /// tile-major render; `never`. Only paths null-tracked after scattering with FNEE or
+    /// no light sampling, no external lights or motion blur, and an estimator other than
+    /// point are deferred; others are traced where they scatter.
     #[arg(long, value_parser = choice::<DeferPaths>(), default_value_t = RenderOptions::default().defer_paths)]
     pub defer_paths: DeferPaths,
     /// No progress bar or summary.

@@ -360,8 +360,8 @@ pub fn render_with<F: Field>(scene: &Scene<F>, settings: &RenderSettings, contro
         && match control.defer_paths {
             // One path per camera collision: with more, the paths' lookups outgrow what a
             // few fills serve (the 2048³ flare in a 1.5 GiB cgroup, 16 spp: `--split 1`
-            // 80–90 s deferred against 126–131 s direct; `--split 8` about 56 fills, over
-            // 380 s against 195–217 s direct; docs/BENCHMARKS.md)
+            // 67–72 s deferred against 126–131 s direct; `--split 8` about 35 fills of 4 M
+            // lookups, slower than its 195–217 s direct; docs/BENCHMARKS.md)
             DeferPaths::Auto => out_of_core && settings.integrator.split == 1 && split_map.is_none(),
             DeferPaths::Always => true,
             DeferPaths::Never => false,
@@ -554,9 +554,14 @@ fn tile_major_pass<F: Field>(
         .collect();
     let pending = pending.into_inner().unwrap_or_else(std::sync::PoisonError::into_inner);
     if !pending.is_empty() {
-        // The scattered paths, in rounds (the film's sums do not depend on when)
+        // The scattered paths, in rounds (the film's sums do not depend on when). Their
+        // lookups may hold three quarters of the memory budget: the camera pass's
+        // read-ahead window (half of it) is free by then, and a fill reads 64 MiB ahead
+        // (the 2048³ flare in a 1.5 GiB cgroup: 74.6–77.6 s against 80.8–88.8 s with half;
+        // docs/BENCHMARKS.md, "Deferred paths")
         let lookup = settings.0.integrator.point_lookup;
-        match crate::integrator::deferred::finish(scene, (pool, read_ahead_window), film, pending, (lookup, abandon)) {
+        let memory = read_ahead_window.map(|w| w.saturating_add(w / 2));
+        match crate::integrator::deferred::finish(scene, (pool, memory), film, pending, (lookup, abandon)) {
             Some(c) => counters.push(c),
             None => {
                 *film = before;

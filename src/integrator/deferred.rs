@@ -16,13 +16,18 @@
 //!   same values;
 //! - the film sums samples as exact fixed-point integers, in any order.
 //!
-//! Each round reruns every unfinished path from its first vertex against the values
-//! gathered for it ([`Answers`], served by [`BufferedPoints`]). The first segment whose
+//! Each round reruns every unfinished path against the values gathered for it
+//! ([`Answers`], served by [`BufferedPoints`]), from its first vertex or, for a sample's
+//! first unfinished path, from the last collision an earlier run reached with every value
+//! it asked for ([`Bounces`]: there the vertex, the sampler, the sample's radiance and the
+//! counters are kept, and the values read before it are dropped, so a path's values do
+//! not pile up from round to round). The first segment whose
 //! values are not all there is recorded, not walked; the sampler moves on as the
 //! recording drew, so a light (FNEE) segment's miss still lets the path's next segment be
 //! recorded in the same round, as if the light segment had no real collision (which a
 //! rerun checks). A round reruns samples in order until what they recorded reaches the
-//! memory budget (`BYTES_PER_LOOKUP` each). Then every recorded lookup is answered in
+//! memory given (`BYTES_PER_LOOKUP` each; `render` gives three quarters of the memory
+//! budget). Then every recorded lookup is answered in
 //! the order of the cache file (buckets of its value blocks,
 //! [`Volume::value_blocks_at`](crate::volume::Volume::value_blocks_at)), each bucket's
 //! pages asked for 64 MiB ahead, by the same code a direct walk reads with: a value
@@ -33,9 +38,9 @@
 //!
 //! **Cost** (docs/BENCHMARKS.md, "Deferred paths"). A fill's time grows with its lookups
 //! (about 2.3 µs each in a tight cgroup, 0.8 µs in core), and each fill brings most of
-//! the file's pages in again. The 2048³ flare in a 1.5 GiB cgroup, `--split 1`: 80–90 s
-//! against 126–131 s direct (cached 21.5 s). Split paths multiply the lookups past what a few
-//! fills serve (`--split 8`: about 56 fills, slower than direct), so `--defer-paths auto`
+//! the file's pages in again. The 2048³ flare in a 1.5 GiB cgroup, `--split 1`: 67–72 s
+//! against 126–131 s direct (cached 21.4 s). Split paths multiply the lookups past what a few
+//! fills serve (`--split 8`: about 35 fills, slower than direct), so `--defer-paths auto`
 //! defers one path per camera collision only (`render`), and the rounds are given up
 //! when the first one's lookups extrapolate to more than [`MAX_PASSES`] fills.
 //!
@@ -51,7 +56,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use super::tracker::{PointLookup, Points};
-use super::volpath::Vertex;
+use super::volpath::{Bounces, Vertex};
 use super::{Counters, Integrator, Scene};
 use crate::film::Film;
 use crate::medium::null_tracking::{PointField, PointSample};
@@ -143,8 +148,17 @@ pub(crate) struct Answers {
 }
 
 impl Answers {
-    fn get(&self, key: u128) -> Option<[f64; 3]> {
-        self.entries.binary_search_by_key(&key, |e| e.0).ok().map(|i| self.entries[i].1)
+    /// The entry for `key`: its index and value.
+    fn get(&self, key: u128) -> Option<(usize, [f64; 3])> {
+        self.entries.binary_search_by_key(&key, |e| e.0).ok().map(|i| (i, self.entries[i].1))
+    }
+
+    /// Keep only the entries at `used` (indices, any order, repeats allowed).
+    fn keep(&mut self, used: &[u32]) {
+        let mut kept = vec![false; self.entries.len()];
+        used.iter().for_each(|&i| kept[i as usize] = true);
+        let mut flags = kept.iter();
+        self.entries.retain(|_| flags.next().copied().unwrap_or(false));
     }
 
     /// Sort the entries by key after pushing new ones (a key answered twice keeps one).
@@ -161,6 +175,8 @@ pub struct BufferedPoints<'a> {
     picks: bool,
     picks_emission: bool,
     missing: RefCell<Vec<Request>>,
+    /// The answers read since the path last stood at a collision it could resume from.
+    used: RefCell<Vec<u32>>,
     complete: Cell<bool>,
     gave_up: Cell<bool>,
     /// The last tentative point read and the albedo factor its answer carries: a real
@@ -176,6 +192,7 @@ impl<'a> BufferedPoints<'a> {
             picks: points.picks(),
             picks_emission: points.picks_emission(),
             missing: RefCell::default(),
+            used: RefCell::default(),
             complete: Cell::new(true),
             gave_up: Cell::new(false),
             last: Cell::new(None),
@@ -210,12 +227,17 @@ impl<'a> BufferedPoints<'a> {
     /// The answer to `r`; a request without one is noted as missing, and the walk as
     /// incomplete.
     fn look_up(&self, r: Request) -> Option<[f64; 3]> {
-        let answer = self.answers.get(r.key());
-        if answer.is_none() {
-            self.complete.set(false);
-            self.missing.borrow_mut().push(r);
+        match self.answers.get(r.key()) {
+            Some((i, value)) => {
+                self.used.borrow_mut().push(i as u32);
+                Some(value)
+            }
+            None => {
+                self.complete.set(false);
+                self.missing.borrow_mut().push(r);
+                None
+            }
         }
-        answer
     }
 }
 
@@ -252,13 +274,35 @@ impl PointField for BufferedPoints<'_> {
     }
 }
 
-/// A deferred path: its first vertex and sampler, the values gathered for it, and what
-/// its last run missed.
+/// A deferred path: the vertex and sampler it runs from (its first, or the last
+/// collision an earlier run reached with every value), the values gathered for it since,
+/// and what its last run missed.
 struct PendingPath {
     vertex: Vertex,
     sampler: Sampler,
+    /// From a later collision: the sample's radiance and the path's counters there.
+    partial: Option<([f64; 3], Counters)>,
     answers: Answers,
     missing: Vec<Request>,
+}
+
+/// Where a deferred path last stood at a collision with every value it had asked for:
+/// what its next run resumes from ([`Bounces`]).
+struct Resume<'p> {
+    points: &'p BufferedPoints<'p>,
+    /// Only the first path not committed resumes (the radiance is the sample's, in order).
+    enabled: bool,
+    last: Option<(Vertex, Sampler, [f64; 3], Counters)>,
+}
+
+impl Bounces for Resume<'_> {
+    fn at(&mut self, vertex: Vertex, sampler: &Sampler, l: &[f64; 3], c: &Counters) {
+        if self.enabled && self.points.complete.get() {
+            self.last = Some((vertex, sampler.clone(), *l, *c));
+            // What was read before this collision is not read again from it
+            self.points.used.borrow_mut().clear();
+        }
+    }
 }
 
 /// A pixel sample whose camera segment is done and whose scattered paths are not.
@@ -286,7 +330,10 @@ pub(crate) struct PendingSample {
 impl PendingSample {
     /// A sample whose camera segment gave `l` (radiance and alpha) and left `paths`.
     pub(crate) fn new(tile: usize, index: usize, id: SampleId, integrator: Integrator, l: [f64; 4], paths: Vec<(Vertex, Sampler)>) -> Self {
-        let paths = paths.into_iter().map(|(vertex, sampler)| PendingPath { vertex, sampler, answers: Answers::default(), missing: Vec::new() }).collect();
+        let paths = paths
+            .into_iter()
+            .map(|(vertex, sampler)| PendingPath { vertex, sampler, partial: None, answers: Answers::default(), missing: Vec::new() })
+            .collect();
         PendingSample { tile, index, id, integrator, l: [l[0], l[1], l[2]], alpha: l[3], paths, next: 0, stale: true, direct: false }
     }
 
@@ -314,8 +361,11 @@ impl PendingSample {
             let path = &mut self.paths[k];
             let buffered = BufferedPoints::mirroring(&path.answers, &points);
             let mut sampler = path.sampler.clone();
-            let (mut l, mut c) = (self.l, Counters::default());
-            self.integrator.deferred_path(scene, &buffered, (path.vertex, &mut sampler), &mut c, &mut l);
+            // Only the first path not committed can have run from a later collision
+            let (mut l, mut c) = path.partial.unwrap_or((self.l, Counters::default()));
+            let mut resume = Resume { points: &buffered, enabled: in_order, last: None };
+            self.integrator.deferred_path(scene, &buffered, (path.vertex, &mut sampler, &mut resume), &mut c, &mut l);
+            let resume = resume.last;
             if buffered.gave_up.get() {
                 // Traced directly at the end: nothing of it is asked for or kept
                 self.direct = true;
@@ -331,9 +381,15 @@ impl PendingSample {
                 path.answers = Answers::default();
                 path.missing = Vec::new();
             } else {
+                let (used, mut missing) = (buffered.used.into_inner(), buffered.missing.into_inner());
+                if let Some((vertex, sampler, l, c)) = resume {
+                    // The next run starts at the last collision this one walked to, with
+                    // the values read after it
+                    (path.vertex, path.sampler, path.partial) = (vertex, sampler, Some((l, c)));
+                    path.answers.keep(&used);
+                }
                 // A path after an unfinished one runs only to record what it will need
                 in_order = false;
-                let mut missing = buffered.missing.into_inner();
                 // One key per request (a key is ten multiplications), equal keys equal bits
                 missing.sort_by_cached_key(Request::key);
                 missing.dedup_by(|a, b| a.bits() == b.bits());
@@ -348,6 +404,11 @@ impl PendingSample {
         let mut counters = Counters::default();
         for path in &self.paths[self.next..] {
             let mut sampler = path.sampler.clone();
+            if let Some((l, c)) = path.partial {
+                // Resumed where the rounds left it (only the first path not committed)
+                self.l = l;
+                counters.merge(&c);
+            }
             self.integrator.direct_path(scene, (path.vertex, &mut sampler), &mut counters, &mut self.l);
         }
         self.next = self.paths.len();
@@ -374,9 +435,9 @@ const BYTES_PER_LOOKUP: u64 = 152;
 /// The rounds are given up, and every path traced directly, when the first round's
 /// lookups, extrapolated to all samples, would take more fills than this. Each fill
 /// brings most of the file's pages in again; in the 2048³ flare's 1.5 GiB cgroup
-/// (`docs/BENCHMARKS.md`), `--split 1` needs about 7 fills of 2.5 M lookups and renders
-/// in 80–90 s instead of 126–131 s, while `--split 8` would need about 56, some 385 s against
-/// 195–217 s direct.
+/// (`docs/BENCHMARKS.md`), `--split 1` takes 9 rounds (16 M lookups, up to 4 M a fill)
+/// and renders in 67–72 s instead of 126–131 s, while `--split 8` would need about 35
+/// fills of 4 M lookups, slower than its 195–217 s direct.
 const MAX_PASSES: usize = 8;
 
 /// Samples rerun together, between checks of how many lookups they recorded.

@@ -141,7 +141,7 @@ enum ForwardWeight {
 
 /// A collision a scattered path starts from: at `incoming.at(t)`, in a segment with
 /// albedo factor `albedo`, carrying throughput `beta` (before the albedo) of a path whose
-/// nominal weight is `scale`.
+/// nominal weight is `scale`, after `depth` earlier collisions of the path.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Vertex {
     incoming: Ray,
@@ -150,6 +150,25 @@ pub(crate) struct Vertex {
     beta: f64,
     /// 1, or `1/n` for one of `n` split paths: roulette keeps `β` near it.
     scale: f64,
+    /// Collisions of the path before this one (0 at the camera segment's).
+    depth: u32,
+}
+
+/// Told where a scattered path stands at each collision it bounces from, before the
+/// bounce: the vertex, the sampler, the radiance so far and the counters. Continuing
+/// from there gives the rest of the path, bit for bit (deferred paths resume from the
+/// last collision whose past they could walk: `integrator::deferred`).
+pub(crate) trait Bounces {
+    /// The path is about to bounce at `vertex`.
+    fn at(&mut self, vertex: Vertex, sampler: &Sampler, l: &[f64; 3], c: &Counters);
+}
+
+/// No one is told (every path but a deferred one's).
+pub(crate) struct NoBounces;
+
+impl Bounces for NoBounces {
+    #[inline(always)]
+    fn at(&mut self, _vertex: Vertex, _sampler: &Sampler, _l: &[f64; 3], _c: &Counters) {}
 }
 
 /// Add `w · e` to the radiance and to its AOV component.
@@ -256,7 +275,7 @@ impl Integrator {
         &self,
         scene: &Scene<F>,
         points: &BufferedPoints<'_>,
-        (vertex, sampler): (Vertex, &mut Sampler),
+        (vertex, sampler, bounces): (Vertex, &mut Sampler, &mut impl Bounces),
         c: &mut Counters,
         l: &mut [f64; 3],
     ) {
@@ -265,14 +284,14 @@ impl Integrator {
             return;
         };
         let tracker = Tracker::Deferred { majorants, points };
-        self.scattered_path(scene, &tracker, vertex, sampler, (c, &mut super::NoTrace), (l, &mut NoAovs));
+        self.scattered_path(scene, &tracker, vertex, sampler, (c, &mut super::NoTrace, bounces), (l, &mut NoAovs));
     }
 
     /// A deferred path traced directly, reading the volume as [`Integrator::li`] would.
     pub(crate) fn direct_path<F: Field>(&self, scene: &Scene<F>, (vertex, sampler): (Vertex, &mut Sampler), c: &mut Counters, l: &mut [f64; 3]) {
         // Deferred paths are of a still volume (`defers`)
         let tracker = self.still_tracker(scene, self.tracking.null_after_scattering(), self.point_lookup);
-        self.scattered_path(scene, &tracker, vertex, sampler, (c, &mut super::NoTrace), (l, &mut NoAovs));
+        self.scattered_path(scene, &tracker, vertex, sampler, (c, &mut super::NoTrace, &mut NoBounces), (l, &mut NoAovs));
     }
 
     /// [`Integrator::li_aovs`], or with `defer`, up to the camera segment's collision
@@ -341,7 +360,7 @@ impl Integrator {
             let scale = 1.0 / f64::from(n);
             // A forced collision carries its weight W/q (`medium::forced`); roulette still
             // compares β with `scale`, so a light one is played for at its first vertex
-            let vertex = Vertex { incoming: *camera_ray, t, albedo, beta: scale * r.collision_weight, scale };
+            let vertex = Vertex { incoming: *camera_ray, t, albedo, beta: scale * r.collision_weight, scale, depth: 0 };
             for k in 0..n {
                 if n > 1 {
                     trace.event(|| format!("split path {} of {n}", k + 1));
@@ -359,7 +378,7 @@ impl Integrator {
                     paths.push((vertex, path_sampler));
                     continue;
                 }
-                self.scattered_path(scene, &tracker, vertex, &mut path_sampler, (&mut *c, &mut *trace), (&mut l, &mut *aovs));
+                self.scattered_path(scene, &tracker, vertex, &mut path_sampler, (&mut *c, &mut *trace, &mut NoBounces), (&mut l, &mut *aovs));
             }
         }
         trace.event(|| format!("result L {l:?} alpha {alpha}"));
@@ -399,22 +418,22 @@ impl Integrator {
     /// the phase function's next direction, then the next segment's emission, until the
     /// path escapes, is absorbed or reaches the largest depth. Adds to `l` and `aovs`.
     #[allow(clippy::too_many_lines)]
-    fn scattered_path<F: Field, T: Trace, A: Aovs>(
+    fn scattered_path<F: Field, T: Trace, B: Bounces, A: Aovs>(
         &self,
         scene: &Scene<F>,
         tracker: &Tracker<'_, F>,
         vertex: Vertex,
         sampler: &mut Sampler,
-        (c, trace): (&mut Counters, &mut T),
+        (c, trace, bounces): (&mut Counters, &mut T, &mut B),
         (l, aovs): (&mut [f64; 3], &mut A),
     ) {
         let m = &scene.medium;
         let lights = &scene.lights;
         let external = lights.external.as_ref();
         let point_nee = self.light_sampling == LightSampling::Nee && self.estimator == Estimator::Point;
-        let Vertex { incoming: mut ray, mut t, mut albedo, mut beta, scale } = vertex;
-        let mut depth = 0u32;
+        let Vertex { incoming: mut ray, mut t, mut albedo, mut beta, scale, mut depth } = vertex;
         loop {
+            bounces.at(Vertex { incoming: ray, t, albedo, beta, scale, depth }, sampler, l, c);
             c.collisions += 1;
             depth += 1;
             // Scattering albedo of the collision's own segment (METHOD §10.3)

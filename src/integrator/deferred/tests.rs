@@ -6,6 +6,7 @@ fn buffered(answers: &Answers) -> BufferedPoints<'_> {
         picks: false,
         picks_emission: false,
         missing: RefCell::default(),
+        used: RefCell::default(),
         complete: Cell::new(true),
         gave_up: Cell::new(false),
         last: Cell::new(None),
@@ -44,6 +45,9 @@ fn buffered_points_serve_what_was_answered_and_note_the_rest() {
     assert_eq!(b.albedo(p), 0.25);
     assert_eq!(b.emission(q), [1.0, 2.0, 3.0]);
     assert!(b.complete.get() && b.missing.borrow().is_empty());
+    // The answers read, by index (the albedo came with the density: not read again)
+    let (at_p, at_q) = (answers.get(Request { p, ask: Ask::Density, u: 0.0 }.key()), answers.get(Request { p: q, ask: Ask::Emission, u: 0.0 }.key()));
+    assert_eq!(*b.used.borrow(), [at_p.unwrap().0 as u32, at_q.unwrap().0 as u32]);
     // Another ask at an answered point, a picked read, an albedo elsewhere: missing
     assert_eq!(b.emission(p), [0.0; 3]);
     assert_eq!(b.density_picked(p, 0.5), 0.0);
@@ -71,7 +75,19 @@ fn answers_keep_one_value_per_key() {
     answers.entries.extend([(r.key(), [1.0; 3]), (7, [2.0; 3]), (r.key(), [1.0; 3])]);
     answers.sort();
     assert_eq!(answers.entries.len(), 2);
-    assert_eq!(answers.get(r.key()), Some([1.0; 3]));
-    assert_eq!(answers.get(7), Some([2.0; 3]));
+    assert_eq!(answers.get(r.key()).map(|a| a.1), Some([1.0; 3]));
+    assert_eq!(answers.get(7).map(|a| a.1), Some([2.0; 3]));
     assert_eq!(answers.get(8), None);
+}
+
+/// A path resumed from a later collision keeps only the values read after it.
+#[test]
+fn answers_keep_the_entries_read() {
+    let mut answers = Answers::default();
+    answers.entries.extend((0..5u32).map(|k| (u128::from(k) * 10, [f64::from(k); 3])));
+    answers.keep(&[3, 1, 3]);
+    assert_eq!(answers.entries, [(10, [1.0; 3]), (30, [3.0; 3])]);
+    assert_eq!(answers.get(30), Some((1, [3.0; 3])));
+    answers.keep(&[]);
+    assert!(answers.entries.is_empty());
 }

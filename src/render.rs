@@ -360,7 +360,7 @@ pub fn render_with<F: Field>(scene: &Scene<F>, settings: &RenderSettings, contro
         && match control.defer_paths {
             // One path per camera collision: with more, the paths' lookups outgrow what a
             // few fills serve (the 2048³ flare in a 1.5 GiB cgroup, 16 spp: `--split 1`
-            // 67–72 s deferred against 126–131 s direct; `--split 8` about 35 fills of 4 M
+            // 67–85 s deferred against 126–131 s direct; `--split 8` about 35 fills of 4 M
             // lookups, slower than its 195–217 s direct; docs/BENCHMARKS.md)
             DeferPaths::Auto => out_of_core && settings.integrator.split == 1 && split_map.is_none(),
             DeferPaths::Always => true,
@@ -557,8 +557,8 @@ fn tile_major_pass<F: Field>(
         // The scattered paths, in rounds (the film's sums do not depend on when). Their
         // lookups may hold three quarters of the memory budget: the camera pass's
         // read-ahead window (half of it) is free by then, and a fill reads 64 MiB ahead
-        // (the 2048³ flare in a 1.5 GiB cgroup: 74.6–77.6 s against 80.8–88.8 s with half;
-        // docs/BENCHMARKS.md, "Deferred paths")
+        // (the 2048³ flare in a 1.5 GiB cgroup, with paths resumed: 74.6–77.6 s against
+        // 80.8–88.8 s with half; docs/BENCHMARKS.md, "Deferred paths")
         let lookup = settings.0.integrator.point_lookup;
         let memory = read_ahead_window.map(|w| w.saturating_add(w / 2));
         match crate::integrator::deferred::finish(scene, (pool, memory), film, pending, (lookup, abandon)) {

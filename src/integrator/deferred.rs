@@ -38,8 +38,8 @@
 //!
 //! **Cost** (docs/BENCHMARKS.md, "Deferred paths"). A fill's time grows with its lookups
 //! (about 2.3 µs each in a tight cgroup, 0.8 µs in core), and each fill brings most of
-//! the file's pages in again. The 2048³ flare in a 1.5 GiB cgroup, `--split 1`: 67–72 s
-//! against 126–131 s direct (cached 21.4 s). Split paths multiply the lookups past what a few
+//! the file's pages in again. The 2048³ flare in a 1.5 GiB cgroup, `--split 1`: 67–85 s
+//! against 126–131 s direct (cached 21.4 s; the host's load varies). Split paths multiply the lookups past what a few
 //! fills serve (`--split 8`: about 35 fills, slower than direct), so `--defer-paths auto`
 //! defers one path per camera collision only (`render`), and the rounds are given up
 //! when the first one's lookups extrapolate to more than [`MAX_PASSES`] fills.
@@ -436,7 +436,7 @@ const BYTES_PER_LOOKUP: u64 = 152;
 /// lookups, extrapolated to all samples, would take more fills than this. Each fill
 /// brings most of the file's pages in again; in the 2048³ flare's 1.5 GiB cgroup
 /// (`docs/BENCHMARKS.md`), `--split 1` takes 9 rounds (16 M lookups, up to 4 M a fill)
-/// and renders in 67–72 s instead of 126–131 s, while `--split 8` would need about 35
+/// and renders in 67–85 s instead of 126–131 s, while `--split 8` would need about 35
 /// fills of 4 M lookups, slower than its 195–217 s direct.
 const MAX_PASSES: usize = 8;
 

@@ -70,8 +70,9 @@ fn stop_when_mapped(child: &mut Child, file: &Path, ticks: u64) -> Option<u32> {
         // plume itself first (cheap), then its children
         let found = if maps(child.id(), ino) { Some(child.id()) } else { family(child.id()).into_iter().find(|&p| maps(p, ino)) };
         if let Some(pid) = found {
-            if cpu_ticks(pid) >= ticks {
-                send(pid, "-STOP");
+            // A process that ended between the look and the signal (an isolated reader
+            // finishing its file) is not stopped: look again
+            if cpu_ticks(pid) >= ticks && Command::new("kill").args(["-STOP", &pid.to_string()]).status().expect("run kill").success() {
                 return Some(pid);
             }
         }

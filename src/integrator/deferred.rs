@@ -21,14 +21,13 @@
 //! first unfinished path, from the last collision an earlier run reached with every value
 //! it asked for ([`Bounces`]: there the vertex, the sampler, the sample's radiance and the
 //! counters are kept, and the values read before it are dropped, so a path's values do
-//! not pile up from round to round). The first segment whose
-//! values are not all there is recorded, not walked; the sampler moves on as the
-//! recording drew, so a light (FNEE) segment's miss still lets the path's next segment be
-//! recorded in the same round, as if the light segment had no real collision (which a
-//! rerun checks). A round reruns samples in order until what they recorded reaches the
-//! memory given (`BYTES_PER_LOOKUP` each; `render` gives three quarters of the memory
-//! budget). Then every recorded lookup is answered in
-//! the order of the cache file (buckets of its value blocks,
+//! not pile up from round to round). The first segment whose values are not all there is
+//! recorded, not walked; the sampler moves on as the recording drew, so a light (FNEE)
+//! segment's miss still lets the path's next segment be recorded in the same round, as if
+//! the light segment had no real collision (which a rerun checks). A round reruns samples
+//! in order until what they recorded reaches the memory given (`BYTES_PER_LOOKUP` each;
+//! `render` gives three quarters of the memory budget). Then every recorded lookup is
+//! answered in the order of the cache file (buckets of its value blocks,
 //! [`Volume::value_blocks_at`](crate::volume::Volume::value_blocks_at)), each bucket's
 //! pages asked for 64 MiB ahead, by the same code a direct walk reads with: a value
 //! served later is the value a direct walk would read, bit for bit. A sample's paths are
@@ -39,10 +38,11 @@
 //! **Cost** (docs/BENCHMARKS.md, "Deferred paths"). A fill's time grows with its lookups
 //! (about 2.3 µs each in a tight cgroup, 0.8 µs in core), and each fill brings most of
 //! the file's pages in again. The 2048³ flare in a 1.5 GiB cgroup, `--split 1`: 67–85 s
-//! against 126–131 s direct (cached 21.4 s; the host's load varies). Split paths multiply the lookups past what a few
-//! fills serve (`--split 8`: about 35 fills, slower than direct), so `--defer-paths auto`
-//! defers one path per camera collision only (`render`), and the rounds are given up
-//! when the first one's lookups extrapolate to more than [`MAX_PASSES`] fills.
+//! against 126–131 s direct (cached 21.4 s; the host's load varies). Split paths multiply
+//! the lookups past what a few fills serve (`--split 8`: about 35 fills, slower than
+//! direct), so `--defer-paths auto` defers one path per camera collision only (`render`),
+//! and the rounds are given up when the first one's lookups extrapolate to more than
+//! [`MAX_PASSES`] fills.
 //!
 //! After [`MAX_ROUNDS`] rounds, or once few samples remain, the rest are traced directly.
 //! Paths whose scene needs exact walks after scattering (classic NEE, external lights),

@@ -13,7 +13,7 @@ fn main() {
     let missing = plume::cpu::missing_features();
     if !missing.is_empty() {
         eprintln!("plume: error: {}", plume::cpu::refusal(&missing));
-        std::process::exit(plume::error::exit::RENDER_OR_OUTPUT);
+        std::process::exit(plume_core::error::exit::RENDER_OR_OUTPUT);
     }
     // The isolated VDB reader is this same binary: `plume __read-grids …` (hidden, see
     // vdb::isolate). It is dispatched before clap so that it stays out of --help.
@@ -24,7 +24,7 @@ fn main() {
     // A mapped file that fails under plume (truncated, I/O error) ends it with a line
     // and exit code 4 instead of SIGBUS. Not in the reader child above: its crash is
     // already the parent's error.
-    if let Err(e) = plume::mapfault::install() {
+    if let Err(e) = plume_volume::out_of_core::mapfault::install() {
         eprintln!("plume: warning: cannot install the SIGBUS handler for mapped files ({e})");
     }
     if let Ok(exe) = std::env::current_exe() {

@@ -9,12 +9,12 @@ use std::path::Path;
 
 use common::{bits, channels, explosion, grid, grid_emission, mean_stderr, plume, s, tmpdir};
 use glam::{DAffine3, DMat3, DVec3, IVec3};
-use plume::camera::Camera;
-use plume::integrator::{AovLayout, AovSample, Counters, Integrator, Lights, NoTrace, Scene};
-use plume::medium::{Convention, Emission, EmissionKind, Estimator, Medium};
-use plume::sampling::Sampler;
-use plume::volume::field::Ray;
-use plume::volume::Volume;
+use plume_engine::camera::Camera;
+use plume_engine::integrator::{AovLayout, AovSample, Counters, Integrator, Lights, NoTrace, Scene};
+use plume_engine::medium::{Convention, Emission, EmissionKind, Estimator, Medium};
+use plume_core::sampling::Sampler;
+use plume_volume::field::Ray;
+use plume_volume::Volume;
 
 /// A lit, scattering, emitting explosion with two named light groups and a constant
 /// environment (the default group `environment`).

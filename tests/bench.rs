@@ -88,7 +88,7 @@ fn invalid_voxel_counts_are_exact() {
         (3, 0..=3) => -1e-30,
         _ => 1.0,
     });
-    let v = plume::volume::Volume::build(&g, None, |v| v).unwrap();
+    let v = plume_volume::Volume::build(&g, None, |v| v).unwrap();
     assert_eq!(v.report.density_clamped, 4 * 4 * 8);
     assert_eq!(v.voxel(IVec3::new(0, 0, 0)).density, 0.0);
     assert_eq!(v.voxel(IVec3::new(5, 5, 5)).density, 1.0);
@@ -98,7 +98,7 @@ fn invalid_voxel_counts_are_exact() {
 fn compare_measures_every_method_and_writes_all_outputs() {
     let dir = tmpdir("bench-test", "lib");
     let keys = "[medium]\nalbedo = 0.5\n[camera]\nwidth = 24\nheight = 18\n[render]\nthreads = 2\n[integrator]\nproxy_resolution = 8";
-    let shot = plume::scene::file::with_keys(&bench_shot("explosion:16"), keys).unwrap();
+    let shot = plume_scene::file::with_keys(&bench_shot("explosion:16"), keys).unwrap();
     let mut scene = load(shot, vec![keys.into()], &dir).unwrap();
     let reference = make_reference(&mut scene, 1.0, &|_| {}).unwrap();
     assert_eq!(reference.method, "line-fnee", "the scene scatters");

@@ -7,10 +7,10 @@ use std::path::{Path, PathBuf};
 
 use common::{explosion, exr_pixels, grid, hash, plume, plume_exits, s, stderr, tmpdir, PLUME};
 use glam::{DAffine3, DVec3, IVec3};
-use plume::cache::format::{Header, PAGE};
-use plume::cache::{write_volume, Cache, CacheInfo};
-use plume::volume::field::{Ray, RayGrid};
-use plume::volume::{Field, Volume};
+use plume_volume::out_of_core::format::{Header, PAGE};
+use plume_volume::out_of_core::{write_volume, Cache, CacheInfo};
+use plume_volume::field::{Ray, RayGrid};
+use plume_volume::{Field, Volume};
 
 /// Render `input` with `extra` flags; returns the pixels.
 fn render(input: &Path, out: &Path, extra: &[&str]) -> Vec<[f32; 4]> {
@@ -176,7 +176,7 @@ fn a_mapped_volume_gives_the_same_segments_bit_for_bit() {
     assert!(mapped.is_mapped() && mapped.heap_bytes() < volume.heap_bytes() / 4);
     assert_eq!(mapped.brick_count(), volume.brick_count());
     assert_eq!(mapped.report, volume.report);
-    let plume::volume::Bounds3 { lo, hi } = volume.world_bounds();
+    let plume_volume::Bounds3 { lo, hi } = volume.world_bounds();
     let mut rays = 0;
     for i in 0..2000u32 {
         let h = |k| f64::from(hash(IVec3::new(i as i32, k, 7), 9) % 10_000) / 10_000.0;
@@ -217,7 +217,7 @@ fn refused(input: &Path, dir: &Path, code: i32, needles: &[&str], extra: &[&str]
     assert!(!out.exists(), "an output was written from a bad cache");
 }
 
-fn section(cache: &Path, kind: plume::cache::format::SectionKind) -> (u64, u64) {
+fn section(cache: &Path, kind: plume_volume::out_of_core::format::SectionKind) -> (u64, u64) {
     let bytes = std::fs::read(cache).unwrap();
     let header: Header = bytemuck::pod_read_unaligned(&bytes[..std::mem::size_of::<Header>()]);
     let e = header.section(kind).unwrap();
@@ -232,7 +232,7 @@ fn flip(path: &Path, at: u64) {
 
 #[test]
 fn damaged_truncated_and_foreign_caches_are_refused() {
-    use plume::cache::format::SectionKind;
+    use plume_volume::out_of_core::format::SectionKind;
     let dir = tmpdir("cache", "damaged");
     let (_, good) = prepared(&dir);
     let copy = |name: &str| {
@@ -299,7 +299,7 @@ fn stale_and_mismatched_caches_are_refused_and_automatic_caches_rebuilt() {
     // The cache, and the lock file of its conversion (`.NAME.lock`)
     let made: Vec<_> = std::fs::read_dir(&cache_dir).unwrap().map(|e| e.unwrap().path()).filter(|p| plume::cache::is_cache_path(p)).collect();
     assert_eq!(made.len(), 1, "{made:?}");
-    let (offset, len) = section(&made[0], plume::cache::format::SectionKind::Meta);
+    let (offset, len) = section(&made[0], plume_volume::out_of_core::format::SectionKind::Meta);
     flip(&made[0], offset + len / 3);
     let again = dir.join("again.exr");
     let mut args = vec!["render", s(&vdb), "-o", s(&again), "--spp", "3", "--width", "40", "--height", "30", "--seed", "11", "-q"];
@@ -386,13 +386,13 @@ fn background_checked_cache(path: &Path) -> PathBuf {
 /// check's end, as another process would.
 #[test]
 fn a_damaged_automatic_cache_is_removed_only_while_it_is_the_file_checked() {
-    use plume::cache::format::SectionKind;
+    use plume_volume::out_of_core::format::SectionKind;
     use std::os::fd::AsRawFd;
     use std::os::unix::fs::MetadataExt;
     let dir = tmpdir("cache", "remove-damaged");
     let good = background_checked_cache(&dir.join("good.plume"));
     let (offset, len) = section(&good, SectionKind::Values);
-    assert!(len > plume::cache::reader::EAGER_BYTES, "the values must be checked in the background");
+    assert!(len > plume_volume::out_of_core::reader::EAGER_BYTES, "the values must be checked in the background");
     let path = dir.join("auto.plume");
     let damaged_cache = || {
         std::fs::copy(&good, &path).unwrap();

@@ -108,13 +108,13 @@ fn a_mapped_cache_that_fits_in_memory_defers_only_when_asked() {
 /// (4), where it says stop.
 #[test]
 fn a_stop_during_the_rounds_keeps_nothing_of_the_pass() {
-    use plume::integrator::{Integrator, LightSampling, Lights, MisHeuristic, PointLookup, SplitBy, Tracking};
-    use plume::medium::{Collision, Estimator};
-    use plume::render::{render_with, RenderControl, RenderSettings, SampleBudget, SampleOrder, StopReason};
-    use plume::scene::DeferPaths;
+    use plume_engine::integrator::{Integrator, LightSampling, Lights, MisHeuristic, PointLookup, SplitBy, Tracking};
+    use plume_engine::medium::{Collision, Estimator};
+    use plume_engine::render::{render_with, RenderControl, RenderSettings, SampleBudget, SampleOrder, StopReason};
+    use plume_scene::DeferPaths;
     use std::sync::atomic::{AtomicUsize, Ordering};
 
-    let scene = common::explosion_scene(4.0, plume::volume::Interpolation::Linear, true, |vol, e| Lights::build(vol, e, LightSampling::Fnee, 8).unwrap());
+    let scene = common::explosion_scene(4.0, plume_volume::Interpolation::Linear, true, |vol, e| Lights::build(vol, e, LightSampling::Fnee, 8).unwrap());
     let integrator = Integrator {
         estimator: Estimator::Line,
         camera_estimator: None,
@@ -128,13 +128,13 @@ fn a_stop_during_the_rounds_keeps_nothing_of_the_pass() {
         point_lookup: PointLookup::Stochastic,
     };
     let settings =
-        RenderSettings { budget: SampleBudget::Spp(4), seed: 3, sampler: plume::sampling::SamplerKind::Sobol, threads: 1, first_sample: 0, integrator };
-    plume::with_scene!(&scene, s => {
+        RenderSettings { budget: SampleBudget::Spp(4), seed: 3, sampler: plume_core::sampling::SamplerKind::Sobol, threads: 1, first_sample: 0, integrator };
+    plume_engine::with_scene!(&scene, s => {
         let control = |defer_paths| RenderControl { order: SampleOrder::TileMajor, defer_paths, ..Default::default() };
         let direct = render_with(s, &settings, control(DeferPaths::Never), &|_, _| {});
         let deferred = render_with(s, &settings, control(DeferPaths::Always), &|_, _| {});
         assert!(deferred.counters.deferred_samples > 0 && deferred.counters.deferred_rounds >= 2, "{:?}", deferred.counters);
-        let sums = |f: &plume::film::Film| f.tiles.iter().map(|t| t.sums.clone()).collect::<Vec<_>>();
+        let sums = |f: &plume_engine::film::Film| f.tiles.iter().map(|t| t.sums.clone()).collect::<Vec<_>>();
         assert_eq!(sums(&direct.film), sums(&deferred.film), "deferred paths change the sums");
         assert!(sums(&direct.film).iter().flatten().any(|p| p[0] != 0), "the image is black");
         let calls = AtomicUsize::new(0);

@@ -20,9 +20,9 @@ use std::path::Path;
 
 use common::{chi2_test, direction_bin, mean_stderr_from_sums, rng, tmpdir};
 use glam::DVec3;
-use plume::color::Rgb;
-use plume::light::envmap::EnvironmentMap;
-use plume::sampling::distribution2d::Distribution2D;
+use plume_core::color::Rgb;
+use plume_engine::light::envmap::EnvironmentMap;
+use plume_core::sampling::distribution2d::Distribution2D;
 use plume::Error;
 
 const W: u32 = 16;

@@ -6,12 +6,12 @@ use crate::common;
 
 use common::{grid_emission, mean_stderr_from_sums};
 use glam::DVec3;
-use plume::color::Rgb;
-use plume::medium::tracking::{phi, sample_exponential};
-use plume::medium::{track, Collision, Convention, DistanceSample, Emission, EmissionKind, Estimator, Medium, TemperatureMap};
-use plume::sampling::Sampler;
-use plume::volume::field::{Constant, Ray, Segment, Strip};
-use plume::volume::Field;
+use plume_core::color::Rgb;
+use plume_engine::medium::tracking::{phi, sample_exponential};
+use plume_engine::medium::{track, Collision, Convention, DistanceSample, Emission, EmissionKind, Estimator, Medium, TemperatureMap};
+use plume_core::sampling::Sampler;
+use plume_volume::field::{Constant, Ray, Segment, Strip};
+use plume_volume::Field;
 
 fn medium(sigma_t: f64, convention: Convention) -> Medium {
     Medium { sigma_t, albedo: 0.0, g: 0.0, emission: grid_emission(convention) }

@@ -8,14 +8,14 @@ use crate::common;
 
 use common::{explosion_scene, explosion_volume, region_means_with};
 use glam::DVec3;
-use plume::integrator::{Integrator, LightSampling, Lights, MisHeuristic, Tracking};
-use plume::medium::forced::BOOST;
-use plume::medium::tracking::optical_depth;
-use plume::medium::{track, Collision, DistanceSample, Estimator, Medium};
-use plume::sampling::{Sampler, SamplerKind};
-use plume::volume::field::{Constant, Ray};
-use plume::volume::trilinear::Trilinear;
-use plume::volume::{Field, Interpolation, Volume};
+use plume_engine::integrator::{Integrator, LightSampling, Lights, MisHeuristic, Tracking};
+use plume_engine::medium::forced::BOOST;
+use plume_engine::medium::tracking::optical_depth;
+use plume_engine::medium::{track, Collision, DistanceSample, Estimator, Medium};
+use plume_core::sampling::{Sampler, SamplerKind};
+use plume_volume::field::{Constant, Ray};
+use plume_volume::trilinear::Trilinear;
+use plume_volume::{Field, Interpolation, Volume};
 
 /// A ray through the volume, slightly off its axes, and the range it crosses (the world
 /// box of the index bounds, grown by a voxel for the trilinear support).
@@ -187,8 +187,8 @@ fn forced_camera_collisions_give_the_same_image_means() {
                 tracking: Tracking::Regular,
                 split: 4,
                 camera_collision: Collision::Analog,
-                point_lookup: plume::integrator::PointLookup::Exact,
-                split_by: plume::integrator::SplitBy::Uniform,
+                point_lookup: plume_engine::integrator::PointLookup::Exact,
+                split_by: plume_engine::integrator::SplitBy::Uniform,
             };
             let forced = Integrator { camera_collision: Collision::Forced, ..analog };
             let reference = region_means_with(SamplerKind::Sobol, &scene, analog, 8, 12, 900);
@@ -201,20 +201,20 @@ fn forced_camera_collisions_give_the_same_image_means() {
 
 #[test]
 fn where_paths_scatter_the_camera_is_ray_marched_and_its_collision_forced_by_default() {
-    use plume::scene::{CameraCollision, SceneDescription};
+    use plume_scene::{CameraCollision, SceneDescription};
     let mut scene = SceneDescription::new("x.vdb");
     // No scattering: the camera segment keeps the estimator, no collision is forced
-    let ea = scene.integrator();
+    let ea = plume_engine::integrator::Integrator::for_scene(&scene);
     assert_eq!(ea.camera_estimator(), ea.estimator);
     scene.medium.albedo = Some(0.8);
-    let scattering = scene.integrator();
+    let scattering = plume_engine::integrator::Integrator::for_scene(&scene);
     assert_eq!(scattering.camera_estimator(), Estimator::RayMarch);
     assert_eq!(scattering.camera_collision, Collision::Forced);
     assert_eq!(scattering.estimator, Estimator::Line, "the other segments keep the method's estimator");
     scene.integrator.camera_collision = CameraCollision::Analog;
-    assert_eq!(scene.integrator().camera_collision, Collision::Analog);
-    scene.integrator.camera_estimator = Some(plume::scene::EstimatorKind::Line);
-    assert_eq!(scene.integrator().camera_estimator(), Estimator::Line, "an asked camera estimator wins");
+    assert_eq!(plume_engine::integrator::Integrator::for_scene(&scene).camera_collision, Collision::Analog);
+    scene.integrator.camera_estimator = Some(plume_scene::EstimatorKind::Line);
+    assert_eq!(plume_engine::integrator::Integrator::for_scene(&scene).camera_estimator(), Estimator::Line, "an asked camera estimator wins");
 }
 
 #[test]

@@ -61,7 +61,7 @@ struct Rng(u64);
 impl Rng {
     fn next(&mut self) -> u64 {
         self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        plume::sampling::mix64(self.0)
+        plume_core::sampling::mix64(self.0)
     }
 
     /// Uniform in `0..n` (n > 0; the modulo bias is irrelevant here).

@@ -10,17 +10,17 @@ use std::path::Path;
 
 use common::{explosion, exr_pixels, grid, grid_emission, mean_stderr, pixel_bits, plume, plume_exits, s, stderr, tmpdir};
 use glam::{DAffine3, DVec3, IVec3};
-use plume::camera::Camera;
-use plume::integrator::{AnyScene, Integrator, LightSampling, Lights, MisHeuristic, Scene, Tracking};
-use plume::medium::{Collision, Convention, Emission, EmissionKind, Estimator, Medium};
-use plume::render::{render, RenderSettings, SampleBudget};
-use plume::sampling::SamplerKind;
-use plume::volume::{Interpolation, Volume};
+use plume_engine::camera::Camera;
+use plume_engine::integrator::{AnyScene, Integrator, LightSampling, Lights, MisHeuristic, Scene, Tracking};
+use plume_engine::medium::{Collision, Convention, Emission, EmissionKind, Estimator, Medium};
+use plume_engine::render::{render, RenderSettings, SampleBudget};
+use plume_core::sampling::SamplerKind;
+use plume_volume::{Interpolation, Volume};
 
 /// Render `scene` with `spp` samples and `seed`; the averaged RGBA pixels.
 fn pixels(scene: &AnyScene, integrator: Integrator, spp: u32, seed: u64, threads: usize) -> Vec<[f32; 4]> {
     let settings = RenderSettings { budget: SampleBudget::Spp(spp), seed, sampler: SamplerKind::Sobol, threads, first_sample: 0, integrator };
-    let r = plume::with_scene!(scene, s => render(s, &settings, &|_, _| {}));
+    let r = plume_engine::with_scene!(scene, s => render(s, &settings, &|_, _| {}));
     r.film.average(r.spp)
 }
 
@@ -246,7 +246,7 @@ fn nearest_and_linear_agree_on_smooth_data_up_to_the_boundary_band() {
 
 #[test]
 fn linear_scattering_renders_are_bit_identical_for_any_thread_count() {
-    let ex = plume::synth::explosion(&plume::synth::ExplosionParams { resolution: 32, seed: 5, ..Default::default() });
+    let ex = plume_synth::explosion(&plume_synth::ExplosionParams { resolution: 32, seed: 5, ..Default::default() });
     let e = Emission { kind: EmissionKind::Blackbody, scale: 1e-3, cutoff_kelvin: 500.0, ..grid_emission(Convention::Physical) };
     let camera = Camera::look_at(DVec3::new(0.0, 0.2, -6.5), DVec3::new(0.0, 0.2, 0.0), DVec3::Y, 40.0, 24, 16).unwrap();
     for ls in [LightSampling::Fnee, LightSampling::Nee] {
@@ -265,8 +265,8 @@ fn linear_scattering_renders_are_bit_identical_for_any_thread_count() {
             tracking: Tracking::Regular,
             split: 1,
             camera_collision: Collision::Analog,
-            point_lookup: plume::integrator::PointLookup::Exact,
-            split_by: plume::integrator::SplitBy::Uniform,
+            point_lookup: plume_engine::integrator::PointLookup::Exact,
+            split_by: plume_engine::integrator::SplitBy::Uniform,
         };
         let one = pixels(&scene, integrator, 3, 21, 1);
         let two = pixels(&scene, integrator, 3, 21, 2);
@@ -436,14 +436,14 @@ fn cycles_convention_interpolates_each_voxels_emission() {
         kind: EmissionKind::Blackbody,
         convention: Convention::Cycles,
         scale: 1.0,
-        color: plume::color::Rgb::ONE,
-        temperature_map: plume::medium::TemperatureMap::Kelvin,
+        color: plume_core::color::Rgb::ONE,
+        temperature_map: plume_engine::medium::TemperatureMap::Kelvin,
         cutoff_kelvin: 0.0,
     };
     let volume = Volume::build(&density, Some(&temperature), |v| emission.map_source(v)).unwrap();
     let medium = Medium { sigma_t: 1e-9, albedo: 0.0, g: 0.0, emission };
-    let field = plume::volume::trilinear::Trilinear::new(volume);
-    let ray = plume::volume::field::Ray { origin: DVec3::new(-2.0, 3.3, 4.6), direction: DVec3::X };
+    let field = plume_volume::trilinear::Trilinear::new(volume);
+    let ray = plume_volume::field::Ray { origin: DVec3::new(-2.0, 3.3, 4.6), direction: DVec3::X };
     // Reference: midpoint march over the support x ∈ [−1, 8] of both rules
     let steps = 100_000;
     let (x0, x1) = (-1.0, 8.0);
@@ -451,14 +451,14 @@ fn cycles_convention_interpolates_each_voxels_emission() {
     let (mut of_temperature, mut per_voxel) = (0.0, 0.0);
     for k in 0..steps {
         let p = DVec3::new(x0 + (f64::from(k) + 0.5) * h, ray.origin.y, ray.origin.z);
-        let v = plume::volume::Field::values_at(&field, p);
+        let v = plume_volume::Field::values_at(&field, p);
         of_temperature += f64::from(emission.le(v.density, v.source).0[0]) * h;
-        per_voxel += plume::volume::Field::reconstruct(&field, p, &|d, s| emission.le(d, s)).emission[0] * h;
+        per_voxel += plume_volume::Field::reconstruct(&field, p, &|d, s| emission.le(d, s)).emission[0] * h;
     }
     for i in 0..16u64 {
-        let mut sampler = plume::sampling::Sampler::new(77, 0, i);
+        let mut sampler = plume_core::sampling::Sampler::new(77, 0, i);
         let u = sampler.next_f64();
-        let r = plume::medium::track(&field, &medium, &ray, f64::INFINITY, Estimator::Line, Collision::Skip, u, &mut sampler);
+        let r = plume_engine::medium::track(&field, &medium, &ray, f64::INFINITY, Estimator::Line, Collision::Skip, u, &mut sampler);
         let line = r.emission[0];
         assert!((line - per_voxel).abs() <= 1e-6 * per_voxel, "path {i}: line estimator {line}, per-voxel rule {per_voxel}");
     }

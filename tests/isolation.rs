@@ -34,7 +34,7 @@ fn script(name: &str, body: &str) -> PathBuf {
 
 /// Reads SMOKE's density through `reader`, retrying the spawn while another test thread's
 /// fork still holds the freshly written script open for writing (ETXTBSY).
-fn read_with(reader: &Path, limits: &IsolationLimits) -> plume::Result<Vec<plume::vdb::FloatGrid>> {
+fn read_with(reader: &Path, limits: &IsolationLimits) -> plume::Result<Vec<plume_volume::grid::FloatGrid>> {
     retry_while_busy(reader, || read_float_grids_isolated(reader, Path::new(SMOKE), &density(), &ReadLimits::default(), limits))
 }
 
@@ -42,7 +42,7 @@ fn read_with(reader: &Path, limits: &IsolationLimits) -> plume::Result<Vec<plume
 const HEADER_AND_BEGIN: &str = r"printf 'plumeRD\n\001\000\000\000\001\000\000\000\000\000\000\000\000'";
 
 /// Asserts a ReaderFailed naming SMOKE, with `needle` in its one-line message.
-fn assert_reader_failed(result: plume::Result<Vec<plume::vdb::FloatGrid>>, needle: &str) -> String {
+fn assert_reader_failed(result: plume::Result<Vec<plume_volume::grid::FloatGrid>>, needle: &str) -> String {
     let error = result.expect_err("the reader failed");
     let message = error.to_string();
     assert!(matches!(error, Error::ReaderFailed { .. }), "{error:?}");

@@ -17,10 +17,11 @@ use std::f64::consts::PI;
 
 use common::{chi2_test, direction_bin, frame, grid, hash, mean_stderr, rng, SAMPLING_ALPHA as ALPHA, SAMPLING_TESTS as TESTS};
 use glam::{DAffine3, DMat3, DVec3, IVec3};
-use plume::light::EmitterDistribution;
-use plume::sampling::phase::sample_uniform_sphere;
-use plume::volume::proxy::ProxyGrid;
-use plume::volume::Volume;
+use plume_engine::light::EmitterDistribution;
+use plume_core::sampling::phase::sample_uniform_sphere;
+use plume_engine::light::fnee::ProxySampling;
+use plume_volume::proxy::ProxyGrid;
+use plume_volume::Volume;
 use plume::Error;
 
 /// Luminance of the test emission: depends on both channels, non-zero where density is 0.
@@ -68,7 +69,7 @@ fn skewed_transform() -> DAffine3 {
 
 /// Index → world of the centre of the volume's index bounds.
 fn world_centre(volume: &Volume) -> DVec3 {
-    let plume::volume::Bounds3 { lo, hi } = volume.index_bounds();
+    let plume_volume::Bounds3 { lo, hi } = volume.index_bounds();
     volume.world_from_index().transform_point3(0.5 * (lo + hi))
 }
 
@@ -77,7 +78,7 @@ fn world_centre(volume: &Volume) -> DVec3 {
 
 /// Brute-force `P_j` of every proxy cell from `volume.voxel`, and `ΣΦ`.
 fn brute_cell_probabilities(volume: &Volume, proxy: &ProxyGrid) -> (Vec<f64>, f64) {
-    let plume::volume::Bounds3 { lo, hi } = volume.index_bounds();
+    let plume_volume::Bounds3 { lo, hi } = volume.index_bounds();
     let (vlo, vhi) = ((lo + 0.5).as_ivec3(), (hi + 0.5).as_ivec3());
     let e = proxy.cell_edge_voxels();
     let dims = proxy.dims();
@@ -86,7 +87,7 @@ fn brute_cell_probabilities(volume: &Volume, proxy: &ProxyGrid) -> (Vec<f64>, f6
         for y in vlo.y..vhi.y {
             for x in vlo.x..vhi.x {
                 let v = IVec3::new(x, y, z);
-                let plume::volume::VoxelValues { density: d, source: s } = volume.voxel(v);
+                let plume_volume::VoxelValues { density: d, source: s } = volume.voxel(v);
                 let c = (v - vlo) / e;
                 phi[(c.x + dims.x * (c.y + dims.y * c.z)) as usize] += volume.voxel_volume() * power(d, s);
             }
@@ -276,7 +277,7 @@ fn p_sigma_integrates_to_one_over_the_sphere() {
     for (name, xf) in [("identity", DAffine3::IDENTITY), ("skewed", skewed_transform())] {
         let volume = emitter_volume(xf);
         let centre = world_centre(&volume);
-        let plume::volume::Bounds3 { lo, hi } = volume.index_bounds();
+        let plume_volume::Bounds3 { lo, hi } = volume.index_bounds();
         // Inside: near the hot blob; outside: beyond a corner, looking in
         let inside = volume.world_from_index().transform_point3(DVec3::new(3.3, 6.2, 8.7));
         let outside = volume.world_from_index().transform_point3(hi + 0.25 * (hi - lo));
@@ -395,7 +396,7 @@ fn fnee_directions_match_p_sigma_chi2() {
 fn nee_hat_samples_match_the_trilinear_pdf_chi2() {
     let volume = emitter_volume(skewed_transform());
     for (table, nee) in nee_tables(&volume) {
-        nee_hat_chi2(&volume, table, &nee.for_interpolation(plume::volume::Interpolation::Linear));
+        nee_hat_chi2(&volume, table, &nee.for_interpolation(plume_volume::Interpolation::Linear));
     }
 }
 
@@ -408,7 +409,7 @@ fn nee_tables(volume: &Volume) -> [(&'static str, EmitterDistribution); 2] {
 }
 
 fn nee_hat_chi2(volume: &Volume, table: &str, nee: &EmitterDistribution) {
-    let plume::volume::Bounds3 { lo, hi } = volume.index_bounds();
+    let plume_volume::Bounds3 { lo, hi } = volume.index_bounds();
     // Voxel boxes that can receive samples: the volume's grown by one voxel
     let (vlo, vhi) = ((lo + 0.5).as_ivec3() - 1, (hi + 0.5).as_ivec3() + 1);
     let extent = vhi - vlo;
@@ -421,7 +422,7 @@ fn nee_hat_chi2(volume: &Volume, table: &str, nee: &EmitterDistribution) {
         for y in vlo.y + 1..vhi.y - 1 {
             for x in vlo.x + 1..vhi.x - 1 {
                 let v = IVec3::new(x, y, z);
-                let plume::volume::VoxelValues { density: d, source: s } = volume.voxel(v);
+                let plume_volume::VoxelValues { density: d, source: s } = volume.voxel(v);
                 let p = power(d, s);
                 if p == 0.0 {
                     continue;
@@ -473,7 +474,7 @@ fn nee_voxel_pdfs_chi2_and_bitwise_agreement() {
     nee_voxel_chi2(&volume, "brick", &bricks);
     // The same law: each voxel's pdf agrees between the tables, to the alias tables' 32-bit
     // thresholds (each reports the exact pmf of its own quantized table, `sampling::alias`)
-    let plume::volume::Bounds3 { lo, hi } = volume.index_bounds();
+    let plume_volume::Bounds3 { lo, hi } = volume.index_bounds();
     let (vlo, vhi) = ((lo + 0.5).as_ivec3(), (hi + 0.5).as_ivec3());
     let mut worst = 0.0f64;
     for z in vlo.z..vhi.z {
@@ -493,7 +494,7 @@ fn nee_voxel_pdfs_chi2_and_bitwise_agreement() {
 }
 
 fn nee_voxel_chi2(volume: &Volume, table: &str, nee: &EmitterDistribution) {
-    let plume::volume::Bounds3 { lo, hi } = volume.index_bounds();
+    let plume_volume::Bounds3 { lo, hi } = volume.index_bounds();
     let (vlo, vhi) = ((lo + 0.5).as_ivec3(), (hi + 0.5).as_ivec3());
     let extent = vhi - vlo;
     let slot = |v: IVec3| {
@@ -507,7 +508,7 @@ fn nee_voxel_chi2(volume: &Volume, table: &str, nee: &EmitterDistribution) {
         for y in vlo.y..vhi.y {
             for x in vlo.x..vhi.x {
                 let v = IVec3::new(x, y, z);
-                let plume::volume::VoxelValues { density: d, source: s } = volume.voxel(v);
+                let plume_volume::VoxelValues { density: d, source: s } = volume.voxel(v);
                 let p = power(d, s);
                 brute[slot(v)] = p;
                 let pdf = nee.pdf_voxel(volume, v);

@@ -7,15 +7,15 @@ use crate::common;
 
 use common::{grid, grid_emission, mean_stderr_from_sums};
 use glam::{DAffine3, DMat3, DVec3, IVec3};
-use plume::camera::Camera;
-use plume::color::Rgb;
-use plume::integrator::{Counters, Integrator, LightSampling, Lights, MisHeuristic, NoTrace, Scene, Tracking};
-use plume::light::external::{Distant, Environment, ExternalLights, Light, Radiance, Sphere};
-use plume::medium::{Collision, Convention, Emission, EmissionKind, Estimator, Medium};
-use plume::sampling::phase::hg_pdf;
-use plume::sampling::Sampler;
-use plume::volume::field::Ray;
-use plume::volume::Volume;
+use plume_engine::camera::Camera;
+use plume_core::color::Rgb;
+use plume_engine::integrator::{Counters, Integrator, LightSampling, Lights, MisHeuristic, NoTrace, Scene, Tracking};
+use plume_engine::light::external::{Distant, Environment, ExternalLights, Light, Radiance, Sphere};
+use plume_engine::medium::{Collision, Convention, Emission, EmissionKind, Estimator, Medium};
+use plume_core::sampling::phase::hg_pdf;
+use plume_core::sampling::Sampler;
+use plume_volume::field::Ray;
+use plume_volume::Volume;
 
 /// Half-width of the slab (world units): wide enough that light entering through its
 /// sides does not reach the camera ray's neighbourhood.
@@ -61,8 +61,8 @@ fn single_scattering(scene: &Scene<Volume>, estimator: Estimator, n: u64, seed: 
         tracking: Tracking::Regular,
         split: 1,
         camera_collision: Collision::Analog,
-        point_lookup: plume::integrator::PointLookup::Exact,
-        split_by: plume::integrator::SplitBy::Uniform,
+        point_lookup: plume_engine::integrator::PointLookup::Exact,
+        split_by: plume_engine::integrator::SplitBy::Uniform,
     };
     let ray = Ray { origin: DVec3::new(0.0, 0.0, -1.0), direction: DVec3::Z };
     let (mut s, mut s2) = (0.0, 0.0);
@@ -134,8 +134,8 @@ fn wide_distant_light_matches_single_scattering_with_mis() {
             tracking: Tracking::Regular,
             split: 1,
             camera_collision: Collision::Analog,
-            point_lookup: plume::integrator::PointLookup::Exact,
-            split_by: plume::integrator::SplitBy::Uniform,
+            point_lookup: plume_engine::integrator::PointLookup::Exact,
+            split_by: plume_engine::integrator::SplitBy::Uniform,
         };
         let ray = Ray { origin: DVec3::new(0.0, 0.0, -1.0), direction: DVec3::Z };
         let (mut s, mut s2, n) = (0.0, 0.0, 60_000u64);
@@ -250,7 +250,7 @@ fn sphere_light_intersection_and_cone_are_consistent() {
 
 #[test]
 fn environment_maps_follow_the_up_axis_and_turn_counter_clockwise() {
-    use plume::light::envmap::EnvironmentMap;
+    use plume_engine::light::envmap::EnvironmentMap;
     // A 16×8 map, bright around its +x direction (u = ½, the equator) and along its top
     // row (the zenith)
     let (w, h) = (16u32, 8u32);

@@ -1,5 +1,5 @@
 //! `plume render` inside a real memory cgroup: `--sample-order auto` and the default
-//! memory budget follow the cgroup's limit, not the machine's RAM (`plume::memory`; the
+//! memory budget follow the cgroup's limit, not the machine's RAM (`plume_volume::out_of_core::memory`; the
 //! parsing is unit-tested on fake trees in `src/memory/tests.rs`).
 //!
 //! Each test makes a child cgroup with a small limit (cgroup v2: `/sys/fs/cgroup/
@@ -17,7 +17,7 @@ use std::process::{Command, Output};
 use std::time::Duration;
 
 use common::{exr_pixels, pixel_bits, plume, s, stderr, tmpdir, PLUME};
-use plume::memory::{CgroupVersion, MemoryLimits};
+use plume_volume::out_of_core::memory::{CgroupVersion, MemoryLimits};
 
 const MIB: u64 = 1 << 20;
 

@@ -8,15 +8,15 @@ use crate::common;
 
 use common::{explosion_emission, exr_pixels, mean_stderr, pixel_bits, plume, plume_exits, refused_in_one_line, s, tmpdir};
 use glam::{DAffine3, DVec3};
-use plume::camera::Camera;
-use plume::integrator::{AnyScene, Integrator, LightSampling, Lights, MisHeuristic, PointLookup, Scene, Tracking};
-use plume::medium::{Collision, Estimator, Medium};
-use plume::sampling::{Sampler, SamplerKind};
-use plume::synth::{explosion, ExplosionParams};
-use plume::vdb::FloatGrid;
-use plume::volume::motion::Motion;
-use plume::volume::velocity::Velocity;
-use plume::volume::{Interpolation, Volume};
+use plume_engine::camera::Camera;
+use plume_engine::integrator::{AnyScene, Integrator, LightSampling, Lights, MisHeuristic, PointLookup, Scene, Tracking};
+use plume_engine::medium::{Collision, Estimator, Medium};
+use plume_core::sampling::{Sampler, SamplerKind};
+use plume_synth::{explosion, ExplosionParams};
+use plume_volume::grid::FloatGrid;
+use plume_volume::motion::Motion;
+use plume_volume::velocity::Velocity;
+use plume_volume::{Interpolation, Volume};
 
 /// The generated explosion moved by `shift` (world).
 fn volume(shift: DVec3) -> Volume {
@@ -78,7 +78,7 @@ fn integrator(estimator: Estimator, light_sampling: LightSampling, max_depth: u3
         split: 1,
         camera_collision: Collision::Analog,
         point_lookup: PointLookup::Exact,
-        split_by: plume::integrator::SplitBy::Uniform,
+        split_by: plume_engine::integrator::SplitBy::Uniform,
     }
 }
 
@@ -195,11 +195,11 @@ fn bad_motion_input_is_one_line_and_no_output() {
 fn the_generated_explosion_expands_and_swirls() {
     // v = k (p − c) + A ∇×ψ: the divergence is 3k (the curl part has none) and the field
     // is not purely radial
-    use plume::synth::velocity::{explosion_velocity, EXPANSION_RATE};
+    use plume_synth::velocity::{explosion_velocity, EXPANSION_RATE};
     let params = ExplosionParams { resolution: 48, seed: 2, ..Default::default() };
     let ex = explosion(&params);
     let v = explosion_velocity(&params, &ex.density);
-    let grid = plume::volume::velocity::VelocityGrid::from_components([&v[0], &v[1], &v[2]], "synth").unwrap();
+    let grid = plume_volume::velocity::VelocityGrid::from_components([&v[0], &v[1], &v[2]], "synth").unwrap();
     let h = 4.0 / 48.0; // one voxel
     let (mut div, mut swirl, mut n) = (0.0f64, 0.0f64, 0);
     let mut rng = Sampler::new(5, 0, 0);
@@ -243,7 +243,7 @@ fn vector_velocity_grids_are_read_and_bad_ones_refused() {
 fn a_moving_camera_equals_the_average_over_its_positions() {
     // The camera slides 0.6 m along x over a shutter after the frame; renders from still
     // cameras at uniform random times of the same path average to the same regions
-    use plume::camera::{CameraMotion, LookAt};
+    use plume_engine::camera::{CameraMotion, LookAt};
     let shutter = [0.0, 0.04];
     let place = |t: f64| {
         let x = 15.0 * t;
@@ -317,7 +317,7 @@ fn synth_explosion_writes_its_velocity_as_a_vector_grid() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let params = ExplosionParams { resolution: 32, seed: 4, ..Default::default() };
     let ex = explosion(&params);
-    let expected = plume::synth::velocity::explosion_velocity(&params, &ex.density);
+    let expected = plume_synth::velocity::explosion_velocity(&params, &ex.density);
     let read = plume::vdb::read_vec3_grid(&path, &"velocity".parse().unwrap(), &plume::vdb::ReadLimits::default()).unwrap();
     let grid = |g: &FloatGrid| -> std::collections::HashMap<glam::IVec3, Vec<u32>> {
         g.origins.iter().enumerate().map(|(i, o)| (*o, g.values[i * 512..(i + 1) * 512].iter().map(|v| v.to_bits()).collect())).collect()

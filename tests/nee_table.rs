@@ -8,11 +8,11 @@
 use crate::common;
 
 use common::{explosion, plume, plume_exits, region_means_with, s, tmpdir};
-use plume::integrator::{AnyScene, Integrator, LightSampling, Lights, MisHeuristic, Tracking};
-use plume::medium::{Collision, Estimator};
-use plume::sampling::SamplerKind;
-use plume::scene::NeeTable;
-use plume::volume::Interpolation;
+use plume_engine::integrator::{AnyScene, Integrator, LightSampling, Lights, MisHeuristic, Tracking};
+use plume_engine::medium::{Collision, Estimator};
+use plume_core::sampling::SamplerKind;
+use plume_scene::NeeTable;
+use plume_volume::Interpolation;
 
 /// The generated explosion with classic NEE from `table`.
 fn scene(table: NeeTable, interpolation: Interpolation) -> AnyScene {
@@ -35,8 +35,8 @@ fn brick_table_gives_the_image_means_of_the_voxel_table() {
                 tracking: Tracking::Regular,
                 split: 1,
                 camera_collision: Collision::Analog,
-                point_lookup: plume::integrator::PointLookup::Exact,
-                split_by: plume::integrator::SplitBy::Uniform,
+                point_lookup: plume_engine::integrator::PointLookup::Exact,
+                split_by: plume_engine::integrator::SplitBy::Uniform,
             };
             let a = region_means_with(SamplerKind::Sobol, &voxels, integrator, 16, 16, 11);
             let b = region_means_with(SamplerKind::Sobol, &bricks, integrator, 16, 16, 500);

@@ -7,15 +7,15 @@ use crate::common;
 
 use common::{chi2_test, mean_stderr};
 use glam::DVec3;
-use plume::medium::null_tracking::{null_track, ratio_transmittance, PointSample};
-use plume::medium::tracking::optical_depth;
-use plume::medium::{track, Collision, Convention, DistanceSample, Emission, EmissionKind, Estimator, Medium, TemperatureMap};
-use plume::sampling::Sampler;
-use plume::synth::{explosion, ExplosionParams};
-use plume::volume::field::{Field, Ray};
-use plume::volume::majorant::{MajorantGrid, MAX_CELLS};
-use plume::volume::trilinear::Trilinear;
-use plume::volume::Volume;
+use plume_engine::medium::null_tracking::{null_track, ratio_transmittance, PointSample};
+use plume_engine::medium::tracking::optical_depth;
+use plume_engine::medium::{track, Collision, Convention, DistanceSample, Emission, EmissionKind, Estimator, Medium, TemperatureMap};
+use plume_core::sampling::Sampler;
+use plume_synth::{explosion, ExplosionParams};
+use plume_volume::field::{Field, Ray};
+use plume_volume::majorant::{MajorantGrid, MAX_CELLS};
+use plume_volume::trilinear::Trilinear;
+use plume_volume::Volume;
 
 fn volume() -> Volume {
     let ex = explosion(&ExplosionParams { resolution: 32, seed: 3, ..Default::default() });
@@ -28,7 +28,7 @@ fn medium() -> Medium {
         kind: EmissionKind::Blackbody,
         convention: Convention::Physical,
         scale: 1e-3,
-        color: plume::color::Rgb::ONE,
+        color: plume_core::color::Rgb::ONE,
         temperature_map: TemperatureMap::Kelvin,
         cutoff_kelvin: 500.0,
     };
@@ -71,7 +71,7 @@ fn majorants_bound_every_displaced_lookup() {
                     let t = seg.t0 + s.next_f64() * (seg.t1 - seg.t0);
                     let offset = DVec3::new(s.next_f64() - 0.5, s.next_f64() - 0.5, s.next_f64() - 0.5) * (2.0 * displacement * voxel);
                     let p = ray.at(t) + offset;
-                    let (dn, dt) = (vol.values_at(p).density, tri.reconstruct(p, &|_, _| plume::color::Rgb::ZERO).density);
+                    let (dn, dt) = (vol.values_at(p).density, tri.reconstruct(p, &|_, _| plume_core::color::Rgb::ZERO).density);
                     assert!(dn <= seg.bounds.density && dt <= seg.bounds.density, "D {displacement}, {max_cells} cells: {dn}/{dt} above {:?}", seg.bounds);
                     checked += 1;
                 }
@@ -225,7 +225,7 @@ fn every_estimator_agrees_with_regular_tracking_in_mean() {
         }
     };
     for estimator in [Estimator::Line, Estimator::Point, Estimator::RayMarch] {
-        let run_regular = |f: &dyn Fn(&mut Sampler, f64) -> plume::medium::TrackResult, i: u64| {
+        let run_regular = |f: &dyn Fn(&mut Sampler, f64) -> plume_engine::medium::TrackResult, i: u64| {
             let mut s = Sampler::new(21, 0, i);
             let u = s.next_f64();
             let r = f(&mut s, u);

@@ -7,19 +7,19 @@ use crate::common;
 
 use common::{assert_same_means, explosion_emission, grid_emission, mean_stderr, mean_stderr_from_sums, region_means_with};
 use glam::{DAffine3, DMat3, DVec3, IVec3};
-use plume::camera::Camera;
-use plume::color::Rgb;
-use plume::integrator::{AnyScene, Counters, Integrator, LightSampling, Lights, MisHeuristic, NoTrace, Scene, Tracking};
-use plume::light::external::{Environment, ExternalLights, Light, Radiance};
-use plume::medium::{Collision, Convention, Emission, EmissionKind, Estimator, Medium};
-use plume::render::{render, RenderSettings, SampleBudget};
-use plume::sampling::phase::sample_uniform_sphere;
-use plume::sampling::Sampler;
-use plume::sampling::SamplerKind;
-use plume::synth::{explosion, ExplosionParams};
+use plume_engine::camera::Camera;
+use plume_core::color::Rgb;
+use plume_engine::integrator::{AnyScene, Counters, Integrator, LightSampling, Lights, MisHeuristic, NoTrace, Scene, Tracking};
+use plume_engine::light::external::{Environment, ExternalLights, Light, Radiance};
+use plume_engine::medium::{Collision, Convention, Emission, EmissionKind, Estimator, Medium};
+use plume_engine::render::{render, RenderSettings, SampleBudget};
+use plume_core::sampling::phase::sample_uniform_sphere;
+use plume_core::sampling::Sampler;
+use plume_core::sampling::SamplerKind;
+use plume_synth::{explosion, ExplosionParams};
 use plume::vdb::{FloatGrid, LEAF_VOXELS};
-use plume::volume::field::Ray;
-use plume::volume::{Interpolation, Volume};
+use plume_volume::field::Ray;
+use plume_volume::{Interpolation, Volume};
 
 /// A constant cube of `8n` voxels a side spanning `[0, size]³` metres.
 fn cube(n: i32, size: f64, density: f32, source: f32) -> Volume {
@@ -46,8 +46,8 @@ fn integrator(estimator: Estimator, light_sampling: LightSampling, mis: MisHeuri
         tracking: Tracking::Regular,
         split: 1,
         camera_collision: Collision::Analog,
-        point_lookup: plume::integrator::PointLookup::Exact,
-        split_by: plume::integrator::SplitBy::Uniform,
+        point_lookup: plume_engine::integrator::PointLookup::Exact,
+        split_by: plume_engine::integrator::SplitBy::Uniform,
     }
 }
 
@@ -287,7 +287,7 @@ fn extreme_phase_albedo_and_density_stay_finite() {
         for (g, albedo) in [(0.999, 1.0f32), (-0.999, 0.5), (0.0, 0.0), (0.5, 1.0)] {
             for (est, ls) in COMBOS {
                 let mut scene = explosion_scene(sigma_t, ls, 8, interpolation);
-                plume::with_scene!(&mut scene, s => {
+                plume_engine::with_scene!(&mut scene, s => {
                     s.medium.g = g;
                     s.medium.albedo = albedo;
                 });
@@ -299,7 +299,7 @@ fn extreme_phase_albedo_and_density_stay_finite() {
                     first_sample: 0,
                     integrator: integrator(est, ls, MisHeuristic::Power, 32),
                 };
-                let r = plume::with_scene!(&scene, s => render(s, &settings, &|_, _| {}));
+                let r = plume_engine::with_scene!(&scene, s => render(s, &settings, &|_, _| {}));
                 assert_eq!(r.counters.nonfinite_samples, 0, "{interpolation} σ={sigma_t} g={g} a={albedo} {est:?}/{ls:?}");
                 assert!(r.film.average(r.spp).iter().flatten().all(|v| v.is_finite()));
             }
@@ -349,7 +349,7 @@ fn albedo_grid_matches_constant_albedo_and_varies_per_voxel() {
 /// The explosion lit by a sun (a 5° disc, so phase sampling reaches it too), a sphere
 /// light and a constant environment, besides its own fire.
 fn lit_explosion_scene(sigma_t: f64, ls: LightSampling, interpolation: Interpolation) -> AnyScene {
-    use plume::light::external::{Distant, Environment, ExternalLights, Light, Radiance, Sphere};
+    use plume_engine::light::external::{Distant, Environment, ExternalLights, Light, Radiance, Sphere};
     let mut scene = explosion_scene(sigma_t, ls, 8, interpolation);
     let lights = vec![
         Light::Distant(Distant::new(DVec3::new(0.4, -0.8, 0.45).normalize(), Rgb([6.0, 5.0, 4.0]), 5f64.to_radians())),
@@ -357,7 +357,7 @@ fn lit_explosion_scene(sigma_t: f64, ls: LightSampling, interpolation: Interpola
         Light::Environment(Environment::new(Radiance::Constant(Rgb([0.3, 0.35, 0.45])), 1.0, DVec3::Y, 0.0, true)),
     ];
     let external = ExternalLights::new(lights, 2.0);
-    plume::with_scene!(&mut scene, s => s.lights.external = external);
+    plume_engine::with_scene!(&mut scene, s => s.lights.external = external);
     scene
 }
 

@@ -12,9 +12,9 @@ use crate::common;
 
 use common::{explosion, explosion_volume, s, tmpdir};
 use glam::DVec3;
-use plume::sampling::Sampler;
-use plume::volume::field::Field;
-use plume::volume::trilinear::Trilinear;
+use plume_core::sampling::Sampler;
+use plume_volume::field::Field;
+use plume_volume::trilinear::Trilinear;
 
 #[test]
 fn a_picked_voxel_is_an_unbiased_estimate_of_the_interpolated_one() {
@@ -49,7 +49,7 @@ fn a_picked_voxel_is_an_unbiased_estimate_of_the_interpolated_one() {
                 *s += x;
             }
         }
-        let range = |g: &dyn Fn(&plume::volume::field::VoxelValues) -> f64| {
+        let range = |g: &dyn Fn(&plume_volume::field::VoxelValues) -> f64| {
             let vals: Vec<f64> = it.corners.iter().map(g).collect();
             vals.iter().copied().fold(f64::MIN, f64::max) - vals.iter().copied().fold(f64::MAX, f64::min)
         };

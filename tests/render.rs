@@ -5,13 +5,13 @@ use crate::common;
 
 use common::{grid, names_in, pixel_bits, tmpdir};
 use glam::{DAffine3, DMat3, DVec3, IVec3};
-use plume::camera::Camera;
-use plume::color::Rgb;
-use plume::integrator::{Counters, Integrator, LightSampling, Lights, MisHeuristic, NoTrace, Scene, Tracking};
-use plume::medium::{Collision, Convention, Emission, EmissionKind, Estimator, Medium, TemperatureMap};
-use plume::render::{pixel_sample, render, render_with, PixelSample, RenderControl, RenderSettings, SampleBudget, SampleOrder, StopReason};
-use plume::sampling::SamplerKind;
-use plume::volume::Volume;
+use plume_engine::camera::Camera;
+use plume_core::color::Rgb;
+use plume_engine::integrator::{Counters, Integrator, LightSampling, Lights, MisHeuristic, NoTrace, Scene, Tracking};
+use plume_engine::medium::{Collision, Convention, Emission, EmissionKind, Estimator, Medium, TemperatureMap};
+use plume_engine::render::{pixel_sample, render, render_with, PixelSample, RenderControl, RenderSettings, SampleBudget, SampleOrder, StopReason};
+use plume_core::sampling::SamplerKind;
+use plume_volume::Volume;
 
 fn blob_scene(estimator: Estimator) -> (Scene<Volume>, Integrator) {
     let xf = DAffine3::from_mat3(DMat3::from_diagonal(DVec3::splat(0.1)));
@@ -76,8 +76,8 @@ fn scattering_blob() -> (Scene<Volume>, Integrator) {
             tracking: Tracking::Regular,
             split: 1,
             camera_collision: Collision::Analog,
-            point_lookup: plume::integrator::PointLookup::Exact,
-            split_by: plume::integrator::SplitBy::Uniform,
+            point_lookup: plume_engine::integrator::PointLookup::Exact,
+            split_by: plume_engine::integrator::SplitBy::Uniform,
         },
     )
 }
@@ -118,7 +118,7 @@ fn sample_ranges_merge_and_replays_equal_the_render_for_both_samplers() {
     }
 }
 
-fn bits(film: &plume::film::Film, spp: u64) -> Vec<u32> {
+fn bits(film: &plume_engine::film::Film, spp: u64) -> Vec<u32> {
     pixel_bits(&film.average(spp))
 }
 

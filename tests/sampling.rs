@@ -1,4 +1,4 @@
-//! Sampling primitives of `plume::sampling`: every sample/pdf pair the phase function and
+//! Sampling primitives of `plume_core::sampling`: every sample/pdf pair the phase function and
 //! the discrete distributions behind NEE and FNEE rely on.
 //!
 //! - Henyey–Greenstein: chi² against the analytic cosine CDF, normalisation, extremes.
@@ -18,9 +18,9 @@ use std::f64::consts::PI;
 
 use common::{chi2_test, direction_bin, frame, hash, rng, SAMPLING_ALPHA as ALPHA, SAMPLING_TESTS as TESTS};
 use glam::{DVec3, IVec3};
-use plume::sampling::alias::AliasTable;
-use plume::sampling::phase::{hg_pdf, sample_hg};
-use plume::sampling::{Dim, Sampler, SamplerKind};
+use plume_core::sampling::alias::AliasTable;
+use plume_core::sampling::phase::{hg_pdf, sample_hg};
+use plume_core::sampling::{Dim, Sampler, SamplerKind};
 
 // ---------------------------------------------------------------------------------------
 // Henyey–Greenstein

@@ -8,13 +8,13 @@ use crate::common;
 
 use common::{assert_same_means, explosion, explosion_emission, explosion_volume, pixel_bits, region_means_with, s, tmpdir};
 use glam::DVec3;
-use plume::film::Crop;
-use plume::integrator::split_map::pixel_integrator;
-use plume::integrator::{AnyScene, Counters, Integrator, LightSampling, Lights, MisHeuristic, NoTrace, PointLookup, SplitBy, Tracking};
-use plume::medium::{Collision, Estimator, Medium};
-use plume::render::{pixel_sample, render, render_with, PixelSample, RenderControl, RenderSettings, SampleBudget};
-use plume::sampling::SamplerKind;
-use plume::volume::Interpolation;
+use plume_engine::film::Crop;
+use plume_engine::integrator::split_map::pixel_integrator;
+use plume_engine::integrator::{AnyScene, Counters, Integrator, LightSampling, Lights, MisHeuristic, NoTrace, PointLookup, SplitBy, Tracking};
+use plume_engine::medium::{Collision, Estimator, Medium};
+use plume_engine::render::{pixel_sample, render, render_with, PixelSample, RenderControl, RenderSettings, SampleBudget};
+use plume_core::sampling::SamplerKind;
+use plume_volume::Interpolation;
 
 /// The test explosion (32³) filling a 40×32 image (5×4 pilot blocks), albedo 0.8, lit by
 /// FNEE, so the pilot sees bright and dim smoke.
@@ -22,9 +22,9 @@ fn scene() -> AnyScene {
     let vol = explosion_volume();
     let e = explosion_emission();
     let lights = Lights::build(&vol, &e, LightSampling::Fnee, 8).unwrap();
-    let camera = plume::camera::Camera::look_at(DVec3::new(0.0, 0.2, -4.5), DVec3::new(0.0, 0.2, 0.0), DVec3::Y, 40.0, 40, 32).unwrap();
+    let camera = plume_engine::camera::Camera::look_at(DVec3::new(0.0, 0.2, -4.5), DVec3::new(0.0, 0.2, 0.0), DVec3::Y, 40.0, 40, 32).unwrap();
     let medium = Medium { sigma_t: 4.0, albedo: 0.8, g: 0.3, emission: e };
-    AnyScene::new(plume::integrator::Scene { field: vol, medium, camera, lights, motion: None, majorants: None }, Interpolation::Linear)
+    AnyScene::new(plume_engine::integrator::Scene { field: vol, medium, camera, lights, motion: None, majorants: None }, Interpolation::Linear)
 }
 
 /// line-fnee with a ray-marched, forced camera collision and `split` paths from it.
@@ -52,12 +52,12 @@ fn the_pilot_gives_varied_counts_and_the_image_mean_is_kept() {
     let scene = scene();
     let brightness = integrator(4, SplitBy::Brightness);
     // The map is not uniform here (else the mean test below could not fail)
-    let map = plume::with_scene!(&scene, s => plume::pilot::split_map(s, &settings(1, 0, brightness))).expect("a pilot map");
+    let map = plume_engine::with_scene!(&scene, s => plume_engine::pilot::split_map(s, &settings(1, 0, brightness))).expect("a pilot map");
     let counts = map.counts();
     let (lo, hi) = (counts.iter().min().unwrap(), counts.iter().max().unwrap());
     assert!(*lo < 4 && *hi > 4, "counts {counts:?}");
     // Uniform splitting builds no map
-    assert!(plume::with_scene!(&scene, s => plume::pilot::split_map(s, &settings(1, 0, integrator(4, SplitBy::Uniform)))).is_none());
+    assert!(plume_engine::with_scene!(&scene, s => plume_engine::pilot::split_map(s, &settings(1, 0, integrator(4, SplitBy::Uniform)))).is_none());
     // Image and quadrant means over 12 independent runs each (5 comparisons, |z| < 4)
     let uniform = region_means_with(SamplerKind::Sobol, &scene, integrator(4, SplitBy::Uniform), 4, 12, 100);
     let by_brightness = region_means_with(SamplerKind::Sobol, &scene, brightness, 4, 12, 200);
@@ -68,7 +68,7 @@ fn the_pilot_gives_varied_counts_and_the_image_mean_is_kept() {
 fn splitting_by_brightness_is_deterministic_over_threads_ranges_crops_and_replays() {
     let scene = scene();
     let integ = integrator(4, SplitBy::Brightness);
-    plume::with_scene!(&scene, sc => {
+    plume_engine::with_scene!(&scene, sc => {
         let whole = render(sc, &settings(5, 7, integ), &|_, _| {});
         let one_thread = render(sc, &RenderSettings { threads: 1, ..settings(5, 7, integ) }, &|_, _| {});
         assert_eq!(pixel_bits(&whole.film.average(5)), pixel_bits(&one_thread.film.average(5)), "threads");
@@ -93,7 +93,7 @@ fn splitting_by_brightness_is_deterministic_over_threads_ranges_crops_and_replay
         // pixel's integrator) is the 1-spp render of sample 3
         let one = render(sc, &RenderSettings { first_sample: 3, ..settings(1, 7, integ) }, &|_, _| {});
         let px = one.film.average(1);
-        let map = plume::pilot::split_map(sc, &settings(1, 7, integ));
+        let map = plume_engine::pilot::split_map(sc, &settings(1, 7, integ));
         assert!(map.is_some());
         let mut split_paths = 0;
         for (i, p) in px.iter().enumerate() {

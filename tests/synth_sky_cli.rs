@@ -4,7 +4,7 @@
 use crate::common;
 
 use common::{plume, plume_exits, tmpdir};
-use plume::light::sky::{latlong_pixel_solid_angle, Sky, SkyParams};
+use plume_engine::light::sky::{latlong_pixel_solid_angle, Sky, SkyParams};
 use plume::output::read_exr;
 
 #[test]

@@ -10,13 +10,13 @@ use crate::common;
 
 use common::{explosion, explosion_volume, plume, plume_exits, region_means_with, s, tmpdir};
 use glam::DVec3;
-use plume::integrator::{AnyScene, Integrator, LightSampling, Lights, MisHeuristic, PointLookup, Tracking};
-use plume::medium::{Collision, Estimator};
-use plume::sampling::{Sampler, SamplerKind};
-use plume::scene::TrackingChoice;
-use plume::volume::field::{Field, Ray};
-use plume::volume::majorant::{MajorantGrid, MAX_CELLS};
-use plume::volume::Interpolation;
+use plume_engine::integrator::{AnyScene, Integrator, LightSampling, Lights, MisHeuristic, PointLookup, Tracking};
+use plume_engine::medium::{Collision, Estimator};
+use plume_core::sampling::{Sampler, SamplerKind};
+use plume_scene::TrackingChoice;
+use plume_volume::field::{Field, Ray};
+use plume_volume::majorant::{MajorantGrid, MAX_CELLS};
+use plume_volume::Interpolation;
 
 /// The generated explosion, with majorants for null collisions.
 fn scene(sigma_t: f64, ls: LightSampling, interpolation: Interpolation) -> AnyScene {
@@ -34,7 +34,7 @@ fn integrator(estimator: Estimator, light_sampling: LightSampling, tracking: Tra
         split: 1,
         camera_collision: Collision::Analog,
         point_lookup: PointLookup::Exact,
-        split_by: plume::integrator::SplitBy::Uniform,
+        split_by: plume_engine::integrator::SplitBy::Uniform,
     }
 }
 
@@ -88,7 +88,7 @@ fn still_majorants_bound_every_reconstructed_density() {
     // and on the coarser levels a large volume's grid moves to (here forced by limits of
     // 27, 8 and 1 cells: a level of n³ nodes takes (n + 1)³ cells)
     let vol = explosion_volume();
-    let linear = plume::volume::trilinear::Trilinear::new(explosion_volume());
+    let linear = plume_volume::trilinear::Trilinear::new(explosion_volume());
     let b = vol.world_bounds();
     for (max_cells, edge) in [(MAX_CELLS, 8), (27, 16), (8, 32), (1, 32)] {
         let grid = MajorantGrid::with_max_cells(&vol, 0.0, max_cells);
@@ -98,7 +98,7 @@ fn still_majorants_bound_every_reconstructed_density() {
         let mut checked = 0;
         for _ in 0..300 {
             let origin = b.lo + (b.hi - b.lo) * DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) * 1.4 - (b.hi - b.lo) * 0.2;
-            let direction = plume::sampling::phase::sample_uniform_sphere([rng.next_f64(), rng.next_f64()]);
+            let direction = plume_core::sampling::phase::sample_uniform_sphere([rng.next_f64(), rng.next_f64()]);
             let ray = Ray { origin, direction };
             for seg in grid.segments(&ray, 0.0, f64::INFINITY) {
                 for k in 0..8 {

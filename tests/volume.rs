@@ -5,8 +5,8 @@ use crate::common;
 
 use common::{grid, hash};
 use glam::{DAffine3, DMat3, DVec3, IVec3};
-use plume::volume::field::Ray;
-use plume::volume::{Field, Volume};
+use plume_volume::field::Ray;
+use plume_volume::{Field, Volume};
 use proptest::prelude::*;
 
 /// Random volume: some dense leaves, some constant, some with zeros.
@@ -46,10 +46,10 @@ fn random_volume(seed: u32, xf: DAffine3) -> Volume {
 
 fn check_segments(vol: &Volume, ray: &Ray, t_min: f64, t_max: f64) -> Result<(), TestCaseError> {
     let segs: Vec<_> = vol.segments(ray, t_min, t_max).collect();
-    let plume::volume::Bounds3 { lo, hi } = vol.index_bounds();
+    let plume_volume::Bounds3 { lo, hi } = vol.index_bounds();
     let o = vol.index_from_world().transform_point3(ray.origin);
     let d = vol.index_from_world().transform_vector3(ray.direction);
-    let clip = plume::volume::field::clip_to_box(o, d, lo, hi, t_min, t_max);
+    let clip = plume_volume::field::clip_to_box(o, d, lo, hi, t_min, t_max);
     match clip {
         None => prop_assert!(segs.is_empty(), "ray misses but got {} segments", segs.len()),
         Some((a, b)) => {
@@ -65,7 +65,7 @@ fn check_segments(vol: &Volume, ray: &Ray, t_min: f64, t_max: f64) -> Result<(),
                 // whose midpoint may round onto a face).
                 if s.t1 - s.t0 > 1e-6 * (1.0 + s.t1.abs()) {
                     let mid = ray.at(0.5 * (s.t0 + s.t1));
-                    let plume::volume::VoxelValues { density: dv, source: sv } = vol.lookup_world(mid);
+                    let plume_volume::VoxelValues { density: dv, source: sv } = vol.lookup_world(mid);
                     prop_assert_eq!((dv, sv), (s.density, s.source), "segment {:?}", s);
                     if dv > 0.0 {
                         let ijk = (vol.index_from_world().transform_point3(mid) + 0.5).floor().as_ivec3();
@@ -116,13 +116,13 @@ fn pyramid_bounds_cover_every_voxel() {
     for seed in 0..5 {
         let vol = random_volume(seed, DAffine3::IDENTITY);
         let levels = vol.pyramid_levels();
-        let plume::volume::Bounds3 { lo, hi } = vol.index_bounds();
+        let plume_volume::Bounds3 { lo, hi } = vol.index_bounds();
         let (lo, hi) = ((lo + 0.5).as_ivec3(), (hi + 0.5).as_ivec3());
         for x in lo.x..hi.x {
             for y in lo.y..hi.y {
                 for z in lo.z..hi.z {
                     let v = IVec3::new(x, y, z);
-                    let plume::volume::VoxelValues { density: d, source: s } = vol.voxel(v);
+                    let plume_volume::VoxelValues { density: d, source: s } = vol.voxel(v);
                     for (k, level) in levels.iter().enumerate() {
                         let node = level.get((v - lo).div_euclid(IVec3::splat(8 << k)));
                         assert!(node.density_max >= d && node.density_min <= d, "level {k} density at {v}");
@@ -143,7 +143,7 @@ fn voxel_centres_follow_openvdb() {
     assert_eq!(vol.lookup_index(DVec3::new(2.49, 3.0, 3.0)).density, 3.0);
     assert_eq!(vol.lookup_index(DVec3::new(2.51, 3.0, 3.0)).density, 4.0);
     assert_eq!(vol.lookup_index(DVec3::new(-0.49, 3.0, 3.0)).density, 1.0);
-    let plume::volume::Bounds3 { lo, hi } = vol.index_bounds();
+    let plume_volume::Bounds3 { lo, hi } = vol.index_bounds();
     assert_eq!(lo, DVec3::splat(-0.5));
     assert_eq!(hi, DVec3::splat(7.5));
     // A ray along +x through the leaf: 8 unit-length voxels, the first from -0.5.

@@ -23,9 +23,9 @@ use super::metrics::{mean_rgb, Errors, Spread, RELMSE_TRIM};
 use super::progressive::{self, RunPlan, RunResult, Snapshot};
 use super::spec::{BenchScene, MethodSpec};
 use super::{peak_rss_bytes, reset_peak_rss};
-use crate::error::{Error, Result};
-use crate::integrator::{Integrator, LightSampling, Lights};
-use crate::medium::Estimator;
+use plume_core::error::{Error, Result};
+use plume_engine::integrator::{Integrator, LightSampling, Lights};
+use plume_engine::medium::Estimator;
 
 /// Seeds of the two reference halves (no method run uses seeds this large).
 const REFERENCE_SEEDS: [u64; 2] = [0x7265_6600_0000_0001, 0x7265_6600_0000_0002];
@@ -76,7 +76,7 @@ fn install_lights(scene: &mut BenchScene, light_sampling: LightSampling, proxy_r
 }
 
 fn integrator_for(scene: &BenchScene, estimator: Estimator, light_sampling: LightSampling) -> Integrator {
-    scene.shot.scene.integrator_with(estimator, light_sampling)
+    plume_engine::integrator::Integrator::for_scene_with(&scene.shot.scene, estimator, light_sampling)
 }
 
 /// Read a reference EXR and check its size against the scene's.
@@ -114,7 +114,7 @@ pub fn make_reference(scene: &mut BenchScene, cpu_seconds: f64, on_line: &dyn Fn
     } else {
         ("line-fnee", Estimator::Line, LightSampling::Fnee, "long line-fnee run: the scene scatters")
     };
-    install_lights(scene, ls, crate::volume::proxy::ProxyGrid::resolution_for(scene.loaded.scene.volume(), scene.shot.scene.integrator.proxy_resolution))?;
+    install_lights(scene, ls, plume_volume::proxy::ProxyGrid::resolution_for(scene.loaded.scene.volume(), scene.shot.scene.integrator.proxy_resolution))?;
     let integ = integrator_for(scene, estimator, ls);
     let wall = Instant::now();
     let halves: Vec<RunResult> = REFERENCE_SEEDS
@@ -127,7 +127,7 @@ pub fn make_reference(scene: &mut BenchScene, cpu_seconds: f64, on_line: &dyn Fn
                 sampler: scene.shot.settings.render.sampler,
                 threads: scene.shot.settings.render.threads,
             };
-            crate::with_scene!(&scene.loaded.scene, s => progressive::run(s, &integ, &plan, None, 0.0))
+            plume_engine::with_scene!(&scene.loaded.scene, s => progressive::run(s, &integ, &plan, None, 0.0))
         })
         .collect();
     let (a, b) = (&halves[0], &halves[1]);
@@ -290,7 +290,7 @@ pub fn compare(scene: &mut BenchScene, reference: &Reference, cfg: &CompareConfi
     for m in &cfg.methods {
         let per_method = reset_peak_rss();
         let proxy =
-            crate::volume::proxy::ProxyGrid::resolution_for(scene.loaded.scene.volume(), m.proxy_resolution.or(scene.shot.scene.integrator.proxy_resolution));
+            plume_volume::proxy::ProxyGrid::resolution_for(scene.loaded.scene.volume(), m.proxy_resolution.or(scene.shot.scene.integrator.proxy_resolution));
         let t = Instant::now();
         let light_bytes = install_lights(scene, m.light_sampling, proxy)?;
         let light_build_seconds = t.elapsed().as_secs_f64();
@@ -304,7 +304,7 @@ pub fn compare(scene: &mut BenchScene, reference: &Reference, cfg: &CompareConfi
                 sampler: scene.shot.settings.render.sampler,
                 threads: scene.shot.settings.render.threads,
             };
-            let res = crate::with_scene!(&scene.loaded.scene, s => progressive::run(s, &integ, &plan, Some(&reference.pixels), cfg.epsilon));
+            let res = plume_engine::with_scene!(&scene.loaded.scene, s => progressive::run(s, &integ, &plan, Some(&reference.pixels), cfg.epsilon));
             let last = res.time_points.last().copied();
             if let Some(s) = last {
                 on_line(&format!("{}: run {}: {} spp in {:.1} CPU s, RMSE {:.4e}", m.name, r + 1, s.spp, s.cpu_seconds, s.errors.rmse));

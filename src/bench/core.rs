@@ -15,19 +15,19 @@ use std::time::Instant;
 use glam::DVec3;
 use serde::Serialize;
 
-use crate::camera::Camera;
-use crate::color::Rgb;
-use crate::error::Result;
-use crate::integrator::{Integrator, Scene};
+use plume_engine::camera::Camera;
+use plume_core::color::Rgb;
+use plume_core::error::Result;
+use plume_engine::integrator::{Integrator, Scene};
 use crate::load::load_scene;
-use crate::medium::{Convention, Emission, EmissionKind, Estimator, Medium, TemperatureMap};
-use crate::render::{render, RenderSettings, SampleBudget};
-use crate::sampling::Sampler;
-use crate::scene::Shot;
-use crate::synth::{explosion, ExplosionParams};
-use crate::vdb::LEAF_VOXELS;
-use crate::volume::field::Ray;
-use crate::volume::{Field, Volume};
+use plume_engine::medium::{Convention, Emission, EmissionKind, Estimator, Medium, TemperatureMap};
+use plume_engine::render::{render, RenderSettings, SampleBudget};
+use plume_core::sampling::Sampler;
+use plume_scene::Shot;
+use plume_synth::{explosion, ExplosionParams};
+use plume_volume::grid::LEAF_VOXELS;
+use plume_volume::field::Ray;
+use plume_volume::{Field, Volume};
 
 /// Results of `plume bench core`.
 #[derive(Debug, Serialize)]
@@ -67,7 +67,7 @@ fn emission() -> Emission {
         scale: 1.0,
         color: Rgb::ONE,
         temperature_map: TemperatureMap::Kelvin,
-        cutoff_kelvin: crate::color::blackbody::DEFAULT_CUTOFF_KELVIN,
+        cutoff_kelvin: plume_core::color::blackbody::DEFAULT_CUTOFF_KELVIN,
     }
 }
 
@@ -83,7 +83,7 @@ pub fn run(resolution: u32, threads: usize, ttfs_file: &Path) -> Result<CoreRepo
     let volume_bytes = volume.memory_bytes() as u64;
 
     // DDA: random chords between points on a sphere around the volume and points inside.
-    let crate::volume::Bounds3 { lo, hi } = volume.world_bounds();
+    let plume_volume::Bounds3 { lo, hi } = volume.world_bounds();
     let centre = 0.5 * (lo + hi);
     let radius = 0.5 * (hi - lo).length();
     let mut sampler = Sampler::new(1, 0, 0);
@@ -140,7 +140,7 @@ pub fn run(resolution: u32, threads: usize, ttfs_file: &Path) -> Result<CoreRepo
         let settings = RenderSettings {
             budget: SampleBudget::Spp(8),
             seed: 0,
-            sampler: crate::sampling::SamplerKind::default(),
+            sampler: plume_core::sampling::SamplerKind::default(),
             threads,
             first_sample: 0,
             integrator: Integrator::emission_only(Estimator::Line),

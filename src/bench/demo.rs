@@ -28,11 +28,11 @@ use std::time::Instant;
 
 use serde::Serialize;
 
-use crate::color::rec709_luminance;
-use crate::error::{Error, Result};
+use plume_core::color::rec709_luminance;
+use plume_core::error::{Error, Result};
 use crate::output::{read_exr, read_exr_contents, ExrContents, RgbaImage};
-use crate::scene::file::SceneFile;
-use crate::scene::Shot;
+use plume_scene::file::SceneFile;
+use plume_scene::Shot;
 
 /// Pixels whose reference alpha exceeds this are the ones the smoke covers.
 pub const COVERED_ALPHA: f32 = 0.05;
@@ -260,7 +260,7 @@ fn reference(config: &DemoConfig, shot: &Shot, seed: u64) -> Result<RgbaImage> {
 fn render(config: &DemoConfig, shot: &Shot, toml: &Path, stats: &Path) -> Result<(f64, f64)> {
     let mut shot = shot.clone();
     shot.settings.render.quiet = true;
-    crate::scene::file::write(toml, &shot)?;
+    plume_scene::file::write(toml, &shot)?;
     // A statistics file gets a line per render: start afresh
     let _ = std::fs::remove_file(stats);
     let start = Instant::now();

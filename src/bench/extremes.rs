@@ -35,16 +35,16 @@ use std::fmt::Write as _;
 use glam::{DAffine3, DVec3, IVec3};
 use serde::Serialize;
 
-use crate::camera::Camera;
-use crate::color::blackbody::blackbody_rgb_exact;
-use crate::color::Rgb;
-use crate::error::{Error, Result};
-use crate::integrator::{Integrator, LightSampling, Lights, MisHeuristic, Scene, Tracking};
-use crate::medium::tracking::phi;
-use crate::medium::{Collision, Convention, Emission, EmissionKind, Estimator, Medium, TemperatureMap};
-use crate::render::{render, RenderSettings, SampleBudget};
+use plume_engine::camera::Camera;
+use plume_core::color::blackbody::blackbody_rgb_exact;
+use plume_core::color::Rgb;
+use plume_core::error::{Error, Result};
+use plume_engine::integrator::{Integrator, LightSampling, Lights, MisHeuristic, Scene, Tracking};
+use plume_engine::medium::tracking::phi;
+use plume_engine::medium::{Collision, Convention, Emission, EmissionKind, Estimator, Medium, TemperatureMap};
+use plume_engine::render::{render, RenderSettings, SampleBudget};
 use crate::vdb::{leaf_offset, FloatGrid, LEAF_VOXELS};
-use crate::volume::{Field, Volume};
+use plume_volume::{Field, Volume};
 
 /// Sizes of the sweep.
 #[derive(Clone, Copy, Debug, Serialize)]
@@ -139,7 +139,7 @@ fn box_camera(edge: f64, size: u32) -> Result<Camera> {
 fn render_image(scene: &Scene<Volume>, integrator: Integrator, spp: u32, seed: u64) -> Vec<[f32; 4]> {
     let r = render(
         scene,
-        &RenderSettings { budget: SampleBudget::Spp(spp), seed, sampler: crate::sampling::SamplerKind::default(), threads: 0, first_sample: 0, integrator },
+        &RenderSettings { budget: SampleBudget::Spp(spp), seed, sampler: plume_core::sampling::SamplerKind::default(), threads: 0, first_sample: 0, integrator },
         &|_, _| {},
     );
     r.film.average(r.spp)
@@ -274,8 +274,8 @@ fn density_sweep(cfg: &ExtremesConfig, check: &mut Check) -> Result<()> {
             tracking: Tracking::Regular,
             split: 1,
             camera_collision: Collision::Forced,
-            point_lookup: crate::integrator::PointLookup::Exact,
-            split_by: crate::integrator::SplitBy::Uniform,
+            point_lookup: plume_engine::integrator::PointLookup::Exact,
+            split_by: plume_engine::integrator::SplitBy::Uniform,
         };
         let img = render_image(&scene, integ, cfg.spp, 1);
         let (mean, se) = central(&img, cfg.size, None);
@@ -336,7 +336,7 @@ fn temperature_sweep(cfg: &ExtremesConfig, check: &mut Check) -> Result<()> {
 }
 
 /// The generated explosion with voxel edge `h`, σ_t and emission scaled by `h₀/h`.
-fn explosion_at(ex: &crate::synth::Explosion, h: f64, h0: f64, size: u32) -> Result<Scene<Volume>> {
+fn explosion_at(ex: &plume_synth::Explosion, h: f64, h0: f64, size: u32) -> Result<Scene<Volume>> {
     let rescale = |g: &FloatGrid| {
         let mut g = g.clone();
         g.world_from_index = DAffine3::from_scale(DVec3::splat(h / h0)) * g.world_from_index;
@@ -352,7 +352,7 @@ fn explosion_at(ex: &crate::synth::Explosion, h: f64, h0: f64, size: u32) -> Res
         cutoff_kelvin: 500.0,
     };
     let vol = Volume::build(&d, Some(&t), |v| emission.map_source(v))?;
-    let crate::volume::Bounds3 { lo, hi } = vol.world_bounds();
+    let plume_volume::Bounds3 { lo, hi } = vol.world_bounds();
     let camera = Camera::frame_bounds(lo, hi, DVec3::new(0.35, 0.25, 1.0), DVec3::Y, 40.0, size, size)?;
     Ok(Scene {
         field: vol,
@@ -366,8 +366,8 @@ fn explosion_at(ex: &crate::synth::Explosion, h: f64, h0: f64, size: u32) -> Res
 
 fn voxel_size_sweep(cfg: &ExtremesConfig, check: &mut Check) -> Result<()> {
     let res = cfg.explosion_resolution;
-    let ex = crate::synth::explosion(&crate::synth::ExplosionParams { resolution: res, seed: 1, ..Default::default() });
-    let h0 = crate::synth::WORLD_SIZE / f64::from(res);
+    let ex = plume_synth::explosion(&plume_synth::ExplosionParams { resolution: res, seed: 1, ..Default::default() });
+    let h0 = plume_synth::WORLD_SIZE / f64::from(res);
     let base = explosion_at(&ex, h0, h0, cfg.size)?;
     let methods = &EMISSION_ONLY[..3];
     let refs: Vec<Vec<[f32; 4]>> = methods.iter().map(|(_, e)| render_image(&base, Integrator::emission_only(*e), cfg.spp, 3)).collect();

@@ -28,14 +28,14 @@ use serde::Serialize;
 
 use super::outputs::num;
 use super::spec::{bench_shot, load};
-use crate::error::{Error, Result};
-use crate::integrator::{AnyScene, Counters, Integrator, LightSampling, Lights};
-use crate::medium::Estimator;
-use crate::render::{render, RenderSettings, SampleBudget};
-use crate::scene::file::with_keys;
-use crate::stats::cpu_seconds;
-use crate::volume::proxy::ProxyGrid;
-use crate::volume::Interpolation;
+use plume_core::error::{Error, Result};
+use plume_engine::integrator::{AnyScene, Counters, Integrator, LightSampling, Lights};
+use plume_engine::medium::Estimator;
+use plume_engine::render::{render, RenderSettings, SampleBudget};
+use plume_scene::file::with_keys;
+use plume_engine::stats::cpu_seconds;
+use plume_volume::proxy::ProxyGrid;
+use plume_volume::Interpolation;
 
 /// A real file of the cost and memory tables, and how it is lit.
 #[derive(Clone, Copy, Debug)]
@@ -289,8 +289,8 @@ impl Switch {
 /// CPU seconds and counters of one render of `spp` at seed 0.
 fn timed_render(scene: &AnyScene, integrator: Integrator, spp: u32, threads: usize) -> (f64, Counters) {
     let settings =
-        RenderSettings { budget: SampleBudget::Spp(spp), seed: 0, sampler: crate::sampling::SamplerKind::default(), threads, first_sample: 0, integrator };
-    crate::with_scene!(scene, s => {
+        RenderSettings { budget: SampleBudget::Spp(spp), seed: 0, sampler: plume_core::sampling::SamplerKind::default(), threads, first_sample: 0, integrator };
+    plume_engine::with_scene!(scene, s => {
         let c0 = cpu_seconds();
         let r = render(s, &settings, &|_, _| {});
         (cpu_seconds() - c0, r.counters)
@@ -346,7 +346,7 @@ fn measure_file(file: &CostFile, cfg: &InterpolationConfig, log: &dyn Fn(&str)) 
     // Two fragments: both may name the same table
     let shot = with_keys(&with_keys(&bench_shot(&path.display().to_string()), file.keys)?, &own)?;
     let loaded = load(shot, vec![], &super::options::default_work_dir())?;
-    let base = loaded.shot.scene.integrator();
+    let base = plume_engine::integrator::Integrator::for_scene(&loaded.shot.scene);
     let proxy_resolution = ProxyGrid::resolution_for(loaded.loaded.scene.volume(), loaded.shot.scene.integrator.proxy_resolution);
     let mut scene = Switch(Some(loaded.loaded.scene));
     let volume_bytes = scene.to(Interpolation::Nearest).volume().memory_bytes() as u64;

@@ -17,15 +17,15 @@ use std::time::Instant;
 use glam::DVec3;
 use serde::Serialize;
 
-use crate::camera::Camera;
-use crate::color::Rgb;
-use crate::error::Result;
-use crate::integrator::{Integrator, LightSampling, Lights, MisHeuristic, Scene, Tracking};
-use crate::medium::{Collision, Convention, Emission, EmissionKind, Estimator, Medium, TemperatureMap};
-use crate::render::{render, RenderSettings, SampleBudget};
-use crate::stats::cpu_seconds;
-use crate::synth::{explosion, ExplosionParams};
-use crate::volume::{Field, Volume};
+use plume_engine::camera::Camera;
+use plume_core::color::Rgb;
+use plume_core::error::Result;
+use plume_engine::integrator::{Integrator, LightSampling, Lights, MisHeuristic, Scene, Tracking};
+use plume_engine::medium::{Collision, Convention, Emission, EmissionKind, Estimator, Medium, TemperatureMap};
+use plume_engine::render::{render, RenderSettings, SampleBudget};
+use plume_engine::stats::cpu_seconds;
+use plume_synth::{explosion, ExplosionParams};
+use plume_volume::{Field, Volume};
 
 /// The methods compared, as (name, estimator, light sampling).
 pub const METHODS: [(&str, Estimator, LightSampling); 5] = [
@@ -83,7 +83,7 @@ fn scene(resolution: u32, sigma_t: f64, ls: LightSampling, width: u32, height: u
     };
     let vol = Volume::build(&ex.density, Some(&ex.temperature), |v| e.map_source(v))?;
     let lights = Lights::build(&vol, &e, ls, proxy.min(resolution.next_power_of_two()))?;
-    let crate::volume::Bounds3 { lo, hi } = vol.world_bounds();
+    let plume_volume::Bounds3 { lo, hi } = vol.world_bounds();
     let camera = Camera::frame_bounds(lo, hi, DVec3::new(0.35, 0.25, 1.0), DVec3::Y, 40.0, width, height)?;
     Ok(Scene { field: vol, medium: Medium { sigma_t, albedo: 0.8, g: 0.3, emission: e }, camera, lights, motion: None, majorants: None })
 }
@@ -98,8 +98,8 @@ fn integrator(estimator: Estimator, light_sampling: LightSampling, mis: MisHeuri
         tracking: Tracking::Regular,
         split: 1,
         camera_collision: Collision::Analog,
-        point_lookup: crate::integrator::PointLookup::Exact,
-        split_by: crate::integrator::SplitBy::Uniform,
+        point_lookup: plume_engine::integrator::PointLookup::Exact,
+        split_by: plume_engine::integrator::SplitBy::Uniform,
     }
 }
 
@@ -147,7 +147,7 @@ pub fn run(
             &RenderSettings {
                 budget: SampleBudget::CpuTime(reference_seconds),
                 seed: 1_000_003,
-                sampler: crate::sampling::SamplerKind::default(),
+                sampler: plume_core::sampling::SamplerKind::default(),
                 threads,
                 first_sample: 0,
                 integrator: integrator(Estimator::Line, LightSampling::Fnee, MisHeuristic::Power),
@@ -165,7 +165,7 @@ pub fn run(
                 &RenderSettings {
                     budget: SampleBudget::CpuTime(seconds),
                     seed: 7,
-                    sampler: crate::sampling::SamplerKind::default(),
+                    sampler: plume_core::sampling::SamplerKind::default(),
                     threads,
                     first_sample: 0,
                     integrator: integrator(est, ls, mis),

@@ -27,7 +27,7 @@ pub mod progressive;
 pub mod report;
 pub mod spec;
 
-use crate::error::{Error, Result};
+use plume_core::error::{Error, Result};
 
 /// Write `value` as pretty JSON to `path`, if given.
 ///
@@ -36,7 +36,7 @@ use crate::error::{Error, Result};
 pub fn write_json<T: serde::Serialize>(path: &Option<std::path::PathBuf>, value: &T) -> Result<()> {
     if let Some(p) = path {
         let json = serde_json::to_string_pretty(value).map_err(|e| Error::Scene(e.to_string()))?;
-        crate::output::write_atomic(p, |w| std::io::Write::write_all(w, json.as_bytes()))?;
+        plume_core::fs::write_atomic(p, |w| std::io::Write::write_all(w, json.as_bytes()))?;
     }
     Ok(())
 }
@@ -58,7 +58,7 @@ pub fn peak_rss_bytes() -> u64 {
         let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
         Some(kib * 1024)
     });
-    from_proc.unwrap_or_else(crate::stats::peak_rss_bytes)
+    from_proc.unwrap_or_else(plume_engine::stats::peak_rss_bytes)
 }
 
 /// The machine a report was measured on: what [`machine`] returns.

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use super::compare::{compare, make_reference, read_reference, CompareConfig};
 use super::spec::{parse_methods, BenchScene};
-use crate::error::{Error, Result};
+use plume_core::error::{Error, Result};
 
 /// Where generated scenes are written by default.
 #[must_use]
@@ -120,7 +120,7 @@ impl ExtremesOptions {
         print!("{}", report.table());
         if let Some(p) = &self.json {
             let json = serde_json::to_string_pretty(&report).map_err(|e| Error::Scene(e.to_string()))?;
-            crate::output::write_atomic(p, |w| std::io::Write::write_all(w, json.as_bytes()))?;
+            plume_core::fs::write_atomic(p, |w| std::io::Write::write_all(w, json.as_bytes()))?;
         }
         let failed = report.rows.iter().filter(|r| !r.pass).count();
         if failed > 0 {

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use super::compare::{CompareReport, Point};
 use super::metrics::Spread;
-use crate::error::{Error, Result};
+use plume_core::error::{Error, Result};
 
 /// A number with 4 significant digits, in `e` notation when tiny or huge.
 #[must_use]
@@ -225,10 +225,10 @@ impl CompareReport {
     pub fn write(&self, dir: &Path, name: &str, crops: bool) -> Result<Vec<PathBuf>> {
         std::fs::create_dir_all(dir).map_err(|source| Error::Write { path: dir.to_path_buf(), source })?;
         let csv = dir.join(format!("{name}.csv"));
-        crate::output::write_atomic(&csv, |w| std::io::Write::write_all(w, self.to_csv().as_bytes()))?;
+        plume_core::fs::write_atomic(&csv, |w| std::io::Write::write_all(w, self.to_csv().as_bytes()))?;
         let json = dir.join(format!("{name}.json"));
         let text = serde_json::to_string_pretty(self).map_err(|e| Error::Scene(e.to_string()))?;
-        crate::output::write_atomic(&json, |w| std::io::Write::write_all(w, text.as_bytes()))?;
+        plume_core::fs::write_atomic(&json, |w| std::io::Write::write_all(w, text.as_bytes()))?;
         let plot = dir.join(format!("{name}-error.png"));
         super::plot::error_vs_time(self, &plot)?;
         let mut files = vec![csv, json, plot];

@@ -12,7 +12,7 @@ use std::sync::Once;
 use plotters::prelude::*;
 
 use super::compare::CompareReport;
-use crate::error::{Error, Result};
+use plume_core::error::{Error, Result};
 
 /// DejaVu Sans, subset to ASCII and a few symbols (license: `assets/fonts/LICENSE-DejaVu.txt`).
 static FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans-subset.ttf");
@@ -62,7 +62,7 @@ pub fn write_rgb_png(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Result
         indices.push(i as u8);
     }
     let indexed = palette.len() <= 256;
-    crate::output::write_atomic(path, |out| {
+    plume_core::fs::write_atomic(path, |out| {
         let mut enc = png::Encoder::new(out, width, height);
         if indexed {
             enc.set_color(png::ColorType::Indexed);

@@ -17,11 +17,11 @@ use std::time::Instant;
 use serde::Serialize;
 
 use super::metrics::Errors;
-use crate::film::Film;
-use crate::integrator::{Counters, Integrator, Scene};
-use crate::render::{read_ahead_window, render_with, RenderControl, RenderSettings, SampleBudget, SampleOrder};
-use crate::stats::cpu_seconds;
-use crate::volume::Field;
+use plume_engine::film::Film;
+use plume_engine::integrator::{Counters, Integrator, Scene};
+use plume_engine::render::{read_ahead_window, render_with, RenderControl, RenderSettings, SampleBudget, SampleOrder};
+use plume_engine::stats::cpu_seconds;
+use plume_volume::Field;
 
 /// The state of a run at one checkpoint.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
@@ -65,13 +65,13 @@ pub struct RunPlan {
     /// Seed of the sample streams.
     pub seed: u64,
     /// Which numbers drive the samples.
-    pub sampler: crate::sampling::SamplerKind,
+    pub sampler: plume_core::sampling::SamplerKind,
     /// Worker threads (0 = all cores).
     pub threads: usize,
 }
 
 /// Value of one unit of the film's fixed-point sums, `2^-F`.
-const FIXED_POINT_UNIT: f64 = 1.0 / (1u128 << crate::film::FIXED_POINT_BITS) as f64;
+const FIXED_POINT_UNIT: f64 = 1.0 / (1u128 << plume_engine::film::FIXED_POINT_BITS) as f64;
 
 /// Add a film's sums into row-major sums.
 pub fn accumulate(sums: &mut [[f64; 4]], film: &Film) {
@@ -119,7 +119,7 @@ pub fn run<F: Field>(scene: &Scene<F>, integrator: &Integrator, plan: &RunPlan, 
     // A brick cache larger than the memory available is rendered tile by tile within each
     // pass, as `plume render --sample-order auto` does: camera rays and scattered segments
     // read ahead, within the same read-ahead window. The image is the same in either order.
-    let memory = crate::memory::MemoryLimits::read();
+    let memory = plume_volume::out_of_core::memory::MemoryLimits::read();
     let available = memory.available().map_or(u64::MAX, |a| a.bytes);
     let read_ahead_window = read_ahead_window(memory.default_budget());
     let order = if scene.field.is_mapped() && scene.field.data_bytes() as u64 > available { SampleOrder::TileMajor } else { SampleOrder::Progressive };

@@ -22,8 +22,8 @@ use super::options::ReportOptions;
 use super::outputs::num;
 use super::plot::{loglog_panels, Series};
 use super::spec::{bench_shot, load, parse_methods, BenchScene};
-use crate::error::{Error, Result};
-use crate::scene::file::{to_toml_as_is, with_keys};
+use plume_core::error::{Error, Result};
+use plume_scene::file::{to_toml_as_is, with_keys};
 
 /// Methods of the explosion, smoke and cloud sections; the first is the baseline.
 const METHODS: &str = "point-nee,line-nee,line-fnee,ray-march,line+none,blend+fnee";
@@ -83,7 +83,7 @@ impl Suite<'_> {
         std::fs::create_dir_all(&dir).map_err(|source| Error::Write { path: dir.clone(), source })?;
         let text = to_toml_as_is(&written)?;
         let path = dir.join(format!("{name}.toml"));
-        crate::output::write_atomic(&path, |w| std::io::Write::write_all(w, text.as_bytes()))?;
+        plume_core::fs::write_atomic(&path, |w| std::io::Write::write_all(w, text.as_bytes()))?;
         self.scene_file = path;
         let summary = keys.lines().map(str::trim).filter(|l| !l.is_empty()).collect::<Vec<_>>().join(" ");
         load(shot, vec![summary], &self.args.work_dir)
@@ -278,7 +278,7 @@ pub fn run(args: &ReportOptions) -> Result<()> {
     let cfg = super::extremes::ExtremesConfig { box_voxels: 32, explosion_resolution: 64, size: 48, spp: 16 };
     let ex = super::extremes::run(&cfg)?;
     let ex_json = serde_json::to_string_pretty(&ex).map_err(|e| Error::Scene(e.to_string()))?;
-    crate::output::write_atomic(&args.out.join("bench").join("extremes.json"), |w| std::io::Write::write_all(w, ex_json.as_bytes()))?;
+    plume_core::fs::write_atomic(&args.out.join("bench").join("extremes.json"), |w| std::io::Write::write_all(w, ex_json.as_bytes()))?;
     let _ = writeln!(
         suite.md,
         "## Numerical extremes\n\n{}\n\nReproduce: `plume bench extremes --box-voxels {} --explosion-resolution {} --size {} --spp {}` (a smaller version runs in `cargo test`, `tests/bench.rs`).\n\n{}",
@@ -344,7 +344,7 @@ fn write_document(args: &ReportOptions, body: &str, regimes: &[(&str, CompareRep
     let _ = writeln!(md, "\nThe paper's ratios are from the authors' slides (METHOD.md §9: thin 0.748/0.983 at 48 vs 43 spp, dense 0.572/0.892 at 196 vs 73 spp), on their explosion and machine with 10 and 30 minute budgets; ours are seconds on a generated explosion, so compare directions and orders, not digits.\n");
     md.push_str(body);
     let path = args.out.join("BENCHMARKS.md");
-    crate::output::write_atomic(&path, |w| std::io::Write::write_all(w, md.as_bytes()))?;
+    plume_core::fs::write_atomic(&path, |w| std::io::Write::write_all(w, md.as_bytes()))?;
     eprintln!("plume: wrote {}", path.display());
     Ok(())
 }

@@ -15,11 +15,11 @@
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
-use crate::error::{Error, Result};
-use crate::integrator::LightSampling;
+use plume_core::error::{Error, Result};
+use plume_engine::integrator::LightSampling;
 use crate::load::{load_scene, LoadedScene};
-use crate::medium::Estimator;
-use crate::scene::Shot;
+use plume_engine::medium::Estimator;
+use plume_scene::Shot;
 
 /// One method of a comparison.
 #[derive(Clone, Debug, PartialEq)]
@@ -137,10 +137,10 @@ pub fn scene_file(spec: &str, work_dir: &Path) -> Result<PathBuf> {
     let mut done = GENERATED.lock().map_err(|_| Error::Scene("bench: generator lock poisoned".into()))?;
     if !done.contains(&path) {
         std::fs::create_dir_all(work_dir).map_err(|source| Error::Write { path: work_dir.to_path_buf(), source })?;
-        let params = crate::synth::ExplosionParams { resolution, seed, ..Default::default() };
-        let ex = crate::synth::explosion(&params);
+        let params = plume_synth::ExplosionParams { resolution, seed, ..Default::default() };
+        let ex = plume_synth::explosion(&params);
         // With its velocity, as `plume synth explosion` writes it (`--velocity-grid velocity`)
-        let [vx, vy, vz] = crate::synth::velocity::explosion_velocity(&params, &ex.density);
+        let [vx, vy, vz] = plume_synth::velocity::explosion_velocity(&params, &ex.density);
         let velocity = crate::vdb::VectorGrid { name: "velocity", components: [&vx, &vy, &vz] };
         crate::vdb::write_grids(&path, &[&ex.density, &ex.temperature], &[velocity])?;
         done.push(path.clone());

@@ -14,20 +14,20 @@ use std::time::{Duration, Instant};
 
 use glam::IVec3;
 
-use super::format::InputFingerprint;
-use super::lock::{Acquired, CacheLock};
-use super::reader::Cache;
-use super::writer::{CacheInfo, CacheWriter, ProxySpec};
-use crate::error::{Error, Result};
-use crate::integrator::{light_power, LightSampling};
-use crate::medium::EmissionKind;
-use crate::scene::bind::{emission_kind, grid_requests, reader, unit_emission_model, FileReader};
-use crate::scene::NeeTable;
-use crate::scene::{EmissionSettings, EmissionSource, JobSettings, ReadSettings, SceneDescription, VolumeInput};
-use crate::stats::GIB;
+use plume_volume::out_of_core::format::InputFingerprint;
+use plume_volume::out_of_core::lock::{Acquired, CacheLock};
+use plume_volume::out_of_core::reader::Cache;
+use plume_volume::out_of_core::writer::{CacheInfo, CacheWriter, ProxySpec};
+use plume_core::error::{Error, Result};
+use plume_engine::integrator::{light_power, LightSampling};
+use plume_engine::medium::EmissionKind;
+use crate::load::bind::{emission_kind, grid_requests, reader, unit_emission_model, FileReader};
+use plume_scene::NeeTable;
+use plume_scene::{EmissionSettings, EmissionSource, JobSettings, ReadSettings, SceneDescription, VolumeInput};
+use plume_engine::stats::GIB;
 use crate::vdb::{FileStamp, GridSelector, LeafData, ReadIsolation, ReadLimits, StreamedGrid};
-use crate::volume::brick::{brick_of, check_same_transform, table_dims, Channel, Slot};
-use crate::volume::Volume;
+use plume_volume::brick::{brick_of, check_same_transform, table_dims, Channel, Slot};
+use plume_volume::Volume;
 
 /// What a conversion wrote.
 #[derive(Clone, Debug)]
@@ -122,7 +122,7 @@ pub fn convert(file: &Path, what: &Conversion<'_>, out: &Path) -> Result<Convert
     // garbage (OpenVDB reads the zeros past a new end), and a conversion that succeeded
     // may hold leaves of two versions: either way the file failed under plume (exit code
     // 4). Errors of the output (a full disk) stay what they are.
-    let input_error = result.as_ref().err().is_none_or(|e| e.exit_code() == crate::error::exit::INPUT);
+    let input_error = result.as_ref().err().is_none_or(|e| e.exit_code() == plume_core::error::exit::INPUT);
     match before.and_then(|b| b.change(file)) {
         Some(change) if input_error => {
             if let Ok(c) = &result {
@@ -257,7 +257,7 @@ pub fn check_description(cache: &Cache, grids: &VolumeInput, source: EmissionSou
 ///
 /// # Errors
 /// [`Error::InvalidArgument`] naming the mapping flags.
-pub fn check_source_key(cache: &Cache, emission: &crate::medium::Emission) -> Result<()> {
+pub fn check_source_key(cache: &Cache, emission: &plume_engine::medium::Emission) -> Result<()> {
     if emission.kind == EmissionKind::None || emission.source_key() == cache.meta.source_key {
         return Ok(());
     }
@@ -365,7 +365,7 @@ fn cache_places(input: &Path, settings: &JobSettings) -> Vec<Place> {
         .map(PathBuf::from)
         .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache")))
         .unwrap_or_else(std::env::temp_dir);
-    vec![Place { dir: crate::output::parent_dir(input), what: "beside the input" }, Place { dir: user.join("plume"), what: "$XDG_CACHE_HOME/plume" }]
+    vec![Place { dir: plume_core::fs::parent_dir(input), what: "beside the input" }, Place { dir: user.join("plume"), what: "$XDG_CACHE_HOME/plume" }]
 }
 
 /// The automatic cache at `path` if it may be rendered (complete and current; it is
@@ -385,7 +385,7 @@ fn open_auto(path: &Path) -> Result<Option<Cache>> {
 /// killed process is cleaned up).
 fn writable(dir: &Path, path: &Path) -> std::io::Result<()> {
     std::fs::create_dir_all(dir)?;
-    let probe = crate::output::temporary_path(path);
+    let probe = plume_core::fs::temporary_path(path);
     std::fs::File::create(&probe)?;
     std::fs::remove_file(&probe)
 }
@@ -580,5 +580,5 @@ fn in_core_bytes(scene: &SceneDescription, input: &Path, settings: &JobSettings)
             }
         }
     }
-    Ok(leaves.saturating_mul(2 * crate::vdb::LEAF_VOXELS as u64 * 4))
+    Ok(leaves.saturating_mul(2 * plume_volume::grid::LEAF_VOXELS as u64 * 4))
 }

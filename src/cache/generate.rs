@@ -9,15 +9,15 @@ use std::time::Instant;
 use rayon::prelude::*;
 
 use super::convert::{kind_name, Converted};
-use super::writer::{CacheInfo, CacheWriter, ProxySpec};
-use crate::error::Result;
-use crate::integrator::light_power;
-use crate::medium::EmissionKind;
-use crate::scene::bind::unit_emission_model;
-use crate::scene::EmissionSettings;
-use crate::synth::Flare;
-use crate::vdb::LEAF_VOXELS;
-use crate::volume::brick::Channel;
+use plume_volume::out_of_core::writer::{CacheInfo, CacheWriter, ProxySpec};
+use plume_core::error::Result;
+use plume_engine::integrator::light_power;
+use plume_engine::medium::EmissionKind;
+use crate::load::bind::unit_emission_model;
+use plume_scene::EmissionSettings;
+use plume_synth::Flare;
+use plume_volume::grid::LEAF_VOXELS;
+use plume_volume::brick::Channel;
 
 /// One generated brick: coordinate, density and temperature in leaf order.
 type GeneratedBrick = (glam::IVec3, Box<[f32; LEAF_VOXELS]>, Box<[f32; LEAF_VOXELS]>);

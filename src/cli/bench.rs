@@ -9,8 +9,8 @@ use plume::bench::interpolation::{closeup::CloseupConfig, rule::RuleConfig, Inte
 use plume::bench::metrics::RELMSE_EPSILON;
 use plume::bench::options::{default_work_dir, CompareOptions, ExtremesOptions, InterpolationOptions, ReportOptions};
 use plume::bench::write_json;
-use plume::error::{Error, Result};
-use plume::integrator::MisHeuristic;
+use plume_core::error::{Error, Result};
+use plume_engine::integrator::MisHeuristic;
 
 use super::flags::choice;
 use super::render::RenderRequest;

@@ -1,7 +1,7 @@
 //! Dispatch: each command's flags become library types, then the library runs them.
 
 use clap::ArgMatches;
-use plume::error::Result;
+use plume_core::error::Result;
 
 use super::render::RenderRequest;
 use super::{files, Cli, Command};
@@ -19,7 +19,7 @@ pub fn run(cli: Cli, matches: &ArgMatches, command_line: &str) -> Result<()> {
             let sub = sub.expect("invariant: a subcommand was parsed");
             let request = RenderRequest::try_from((&*args, sub))?;
             if let Some(path) = &args.write_scene {
-                plume::scene::file::write(path, &request.shot)?;
+                plume_scene::file::write(path, &request.shot)?;
                 eprintln!("plume: wrote {}", path.display());
                 return Ok(());
             }

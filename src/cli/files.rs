@@ -5,10 +5,10 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use clap::{Args, Subcommand};
-use plume::error::{Error, Result};
+use plume_core::error::{Error, Result};
 use plume::farm::merge::MergeOptions;
-use plume::light::sky::{Sky, SkyParams};
-use plume::scene::ReadSettings;
+use plume_engine::light::sky::{Sky, SkyParams};
+use plume_scene::ReadSettings;
 use plume::vdb;
 
 use super::render::GridArgs;
@@ -182,7 +182,7 @@ pub fn prepare_command(args: &PrepareArgs) -> Result<()> {
         return Err(Error::invalid("--output", format!("{} must end in .{}", args.output.display(), plume::cache::EXTENSION)));
     }
     // The grid flags set the same keys as for `plume render`
-    let mut shot = plume::scene::Shot::new(&args.file, "");
+    let mut shot = plume_scene::Shot::new(&args.file, "");
     super::keys::apply_grids(&mut shot, &args.grids, &|_| true);
     let (scene, reading) = (&shot.scene, &shot.settings.reading);
     let input_bytes = std::fs::metadata(&args.file).map(|m| m.len()).unwrap_or(0);
@@ -208,10 +208,10 @@ pub fn prepare_command(args: &PrepareArgs) -> Result<()> {
 /// The file cannot be written.
 pub fn synth_explosion_command(args: &SynthExplosionArgs) -> Result<()> {
     let t = Instant::now();
-    let params = plume::synth::ExplosionParams { resolution: args.resolution, seed: args.seed, ..Default::default() };
-    let ex = plume::synth::explosion(&params);
+    let params = plume_synth::ExplosionParams { resolution: args.resolution, seed: args.seed, ..Default::default() };
+    let ex = plume_synth::explosion(&params);
     // Velocity for motion blur, a vector grid as Blender writes it (`--velocity-grid velocity`)
-    let [vx, vy, vz] = plume::synth::velocity::explosion_velocity(&params, &ex.density);
+    let [vx, vy, vz] = plume_synth::velocity::explosion_velocity(&params, &ex.density);
     let velocity = vdb::VectorGrid { name: "velocity", components: [&vx, &vy, &vz] };
     vdb::write_grids(&args.output, &[&ex.density, &ex.temperature], &[velocity])?;
     eprintln!(
@@ -231,9 +231,9 @@ const FLARE_VDB_LIMIT_BYTES: u64 = 8 << 30;
 /// `plume synth flare`: build in memory and write a .vdb, refusing flares too large for that.
 pub fn synth_flare_command(args: &SynthFlareArgs) -> Result<()> {
     let t = Instant::now();
-    let params = plume::synth::FlareParams { resolution: args.resolution, seed: args.seed, ..Default::default() };
+    let params = plume_synth::FlareParams { resolution: args.resolution, seed: args.seed, ..Default::default() };
     if plume::cache::is_cache_path(&args.output) {
-        let flare = plume::synth::Flare::new(&params);
+        let flare = plume_synth::Flare::new(&params);
         let estimate = flare.estimated_bytes();
         let progress = |bytes: u64, done: i32, slabs: i32| {
             if done % 64 == 0 || done == slabs {
@@ -255,7 +255,7 @@ pub fn synth_flare_command(args: &SynthFlareArgs) -> Result<()> {
     if !is_vdb {
         return Err(Error::invalid("--output", format!("{} must end in .vdb or .plume", args.output.display())));
     }
-    let flare = plume::synth::Flare::new(&params);
+    let flare = plume_synth::Flare::new(&params);
     let bytes = flare.estimated_bytes();
     if bytes > FLARE_VDB_LIMIT_BYTES {
         return Err(Error::invalid(
@@ -332,7 +332,7 @@ pub fn info_command(args: &InfoArgs) -> Result<()> {
         return cache_info(args);
     }
     let reading = ReadSettings { max_input_memory: None, read_timeout: args.read_timeout, no_isolation: args.no_isolation };
-    let isolation = plume::scene::bind::reader(&reading)?.isolation;
+    let isolation = plume::load::bind::reader(&reading)?.isolation;
     let grids = isolation.list_grids(&args.file)?;
     if args.json {
         println!("{}", plume::info::to_json(&grids));

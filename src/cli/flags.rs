@@ -3,7 +3,7 @@
 
 use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use glam::DVec3;
-use plume::scene::Choice;
+use plume_scene::Choice;
 
 /// A value parser for a library [`Choice`]: its names as possible values, with help.
 pub fn choice<T: Choice + Clone + Send + Sync>() -> impl TypedValueParser<Value = T> {
@@ -50,11 +50,11 @@ pub fn parse_keys<T: serde::de::DeserializeOwned>(s: &str) -> Result<T, String> 
 ///
 /// # Errors
 /// As [`parse_keys`].
-pub fn parse_environment_map(s: &str) -> Result<plume::scene::EnvironmentMapSettings, String> {
+pub fn parse_environment_map(s: &str) -> Result<plume_scene::EnvironmentMapSettings, String> {
     if s.contains('=') {
         parse_keys(s)
     } else {
-        Ok(plume::scene::EnvironmentMapSettings { file: s.into(), intensity: 1.0, rotation: 0.0, visible: true, group: None })
+        Ok(plume_scene::EnvironmentMapSettings { file: s.into(), intensity: 1.0, rotation: 0.0, visible: true, group: None })
     }
 }
 
@@ -73,7 +73,7 @@ pub fn parse_pair(s: &str) -> Result<[f64; 2], String> {
 ///
 /// # Errors
 /// A message for clap on a malformed size.
-pub fn parse_size(s: &str) -> Result<plume::scene::ByteSize, String> {
+pub fn parse_size(s: &str) -> Result<plume_scene::ByteSize, String> {
     s.parse()
 }
 

@@ -3,7 +3,7 @@
 //! names (`lights.sky.turbidity` → `--sky turbidity`).
 
 use super::render::{GridArgs, RenderArgs};
-use plume::scene::Shot;
+use plume_scene::Shot;
 
 /// Flag id (clap's, the field name) → scene key, and how the flag sets the key. The
 /// positional FILE sets `volume.file` (unless it is a scene file); `-o` sets

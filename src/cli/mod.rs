@@ -1,11 +1,11 @@
 //! The `plume` binary's command line (clap derive; doc comments are the `--help` text).
 //! Nothing here is part of the library: flags become library types
-//! ([`plume::scene::Shot`], `bench` and `merge` options) in one conversion per command,
+//! ([`plume_scene::Shot`], `bench` and `merge` options) in one conversion per command,
 //! and the library never sees a clap type.
 //!
 //! | file | command |
 //! |---|---|
-//! | `render.rs` | `plume render` flags → [`plume::scene::Shot`] (with scene files and `--write-scene`) |
+//! | `render.rs` | `plume render` flags → [`plume_scene::Shot`] (with scene files and `--write-scene`) |
 //! | `keys.rs` | the table of render flag → scene key, and back (for error messages) |
 //! | `flags.rs` | value parsers shared by the commands (vectors, sizes, named choices) |
 //! | `bench.rs` | `plume bench …` |

@@ -11,12 +11,12 @@ use std::path::PathBuf;
 
 use clap::{ArgMatches, Args};
 use glam::DVec3;
-use plume::error::{Error, Result};
-use plume::film::Crop;
-use plume::integrator::{LightSampling, MisHeuristic};
-use plume::medium::Convention;
-use plume::scene::file::{is_scene_file, SceneFile};
-use plume::scene::{
+use plume_core::error::{Error, Result};
+use plume_engine::film::Crop;
+use plume_engine::integrator::{LightSampling, MisHeuristic};
+use plume_engine::medium::Convention;
+use plume_scene::file::{is_scene_file, SceneFile};
+use plume_scene::{
     ByteSize, CameraCollision, CameraSettings, DeferPaths, DistantSettings, EmissionSettings, EmissionSource, EnvironmentMapSettings, EstimatorKind,
     IntegratorSettings, Interpolation, MediumSettings, Method, NeeTable, PointLookup, ProgressFormat, ReadSettings, RenderOptions, SampleOrderChoice,
     SamplerKind, Shot, SkySettings, SphereSettings, SplitBy, TileIndex, TrackingChoice, UpAxis, ValidShot, VolumeInput,
@@ -192,7 +192,7 @@ pub struct RenderArgs {
     pub fps: f64,
     /// Render only sample S of pixel (X, Y) and print its path: X,Y,S.
     #[arg(long)]
-    pub debug_pixel: Option<plume::render::SampleId>,
+    pub debug_pixel: Option<plume_engine::render::SampleId>,
     /// κ of the blend estimator: α = 1/(1 + κ μ Δ) per voxel.
     #[arg(long, default_value_t = IntegratorSettings::default().kappa)]
     pub kappa: f64,
@@ -286,7 +286,7 @@ pub struct RenderArgs {
     pub tile: Option<TileIndex>,
     /// Render only samples a..b−1 of every pixel (instead of --spp/--time). Writes a part
     /// for `plume merge`.
-    #[arg(long, value_parser = plume::farm::split::parse_sample_range, conflicts_with_all = ["spp", "time"])]
+    #[arg(long, value_parser = plume_scene::split::parse_sample_range, conflicts_with_all = ["spp", "time"])]
     pub sample_range: Option<std::ops::Range<u64>>,
     /// Also store the exact sample sums in the EXR (implied by --crop, --tile and
     /// --sample-range), so that it can be merged with more samples later.

@@ -7,8 +7,8 @@ use std::path::Path;
 
 use sha2::{Digest, Sha256};
 
-use crate::error::{Error, Result};
-use crate::scene::{
+use plume_core::error::{Error, Result};
+use plume_scene::{
     CameraSettings, EmissionSettings, EnvironmentMapSettings, FarmOptions, IntegratorSettings, JobSettings, LightSettings, MediumSettings, OutputSettings,
     ReadSettings, RenderOptions, SceneDescription, Shot, VolumeInput,
 };
@@ -27,7 +27,7 @@ pub fn file_sha256(path: &Path) -> Result<(String, u64)> {
     let mut hasher = Sha256::new();
     if crate::cache::is_cache_path(path) {
         let size = file.metadata().map_err(open)?.len();
-        let mut page = vec![0u8; crate::cache::format::PAGE as usize];
+        let mut page = vec![0u8; plume_volume::out_of_core::format::PAGE as usize];
         let n = file.read(&mut page).map_err(open)?;
         hasher.update(&page[..n]);
         return Ok((hex(&hasher.finalize()), size));
@@ -105,9 +105,9 @@ pub fn settings_hash(shot: &Shot, seed: u64) -> String {
     // lookups) they add nothing, so hashes of renders from before stay valid (the same
     // pixels)
     let point_lookup = match (point_lookup, interpolation) {
-        (_, crate::volume::Interpolation::Nearest) | (crate::integrator::PointLookup::Exact, _) => "",
-        (crate::integrator::PointLookup::Stochastic, _) => " point-lookup stochastic",
-        (crate::integrator::PointLookup::StochasticEmission, _) => " point-lookup stochastic emission",
+        (_, plume_volume::Interpolation::Nearest) | (plume_engine::integrator::PointLookup::Exact, _) => "",
+        (plume_engine::integrator::PointLookup::Stochastic, _) => " point-lookup stochastic",
+        (plume_engine::integrator::PointLookup::StochasticEmission, _) => " point-lookup stochastic emission",
     };
     // Likewise the camera segment's own estimator
     let camera_estimator = camera_estimator.map_or(String::new(), |e| format!(" camera {e}"));
@@ -145,14 +145,14 @@ pub fn settings_hash(shot: &Shot, seed: u64) -> String {
          lights {lights}\n\
          integrator {method} {estimator:?} {light_sampling:?} {mis} {proxy_resolution:?} {max_depth} {kappa:?} {tracking}{nee_table}{point_lookup}{camera_estimator} split {split}{split_by} camera-collision {camera_collision}{}{}{motion}",
         env!("CARGO_PKG_VERSION"),
-        crate::film::FIXED_POINT_BITS,
+        plume_engine::film::FIXED_POINT_BITS,
         if *aovs { "\naovs" } else { "" },
         if *denoise { format!("\ndenoise {}", half_block(settings)) } else { String::new() }
     );
     hex(&Sha256::digest(text.as_bytes())[..16])
 }
 
-/// The half block of a frame rendered with `--denoise` ([`crate::denoise::half_block`] of
+/// The half block of a frame rendered with `--denoise` ([`plume_engine::denoise::half_block`] of
 /// its planned spp: `--spp`, the default 64, or none with a time budget or sample ranges
 /// without `--spp`). Hashed, so parts and resumes agree on the halves.
 #[must_use]
@@ -163,7 +163,7 @@ pub fn half_block(settings: &JobSettings) -> u64 {
         (None, _, Some(_)) => None,
         (None, spp, None) => Some(spp.unwrap_or(64)),
     };
-    crate::denoise::half_block(planned)
+    plume_engine::denoise::half_block(planned)
 }
 
 fn hex(bytes: &[u8]) -> String {
@@ -173,7 +173,7 @@ fn hex(bytes: &[u8]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::scene::TileIndex;
+    use plume_scene::TileIndex;
 
     #[test]
     fn settings_hash_ignores_what_does_not_change_pixels() {
@@ -187,7 +187,7 @@ mod tests {
         same.settings.farm.tile = Some(TileIndex { index: 1, count: 4 });
         same.settings.farm.sample_range = Some(0..4);
         same.settings.output.stats = Some("s.json".into());
-        same.settings.render.progress = crate::scene::ProgressFormat::Openjd;
+        same.settings.render.progress = plume_scene::ProgressFormat::Openjd;
         assert_eq!(settings_hash(&same, 1), base);
         let mut denser = shot.clone();
         denser.scene.medium.density_scale = 2.0;
@@ -200,7 +200,7 @@ mod tests {
         assert_ne!(settings_hash(&tinted, 1), base);
         assert_ne!(settings_hash(&shot, 2), base);
         let mut random = shot.clone();
-        random.settings.render.sampler = crate::scene::SamplerKind::Random;
+        random.settings.render.sampler = plume_scene::SamplerKind::Random;
         assert_ne!(settings_hash(&random, 1), base);
     }
 }

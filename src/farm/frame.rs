@@ -21,24 +21,24 @@ use std::time::{Duration, Instant};
 
 use indicatif::{ProgressBar, ProgressStyle};
 
-use crate::error::{Error, Result};
+use plume_core::error::{Error, Result};
 use crate::farm::fingerprint::{file_sha256, settings_hash};
 use crate::farm::job::Job;
 use crate::farm::part::{assess, stats_metadata, Completion, Existing, Expected, PartInfo};
 use crate::farm::progress::Progress;
 use crate::farm::signals;
-use crate::farm::split::format_range;
-use crate::film::{Crop, Film, FIXED_POINT_BITS};
-use crate::integrator::AovLayout;
-use crate::integrator::LineTrace;
+use plume_scene::split::format_range;
+use plume_engine::film::{Crop, Film, FIXED_POINT_BITS};
+use plume_engine::integrator::AovLayout;
+use plume_engine::integrator::LineTrace;
 use crate::load::{load_scene, LoadedScene};
-use crate::medium::{EmissionKind, Estimator};
-use crate::memory::{MemoryBound, MemoryLimits};
+use plume_engine::medium::{EmissionKind, Estimator};
+use plume_volume::out_of_core::memory::{MemoryBound, MemoryLimits};
 use crate::output::{write_exr_image, AovChannels, ExrImage};
-use crate::render::{read_ahead_window, render_with, RenderControl, RenderResult, RenderSettings, SampleBudget, SampleOrder, StopReason};
-use crate::scene::{DeferPaths, EmissionSource, SampleOrderChoice};
-use crate::stats::{cpu_seconds, peak_rss_since_reset_bytes, reset_peak_rss, RenderStats};
-use crate::volume::Volume;
+use plume_engine::render::{read_ahead_window, render_with, RenderControl, RenderResult, RenderSettings, SampleBudget, SampleOrder, StopReason};
+use plume_scene::{DeferPaths, EmissionSource, SampleOrderChoice};
+use plume_engine::stats::{cpu_seconds, peak_rss_since_reset_bytes, reset_peak_rss, RenderStats};
+use plume_volume::Volume;
 
 /// What became of a frame.
 #[derive(Debug)]
@@ -106,7 +106,7 @@ pub fn render_frame(job: &Job<'_>, index: usize, frame: Option<i64>, command_lin
     let Some(mut resume) = decide(job, &paths, &hash, index, frame, progress)? else { return Ok(FrameOutcome::Skipped) };
     progress.frame_start(index, frame, &paths.output.display().to_string());
     for path in std::iter::once(&paths.output).chain(paths.preview.iter()).chain(paths.stats.iter()) {
-        crate::output::check_writable(path)?;
+        plume_core::fs::check_writable(path)?;
     }
     let (input_sha256, input_bytes) = file_sha256(&paths.input)?;
     if resume.as_ref().is_some_and(|(info, ..)| info.input_sha256 != input_sha256) {
@@ -124,7 +124,7 @@ pub fn render_frame(job: &Job<'_>, index: usize, frame: Option<i64>, command_lin
         sampler: settings.render.sampler,
         threads: settings.render.threads,
         first_sample: plan.first_sample,
-        integrator: job.scene().integrator(),
+        integrator: plume_engine::integrator::Integrator::for_scene(job.scene()),
     };
     if let Some(dp) = settings.render.debug_pixel {
         replay(&loaded, &render_settings, dp);
@@ -182,7 +182,7 @@ pub fn render_frame(job: &Job<'_>, index: usize, frame: Option<i64>, command_lin
 /// None today; kept fallible for the outputs' checks.
 fn decide(job: &Job<'_>, paths: &FramePaths, hash: &str, index: usize, frame: Option<i64>, progress: &Progress) -> Result<Option<Option<Resume>>> {
     let settings = &job.shot.settings;
-    crate::output::remove_stale_temporaries(&paths.output);
+    plume_core::fs::remove_stale_temporaries(&paths.output);
     if settings.farm.overwrite || settings.render.debug_pixel.is_some() {
         return Ok(Some(None));
     }
@@ -231,7 +231,7 @@ fn warn_about(job: &Job<'_>, paths: &FramePaths, loaded: &LoadedScene) {
     if loaded.emission_kind == EmissionKind::None && job.scene().emission.source == EmissionSource::Auto {
         warn(format!("{input}: no temperature or emission grid found; rendering absorption only"));
     }
-    let integrator = job.scene().integrator();
+    let integrator = plume_engine::integrator::Integrator::for_scene(job.scene());
     let point =
         [(integrator.estimator, "--estimator"), (integrator.camera_estimator(), "--camera-estimator")].into_iter().find(|(e, _)| *e == Estimator::Point);
     if let Some((_, flag)) = point.filter(|_| loaded.scene.medium().emission.emits_without_density()) {
@@ -263,15 +263,15 @@ impl SamplePlan {
 }
 
 /// Replay one pixel sample and print its path.
-fn replay(loaded: &LoadedScene, settings: &RenderSettings, dp: crate::render::SampleId) {
+fn replay(loaded: &LoadedScene, settings: &RenderSettings, dp: plume_engine::render::SampleId) {
     let (x, y, s) = (dp.x, dp.y, dp.sample);
     let mut trace = LineTrace::default();
-    let mut counters = crate::integrator::Counters::default();
-    let l = crate::with_scene!(&loaded.scene, scene => {
-        let crate::render::PixelSample { ray, mut sampler, time } = crate::render::pixel_sample(scene, settings.sampler, settings.seed, x, y, s);
+    let mut counters = plume_engine::integrator::Counters::default();
+    let l = plume_engine::with_scene!(&loaded.scene, scene => {
+        let plume_engine::render::PixelSample { ray, mut sampler, time } = plume_engine::render::pixel_sample(scene, settings.sampler, settings.seed, x, y, s);
         // The pixel's split count when splitting by brightness: the same pilot as the render's
-        let split_map = crate::pilot::split_map(scene, settings);
-        crate::integrator::split_map::pixel_integrator(&settings.integrator, split_map.as_ref(), x, y).li_aovs(scene, &ray, &mut sampler, (time, &mut counters), &mut trace, &mut crate::integrator::NoAovs)
+        let split_map = plume_engine::pilot::split_map(scene, settings);
+        plume_engine::integrator::split_map::pixel_integrator(&settings.integrator, split_map.as_ref(), x, y).li_aovs(scene, &ray, &mut sampler, (time, &mut counters), &mut trace, &mut plume_engine::integrator::NoAovs)
     });
     for line in &trace.0 {
         eprintln!("plume: debug {x},{y},{s}: {line}");
@@ -340,7 +340,7 @@ fn run_passes(
             DeferPaths::Auto if !larger_than_available(volume, available) => DeferPaths::Never,
             choice => choice,
         },
-        read_ahead_window: read_ahead_window(crate::scene::bind::memory_budget(job_settings)),
+        read_ahead_window: read_ahead_window(crate::load::bind::memory_budget(job_settings)),
         aovs,
         half_block: Some(crate::farm::fingerprint::half_block(job_settings)),
     };
@@ -350,7 +350,7 @@ fn run_passes(
         }
         on_pass(done, total);
     };
-    let result = crate::with_scene!(&loaded.scene, scene => render_with(scene, settings, control, &on_pass));
+    let result = plume_engine::with_scene!(&loaded.scene, scene => render_with(scene, settings, control, &on_pass));
     if let Some(pb) = &bar {
         pb.finish_and_clear();
     }
@@ -402,7 +402,7 @@ fn stats_record(
     RenderStats {
         plume_version: env!("CARGO_PKG_VERSION").into(),
         command_line: id.command_line.into(),
-        host: crate::output::host_name(),
+        host: plume_core::fs::host_name(),
         frame: id.frame,
         input: paths.input.display().to_string(),
         input_bytes: input.bytes,
@@ -429,7 +429,7 @@ fn stats_record(
         samples_per_cpu_second: samples / timing.cpu.max(1e-9),
         peak_rss_bytes: peak_rss_since_reset_bytes(),
         threads,
-        estimator: job.scene().integrator().estimator_name(),
+        estimator: plume_engine::integrator::Integrator::for_scene(job.scene()).estimator_name(),
         volume_bytes: volume.memory_bytes() as u64,
         counters: result.counters,
         saturated_samples: result.film.saturated(),
@@ -472,7 +472,7 @@ fn write_outputs(job: &Job<'_>, paths: &FramePaths, loaded: &LoadedScene, result
     let film_sums = result.film.sums();
     let sums = (job.write_sums || status != Completion::Complete).then_some(film_sums.as_slice());
     let mut metadata = stats_metadata(record);
-    match crate::scene::file::to_toml(job.shot) {
+    match plume_scene::file::to_toml(job.shot) {
         Ok(text) => metadata.push(("plume:scene".into(), text)),
         Err(e) => warn(format!("the scene description is not recorded in {}: {e}", paths.output.display())),
     }
@@ -492,15 +492,15 @@ fn write_outputs(job: &Job<'_>, paths: &FramePaths, loaded: &LoadedScene, result
     }
     if let Some(p) = &paths.stats {
         let json = serde_json::to_value(record).expect("invariant: stats serialize");
-        crate::output::append_line(p, &json.to_string())?;
+        plume_core::fs::append_line(p, &json.to_string())?;
     }
     Ok(())
 }
 
 /// The AOV layout that `output` asks for (`--aovs`, `--denoise`): one layer per light
 /// group of the job's lights, and the half sums with `--denoise`.
-fn layout_for(output: &crate::scene::OutputSettings, job: &Job<'_>) -> Option<AovLayout> {
-    let filtered = crate::denoise::Filtered::for_camera(job.shot.scene.integrator().camera_estimator());
+fn layout_for(output: &plume_scene::OutputSettings, job: &Job<'_>) -> Option<AovLayout> {
+    let filtered = plume_engine::denoise::Filtered::for_camera(plume_engine::integrator::Integrator::for_scene(&job.shot.scene).camera_estimator());
     (output.aovs || output.denoise).then(|| AovLayout { groups: job.shot.scene.lights.groups(), halves: output.denoise.then_some(filtered) })
 }
 
@@ -529,14 +529,14 @@ pub struct Written {
 
 /// The beauty and the AOV layers of an image (`crop`) from its exact sums `(RGBA, AOV
 /// channels)` over `spp` samples and its noisy beauty: with half sums in the layout (and
-/// samples in both halves) the beauty is denoised ([`crate::denoise::from_sums`]) and the
+/// samples in both halves) the beauty is denoised ([`plume_engine::denoise::from_sums`]) and the
 /// noisy one becomes the layer `noisy`. Used by `plume render` and `plume merge`, so that
 /// a merged frame is the single render's.
 #[must_use]
 pub fn beauty_and_layers(layout: Option<&AovLayout>, sums: (&[[i128; 4]], &[i128]), noisy: Vec<[f32; 4]>, spp: u64, crop: Crop) -> Written {
     let Some(layout) = layout else { return Written { pixels: noisy, layers: Vec::new(), denoised: false } };
     let mut layers = aov_layers(layout, sums.1, &noisy, spp);
-    match crate::denoise::from_sums(layout, sums.0, sums.1, spp, (crop.width() as usize, crop.height() as usize)) {
+    match plume_engine::denoise::from_sums(layout, sums.0, sums.1, spp, (crop.width() as usize, crop.height() as usize)) {
         Some(denoised) => {
             for (c, name) in ["R", "G", "B", "A"].iter().enumerate() {
                 layers.push((format!("noisy.{name}"), noisy.iter().map(|p| p[c]).collect()));
@@ -557,7 +557,7 @@ pub fn aov_layers(layout: &AovLayout, aov_sums: &[i128], beauty: &[[f32; 4]], sp
     // Every layer channel but depth's hit count, which `depth.Z` divides by
     let mut layers: Layers = names[..n_layers - 1].iter().map(|c| (c.clone(), Vec::with_capacity(beauty.len()))).collect();
     for sums in aov_sums.chunks_exact(n) {
-        for (layer, v) in layers.iter_mut().zip(layout.pixel(sums, spp, crate::film::pixel_value)) {
+        for (layer, v) in layers.iter_mut().zip(layout.pixel(sums, spp, plume_engine::film::pixel_value)) {
             layer.1.push(v);
         }
     }

@@ -1,6 +1,6 @@
 //! `plume render` as a farm runs it: one frame, or a chunk of a sequence, per command.
 //!
-//! The shot was validated once ([`crate::scene::ValidShot`]); [`Job::new`] adds what
+//! The shot was validated once ([`plume_scene::ValidShot`]); [`Job::new`] adds what
 //! needs the file system, then each frame is rendered in turn by `farm::frame`. A frame
 //! that fails is reported (stderr, `--progress`) and the others go on; a signal stops the
 //! run after writing the current frame. The exit code sums up the run (`error::exit`): a
@@ -11,14 +11,14 @@
 
 use std::ops::Range;
 
-use crate::error::{exit, Error, Result};
+use plume_core::error::{exit, Error, Result};
 use crate::farm::frame::{render_frame, FrameOutcome};
 use crate::farm::part::Completion;
 use crate::farm::pattern::FramePattern;
 use crate::farm::progress::Progress;
 use crate::farm::{frames, signals, split};
-use crate::film::Crop;
-use crate::scene::{SceneDescription, ValidShot};
+use plume_engine::film::Crop;
+use plume_scene::{SceneDescription, ValidShot};
 
 /// The plan of a `plume render` run.
 pub struct Job<'a> {

@@ -16,11 +16,11 @@ use std::ops::Range;
 use std::path::Path;
 use std::time::Instant;
 
-use crate::error::{Error, Result};
+use plume_core::error::{Error, Result};
 use crate::farm::part::{read_part, Completion, PartInfo};
-use crate::farm::split::format_range;
-use crate::film::{pixel_value, Crop, FIXED_POINT_BITS};
-use crate::integrator::AovLayout;
+use plume_scene::split::format_range;
+use plume_engine::film::{pixel_value, Crop, FIXED_POINT_BITS};
+use plume_engine::integrator::AovLayout;
 use crate::output::{write_exr_image, AovChannels, ExrImage};
 
 /// A merged frame.
@@ -232,7 +232,7 @@ pub fn merge_command(args: &MergeOptions, command_line: &str) -> Result<()> {
         return Err(Error::invalid("--output", format!("{} must end in .exr", args.output.display())));
     }
     for path in std::iter::once(&args.output).chain(args.preview.iter()) {
-        crate::output::check_writable(path)?;
+        plume_core::fs::check_writable(path)?;
     }
     let parts = args.parts.iter().map(|p| read_part(p)).collect::<Result<Vec<_>>>()?;
     let merged = merge_parts(&parts)?;
@@ -293,7 +293,7 @@ fn merged_metadata(parts: &[(PartInfo, crate::output::ExrContents)], merged: &Me
     let cpu = sum_f("plume:cpuSeconds");
     let set: [(&str, String); 14] = [
         ("plume:commandLine", command_line.to_string()),
-        ("plume:host", crate::output::host_name()),
+        ("plume:host", plume_core::fs::host_name()),
         ("plume:output", output.display().to_string()),
         ("plume:status", Completion::Complete.as_str().into()),
         ("plume:spp", spp.to_string()),
@@ -321,7 +321,7 @@ fn merged_metadata(parts: &[(PartInfo, crate::output::ExrContents)], merged: &Me
 /// tile or sample range, the merged sample count and output. `None` when it does not
 /// parse (an older plume's part); the part's text is kept then.
 fn merged_scene(part_scene: &str, merged: &Merged, output: &Path) -> Option<String> {
-    let mut shot: crate::scene::Shot = toml::from_str(part_scene).ok()?;
+    let mut shot: plume_scene::Shot = toml::from_str(part_scene).ok()?;
     let farm = &mut shot.settings.farm;
     (farm.crop, farm.tile) = (None, None);
     let first = merged.samples.start;
@@ -329,7 +329,7 @@ fn merged_scene(part_scene: &str, merged: &Merged, output: &Path) -> Option<Stri
     shot.settings.render.spp = (first == 0).then(|| u32::try_from(merged.samples.end).ok()).flatten();
     shot.settings.render.time = None;
     shot.settings.output.image = output.to_path_buf();
-    crate::scene::file::to_toml(&shot).ok()
+    plume_scene::file::to_toml(&shot).ok()
 }
 
 #[cfg(test)]

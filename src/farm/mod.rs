@@ -5,11 +5,11 @@
 
 pub mod fingerprint;
 pub mod frame;
-pub mod frames;
 pub mod job;
 pub mod merge;
 pub mod part;
 pub mod pattern;
 pub mod progress;
 pub mod signals;
-pub mod split;
+
+pub use plume_scene::{frames, split};

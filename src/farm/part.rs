@@ -5,10 +5,10 @@
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 
-use crate::error::{Error, Result};
-use crate::film::Crop;
+use plume_core::error::{Error, Result};
+use plume_engine::film::Crop;
 use crate::output::{read_exr_contents, ExrContents};
-use crate::stats::RenderStats;
+use plume_engine::stats::RenderStats;
 
 /// How far a frame (or part) got.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -125,11 +125,11 @@ impl PartInfo {
         let real = |k: &str| m.get(&format!("plume:{k}")).and_then(|v| v.parse::<f64>().ok()).unwrap_or(0.0);
         let spp = num("spp")?;
         let samples = match m.get("plume:sampleRange") {
-            Some(r) => crate::farm::split::parse_sample_range(r).map_err(|e| bad(format!("plume:sampleRange: {e}")))?,
+            Some(r) => plume_scene::split::parse_sample_range(r).map_err(|e| bad(format!("plume:sampleRange: {e}")))?,
             None => 0..spp,
         };
         if samples.end - samples.start != spp {
-            return Err(bad(format!("plume:spp {spp} disagrees with plume:sampleRange {}", crate::farm::split::format_range(&samples))));
+            return Err(bad(format!("plume:spp {spp} disagrees with plume:sampleRange {}", plume_scene::split::format_range(&samples))));
         }
         let status = Completion::parse(get("status")?).ok_or_else(|| bad("plume:status is not complete, interrupted or time-limit".into()))?;
         Ok(PartInfo {
@@ -219,7 +219,7 @@ pub fn assess(path: &Path, expected: &Expected) -> Existing {
             info.crop, info.width, info.height, expected.crop, expected.width, expected.height
         ));
     }
-    let range = crate::farm::split::format_range;
+    let range = plume_scene::split::format_range;
     let Some(r) = &expected.samples else {
         // A --time budget: any complete image will do; a partial one cannot be continued
         return match info.status {

@@ -16,7 +16,7 @@ use std::time::{Duration, Instant};
 
 use serde_json::{json, Value};
 
-use crate::scene::ProgressFormat;
+use plume_scene::ProgressFormat;
 
 /// Least time between two `progress` lines.
 const THROTTLE: Duration = Duration::from_secs(1);
@@ -34,10 +34,10 @@ impl Progress {
     pub fn new(mode: ProgressFormat, frames: usize) -> Progress {
         // A mapped input that fails under the render ends plume from a signal handler,
         // which then prints the protocol's failure line too
-        crate::mapfault::report_on_stdout(match mode {
-            ProgressFormat::None => crate::mapfault::StdoutProtocol::None,
-            ProgressFormat::Openjd => crate::mapfault::StdoutProtocol::Openjd,
-            ProgressFormat::Json => crate::mapfault::StdoutProtocol::Json,
+        plume_volume::out_of_core::mapfault::report_on_stdout(match mode {
+            ProgressFormat::None => plume_volume::out_of_core::mapfault::StdoutProtocol::None,
+            ProgressFormat::Openjd => plume_volume::out_of_core::mapfault::StdoutProtocol::Openjd,
+            ProgressFormat::Json => plume_volume::out_of_core::mapfault::StdoutProtocol::Json,
         });
         Progress { mode, frames: frames.max(1), last: Mutex::new(None) }
     }

@@ -6,47 +6,33 @@
 //! leave no partial file, and the rerun continues from the last image written. Farm
 //! schedulers send SIGTERM before SIGKILL (Slurm: `KillWait`, 30 s by default).
 
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, OnceLock};
+use std::sync::Once;
 
 use signal_hook::consts::{SIGINT, SIGTERM};
 
-/// The stop flags, one per signal.
-struct Flags {
-    term: Arc<AtomicBool>,
-    int: Arc<AtomicBool>,
-}
+pub use plume_core::stop::stop_requested;
 
-static FLAGS: OnceLock<Flags> = OnceLock::new();
+static INSTALLED: Once = Once::new();
 
-/// Install the handlers (once per process; later calls do nothing).
+/// Install the handlers (once per process; later calls do nothing). They set the stop
+/// flags of [`plume_core::stop`].
 ///
 /// # Errors
 /// The OS error if a handler cannot be installed.
 pub fn install() -> std::io::Result<()> {
-    if FLAGS.get().is_some() {
-        return Ok(());
-    }
-    let flags = Flags { term: Arc::new(AtomicBool::new(false)), int: Arc::new(AtomicBool::new(false)) };
-    for (signal, flag) in [(SIGTERM, &flags.term), (SIGINT, &flags.int)] {
-        // Registered first, so it sees the flag as the previous signal left it: the
-        // second signal exits immediately
-        signal_hook::flag::register_conditional_shutdown(signal, crate::error::exit::INTERRUPTED, Arc::clone(flag))?;
-        signal_hook::flag::register(signal, Arc::clone(flag))?;
-    }
-    let _ = FLAGS.set(flags);
-    Ok(())
-}
-
-/// The signal that asked plume to stop, if any: `Some("SIGTERM")` or `Some("SIGINT")`.
-#[must_use]
-pub fn stop_requested() -> Option<&'static str> {
-    let f = FLAGS.get()?;
-    if f.term.load(Ordering::Relaxed) {
-        Some("SIGTERM")
-    } else if f.int.load(Ordering::Relaxed) {
-        Some("SIGINT")
-    } else {
-        None
-    }
+    let mut result = Ok(());
+    INSTALLED.call_once(|| {
+        let flags = plume_core::stop::flags();
+        for (signal, flag) in [(SIGTERM, &flags.term), (SIGINT, &flags.int)] {
+            // Registered first, so it sees the flag as the previous signal left it: the
+            // second signal exits immediately
+            let registered = signal_hook::flag::register_conditional_shutdown(signal, plume_core::error::exit::INTERRUPTED, std::sync::Arc::clone(flag))
+                .and_then(|_| signal_hook::flag::register(signal, std::sync::Arc::clone(flag)));
+            if let Err(e) = registered {
+                result = Err(e);
+                return;
+            }
+        }
+    });
+    result
 }

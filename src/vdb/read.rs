@@ -13,8 +13,8 @@ use glam::{DAffine3, IVec3};
 
 use super::ffi;
 use super::{FloatGrid, GridInfo, GridSelector, LEAF_VOXELS};
-use crate::error::{Error, Result};
-use crate::memory::MemoryLimits;
+use plume_core::error::{Error, Result};
+use plume_volume::out_of_core::memory::MemoryLimits;
 
 /// OpenVDB's magic number, the int64 `0x56444220` (" BDV") in little-endian order.
 const OPENVDB_MAGIC: [u8; 8] = [0x20, 0x42, 0x44, 0x56, 0, 0, 0, 0];

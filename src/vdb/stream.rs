@@ -36,7 +36,7 @@ use glam::{DAffine3, IVec3};
 use super::ffi;
 use super::read::{check_file, check_status, vdb_error, vdb_message, BYTES_PER_LEAF};
 use super::{GridSelector, ReadIsolation, ReadLimits, LEAF_DIM, LEAF_VOXELS};
-use crate::error::{Error, Result};
+use plume_core::error::{Error, Result};
 
 /// Leaves copied per call into the shim, and most leaves or tiles per record of the
 /// isolated reader's reply (512 KiB of values).
@@ -323,7 +323,7 @@ pub(crate) struct LocalStream<'p> {
     /// in this process ends plume with a line naming the file. Declared before `shim` so
     /// that it is dropped before the file is unmapped.
     #[allow(dead_code)]
-    watches: Vec<crate::mapfault::Watch>,
+    watches: Vec<plume_volume::out_of_core::mapfault::Watch>,
     /// The file's version when opened, checked before each batch of leaves is loaded.
     stamp: std::io::Result<FileStamp>,
     shim: cxx::UniquePtr<ffi::LeafStream>,
@@ -343,10 +343,10 @@ impl<'p> LocalStream<'p> {
         let stamp = FileStamp::of(path);
         // OpenVDB maps the file and reads its topology from the mapping inside this call: a
         // truncation meanwhile faults before the mapping can be found and watched
-        let opening = crate::mapfault::Watch::any_address("VDB file", path);
+        let opening = plume_volume::out_of_core::mapfault::Watch::any_address("VDB file", path);
         let shim = ffi::open_leaf_stream(path_str, &selector.name, selector.occurrence).map_err(|e| vdb_error(path, &e))?;
         // Delayed loading has mapped the file (its topology was read from the mapping)
-        let watches = crate::mapfault::watch_mappings_of(path, "VDB file");
+        let watches = plume_volume::out_of_core::mapfault::watch_mappings_of(path, "VDB file");
         drop(opening);
         let h = shim.stream_header().map_err(|e| vdb_error(path, &e))?;
         check_status(path, path_str, selector, h.status, &h.value_type, &h.transform)?;

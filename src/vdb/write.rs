@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use super::{ffi, FloatGrid, LEAF_DIM, LEAF_VOXELS};
-use crate::error::{Error, Result};
+use plume_core::error::{Error, Result};
 
 /// Writes `grids` to one `.vdb` file at `path` (replacing it atomically).
 ///

@@ -13,11 +13,11 @@ use std::process::Output;
 use std::time::Duration;
 
 use glam::{DAffine3, DVec3, IVec3};
-use plume::color::Rgb;
-use plume::integrator::{AnyScene, Integrator};
-use plume::medium::{Convention, Emission, EmissionKind, TemperatureMap};
-use plume::render::{render, RenderSettings, SampleBudget};
-use plume::sampling::{Sampler, SamplerKind};
+use plume_core::color::Rgb;
+use plume_engine::integrator::{AnyScene, Integrator};
+use plume_engine::medium::{Convention, Emission, EmissionKind, TemperatureMap};
+use plume_engine::render::{render, RenderSettings, SampleBudget};
+use plume_core::sampling::{Sampler, SamplerKind};
 use plume::vdb::{leaf_offset, read_float_grid, FloatGrid, ReadLimits, LEAF_VOXELS};
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
@@ -399,10 +399,10 @@ pub fn explosion_emission() -> Emission {
 
 /// The generated explosion (32³, seed 5) with [`explosion_emission`]'s blackbody as its
 /// source: the path-integrator tiers' test volume.
-pub fn explosion_volume() -> plume::volume::Volume {
-    let ex = plume::synth::explosion(&plume::synth::ExplosionParams { resolution: 32, seed: 5, ..Default::default() });
+pub fn explosion_volume() -> plume_volume::Volume {
+    let ex = plume_synth::explosion(&plume_synth::ExplosionParams { resolution: 32, seed: 5, ..Default::default() });
     let e = explosion_emission();
-    plume::volume::Volume::build(&ex.density, Some(&ex.temperature), |v| e.map_source(v)).unwrap()
+    plume_volume::Volume::build(&ex.density, Some(&ex.temperature), |v| e.map_source(v)).unwrap()
 }
 
 /// [`explosion_volume`] seen by the 10×8 camera of the mean tests, albedo 0.8, g 0.3,
@@ -410,24 +410,24 @@ pub fn explosion_volume() -> plume::volume::Volume {
 /// builds for it and, when `majorants`, its majorants for null collisions.
 pub fn explosion_scene(
     sigma_t: f64,
-    interpolation: plume::volume::Interpolation,
+    interpolation: plume_volume::Interpolation,
     majorants: bool,
-    lights: impl FnOnce(&plume::volume::Volume, &Emission) -> plume::integrator::Lights,
+    lights: impl FnOnce(&plume_volume::Volume, &Emission) -> plume_engine::integrator::Lights,
 ) -> AnyScene {
     let vol = explosion_volume();
     let e = explosion_emission();
     let lights = lights(&vol, &e);
-    let majorants = majorants.then(|| plume::volume::majorant::MajorantGrid::new(&vol, 0.0));
-    let camera = plume::camera::Camera::look_at(DVec3::new(0.0, 0.2, -6.5), DVec3::new(0.0, 0.2, 0.0), DVec3::Y, 40.0, 10, 8).unwrap();
-    let medium = plume::medium::Medium { sigma_t, albedo: 0.8, g: 0.3, emission: e };
-    AnyScene::new(plume::integrator::Scene { field: vol, medium, camera, lights, motion: None, majorants }, interpolation)
+    let majorants = majorants.then(|| plume_volume::majorant::MajorantGrid::new(&vol, 0.0));
+    let camera = plume_engine::camera::Camera::look_at(DVec3::new(0.0, 0.2, -6.5), DVec3::new(0.0, 0.2, 0.0), DVec3::Y, 40.0, 10, 8).unwrap();
+    let medium = plume_engine::medium::Medium { sigma_t, albedo: 0.8, g: 0.3, emission: e };
+    AnyScene::new(plume_engine::integrator::Scene { field: vol, medium, camera, lights, motion: None, majorants }, interpolation)
 }
 
 /// Mean of `r + g + b` over the whole image and over its 4 quadrants (in that order) of
 /// one in-process render of `spp` samples per pixel under `seed`.
 pub fn regions(scene: &AnyScene, integrator: Integrator, sampler: SamplerKind, spp: u32, seed: u64) -> [f64; 5] {
     let settings = RenderSettings { budget: SampleBudget::Spp(spp), seed, sampler, threads: 0, first_sample: 0, integrator };
-    let r = plume::with_scene!(scene, s => render(s, &settings, &|_, _| {}));
+    let r = plume_engine::with_scene!(scene, s => render(s, &settings, &|_, _| {}));
     let px = r.film.average(r.spp);
     let (w, h) = (scene.camera().width as usize, scene.camera().height as usize);
     let (mut acc, mut cnt) = ([0.0f64; 5], [0.0f64; 5]);

@@ -23,15 +23,15 @@ use serde::Serialize;
 use super::Switch;
 use crate::bench::progressive::{accumulate, average};
 use crate::bench::spec::{bench_shot, load};
-use crate::camera::Camera;
-use crate::error::{Error, Result};
-use crate::integrator::{AnyScene, Integrator};
-use crate::medium::{Estimator, Medium};
-use crate::render::{render, RenderSettings, SampleBudget};
-use crate::scene::file::with_keys;
-use crate::volume::field::{clip_to_box, Ray};
-use crate::volume::trilinear::Trilinear;
-use crate::volume::{Field, Interpolation};
+use plume_engine::camera::Camera;
+use plume_core::error::{Error, Result};
+use plume_engine::integrator::{AnyScene, Integrator};
+use plume_engine::medium::{Estimator, Medium};
+use plume_engine::render::{render, RenderSettings, SampleBudget};
+use plume_scene::file::with_keys;
+use plume_volume::field::{clip_to_box, Ray};
+use plume_volume::trilinear::Trilinear;
+use plume_volume::{Field, Interpolation};
 
 /// Horizontal field of view of the close-up, degrees.
 const FOV_DEGREES: f64 = 20.0;
@@ -148,12 +148,12 @@ pub fn run(data: &Path, cfg: &CloseupConfig, log: &dyn Fn(&str)) -> Result<Close
     let distance = voxel * f64::from(cfg.width) / (2.0 * (0.5 * FOV_DEGREES.to_radians()).tan() * cfg.pixels_per_voxel);
     let from = at + VIEW.normalize() * distance;
     let camera = Camera::look_at(from, at, DVec3::Z, FOV_DEGREES, cfg.width, cfg.height)?;
-    crate::with_scene!(&mut scene, s => s.camera = camera);
+    plume_engine::with_scene!(&mut scene, s => s.camera = camera);
     let mut scene = Switch(Some(scene));
     let settings = RenderSettings {
         budget: SampleBudget::Spp(cfg.spp),
         seed: 0,
-        sampler: crate::sampling::SamplerKind::default(),
+        sampler: plume_core::sampling::SamplerKind::default(),
         threads: cfg.threads,
         first_sample: 0,
         integrator: Integrator::emission_only(Estimator::RayMarch),
@@ -162,7 +162,7 @@ pub fn run(data: &Path, cfg: &CloseupConfig, log: &dyn Fn(&str)) -> Result<Close
     let mut seconds = [0.0; 2];
     for (k, i) in [Interpolation::Nearest, Interpolation::Linear].into_iter().enumerate() {
         let start = Instant::now();
-        let r = crate::with_scene!(scene.to(i), s => render(s, &settings, &|_, _| {}));
+        let r = plume_engine::with_scene!(scene.to(i), s => render(s, &settings, &|_, _| {}));
         seconds[k] = start.elapsed().as_secs_f64();
         let mut sums = vec![[0.0f64; 4]; (cfg.width * cfg.height) as usize];
         accumulate(&mut sums, &r.film);

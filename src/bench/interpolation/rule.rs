@@ -41,13 +41,13 @@ use serde::Serialize;
 
 use crate::bench::metrics::{mean_rgb, relmse, rmse, RELMSE_EPSILON, RELMSE_TRIM};
 use crate::bench::spec::{bench_shot, load};
-use crate::error::{Error, Result};
-use crate::integrator::AnyScene;
-use crate::medium::Medium;
-use crate::scene::file::with_keys;
-use crate::volume::field::{clip_to_box, Ray};
-use crate::volume::trilinear::{PointCorners, Trilinear};
-use crate::volume::{Bounds3, Field};
+use plume_core::error::{Error, Result};
+use plume_engine::integrator::AnyScene;
+use plume_engine::medium::Medium;
+use plume_scene::file::with_keys;
+use plume_volume::field::{clip_to_box, Ray};
+use plume_volume::trilinear::{PointCorners, Trilinear};
+use plume_volume::{Bounds3, Field};
 
 /// Optical depth after which a march stops (τ < 2·10⁻²²).
 const OPTICAL_DEPTH_STOP: f64 = 50.0;
@@ -142,7 +142,7 @@ fn march(field: &Trilinear, medium: &Medium, bounds: &Bounds3, ray: &Ray, step_v
 }
 
 /// Both images of a loaded linear scene (rows in parallel, each pixel on its own).
-fn images(field: &Trilinear, medium: &Medium, camera: &crate::camera::Camera, step_voxels: f64) -> (Vec<[f32; 4]>, Vec<[f32; 4]>, u64) {
+fn images(field: &Trilinear, medium: &Medium, camera: &plume_engine::camera::Camera, step_voxels: f64) -> (Vec<[f32; 4]>, Vec<[f32; 4]>, u64) {
     let bounds = field.world_bounds();
     let rows: Vec<Vec<RayPair>> = (0..camera.height)
         .into_par_iter()
@@ -247,10 +247,10 @@ mod tests {
 
     use super::*;
     use crate::bench::extremes::box_grid;
-    use crate::camera::Camera;
-    use crate::color::Rgb;
-    use crate::medium::{Convention, Emission, EmissionKind, TemperatureMap};
-    use crate::volume::Volume;
+    use plume_engine::camera::Camera;
+    use plume_core::color::Rgb;
+    use plume_engine::medium::{Convention, Emission, EmissionKind, TemperatureMap};
+    use plume_volume::Volume;
 
     /// A 16³ box of varying density and source (1500 … 2500, zero on one face), seen
     /// head-on by a 12×12 camera.

@@ -8,7 +8,7 @@ use std::os::fd::AsFd;
 use std::path::{Path, PathBuf};
 
 use super::READER_SUBCOMMAND;
-use crate::error::Error;
+use plume_core::error::Error;
 use crate::vdb::read::plan_requests;
 use crate::vdb::stream::serve_stream;
 use crate::vdb::wire::{ChildError, Encoder};

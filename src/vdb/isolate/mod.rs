@@ -47,7 +47,7 @@
 //! - `child.rs`: [`reader_main`], what runs inside `plume __read-grids`.
 //!
 //! [`GridRequest`]: crate::vdb::GridRequest
-//! [`Error::ReaderFailed`]: crate::error::Error::ReaderFailed
+//! [`Error::ReaderFailed`]: plume_core::error::Error::ReaderFailed
 
 mod child;
 mod parent;

@@ -10,7 +10,7 @@ use std::sync::OnceLock;
 use std::time::Duration;
 
 use super::{IsolationLimits, ReaderRun};
-use crate::error::{Error, Result};
+use plume_core::error::{Error, Result};
 use crate::vdb::read::check_file;
 use crate::vdb::wire::{ChildError, Decoder, Record, WireError};
 use crate::vdb::{list_grids, read_grids, read_vec3_grid, FloatGrid, FoundGrid, GridInfo, GridRequest};
@@ -321,7 +321,7 @@ mod tests {
     use super::*;
     use crate::vdb::read::BYTES_PER_LEAF;
     use crate::vdb::wire::Encoder;
-    use crate::vdb::LEAF_VOXELS;
+    use plume_volume::grid::LEAF_VOXELS;
 
     fn component(axis: &str, origins: &[IVec3]) -> FloatGrid {
         FloatGrid {

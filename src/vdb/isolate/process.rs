@@ -11,7 +11,7 @@ use std::process::{Child, ChildStderr, ChildStdout, Command, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
 
 use super::{malformed_reply, IsolationLimits, READER_SUBCOMMAND};
-use crate::error::{Error, Result};
+use plume_core::error::{Error, Result};
 use crate::vdb::wire::{ChildError, Decoder, WireError};
 
 /// Bytes of the child's stderr kept for error messages.

@@ -21,7 +21,7 @@ use std::time::Instant;
 
 use super::STREAM_BATCH;
 use super::{Delivery, HeaderVisitor, LeafVisitor, LocalStream, Refusal, StreamedGrid};
-use crate::error::{Error, Result};
+use plume_core::error::{Error, Result};
 use crate::vdb::isolate::{child_error, malformed_reply, unexpected, ChildPipes, IsolationLimits, Parsed, ReaderRun};
 use crate::vdb::read::check_file;
 use crate::vdb::wire::{ChildError, Decoder, Encoder, Record, WireError};

@@ -43,7 +43,7 @@ use std::io;
 
 use super::stream::StreamedGrid;
 use super::{FloatGrid, GridInfo};
-use crate::error::Error;
+use plume_core::error::Error;
 
 pub use decode::parse_reply;
 pub(crate) use decode::Decoder;
@@ -145,7 +145,7 @@ mod tests {
 
     use super::*;
     use crate::vdb::read::BYTES_PER_LEAF;
-    use crate::vdb::LEAF_VOXELS;
+    use plume_volume::grid::LEAF_VOXELS;
 
     fn grid(leaves: usize) -> FloatGrid {
         FloatGrid {

@@ -7,7 +7,7 @@ use glam::IVec3;
 use super::{TAG_LEAVES, TAG_STREAM, TAG_TILES};
 use crate::vdb::stream::{StreamedGrid, Tile, STREAM_BATCH};
 use crate::vdb::wire::Encoder;
-use crate::vdb::LEAF_VOXELS;
+use plume_volume::grid::LEAF_VOXELS;
 
 impl<W: Write> Encoder<W> {
     /// The header of a streamed grid.

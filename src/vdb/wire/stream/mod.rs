@@ -40,7 +40,7 @@ mod tests {
     use super::super::{Decoder, Record, WireError, MAGIC, TAG_END, VERSION};
     use super::*;
     use crate::vdb::stream::{StreamedGrid, Tile, STREAM_BATCH};
-    use crate::vdb::LEAF_VOXELS;
+    use plume_volume::grid::LEAF_VOXELS;
 
     fn grid() -> StreamedGrid {
         StreamedGrid {

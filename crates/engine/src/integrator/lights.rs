@@ -1,0 +1,81 @@
+//! The lights of a scene as the path integrator samples them: which next event technique
+//! runs at scattering vertices ([`LightSampling`]), how its MIS weights are formed
+//! ([`MisHeuristic`]), and the structures each technique draws from ([`Lights`]: classic
+//! NEE's emitter table, FNEE's proxy, lights besides the volume), built once per scene.
+//! The estimators that use them are in `integrator::volpath` (its module docs give the
+//! weights).
+
+pub use plume_scene::sets::{LightSampling, MisHeuristic};
+use crate::light::external::ExternalLights;
+use crate::light::nee::EmitterDistribution;
+use plume_scene::NeeTable;
+use plume_volume::proxy::ProxyGrid;
+
+/// The lights of a scene and their sampling structures (built once, immutable).
+#[derive(Debug, Default)]
+pub struct Lights {
+    /// Full-resolution emitter distribution for classic NEE.
+    pub nee: Option<EmitterDistribution>,
+    /// FNEE proxy grid.
+    pub proxy: Option<ProxyGrid>,
+    /// Lights besides the volume (`light::external`); `None` costs nothing.
+    pub external: Option<ExternalLights>,
+}
+
+impl Lights {
+    /// Build what `light_sampling` needs over `volume`, with cell/voxel power = luminance
+    /// of the emission density (`Y(L_e)`, METHOD §7). Nothing for `None`, or when nothing
+    /// emits.
+    ///
+    /// # Errors
+    /// An invalid proxy resolution (`--proxy-resolution`) or invalid emission power.
+    pub fn build(
+        volume: &plume_volume::Volume,
+        emission: &crate::medium::Emission,
+        light_sampling: LightSampling,
+        proxy_resolution: u32,
+    ) -> plume_core::error::Result<Lights> {
+        Lights::build_with(volume, emission, light_sampling, proxy_resolution, NeeTable::Voxel)
+    }
+
+    /// [`Lights::build`] with classic NEE's table at the resolution `nee_table` asks for.
+    ///
+    /// # Errors
+    /// As [`Lights::build`].
+    pub fn build_with(
+        volume: &plume_volume::Volume,
+        emission: &crate::medium::Emission,
+        light_sampling: LightSampling,
+        proxy_resolution: u32,
+        nee_table: NeeTable,
+    ) -> plume_core::error::Result<Lights> {
+        Ok(match light_sampling {
+            LightSampling::None => Lights::default(),
+            LightSampling::Nee => {
+                Lights { nee: EmitterDistribution::build_as(volume, crate::light::LightPower::new(emission), nee_table)?, ..Lights::default() }
+            }
+            LightSampling::Fnee => Lights { proxy: ProxyGrid::build(volume, proxy_resolution, light_power(emission))?, ..Lights::default() },
+        })
+    }
+}
+
+impl Lights {
+    /// The same structures for a volume reconstructed by `interpolation`: NEE draws its
+    /// points from the voxel's box or from the trilinear hat (`light/nee.rs`); FNEE's proxy
+    /// only guides directions and stays as it is (METHOD.md §12).
+    #[must_use]
+    pub fn for_interpolation(self, interpolation: plume_volume::Interpolation) -> Lights {
+        Lights { nee: self.nee.map(|n| n.for_interpolation(interpolation)), ..self }
+    }
+}
+
+/// Power that light sampling distributes by: the luminance `Y(L_e)` of the emission
+/// density with unit `--emission-scale` and white `--emission-color`. The scale only
+/// multiplies every voxel's power, and the tint is a mild reweighting that any valid pdf
+/// absorbs, so leaving both out keeps the estimators unbiased while letting a brick cache
+/// store the FNEE proxy's cell sums once for any scale or tint. Blackbody luminance is
+/// tabulated (`light::power`).
+pub fn light_power(emission: &crate::medium::Emission) -> impl Fn(f32, f32) -> f64 + Sync {
+    let power = crate::light::LightPower::new(emission);
+    move |d: f32, s: f32| power.power(d, s)
+}

@@ -1,0 +1,607 @@
+//! The volumetric path integrator: forward (phase-sampled) paths with line-integrated
+//! emission on every segment, optional next event estimation (classic NEE or FNEE), MIS,
+//! Russian roulette. METHOD.md §5–8.
+//!
+//! Per segment leaving `x` along `ω` with throughput `β` (grey, since μ_t and albedo are):
+//! 1. `L += β · w_fwd(ω) · F` on every segment, before roulette;
+//! 2. at a collision, `β ← β · a`; light sampling at the collision point; roulette with
+//!    `q = min(1, β/t)` ([`ROULETTE_THRESHOLD`] `t`); HG sampling of the next direction
+//!    (`f/p = 1`).
+//!
+//! No vertex emission is ever added: with line integration it would double count.
+//!
+//! **Splitting** (`--split N`): a sample's camera segment is walked once, and `N` paths
+//! leave its collision, each with throughput `1/N` and numbers of its own
+//! ([`Sampler::split`]: the `N · spp` paths of a pixel are one Sobol sequence). Any `N`
+//! fixed before the paths are drawn keeps the estimate unbiased: it is the mean of `N`
+//! estimates of the same in-scattered radiance. Roulette compares `β` with `1/N`, not
+//! with 1, or it would undo the split at the first vertex. In thin media the camera walk,
+//! which integrates the emission seen directly with almost no variance, is most of a
+//! sample's cost while the scattered light carries almost all of its variance: `N = 8`
+//! (the default) gave 3.0–3.1× the efficiency on the three Mantaflow explosions at
+//! albedo 0.8 and 1.55× on the dense README demo (docs/BENCHMARKS.md, "Splitting"); since
+//! the roulette change below, 1.8–2.9× at 22–37 spp. At about one sample per pixel
+//! fewer paths win, by 10–15 % since the camera collision is forced (`--split 4`;
+//! "Forced camera collisions").
+//!
+//! **Forced camera collisions** (`medium::forced`, `--camera-collision`): where paths
+//! scatter the camera segment is ray-marched by default, and its walk forces the
+//! collision: with probability `min(1, K W)` (`W` the analog collision's probability) at the
+//! analog law given a collision, weighted `W/q`, which the split paths' `β` carries. In thin
+//! smoke few camera rays collide, so at a few samples per pixel this, not the split, is
+//! what lowers the scattered light's noise (0.54–1.00× → 0.28–0.42× Cycles' error at the
+//! Cycles comparison's smallest budget; docs/BENCHMARKS.md, "Forced camera collisions").
+//! The split paths of a forced collision start apart, path `k` in stratum `k` of the
+//! collision law (`medium::forced`, "Split paths start apart"); an analog or null-tracked
+//! camera collision is shared by its paths.
+//!
+//! **Tracking** (`integrator::tracker`, `--tracking`): the camera segment and the
+//! segments after a scattering event each get their tracker once per sample, regular or
+//! null collisions; every estimator above is unbiased under either, so the split changes
+//! cost and noise only.
+//!
+//! **Motion blur** (`volume::motion`): each sample draws its shutter time and tracks by
+//! null collisions at that time (`integrator::tracker`). FNEE keeps the proxy built from
+//! the frame's data: it only chooses directions, and wherever it gives a direction of the
+//! moved emission no density, phase sampling carries that emission with full weight
+//! (`w(p_ph, 0) = 1`), so the estimate stays unbiased. Classic NEE draws *points* from the
+//! frame's emitters, which the motion moves off its support: refused with motion blur.
+//!
+//! **Light sampling and MIS weights** (balance `k = 1` or power `k = 2`,
+//! `w(a, b) = aᵏ/(aᵏ + bᵏ)`; the volume is the only sampled light, `P_vol = 1`):
+//! - `none`: `w_fwd = 1`.
+//! - `fnee`: direction `ω ~ p_σ` from the proxy, then a free path along `ω` with the same
+//!   estimator F: `L += β f F w(p_σ, p_ph) / p_σ`; the forward segment gets
+//!   `w(p_ph, p_σ)`. Both techniques draw `ω` and then the *same* free-path law, so the
+//!   distance pdfs cancel and MIS is in solid angle (METHOD §8). The FNEE segment is
+//!   terminal. Camera segments have no partner (`w = 1`).
+//! - `nee` with the point estimator: `y ~ p_V` (volume measure), exact shadow
+//!   transmittance, `L += β f τ L_e(y) w(p_V, p_fwd) / (p_V r²)` with the forward
+//!   density of the same point `p_fwd = p_ph μ_t(y) τ / r²`; a forward collision at `y′`
+//!   is weighted `w(p_fwd(y′), p_V(y′))`, with `τ(x, y′) = e^{−E}` known exactly.
+//! - `nee` with line, ray-march or blend: classic NEE cannot create the no-collision
+//!   paths that line integration scores, so there is no MIS partner (the paper's
+//!   conclusion table). The one unbiased split without MIS is used: NEE carries all
+//!   in-scattered emission at full weight, and forward segments *after a scattering
+//!   vertex* carry none (`w_fwd = 0`); camera segments keep full weight. Summing both at
+//!   full weight would count in-scattered emission twice.
+
+use super::aov::{Aovs, Component, NoAovs};
+use super::deferred::BufferedPoints;
+use super::lights::{LightSampling, MisHeuristic};
+use super::split_map::SplitBy;
+use super::tracker::{PointLookup, Tracker, Tracking};
+use crate::light::fnee::ProxySampling;
+use crate::light::external::{ChosenLight, ExternalLights};
+use crate::medium::tracking::emission_at_point;
+use crate::medium::{Collision, DistanceSample, Estimator, Medium};
+use plume_core::sampling::phase::{hg_pdf, sample_hg};
+use plume_core::sampling::{Dim, Sampler};
+use plume_volume::field::{Field, PointValues, Ray};
+
+use super::{Counters, Scene, Trace};
+
+/// Roulette plays only once a path's throughput `β` falls below this part of its start
+/// (`1`, or `1/N` for split paths), with survival `β/(t·start)`; survivors carry `t·start`.
+///
+/// In an emissive medium every segment after a collision collects emission, so a path
+/// ended early loses light it would surely have gathered: with `t = 1` (survival `β`, as
+/// pbrt does) an albedo of 0.8 ended a fifth of the paths at their first vertex. Measured
+/// (docs/BENCHMARKS.md, "Russian roulette"), 1/(relMSE · CPU s) against `t = 1`: the README
+/// demo 1.24× (split 8) and 1.77× (split 4); `mantaflow_explosion_kelvin_0040.vdb` at
+/// albedo 0.8 1.46×; no roulette at all was slower for the same noise.
+pub const ROULETTE_THRESHOLD: f64 = 0.3;
+
+/// The path integrator and its settings.
+#[derive(Clone, Copy, Debug)]
+pub struct Integrator {
+    /// Emission estimator on every free-path segment (but the camera segment's, when
+    /// `camera_estimator` is given).
+    pub estimator: Estimator,
+    /// Emission estimator on the camera segment (`None`: `estimator`). The camera segment
+    /// has no light-sampling partner, so any estimator serves it; the expected-value one
+    /// (ray-march) makes its emission exact along each ray, which `--denoise` then keeps
+    /// out of the filter (`crate::denoise`).
+    pub camera_estimator: Option<Estimator>,
+    /// Next event technique.
+    pub light_sampling: LightSampling,
+    /// MIS heuristic.
+    pub mis: MisHeuristic,
+    /// Largest number of scattering events (0: emission–absorption only).
+    pub max_depth: u32,
+    /// How segments are tracked (`integrator::tracker`).
+    pub tracking: Tracking,
+    /// Paths traced from a camera segment's collision, each carrying `1/split` (1: one
+    /// path, as the paper has it; the module docs).
+    pub split: u32,
+    /// Whether `split` holds at every collision or is the mean of per-pixel counts from a
+    /// pilot render (`integrator::split_map`; the renderer sets `split` per pixel).
+    pub split_by: SplitBy,
+    /// How the camera segment draws its collision when paths scatter: forced collisions
+    /// (`medium::forced`) need the expected-value walk (`camera_estimator` ray-march) and
+    /// regular tracking, and are drawn as analog ones elsewhere.
+    pub camera_collision: Collision,
+    /// How null collisions read a trilinear field at tentative points (exact, or one
+    /// voxel picked by its weight; `integrator::tracker`).
+    pub point_lookup: PointLookup,
+}
+
+/// The MIS weight owed to a forward segment's emission.
+#[derive(Clone, Copy, Debug)]
+enum ForwardWeight {
+    /// No partner technique: full weight.
+    One,
+    /// Another technique carries this emission.
+    Zero,
+    /// FNEE partner: `w(p_phase, p_σ(ω))`, evaluated only if the segment collects emission.
+    Fnee {
+        /// Phase pdf of the segment's direction.
+        p_phase: f64,
+    },
+}
+
+/// A collision a scattered path starts from: at `incoming.at(t)`, in a segment with
+/// albedo factor `albedo`, carrying throughput `beta` (before the albedo) of a path whose
+/// nominal weight is `scale`, after `depth` earlier collisions of the path.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Vertex {
+    incoming: Ray,
+    t: f64,
+    albedo: f32,
+    beta: f64,
+    /// 1, or `1/n` for one of `n` split paths: roulette keeps `β` near it.
+    scale: f64,
+    /// Collisions of the path before this one (0 at the camera segment's).
+    depth: u32,
+}
+
+/// Told where a scattered path stands at each collision it bounces from, before the
+/// bounce: the vertex, the sampler, the radiance so far and the counters. Continuing
+/// from there gives the rest of the path, bit for bit (deferred paths resume from the
+/// last collision whose past they could walk: `integrator::deferred`).
+pub(crate) trait Bounces {
+    /// The path is about to bounce at `vertex`.
+    fn at(&mut self, vertex: Vertex, sampler: &Sampler, l: &[f64; 3], c: &Counters);
+}
+
+/// No one is told (every path but a deferred one's).
+pub(crate) struct NoBounces;
+
+impl Bounces for NoBounces {
+    #[inline(always)]
+    fn at(&mut self, _vertex: Vertex, _sampler: &Sampler, _l: &[f64; 3], _c: &Counters) {}
+}
+
+/// Add `w · e` to the radiance and to its AOV component.
+#[inline]
+fn contribute<A: Aovs>(l: &mut [f64; 3], aovs: &mut A, component: Component, w: f64, e: [f64; 3]) {
+    if w != 0.0 {
+        for (a, v) in l.iter_mut().zip(e) {
+            *a += w * v;
+        }
+        aovs.add(component, w, e);
+    }
+}
+
+impl Integrator {
+    /// The camera segment's emission estimator.
+    #[inline]
+    #[must_use]
+    pub fn camera_estimator(&self) -> Estimator {
+        self.camera_estimator.unwrap_or(self.estimator)
+    }
+
+    /// The estimators as stats and the summary line name them: `Line`, or `Line, camera
+    /// RayMarch` when the camera segment has its own.
+    #[must_use]
+    pub fn estimator_name(&self) -> String {
+        match self.camera_estimator() {
+            camera if camera == self.estimator => format!("{:?}", self.estimator),
+            camera => format!("{:?}, camera {camera:?}", self.estimator),
+        }
+    }
+
+    /// Emission–absorption only: no scattering, no light sampling.
+    #[must_use]
+    pub fn emission_only(estimator: Estimator) -> Integrator {
+        Integrator {
+            estimator,
+            camera_estimator: None,
+            light_sampling: LightSampling::None,
+            mis: MisHeuristic::Power,
+            max_depth: 0,
+            tracking: Tracking::Regular,
+            split: 1,
+            split_by: SplitBy::Uniform,
+            camera_collision: Collision::Analog,
+            point_lookup: PointLookup::Exact,
+        }
+    }
+
+    /// Radiance `[r, g, b]` and alpha along a camera ray.
+    pub fn li<F: Field, T: Trace>(&self, scene: &Scene<F>, camera_ray: &Ray, sampler: &mut Sampler, c: &mut Counters, trace: &mut T) -> [f64; 4] {
+        self.li_aovs(scene, camera_ray, sampler, (None, c), trace, &mut NoAovs)
+    }
+
+    /// [`Integrator::li`] at shutter time `time` (seconds; drawn here when the scene moves
+    /// and it is `None`), also handing every contribution to `aovs` by its component
+    /// (`integrator::aov`). With `None` and [`NoAovs`] this is `li`.
+    pub fn li_aovs<F: Field, T: Trace, A: Aovs>(
+        &self,
+        scene: &Scene<F>,
+        camera_ray: &Ray,
+        sampler: &mut Sampler,
+        (time, c): (Option<f64>, &mut Counters),
+        trace: &mut T,
+        aovs: &mut A,
+    ) -> [f64; 4] {
+        self.li_camera(scene, camera_ray, sampler, (time, c), (trace, aovs), None)
+    }
+
+    /// [`Integrator::li`] up to the camera segment's collision: the scattered paths that
+    /// leave it are appended to `paths`, each with its sampler, for
+    /// `integrator::deferred` to trace (only where [`Integrator::defers`] the scene's
+    /// paths). The radiance returned is the camera segment's; each path adds to it.
+    pub(crate) fn li_deferring<F: Field>(
+        &self,
+        scene: &Scene<F>,
+        camera_ray: &Ray,
+        sampler: &mut Sampler,
+        (time, c): (Option<f64>, &mut Counters),
+        paths: &mut Vec<(Vertex, Sampler)>,
+    ) -> [f64; 4] {
+        self.li_camera(scene, camera_ray, sampler, (time, c), (&mut super::NoTrace, &mut NoAovs), Some(paths))
+    }
+
+    /// Whether the paths of `scene` can be deferred (`integrator::deferred`): they
+    /// scatter, every segment after a scattering event is null-tracked through a still
+    /// volume, and nothing on them walks the volume exactly (no classic NEE, no external
+    /// lights) or scores a real collision's emission (not the point estimator).
+    #[must_use]
+    pub(crate) fn defers<F: Field>(&self, scene: &Scene<F>) -> bool {
+        let scatters = scene.medium.albedo > 0.0 && self.max_depth > 0;
+        let null_after = matches!(self.still_tracker(scene, self.tracking.null_after_scattering(), self.point_lookup), Tracker::Null { .. });
+        scatters
+            && null_after
+            && scene.motion.is_none()
+            && scene.lights.external.is_none()
+            && self.estimator != Estimator::Point
+            && matches!(self.light_sampling, LightSampling::Fnee | LightSampling::None)
+    }
+
+    /// A deferred path (one that [`Integrator::li_deferring`] handed out) traced with the
+    /// values in `points`, adding to `l`. Whether it got every value it asked for is
+    /// `points`' to say; where it did not, `l` and `c` hold nothing meaningful.
+    pub(crate) fn deferred_path<F: Field>(
+        &self,
+        scene: &Scene<F>,
+        points: &BufferedPoints<'_>,
+        (vertex, sampler, bounces): (Vertex, &mut Sampler, &mut impl Bounces),
+        c: &mut Counters,
+        l: &mut [f64; 3],
+    ) {
+        let Some(majorants) = scene.majorants.as_ref() else {
+            points.give_up();
+            return;
+        };
+        let tracker = Tracker::Deferred { majorants, points };
+        self.scattered_path(scene, &tracker, vertex, sampler, (c, &mut super::NoTrace, bounces), (l, &mut NoAovs));
+    }
+
+    /// A deferred path traced directly, reading the volume as [`Integrator::li`] would.
+    pub(crate) fn direct_path<F: Field>(&self, scene: &Scene<F>, (vertex, sampler): (Vertex, &mut Sampler), c: &mut Counters, l: &mut [f64; 3]) {
+        // Deferred paths are of a still volume (`defers`)
+        let tracker = self.still_tracker(scene, self.tracking.null_after_scattering(), self.point_lookup);
+        self.scattered_path(scene, &tracker, vertex, sampler, (c, &mut super::NoTrace, &mut NoBounces), (l, &mut NoAovs));
+    }
+
+    /// [`Integrator::li_aovs`], or with `defer`, up to the camera segment's collision
+    /// ([`Integrator::li_deferring`]).
+    #[allow(clippy::too_many_lines)]
+    fn li_camera<F: Field, T: Trace, A: Aovs>(
+        &self,
+        scene: &Scene<F>,
+        camera_ray: &Ray,
+        sampler: &mut Sampler,
+        (time, c): (Option<f64>, &mut Counters),
+        (trace, aovs): (&mut T, &mut A),
+        mut defer: Option<&mut Vec<(Vertex, Sampler)>>,
+    ) -> [f64; 4] {
+        let m = &scene.medium;
+        let mut l = [0.0f64; 3];
+        let scatters = m.albedo > 0.0 && self.max_depth > 0;
+        let external = scene.lights.external.as_ref();
+        let (camera, tracker) = self.trackers(scene, time, sampler);
+        // The camera segment ends at the first sphere light it hits (they are opaque)
+        let hit = external.and_then(|e| e.hit(camera_ray));
+        let t_max = hit.map_or(f64::INFINITY, |(t, _)| t);
+        let u = sampler.get_1d(Dim::FreePath);
+        // The depth layer wants the camera ray's first collision (ray-march draws it
+        // with the same number; nothing else changes). A forced collision has the analog
+        // one's law given that one happens, so the layer's mean depth is the same.
+        let collision = match (scatters, A::ON) {
+            (true, _) => self.camera_collision,
+            (false, true) => Collision::Analog,
+            (false, false) => Collision::Skip,
+        };
+        // Split paths from a forced collision start at vertices of their own
+        // (`medium::forced`); otherwise they share the walk's collision
+        let paths = if scatters { self.split.max(1) } else { 1 };
+        let mut firsts = Vec::new();
+        let r = if paths > 1 {
+            camera.track_split(m, camera_ray, t_max, (self.camera_estimator(), collision), u, sampler, (paths, &mut firsts))
+        } else {
+            camera.track(m, camera_ray, t_max, self.camera_estimator(), collision, u, sampler)
+        };
+        c.segments += u64::from(r.segments);
+        c.voxel_steps += r.voxel_steps;
+        contribute(&mut l, aovs, Component::Emission, 1.0, r.emission);
+        trace.event(|| {
+            format!(
+                "segment depth 0: origin {:?} dir {:?} -> {:?} (weight {}), F {:?}, w_fwd 1, beta 1, tau {}",
+                camera_ray.origin, camera_ray.direction, r.event, r.collision_weight, r.emission, r.transmittance
+            )
+        });
+        let alpha = 1.0 - r.transmittance;
+        if let (true, DistanceSample::Collided { t, .. }) = (A::ON, r.event) {
+            aovs.first_collision(t);
+        }
+        if let Some(e) = external.filter(|e| r.transmittance != 0.0 && e.reachable()) {
+            // The lights this segment reaches (no light sampling partner on camera rays)
+            e.arriving(camera_ray, hit.map(|(_, i)| i), None, self.mis, |i, w, radiance| {
+                contribute(&mut l, aovs, Component::Light(e.group(i)), r.transmittance * w, radiance);
+                trace.event(|| format!("  reaches light {i}: L {radiance:?}, w {w}, tau {}", r.transmittance));
+            });
+        }
+        if let (true, DistanceSample::Collided { t, albedo, .. }) = (scatters, r.event) {
+            // Splitting: `split` paths share the camera walk, each of weight 1/split and
+            // with numbers of its own (`Sampler::split`); from a forced collision each
+            // starts at its own vertex, of the same weight
+            let n = paths;
+            let scale = 1.0 / f64::from(n);
+            // A forced collision carries its weight W/q (`medium::forced`); roulette still
+            // compares β with `scale`, so a light one is played for at its first vertex
+            let vertex = Vertex { incoming: *camera_ray, t, albedo, beta: scale * r.collision_weight, scale, depth: 0 };
+            for k in 0..n {
+                if n > 1 {
+                    trace.event(|| format!("split path {} of {n}", k + 1));
+                }
+                let vertex = match firsts.get(k as usize).map(|first| first.event) {
+                    Some(DistanceSample::Collided { t, albedo, .. }) => {
+                        trace.event(|| format!("  first vertex at t {t}"));
+                        Vertex { t, albedo, ..vertex }
+                    }
+                    _ => vertex,
+                };
+                // One path (n = 1) draws the sample's own numbers: `split` is then a copy
+                let mut path_sampler = sampler.split(k, n);
+                if let Some(paths) = defer.as_deref_mut() {
+                    paths.push((vertex, path_sampler));
+                    continue;
+                }
+                self.scattered_path(scene, &tracker, vertex, &mut path_sampler, (&mut *c, &mut *trace, &mut NoBounces), (&mut l, &mut *aovs));
+            }
+        }
+        trace.event(|| format!("result L {l:?} alpha {alpha}"));
+        [l[0], l[1], l[2], alpha]
+    }
+
+    /// The trackers of one sample: for the camera segment, and for every segment after
+    /// a scattering event (`integrator::tracker`). Null collisions need the scene's
+    /// majorants and an estimator they serve ([`Tracking::applies`]); without either,
+    /// segments track regularly.
+    fn trackers<'s, F: Field>(&self, scene: &'s Scene<F>, time: Option<f64>, sampler: &mut Sampler) -> (Tracker<'s, F>, Tracker<'s, F>) {
+        if let Some(motion) = &scene.motion {
+            // Null collisions at this sample's shutter time
+            let time = time.unwrap_or_else(|| motion.time(sampler.get_1d(Dim::Time)));
+            let t = |lookup| Tracker::Moving { field: &scene.field, motion, time, lookup };
+            return (t(self.point_lookup.on_camera()), t(self.point_lookup));
+        }
+        // The camera segment's own estimator must be one null collisions serve, too
+        let camera_null = self.tracking.null_on_camera() && Tracking::applies(self.camera_estimator(), self.light_sampling);
+        (
+            self.still_tracker(scene, camera_null, self.point_lookup.on_camera()),
+            self.still_tracker(scene, self.tracking.null_after_scattering(), self.point_lookup),
+        )
+    }
+
+    /// The tracker of a still volume's segments: null collisions where `use_null`, the
+    /// estimator and light sampling let them serve and the scene has majorants; regular
+    /// tracking otherwise.
+    fn still_tracker<'s, F: Field>(&self, scene: &'s Scene<F>, use_null: bool, lookup: PointLookup) -> Tracker<'s, F> {
+        match &scene.majorants {
+            Some(majorants) if use_null && Tracking::applies(self.estimator, self.light_sampling) => Tracker::Null { field: &scene.field, majorants, lookup },
+            _ => Tracker::Regular(&scene.field),
+        }
+    }
+
+    /// The path from a collision on: at each vertex light sampling, Russian roulette and
+    /// the phase function's next direction, then the next segment's emission, until the
+    /// path escapes, is absorbed or reaches the largest depth. Adds to `l` and `aovs`.
+    #[allow(clippy::too_many_lines)]
+    fn scattered_path<F: Field, T: Trace, B: Bounces, A: Aovs>(
+        &self,
+        scene: &Scene<F>,
+        tracker: &Tracker<'_, F>,
+        vertex: Vertex,
+        sampler: &mut Sampler,
+        (c, trace, bounces): (&mut Counters, &mut T, &mut B),
+        (l, aovs): (&mut [f64; 3], &mut A),
+    ) {
+        let m = &scene.medium;
+        let lights = &scene.lights;
+        let external = lights.external.as_ref();
+        let point_nee = self.light_sampling == LightSampling::Nee && self.estimator == Estimator::Point;
+        let Vertex { incoming: mut ray, mut t, mut albedo, mut beta, scale, mut depth } = vertex;
+        loop {
+            bounces.at(Vertex { incoming: ray, t, albedo, beta, scale, depth }, sampler, l, c);
+            c.collisions += 1;
+            depth += 1;
+            // Scattering albedo of the collision's own segment (METHOD §10.3)
+            beta *= f64::from(m.albedo * albedo);
+            if beta == 0.0 {
+                break; // absorbed: nothing more to carry
+            }
+            let x = ray.at(t);
+            // Sample the volume light at x
+            sampler.start_light_segment(depth);
+            match self.light_sampling {
+                LightSampling::Fnee => {
+                    if let Some(proxy) = &lights.proxy {
+                        let u_cell = sampler.get_1d(Dim::LightChoice);
+                        let u_pos = sampler.get_3d(Dim::LightPosition);
+                        if let Some(wi) = proxy.sample_direction_only(x, u_cell, u_pos) {
+                            c.fnee_samples += 1;
+                            let u2 = sampler.get_1d(Dim::FreePath);
+                            let rl = tracker.track(m, &Ray { origin: x, direction: wi }, f64::INFINITY, self.estimator, Collision::Skip, u2, sampler);
+                            c.segments += u64::from(rl.segments);
+                            c.voxel_steps += rl.voxel_steps;
+                            // p_σ only when the free path collected emission
+                            if rl.emission.iter().any(|&v| v != 0.0) {
+                                let p_sigma = proxy.direction_pdf(x, wi);
+                                if p_sigma > 0.0 {
+                                    let f = hg_pdf(m.g, ray.direction.dot(wi));
+                                    let w_l = self.mis.weight(p_sigma, f);
+                                    contribute(l, aovs, Component::Scattered, beta * f * w_l / p_sigma, rl.emission);
+                                    trace.event(|| format!("  fnee: dir {wi:?} p_sigma {p_sigma} f {f} w {w_l} F {:?}", rl.emission));
+                                }
+                            }
+                        }
+                    }
+                }
+                LightSampling::Nee => {
+                    if let (Some(nee), Some(voxels)) = (&lights.nee, scene.field.voxels()) {
+                        let u_voxel = sampler.get_1d(Dim::LightChoice);
+                        let u_pos = sampler.get_3d(Dim::LightPosition);
+                        let vs = nee.sample(voxels, u_voxel, u_pos);
+                        let d = vs.p_world - x;
+                        let r2 = d.length_squared();
+                        if r2 > 0.0 {
+                            c.nee_samples += 1;
+                            let dist = r2.sqrt();
+                            let wi = d / dist;
+                            // (Classic NEE is refused with motion blur: its table is the frame's)
+                            let (tau, n) = tracker.transmittance(m, &Ray { origin: x, direction: wi }, dist, sampler);
+                            c.voxel_steps += n;
+                            if tau > 0.0 {
+                                // L_e and ρ at y as the field reconstructs them (the table's
+                                // pdf follows the same reconstruction: light/nee.rs)
+                                let PointValues { density: dy, emission: le, .. } = emission_at_point(&scene.field, m, vs.p_world);
+                                let f = hg_pdf(m.g, ray.direction.dot(wi));
+                                let w_l = if point_nee { self.mis.weight(vs.pdf, f * m.mu_t(dy) * tau / r2) } else { 1.0 };
+                                contribute(l, aovs, Component::Scattered, beta * f * tau * w_l / (vs.pdf * r2), le);
+                                trace.event(|| format!("  nee: y {:?} p_V {} tau {tau} f {f} w {w_l} L_e {le:?}", vs.p_world, vs.pdf));
+                            }
+                        }
+                    }
+                }
+                LightSampling::None => {}
+            }
+            // Sample the external lights at x (a strategy of their own)
+            if let Some(e) = external {
+                self.sample_external((m, tracker), e, x, ray.direction, beta, sampler, (c, trace), (l, &mut *aovs));
+            }
+            // Russian roulette after this segment's emission
+            sampler.start_vertex(depth);
+            let q = (beta / (scale * ROULETTE_THRESHOLD)).min(1.0);
+            if q < 1.0 {
+                if sampler.get_1d(Dim::Roulette) >= q {
+                    trace.event(|| format!("  roulette: terminated (q {q})"));
+                    break;
+                }
+                beta /= q;
+            }
+            // Sample the phase function for the next direction (f/p = 1)
+            let ps = sample_hg(m.g, ray.direction, sampler.get_2d(Dim::Direction));
+            ray = Ray { origin: x, direction: ps.direction };
+            // MIS weight of the new segment, evaluated only if it collects emission: `p_σ`
+            // needs a proxy walk, and the weight of a zero F is irrelevant
+            let w_fwd = match self.light_sampling {
+                LightSampling::None => ForwardWeight::One,
+                LightSampling::Fnee if lights.proxy.is_some() => ForwardWeight::Fnee { p_phase: ps.pdf },
+                LightSampling::Fnee => ForwardWeight::One,
+                LightSampling::Nee if point_nee => ForwardWeight::One, // weighted at the collision
+                LightSampling::Nee if lights.nee.is_some() => ForwardWeight::Zero,
+                LightSampling::Nee => ForwardWeight::One,
+            };
+            // The next segment, which ends at the first sphere light it hits
+            let need_collision = depth < self.max_depth;
+            let hit = external.and_then(|e| e.hit(&ray));
+            let t_max = hit.map_or(f64::INFINITY, |(t, _)| t);
+            let u = sampler.get_1d(Dim::FreePath);
+            let collision = if need_collision { Collision::Analog } else { Collision::Skip };
+            let r = tracker.track(m, &ray, t_max, self.estimator, collision, u, sampler);
+            c.segments += u64::from(r.segments);
+            c.voxel_steps += r.voxel_steps;
+            // Add emission along the segment
+            let has_emission = r.emission.iter().any(|&v| v != 0.0);
+            let mut w = match w_fwd {
+                ForwardWeight::One => 1.0,
+                ForwardWeight::Zero => 0.0,
+                ForwardWeight::Fnee { p_phase } if has_emission => {
+                    lights.proxy.as_ref().map_or(1.0, |p| self.mis.weight(p_phase, p.direction_pdf(ray.origin, ray.direction)))
+                }
+                ForwardWeight::Fnee { .. } => 0.0,
+            };
+            if let (true, Some(nee), Some(voxels), DistanceSample::Collided { t, density, .. }) =
+                (point_nee, lights.nee.as_ref(), scene.field.voxels(), r.event)
+            {
+                // MIS in volume measure against NEE at the collision point
+                let p_fwd = ps.pdf * m.mu_t(density) * (-r.optical_depth).exp() / (t * t);
+                w = self.mis.weight(p_fwd, nee.pdf(voxels, ray.at(t)));
+            }
+            contribute(l, aovs, Component::Scattered, beta * w, r.emission);
+            trace.event(|| {
+                format!(
+                    "segment depth {depth}: origin {:?} dir {:?} -> {:?}, F {:?}, w_fwd {w}, beta {beta}, tau {}",
+                    ray.origin, ray.direction, r.event, r.emission, r.transmittance
+                )
+            });
+            if let Some(e) = external.filter(|e| r.transmittance != 0.0 && e.reachable()) {
+                // The lights this segment reaches, each weighted against light sampling
+                let weight = beta * r.transmittance;
+                e.arriving(&ray, hit.map(|(_, i)| i), Some(ps.pdf), self.mis, |i, w, radiance| {
+                    contribute(l, aovs, Component::Light(e.group(i)), weight * w, radiance);
+                    trace.event(|| format!("  reaches light {i}: L {radiance:?}, w {w}, tau {}", r.transmittance));
+                });
+            }
+            let DistanceSample::Collided { t: tc, albedo: ac, .. } = r.event else { break };
+            if !need_collision {
+                break;
+            }
+            (t, albedo) = (tc, ac);
+        }
+    }
+
+    /// Light sampling of the external lights at collision `x` reached along `incoming`:
+    /// `L += β f τ L_i w(P_i p_i, f) / (P_i p_i)` with the tracker's shadow transmittance
+    /// (exact, or ratio tracking's unbiased estimate)
+    /// (`light::external`).
+    #[allow(clippy::too_many_arguments)]
+    fn sample_external<F: Field, T: Trace, A: Aovs>(
+        &self,
+        (m, tracker): (&Medium, &Tracker<'_, F>),
+        lights: &ExternalLights,
+        x: glam::DVec3,
+        incoming: glam::DVec3,
+        beta: f64,
+        sampler: &mut Sampler,
+        (c, trace): (&mut Counters, &mut T),
+        (l, aovs): (&mut [f64; 3], &mut A),
+    ) {
+        let u_choice = sampler.get_1d(Dim::ExternalLightChoice);
+        let u = sampler.get_2d(Dim::ExternalLightDirection);
+        let Some(ChosenLight { index, pmf, sample: s }) = lights.sample(x, u_choice, u) else { return };
+        c.external_light_samples += 1;
+        let f = hg_pdf(m.g, incoming.dot(s.direction));
+        let (tau, n) = tracker.transmittance(m, &Ray { origin: x, direction: s.direction }, s.distance, sampler);
+        c.voxel_steps += n;
+        if tau > 0.0 {
+            let w = if s.pdf > 0.0 { self.mis.weight(pmf * s.pdf, f) } else { 1.0 };
+            contribute(l, aovs, Component::Light(lights.group(index)), beta * f * tau * w / pmf, s.value);
+            trace.event(|| {
+                format!("  light {index}: dir {:?} dist {} pmf {pmf} pdf {} tau {tau} f {f} w {w} L/p {:?}", s.direction, s.distance, s.pdf, s.value)
+            });
+        }
+    }
+}

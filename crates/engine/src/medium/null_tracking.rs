@@ -1,0 +1,264 @@
+//! Null-collision tracking with line integration (METHOD.md §13): free paths and
+//! transmittance through a field known only point by point (a velocity-advected volume
+//! for motion blur), under the majorants of `volume::majorant`.
+//!
+//! **Delta tracking.** On a majorant stretch with `μ̄ = σ_t ρ̄`, tentative collisions
+//! follow at `Exp(μ̄)` steps; each is real with probability `μ(x)/μ̄`. The first real one
+//! has density `μ(t) τ(t)` along the ray: the law regular tracking samples exactly, so
+//! every estimator downstream is unchanged in expectation.
+//!
+//! **Line integration survives.** `Pr{min(t, d) > s} = τ(s)` still holds, so
+//! `F = ∫₀^{min(t,d)} L_e ds` stays unbiased when the integral is replaced by an unbiased
+//! estimate of it: the tentative points cut `[0, min(t, d)]` into sub-segments of lengths
+//! `ℓ_j`, and `Σ_j ℓ_j L_e(s_j)` with `s_j` uniform in sub-segment `j` is unbiased given
+//! the cut (nested expectations). Stretches whose source bound is 0 add nothing and are not
+//! evaluated.
+//!
+//! **Ratio tracking** estimates `τ(s)` by `W(s) = Π_{x_i < s} (1 − μ(x_i)/μ̄)` over the
+//! tentative points before `s`: shadow rays, and the expected-value (ray-march) estimator,
+//! `∫ τ L_e ds ≈ Σ_j ℓ_j W_j L_e(s_j)` (`W` is constant on each sub-segment, so the same
+//! nesting argument holds). Ray-march keeps its Russian roulette on small `W`, and finds
+//! its collision (when the path scatters) by delta tracking on the same tentative points.
+//!
+//! **Stochastic point lookups** ([`PointField::picks`]; `integrator::tracker::PointLookup`):
+//! a field may read a tentative point's density as one voxel picked with its
+//! reconstruction weight, from one more number of the stream. What a tentative point's
+//! density serves is linear in it (an acceptance probability, a ratio-tracking factor),
+//! so an unbiased value keeps every estimate unbiased, and delta tracking's free-path law
+//! is unchanged exactly. An emission point's `ℓ W L_e(s_j)` is linear in the corners'
+//! `L_e` too, so a field may pick one corner there as well ([`PointField::picks_emission`],
+//! one more number; an option, after scattering only, with a heavier tail:
+//! `integrator::tracker::PointLookup`). A real collision reads exactly what its record
+//! serves: the point estimator's score needs the density and `L_e` there; every other
+//! estimator needs only the albedo factor ([`PointField::albedo`]), and its record's
+//! density and source are NaN (nothing reads them: the 8-corner gather they cost was
+//! 3.7 % of the README demo's instructions).
+//!
+//! The point estimator scores `L_e(x)/μ(x)` at the real collision. Blend (a per-voxel
+//! mix) has no voxels to mix over here and is refused before rendering.
+//!
+//! Randomness: the first step uses the segment's `u` (a stratified dimension); every
+//! later number comes from the sample's hashed stream, so a sample stays a pure function
+//! of its key.
+
+use crate::medium::tracking::{sample_exponential, DistanceSample, Estimator, TrackResult, RAY_MARCH_ROULETTE_THRESHOLD};
+use crate::medium::Medium;
+use plume_core::sampling::Sampler;
+use plume_volume::field::Ray;
+use plume_volume::majorant::MajorantGrid;
+
+/// What the field holds at a point, as the tracker needs it.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PointSample {
+    /// Density (μ_t = σ_t ρ).
+    pub density: f32,
+    /// Emission source (for the collision record).
+    pub source: f32,
+    /// Emission density `L_e`, radiance per unit length.
+    pub emission: [f64; 3],
+    /// Albedo factor.
+    pub albedo: f32,
+}
+
+/// The field as null collisions read it at world points: each read asks only for what
+/// it uses (a tentative point its density; an emission point its `L_e`; a real
+/// collision everything), so a lookup costs one gather of the reconstruction.
+pub trait PointField {
+    /// Density at `p`.
+    fn density(&self, p: glam::DVec3) -> f32;
+    /// Emission density `L_e` at `p`.
+    fn emission(&self, p: glam::DVec3) -> [f64; 3];
+    /// Everything at a real collision; its `L_e` only when `emission` (the point
+    /// estimator scores it; zero otherwise, and a trilinear field reads no corner's `L_e`).
+    fn sample(&self, p: glam::DVec3, emission: bool) -> PointSample;
+    /// The albedo factor alone (exact), at a real collision whose record needs nothing
+    /// else: [`null_track`] for every estimator but point.
+    fn albedo(&self, p: glam::DVec3) -> f32 {
+        self.sample(p, false).albedo
+    }
+    /// Whether the field reads tentative points by stochastic filtering
+    /// ([`PointField::density_picked`]): [`null_track`] then draws one number per read.
+    fn picks(&self) -> bool {
+        false
+    }
+    /// An unbiased one-term estimate of [`PointField::density`] from the uniform `u`.
+    fn density_picked(&self, p: glam::DVec3, _u: f64) -> f32 {
+        self.density(p)
+    }
+    /// Whether emission points read by [`PointField::emission_picked`]: [`null_track`]
+    /// then draws one more number per emission point.
+    fn picks_emission(&self) -> bool {
+        false
+    }
+    /// An unbiased one-term estimate of [`PointField::emission`] from the uniform `u`.
+    fn emission_picked(&self, p: glam::DVec3, _u: f64) -> [f64; 3] {
+        self.emission(p)
+    }
+}
+
+/// `field`'s density at `p`, picked with a number of `sampler`'s when `picks` (the
+/// field's [`PointField::picks`], asked once per walk).
+#[inline]
+fn density_of(field: &impl PointField, picks: bool, p: glam::DVec3, sampler: &mut Sampler) -> f32 {
+    if picks {
+        field.density_picked(p, sampler.next_f64())
+    } else {
+        field.density(p)
+    }
+}
+
+/// A closure giving the whole [`PointSample`] is a [`PointField`] (tests, analytic fields).
+impl<T: Fn(glam::DVec3) -> PointSample> PointField for T {
+    fn density(&self, p: glam::DVec3) -> f32 {
+        self(p).density
+    }
+    fn emission(&self, p: glam::DVec3) -> [f64; 3] {
+        self(p).emission
+    }
+    fn sample(&self, p: glam::DVec3, emission: bool) -> PointSample {
+        let s = self(p);
+        PointSample { emission: if emission { s.emission } else { [0.0; 3] }, ..s }
+    }
+}
+
+fn add(f: &mut [f64; 3], e: [f64; 3], w: f64) {
+    for (a, v) in f.iter_mut().zip(e) {
+        *a += w * v;
+    }
+}
+
+/// Track `ray` over `[0, t_max]` by null collisions: the free path (delta tracking) and
+/// the estimator's emission (module docs). `field` gives the field at world points.
+///
+/// # Panics
+/// For [`Estimator::Blend`] (refused when the scene is built).
+#[allow(clippy::too_many_arguments)]
+pub fn null_track(
+    majorants: &MajorantGrid,
+    field: &impl PointField,
+    medium: &Medium,
+    ray: &Ray,
+    t_max: f64,
+    estimator: Estimator,
+    need_collision: bool,
+    u: f64,
+    sampler: &mut Sampler,
+) -> TrackResult {
+    assert!(!matches!(estimator, Estimator::Blend { .. }), "blend needs regular tracking");
+    let expected = estimator == Estimator::RayMarch;
+    // Line and ray-march integrate along the stretches; point scores at the collision
+    let integrates = estimator != Estimator::Point;
+    let picks = field.picks();
+    let picks_emission = field.picks_emission();
+    let mut f = [0.0f64; 3];
+    let mut weight = 1.0f64; // ratio-tracking W (ray-march)
+    let mut event = DistanceSample::Escaped;
+    let mut segments = 0u32;
+    let mut e = sample_exponential(u);
+    // Null collisions do not know the optical depth to the collision (point NEE's MIS
+    // needs it; classic NEE is refused with motion blur)
+    let mut od_to_collision = 0.0f64;
+    let mut done = false;
+    for seg in majorants.segments(ray, 0.0, t_max) {
+        segments += 1;
+        let mu_bar = medium.mu_t(seg.bounds.density);
+        let emits = seg.bounds.source > 0.0;
+        let mut s = seg.t0;
+        loop {
+            // The next tentative point, or the stretch's end
+            let next = if mu_bar > 0.0 { s + e / mu_bar } else { f64::INFINITY };
+            let end = next.min(seg.t1);
+            if integrates && emits && end > s && (event == DistanceSample::Escaped || expected) && weight > 0.0 {
+                let x = s + sampler.next_f64() * (end - s);
+                let e = if picks_emission { field.emission_picked(ray.at(x), sampler.next_f64()) } else { field.emission(ray.at(x)) };
+                add(&mut f, e, (end - s) * weight);
+            }
+            if next >= seg.t1 {
+                // Carry the unused part of the exponential into the next stretch
+                if mu_bar > 0.0 {
+                    e -= (seg.t1 - s) * mu_bar;
+                }
+                break;
+            }
+            // A tentative collision at `next`
+            e = sample_exponential(sampler.next_f64());
+            s = next;
+            let density = density_of(field, picks, ray.at(next), sampler);
+            let ratio = (medium.mu_t(density) / mu_bar).clamp(0.0, 1.0);
+            if event == DistanceSample::Escaped && (need_collision || !expected) && sampler.next_f64() < ratio {
+                // The exact values (a picked density served the acceptance only): the
+                // collision's law is the exact field's, and so must its record and score
+                // be. Only the point estimator scores here; the others need only the
+                // albedo factor, to carry the path on
+                let x = ray.at(next);
+                event = if estimator == Estimator::Point {
+                    let p = field.sample(x, true);
+                    add(&mut f, p.emission, 1.0 / medium.mu_t(p.density));
+                    DistanceSample::Collided { t: next, density: p.density, source: p.source, albedo: p.albedo }
+                } else {
+                    DistanceSample::Collided { t: next, density: f32::NAN, source: f32::NAN, albedo: field.albedo(x) }
+                };
+                od_to_collision = f64::NAN; // not tracked by null collisions
+                if !expected {
+                    done = true;
+                    break;
+                }
+            }
+            if expected {
+                weight *= 1.0 - ratio;
+                if weight < RAY_MARCH_ROULETTE_THRESHOLD {
+                    let q = weight / RAY_MARCH_ROULETTE_THRESHOLD;
+                    if sampler.next_f64() >= q {
+                        weight = 0.0;
+                    } else {
+                        weight = RAY_MARCH_ROULETTE_THRESHOLD;
+                    }
+                }
+                if weight == 0.0 && (event != DistanceSample::Escaped || !need_collision) {
+                    done = true;
+                    break;
+                }
+            }
+        }
+        if done {
+            break;
+        }
+    }
+    let transmittance = if expected {
+        weight
+    } else if event == DistanceSample::Escaped {
+        1.0
+    } else {
+        0.0
+    };
+    TrackResult { event, emission: f, transmittance, optical_depth: od_to_collision, segments, voxel_steps: u64::from(segments), collision_weight: 1.0 }
+}
+
+/// Ratio-tracking estimate of `τ(0, t_max)` along `ray` (module docs); stops early once
+/// it is 0.
+pub fn ratio_transmittance(majorants: &MajorantGrid, field: &impl PointField, medium: &Medium, ray: &Ray, t_max: f64, sampler: &mut Sampler) -> f64 {
+    let picks = field.picks();
+    let mut weight = 1.0f64;
+    for seg in majorants.segments(ray, 0.0, t_max) {
+        let mu_bar = medium.mu_t(seg.bounds.density);
+        if mu_bar <= 0.0 {
+            continue;
+        }
+        let mut s = seg.t0;
+        loop {
+            s += sample_exponential(sampler.next_f64()) / mu_bar;
+            if s >= seg.t1 {
+                break;
+            }
+            weight *= 1.0 - (medium.mu_t(density_of(field, picks, ray.at(s), sampler)) / mu_bar).clamp(0.0, 1.0);
+            if weight < RAY_MARCH_ROULETTE_THRESHOLD {
+                let q = weight / RAY_MARCH_ROULETTE_THRESHOLD;
+                if sampler.next_f64() >= q {
+                    return 0.0;
+                }
+                weight = RAY_MARCH_ROULETTE_THRESHOLD;
+            }
+        }
+    }
+    weight
+}

@@ -1,0 +1,523 @@
+//! Regular tracking: exact free-path sampling through piecewise-constant segments, and
+//! the emission estimators F of METHOD.md §3–4.
+//!
+//! Optical depth `OD(s) = ∫₀ˢ μ_t`, transmittance `τ = e^{−OD}`. A free path solves
+//! `OD(t) = E` with `E = −ln(1 − u)`: walking segments in order, the collision lies in the
+//! first segment `i` with `OD + μ_iΔ_i > E` (strict, so `μ = 0` never collides), at
+//! `t = a_i + (E − OD)/μ_i`. This is exact (`Pr{t > s} = τ(s)`), with no majorant.
+//! OD and `t` are `f64` (METHOD.md §10.2).
+//!
+//! Each estimator returns an unbiased estimate of `I_e = ∫₀^d τ(s) L_e(s) ds`:
+//! - **point** (collision): `L_{e,c}/μ_c` at a collision, 0 on escape;
+//! - **line** (track-length, the paper's): `∫₀^{min(t,d)} L_e ds`;
+//! - **ray-march** (expected value): `Σ_i τ(a_i) L_{e,i} Δ_i φ(μ_iΔ_i)`,
+//!   `φ(x) = (1 − e^{−x})/x`, independent of the collision, stopped by Russian roulette
+//!   once `τ` is small;
+//! - **blend** (our extension, METHOD.md §4): per-segment mix
+//!   `α_i = 1/(1 + κ μ_i Δ_i)` of line (weight α) and point (1 − α).
+
+pub use plume_scene::sets::Estimator;
+use std::ops::ControlFlow;
+
+use plume_core::color::Rgb;
+use crate::medium::emission::{EmissionMemo, LeTask};
+use crate::medium::forced::{Collision, Forced, ForcedCollision};
+use crate::medium::Medium;
+use plume_core::sampling::Sampler;
+use plume_volume::field::{Field, Piece, PieceIntegrals, PointValues, Ray, SegmentIter};
+
+/// Where the free path ended.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum DistanceSample {
+    /// A real collision at distance `t`, inside a segment with these values (use them,
+    /// not a lookup at `x(t)`, which can round into a `μ = 0` neighbour: METHOD.md §10.3).
+    Collided {
+        /// Distance along the ray.
+        t: f64,
+        /// Density of the segment that holds the collision (NaN from null-collision
+        /// tracking under every estimator but point, which alone scores with it:
+        /// `medium::null_tracking`).
+        density: f32,
+        /// Source of that segment (NaN where the density is).
+        source: f32,
+        /// Albedo factor of that segment.
+        albedo: f32,
+    },
+    /// No collision before `t_max` (or the field's end).
+    Escaped,
+}
+
+/// Outcome of [`track`].
+#[derive(Clone, Copy, Debug)]
+pub struct TrackResult {
+    /// Collision or escape.
+    pub event: DistanceSample,
+    /// The estimator's value F, an unbiased estimate of `∫₀^d τ L_e ds`.
+    pub emission: [f64; 3],
+    /// An unbiased estimate of `τ(d)` (0/1 for point, line and blend; the exact value,
+    /// roulette-weighted, for ray-march).
+    pub transmittance: f64,
+    /// Optical depth from the origin to the collision (`E`, exactly, for a sampled
+    /// collision), or to the end of the range on escape.
+    pub optical_depth: f64,
+    /// Segments visited.
+    pub segments: u32,
+    /// Voxel steps of the traversal (see [`SegmentIter::voxel_steps`]).
+    pub voxel_steps: u64,
+    /// The collision's weight: 1 for an analog free path, `W/q` for a forced one
+    /// (`medium::forced`).
+    pub collision_weight: f64,
+}
+
+impl TrackResult {
+    /// A segment that was not walked: no collision, no emission, nothing crossed.
+    #[must_use]
+    pub fn nothing() -> TrackResult {
+        TrackResult {
+            event: DistanceSample::Escaped,
+            emission: [0.0; 3],
+            transmittance: 1.0,
+            optical_depth: 0.0,
+            segments: 0,
+            voxel_steps: 0,
+            collision_weight: 1.0,
+        }
+    }
+}
+
+/// Transmittance below which the ray-march estimator plays Russian roulette.
+pub const RAY_MARCH_ROULETTE_THRESHOLD: f64 = 1e-2;
+
+/// `φ(x) = (1 − e^{−x})/x` with `φ(0) = 1`, accurate for small `x`.
+#[inline]
+#[must_use]
+pub fn phi(x: f64) -> f64 {
+    if x < 1e-4 {
+        1.0 - x * (0.5 - x / 6.0)
+    } else {
+        -(-x).exp_m1() / x
+    }
+}
+
+/// `E = −ln(1 − u)` for `u ∈ [0, 1)`, without cancellation near 0.
+#[inline]
+#[must_use]
+pub fn sample_exponential(u: f64) -> f64 {
+    -(-u).ln_1p()
+}
+
+#[inline]
+fn add(acc: &mut [f64; 3], le: Rgb, w: f64) {
+    for (a, c) in acc.iter_mut().zip(le.0) {
+        *a += f64::from(c) * w;
+    }
+}
+
+/// Sample a free path along `ray` over `[0, t_max]` and estimate the emission collected.
+///
+/// `u` drives the free path; `sampler` supplies roulette decisions for ray-march. With
+/// [`Collision::Skip`] (no scattering), ray-march does not locate the collision; with
+/// [`Collision::Forced`] it forces one (`medium::forced`), and the other estimators draw
+/// it as [`Collision::Analog`].
+// Each argument is a distinct input of the estimator; randomness stays an argument (STYLE §3).
+#[allow(clippy::too_many_arguments)]
+pub fn track<F: Field>(
+    field: &F,
+    medium: &Medium,
+    ray: &Ray,
+    t_max: f64,
+    estimator: Estimator,
+    collision: Collision,
+    u: f64,
+    sampler: &mut Sampler,
+) -> TrackResult {
+    match estimator {
+        // A forced walk is its own instance, so that walks without one run the code they ran
+        // before forcing existed, with no branch or buffer of it
+        Estimator::RayMarch if collision == Collision::Forced => track_expected::<F, true>(field, medium, ray, t_max, collision, u, sampler, None),
+        Estimator::RayMarch => track_expected::<F, false>(field, medium, ray, t_max, collision, u, sampler, None),
+        _ => track_free_path(field, medium, ray, t_max, estimator, u),
+    }
+}
+
+/// [`track`], and where it forces the collision (ray-march, [`Collision::Forced`]) the
+/// first vertices of `paths` split paths appended to `firsts`, one stratum of the
+/// collision law each (`medium::forced`, "Split paths start apart"); `firsts` stays as
+/// it is where the walk does not force or does not collide. The result is [`track`]'s.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn track_split<F: Field>(
+    field: &F,
+    medium: &Medium,
+    ray: &Ray,
+    t_max: f64,
+    (estimator, collision): (Estimator, Collision),
+    u: f64,
+    sampler: &mut Sampler,
+    (paths, firsts): (u32, &mut Vec<Forced>),
+) -> TrackResult {
+    if estimator == Estimator::RayMarch && collision == Collision::Forced {
+        track_expected::<F, true>(field, medium, ray, t_max, collision, u, sampler, Some((paths, firsts)))
+    } else {
+        track(field, medium, ray, t_max, estimator, collision, u, sampler)
+    }
+}
+
+fn track_free_path<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, estimator: Estimator, u: f64) -> TrackResult {
+    let memo = EmissionMemo::new(&medium.emission);
+    let e = sample_exponential(u);
+    let mut od = 0.0f64;
+    let mut f = [0.0f64; 3];
+    let mut segments = 0u32;
+    let mut it = field.segments(ray, 0.0, t_max);
+    let collision = it.visit(|piece| {
+        segments += 1;
+        let Some(seg) = piece.constant() else {
+            // A polynomial piece (trilinear reconstruction, METHOD.md §12)
+            return match free_path_polynomial(piece, medium, &memo, estimator, e, &mut od, &mut f) {
+                Some(event) => ControlFlow::Break(event),
+                None => ControlFlow::Continue(()),
+            };
+        };
+        let mu = medium.mu_t(seg.density);
+        let len = seg.length();
+        let x = mu * len;
+        let le = medium.emission.le(seg.density, seg.source);
+        if od + x > e {
+            // Collide inside this segment
+            let t = (seg.t0 + (e - od) / mu).clamp(seg.t0, seg.t1);
+            match estimator {
+                Estimator::Point => add(&mut f, le, 1.0 / mu),
+                Estimator::Line => add(&mut f, le, t - seg.t0),
+                Estimator::Blend { kappa } => {
+                    let alpha = 1.0 / (1.0 + kappa * x);
+                    add(&mut f, le, alpha * (t - seg.t0) + (1.0 - alpha) / mu);
+                }
+                Estimator::RayMarch => unreachable!("ray-march is tracked by track_expected"),
+            }
+            return ControlFlow::Break(DistanceSample::Collided { t, density: seg.density, source: seg.source, albedo: seg.albedo });
+        }
+        od += x;
+        // Add emission along the whole segment
+        match estimator {
+            Estimator::Line => add(&mut f, le, len),
+            Estimator::Blend { kappa } => add(&mut f, le, len / (1.0 + kappa * x)),
+            _ => {}
+        }
+        ControlFlow::Continue(())
+    });
+    match collision {
+        ControlFlow::Break(event) => {
+            TrackResult { event, emission: f, transmittance: 0.0, optical_depth: e, segments, voxel_steps: it.voxel_steps(), collision_weight: 1.0 }
+        }
+        ControlFlow::Continue(()) => TrackResult {
+            event: DistanceSample::Escaped,
+            emission: f,
+            transmittance: 1.0,
+            optical_depth: od,
+            segments,
+            voxel_steps: it.voxel_steps(),
+            collision_weight: 1.0,
+        },
+    }
+}
+
+#[inline]
+fn add_scaled(acc: &mut [f64; 3], v: [f64; 3], w: f64) {
+    for (a, c) in acc.iter_mut().zip(v) {
+        *a += c * w;
+    }
+}
+
+/// `L_e` at `u` on a polynomial piece: each voxel's emission density interpolated
+/// (`volume/trilinear/mod.rs`, "What is interpolated").
+#[inline]
+fn emission_at<P: Piece>(piece: &P, le: &EmissionMemo<'_>, u: f64) -> [f64; 3] {
+    /// [`Piece::emission_at`] as a task of the memo.
+    struct At<'p, P>(&'p P, f64);
+    impl<P: Piece> LeTask for At<'_, P> {
+        type Out = [f64; 3];
+        #[inline]
+        fn run(self, le: &impl Fn(f32, f32) -> Rgb) -> [f64; 3] {
+            self.0.emission_at(le, self.1)
+        }
+    }
+    le.run(At(piece, u))
+}
+
+/// Density and `L_e` at a world point (a next-event sample), by the same rule as
+/// `emission_at` along pieces: the field's reconstruction of each voxel's emission.
+#[must_use]
+pub fn emission_at_point<F: Field>(field: &F, medium: &Medium, p_world: glam::DVec3) -> PointValues {
+    field.reconstruct(p_world, &|d, s| medium.emission.le(d, s))
+}
+
+/// `∫₀ᵘ L_e ds` on a polynomial piece, in closed form (a cubic per channel).
+#[inline]
+fn emission_integral<P: Piece>(piece: &P, le: &EmissionMemo<'_>, u: f64) -> [f64; 3] {
+    /// [`Piece::emission_integral`] as a task of the memo.
+    struct Integral<'p, P>(&'p P, f64);
+    impl<P: Piece> LeTask for Integral<'_, P> {
+        type Out = [f64; 3];
+        #[inline]
+        fn run(self, le: &impl Fn(f32, f32) -> Rgb) -> [f64; 3] {
+            self.0.emission_integral(le, self.1)
+        }
+    }
+    if !piece.may_emit() || u <= 0.0 {
+        return [0.0; 3];
+    }
+    le.run(Integral(piece, u))
+}
+
+/// [`Piece::integrals`] over `[0, u]` with the memo's `L_e`.
+#[inline]
+fn integrals<P: Piece>(piece: &P, sigma_t: f64, le: &EmissionMemo<'_>, u: f64) -> PieceIntegrals {
+    /// [`Piece::integrals`] as a task of the memo.
+    struct Both<'p, P>(&'p P, f64, f64);
+    impl<P: Piece> LeTask for Both<'_, P> {
+        type Out = PieceIntegrals;
+        #[inline]
+        fn run(self, le: &impl Fn(f32, f32) -> Rgb) -> PieceIntegrals {
+            self.0.integrals(self.1, le, self.2)
+        }
+    }
+    le.run(Both(piece, sigma_t, u))
+}
+
+/// One polynomial piece of a free path: the same estimators as the constant case, with
+/// the piece's closed forms (METHOD.md §12):
+/// - the collision solves `OD(u) = E − OD_before` exactly ([`Piece::free_path`]);
+/// - point: `L_e(u_c)/μ(u_c)`; line: `∫₀^{u_c} L_e du` ([`emission_integral`]), or over
+///   the whole piece;
+/// - blend: the piece's `α = 1/(1 + κ OD_piece)`, which does not depend on where the
+///   collision falls, so the mix of two unbiased estimates stays unbiased.
+///
+/// Adds to `od` and `f`; returns the collision, if the free path ends here.
+fn free_path_polynomial<P: Piece>(
+    piece: &P,
+    medium: &Medium,
+    le: &EmissionMemo<'_>,
+    estimator: Estimator,
+    e: f64,
+    od: &mut f64,
+    f: &mut [f64; 3],
+) -> Option<DistanceSample> {
+    let len = piece.length();
+    // The line part needs the whole piece's emission unless the path ends here: computed
+    // with its optical depth (one set of trilinear weights), and unused in that one piece
+    let (x, whole_emission) = match estimator {
+        Estimator::Line | Estimator::Blend { .. } => {
+            let whole = integrals(piece, medium.sigma_t, le, len);
+            (whole.optical_depth, whole.emission)
+        }
+        Estimator::Point | Estimator::RayMarch => (piece.optical_depth(medium.sigma_t, len), [0.0; 3]),
+    };
+    let alpha = match estimator {
+        Estimator::Blend { kappa } => 1.0 / (1.0 + kappa * x),
+        Estimator::Line => 1.0,
+        Estimator::Point | Estimator::RayMarch => 0.0,
+    };
+    if *od + x > e {
+        let u = piece.free_path(medium.sigma_t, e - *od);
+        let density = piece.density_at(u);
+        if alpha > 0.0 {
+            add_scaled(f, emission_integral(piece, le, u), alpha);
+        }
+        let mu = medium.mu_t(density);
+        if alpha < 1.0 && mu > 0.0 {
+            add_scaled(f, emission_at(piece, le, u), (1.0 - alpha) / mu);
+        }
+        let t = (piece.t0() + u).clamp(piece.t0(), piece.t1());
+        return Some(DistanceSample::Collided { t, density, source: piece.source_at(u), albedo: piece.albedo_at(u) });
+    }
+    *od += x;
+    if alpha > 0.0 {
+        add_scaled(f, whole_emission, alpha);
+    }
+    None
+}
+
+#[allow(clippy::too_many_arguments)]
+fn track_expected<F: Field, const FORCED: bool>(
+    field: &F,
+    medium: &Medium,
+    ray: &Ray,
+    t_max: f64,
+    collision: Collision,
+    u: f64,
+    sampler: &mut Sampler,
+    split: Option<(u32, &mut Vec<Forced>)>,
+) -> TrackResult {
+    let memo = EmissionMemo::new(&medium.emission);
+    // The analog free path is drawn on the way; a forced one once the walk is done
+    let need_collision = collision == Collision::Analog;
+    let mut forced = FORCED.then(ForcedCollision::new);
+    let e = sample_exponential(u);
+    let mut od = 0.0f64;
+    let mut weight = 1.0f64; // roulette weight
+    let mut f = [0.0f64; 3];
+    let mut segments = 0u32;
+    let mut event = DistanceSample::Escaped;
+    let mut marching = true;
+    // Position of the one-point rule in every polynomial piece, drawn at the first one
+    let mut xi: Option<f64> = None;
+    // Below this optical depth the roulette cannot fire at the current weight
+    let mut roulette_free_below = roulette_free_depth(weight);
+    let mut it = field.segments(ray, 0.0, t_max);
+    let _ = it.visit(|piece| {
+        segments += 1;
+        let len = piece.length();
+        let constant = piece.constant();
+        // Roulette first: it reads only the optical depth before the piece, and it decides
+        // whether the piece is marched. Below `roulette_free_below` it cannot fire (no
+        // random number is drawn while `τ · weight` is above the threshold), so `τ` is
+        // formed only where something reads it: a forced collision's candidate, a
+        // constant emitting piece; an emitting polynomial piece takes the transmittance
+        // to its point in one `exp` (below). Elsewhere no `exp` is called.
+        let emits = match constant {
+            Some(seg) => seg.source != 0.0,
+            None => piece.may_emit(),
+        };
+        // `τ` before the piece, roulette weight folded in; `None` where not formed
+        let mut tau = None;
+        if marching && (FORCED || od >= roulette_free_below || (emits && constant.is_some())) {
+            let before = weight;
+            match march_roulette((-od).exp() * weight, &mut weight, sampler) {
+                Some(t) => tau = Some(t),
+                None => marching = false,
+            }
+            if weight != before {
+                roulette_free_below = roulette_free_depth(weight);
+            }
+        }
+        // A marched emitting polynomial piece needs its optical depth at the one-point
+        // rule's point too: both from one density cubic. Its point is drawn where it always
+        // was (after the roulette, at the first such piece), so the random sampler's stream
+        // keeps its order.
+        let mut x_at_point = None;
+        let x = match constant {
+            Some(seg) => medium.mu_t(seg.density) * len,
+            None if marching && emits => {
+                let xi = *xi.get_or_insert_with(|| sampler.get_1d(plume_core::sampling::Dim::OnePoint));
+                let u = xi * len;
+                let [x, x_u] = piece.optical_depths(medium.sigma_t, [len, u]);
+                x_at_point = Some((u, x_u));
+                x
+            }
+            None => piece.optical_depth(medium.sigma_t, len),
+        };
+        if need_collision && event == DistanceSample::Escaped && od + x > e {
+            event = analog_collision(piece, medium, e - od);
+        }
+        if marching {
+            if let Some(forced) = forced.as_mut() {
+                forced.push(piece, x, od, tau.expect("invariant: a forced walk forms τ at every marched piece"));
+            }
+            match constant {
+                // A piece without a source adds nothing (`le` is 0 there): no φ, and for a
+                // polynomial piece no point and no transmittance to it
+                _ if !emits => {}
+                Some(seg) => {
+                    let le = medium.emission.le(seg.density, seg.source);
+                    let tau = tau.expect("invariant: a marched constant emitting piece forms τ");
+                    add(&mut f, le, tau * len * phi(x));
+                }
+                None => {
+                    // One-point rule (METHOD.md §12): Δ τ(u_ξ) L_e(u_ξ) with u_ξ uniform
+                    // in the piece is unbiased for ∫ τ L_e over it. One ξ serves every
+                    // piece of the ray (systematic sampling: each piece's point is still
+                    // uniform in it). The point and its optical depth were found above.
+                    let (u, x_u) = x_at_point.expect("invariant: a marched emitting polynomial piece has its point");
+                    // Where the roulette did not need `τ`, it is `e^{−od} · weight`: one `exp`
+                    let tau_u = match tau {
+                        Some(tau) => tau * (-x_u).exp(),
+                        None => (-(od + x_u)).exp() * weight,
+                    };
+                    add_scaled(&mut f, emission_at(piece, &memo, u), tau_u * len);
+                }
+            }
+        }
+        od += x;
+        if !marching && (!need_collision || event != DistanceSample::Escaped) {
+            return ControlFlow::Break(());
+        }
+        ControlFlow::Continue(())
+    });
+    let transmittance = if marching { (-od).exp() * weight } else { 0.0 };
+    let mut optical_depth = if matches!(event, DistanceSample::Collided { .. }) { e } else { od };
+    let mut collision_weight = 1.0;
+    if let Some(forced) = forced {
+        if let Some((paths, firsts)) = split {
+            forced.draw_split(medium, u, paths, firsts);
+        }
+        if let Some(drawn) = forced.draw(medium, u) {
+            event = drawn.event;
+            optical_depth = drawn.optical_depth;
+            collision_weight = drawn.weight;
+        }
+    }
+    TrackResult { event, emission: f, transmittance, optical_depth, segments, voxel_steps: it.voxel_steps(), collision_weight }
+}
+
+/// An optical depth below which [`march_roulette`] cannot fire at roulette weight
+/// `weight` (`e^{−od} · weight` stays above the threshold): `ln(weight / threshold)`, less
+/// a margin far above the rounding of `exp` and `ln`, so that skipping the roulette there
+/// never changes its outcome.
+#[inline]
+fn roulette_free_depth(weight: f64) -> f64 {
+    (weight / RAY_MARCH_ROULETTE_THRESHOLD).ln() - 1e-9
+}
+
+/// Russian roulette on the ray-march's transmittance `tau` (its roulette weight folded
+/// in): below [`RAY_MARCH_ROULETTE_THRESHOLD`] the march goes on with probability
+/// `tau / threshold`, `weight` scaled up by the inverse, and the piece is weighted by the
+/// threshold; `None` ends it (`weight` 0). Keeps the walk finite.
+#[inline]
+fn march_roulette(tau: f64, weight: &mut f64, sampler: &mut Sampler) -> Option<f64> {
+    if tau < RAY_MARCH_ROULETTE_THRESHOLD {
+        let q = tau / RAY_MARCH_ROULETTE_THRESHOLD;
+        if sampler.next_f64() >= q {
+            *weight = 0.0;
+            return None;
+        }
+        *weight /= q;
+        return Some(RAY_MARCH_ROULETTE_THRESHOLD);
+    }
+    Some(tau)
+}
+
+/// The collision `od_left` of optical depth into `piece` (`od_left` below the piece's
+/// own): in closed form on a constant piece, from the quartic on a polynomial one. The
+/// analog collision, and where a forced one falls (`medium::forced`).
+#[inline]
+pub(crate) fn analog_collision<P: Piece>(piece: &P, medium: &Medium, od_left: f64) -> DistanceSample {
+    match piece.constant() {
+        Some(seg) => {
+            let t = (seg.t0 + od_left / medium.mu_t(seg.density)).clamp(seg.t0, seg.t1);
+            DistanceSample::Collided { t, density: seg.density, source: seg.source, albedo: seg.albedo }
+        }
+        None => {
+            let u = piece.free_path(medium.sigma_t, od_left);
+            let t = (piece.t0() + u).clamp(piece.t0(), piece.t1());
+            DistanceSample::Collided { t, density: piece.density_at(u), source: piece.source_at(u), albedo: piece.albedo_at(u) }
+        }
+    }
+}
+
+/// What [`optical_depth`] measured along a shadow ray.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[must_use]
+pub struct OpticalDepth {
+    /// Optical depth `OD = ∫ μ_t ds` (unitless; `τ = e^{−OD}`), possibly stopped early
+    /// once it exceeded `od_stop`.
+    pub optical_depth: f64,
+    /// Voxel steps of the traversal (see [`SegmentIter::voxel_steps`]).
+    pub voxel_steps: u64,
+}
+
+/// Exact optical depth along `ray` over `[0, t_max]` (for shadow rays: `τ = e^{−OD}`).
+/// Stops early once OD exceeds `od_stop` (then `τ` is negligible anyway).
+pub fn optical_depth<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, od_stop: f64) -> OpticalDepth {
+    let (optical_depth, voxel_steps) = field.optical_depth(medium.sigma_t, ray, t_max, od_stop);
+    OpticalDepth { optical_depth, voxel_steps }
+}

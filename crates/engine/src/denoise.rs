@@ -67,8 +67,7 @@ pub use plume_scene::sets::Filtered;
 use rayon::prelude::*;
 
 use crate::film::{count, pixel_value};
-use crate::integrator::aov::Component;
-use crate::integrator::AovLayout;
+use crate::integrator::aov::{AovLayout, Component};
 
 /// The non-local means filter's parameters.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -12,6 +12,9 @@
 
 pub use plume_scene::Crop;
 
+/// Channels of the half sums (`--denoise`): colour, alpha and sample count of one half.
+pub const HALF_CHANNEL_COUNT: usize = 5;
+
 /// Edge length of a film tile in pixels.
 pub const TILE: u32 = 16;
 
@@ -98,7 +101,7 @@ pub struct HalfSums {
     /// The half block ([`crate::denoise::half_of`]).
     pub block: u64,
     /// What the colour half sums hold.
-    pub filtered: crate::denoise::Filtered,
+    pub filtered: plume_scene::Filtered,
 }
 
 impl Tile {
@@ -219,7 +222,7 @@ impl Film {
     /// If the half sums (5 channels from `at`) do not fit the AOV channels, or `block` is 0.
     pub fn set_half(&mut self, half: Option<HalfSums>) {
         assert!(
-            half.is_none_or(|h| h.block > 0 && h.at + crate::integrator::aov::HALF_CHANNELS.len() <= self.aov_channels()),
+            half.is_none_or(|h| h.block > 0 && h.at + HALF_CHANNEL_COUNT <= self.aov_channels()),
             "invariant: half sums within the AOV channels"
         );
         for t in &mut self.tiles {

@@ -13,8 +13,12 @@ use plume_core::color::rec709_luminance;
 
 use crate::integrator::aov::{Aovs, Component};
 use crate::integrator::split_map::{PilotBlock, SplitMap, PILOT_SPP};
-use crate::integrator::{Counters, NoTrace, Scene, SplitBy};
-use crate::render::{pixel_sample, PixelSample, RenderSettings};
+use crate::integrator::counters::Counters;
+use crate::integrator::scene::Scene;
+use crate::integrator::trace::NoTrace;
+use plume_scene::SplitBy;
+use crate::render::settings::RenderSettings;
+use crate::render::tile::{pixel_sample, PixelSample};
 use plume_volume::field::Field;
 
 /// Mixed into the render's seed for the pilot's numbers.

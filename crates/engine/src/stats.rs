@@ -2,7 +2,7 @@
 
 use serde::Serialize;
 
-use crate::integrator::Counters;
+use crate::integrator::counters::Counters;
 
 /// Bytes per GiB, for messages.
 pub const GIB: f64 = 1024.0 * 1024.0 * 1024.0;

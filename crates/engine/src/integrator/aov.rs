@@ -33,7 +33,7 @@
 //! Without `--aovs` or `--denoise` the integrator is instantiated with [`NoAovs`], whose
 //! methods are empty: it compiles to the code it was before AOVs existed.
 
-pub use crate::denoise::Filtered;
+pub use plume_scene::Filtered;
 
 /// Where a contribution's light came from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -88,11 +88,11 @@ pub const FIXED_LAYERS: [&str; 2] = ["emission", "scattered"];
 pub use plume_scene::lights::RESERVED;
 
 /// Names of the half sums' channels (`--denoise`), after the layers' channels.
-pub const HALF_CHANNELS: [&str; 5] = ["half.R", "half.G", "half.B", "half.A", "half.n"];
+pub const HALF_CHANNELS: [&str; crate::film::HALF_CHANNEL_COUNT] = ["half.R", "half.G", "half.B", "half.A", "half.n"];
 
 /// Names of the half sums' channels when the camera emission is not filtered
 /// ([`Filtered::LessEmission`]): the colour is the beauty less that emission.
-pub const REST_HALF_CHANNELS: [&str; 5] = ["half.rest.R", "half.rest.G", "half.rest.B", "half.A", "half.n"];
+pub const REST_HALF_CHANNELS: [&str; crate::film::HALF_CHANNEL_COUNT] = ["half.rest.R", "half.rest.G", "half.rest.B", "half.A", "half.n"];
 
 /// The AOV channels of a render: the fixed colour layers, one colour layer per light
 /// group, depth's two sums, and with `--denoise` the half sums.

@@ -52,7 +52,7 @@ impl Lights {
         Ok(match light_sampling {
             LightSampling::None => Lights::default(),
             LightSampling::Nee => {
-                Lights { nee: EmitterDistribution::build_as(volume, crate::light::LightPower::new(emission), nee_table)?, ..Lights::default() }
+                Lights { nee: EmitterDistribution::build_as(volume, crate::light::power::LightPower::new(emission), nee_table)?, ..Lights::default() }
             }
             LightSampling::Fnee => Lights { proxy: ProxyGrid::build(volume, proxy_resolution, light_power(emission))?, ..Lights::default() },
         })
@@ -76,6 +76,6 @@ impl Lights {
 /// store the FNEE proxy's cell sums once for any scale or tint. Blackbody luminance is
 /// tabulated (`light::power`).
 pub fn light_power(emission: &crate::medium::Emission) -> impl Fn(f32, f32) -> f64 + Sync {
-    let power = crate::light::LightPower::new(emission);
+    let power = crate::light::power::LightPower::new(emission);
     move |d: f32, s: f32| power.power(d, s)
 }

@@ -18,7 +18,7 @@
 //! A moving volume is tracked by null collisions everywhere (no closed form exists).
 
 pub use plume_scene::sets::{PointLookup, Tracking};
-use crate::integrator::deferred::{Ask, BufferedPoints, Request};
+use super::buffered::{Ask, BufferedPoints, Request};
 use crate::medium::emission::EmissionMemo;
 use crate::medium::forced::Forced;
 use crate::medium::null_tracking::{null_track, ratio_transmittance, PointField, PointSample};

@@ -67,10 +67,11 @@
 //!   full weight would count in-scattered emission twice.
 
 use super::aov::{Aovs, Component, NoAovs};
-use super::deferred::BufferedPoints;
-use super::lights::{LightSampling, MisHeuristic};
-use super::split_map::SplitBy;
-use super::tracker::{PointLookup, Tracker, Tracking};
+use super::buffered::BufferedPoints;
+use plume_scene::{LightSampling, MisHeuristic};
+use plume_scene::SplitBy;
+use super::tracker::Tracker;
+use plume_scene::{PointLookup, Tracking};
 use crate::light::fnee::ProxySampling;
 use crate::light::external::{ChosenLight, ExternalLights};
 use crate::medium::tracking::emission_at_point;
@@ -79,7 +80,9 @@ use plume_core::sampling::phase::{hg_pdf, sample_hg};
 use plume_core::sampling::{Dim, Sampler};
 use plume_volume::field::{Field, PointValues, Ray};
 
-use super::{Counters, Scene, Trace};
+use super::counters::Counters;
+use super::scene::Scene;
+use super::trace::{NoTrace, Trace};
 
 /// Roulette plays only once a path's throughput `β` falls below this part of its start
 /// (`1`, or `1/N` for split paths), with survival `β/(t·start)`; survivors carry `t·start`.
@@ -250,7 +253,7 @@ impl Integrator {
         (time, c): (Option<f64>, &mut Counters),
         paths: &mut Vec<(Vertex, Sampler)>,
     ) -> [f64; 4] {
-        self.li_camera(scene, camera_ray, sampler, (time, c), (&mut super::NoTrace, &mut NoAovs), Some(paths))
+        self.li_camera(scene, camera_ray, sampler, (time, c), (&mut NoTrace, &mut NoAovs), Some(paths))
     }
 
     /// Whether the paths of `scene` can be deferred (`integrator::deferred`): they
@@ -285,14 +288,14 @@ impl Integrator {
             return;
         };
         let tracker = Tracker::Deferred { majorants, points };
-        self.scattered_path(scene, &tracker, vertex, sampler, (c, &mut super::NoTrace, bounces), (l, &mut NoAovs));
+        self.scattered_path(scene, &tracker, vertex, sampler, (c, &mut NoTrace, bounces), (l, &mut NoAovs));
     }
 
     /// A deferred path traced directly, reading the volume as [`Integrator::li`] would.
     pub(crate) fn direct_path<F: Field>(&self, scene: &Scene<F>, (vertex, sampler): (Vertex, &mut Sampler), c: &mut Counters, l: &mut [f64; 3]) {
         // Deferred paths are of a still volume (`defers`)
         let tracker = self.still_tracker(scene, self.tracking.null_after_scattering(), self.point_lookup);
-        self.scattered_path(scene, &tracker, vertex, sampler, (c, &mut super::NoTrace, &mut NoBounces), (l, &mut NoAovs));
+        self.scattered_path(scene, &tracker, vertex, sampler, (c, &mut NoTrace, &mut NoBounces), (l, &mut NoAovs));
     }
 
     /// [`Integrator::li_aovs`], or with `defer`, up to the camera segment's collision

@@ -29,6 +29,7 @@ pub mod nee;
 mod nee_bricks;
 pub mod power;
 pub mod sky;
+pub mod weigh;
 
 pub use fnee::{DirectionSample, ProxyPoint};
 pub use nee::{EmitterDistribution, VoxelSample};

@@ -31,7 +31,7 @@ use std::sync::Arc;
 use glam::IVec3;
 use rayon::prelude::*;
 
-use super::nee::{cell_coords, weigh_brick};
+use super::weigh::{cell_coords, weigh_brick};
 use plume_core::error::{Error, Result};
 use plume_core::sampling::alias::AliasTable;
 use plume_volume::grid::LEAF_VOXELS;

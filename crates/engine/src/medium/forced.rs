@@ -45,8 +45,8 @@
 //! With one path (`n = 1`) its vertex is the walk's own collision, bit for bit.
 
 pub use plume_scene::sets::Collision;
-use crate::medium::tracking::{analog_collision, DistanceSample};
-use crate::medium::Medium;
+use super::coefficients::Medium;
+use super::free_path::{analog_collision, DistanceSample};
 use plume_volume::field::Piece;
 
 /// `K`: a forced walk collides with probability `min(1, K W)`. Measured on the three

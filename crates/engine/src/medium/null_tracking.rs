@@ -41,8 +41,9 @@
 //! later number comes from the sample's hashed stream, so a sample stays a pure function
 //! of its key.
 
-use crate::medium::tracking::{sample_exponential, DistanceSample, Estimator, TrackResult, RAY_MARCH_ROULETTE_THRESHOLD};
-use crate::medium::Medium;
+use super::coefficients::Medium;
+use super::free_path::{sample_exponential, DistanceSample, TrackResult, RAY_MARCH_ROULETTE_THRESHOLD};
+use plume_scene::Estimator;
 use plume_core::sampling::Sampler;
 use plume_volume::field::Ray;
 use plume_volume::majorant::MajorantGrid;

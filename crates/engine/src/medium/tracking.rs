@@ -22,89 +22,10 @@ use std::ops::ControlFlow;
 use plume_core::color::Rgb;
 use crate::medium::emission::{EmissionMemo, LeTask};
 use crate::medium::forced::{Collision, Forced, ForcedCollision};
-use crate::medium::Medium;
+use super::coefficients::Medium;
+pub use super::free_path::{analog_collision, phi, sample_exponential, DistanceSample, TrackResult, RAY_MARCH_ROULETTE_THRESHOLD};
 use plume_core::sampling::Sampler;
 use plume_volume::field::{Field, Piece, PieceIntegrals, PointValues, Ray, SegmentIter};
-
-/// Where the free path ended.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum DistanceSample {
-    /// A real collision at distance `t`, inside a segment with these values (use them,
-    /// not a lookup at `x(t)`, which can round into a `μ = 0` neighbour: METHOD.md §10.3).
-    Collided {
-        /// Distance along the ray.
-        t: f64,
-        /// Density of the segment that holds the collision (NaN from null-collision
-        /// tracking under every estimator but point, which alone scores with it:
-        /// `medium::null_tracking`).
-        density: f32,
-        /// Source of that segment (NaN where the density is).
-        source: f32,
-        /// Albedo factor of that segment.
-        albedo: f32,
-    },
-    /// No collision before `t_max` (or the field's end).
-    Escaped,
-}
-
-/// Outcome of [`track`].
-#[derive(Clone, Copy, Debug)]
-pub struct TrackResult {
-    /// Collision or escape.
-    pub event: DistanceSample,
-    /// The estimator's value F, an unbiased estimate of `∫₀^d τ L_e ds`.
-    pub emission: [f64; 3],
-    /// An unbiased estimate of `τ(d)` (0/1 for point, line and blend; the exact value,
-    /// roulette-weighted, for ray-march).
-    pub transmittance: f64,
-    /// Optical depth from the origin to the collision (`E`, exactly, for a sampled
-    /// collision), or to the end of the range on escape.
-    pub optical_depth: f64,
-    /// Segments visited.
-    pub segments: u32,
-    /// Voxel steps of the traversal (see [`SegmentIter::voxel_steps`]).
-    pub voxel_steps: u64,
-    /// The collision's weight: 1 for an analog free path, `W/q` for a forced one
-    /// (`medium::forced`).
-    pub collision_weight: f64,
-}
-
-impl TrackResult {
-    /// A segment that was not walked: no collision, no emission, nothing crossed.
-    #[must_use]
-    pub fn nothing() -> TrackResult {
-        TrackResult {
-            event: DistanceSample::Escaped,
-            emission: [0.0; 3],
-            transmittance: 1.0,
-            optical_depth: 0.0,
-            segments: 0,
-            voxel_steps: 0,
-            collision_weight: 1.0,
-        }
-    }
-}
-
-/// Transmittance below which the ray-march estimator plays Russian roulette.
-pub const RAY_MARCH_ROULETTE_THRESHOLD: f64 = 1e-2;
-
-/// `φ(x) = (1 − e^{−x})/x` with `φ(0) = 1`, accurate for small `x`.
-#[inline]
-#[must_use]
-pub fn phi(x: f64) -> f64 {
-    if x < 1e-4 {
-        1.0 - x * (0.5 - x / 6.0)
-    } else {
-        -(-x).exp_m1() / x
-    }
-}
-
-/// `E = −ln(1 − u)` for `u ∈ [0, 1)`, without cancellation near 0.
-#[inline]
-#[must_use]
-pub fn sample_exponential(u: f64) -> f64 {
-    -(-u).ln_1p()
-}
 
 #[inline]
 fn add(acc: &mut [f64; 3], le: Rgb, w: f64) {
@@ -484,24 +405,6 @@ fn march_roulette(tau: f64, weight: &mut f64, sampler: &mut Sampler) -> Option<f
         return Some(RAY_MARCH_ROULETTE_THRESHOLD);
     }
     Some(tau)
-}
-
-/// The collision `od_left` of optical depth into `piece` (`od_left` below the piece's
-/// own): in closed form on a constant piece, from the quartic on a polynomial one. The
-/// analog collision, and where a forced one falls (`medium::forced`).
-#[inline]
-pub(crate) fn analog_collision<P: Piece>(piece: &P, medium: &Medium, od_left: f64) -> DistanceSample {
-    match piece.constant() {
-        Some(seg) => {
-            let t = (seg.t0 + od_left / medium.mu_t(seg.density)).clamp(seg.t0, seg.t1);
-            DistanceSample::Collided { t, density: seg.density, source: seg.source, albedo: seg.albedo }
-        }
-        None => {
-            let u = piece.free_path(medium.sigma_t, od_left);
-            let t = (piece.t0() + u).clamp(piece.t0(), piece.t1());
-            DistanceSample::Collided { t, density: piece.density_at(u), source: piece.source_at(u), albedo: piece.albedo_at(u) }
-        }
-    }
 }
 
 /// What [`optical_depth`] measured along a shadow ray.

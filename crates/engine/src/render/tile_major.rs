@@ -7,7 +7,8 @@ use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
-use super::{render_tile, RenderSettings};
+use super::settings::RenderSettings;
+use super::tile::render_tile;
 use crate::film::Film;
 use crate::integrator::deferred::PendingSample;
 use crate::integrator::{Counters, Scene, SplitMap};

@@ -7,8 +7,9 @@ use std::sync::Mutex;
 use rayon::prelude::*;
 
 use super::{Answer, PendingSample};
-use crate::integrator::tracker::{PointLookup, Points};
-use crate::integrator::Scene;
+use crate::integrator::tracker::Points;
+use plume_scene::PointLookup;
+use crate::integrator::scene::Scene;
 use plume_volume::field::Field;
 
 /// Lookups answered per piece of work of the fill.

@@ -1,4 +1,5 @@
 use super::*;
+use glam::DVec3;
 
 fn buffered(answers: &Answers) -> BufferedPoints<'_> {
     BufferedPoints {

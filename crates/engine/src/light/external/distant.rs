@@ -13,7 +13,7 @@
 
 use glam::DVec3;
 
-use super::{frame, LightSample};
+use super::sample::{frame, LightSample};
 use plume_core::color::Rgb;
 
 /// A distant light.

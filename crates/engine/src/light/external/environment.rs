@@ -13,7 +13,7 @@
 
 use glam::{DMat3, DVec3};
 
-use super::LightSample;
+use super::sample::LightSample;
 use plume_core::color::Rgb;
 use crate::light::envmap::EnvironmentMap;
 

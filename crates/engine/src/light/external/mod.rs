@@ -28,6 +28,7 @@
 //! Everything here is pure: randomness enters as `u` arguments.
 
 pub mod distant;
+pub mod sample;
 pub mod settings;
 pub mod environment;
 pub mod sphere;
@@ -36,10 +37,11 @@ use glam::DVec3;
 
 pub use distant::Distant;
 pub use environment::{Environment, Radiance};
+pub use sample::{frame, LightSample};
 pub use sphere::Sphere;
 
 use plume_core::color::Rgb;
-use crate::integrator::MisHeuristic;
+use plume_scene::MisHeuristic;
 use plume_core::sampling::alias::AliasTable;
 use plume_volume::field::Ray;
 
@@ -52,19 +54,6 @@ pub enum Light {
     Sphere(Sphere),
     /// A constant or mapped environment.
     Environment(Environment),
-}
-
-/// A sampled direction towards a light.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct LightSample {
-    /// Unit direction from the shading point towards the light.
-    pub direction: DVec3,
-    /// Distance to the light along `direction` (∞ for distant lights and environments).
-    pub distance: f64,
-    /// `L(ω)/p(ω)` for an area light; the irradiance at the point for a delta light.
-    pub value: [f64; 3],
-    /// Solid-angle pdf `p(ω)` of the light's own sampling; 0 for a delta light.
-    pub pdf: f64,
 }
 
 /// A light sample with the light it came from.
@@ -91,15 +80,6 @@ pub struct ExternalLights {
     group_of: Vec<usize>,
     /// Light groups (AOV layers), in order of first appearance.
     groups: Vec<String>,
-}
-
-/// An orthonormal pair perpendicular to unit `n` (Duff et al. 2017).
-#[must_use]
-pub fn frame(n: DVec3) -> (DVec3, DVec3) {
-    let sign = 1.0f64.copysign(n.z);
-    let a = -1.0 / (sign + n.z);
-    let b = n.x * n.y * a;
-    (DVec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x), DVec3::new(b, sign + n.y * n.y * a, -n.y))
 }
 
 impl Light {

@@ -15,7 +15,7 @@
 
 use glam::DVec3;
 
-use super::{frame, LightSample};
+use super::sample::{frame, LightSample};
 use plume_core::color::Rgb;
 use plume_volume::field::Ray;
 

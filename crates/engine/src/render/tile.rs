@@ -1,0 +1,111 @@
+//! One tile's samples: the camera ray and sampler of each pixel sample
+//! ([`pixel_sample`]), traced by the pixel's integrator and added to the tile's exact
+//! sums, AOVs and half sums; scattered paths may be deferred (`integrator::deferred`).
+
+use crate::film::Tile;
+use crate::integrator::aov::{AovSample, Aovs, NoAovs};
+use crate::integrator::counters::Counters;
+use crate::integrator::deferred::PendingSample;
+use crate::integrator::scene::Scene;
+use crate::integrator::split_map::{pixel_integrator, SplitMap};
+use crate::integrator::trace::NoTrace;
+use plume_core::sampling::{Dim, Sampler, SamplerKind};
+use plume_scene::SampleId;
+use plume_volume::field::Field;
+
+use super::settings::RenderSettings;
+
+/// One pixel sample as the render loop starts it: what [`pixel_sample`] returns.
+#[derive(Clone, Debug)]
+#[must_use]
+pub struct PixelSample {
+    /// The camera ray through the jittered point of the pixel (world space).
+    pub ray: plume_volume::field::Ray,
+    /// The sample's sampler, at the camera segment after the pixel jitter was drawn.
+    pub sampler: Sampler,
+    /// The sample's shutter time (seconds), when the scene moves.
+    pub time: Option<f64>,
+}
+
+/// The camera ray and sampler state of one pixel sample, as the render loop makes them
+/// (used by `--debug-pixel` to replay a sample exactly).
+pub fn pixel_sample<F: Field>(scene: &Scene<F>, kind: SamplerKind, seed: u64, x: u32, y: u32, s: u64) -> PixelSample {
+    let pixel = u64::from(y) * u64::from(scene.camera.width) + u64::from(x);
+    let mut sampler = Sampler::with_kind(kind, seed, pixel, s);
+    sampler.start_vertex(0);
+    let [jx, jy] = sampler.get_2d(Dim::Direction);
+    // With motion, the sample's shutter time places the camera (and the volume, in `li`)
+    let shutter = scene.motion.as_ref().map(|m| m.shutter).or(scene.camera.motion.map(|m| m.shutter()));
+    let time = shutter.map(|[open, close]| open + sampler.get_1d(Dim::Time) * (close - open));
+    let camera = time.map_or(scene.camera, |t| scene.camera.at_time(t));
+    PixelSample { ray: camera.ray(f64::from(x) + jx, f64::from(y) + jy), sampler, time }
+}
+
+/// Where a tile's samples whose scattered paths are deferred go (`integrator::deferred`):
+/// the tile's number in the film, and the list.
+pub(super) type Deferring<'p> = Option<(usize, &'p mut Vec<PendingSample>)>;
+
+pub(super) fn render_tile<F: Field>(
+    scene: &Scene<F>,
+    (settings, split_map): (&RenderSettings, Option<&SplitMap>),
+    samples: std::ops::Range<u64>,
+    tile: &mut Tile,
+    defer: Deferring<'_>,
+) -> Counters {
+    if tile.aov_channels == 0 {
+        render_tile_with(scene, (settings, split_map), samples, tile, &mut NoAovs, defer)
+    } else {
+        let mut aovs = AovSample::new(tile.aov_channels, tile.half.map(|h| (h.at, h.filtered)));
+        render_tile_with(scene, (settings, split_map), samples, tile, &mut aovs, None)
+    }
+}
+
+fn render_tile_with<F: Field, A: Aovs>(
+    scene: &Scene<F>,
+    (settings, split_map): (&RenderSettings, Option<&SplitMap>),
+    samples: std::ops::Range<u64>,
+    tile: &mut Tile,
+    aovs: &mut A,
+    mut defer: Deferring<'_>,
+) -> Counters {
+    let mut counters = Counters::default();
+    for ty in 0..tile.height {
+        for tx in 0..tile.width {
+            let (x, y) = (tile.x0 + tx, tile.y0 + ty);
+            let index = (ty * tile.width + tx) as usize;
+            let integrator = pixel_integrator(&settings.integrator, split_map, x, y);
+            for s in samples.clone() {
+                let PixelSample { ray, mut sampler, time } = pixel_sample(scene, settings.sampler, settings.seed, x, y, s);
+                aovs.begin();
+                let l = if let Some((tile_index, pending)) = defer.as_mut() {
+                    let mut paths = Vec::new();
+                    let l = integrator.li_deferring(scene, &ray, &mut sampler, (time, &mut counters), &mut paths);
+                    if !paths.is_empty() {
+                        // Added to the film when its paths are done
+                        counters.samples += 1;
+                        pending.push(PendingSample::new(*tile_index, index, SampleId { x, y, sample: s }, integrator, l, paths));
+                        continue;
+                    }
+                    l
+                } else {
+                    integrator.li_aovs(scene, &ray, &mut sampler, (time, &mut counters), &mut NoTrace, aovs)
+                };
+                if tile.half.is_some_and(|h| A::ON && crate::denoise::half_of(s, h.block)) {
+                    aovs.half(l);
+                }
+                counters.samples += 1;
+                if l.iter().all(|v| v.is_finite()) && (!A::ON || aovs.values().iter().all(|v| v.is_finite())) {
+                    tile.add_sample(index, l);
+                    if A::ON {
+                        tile.add_aov(index, aovs.values());
+                    }
+                } else {
+                    // Drop and count non-finite samples; report the first for replay
+                    counters.nonfinite_samples += 1;
+                    counters.first_nonfinite.get_or_insert(SampleId { x, y, sample: s });
+                }
+            }
+        }
+    }
+    counters
+}

@@ -1,4 +1,4 @@
-//! AOV layers (`--aovs`, issue #14): the colour layers sum to the beauty; the beauty is
+//! AOV layers (`--aovs`): the colour layers sum to the beauty; the beauty is
 //! the same bits with and without them; tiles, sample ranges, merges and resumes give
 //! the same bits in every layer; the depth layer is the expected distance to the first
 //! collision.
@@ -139,7 +139,7 @@ fn depth_is_the_expected_distance_to_the_first_collision() {
         let mut a = AovSample::new(layout.channels(), layout.half_at().zip(layout.halves));
         for i in 0..20_000u64 {
             a.values.fill(0.0);
-            integ.li_aovs(&scene, &ray, &mut Sampler::new(3, 0, i), (None, &mut c), &mut NoTrace, &mut a);
+            integ.li_aovs(&scene, &ray, None, plume_engine::integrator::PathState { sampler: &mut Sampler::new(3, 0, i), counters: &mut c, trace: &mut NoTrace, aovs: &mut a });
             let k = layout.channels();
             if a.values[k - 1] == 1.0 {
                 ts.push(a.values[k - 2]);

@@ -481,7 +481,7 @@ fn brick_block_finds_the_bricks_brick_finds() {
             for x in lo.x..=hi.x {
                 let b = IVec3::new(x, y, z);
                 for (c, got) in volume.brick_block(b).into_iter().enumerate() {
-                    let want = volume.brick(b + plume_volume::trilinear::dual::corner_offset(c));
+                    let want = volume.brick(b + plume_volume::trilinear::window::corner_offset(c));
                     match (got.map(|(_, b)| b), want) {
                         (Some(g), Some(w)) => assert!(std::ptr::eq(g, w), "dual brick {b}, corner {c}"),
                         (None, None) => {}

@@ -14,6 +14,7 @@ use plume_core::color::rec709_luminance;
 use crate::integrator::aov::{Aovs, Component};
 use crate::integrator::split_map::{PilotBlock, SplitMap, PILOT_SPP};
 use crate::integrator::counters::Counters;
+use crate::integrator::path::PathState;
 use crate::integrator::scene::Scene;
 use crate::integrator::trace::NoTrace;
 use plume_scene::SplitBy;
@@ -72,7 +73,7 @@ pub fn split_map<F: Field>(scene: &Scene<F>, settings: &RenderSettings) -> Optio
             for s in 0..u64::from(PILOT_SPP) {
                 let PixelSample { ray, mut sampler, time } = pixel_sample(scene, settings.sampler, seed, x, y, s);
                 seen.begin();
-                let l = integrator.li_aovs(scene, &ray, &mut sampler, (time, &mut counters), &mut NoTrace, &mut seen);
+                let l = integrator.li_aovs(scene, &ray, time, PathState { sampler: &mut sampler, counters: &mut counters, trace: &mut NoTrace, aovs: &mut seen });
                 // A non-finite sample is dropped, as the render drops it
                 if l.iter().all(|v| v.is_finite()) && seen.emission.iter().all(|v| v.is_finite()) {
                     block.scattered += (rec709_luminance([l[0], l[1], l[2]]) - rec709_luminance(seen.emission)).max(0.0);

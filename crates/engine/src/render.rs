@@ -23,17 +23,33 @@ use std::sync::Mutex;
 use std::time::Instant;
 
 use crate::film::{Crop, Film, HalfSums, Tile};
-use crate::integrator::{AovLayout, Counters, Scene, SplitMap};
+use crate::integrator::{AovLayout, Counters, Scene};
 use plume_scene::DeferPaths;
 use plume_volume::field::Field;
 
-/// Render the whole image of `scene`. `on_pass(done_spp, total_spp_or_0)` is called after
-/// every pass.
+/// What a render tells the application while it runs: the render loop never prints, so
+/// a progress bar or a farm's progress lines are the application's, fed from here.
+///
+/// A closure `|done, total| …` is an observer (`&|_, _| {}` observes nothing).
+pub trait RenderObserver: Sync {
+    /// A pass ended: `done` samples per pixel rendered by this call so far, of `total`
+    /// (0 for a time budget, whose total is not known). Called on the thread that called
+    /// [`render_with`], between passes.
+    fn pass_done(&self, done: u64, total: u64);
+}
+
+impl<T: Fn(u64, u64) + Sync> RenderObserver for T {
+    fn pass_done(&self, done: u64, total: u64) {
+        self(done, total);
+    }
+}
+
+/// Render the whole image of `scene`, telling `observer` after every pass.
 ///
 /// # Panics
 /// If the rayon pool cannot be built (out of threads).
-pub fn render<F: Field>(scene: &Scene<F>, settings: &RenderSettings, on_pass: &(dyn Fn(u64, u64) + Sync)) -> RenderResult {
-    render_with(scene, settings, RenderControl::default(), on_pass)
+pub fn render<F: Field>(scene: &Scene<F>, settings: &RenderSettings, observer: &dyn RenderObserver) -> RenderResult {
+    render_with(scene, settings, RenderControl::default(), observer)
 }
 
 /// Render the pixels and samples described by `settings` and `control`: samples
@@ -42,7 +58,7 @@ pub fn render<F: Field>(scene: &Scene<F>, settings: &RenderSettings, on_pass: &(
 ///
 /// # Panics
 /// If the rayon pool cannot be built, or `control.film` does not match the crop.
-pub fn render_with<F: Field>(scene: &Scene<F>, settings: &RenderSettings, control: RenderControl<'_>, on_pass: &(dyn Fn(u64, u64) + Sync)) -> RenderResult {
+pub fn render_with<F: Field>(scene: &Scene<F>, settings: &RenderSettings, mut control: RenderControl<'_>, observer: &dyn RenderObserver) -> RenderResult {
     // Out of core, a worker waiting on a page fault leaves its core idle: by default one
     // worker more than cores keeps them busy (measured: +8 % on the 33 GB flare, 2 cores).
     // Scattered segments read ahead of themselves (`integrator::tracker`) but still wait
@@ -50,36 +66,15 @@ pub fn render_with<F: Field>(scene: &Scene<F>, settings: &RenderSettings, contro
     // albedo 0.5: 61.2 s with 3 workers, 50.9 s with 6, 48.6 s with 12; without
     // scattering more workers widen the working set: 18.0 s with 3, 20.3 s with 8)
     let out_of_core = control.order == SampleOrder::TileMajor && scene.field.is_mapped();
-    let cores = std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get);
-    let scatters = settings.integrator.max_depth > 0 && scene.medium.albedo > 0.0;
-    let threads = match settings.threads {
-        0 if out_of_core && scatters => 3 * cores,
-        0 if out_of_core => cores + 1,
-        n => n,
-    };
+    let threads = worker_threads(scene, settings, out_of_core);
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("invariant: a rayon pool can be built");
-    let (width, height) = (scene.camera.width, scene.camera.height);
-    let crop = control.crop.unwrap_or(Crop::full(width, height));
-    let aov_channels = control.aovs.as_ref().map_or(0, AovLayout::channels);
-    let mut film = control.film.unwrap_or_else(|| Film::with_aovs(width, height, crop, aov_channels));
-    assert_eq!(film.aov_channels(), aov_channels, "invariant: resumed film has the AOV channels asked for");
-    let block = control.half_block.unwrap_or_else(|| crate::denoise::half_block(None));
-    film.set_half(control.aovs.as_ref().and_then(|l| Some(HalfSums { at: l.half_at()?, block, filtered: l.halves? })));
-    assert!(film.crop == crop && film.width == width && film.height == height, "invariant: resumed film matches the crop");
+    let resumed = control.film.take();
+    let mut film = start_film(scene, &control, resumed);
     let mut counters = Counters::default();
     // The first non-finite sample in (row, column, sample) order: each tile reports its
     // first in that order, so the minimum over tiles and passes does not depend on them
     let mut first_nonfinite: Option<SampleId> = None;
-    let start = Instant::now();
-    let mut done: u64 = 0;
-    let total = match settings.budget {
-        SampleBudget::Spp(n) => u64::from(n),
-        SampleBudget::Time(_) | SampleBudget::CpuTime(_) => 0,
-    };
-    let cpu_start = crate::stats::cpu_seconds();
-    let mut cpu_per_spp: Option<f64> = None;
-    let mut seconds_per_spp: Option<f64> = None;
-    let mut last_pass: u64 = 0;
+    let mut pacing = Pacing::start(settings.budget);
     // Each tile's wall seconds in the last pass: the next pass takes the costliest first
     let mut tile_seconds = vec![0.0f64; film.tiles.len()];
     let mut busy_seconds = 0.0;
@@ -92,80 +87,34 @@ pub fn render_with<F: Field>(scene: &Scene<F>, settings: &RenderSettings, contro
         && settings.integrator.defers(scene)
         && match control.defer_paths {
             // One path per camera collision: with more, the paths' lookups outgrow what a
-            // few fills serve (the 2048³ flare in a 1.5 GiB cgroup, 16 spp: `--split 1`
-            // 67–85 s deferred against 126–131 s direct; `--split 8` about 35 fills of 4 M
-            // lookups, slower than its 195–217 s direct; docs/BENCHMARKS.md)
+            // few fills serve (docs/BENCHMARKS.md, "Out of core")
             DeferPaths::Auto => out_of_core && settings.integrator.split == 1 && split_map.is_none(),
             DeferPaths::Always => true,
             DeferPaths::Never => false,
         };
+    let tile_major = control.order == SampleOrder::TileMajor && matches!(settings.budget, SampleBudget::Spp(_));
     let stopped = loop {
-        let remaining = match settings.budget {
-            SampleBudget::Spp(_) => total - done,
-            SampleBudget::Time(_) | SampleBudget::CpuTime(_) => u64::MAX,
-        };
-        if remaining == 0 {
-            break StopReason::Finished;
-        }
-        if control.stop.is_some_and(|stop| stop()) {
+        if control.stop.is_some_and(|stop| stop()) && pacing.remaining() != 0 {
             break StopReason::Interrupted;
         }
-        // Size the pass from the measured time per spp: ≈ PASS_SECONDS, growing at most 4×
-        let mut pass = match seconds_per_spp {
-            None => 1,
-            Some(t) => ((PASS_SECONDS / t.max(1e-9)) as u64).clamp(1, last_pass.saturating_mul(4).max(1)),
+        let pass = match pacing.next_pass(tile_major, control.deadline) {
+            Ok(pass) => pass,
+            Err(reason) => break reason,
         };
-        let tile_major = control.order == SampleOrder::TileMajor && matches!(settings.budget, SampleBudget::Spp(_));
-        if tile_major {
-            pass = remaining;
-        }
-        pass = pass.min(remaining);
-        if let (Some(t), true) = (seconds_per_spp, done > 0) {
-            // Budget and deadline: only passes predicted to end in time
-            if let SampleBudget::Time(limit) = settings.budget {
-                let left = limit - start.elapsed().as_secs_f64();
-                if left < t {
-                    break StopReason::Finished;
-                }
-                pass = pass.min((left / t) as u64).max(1);
-            }
-            if let (SampleBudget::CpuTime(limit), Some(c)) = (settings.budget, cpu_per_spp) {
-                let left = limit - (crate::stats::cpu_seconds() - cpu_start);
-                if left < c {
-                    break StopReason::Finished;
-                }
-                pass = pass.min((left / c) as u64).max(1);
-            }
-            if let Some(deadline) = control.deadline {
-                let left = deadline.saturating_duration_since(Instant::now()).as_secs_f64();
-                if left < t {
-                    break StopReason::TimeLimit;
-                }
-                pass = pass.min((left / t) as u64).max(1);
-            }
-        }
-        let first = settings.first_sample + done;
+        let first = settings.first_sample + pacing.done;
         let range = first..first + pass;
         let pass_start = Instant::now();
         let pass_cpu_start = crate::stats::cpu_seconds();
         let tile_counters: Vec<Counters> = if tile_major {
             let abandon = || control.stop.is_some_and(|stop| stop()) || control.deadline.is_some_and(|d| Instant::now() >= d);
-            match tile_major::tile_major_pass(
-                scene,
-                (settings, split_map),
-                &pool,
-                &mut film,
-                (&range, control.read_ahead_window),
-                &abandon,
-                &mut tile_seconds,
-                defer,
-            ) {
+            let pass = TileMajorPass { samples: &range, read_ahead_window: control.read_ahead_window, abandon: &abandon, defer };
+            match tile_major::tile_major_pass(scene, TileJob { settings, split_map }, &pool, &mut film, &pass, &mut tile_seconds) {
                 Some(c) => c,
                 None if control.deadline.is_some_and(|d| Instant::now() >= d) => break StopReason::TimeLimit,
                 None => break StopReason::Interrupted,
             }
         } else {
-            progressive_pass(scene, (settings, split_map), &pool, &mut film, &range, &mut tile_seconds)
+            progressive_pass(scene, TileJob { settings, split_map }, &pool, &mut film, &range, &mut tile_seconds)
         };
         busy_seconds += tile_seconds.iter().sum::<f64>();
         for c in &tile_counters {
@@ -174,15 +123,128 @@ pub fn render_with<F: Field>(scene: &Scene<F>, settings: &RenderSettings, contro
                 id.keep_earliest(&mut first_nonfinite);
             }
         }
-        let elapsed = pass_start.elapsed().as_secs_f64();
-        seconds_per_spp = Some(elapsed / pass as f64);
-        cpu_per_spp = Some((crate::stats::cpu_seconds() - pass_cpu_start) / pass as f64);
-        last_pass = pass;
-        done += pass;
-        on_pass(done, total);
+        pacing.pass_done(pass, pass_start, pass_cpu_start);
+        observer.pass_done(pacing.done, pacing.total);
     };
     counters.first_nonfinite = first_nonfinite;
-    RenderResult { film, spp: done, counters, render_seconds: start.elapsed().as_secs_f64(), busy_seconds, stopped }
+    RenderResult { film, spp: pacing.done, counters, render_seconds: pacing.start.elapsed().as_secs_f64(), busy_seconds, stopped }
+}
+
+/// Rayon workers: as asked, or by default one more than cores out of core, where a
+/// worker waiting on a page fault leaves its core idle, and three per core when paths
+/// scatter out of core, since scattered segments still wait for their first pages
+/// (docs/BENCHMARKS.md, "Out of core"). Without scattering, more workers only widen the
+/// working set.
+fn worker_threads<F: Field>(scene: &Scene<F>, settings: &RenderSettings, out_of_core: bool) -> usize {
+    let cores = std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get);
+    let scatters = settings.integrator.max_depth > 0 && scene.medium.albedo > 0.0;
+    match settings.threads {
+        0 if out_of_core && scatters => 3 * cores,
+        0 if out_of_core => cores + 1,
+        n => n,
+    }
+}
+
+/// The film the render adds to: `resumed` (`control.film`, a resumed render) or a new one over the
+/// crop, with the AOV channels and half sums asked for.
+fn start_film<F: Field>(scene: &Scene<F>, control: &RenderControl<'_>, resumed: Option<Film>) -> Film {
+    let (width, height) = (scene.camera.width, scene.camera.height);
+    let crop = control.crop.unwrap_or(Crop::full(width, height));
+    let aov_channels = control.aovs.as_ref().map_or(0, AovLayout::channels);
+    let mut film = resumed.unwrap_or_else(|| Film::with_aovs(width, height, crop, aov_channels));
+    assert_eq!(film.aov_channels(), aov_channels, "invariant: resumed film has the AOV channels asked for");
+    let block = control.half_block.unwrap_or_else(|| crate::denoise::half_block(None));
+    film.set_half(control.aovs.as_ref().and_then(|l| Some(HalfSums { at: l.half_at()?, block, filtered: l.halves? })));
+    assert!(film.crop == crop && film.width == width && film.height == height, "invariant: resumed film matches the crop");
+    film
+}
+
+/// How many samples the next pass takes: about [`PASS_SECONDS`] by the measured time
+/// per spp, growing at most 4× a pass, and within the sample, time and CPU budgets and
+/// the deadline.
+struct Pacing {
+    budget: SampleBudget,
+    /// Samples per pixel asked for (0 under a time budget).
+    total: u64,
+    /// Samples per pixel rendered so far.
+    done: u64,
+    start: Instant,
+    cpu_start: f64,
+    seconds_per_spp: Option<f64>,
+    cpu_per_spp: Option<f64>,
+    last_pass: u64,
+}
+
+impl Pacing {
+    fn start(budget: SampleBudget) -> Pacing {
+        let total = match budget {
+            SampleBudget::Spp(n) => u64::from(n),
+            SampleBudget::Time(_) | SampleBudget::CpuTime(_) => 0,
+        };
+        let (start, cpu_start) = (Instant::now(), crate::stats::cpu_seconds());
+        Pacing { budget, total, done: 0, start, cpu_start, seconds_per_spp: None, cpu_per_spp: None, last_pass: 0 }
+    }
+
+    /// Samples per pixel left under a sample budget (`u64::MAX` under a time budget).
+    fn remaining(&self) -> u64 {
+        match self.budget {
+            SampleBudget::Spp(_) => self.total - self.done,
+            SampleBudget::Time(_) | SampleBudget::CpuTime(_) => u64::MAX,
+        }
+    }
+
+    /// The next pass's samples per pixel, or why the render ends; a tile-major pass
+    /// takes every sample left.
+    fn next_pass(&self, tile_major: bool, deadline: Option<Instant>) -> Result<u64, StopReason> {
+        let remaining = self.remaining();
+        if remaining == 0 {
+            return Err(StopReason::Finished);
+        }
+        // Size the pass from the measured time per spp: ≈ PASS_SECONDS, growing at most 4×
+        let mut pass = match self.seconds_per_spp {
+            None => 1,
+            Some(t) => ((PASS_SECONDS / t.max(1e-9)) as u64).clamp(1, self.last_pass.saturating_mul(4).max(1)),
+        };
+        if tile_major {
+            pass = remaining;
+        }
+        pass = pass.min(remaining);
+        if let (Some(t), true) = (self.seconds_per_spp, self.done > 0) {
+            // Budget and deadline: only passes predicted to end in time
+            if let SampleBudget::Time(limit) = self.budget {
+                let left = limit - self.start.elapsed().as_secs_f64();
+                if left < t {
+                    return Err(StopReason::Finished);
+                }
+                pass = pass.min((left / t) as u64).max(1);
+            }
+            if let (SampleBudget::CpuTime(limit), Some(c)) = (self.budget, self.cpu_per_spp) {
+                let left = limit - (crate::stats::cpu_seconds() - self.cpu_start);
+                if left < c {
+                    return Err(StopReason::Finished);
+                }
+                pass = pass.min((left / c) as u64).max(1);
+            }
+            if let Some(deadline) = deadline {
+                let left = deadline.saturating_duration_since(Instant::now()).as_secs_f64();
+                if left < t {
+                    return Err(StopReason::TimeLimit);
+                }
+                pass = pass.min((left / t) as u64).max(1);
+            }
+        }
+        Ok(pass)
+    }
+
+    /// A pass of `pass` samples per pixel, started at `pass_start` and at CPU time
+    /// `pass_cpu_start`, is done.
+    fn pass_done(&mut self, pass: u64, pass_start: Instant, pass_cpu_start: f64) {
+        let elapsed = pass_start.elapsed().as_secs_f64();
+        self.seconds_per_spp = Some(elapsed / pass as f64);
+        self.cpu_per_spp = Some((crate::stats::cpu_seconds() - pass_cpu_start) / pass as f64);
+        self.last_pass = pass;
+        self.done += pass;
+    }
 }
 
 /// One progressive pass of `samples` over every tile of `film`; the tiles' counters in
@@ -197,7 +259,7 @@ pub fn render_with<F: Field>(scene: &Scene<F>, settings: &RenderSettings, contro
 /// changes no pixel: each tile's sums are its own exact integers.
 fn progressive_pass<F: Field>(
     scene: &Scene<F>,
-    settings: (&RenderSettings, Option<&SplitMap>),
+    job: TileJob<'_>,
     pool: &rayon::ThreadPool,
     film: &mut Film,
     samples: &std::ops::Range<u64>,
@@ -212,7 +274,7 @@ fn progressive_pass<F: Field>(
         let Some(&i) = order.get(next.fetch_add(1, Ordering::Relaxed)) else { return };
         let start = Instant::now();
         let mut tile = tiles[i].lock().unwrap_or_else(std::sync::PoisonError::into_inner);
-        let c = render_tile(scene, settings, samples.clone(), &mut tile, None);
+        let c = render_tile(scene, job, samples.clone(), &mut tile, None);
         *results[i].lock().unwrap_or_else(std::sync::PoisonError::into_inner) = (c, start.elapsed().as_secs_f64());
     });
     results
@@ -232,7 +294,8 @@ mod tile_major;
 
 pub use settings::{read_ahead_window, RenderControl, RenderResult, RenderSettings, SampleBudget, SampleOrder, StopReason, PASS_SECONDS};
 pub use tile::{pixel_sample, PixelSample};
-use tile::render_tile;
+use tile::{render_tile, TileJob};
+use tile_major::TileMajorPass;
 
 #[cfg(test)]
 mod tests {

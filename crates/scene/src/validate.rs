@@ -8,7 +8,7 @@
 
 use std::ops::Deref;
 
-use super::Shot;
+use super::{CameraSettings, JobSettings, RenderOptions, SceneDescription, Shot, VolumeInput};
 use plume_core::error::{Error, Result};
 use crate::sets::TemperatureMap;
 use crate::selector::GridSelector;
@@ -71,165 +71,206 @@ impl Shot {
     /// [`Error::InvalidArgument`] naming the field's key, e.g. `medium.albedo`.
     pub fn validate(self) -> Result<ValidShot> {
         let (scene, job) = (&self.scene, &self.settings);
-        let r = &job.render;
-        if r.spp == Some(0) {
-            return Err(Error::invalid("render.spp", "must be at least 1"));
-        }
-        if let Some(t) = r.time {
-            positive_seconds("render.time", t)?;
-            if r.spp.is_some() {
-                return Err(Error::invalid("render.spp", "give render.spp or render.time, not both"));
-            }
-        }
-        let cam = &scene.camera;
-        if cam.width == 0 || cam.height == 0 || cam.width > 32768 || cam.height > 32768 {
-            return Err(Error::invalid("camera.width/camera.height", format!("{}x{} must be between 1x1 and 32768x32768", cam.width, cam.height)));
-        }
-        if !(cam.fov.is_finite() && cam.fov > 0.0 && cam.fov < 180.0) {
-            return Err(Error::invalid("camera.fov", format!("{} is not in (0, 180) degrees", cam.fov)));
-        }
-        finite_nonneg("medium.density_scale", scene.medium.density_scale)?;
-        finite_nonneg("emission.scale", f64::from(scene.emission.scale))?;
-        finite_nonneg("integrator.kappa", scene.integrator.kappa)?;
-        if !(1..=256).contains(&scene.integrator.split) {
-            return Err(Error::invalid("integrator.split", format!("{} is not between 1 and 256 paths per camera collision", scene.integrator.split)));
-        }
-        finite_nonneg("emission.temperature_cutoff", f64::from(scene.emission.temperature_cutoff))?;
-        nonneg_components("emission.color", scene.emission.color.map(f64::from))?;
-        scene.emission.temperature_map.parse::<TemperatureMap>()?;
-        let albedo = scene.albedo();
-        if !(0.0..=1.0).contains(&albedo) {
-            return Err(Error::invalid("medium.albedo", format!("{albedo} is not in [0, 1]")));
-        }
-        if !(scene.medium.g > -1.0 && scene.medium.g < 1.0) {
-            return Err(Error::invalid("medium.g", format!("{} is not in (-1, 1)", scene.medium.g)));
-        }
-        scene.lights.validate()?;
-        let (estimator, light_sampling) = scene.integrator.parts();
-        if matches!(scene.integrator.tracking, super::TrackingChoice::Mixed | super::TrackingChoice::Null)
-            && scene.scatters()
-            && !crate::sets::Tracking::applies(estimator, light_sampling)
-        {
-            return Err(Error::invalid(
-                "integrator.tracking",
-                format!(
-                    "{} tracks by null collisions after scattering, which {} cannot use (blend mixes per voxel; the point estimator's MIS with classic NEE needs exact optical depths): use regular or auto",
-                    super::Choice::name(scene.integrator.tracking),
-                    if light_sampling == crate::sets::LightSampling::Nee { "the point estimator with classic NEE" } else { "the blend estimator" }
-                ),
-            ));
-        }
-        // The camera segment tracks by null collisions under `null` and with motion blur,
-        // which blend (a per-voxel mix) cannot use
-        let camera_null = scene.integrator.tracking == super::TrackingChoice::Null || scene.volume.velocity_grid.is_some();
-        if camera_null && scene.integrator.camera_estimator == Some(super::EstimatorKind::Blend) {
-            return Err(Error::invalid(
-                "integrator.camera_estimator",
-                "blend mixes per voxel, which null-collision tracking of camera rays (tracking = null, motion blur) has not: use line, point or ray-march",
-            ));
-        }
-        if let Some(name) = &scene.volume.velocity_grid {
-            selector("volume.velocity_grid", name)?;
-            if !scene.volume.velocity_scale.is_finite() {
-                return Err(Error::invalid("volume.velocity_scale", format!("{} must be finite", scene.volume.velocity_scale)));
-            }
-            let (_, light_sampling) = scene.integrator.parts();
-            if light_sampling == crate::sets::LightSampling::Nee && scene.scatters() {
-                return Err(Error::invalid(
-                    "integrator.light_sampling",
-                    "classic NEE draws points from the frame's emitters, which move under motion blur: use fnee (the default) or none",
-                ));
-            }
-            if matches!(scene.integrator.parts().0, crate::sets::Estimator::Blend { .. }) {
-                return Err(Error::invalid(
-                    "integrator.estimator",
-                    "blend mixes per voxel, which null-collision tracking (motion blur) has not: use line, point or ray-march",
-                ));
-            }
-        }
-        if let Some([open, close]) = cam.shutter {
-            if !(open.is_finite() && close.is_finite() && open <= close) {
-                return Err(Error::invalid("camera.shutter", format!("{open},{close}: open must be at most close, both finite (frames)")));
-            }
-        }
-        if !cam.keys.is_empty() {
-            if cam.from.is_some() || cam.at.is_some() {
-                return Err(Error::invalid("camera.keys", "give camera.keys or camera.from/camera.at, not both"));
-            }
-            for (i, k) in cam.keys.iter().enumerate() {
-                if !(k.frame.is_finite() && k.from.is_finite() && k.at.is_finite() && k.up.is_none_or(|u| u.is_finite())) {
-                    return Err(Error::invalid("camera.keys", format!("key {}: frame, from, at and up must be finite", i + 1)));
-                }
-                if let Some(f) = k.fov {
-                    if !(f > 0.0 && f < 180.0) {
-                        return Err(Error::invalid("camera.keys", format!("key {}: fov {f} is not in (0, 180) degrees", i + 1)));
-                    }
-                }
-                if i > 0 && cam.keys[i - 1].frame >= k.frame {
-                    return Err(Error::invalid("camera.keys", format!("key {}: frames must increase ({} after {})", i + 1, k.frame, cam.keys[i - 1].frame)));
-                }
-            }
-        }
-        if !(cam.fps.is_finite() && cam.fps > 0.0) {
-            return Err(Error::invalid("camera.fps", format!("{} must be a positive number of frames per second", cam.fps)));
-        }
-        let v = &scene.volume;
-        selector("volume.density_grid", &v.density_grid)?;
-        selector("volume.temperature_grid", &v.temperature_grid)?;
-        for (key, name) in [("volume.emission_grid", &v.emission_grid), ("volume.albedo_grid", &v.albedo_grid)] {
-            if let Some(n) = name {
-                selector(key, n)?;
-            }
-        }
-        if let Some(dp) = r.debug_pixel {
-            if dp.x >= cam.width || dp.y >= cam.height {
-                return Err(Error::invalid("render.debug_pixel", format!("pixel {},{} is outside the {}x{} image", dp.x, dp.y, cam.width, cam.height)));
-            }
-        }
-        let out = &job.output;
-        if let Some(e) = out.exposure {
-            if !e.is_finite() {
-                return Err(Error::invalid("output.exposure", "must be finite"));
-            }
-        }
-        if out.image.as_os_str().is_empty() {
-            return Err(Error::invalid("output.image", "required: the EXR to write (`-o OUT.exr`, or `image` in `[output]`)"));
-        }
-        if !out.image.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr")) {
-            return Err(Error::invalid("output.image", format!("{} must end in .exr", out.image.display())));
-        }
-        positive_seconds("reading.read_timeout", job.reading.read_timeout)?;
-        if let Some(t) = r.cache_lock_timeout {
-            if !(t.is_finite() && t >= 0.0) {
-                return Err(Error::invalid("render.cache_lock_timeout", format!("{t} must be a number of seconds, 0 or more")));
-            }
-        }
-        let farm = &job.farm;
-        if let Some(list) = &farm.frames {
-            crate::frames::parse_frames(list).map_err(|m| Error::invalid("farm.frames", m))?;
-        }
-        if let Some(t) = farm.time_limit {
-            positive_seconds("farm.time_limit", t)?;
-        }
-        if farm.crop.is_some() && farm.tile.is_some() {
-            return Err(Error::invalid("farm.crop", "give farm.crop or farm.tile, not both"));
-        }
-        if let Some(c) = farm.crop {
-            if !c.fits(cam.width, cam.height) {
-                return Err(Error::invalid("farm.crop", format!("{c} is not inside the {}x{} image", cam.width, cam.height)));
-            }
-        }
-        if let Some(t) = farm.tile {
-            crate::split::tile_crop(t.index, t.count, cam.width, cam.height).map_err(|m| Error::invalid("farm.tile", m))?;
-        }
-        if let Some(range) = &farm.sample_range {
-            if r.spp.is_some() || r.time.is_some() {
-                return Err(Error::invalid("farm.sample_range", "give farm.sample_range or render.spp/render.time, not both"));
-            }
-            if range.end - range.start > u64::from(u32::MAX) {
-                return Err(Error::invalid("farm.sample_range", "at most 4294967295 samples per pixel in one run"));
-            }
-        }
+        sample_budget(&job.render)?;
+        camera_frame(&scene.camera)?;
+        medium_and_method(scene)?;
+        motion(scene)?;
+        camera_motion(&scene.camera)?;
+        grids(&scene.volume)?;
+        job_settings(job, &scene.camera)?;
         Ok(ValidShot(self))
     }
+}
+
+/// `render.spp` and `render.time`.
+fn sample_budget(r: &RenderOptions) -> Result<()> {
+    if r.spp == Some(0) {
+        return Err(Error::invalid("render.spp", "must be at least 1"));
+    }
+    if let Some(t) = r.time {
+        positive_seconds("render.time", t)?;
+        if r.spp.is_some() {
+            return Err(Error::invalid("render.spp", "give render.spp or render.time, not both"));
+        }
+    }
+    Ok(())
+}
+
+/// The image size and field of view.
+fn camera_frame(cam: &CameraSettings) -> Result<()> {
+    if cam.width == 0 || cam.height == 0 || cam.width > 32768 || cam.height > 32768 {
+        return Err(Error::invalid("camera.width/camera.height", format!("{}x{} must be between 1x1 and 32768x32768", cam.width, cam.height)));
+    }
+    if !(cam.fov.is_finite() && cam.fov > 0.0 && cam.fov < 180.0) {
+        return Err(Error::invalid("camera.fov", format!("{} is not in (0, 180) degrees", cam.fov)));
+    }
+    Ok(())
+}
+
+/// The medium, emission, lights and the integrator's choices, and which of them go
+/// together.
+fn medium_and_method(scene: &SceneDescription) -> Result<()> {
+    finite_nonneg("medium.density_scale", scene.medium.density_scale)?;
+    finite_nonneg("emission.scale", f64::from(scene.emission.scale))?;
+    finite_nonneg("integrator.kappa", scene.integrator.kappa)?;
+    if !(1..=256).contains(&scene.integrator.split) {
+        return Err(Error::invalid("integrator.split", format!("{} is not between 1 and 256 paths per camera collision", scene.integrator.split)));
+    }
+    finite_nonneg("emission.temperature_cutoff", f64::from(scene.emission.temperature_cutoff))?;
+    nonneg_components("emission.color", scene.emission.color.map(f64::from))?;
+    scene.emission.temperature_map.parse::<TemperatureMap>()?;
+    let albedo = scene.albedo();
+    if !(0.0..=1.0).contains(&albedo) {
+        return Err(Error::invalid("medium.albedo", format!("{albedo} is not in [0, 1]")));
+    }
+    if !(scene.medium.g > -1.0 && scene.medium.g < 1.0) {
+        return Err(Error::invalid("medium.g", format!("{} is not in (-1, 1)", scene.medium.g)));
+    }
+    scene.lights.validate()?;
+    let (estimator, light_sampling) = scene.integrator.parts();
+    if matches!(scene.integrator.tracking, super::TrackingChoice::Mixed | super::TrackingChoice::Null)
+        && scene.scatters()
+        && !crate::sets::Tracking::applies(estimator, light_sampling)
+    {
+        return Err(Error::invalid(
+            "integrator.tracking",
+            format!(
+                "{} tracks by null collisions after scattering, which {} cannot use (blend mixes per voxel; the point estimator's MIS with classic NEE needs exact optical depths): use regular or auto",
+                super::Choice::name(scene.integrator.tracking),
+                if light_sampling == crate::sets::LightSampling::Nee { "the point estimator with classic NEE" } else { "the blend estimator" }
+            ),
+        ));
+    }
+    // The camera segment tracks by null collisions under `null` and with motion blur,
+    // which blend (a per-voxel mix) cannot use
+    let camera_null = scene.integrator.tracking == super::TrackingChoice::Null || scene.volume.velocity_grid.is_some();
+    if camera_null && scene.integrator.camera_estimator == Some(super::EstimatorKind::Blend) {
+        return Err(Error::invalid(
+            "integrator.camera_estimator",
+            "blend mixes per voxel, which null-collision tracking of camera rays (tracking = null, motion blur) has not: use line, point or ray-march",
+        ));
+    }
+    Ok(())
+}
+
+/// Motion blur: the velocity grid and what may be used with it.
+fn motion(scene: &SceneDescription) -> Result<()> {
+    if let Some(name) = &scene.volume.velocity_grid {
+        selector("volume.velocity_grid", name)?;
+        if !scene.volume.velocity_scale.is_finite() {
+            return Err(Error::invalid("volume.velocity_scale", format!("{} must be finite", scene.volume.velocity_scale)));
+        }
+        let (_, light_sampling) = scene.integrator.parts();
+        if light_sampling == crate::sets::LightSampling::Nee && scene.scatters() {
+            return Err(Error::invalid(
+                "integrator.light_sampling",
+                "classic NEE draws points from the frame's emitters, which move under motion blur: use fnee (the default) or none",
+            ));
+        }
+        if matches!(scene.integrator.parts().0, crate::sets::Estimator::Blend { .. }) {
+            return Err(Error::invalid(
+                "integrator.estimator",
+                "blend mixes per voxel, which null-collision tracking (motion blur) has not: use line, point or ray-march",
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The shutter, camera keys and frame rate.
+fn camera_motion(cam: &CameraSettings) -> Result<()> {
+    if let Some([open, close]) = cam.shutter {
+        if !(open.is_finite() && close.is_finite() && open <= close) {
+            return Err(Error::invalid("camera.shutter", format!("{open},{close}: open must be at most close, both finite (frames)")));
+        }
+    }
+    if !cam.keys.is_empty() {
+        if cam.from.is_some() || cam.at.is_some() {
+            return Err(Error::invalid("camera.keys", "give camera.keys or camera.from/camera.at, not both"));
+        }
+        for (i, k) in cam.keys.iter().enumerate() {
+            if !(k.frame.is_finite() && k.from.is_finite() && k.at.is_finite() && k.up.is_none_or(|u| u.is_finite())) {
+                return Err(Error::invalid("camera.keys", format!("key {}: frame, from, at and up must be finite", i + 1)));
+            }
+            if let Some(f) = k.fov {
+                if !(f > 0.0 && f < 180.0) {
+                    return Err(Error::invalid("camera.keys", format!("key {}: fov {f} is not in (0, 180) degrees", i + 1)));
+                }
+            }
+            if i > 0 && cam.keys[i - 1].frame >= k.frame {
+                return Err(Error::invalid("camera.keys", format!("key {}: frames must increase ({} after {})", i + 1, k.frame, cam.keys[i - 1].frame)));
+            }
+        }
+    }
+    if !(cam.fps.is_finite() && cam.fps > 0.0) {
+        return Err(Error::invalid("camera.fps", format!("{} must be a positive number of frames per second", cam.fps)));
+    }
+    Ok(())
+}
+
+/// Every grid name parses as `name` or `name[N]`.
+fn grids(v: &VolumeInput) -> Result<()> {
+    selector("volume.density_grid", &v.density_grid)?;
+    selector("volume.temperature_grid", &v.temperature_grid)?;
+    for (key, name) in [("volume.emission_grid", &v.emission_grid), ("volume.albedo_grid", &v.albedo_grid)] {
+        if let Some(n) = name {
+            selector(key, n)?;
+        }
+    }
+    Ok(())
+}
+
+/// Outputs, reading, and the farm's frames, crops, tiles and sample ranges.
+fn job_settings(job: &JobSettings, cam: &CameraSettings) -> Result<()> {
+    let r = &job.render;
+    if let Some(dp) = r.debug_pixel {
+        if dp.x >= cam.width || dp.y >= cam.height {
+            return Err(Error::invalid("render.debug_pixel", format!("pixel {},{} is outside the {}x{} image", dp.x, dp.y, cam.width, cam.height)));
+        }
+    }
+    let out = &job.output;
+    if let Some(e) = out.exposure {
+        if !e.is_finite() {
+            return Err(Error::invalid("output.exposure", "must be finite"));
+        }
+    }
+    if out.image.as_os_str().is_empty() {
+        return Err(Error::invalid("output.image", "required: the EXR to write (`-o OUT.exr`, or `image` in `[output]`)"));
+    }
+    if !out.image.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr")) {
+        return Err(Error::invalid("output.image", format!("{} must end in .exr", out.image.display())));
+    }
+    positive_seconds("reading.read_timeout", job.reading.read_timeout)?;
+    if let Some(t) = r.cache_lock_timeout {
+        if !(t.is_finite() && t >= 0.0) {
+            return Err(Error::invalid("render.cache_lock_timeout", format!("{t} must be a number of seconds, 0 or more")));
+        }
+    }
+    let farm = &job.farm;
+    if let Some(list) = &farm.frames {
+        crate::frames::parse_frames(list).map_err(|m| Error::invalid("farm.frames", m))?;
+    }
+    if let Some(t) = farm.time_limit {
+        positive_seconds("farm.time_limit", t)?;
+    }
+    if farm.crop.is_some() && farm.tile.is_some() {
+        return Err(Error::invalid("farm.crop", "give farm.crop or farm.tile, not both"));
+    }
+    if let Some(c) = farm.crop {
+        if !c.fits(cam.width, cam.height) {
+            return Err(Error::invalid("farm.crop", format!("{c} is not inside the {}x{} image", cam.width, cam.height)));
+        }
+    }
+    if let Some(t) = farm.tile {
+        crate::split::tile_crop(t.index, t.count, cam.width, cam.height).map_err(|m| Error::invalid("farm.tile", m))?;
+    }
+    if let Some(range) = &farm.sample_range {
+        if r.spp.is_some() || r.time.is_some() {
+            return Err(Error::invalid("farm.sample_range", "give farm.sample_range or render.spp/render.time, not both"));
+        }
+        if range.end - range.start > u64::from(u32::MAX) {
+            return Err(Error::invalid("farm.sample_range", "at most 4294967295 samples per pixel in one run"));
+        }
+    }
+    Ok(())
 }

@@ -13,128 +13,15 @@
 
 use glam::{DAffine3, DVec3, IVec3};
 
+pub use crate::layout::{brick_local, brick_of, floor_div, brick_offset, Brick, BuildReport, PackedSlot, Slot, BRICK, MAX_TABLE_ENTRIES, NO_BRICK};
 use super::builder::slot_at;
 pub use super::builder::{check_same_transform, table_dims, BlockSink, BrickTableBuilder, BuiltTable, Channel};
 use super::field::{Bounds3, VoxelValues};
 use super::pyramid::Pyramid;
 use crate::out_of_core::storage::Buffer;
-use super::trilinear::dual::{corner_offset, window_index, window_slot, CORNER_STEP};
+use crate::trilinear::window::{corner_offset, window_index, window_slot, CORNER_STEP};
 use plume_core::error::{Error, Result};
 use crate::grid::FloatGrid;
-
-/// Brick edge in voxels.
-pub const BRICK: i32 = 8;
-
-/// Most brick-table entries plume will allocate (4 bytes each): 2³⁰, i.e. a bounding box
-/// of 8192³ voxels. Larger boxes are refused with a clear error rather than exhausting
-/// memory on a file whose few leaves lie far apart.
-pub const MAX_TABLE_ENTRIES: u64 = 1 << 30;
-
-/// Spread the 3 bits of `v` to positions 0, 3, 6.
-const fn spread3(v: i32) -> usize {
-    ((v & 1) | ((v & 2) << 2) | ((v & 4) << 4)) as usize
-}
-
-/// Offset of local voxel `(x, y, z)` (each in `0..8`) inside a stored brick: Morton
-/// (Z-order) interleaving `… z1 x0 y0 z0`, so one 64-byte cache line holds a 2×2×4 block
-/// and a ray in any direction touches a new line every 2–4 voxels rather than every
-/// voxel (OpenVDB's x-major order puts x-neighbours 256 bytes apart). Measured on random
-/// chords through a 256³ explosion: see `plume bench core` in the README.
-#[inline]
-#[must_use]
-pub const fn brick_offset(x: i32, y: i32, z: i32) -> usize {
-    (spread3(x & 7) << 2) | (spread3(y & 7) << 1) | spread3(z & 7)
-}
-
-/// Local voxel `(x, y, z)` at brick-order offset `i` (the inverse of [`brick_offset`]).
-#[must_use]
-pub const fn brick_local(i: usize) -> IVec3 {
-    const fn compact3(v: usize) -> i32 {
-        ((v & 1) | ((v >> 2) & 2) | ((v >> 4) & 4)) as i32
-    }
-    IVec3::new(compact3(i >> 2), compact3(i >> 1), compact3(i))
-}
-
-/// Marker for "no brick here" in the brick table.
-pub const NO_BRICK: u32 = u32::MAX;
-
-/// One channel of one brick, decoded: a constant or a block of the value array.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Slot {
-    /// All 512 voxels hold this value.
-    Constant(f32),
-    /// Values at `512·block .. 512·(block + 1)` of the value array, in [`brick_offset`] order.
-    Dense(u32),
-}
-
-/// A [`Slot`] as stored (in memory and in cache files): a tag and 32 bits of payload.
-/// Plain old data, so brick records can be mapped straight from a cache file; any bit
-/// pattern decodes to *some* slot (unknown tags read as constants), so a damaged file
-/// cannot make decoding undefined.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, bytemuck::Pod, bytemuck::Zeroable)]
-pub struct PackedSlot {
-    tag: u32,
-    bits: u32,
-}
-
-const TAG_CONSTANT: u32 = 0;
-const TAG_DENSE: u32 = 1;
-/// Only while building: the channel has not been given for this brick yet.
-const TAG_UNSET: u32 = 2;
-
-impl PackedSlot {
-    /// A constant slot.
-    #[must_use]
-    pub const fn constant(v: f32) -> PackedSlot {
-        PackedSlot { tag: TAG_CONSTANT, bits: v.to_bits() }
-    }
-
-    /// A dense slot holding value block `block`.
-    #[must_use]
-    pub const fn dense(block: u32) -> PackedSlot {
-        PackedSlot { tag: TAG_DENSE, bits: block }
-    }
-
-    /// A slot not yet assigned.
-    pub const UNSET: PackedSlot = PackedSlot { tag: TAG_UNSET, bits: 0 };
-
-    /// The decoded slot.
-    #[inline]
-    #[must_use]
-    pub fn get(self) -> Slot {
-        if self.tag == TAG_DENSE {
-            Slot::Dense(self.bits)
-        } else {
-            Slot::Constant(f32::from_bits(self.bits))
-        }
-    }
-}
-
-/// The three channels of one brick.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
-pub struct Brick {
-    /// Density channel.
-    pub density: PackedSlot,
-    /// Emission source channel.
-    pub source: PackedSlot,
-    /// Albedo-factor channel (`Constant(1.0)` without an albedo grid).
-    pub albedo: PackedSlot,
-}
-
-/// How input values were cleaned while building (METHOD policy: NaN, ±inf and negative
-/// voxels are clamped to 0 and counted, never passed on as NaN).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-pub struct BuildReport {
-    /// Density voxels that were NaN, infinite or negative, set to 0.
-    pub density_clamped: u64,
-    /// Source voxels that were NaN, infinite or negative (or below the emission cutoff after
-    /// mapping), set to 0. Voxels below the cutoff are not errors.
-    pub source_invalid: u64,
-    /// Albedo voxels outside `[0, 1]` (clamped) or NaN (set to 1).
-    pub albedo_clamped: u64,
-}
 
 /// A sparse brick volume in index space with its `world_from_index` transform.
 ///
@@ -166,16 +53,6 @@ pub struct Volume {
     /// Set by [`Volume::expect_read_ahead`]: the render reads ahead of its rays, and
     /// scattered segments read ahead of their lookups (`integrator::tracker`).
     pub reading_ahead: std::sync::atomic::AtomicBool,
-}
-
-fn floor_div(a: i32, b: i32) -> i32 {
-    a.div_euclid(b)
-}
-
-/// Brick coordinate of a voxel or leaf origin.
-#[must_use]
-pub fn brick_of(o: IVec3) -> IVec3 {
-    IVec3::new(floor_div(o.x, BRICK), floor_div(o.y, BRICK), floor_div(o.z, BRICK))
 }
 
 impl Volume {
@@ -254,8 +131,9 @@ impl Volume {
         }
     }
 
-    /// Assemble a volume from parts read from a cache file (`crate::cache`), which has
-    /// checked that the arrays are consistent with `dims` and each other.
+    /// Assemble a volume from parts read from a cache file ([`crate::out_of_core`]), which
+    /// has checked that the arrays are consistent with `dims` and each other.
+    // One argument per part of the volume, as the cache file stores them
     #[allow(clippy::too_many_arguments)]
     #[must_use]
     pub fn from_parts(
@@ -375,7 +253,7 @@ impl Volume {
     /// [`Volume::brick`] gives with its number in the brick array: the voxel bricks a dual
     /// brick's cells read. The table cell
     /// of `b` and the range checks are worked out once per axis, not once per brick (the
-    /// trilinear walk enters half a million dual bricks on kelvin40 at 160×120, 8 spp).
+    /// trilinear walk enters a dual brick every few cells it crosses).
     #[inline]
     pub fn brick_block(&self, b: IVec3) -> [Option<(u32, &Brick)>; 8] {
         let r = b - self.brick_lo;
@@ -421,16 +299,17 @@ impl Volume {
     /// Each brick the corners lie in is found once: one when all 8 lie in one brick (7
     /// cells in 8 along each axis), else 2, 4 or 8. A corner's brick and offset come from
     /// the table of the 9³ voxels a cell's corners can reach (`trilinear::dual`), not
-    /// from interleaving its coordinates' bits (the README demo: −3.5 % instructions).
+    /// from interleaving its coordinates' bits: one load instead of the bit arithmetic
+    /// (measured in docs/BENCHMARKS.md, "Interpolation").
     pub fn voxel_block(&self, cell: IVec3) -> [VoxelValues; 8] {
         let l = IVec3::new(cell.x.rem_euclid(BRICK), cell.y.rem_euclid(BRICK), cell.z.rem_euclid(BRICK));
         let b = IVec3::new(floor_div(cell.x, BRICK), floor_div(cell.y, BRICK), floor_div(cell.z, BRICK));
         let base = window_index(l);
         let edge = l.cmpeq(IVec3::splat(BRICK - 1)).bitmask() as usize;
         let read = |br: &Brick, o: usize| VoxelValues { density: slot_at(&self.values, br.density, o), source: slot_at(&self.values, br.source, o) };
-        // Plain loops: as `array::from_fn` the per-corner closure was at times left out of
-        // line, depending on how unrelated code fell into codegen units (the README demo:
-        // +3 % of its instructions; `docs/BENCHMARKS.md`, "Cost when unused, found")
+        // Plain loops: as `array::from_fn` the per-corner closure may be left out of line,
+        // depending on how unrelated code falls into codegen units (docs/BENCHMARKS.md,
+        // "Cost when unused, found")
         if edge == 0 {
             let mut out = [VoxelValues::ZERO; 8];
             if let Some(br) = self.brick(b) {

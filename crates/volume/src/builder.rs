@@ -6,7 +6,7 @@
 
 use glam::{DAffine3, IVec3};
 
-use super::brick::{brick_offset, Brick, BuildReport, PackedSlot, Slot, BRICK, MAX_TABLE_ENTRIES, NO_BRICK};
+use crate::layout::{brick_offset, Brick, BuildReport, PackedSlot, Slot, BRICK, MAX_TABLE_ENTRIES, NO_BRICK};
 use super::pyramid::NodeBounds;
 use plume_core::error::{Error, Result};
 use crate::grid::{leaf_offset, LEAF_VOXELS};

@@ -7,15 +7,15 @@
 //!
 //! **One walker, two lattices** ([`Cells`]). Cell `k` spans `[k − S, k + 1 − S]` along
 //! each axis, for a lattice shift `S`:
-//! - [`NearestVoxels`], `S = ½`: cell `k` is voxel `k`, `[k−½, k+½]`; a cell yields one
-//!   constant [`Segment`] (nearest reconstruction, [`VolumeSegments`]);
+//! - `nearest::NearestVoxels`, `S = ½`: cell `k` is voxel `k`, `[k−½, k+½]`; a cell yields one
+//!   constant [`Segment`] (nearest reconstruction, `nearest::VolumeSegments`);
 //! - the dual cells of trilinear reconstruction (`volume::trilinear`), `S = 0`: cell `i`
 //!   is `[i, i+1]`, between the voxel centres `i … i+1`, and yields a cubic piece.
 //!
 //! The dual walk is the voxel walk on the lattice shifted by ½ (`o' − ½` has the dual
 //! cells where `o'` has the voxels), so the same code serves both; `S` is a constant of
 //! the lattice type, and the walker is monomorphized for each, so the nearest walk does
-//! exactly the arithmetic it did before there were two.
+//! exactly the arithmetic of a walk written for voxels alone.
 //!
 //! Cells are grouped in 8³ bricks on a table with a min/max pyramid. On entering a brick
 //! the DDA asks the pyramid for the largest node around the current cell that is
@@ -39,8 +39,8 @@ use std::ops::ControlFlow;
 
 use glam::{DAffine3, DVec3, IVec3};
 
-use super::brick::{Brick, Volume, BRICK};
-use super::field::{clip_to_box, Bounds3, Field, Piece, Ray, RayGrid, Segment, SegmentIter, VoxelValues};
+use super::brick::{Volume, BRICK};
+use super::field::{clip_to_box, Bounds3, Piece, Ray, SegmentIter};
 use super::pyramid::{Level, NodeBounds};
 
 /// The table of 8³-cell bricks a lattice is grouped in, with its min/max pyramid.
@@ -95,9 +95,8 @@ pub trait Cells: Copy {
     /// The cells rays are clipped to (inside the table).
     fn cell_box(&self) -> CellBox;
     /// Fills `dense` with the data handles of table brick `brick` (brick coordinate), in
-    /// place: a dual brick's are some 500 bytes, which returning them by value copied
-    /// twice per brick entered (`memcpy` at 4 % of a linear ray-marched render's profile,
-    /// against 1.5 % without those copies). False when the brick has no data (then it is
+    /// place: a dual brick's are some 500 bytes, which returning them by value would copy
+    /// twice per brick entered, a visible share of a linear render's profile. False when the brick has no data (then it is
     /// crossed as empty, and `dense` holds anything).
     fn dense(&self, brick: IVec3, dense: &mut Self::Dense) -> bool;
     /// The piece of `line` over `[t0, t1]` inside cell `ijk` of the dense brick whose
@@ -197,9 +196,6 @@ pub struct CellWalk<C: Cells> {
     pending: Option<C::Piece>,
     raw_steps: u64,
 }
-
-/// The nearest-voxel walk over a [`Volume`]: constant [`Segment`]s.
-pub type VolumeSegments<'a> = CellWalk<NearestVoxels<'a>>;
 
 impl<C: Cells> CellWalk<C> {
     /// The pieces of `ray` within `[t_min, t_max]`, clipped to the lattice's cell box.
@@ -498,99 +494,6 @@ impl<C: Cells> SegmentIter for CellWalk<C> {
     }
 }
 
-/// The voxels of a [`Volume`] as a lattice ([`Cells`], shift ½): nearest reconstruction,
-/// one constant [`Segment`] per voxel or uniform node.
-#[derive(Clone, Copy, Debug)]
-pub struct NearestVoxels<'a> {
-    volume: &'a Volume,
-}
-
-impl<'a> NearestVoxels<'a> {
-    /// The voxels of `volume`.
-    #[must_use]
-    pub fn new(volume: &'a Volume) -> Self {
-        NearestVoxels { volume }
-    }
-}
-
-/// One voxel's values as the nearest walk reads them.
-#[derive(Clone, Copy, Debug)]
-pub struct VoxelCell {
-    density: f32,
-    source: f32,
-    /// 1 where density is 0.
-    albedo: f32,
-}
-
-impl Cells for NearestVoxels<'_> {
-    const SHIFT: f64 = 0.5;
-    type Piece = Segment;
-    type Dense = Brick;
-    type Cell = VoxelCell;
-
-    #[inline]
-    fn volume(&self) -> &Volume {
-        self.volume
-    }
-
-    #[inline]
-    fn table(&self) -> CellTable<'_> {
-        CellTable { brick_lo: self.volume.brick_lo, dims: self.volume.dims, levels: &self.volume.pyramid.levels }
-    }
-
-    #[inline]
-    fn cell_box(&self) -> CellBox {
-        CellBox { lo: self.volume.brick_lo * BRICK, hi: (self.volume.brick_lo + self.volume.dims) * BRICK }
-    }
-
-    #[inline]
-    fn dense(&self, brick: IVec3, dense: &mut Brick) -> bool {
-        let Some(b) = self.volume.brick(brick) else { return false };
-        *dense = *b;
-        true
-    }
-
-    #[inline]
-    fn dense_piece(&self, brick: &mut Brick, origin: IVec3, ijk: IVec3, t0: f64, t1: f64, _line: &IndexLine) -> Segment {
-        let l = ijk - origin;
-        let density = self.volume.slot_value(brick.density, l.x, l.y, l.z);
-        let source = self.volume.slot_value(brick.source, l.x, l.y, l.z);
-        let albedo = if density > 0.0 { self.volume.slot_value(brick.albedo, l.x, l.y, l.z) } else { 1.0 };
-        Segment { t0, t1, density, source, albedo }
-    }
-
-    #[inline]
-    fn uniform(node: &NodeBounds) -> VoxelCell {
-        VoxelCell { density: node.density_max, source: node.source_max, albedo: node.uniform_albedo() }
-    }
-
-    #[inline]
-    fn empty() -> VoxelCell {
-        VoxelCell { density: 0.0, source: 0.0, albedo: 1.0 }
-    }
-
-    #[inline]
-    fn piece(&self, cell: VoxelCell, t0: f64, t1: f64, _line: &IndexLine) -> Segment {
-        Segment { t0, t1, density: cell.density, source: cell.source, albedo: cell.albedo }
-    }
-
-    #[inline]
-    fn mergeable(_: &Segment) -> bool {
-        true
-    }
-
-    #[inline]
-    fn merge(into: &mut Segment, next: &Segment) -> bool {
-        let same = into.density.to_bits() == next.density.to_bits()
-            && into.source.to_bits() == next.source.to_bits()
-            && into.albedo.to_bits() == next.albedo.to_bits();
-        if same {
-            into.t1 = next.t1;
-        }
-        same
-    }
-}
-
 /// World-space axis-aligned bounds of the index-space box `index` under
 /// `world_from_index` (its 8 corners transformed).
 pub fn world_box(world_from_index: &DAffine3, index: Bounds3) -> Bounds3 {
@@ -606,43 +509,3 @@ pub fn world_box(world_from_index: &DAffine3, index: Bounds3) -> Bounds3 {
     Bounds3 { lo: wlo, hi: whi }
 }
 
-impl Field for Volume {
-    type Piece = Segment;
-    type Segments<'a> = VolumeSegments<'a>;
-
-    fn albedo_at(&self, p_world: DVec3) -> f32 {
-        self.voxel_albedo((self.index_from_world.transform_point3(p_world) + 0.5).floor().as_ivec3())
-    }
-
-    fn world_bounds(&self) -> Bounds3 {
-        world_box(&self.world_from_index, self.index_bounds())
-    }
-
-    fn segments(&self, ray: &Ray, t_min: f64, t_max: f64) -> VolumeSegments<'_> {
-        CellWalk::new(NearestVoxels::new(self), ray, t_min, t_max)
-    }
-
-    fn values_at(&self, p_world: DVec3) -> VoxelValues {
-        self.lookup_world(p_world)
-    }
-
-    fn prefetch(&self, grid: &RayGrid) -> u64 {
-        self.read_ahead(grid)
-    }
-
-    fn expect_prefetch(&self) {
-        self.expect_read_ahead();
-    }
-
-    fn is_mapped(&self) -> bool {
-        Volume::is_mapped(self)
-    }
-
-    fn data_bytes(&self) -> usize {
-        self.memory_bytes()
-    }
-
-    fn voxels(&self) -> Option<&Volume> {
-        Some(self)
-    }
-}

@@ -10,7 +10,7 @@
 
 use glam::IVec3;
 
-use super::brick::{BRICK, NO_BRICK};
+use crate::layout::{BRICK, NO_BRICK};
 use crate::out_of_core::storage::Buffer;
 
 /// Value bounds of one pyramid node.

@@ -55,7 +55,9 @@ use rayon::prelude::*;
 
 use super::buffered::{Answer, Answers, Ask, BufferedPoints, Request};
 use super::tracker::{PointLookup, Points};
-use super::volpath::{Bounces, Vertex};
+use super::aov::NoAovs;
+use super::path::{Bounces, PathState, Vertex};
+use super::trace::NoTrace;
 use super::counters::Counters;
 use super::scene::Scene;
 use super::volpath::Integrator;
@@ -195,7 +197,7 @@ impl PendingSample {
             // Only the first path not committed can have run from a later collision
             let (mut l, mut c) = path.partial.unwrap_or((self.l, Counters::default()));
             let mut resume = Resume { points: &buffered, enabled: in_order, last: None };
-            self.integrator.deferred_path(scene, &buffered, (path.vertex, &mut sampler, &mut resume), &mut c, &mut l);
+            self.integrator.deferred_path(scene, &buffered, path.vertex, PathState { sampler: &mut sampler, counters: &mut c, trace: &mut NoTrace, aovs: &mut NoAovs }, &mut resume, &mut l);
             let resume = resume.last;
             if buffered.gave_up.get() {
                 // Traced directly at the end: nothing of it is asked for or kept
@@ -240,7 +242,7 @@ impl PendingSample {
                 self.l = l;
                 counters.merge(&c);
             }
-            self.integrator.direct_path(scene, (path.vertex, &mut sampler), &mut counters, &mut self.l);
+            self.integrator.direct_path(scene, path.vertex, PathState { sampler: &mut sampler, counters: &mut counters, trace: &mut NoTrace, aovs: &mut NoAovs }, &mut self.l);
         }
         self.next = self.paths.len();
         counters
@@ -282,10 +284,12 @@ const RERUN_BATCH: usize = 2048;
 /// tile-major pass, rounds included).
 pub(crate) fn finish<F: Field>(
     scene: &Scene<F>,
-    (pool, memory): (&rayon::ThreadPool, Option<u64>),
+    pool: &rayon::ThreadPool,
+    memory: Option<u64>,
     film: &mut Film,
     mut pending: Vec<PendingSample>,
-    (lookup, abandon): (PointLookup, &(dyn Fn() -> bool + Sync)),
+    lookup: PointLookup,
+    abandon: &(dyn Fn() -> bool + Sync),
 ) -> Option<Counters> {
     let mut counters = Counters { deferred_samples: pending.len() as u64, ..Counters::default() };
     let most = memory.map_or(usize::MAX, |m| usize::try_from(m / BYTES_PER_LOOKUP).unwrap_or(usize::MAX).max(1 << 16));

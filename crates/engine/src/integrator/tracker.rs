@@ -20,7 +20,7 @@
 pub use plume_scene::sets::{PointLookup, Tracking};
 use super::buffered::{Ask, BufferedPoints, Request};
 use crate::medium::emission::EmissionMemo;
-use crate::medium::forced::Forced;
+use crate::medium::forced::SplitFirsts;
 use crate::medium::null_tracking::{null_track, ratio_transmittance, PointField, PointSample};
 use crate::medium::tracking::{optical_depth, track_split, OpticalDepth};
 use crate::medium::{track, Collision, Estimator, Medium, TrackResult};
@@ -257,6 +257,7 @@ impl PointField for Recorder {
 /// path's next segment is recorded as if this one had no real collision, which in thin
 /// media it mostly has not (a guess, checked when the path is rerun). Kept out of
 /// [`Tracker::track`], whose other arms the compiler then inlines as before.
+// Each argument is a distinct input of the walk (randomness stays an argument: STYLE §3)
 #[allow(clippy::too_many_arguments)]
 #[inline(never)]
 fn track_deferred(
@@ -265,7 +266,8 @@ fn track_deferred(
     medium: &Medium,
     ray: &Ray,
     t_max: f64,
-    (estimator, need_collision): (Estimator, bool),
+    estimator: Estimator,
+    need_collision: bool,
     u: f64,
     sampler: &mut Sampler,
 ) -> TrackResult {
@@ -285,25 +287,28 @@ impl<F: Field> Tracker<'_, F> {
     /// tracking forces the collision, their first vertices are appended to `firsts`
     /// (`medium::tracking::track_split`); null collisions draw the analog collision,
     /// which the paths share, and leave `firsts` as it is.
+    // Each argument is a distinct input of the walk (randomness stays an argument: STYLE §3)
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn track_split(
         &self,
         medium: &Medium,
         ray: &Ray,
         t_max: f64,
-        (estimator, collision): (Estimator, Collision),
+        estimator: Estimator,
+        collision: Collision,
         u: f64,
         sampler: &mut Sampler,
-        paths: (u32, &mut Vec<Forced>),
+        split: SplitFirsts<'_>,
     ) -> TrackResult {
         match *self {
-            Tracker::Regular(field) => track_split(field, medium, ray, t_max, (estimator, collision), u, sampler, paths),
+            Tracker::Regular(field) => track_split(field, medium, ray, t_max, estimator, collision, u, sampler, split),
             _ => self.track(medium, ray, t_max, estimator, collision, u, sampler),
         }
     }
 
     /// A free path and the estimator's emission along `ray` over `[0, t_max]`
     /// ([`track`] or [`null_track`]).
+    // Each argument is a distinct input of the walk (randomness stays an argument: STYLE §3)
     #[allow(clippy::too_many_arguments)]
     #[inline]
     pub fn track(&self, medium: &Medium, ray: &Ray, t_max: f64, estimator: Estimator, collision: Collision, u: f64, sampler: &mut Sampler) -> TrackResult {
@@ -321,7 +326,7 @@ impl<F: Field> Tracker<'_, F> {
                 }
                 null_track(majorants, &points, medium, ray, t_max, estimator, need_collision, u, sampler)
             }
-            Tracker::Deferred { majorants, points } => track_deferred(majorants, points, medium, ray, t_max, (estimator, need_collision), u, sampler),
+            Tracker::Deferred { majorants, points } => track_deferred(majorants, points, medium, ray, t_max, estimator, need_collision, u, sampler),
             Tracker::Moving { field, motion, time, lookup } => null_track(
                 &motion.majorants,
                 &Points::new(field, medium, Some((motion, time)), lookup),

@@ -72,15 +72,13 @@ use plume_scene::{LightSampling, MisHeuristic};
 use plume_scene::SplitBy;
 use super::tracker::Tracker;
 use plume_scene::{PointLookup, Tracking};
-use crate::light::fnee::ProxySampling;
-use crate::light::external::{ChosenLight, ExternalLights};
-use crate::medium::tracking::emission_at_point;
-use crate::medium::{Collision, DistanceSample, Estimator, Medium};
-use plume_core::sampling::phase::{hg_pdf, sample_hg};
+use crate::medium::forced::SplitFirsts;
+use crate::medium::{Collision, DistanceSample, Estimator};
 use plume_core::sampling::{Dim, Sampler};
-use plume_volume::field::{Field, PointValues, Ray};
+use plume_volume::field::{Field, Ray};
 
 use super::counters::Counters;
+use super::path::{contribute, Bounces, NoBounces, PathState, Vertex};
 use super::scene::Scene;
 use super::trace::{NoTrace, Trace};
 
@@ -129,63 +127,6 @@ pub struct Integrator {
     pub point_lookup: PointLookup,
 }
 
-/// The MIS weight owed to a forward segment's emission.
-#[derive(Clone, Copy, Debug)]
-enum ForwardWeight {
-    /// No partner technique: full weight.
-    One,
-    /// Another technique carries this emission.
-    Zero,
-    /// FNEE partner: `w(p_phase, p_σ(ω))`, evaluated only if the segment collects emission.
-    Fnee {
-        /// Phase pdf of the segment's direction.
-        p_phase: f64,
-    },
-}
-
-/// A collision a scattered path starts from: at `incoming.at(t)`, in a segment with
-/// albedo factor `albedo`, carrying throughput `beta` (before the albedo) of a path whose
-/// nominal weight is `scale`, after `depth` earlier collisions of the path.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct Vertex {
-    incoming: Ray,
-    t: f64,
-    albedo: f32,
-    beta: f64,
-    /// 1, or `1/n` for one of `n` split paths: roulette keeps `β` near it.
-    scale: f64,
-    /// Collisions of the path before this one (0 at the camera segment's).
-    depth: u32,
-}
-
-/// Told where a scattered path stands at each collision it bounces from, before the
-/// bounce: the vertex, the sampler, the radiance so far and the counters. Continuing
-/// from there gives the rest of the path, bit for bit (deferred paths resume from the
-/// last collision whose past they could walk: `integrator::deferred`).
-pub(crate) trait Bounces {
-    /// The path is about to bounce at `vertex`.
-    fn at(&mut self, vertex: Vertex, sampler: &Sampler, l: &[f64; 3], c: &Counters);
-}
-
-/// No one is told (every path but a deferred one's).
-pub(crate) struct NoBounces;
-
-impl Bounces for NoBounces {
-    #[inline(always)]
-    fn at(&mut self, _vertex: Vertex, _sampler: &Sampler, _l: &[f64; 3], _c: &Counters) {}
-}
-
-/// Add `w · e` to the radiance and to its AOV component.
-#[inline]
-fn contribute<A: Aovs>(l: &mut [f64; 3], aovs: &mut A, component: Component, w: f64, e: [f64; 3]) {
-    if w != 0.0 {
-        for (a, v) in l.iter_mut().zip(e) {
-            *a += w * v;
-        }
-        aovs.add(component, w, e);
-    }
-}
-
 impl Integrator {
     /// The camera segment's emission estimator.
     #[inline]
@@ -223,22 +164,14 @@ impl Integrator {
 
     /// Radiance `[r, g, b]` and alpha along a camera ray.
     pub fn li<F: Field, T: Trace>(&self, scene: &Scene<F>, camera_ray: &Ray, sampler: &mut Sampler, c: &mut Counters, trace: &mut T) -> [f64; 4] {
-        self.li_aovs(scene, camera_ray, sampler, (None, c), trace, &mut NoAovs)
+        self.li_aovs(scene, camera_ray, None, PathState { sampler, counters: c, trace, aovs: &mut NoAovs })
     }
 
     /// [`Integrator::li`] at shutter time `time` (seconds; drawn here when the scene moves
     /// and it is `None`), also handing every contribution to `aovs` by its component
     /// (`integrator::aov`). With `None` and [`NoAovs`] this is `li`.
-    pub fn li_aovs<F: Field, T: Trace, A: Aovs>(
-        &self,
-        scene: &Scene<F>,
-        camera_ray: &Ray,
-        sampler: &mut Sampler,
-        (time, c): (Option<f64>, &mut Counters),
-        trace: &mut T,
-        aovs: &mut A,
-    ) -> [f64; 4] {
-        self.li_camera(scene, camera_ray, sampler, (time, c), (trace, aovs), None)
+    pub fn li_aovs<F: Field, T: Trace, A: Aovs>(&self, scene: &Scene<F>, camera_ray: &Ray, time: Option<f64>, state: PathState<'_, T, A>) -> [f64; 4] {
+        self.li_camera(scene, camera_ray, time, state, None)
     }
 
     /// [`Integrator::li`] up to the camera segment's collision: the scattered paths that
@@ -249,11 +182,11 @@ impl Integrator {
         &self,
         scene: &Scene<F>,
         camera_ray: &Ray,
-        sampler: &mut Sampler,
-        (time, c): (Option<f64>, &mut Counters),
+        time: Option<f64>,
+        state: PathState<'_, NoTrace, NoAovs>,
         paths: &mut Vec<(Vertex, Sampler)>,
     ) -> [f64; 4] {
-        self.li_camera(scene, camera_ray, sampler, (time, c), (&mut NoTrace, &mut NoAovs), Some(paths))
+        self.li_camera(scene, camera_ray, time, state, Some(paths))
     }
 
     /// Whether the paths of `scene` can be deferred (`integrator::deferred`): they
@@ -279,8 +212,9 @@ impl Integrator {
         &self,
         scene: &Scene<F>,
         points: &BufferedPoints<'_>,
-        (vertex, sampler, bounces): (Vertex, &mut Sampler, &mut impl Bounces),
-        c: &mut Counters,
+        vertex: Vertex,
+        mut state: PathState<'_, NoTrace, NoAovs>,
+        bounces: &mut impl Bounces,
         l: &mut [f64; 3],
     ) {
         let Some(majorants) = scene.majorants.as_ref() else {
@@ -288,14 +222,14 @@ impl Integrator {
             return;
         };
         let tracker = Tracker::Deferred { majorants, points };
-        self.scattered_path(scene, &tracker, vertex, sampler, (c, &mut NoTrace, bounces), (l, &mut NoAovs));
+        self.scattered_path(scene, &tracker, vertex, &mut state, bounces, l);
     }
 
     /// A deferred path traced directly, reading the volume as [`Integrator::li`] would.
-    pub(crate) fn direct_path<F: Field>(&self, scene: &Scene<F>, (vertex, sampler): (Vertex, &mut Sampler), c: &mut Counters, l: &mut [f64; 3]) {
+    pub(crate) fn direct_path<F: Field>(&self, scene: &Scene<F>, vertex: Vertex, mut state: PathState<'_, NoTrace, NoAovs>, l: &mut [f64; 3]) {
         // Deferred paths are of a still volume (`defers`)
         let tracker = self.still_tracker(scene, self.tracking.null_after_scattering(), self.point_lookup);
-        self.scattered_path(scene, &tracker, vertex, sampler, (c, &mut NoTrace, &mut NoBounces), (l, &mut NoAovs));
+        self.scattered_path(scene, &tracker, vertex, &mut state, &mut NoBounces, l);
     }
 
     /// [`Integrator::li_aovs`], or with `defer`, up to the camera segment's collision
@@ -305,20 +239,19 @@ impl Integrator {
         &self,
         scene: &Scene<F>,
         camera_ray: &Ray,
-        sampler: &mut Sampler,
-        (time, c): (Option<f64>, &mut Counters),
-        (trace, aovs): (&mut T, &mut A),
+        time: Option<f64>,
+        mut state: PathState<'_, T, A>,
         mut defer: Option<&mut Vec<(Vertex, Sampler)>>,
     ) -> [f64; 4] {
         let m = &scene.medium;
         let mut l = [0.0f64; 3];
         let scatters = m.albedo > 0.0 && self.max_depth > 0;
         let external = scene.lights.external.as_ref();
-        let (camera, tracker) = self.trackers(scene, time, sampler);
+        let (camera, tracker) = self.trackers(scene, time, state.sampler);
         // The camera segment ends at the first sphere light it hits (they are opaque)
         let hit = external.and_then(|e| e.hit(camera_ray));
         let t_max = hit.map_or(f64::INFINITY, |(t, _)| t);
-        let u = sampler.get_1d(Dim::FreePath);
+        let u = state.sampler.get_1d(Dim::FreePath);
         // The depth layer wants the camera ray's first collision (ray-march draws it
         // with the same number; nothing else changes). A forced collision has the analog
         // one's law given that one happens, so the layer's mean depth is the same.
@@ -332,14 +265,14 @@ impl Integrator {
         let paths = if scatters { self.split.max(1) } else { 1 };
         let mut firsts = Vec::new();
         let r = if paths > 1 {
-            camera.track_split(m, camera_ray, t_max, (self.camera_estimator(), collision), u, sampler, (paths, &mut firsts))
+            camera.track_split(m, camera_ray, t_max, self.camera_estimator(), collision, u, state.sampler, SplitFirsts { paths, firsts: &mut firsts })
         } else {
-            camera.track(m, camera_ray, t_max, self.camera_estimator(), collision, u, sampler)
+            camera.track(m, camera_ray, t_max, self.camera_estimator(), collision, u, state.sampler)
         };
-        c.segments += u64::from(r.segments);
-        c.voxel_steps += r.voxel_steps;
-        contribute(&mut l, aovs, Component::Emission, 1.0, r.emission);
-        trace.event(|| {
+        state.counters.segments += u64::from(r.segments);
+        state.counters.voxel_steps += r.voxel_steps;
+        contribute(&mut l, state.aovs, Component::Emission, 1.0, r.emission);
+        state.trace.event(|| {
             format!(
                 "segment depth 0: origin {:?} dir {:?} -> {:?} (weight {}), F {:?}, w_fwd 1, beta 1, tau {}",
                 camera_ray.origin, camera_ray.direction, r.event, r.collision_weight, r.emission, r.transmittance
@@ -347,13 +280,13 @@ impl Integrator {
         });
         let alpha = 1.0 - r.transmittance;
         if let (true, DistanceSample::Collided { t, .. }) = (A::ON, r.event) {
-            aovs.first_collision(t);
+            state.aovs.first_collision(t);
         }
         if let Some(e) = external.filter(|e| r.transmittance != 0.0 && e.reachable()) {
             // The lights this segment reaches (no light sampling partner on camera rays)
             e.arriving(camera_ray, hit.map(|(_, i)| i), None, self.mis, |i, w, radiance| {
-                contribute(&mut l, aovs, Component::Light(e.group(i)), r.transmittance * w, radiance);
-                trace.event(|| format!("  reaches light {i}: L {radiance:?}, w {w}, tau {}", r.transmittance));
+                contribute(&mut l, state.aovs, Component::Light(e.group(i)), r.transmittance * w, radiance);
+                state.trace.event(|| format!("  reaches light {i}: L {radiance:?}, w {w}, tau {}", r.transmittance));
             });
         }
         if let (true, DistanceSample::Collided { t, albedo, .. }) = (scatters, r.event) {
@@ -367,25 +300,25 @@ impl Integrator {
             let vertex = Vertex { incoming: *camera_ray, t, albedo, beta: scale * r.collision_weight, scale, depth: 0 };
             for k in 0..n {
                 if n > 1 {
-                    trace.event(|| format!("split path {} of {n}", k + 1));
+                    state.trace.event(|| format!("split path {} of {n}", k + 1));
                 }
                 let vertex = match firsts.get(k as usize).map(|first| first.event) {
                     Some(DistanceSample::Collided { t, albedo, .. }) => {
-                        trace.event(|| format!("  first vertex at t {t}"));
+                        state.trace.event(|| format!("  first vertex at t {t}"));
                         Vertex { t, albedo, ..vertex }
                     }
                     _ => vertex,
                 };
                 // One path (n = 1) draws the sample's own numbers: `split` is then a copy
-                let mut path_sampler = sampler.split(k, n);
+                let mut path_sampler = state.sampler.split(k, n);
                 if let Some(paths) = defer.as_deref_mut() {
                     paths.push((vertex, path_sampler));
                     continue;
                 }
-                self.scattered_path(scene, &tracker, vertex, &mut path_sampler, (&mut *c, &mut *trace, &mut NoBounces), (&mut l, &mut *aovs));
+                self.scattered_path(scene, &tracker, vertex, &mut state.with_sampler(&mut path_sampler), &mut NoBounces, &mut l);
             }
         }
-        trace.event(|| format!("result L {l:?} alpha {alpha}"));
+        state.trace.event(|| format!("result L {l:?} alpha {alpha}"));
         [l[0], l[1], l[2], alpha]
     }
 
@@ -415,196 +348,6 @@ impl Integrator {
         match &scene.majorants {
             Some(majorants) if use_null && Tracking::applies(self.estimator, self.light_sampling) => Tracker::Null { field: &scene.field, majorants, lookup },
             _ => Tracker::Regular(&scene.field),
-        }
-    }
-
-    /// The path from a collision on: at each vertex light sampling, Russian roulette and
-    /// the phase function's next direction, then the next segment's emission, until the
-    /// path escapes, is absorbed or reaches the largest depth. Adds to `l` and `aovs`.
-    #[allow(clippy::too_many_lines)]
-    fn scattered_path<F: Field, T: Trace, B: Bounces, A: Aovs>(
-        &self,
-        scene: &Scene<F>,
-        tracker: &Tracker<'_, F>,
-        vertex: Vertex,
-        sampler: &mut Sampler,
-        (c, trace, bounces): (&mut Counters, &mut T, &mut B),
-        (l, aovs): (&mut [f64; 3], &mut A),
-    ) {
-        let m = &scene.medium;
-        let lights = &scene.lights;
-        let external = lights.external.as_ref();
-        let point_nee = self.light_sampling == LightSampling::Nee && self.estimator == Estimator::Point;
-        let Vertex { incoming: mut ray, mut t, mut albedo, mut beta, scale, mut depth } = vertex;
-        loop {
-            bounces.at(Vertex { incoming: ray, t, albedo, beta, scale, depth }, sampler, l, c);
-            c.collisions += 1;
-            depth += 1;
-            // Scattering albedo of the collision's own segment (METHOD §10.3)
-            beta *= f64::from(m.albedo * albedo);
-            if beta == 0.0 {
-                break; // absorbed: nothing more to carry
-            }
-            let x = ray.at(t);
-            // Sample the volume light at x
-            sampler.start_light_segment(depth);
-            match self.light_sampling {
-                LightSampling::Fnee => {
-                    if let Some(proxy) = &lights.proxy {
-                        let u_cell = sampler.get_1d(Dim::LightChoice);
-                        let u_pos = sampler.get_3d(Dim::LightPosition);
-                        if let Some(wi) = proxy.sample_direction_only(x, u_cell, u_pos) {
-                            c.fnee_samples += 1;
-                            let u2 = sampler.get_1d(Dim::FreePath);
-                            let rl = tracker.track(m, &Ray { origin: x, direction: wi }, f64::INFINITY, self.estimator, Collision::Skip, u2, sampler);
-                            c.segments += u64::from(rl.segments);
-                            c.voxel_steps += rl.voxel_steps;
-                            // p_σ only when the free path collected emission
-                            if rl.emission.iter().any(|&v| v != 0.0) {
-                                let p_sigma = proxy.direction_pdf(x, wi);
-                                if p_sigma > 0.0 {
-                                    let f = hg_pdf(m.g, ray.direction.dot(wi));
-                                    let w_l = self.mis.weight(p_sigma, f);
-                                    contribute(l, aovs, Component::Scattered, beta * f * w_l / p_sigma, rl.emission);
-                                    trace.event(|| format!("  fnee: dir {wi:?} p_sigma {p_sigma} f {f} w {w_l} F {:?}", rl.emission));
-                                }
-                            }
-                        }
-                    }
-                }
-                LightSampling::Nee => {
-                    if let (Some(nee), Some(voxels)) = (&lights.nee, scene.field.voxels()) {
-                        let u_voxel = sampler.get_1d(Dim::LightChoice);
-                        let u_pos = sampler.get_3d(Dim::LightPosition);
-                        let vs = nee.sample(voxels, u_voxel, u_pos);
-                        let d = vs.p_world - x;
-                        let r2 = d.length_squared();
-                        if r2 > 0.0 {
-                            c.nee_samples += 1;
-                            let dist = r2.sqrt();
-                            let wi = d / dist;
-                            // (Classic NEE is refused with motion blur: its table is the frame's)
-                            let (tau, n) = tracker.transmittance(m, &Ray { origin: x, direction: wi }, dist, sampler);
-                            c.voxel_steps += n;
-                            if tau > 0.0 {
-                                // L_e and ρ at y as the field reconstructs them (the table's
-                                // pdf follows the same reconstruction: light/nee.rs)
-                                let PointValues { density: dy, emission: le, .. } = emission_at_point(&scene.field, m, vs.p_world);
-                                let f = hg_pdf(m.g, ray.direction.dot(wi));
-                                let w_l = if point_nee { self.mis.weight(vs.pdf, f * m.mu_t(dy) * tau / r2) } else { 1.0 };
-                                contribute(l, aovs, Component::Scattered, beta * f * tau * w_l / (vs.pdf * r2), le);
-                                trace.event(|| format!("  nee: y {:?} p_V {} tau {tau} f {f} w {w_l} L_e {le:?}", vs.p_world, vs.pdf));
-                            }
-                        }
-                    }
-                }
-                LightSampling::None => {}
-            }
-            // Sample the external lights at x (a strategy of their own)
-            if let Some(e) = external {
-                self.sample_external((m, tracker), e, x, ray.direction, beta, sampler, (c, trace), (l, &mut *aovs));
-            }
-            // Russian roulette after this segment's emission
-            sampler.start_vertex(depth);
-            let q = (beta / (scale * ROULETTE_THRESHOLD)).min(1.0);
-            if q < 1.0 {
-                if sampler.get_1d(Dim::Roulette) >= q {
-                    trace.event(|| format!("  roulette: terminated (q {q})"));
-                    break;
-                }
-                beta /= q;
-            }
-            // Sample the phase function for the next direction (f/p = 1)
-            let ps = sample_hg(m.g, ray.direction, sampler.get_2d(Dim::Direction));
-            ray = Ray { origin: x, direction: ps.direction };
-            // MIS weight of the new segment, evaluated only if it collects emission: `p_σ`
-            // needs a proxy walk, and the weight of a zero F is irrelevant
-            let w_fwd = match self.light_sampling {
-                LightSampling::None => ForwardWeight::One,
-                LightSampling::Fnee if lights.proxy.is_some() => ForwardWeight::Fnee { p_phase: ps.pdf },
-                LightSampling::Fnee => ForwardWeight::One,
-                LightSampling::Nee if point_nee => ForwardWeight::One, // weighted at the collision
-                LightSampling::Nee if lights.nee.is_some() => ForwardWeight::Zero,
-                LightSampling::Nee => ForwardWeight::One,
-            };
-            // The next segment, which ends at the first sphere light it hits
-            let need_collision = depth < self.max_depth;
-            let hit = external.and_then(|e| e.hit(&ray));
-            let t_max = hit.map_or(f64::INFINITY, |(t, _)| t);
-            let u = sampler.get_1d(Dim::FreePath);
-            let collision = if need_collision { Collision::Analog } else { Collision::Skip };
-            let r = tracker.track(m, &ray, t_max, self.estimator, collision, u, sampler);
-            c.segments += u64::from(r.segments);
-            c.voxel_steps += r.voxel_steps;
-            // Add emission along the segment
-            let has_emission = r.emission.iter().any(|&v| v != 0.0);
-            let mut w = match w_fwd {
-                ForwardWeight::One => 1.0,
-                ForwardWeight::Zero => 0.0,
-                ForwardWeight::Fnee { p_phase } if has_emission => {
-                    lights.proxy.as_ref().map_or(1.0, |p| self.mis.weight(p_phase, p.direction_pdf(ray.origin, ray.direction)))
-                }
-                ForwardWeight::Fnee { .. } => 0.0,
-            };
-            if let (true, Some(nee), Some(voxels), DistanceSample::Collided { t, density, .. }) =
-                (point_nee, lights.nee.as_ref(), scene.field.voxels(), r.event)
-            {
-                // MIS in volume measure against NEE at the collision point
-                let p_fwd = ps.pdf * m.mu_t(density) * (-r.optical_depth).exp() / (t * t);
-                w = self.mis.weight(p_fwd, nee.pdf(voxels, ray.at(t)));
-            }
-            contribute(l, aovs, Component::Scattered, beta * w, r.emission);
-            trace.event(|| {
-                format!(
-                    "segment depth {depth}: origin {:?} dir {:?} -> {:?}, F {:?}, w_fwd {w}, beta {beta}, tau {}",
-                    ray.origin, ray.direction, r.event, r.emission, r.transmittance
-                )
-            });
-            if let Some(e) = external.filter(|e| r.transmittance != 0.0 && e.reachable()) {
-                // The lights this segment reaches, each weighted against light sampling
-                let weight = beta * r.transmittance;
-                e.arriving(&ray, hit.map(|(_, i)| i), Some(ps.pdf), self.mis, |i, w, radiance| {
-                    contribute(l, aovs, Component::Light(e.group(i)), weight * w, radiance);
-                    trace.event(|| format!("  reaches light {i}: L {radiance:?}, w {w}, tau {}", r.transmittance));
-                });
-            }
-            let DistanceSample::Collided { t: tc, albedo: ac, .. } = r.event else { break };
-            if !need_collision {
-                break;
-            }
-            (t, albedo) = (tc, ac);
-        }
-    }
-
-    /// Light sampling of the external lights at collision `x` reached along `incoming`:
-    /// `L += β f τ L_i w(P_i p_i, f) / (P_i p_i)` with the tracker's shadow transmittance
-    /// (exact, or ratio tracking's unbiased estimate)
-    /// (`light::external`).
-    #[allow(clippy::too_many_arguments)]
-    fn sample_external<F: Field, T: Trace, A: Aovs>(
-        &self,
-        (m, tracker): (&Medium, &Tracker<'_, F>),
-        lights: &ExternalLights,
-        x: glam::DVec3,
-        incoming: glam::DVec3,
-        beta: f64,
-        sampler: &mut Sampler,
-        (c, trace): (&mut Counters, &mut T),
-        (l, aovs): (&mut [f64; 3], &mut A),
-    ) {
-        let u_choice = sampler.get_1d(Dim::ExternalLightChoice);
-        let u = sampler.get_2d(Dim::ExternalLightDirection);
-        let Some(ChosenLight { index, pmf, sample: s }) = lights.sample(x, u_choice, u) else { return };
-        c.external_light_samples += 1;
-        let f = hg_pdf(m.g, incoming.dot(s.direction));
-        let (tau, n) = tracker.transmittance(m, &Ray { origin: x, direction: s.direction }, s.distance, sampler);
-        c.voxel_steps += n;
-        if tau > 0.0 {
-            let w = if s.pdf > 0.0 { self.mis.weight(pmf * s.pdf, f) } else { 1.0 };
-            contribute(l, aovs, Component::Light(lights.group(index)), beta * f * tau * w / pmf, s.value);
-            trace.event(|| {
-                format!("  light {index}: dir {:?} dist {} pmf {pmf} pdf {} tau {tau} f {f} w {w} L/p {:?}", s.direction, s.distance, s.pdf, s.value)
-            });
         }
     }
 }

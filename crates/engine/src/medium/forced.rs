@@ -54,6 +54,16 @@ use plume_volume::field::Piece;
 /// gave the same error at every budget, 4 a few per cent less CPU.
 pub const BOOST: f64 = 4.0;
 
+/// The split paths of a forced camera collision: how many, and where their first vertices
+/// go (one stratum of the collision law each; "Split paths start apart").
+#[derive(Debug)]
+pub(crate) struct SplitFirsts<'a> {
+    /// Paths leaving the collision.
+    pub(crate) paths: u32,
+    /// Their first vertices, appended by the walk.
+    pub(crate) firsts: &'a mut Vec<Forced>,
+}
+
 /// The pieces of a forced walk with positive collision mass, and the running sum of their
 /// masses.
 pub(crate) struct ForcedCollision<P> {
@@ -150,7 +160,7 @@ mod tests {
         let mut firsts = Vec::new();
         let mut sampler = Sampler::new(seed, 0, i);
         let u = sampler.next_f64();
-        let r = track_split(field, medium, ray, f64::INFINITY, (Estimator::RayMarch, Collision::Forced), u, &mut sampler, (n, &mut firsts));
+        let r = track_split(field, medium, ray, f64::INFINITY, Estimator::RayMarch, Collision::Forced, u, &mut sampler, SplitFirsts { paths: n, firsts: &mut firsts });
         (firsts, r)
     }
 

@@ -133,6 +133,7 @@ fn add(f: &mut [f64; 3], e: [f64; 3], w: f64) {
 ///
 /// # Panics
 /// For [`Estimator::Blend`] (refused when the scene is built).
+// Each argument is a distinct input of the walk (randomness stays an argument: STYLE §3)
 #[allow(clippy::too_many_arguments)]
 pub fn null_track(
     majorants: &MajorantGrid,

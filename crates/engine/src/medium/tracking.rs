@@ -21,7 +21,7 @@ use std::ops::ControlFlow;
 
 use plume_core::color::Rgb;
 use crate::medium::emission::{EmissionMemo, LeTask};
-use crate::medium::forced::{Collision, Forced, ForcedCollision};
+use crate::medium::forced::{Collision, ForcedCollision, SplitFirsts};
 use super::coefficients::Medium;
 pub use super::free_path::{analog_collision, phi, sample_exponential, DistanceSample, TrackResult, RAY_MARCH_ROULETTE_THRESHOLD};
 use plume_core::sampling::Sampler;
@@ -40,7 +40,7 @@ fn add(acc: &mut [f64; 3], le: Rgb, w: f64) {
 /// [`Collision::Skip`] (no scattering), ray-march does not locate the collision; with
 /// [`Collision::Forced`] it forces one (`medium::forced`), and the other estimators draw
 /// it as [`Collision::Analog`].
-// Each argument is a distinct input of the estimator; randomness stays an argument (STYLE §3).
+// Each argument is a distinct input of the estimator (randomness stays an argument: STYLE §3)
 #[allow(clippy::too_many_arguments)]
 pub fn track<F: Field>(
     field: &F,
@@ -65,19 +65,21 @@ pub fn track<F: Field>(
 /// first vertices of `paths` split paths appended to `firsts`, one stratum of the
 /// collision law each (`medium::forced`, "Split paths start apart"); `firsts` stays as
 /// it is where the walk does not force or does not collide. The result is [`track`]'s.
+// Each argument is a distinct input of the walk (randomness stays an argument: STYLE §3)
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn track_split<F: Field>(
     field: &F,
     medium: &Medium,
     ray: &Ray,
     t_max: f64,
-    (estimator, collision): (Estimator, Collision),
+    estimator: Estimator,
+    collision: Collision,
     u: f64,
     sampler: &mut Sampler,
-    (paths, firsts): (u32, &mut Vec<Forced>),
+    split: SplitFirsts<'_>,
 ) -> TrackResult {
     if estimator == Estimator::RayMarch && collision == Collision::Forced {
-        track_expected::<F, true>(field, medium, ray, t_max, collision, u, sampler, Some((paths, firsts)))
+        track_expected::<F, true>(field, medium, ray, t_max, collision, u, sampler, Some(split))
     } else {
         track(field, medium, ray, t_max, estimator, collision, u, sampler)
     }
@@ -258,6 +260,7 @@ fn free_path_polynomial<P: Piece>(
     None
 }
 
+// Each argument is a distinct input of the walk (randomness stays an argument: STYLE §3)
 #[allow(clippy::too_many_arguments)]
 fn track_expected<F: Field, const FORCED: bool>(
     field: &F,
@@ -267,7 +270,7 @@ fn track_expected<F: Field, const FORCED: bool>(
     collision: Collision,
     u: f64,
     sampler: &mut Sampler,
-    split: Option<(u32, &mut Vec<Forced>)>,
+    split: Option<SplitFirsts<'_>>,
 ) -> TrackResult {
     let memo = EmissionMemo::new(&medium.emission);
     // The analog free path is drawn on the way; a forced one once the walk is done
@@ -368,7 +371,7 @@ fn track_expected<F: Field, const FORCED: bool>(
     let mut optical_depth = if matches!(event, DistanceSample::Collided { .. }) { e } else { od };
     let mut collision_weight = 1.0;
     if let Some(forced) = forced {
-        if let Some((paths, firsts)) = split {
+        if let Some(SplitFirsts { paths, firsts }) = split {
             forced.draw_split(medium, u, paths, firsts);
         }
         if let Some(drawn) = forced.draw(medium, u) {

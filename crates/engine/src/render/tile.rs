@@ -6,6 +6,7 @@ use crate::film::Tile;
 use crate::integrator::aov::{AovSample, Aovs, NoAovs};
 use crate::integrator::counters::Counters;
 use crate::integrator::deferred::PendingSample;
+use crate::integrator::path::PathState;
 use crate::integrator::scene::Scene;
 use crate::integrator::split_map::{pixel_integrator, SplitMap};
 use crate::integrator::trace::NoTrace;
@@ -43,26 +44,36 @@ pub fn pixel_sample<F: Field>(scene: &Scene<F>, kind: SamplerKind, seed: u64, x:
 
 /// Where a tile's samples whose scattered paths are deferred go (`integrator::deferred`):
 /// the tile's number in the film, and the list.
+/// What every tile of a pass renders with: the settings, and the per-pixel path counts
+/// when splitting by brightness (`integrator::split_map`).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct TileJob<'a> {
+    /// The render's settings.
+    pub(super) settings: &'a RenderSettings,
+    /// Paths per camera collision per pixel, from the pilot render.
+    pub(super) split_map: Option<&'a SplitMap>,
+}
+
 pub(super) type Deferring<'p> = Option<(usize, &'p mut Vec<PendingSample>)>;
 
 pub(super) fn render_tile<F: Field>(
     scene: &Scene<F>,
-    (settings, split_map): (&RenderSettings, Option<&SplitMap>),
+    job: TileJob<'_>,
     samples: std::ops::Range<u64>,
     tile: &mut Tile,
     defer: Deferring<'_>,
 ) -> Counters {
     if tile.aov_channels == 0 {
-        render_tile_with(scene, (settings, split_map), samples, tile, &mut NoAovs, defer)
+        render_tile_with(scene, job, samples, tile, &mut NoAovs, defer)
     } else {
         let mut aovs = AovSample::new(tile.aov_channels, tile.half.map(|h| (h.at, h.filtered)));
-        render_tile_with(scene, (settings, split_map), samples, tile, &mut aovs, None)
+        render_tile_with(scene, job, samples, tile, &mut aovs, None)
     }
 }
 
 fn render_tile_with<F: Field, A: Aovs>(
     scene: &Scene<F>,
-    (settings, split_map): (&RenderSettings, Option<&SplitMap>),
+    TileJob { settings, split_map }: TileJob<'_>,
     samples: std::ops::Range<u64>,
     tile: &mut Tile,
     aovs: &mut A,
@@ -79,7 +90,8 @@ fn render_tile_with<F: Field, A: Aovs>(
                 aovs.begin();
                 let l = if let Some((tile_index, pending)) = defer.as_mut() {
                     let mut paths = Vec::new();
-                    let l = integrator.li_deferring(scene, &ray, &mut sampler, (time, &mut counters), &mut paths);
+                    let state = PathState { sampler: &mut sampler, counters: &mut counters, trace: &mut NoTrace, aovs: &mut NoAovs };
+                    let l = integrator.li_deferring(scene, &ray, time, state, &mut paths);
                     if !paths.is_empty() {
                         // Added to the film when its paths are done
                         counters.samples += 1;
@@ -88,7 +100,7 @@ fn render_tile_with<F: Field, A: Aovs>(
                     }
                     l
                 } else {
-                    integrator.li_aovs(scene, &ray, &mut sampler, (time, &mut counters), &mut NoTrace, aovs)
+                    integrator.li_aovs(scene, &ray, time, PathState { sampler: &mut sampler, counters: &mut counters, trace: &mut NoTrace, aovs })
                 };
                 if tile.half.is_some_and(|h| A::ON && crate::denoise::half_of(s, h.block)) {
                     aovs.half(l);

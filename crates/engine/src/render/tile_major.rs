@@ -7,15 +7,38 @@ use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
-use super::settings::RenderSettings;
-use super::tile::render_tile;
+use super::tile::{render_tile, TileJob};
 use crate::film::Film;
 use crate::integrator::deferred::PendingSample;
-use crate::integrator::{Counters, Scene, SplitMap};
+use crate::integrator::{Counters, Scene};
 use plume_volume::field::{Field, RayGrid};
 
 /// Tiles beyond those being rendered whose camera rays are prefetched.
 const PREFETCH_AHEAD: usize = 4;
+
+/// One tile-major pass: the samples each tile takes, the most bytes read ahead for
+/// unfinished tiles, when to abandon the pass, and whether scattered paths are deferred
+/// into rounds (`integrator::deferred`).
+#[derive(Clone, Copy)]
+pub(super) struct TileMajorPass<'a> {
+    /// Samples of every pixel.
+    pub(super) samples: &'a std::ops::Range<u64>,
+    /// Bytes asked to be read ahead (`None`: bounded by the tiles ahead only).
+    pub(super) read_ahead_window: Option<u64>,
+    /// Checked between tiles and rounds: `true` abandons the pass.
+    pub(super) abandon: &'a (dyn Fn() -> bool + Sync),
+    /// Scattered paths are traced in rounds.
+    pub(super) defer: bool,
+}
+
+/// How far the render threads are, as the prefetch thread reads it: tiles taken, tiles
+/// finished, and the pass finished.
+#[derive(Clone, Copy)]
+struct TileProgress<'a> {
+    taken: &'a AtomicUsize,
+    done: &'a [AtomicBool],
+    finished: &'a AtomicBool,
+}
 
 /// One tile-major pass of `samples` over `film` (see [`SampleOrder::TileMajor`](super::SampleOrder::TileMajor)): the
 /// workers take tiles in raster order from a shared queue while a prefetch thread walks
@@ -24,17 +47,15 @@ const PREFETCH_AHEAD: usize = 4;
 /// (`integrator::deferred`). Returns the tiles' counters in tile order (the deferred
 /// paths' last), or `None` with `film` unchanged when `abandon` said so between tiles or
 /// rounds.
-#[allow(clippy::too_many_arguments)]
 pub(super) fn tile_major_pass<F: Field>(
     scene: &Scene<F>,
-    settings: (&RenderSettings, Option<&SplitMap>),
+    job: TileJob<'_>,
     pool: &rayon::ThreadPool,
     film: &mut Film,
-    (samples, read_ahead_window): (&std::ops::Range<u64>, Option<u64>),
-    abandon: &(dyn Fn() -> bool + Sync),
+    pass: &TileMajorPass<'_>,
     tile_seconds: &mut [f64],
-    defer: bool,
 ) -> Option<Vec<Counters>> {
+    let TileMajorPass { samples, read_ahead_window, abandon, defer } = *pass;
     let before = film.clone();
     let rects: Vec<(u32, u32, u32, u32)> = film.tiles.iter().map(|t| (t.x0, t.y0, t.width, t.height)).collect();
     let taken = AtomicUsize::new(0);
@@ -48,7 +69,7 @@ pub(super) fn tile_major_pass<F: Field>(
     std::thread::scope(|s| {
         if scene.field.is_mapped() {
             scene.field.expect_prefetch();
-            s.spawn(|| prefetch_tiles(scene, &rects, (&taken, &done, &finished), window));
+            s.spawn(|| prefetch_tiles(scene, &rects, TileProgress { taken: &taken, done: &done, finished: &finished }, window));
         }
         pool.broadcast(|_| loop {
             if abandoned.load(Ordering::Relaxed) {
@@ -63,7 +84,7 @@ pub(super) fn tile_major_pass<F: Field>(
             taken.fetch_max(i + 1, Ordering::Relaxed);
             let start = Instant::now();
             let mut deferred = Vec::new();
-            let c = render_tile(scene, settings, samples.clone(), tile, defer.then_some((i, &mut deferred)));
+            let c = render_tile(scene, job, samples.clone(), tile, defer.then_some((i, &mut deferred)));
             if !deferred.is_empty() {
                 pending.lock().unwrap_or_else(std::sync::PoisonError::into_inner).append(&mut deferred);
             }
@@ -92,9 +113,9 @@ pub(super) fn tile_major_pass<F: Field>(
         // read-ahead window (half of it) is free by then, and a fill reads 64 MiB ahead
         // (the 2048³ flare in a 1.5 GiB cgroup, with paths resumed: 74.6–77.6 s against
         // 80.8–88.8 s with half; docs/BENCHMARKS.md, "Deferred paths")
-        let lookup = settings.0.integrator.point_lookup;
+        let lookup = job.settings.integrator.point_lookup;
         let memory = read_ahead_window.map(|w| w.saturating_add(w / 2));
-        match crate::integrator::deferred::finish(scene, (pool, memory), film, pending, (lookup, abandon)) {
+        match crate::integrator::deferred::finish(scene, pool, memory, film, pending, lookup, abandon) {
             Some(c) => counters.push(c),
             None => {
                 *film = before;
@@ -129,7 +150,7 @@ impl ReadAheadWindow {
 fn prefetch_tiles<F: Field>(
     scene: &Scene<F>,
     rects: &[(u32, u32, u32, u32)],
-    (taken, done, finished): (&AtomicUsize, &[AtomicBool], &AtomicBool),
+    TileProgress { taken, done, finished }: TileProgress<'_>,
     window: ReadAheadWindow,
 ) {
     let mut grid = RayGrid::default();

@@ -12,13 +12,13 @@
 //! densities agree and sources or albedos do not: such a cell is a constant piece here
 //! (`σ_t ρ Δ`) and a cubic one there, and such neighbouring constant pieces merge here.
 //!
-//! Measured on kelvin40 under a sky (128², 2 spp, 1 thread, callgrind), where shadow rays
-//! are 45 % of the render: their instructions −36 %, with the dual walk's slot table
-//! (docs/BENCHMARKS.md, "Interpolation", "Two later changes").
+//! Shadow rays are a large share of a lit render, and this walk costs them far fewer
+//! instructions than the full one (measured in docs/BENCHMARKS.md, "Interpolation").
 
 use glam::{DVec3, IVec3};
 
-use super::dual::{cell_local, step_corners, window_slot, Channel, CornerRecord, DualCell, DualCells, CORNER_STEP, NO_CELL};
+use super::dual::{cell_local, step_corners, Channel, CornerRecord, DualCell, DualCells, NO_CELL};
+use super::window::{window_slot, CORNER_STEP};
 use super::poly;
 use plume_core::color::Rgb;
 use crate::brick::Volume;

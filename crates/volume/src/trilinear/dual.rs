@@ -17,12 +17,11 @@
 //! may read a voxel that is not empty ([`dual_block_mask`], from the 8 voxel bricks'
 //! [`BlockMasks`]). A cell in a clear block has 8 empty corners, and the walk steps
 //! through a run of such cells without reading a corner or building a piece, giving one
-//! empty piece for the run (`Cells::known_empty`; 38 % of the dense cells of kelvin40's
-//! emission–absorption render; the pieces are what theirs merged into, bit for bit). Shadow
-//! rays' density walk (`density`) does not ask: it crosses few cells per dual brick, and
-//! the masks cost it more than they saved (callgrind, point estimates with NEE: smoke1
-//! +4.1 %, kelvin40 +1.4 % of the render with them; the full walk's free paths still
-//! gain).
+//! empty piece for the run (`Cells::known_empty`; the pieces are what theirs merged into,
+//! bit for bit). In a fire many dense cells lie in clear blocks. Shadow rays' density walk
+//! (`density`) does not ask: it crosses few cells per dual brick, and forming the masks
+//! costs it more than they save, where the full walk's free paths still gain (measured in
+//! docs/BENCHMARKS.md, "Interpolation").
 //!
 //! **Clip box.** The union of the cells that can be non-zero: `[8·brick_lo − 1,
 //! 8·(brick_lo + dims)]`, the nearest volume's index bounds grown by ½ voxel on every side
@@ -42,17 +41,12 @@ use rayon::prelude::*;
 
 use super::CubicSegment;
 use crate::grid::LEAF_VOXELS;
-use crate::brick::{brick_local, brick_offset, Brick, PackedSlot, Slot, Volume, BRICK};
+use super::window::{corner_offset, window_index, window_slot, CORNER_STEP};
+use crate::brick::Volume;
+use crate::layout::{brick_local, Brick, PackedSlot, Slot, BRICK};
 use crate::dda::{CellBox, CellTable, Cells, IndexLine};
 use crate::field::VoxelValues;
 use crate::pyramid::{Level, NodeBounds, Pyramid};
-
-/// Corner `c` of a dual cell as an offset: bit 0 → +x, bit 1 → +y, bit 2 → +z.
-#[inline]
-#[must_use]
-pub const fn corner_offset(c: usize) -> IVec3 {
-    IVec3::new((c & 1) as i32, ((c >> 1) & 1) as i32, ((c >> 2) & 1) as i32)
-}
 
 /// One channel of one voxel brick, decoded once when the walk enters a dual brick: its
 /// 512 values, or a constant (also for a missing brick, and for a block a damaged cache
@@ -212,8 +206,8 @@ pub struct DualBricks<'a> {
     corners: [VoxelValues; 8],
     albedo: [f32; 8],
     /// Every voxel of the 8 bricks has albedo factor 1 (no albedo grid there): `albedo`
-    /// then holds 1s and corner reads skip the channel (emission–absorption on kelvin40,
-    /// linear: −3.3 % of the render's instructions, the same image).
+    /// then holds 1s and corner reads skip the channel (the same image, fewer instructions
+    /// wherever a medium has no albedo grid).
     albedo_one: bool,
     /// Which blocks of 2³ cells may hold a cell with a corner that is not empty
     /// ([`dual_block_mask`]).
@@ -223,26 +217,6 @@ pub struct DualBricks<'a> {
 /// [`DualBricks::last`] before any cell of the brick was read: no cell is its neighbour.
 pub(super) const NO_CELL: IVec3 = IVec3::splat(-1000);
 
-/// Where local voxel `v` (each coordinate `0..=8`) of a dual brick's 9³ lies, at index
-/// `(9 v.z + v.y)·9 + v.x`: `(k << 9) | o`, voxel brick `k` of the 8 (bit 0: +x, bit 1: +y,
-/// bit 2: +z) and offset `o` ([`brick_offset`]) in it. One load instead of the Morton
-/// interleaving per corner read (kelvin40 ray-marched, linear: −8 % of the render's
-/// instructions, bit-identical). [`Volume::voxel_block`] places a point lookup's corners
-/// with it too: a cell at local `l` of any brick reaches the 9³ voxels from `l`. Padded
-/// to 1024 entries, so a read masks its index instead of taking it modulo 729 (the
-/// compiler cannot see that the index is below 729; the mask keeps the read in bounds
-/// without a check).
-pub(super) const DUAL_SLOTS: [u16; 1024] = {
-    let mut table = [0u16; 1024];
-    let mut i = 0;
-    while i < 729 {
-        let (x, y, z) = ((i % 9) as i32, ((i / 9) % 9) as i32, (i / 81) as i32);
-        let k = ((x >> 3) | ((y >> 3) << 1) | ((z >> 3) << 2)) as u16;
-        table[i] = (k << 9) | brick_offset(x, y, z) as u16;
-        i += 1;
-    }
-    table
-};
 
 /// Voxel brick and offset of local voxel `v` of a dual brick ([`DUAL_SLOTS`]). The walk
 /// reads corners by window index ([`CORNER_STEP`]); the tests check the table with this.
@@ -251,30 +225,6 @@ pub(super) fn dual_slot(v: IVec3) -> (usize, usize) {
     window_slot(window_index(v))
 }
 
-/// Index in [`DUAL_SLOTS`] of local voxel `v` (each coordinate `0..=8`).
-#[inline]
-pub const fn window_index(v: IVec3) -> usize {
-    ((v.z * 9 + v.y) * 9 + v.x) as usize
-}
-
-/// What corner `c` of a cell adds to the cell's [`window_index`]: the index of
-/// [`corner_offset`]`(c)`.
-pub const CORNER_STEP: [usize; 8] = {
-    let mut steps = [0; 8];
-    let mut c = 0;
-    while c < 8 {
-        steps[c] = window_index(corner_offset(c));
-        c += 1;
-    }
-    steps
-};
-
-/// Voxel brick and offset at [`DUAL_SLOTS`] index `i`.
-#[inline]
-pub fn window_slot(i: usize) -> (usize, usize) {
-    let slot = DUAL_SLOTS[i & 1023];
-    (usize::from(slot >> 9) & 7, usize::from(slot) & (LEAF_VOXELS - 1))
-}
 
 /// What a walk keeps of the last dual cell's corners ([`DualBricks`], and
 /// `density::DensityBricks`): a cell's corners are read into it, or moved across from
@@ -474,9 +424,9 @@ impl<'a> Cells for DualCells<'a> {
     fn dense(&self, b: IVec3, dense: &mut DualBricks<'a>) -> bool {
         let mut any = false;
         let volume = self.volume;
-        // A plain loop: as `array::from_fn` the per-corner closure was at times left out of
-        // line, an extra call and a copy of each record per dual brick entered (4 % of a
-        // linear ray-marched render's profile, depending on how unrelated code was inlined)
+        // A plain loop: as `array::from_fn` the per-corner closure may be left out of line,
+        // an extra call and a copy of each record per dual brick entered, depending on how
+        // unrelated code is inlined
         let bricks = volume.brick_block(b);
         // Albedo 1 everywhere (a missing brick reads as 1, and so does a constant slot of
         // 1.0 whatever its tag, as `Channel::new` decodes it): then the albedo channels are
@@ -602,6 +552,7 @@ pub fn dual_pyramid(volume: &Volume) -> Pyramid {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::layout::brick_offset;
 
     /// [`dual_block_mask`] against its definition: dual block `s` is set where some voxel
     /// block `s + {0,1}³` of the 5³ the 8 voxel bricks' masks describe is, for random

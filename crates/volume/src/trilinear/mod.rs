@@ -19,9 +19,9 @@
 //! line estimator's integral is closed form. This is also what Cycles 5.0.1 renders: it
 //! looks OpenVDB grids up by stochastic one-tap sampling (one corner voxel drawn with
 //! probability `w_c`), whose expected value is `Σ w_c le(ρ_c, s_c)`, not the blackbody of an
-//! interpolated temperature. Measured with `scripts/compare-cycles.sh` on
-//! `mantaflow_explosion_kelvin_0040` (64², emission–absorption, 1024 spp each): image means
-//! within 0.11 %, where interpolating the temperature first was 3.6 % darker than Cycles.
+//! interpolated temperature, which is darker at a fire's edges (the blackbody is convex in
+//! T, and inactive voxels pull an interpolated T down). `scripts/compare-cycles.sh` checks
+//! the match (docs/cycles.md, "Extinction, scattering, reconstruction").
 //!
 //! **Skipping.** A dual cell in brick `b` reads voxels of bricks `b + {0,1}³`, so the
 //! dual pyramid's level-0 node `b` is the union of the volume pyramid's level-0 nodes
@@ -39,6 +39,7 @@ pub mod dual;
 pub mod field;
 pub mod piece;
 pub mod poly;
+pub mod window;
 
 pub use field::{PointCorners, Trilinear};
 pub use piece::CubicSegment;

@@ -1,0 +1,267 @@
+//! A scattered path from a collision on (METHOD.md §5–8): at each vertex the volume's
+//! light sampling (FNEE or classic NEE) and the external lights' own, Russian roulette,
+//! the phase function's next direction, then the next segment's emission with its MIS
+//! weight, until the path escapes, is absorbed or reaches the largest depth. The weights
+//! are stated in `integrator::volpath`'s module docs.
+
+use glam::DVec3;
+
+use super::aov::{Aovs, Component};
+use super::path::{contribute, Bounces, ForwardWeight, PathState, Vertex};
+use super::scene::Scene;
+use super::trace::Trace;
+use super::tracker::Tracker;
+use super::volpath::{Integrator, ROULETTE_THRESHOLD};
+use crate::light::external::{ChosenLight, ExternalLights};
+use crate::light::fnee::ProxySampling;
+use crate::medium::tracking::emission_at_point;
+use crate::medium::{Collision, DistanceSample, Medium};
+use plume_core::sampling::phase::{hg_pdf, sample_hg};
+use plume_core::sampling::Dim;
+use plume_scene::{Estimator, LightSampling};
+use plume_volume::field::{Field, PointValues, Ray};
+
+/// A scattering vertex as light sampling sees it: the point, the direction the path
+/// arrived along, and the throughput after the vertex's albedo.
+#[derive(Clone, Copy, Debug)]
+struct ScatterPoint {
+    x: DVec3,
+    incoming: DVec3,
+    beta: f64,
+}
+
+impl Integrator {
+    /// The path from `vertex` on, adding to `l` and to `state`'s AOVs; `bounces` is told
+    /// of every vertex before its bounce.
+    pub(super) fn scattered_path<F: Field, T: Trace, B: Bounces, A: Aovs>(
+        &self,
+        scene: &Scene<F>,
+        tracker: &Tracker<'_, F>,
+        vertex: Vertex,
+        state: &mut PathState<'_, T, A>,
+        bounces: &mut B,
+        l: &mut [f64; 3],
+    ) {
+        let m = &scene.medium;
+        let external = scene.lights.external.as_ref();
+        let point_nee = self.light_sampling == LightSampling::Nee && self.estimator == Estimator::Point;
+        let Vertex { incoming: mut ray, mut t, mut albedo, mut beta, scale, mut depth } = vertex;
+        loop {
+            bounces.at(Vertex { incoming: ray, t, albedo, beta, scale, depth }, state.sampler, l, state.counters);
+            state.counters.collisions += 1;
+            depth += 1;
+            // Scattering albedo of the collision's own segment (METHOD §10.3)
+            beta *= f64::from(m.albedo * albedo);
+            if beta == 0.0 {
+                break; // absorbed: nothing more to carry
+            }
+            let at = ScatterPoint { x: ray.at(t), incoming: ray.direction, beta };
+            // Sample the volume light at x
+            state.sampler.start_light_segment(depth);
+            self.sample_volume_light(scene, tracker, at, state, l);
+            // Sample the external lights at x (a strategy of their own)
+            if let Some(e) = external {
+                self.sample_external(m, tracker, e, at, state, l);
+            }
+            // Russian roulette after this segment's emission
+            state.sampler.start_vertex(depth);
+            let q = (beta / (scale * ROULETTE_THRESHOLD)).min(1.0);
+            if q < 1.0 {
+                if state.sampler.get_1d(Dim::Roulette) >= q {
+                    state.trace.event(|| format!("  roulette: terminated (q {q})"));
+                    break;
+                }
+                beta /= q;
+            }
+            // Sample the phase function for the next direction (f/p = 1)
+            let ps = sample_hg(m.g, ray.direction, state.sampler.get_2d(Dim::Direction));
+            ray = Ray { origin: at.x, direction: ps.direction };
+            let need_collision = depth < self.max_depth;
+            let next = Segment { ray, beta, depth, p_phase: ps.pdf, need_collision, point_nee };
+            match self.forward_segment(scene, tracker, next, state, l) {
+                Some((tc, ac)) if need_collision => (t, albedo) = (tc, ac),
+                _ => break,
+            }
+        }
+    }
+
+    /// The segment a path takes after bouncing: its emission, weighted against the light
+    /// sampling technique that could have drawn it, and the external lights it reaches.
+    /// Returns the collision that ends it, if any.
+    fn forward_segment<F: Field, T: Trace, A: Aovs>(
+        &self,
+        scene: &Scene<F>,
+        tracker: &Tracker<'_, F>,
+        next: Segment,
+        state: &mut PathState<'_, T, A>,
+        l: &mut [f64; 3],
+    ) -> Option<(f64, f32)> {
+        let (m, lights) = (&scene.medium, &scene.lights);
+        let external = lights.external.as_ref();
+        let Segment { ray, beta, depth, p_phase, need_collision, point_nee } = next;
+        // MIS weight of the new segment, evaluated only if it collects emission: `p_σ`
+        // needs a proxy walk, and the weight of a zero F is irrelevant
+        let w_fwd = match self.light_sampling {
+            LightSampling::None => ForwardWeight::One,
+            LightSampling::Fnee if lights.proxy.is_some() => ForwardWeight::Fnee { p_phase },
+            LightSampling::Fnee => ForwardWeight::One,
+            LightSampling::Nee if point_nee => ForwardWeight::One, // weighted at the collision
+            LightSampling::Nee if lights.nee.is_some() => ForwardWeight::Zero,
+            LightSampling::Nee => ForwardWeight::One,
+        };
+        // The next segment, which ends at the first sphere light it hits
+        let hit = external.and_then(|e| e.hit(&ray));
+        let t_max = hit.map_or(f64::INFINITY, |(t, _)| t);
+        let u = state.sampler.get_1d(Dim::FreePath);
+        let collision = if need_collision { Collision::Analog } else { Collision::Skip };
+        let r = tracker.track(m, &ray, t_max, self.estimator, collision, u, state.sampler);
+        state.counters.segments += u64::from(r.segments);
+        state.counters.voxel_steps += r.voxel_steps;
+        // Add emission along the segment
+        let has_emission = r.emission.iter().any(|&v| v != 0.0);
+        let mut w = match w_fwd {
+            ForwardWeight::One => 1.0,
+            ForwardWeight::Zero => 0.0,
+            ForwardWeight::Fnee { p_phase } if has_emission => {
+                lights.proxy.as_ref().map_or(1.0, |p| self.mis.weight(p_phase, p.direction_pdf(ray.origin, ray.direction)))
+            }
+            ForwardWeight::Fnee { .. } => 0.0,
+        };
+        if let (true, Some(nee), Some(voxels), DistanceSample::Collided { t, density, .. }) =
+            (point_nee, lights.nee.as_ref(), scene.field.voxels(), r.event)
+        {
+            // MIS in volume measure against NEE at the collision point
+            let p_fwd = p_phase * m.mu_t(density) * (-r.optical_depth).exp() / (t * t);
+            w = self.mis.weight(p_fwd, nee.pdf(voxels, ray.at(t)));
+        }
+        contribute(l, state.aovs, Component::Scattered, beta * w, r.emission);
+        state.trace.event(|| {
+            format!(
+                "segment depth {depth}: origin {:?} dir {:?} -> {:?}, F {:?}, w_fwd {w}, beta {beta}, tau {}",
+                ray.origin, ray.direction, r.event, r.emission, r.transmittance
+            )
+        });
+        if let Some(e) = external.filter(|e| r.transmittance != 0.0 && e.reachable()) {
+            // The lights this segment reaches, each weighted against light sampling
+            let weight = beta * r.transmittance;
+            e.arriving(&ray, hit.map(|(_, i)| i), Some(p_phase), self.mis, |i, w, radiance| {
+                contribute(l, state.aovs, Component::Light(e.group(i)), weight * w, radiance);
+                state.trace.event(|| format!("  reaches light {i}: L {radiance:?}, w {w}, tau {}", r.transmittance));
+            });
+        }
+        match r.event {
+            DistanceSample::Collided { t, albedo, .. } => Some((t, albedo)),
+            DistanceSample::Escaped => None,
+        }
+    }
+
+    /// Light sampling of the volume's emission at a scattering vertex: an FNEE direction
+    /// and a free path along it, or a classic NEE point with its exact shadow
+    /// transmittance.
+    fn sample_volume_light<F: Field, T: Trace, A: Aovs>(
+        &self,
+        scene: &Scene<F>,
+        tracker: &Tracker<'_, F>,
+        at: ScatterPoint,
+        state: &mut PathState<'_, T, A>,
+        l: &mut [f64; 3],
+    ) {
+        let (m, lights) = (&scene.medium, &scene.lights);
+        let ScatterPoint { x, incoming, beta } = at;
+        let sampler = &mut *state.sampler;
+        let c = &mut *state.counters;
+        match self.light_sampling {
+            LightSampling::Fnee => {
+                let Some(proxy) = &lights.proxy else { return };
+                let u_cell = sampler.get_1d(Dim::LightChoice);
+                let u_pos = sampler.get_3d(Dim::LightPosition);
+                let Some(wi) = proxy.sample_direction_only(x, u_cell, u_pos) else { return };
+                c.fnee_samples += 1;
+                let u2 = sampler.get_1d(Dim::FreePath);
+                let rl = tracker.track(m, &Ray { origin: x, direction: wi }, f64::INFINITY, self.estimator, Collision::Skip, u2, sampler);
+                c.segments += u64::from(rl.segments);
+                c.voxel_steps += rl.voxel_steps;
+                // p_σ only when the free path collected emission
+                if rl.emission.iter().any(|&v| v != 0.0) {
+                    let p_sigma = proxy.direction_pdf(x, wi);
+                    if p_sigma > 0.0 {
+                        let f = hg_pdf(m.g, incoming.dot(wi));
+                        let w_l = self.mis.weight(p_sigma, f);
+                        contribute(l, state.aovs, Component::Scattered, beta * f * w_l / p_sigma, rl.emission);
+                        state.trace.event(|| format!("  fnee: dir {wi:?} p_sigma {p_sigma} f {f} w {w_l} F {:?}", rl.emission));
+                    }
+                }
+            }
+            LightSampling::Nee => {
+                let (Some(nee), Some(voxels)) = (&lights.nee, scene.field.voxels()) else { return };
+                let point_nee = self.estimator == Estimator::Point;
+                let u_voxel = sampler.get_1d(Dim::LightChoice);
+                let u_pos = sampler.get_3d(Dim::LightPosition);
+                let vs = nee.sample(voxels, u_voxel, u_pos);
+                let d = vs.p_world - x;
+                let r2 = d.length_squared();
+                if r2 > 0.0 {
+                    c.nee_samples += 1;
+                    let dist = r2.sqrt();
+                    let wi = d / dist;
+                    // (Classic NEE is refused with motion blur: its table is the frame's)
+                    let (tau, n) = tracker.transmittance(m, &Ray { origin: x, direction: wi }, dist, sampler);
+                    c.voxel_steps += n;
+                    if tau > 0.0 {
+                        // L_e and ρ at y as the field reconstructs them (the table's
+                        // pdf follows the same reconstruction: light/nee.rs)
+                        let PointValues { density: dy, emission: le, .. } = emission_at_point(&scene.field, m, vs.p_world);
+                        let f = hg_pdf(m.g, incoming.dot(wi));
+                        let w_l = if point_nee { self.mis.weight(vs.pdf, f * m.mu_t(dy) * tau / r2) } else { 1.0 };
+                        contribute(l, state.aovs, Component::Scattered, beta * f * tau * w_l / (vs.pdf * r2), le);
+                        state.trace.event(|| format!("  nee: y {:?} p_V {} tau {tau} f {f} w {w_l} L_e {le:?}", vs.p_world, vs.pdf));
+                    }
+                }
+            }
+            LightSampling::None => {}
+        }
+    }
+
+    /// Light sampling of the external lights at a scattering vertex:
+    /// `L += β f τ L_i w(P_i p_i, f) / (P_i p_i)` with the tracker's shadow transmittance
+    /// (exact, or ratio tracking's unbiased estimate) (`light::external`).
+    fn sample_external<F: Field, T: Trace, A: Aovs>(
+        &self,
+        m: &Medium,
+        tracker: &Tracker<'_, F>,
+        lights: &ExternalLights,
+        at: ScatterPoint,
+        state: &mut PathState<'_, T, A>,
+        l: &mut [f64; 3],
+    ) {
+        let ScatterPoint { x, incoming, beta } = at;
+        let u_choice = state.sampler.get_1d(Dim::ExternalLightChoice);
+        let u = state.sampler.get_2d(Dim::ExternalLightDirection);
+        let Some(ChosenLight { index, pmf, sample: s }) = lights.sample(x, u_choice, u) else { return };
+        state.counters.external_light_samples += 1;
+        let f = hg_pdf(m.g, incoming.dot(s.direction));
+        let (tau, n) = tracker.transmittance(m, &Ray { origin: x, direction: s.direction }, s.distance, state.sampler);
+        state.counters.voxel_steps += n;
+        if tau > 0.0 {
+            let w = if s.pdf > 0.0 { self.mis.weight(pmf * s.pdf, f) } else { 1.0 };
+            contribute(l, state.aovs, Component::Light(lights.group(index)), beta * f * tau * w / pmf, s.value);
+            state.trace.event(|| {
+                format!("  light {index}: dir {:?} dist {} pmf {pmf} pdf {} tau {tau} f {f} w {w} L/p {:?}", s.direction, s.distance, s.pdf, s.value)
+            });
+        }
+    }
+}
+
+/// The segment a path takes after a bounce, as [`Integrator::forward_segment`] walks it.
+#[derive(Clone, Copy, Debug)]
+struct Segment {
+    ray: Ray,
+    beta: f64,
+    depth: u32,
+    /// Phase pdf of the segment's direction.
+    p_phase: f64,
+    /// Whether the path may collide again (below the largest depth).
+    need_collision: bool,
+    /// Classic NEE with the point estimator: MIS in volume measure at the collision.
+    point_nee: bool,
+}

@@ -14,9 +14,8 @@ use std::env;
 use std::path::PathBuf;
 
 /// The shim's C++ sources, one concept each (see `cpp/shim_internal.h`); a new file must be
-/// added here to be compiled. Longest compile first (`-O2`, 2-core AMD EPYC: write 34 s,
-/// read 15, stream 15, list 14, scan 9, common 8), so that the parallel compile does not
-/// end on the longest one alone.
+/// added here to be compiled. Longest compile first (`write.cc` takes about twice as long
+/// as any other), so that the parallel compile does not end on the longest one alone.
 const SHIM_SOURCES: [&str; 6] = ["cpp/write.cc", "cpp/read.cc", "cpp/stream.cc", "cpp/list.cc", "cpp/scan.cc", "cpp/common.cc"];
 /// `vdb_shim.h` is the header the bridge includes; `shim_internal.h` is shared by the sources.
 const SHIM_HEADERS: [&str; 2] = ["cpp/vdb_shim.h", "cpp/shim_internal.h"];
@@ -40,9 +39,9 @@ fn main() {
     }
 
     let mut build = cxx_build::bridge("src/vdb/ffi.rs");
-    // No C++ debug info, in every profile: with `-g` the OpenVDB templates took 38 % longer
-    // to compile (cpp/read.cc: 21.1 s against 15.3 s) and made objects 14× larger, for a
-    // shim whose bugs show up as the Rust-side errors it returns.
+    // No C++ debug info, in every profile: with `-g` the OpenVDB templates take much longer
+    // to compile and make objects an order of magnitude larger, for a shim whose bugs show
+    // up as the Rust-side errors it returns.
     build.files(SHIM_SOURCES).std("c++17").opt_level(2).debug(false);
     if let Some(dir) = &include_dir {
         build.include(dir);

@@ -378,7 +378,7 @@ fn background_checked_cache(path: &Path) -> PathBuf {
     write_volume(path, &volume, &info, None).unwrap()
 }
 
-/// Issue 17: an automatic cache found damaged only by the background check is removed
+/// An automatic cache found damaged only by the background check is removed
 /// (so the next run rebuilds it) only if the file at its path is still the one checked.
 /// Another process may have renamed a new cache over it meanwhile, with the same size and
 /// header, or hold the conversion lock while it makes one; either is left alone. Library

@@ -1,4 +1,4 @@
-//! Lights on the command line and in scene files (issue #14): every light type renders
+//! Lights on the command line and in scene files: every light type renders
 //! through the binary, scene files round-trip them bit-identically, and bad light input
 //! gets one line naming the flag or file, exit 2 or 3, and no output.
 

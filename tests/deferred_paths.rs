@@ -1,6 +1,6 @@
-//! Scattered paths traced in rounds (`--defer-paths`, `integrator::deferred`, issue #17):
-//! the image is the direct render's bit for bit, for any thread count, split, point lookup
-//! and estimator that defers; paths that cannot be deferred are traced as before; and a
+//! Scattered paths traced in rounds (`--defer-paths`, `integrator::deferred`): the image is
+//! the direct render's bit for bit, for any thread count, split, point lookup and estimator
+//! that defers; paths that cannot be deferred are traced where they scatter; and a
 //! cache that fits in memory defers only when asked (one larger than a cgroup limit defers
 //! by default: `memory_limits`).
 

@@ -1,4 +1,4 @@
-//! `--denoise` (issue #16, the clean first picture): the denoised beauty is much closer to
+//! `--denoise`: the denoised beauty is much closer to
 //! a converged render than the noisy one; the noisy beauty, kept as the layer `noisy`, is
 //! the plain render's bits; denoised frames are bit-identical for any thread count and
 //! when merged from sample ranges; too few samples leave the image as it is, with a
@@ -56,11 +56,11 @@ fn the_denoised_beauty_is_closer_to_the_converged_image_and_the_noisy_one_is_the
     let gain = (noisy - reference_var) / (filtered - reference_var).max(1e-30);
     let mean = covered.iter().map(|&i| luminance(&r, "", i)).sum::<f64>() / covered.len() as f64;
     eprintln!("relRMSE noisy {:.4}, denoised {:.4}: squared error ÷ {gain:.1}", noisy.sqrt() / mean, filtered.sqrt() / mean);
-    // Measured: 1.9 (3.1 before the roulette waited for β < 0.3, which lowered the noise
-    // there is to remove; on the README demo, 640×480, 16). No filter gives 1
+    // The gain is about 2 on this small image, more on larger ones with more structure
+    // to average along. No filter gives 1
     assert!(gain > 1.5, "denoising divided the squared error by only {gain:.2}");
-    // The image's energy is kept: the mean over all pixels within 2 % (measured: −0.8 %;
-    // with the paper's asymmetric weights −3.9 %)
+    // The image's energy is kept: the mean over all pixels within 2 % (the paper's
+    // asymmetric weights would fail this: they darken the image)
     let total = |layer: &str| (0..r["A"].len()).map(|i| luminance(&dn, layer, i)).sum::<f64>();
     let kept = total("") / total("noisy");
     assert!((kept - 1.0).abs() < 0.02, "denoising changed the mean by a factor {kept}");

@@ -1,4 +1,4 @@
-//! Faults of the file system, each through the binary (issue 17):
+//! Faults of the file system, each through the binary:
 //!
 //! - a **full disk** while writing each kind of output (EXR, PNG preview, stats line, a
 //!   `plume prepare` cache, a streamed `plume synth flare` cache, the automatic cache of
@@ -408,7 +408,7 @@ fn two_processes_making_the_same_automatic_cache_share_it() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// Issue 17: a process that holds the conversion lock of an automatic cache and never
+/// A process that holds the conversion lock of an automatic cache and never
 /// lets go (it hangs) holds up a render only for `--cache-lock-timeout`: then the frame is
 /// rendered from the .vdb read into memory, with one warning naming the lock file, when
 /// that fits the memory budget, and fails with one error line naming it (exit 4) when it

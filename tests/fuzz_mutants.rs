@@ -1,4 +1,4 @@
-//! Untrusted input (issue 7): fixed-seed mutants of real VDB files, each run through the
+//! Untrusted input: fixed-seed mutants of real VDB files, each run through the
 //! real `plume` binary (`plume info`, then `plume render --spp 1 --width 8 --height 8`).
 //!
 //! OpenVDB itself crashes or hangs on some of these mutants; plume reads them in an
@@ -10,8 +10,7 @@
 //! crashed or hung the reader are copied to `target/tmp/fuzz-findings/` for triage
 //! (regressions worth keeping go to `data/regressions/`).
 //!
-//! The default test runs 240 mutants; the full campaign (10,000 mutants, quoted in the
-//! README) is
+//! The default test runs 240 mutants; the full campaign (10,000 mutants) is
 //!
 //! ```text
 //! cargo test --release --test fuzz_mutants -- --ignored --nocapture
@@ -405,9 +404,9 @@ fn mutants_never_crash_hang_or_silently_fail_plume() {
     assert!(count(Outcome::Success) > 0 && count(Outcome::CleanError) > 0);
 }
 
-/// Mutants the 10,000-mutant campaign found plume failing on, fixed since:
-/// - 3728: a smashed transform translation (≈1e158) put smoke1 beyond f64 camera
-///   framing; the error blamed the camera flags instead of naming the file.
+/// Mutants of the full campaign that plume must keep refusing cleanly:
+/// - 3728: a smashed transform translation (≈1e158) puts smoke1 beyond f64 camera
+///   framing; the error must name the file, not blame the camera flags.
 #[test]
 fn campaign_findings_stay_fixed() {
     let tally = campaign_of(&[3728]);
@@ -415,9 +414,9 @@ fn campaign_findings_stay_fixed() {
     assert_eq!(tally.counts.values().sum::<usize>(), 2);
 }
 
-/// The README's figures: 10,000 mutants.
+/// The full campaign: 10,000 mutants.
 #[test]
-#[ignore = "about 20 minutes on 2 cores; run for the README figures"]
+#[ignore = "about 20 minutes on 2 cores; the full campaign"]
 fn ten_thousand_mutants() {
     let tally = campaign(10_000);
     assert_clean(&tally);

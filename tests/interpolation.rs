@@ -419,9 +419,8 @@ fn linear_renders_through_an_automatic_cache_tile_by_tile_equal_in_core_ones() {
 /// `--convention cycles` with blackbody emission interpolates each voxel's emission,
 /// `L_e(x) = Σ_c w_c le(T_c)`, as the physical convention does: Cycles 5.0.1 looks OpenVDB
 /// grids up by stochastic one-tap sampling (one corner voxel drawn with probability
-/// `w_c`), whose expected value is that same per-voxel rule (measured against Cycles by
-/// `scripts/compare-cycles.sh`: image means within 0.1 %, where interpolating the
-/// temperature first is 3.6 % darker). Along a ray through a temperature ramp with no
+/// `w_c`), whose expected value is that same per-voxel rule (`scripts/compare-cycles.sh`
+/// checks it against Cycles; interpolating the temperature first is darker). Along a ray through a temperature ramp with no
 /// absorption to speak of (σ_t = 10⁻⁹: no collision, τ = 1), the line estimator is the
 /// closed form, so every path returns `∫ Σ w_c le(T_c) ds` of a 10⁵-step midpoint march
 /// to 10⁻⁶; the temperature-interpolated integral is far from it, so the test can fail.

@@ -133,7 +133,7 @@ fn a_crashing_reader_is_reported_with_the_grid_it_was_reading() {
 fn a_hanging_reader_is_killed_at_the_timeout() {
     let reader = script("hang.sh", &format!("{HEADER_AND_BEGIN}\nexec sleep 60"));
     let start = Instant::now();
-    let message = assert_reader_failed(read_with(&reader, &limits(Duration::from_millis(500))), "reader did not finish within 0.5 s (--read-timeout); killed");
+    let message = assert_reader_failed(read_with(&reader, &limits(Duration::from_millis(500))), "reader did not finish within 0.5 s (reading.read_timeout); killed");
     assert!(start.elapsed() < Duration::from_secs(10), "{:?}", start.elapsed());
     assert!(message.contains(r#"while reading grid "density""#), "{message}");
     // A grandchild that keeps the pipes open cannot hold plume either

@@ -1,6 +1,6 @@
-//! External lights (issue #14): suns, sphere and point lights against single-scattering
-//! closed forms in a thin homogeneous slab; light sampling against its own pdf; MIS
-//! weights summing to one; a scene without lights rendering exactly as before.
+//! External lights: suns, sphere and point lights against single-scattering closed forms
+//! in a thin homogeneous slab; light sampling against its own pdf; MIS weights summing to
+//! one; environment maps' orientation.
 //! Fixed seeds; k·σ tolerances from the samples' own spread.
 
 use crate::common;

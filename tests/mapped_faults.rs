@@ -1,4 +1,4 @@
-//! Files that fail under plume (issue 17): a brick cache truncated or replaced while
+//! Files that fail under plume: a brick cache truncated or replaced while
 //! `plume render` or `plume info` maps it, and a `.vdb` truncated while `plume prepare`
 //! streams it, end the process with one line on stderr naming the file and exit code 4,
 //! never a death by SIGBUS, and leave earlier outputs as they were; in a sequence, they
@@ -259,8 +259,8 @@ fn a_cache_replaced_under_a_render_is_refused_before_writing() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// Issue 17: a sequence stops at an input that fails while in use, with exit code 4,
-/// whichever way the failure is found (README, "Exit codes"): frame 1's cache replaced
+/// A sequence stops at an input that fails while in use, with exit code 4, whichever way
+/// the failure is found (docs/farm.md, "Exit codes"): frame 1's cache replaced
 /// under the render (no fault: the final check of the file refuses it) or truncated
 /// (a lost page, SIGBUS). Frames 2 and 3 are not started, nothing is written, and the
 /// rerun of the same command with whole files renders all three.

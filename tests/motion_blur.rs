@@ -1,4 +1,4 @@
-//! Motion blur (issue #15): null-collision tracking through an advected volume. With zero
+//! Motion blur: null-collision tracking through an advected volume. With zero
 //! velocity it agrees in mean with regular tracking; a uniform velocity blurs exactly
 //! like the average of the volume translated over the shutter; farm splits stay
 //! bit-identical; bad motion input gets one line and no output. Fixed seeds; k·σ

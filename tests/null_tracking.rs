@@ -1,4 +1,4 @@
-//! Null-collision tracking (METHOD.md §13, issue #15): majorants bound every lookup,
+//! Null-collision tracking (METHOD.md §13): majorants bound every lookup,
 //! delta-tracked free paths follow the exact law (χ² against regular tracking's optical
 //! depth, nearest and trilinear), ratio tracking averages to τ, and every estimator's
 //! emission agrees in mean with regular tracking. Fixed seeds; k·σ tolerances.

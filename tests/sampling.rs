@@ -5,8 +5,9 @@
 //! - Alias table: chi² against the weights, zero weights, pmf sum.
 //! - The Sobol sampler (`--sampler sobol`): values in [0, 1), stratification of the first
 //!   2^k samples (one per elementary interval), decorrelation of segments, sets and
-//!   pixels, and the `random` kind as the old stream bit for bit. The chi² tests draw from
-//!   the i.i.d. hashed stream (`common::rng`): their counts assume independent draws.
+//!   pixels, and the `random` kind as the hashed stream (`Sampler::new`) bit for bit. The
+//!   chi² tests draw from the i.i.d. hashed stream (`common::rng`): their counts assume
+//!   independent draws.
 //!
 //! Fixed seeds; these chi² tests and those of `light_sampling.rs` are one family of
 //! [`TESTS`] tests at family-wise false-failure rate [`ALPHA`] (Šidák).

@@ -240,8 +240,8 @@ fn the_example_scene_file_is_complete_and_valid() {
     ] {
         assert!(text.contains(key), "{key} in {text}");
     }
-    // The README's main command renders this file (and `plume bench demo` times it), so
-    // the two cannot drift apart
+    // The demo script's main command renders this file (and `plume bench demo` times it),
+    // so the two cannot drift apart
     let demo = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/demo.sh")).unwrap();
     assert!(demo.lines().any(|l| l.trim_start().starts_with("./target/release/plume render data/explosion.toml")), "{demo}");
 }

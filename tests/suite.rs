@@ -2,10 +2,9 @@
 //! `<name>` here (run one with `cargo test --test suite <name>::`), and all share
 //! [`common`].
 //!
-//! One binary instead of one per file: the 38 binaries, each linking the plume library
-//! and OpenVDB, took 250 s of build time (149 s of wall time on 2 cores) where this one
-//! takes about 45 s, and the tests of different files now share the cores instead of each
-//! binary running alone. No test sets
+//! One binary instead of one per file: a binary per file would link the plume library and
+//! OpenVDB once each, several times the build time of this one, and the tests of
+//! different files share the cores instead of each binary running alone. No test sets
 //! process-wide state (environment, working directory, global thread pool, signal
 //! handlers), and each file's scratch directories have their own prefix.
 

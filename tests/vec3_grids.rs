@@ -1,5 +1,5 @@
-//! Vector grids (`vec3s`/`vec3d`) read as three float components for velocity motion blur
-//! (issue #15): `read_vec3_grid` in-process and in the isolated reader, against OpenVDB's
+//! Vector grids (`vec3s`/`vec3d`) read as three float components for velocity motion blur:
+//! `read_vec3_grid` in-process and in the isolated reader, against OpenVDB's
 //! own view of the same grids.
 //!
 //! OpenVDB's view comes from `tests/scripts/pyopenvdb_vec3.py`, run with `/usr/bin/python3`

@@ -1,5 +1,5 @@
-//! The `cxx` bridge to the C++ shim in `cpp/` (through `cpp/vdb_shim.h`), and the crate's
-//! only `unsafe`.
+//! The `cxx` bridge to the C++ shim in `cpp/` (through `cpp/vdb_shim.h`): the only
+//! `unsafe` that talks to C++ (the isolated reader's process set-up has its own).
 //!
 //! Every C++ function is declared `-> Result`: the shim turns any exception into a
 //! `std::runtime_error`, which cxx hands to Rust as a [`cxx::Exception`]. An exception

@@ -47,7 +47,7 @@ pub enum Error {
         message: String,
     },
     /// Reading would need more memory than allowed.
-    #[error("{}: grid {grid:?} needs {needed} bytes, more than the input memory limit of {limit} bytes (--max-input-memory)", .path.display())]
+    #[error("{}: grid {grid:?} needs {needed} bytes, more than the input memory limit of {limit} bytes (reading.max_input_memory)", .path.display())]
     TooLarge {
         /// File read.
         path: PathBuf,
@@ -72,7 +72,7 @@ pub enum Error {
     },
     /// The isolated reader process could not be started (plume's own installation or
     /// the system is at fault, not the input).
-    #[error("cannot start the isolated VDB reader {}: {source} (--no-isolation reads in-process)", .exe.display())]
+    #[error("cannot start the isolated VDB reader {}: {source} (reading.no_isolation reads in-process)", .exe.display())]
     ReaderSpawn {
         /// Executable that serves the reader (the `plume` binary).
         exe: PathBuf,
@@ -187,7 +187,7 @@ pub enum Error {
     },
 }
 
-/// Process exit codes (documented in `plume --help` and the README).
+/// Process exit codes (documented in `plume --help` and docs/farm.md, "Exit codes").
 pub mod exit {
     /// Success (also: every output already complete and skipped).
     pub const SUCCESS: i32 = 0;

@@ -14,7 +14,7 @@
 //! rendering does not); estimators see the volume only through `Field::segments` and never
 //! index a voxel; the same inputs and seed give the same bits at any thread count and any
 //! tiling. Nothing here prints, exits or reads the environment: progress goes to a
-//! [`render::Observer`], messages through the `log` facade.
+//! [`render::RenderObserver`], messages through the `log` facade.
 
 pub mod camera;
 pub mod denoise;

@@ -21,6 +21,7 @@ pub mod lights;
 mod settings;
 pub mod validate;
 pub mod frames;
+pub mod pixels;
 pub mod selector;
 pub mod sets;
 pub mod split;
@@ -38,7 +39,8 @@ pub use choice::{
 pub use lights::{DistantSettings, EnvironmentMapSettings, LightSettings, SkySettings, SphereSettings};
 pub use settings::{FarmOptions, JobSettings, OutputSettings, ReadSettings, RenderOptions};
 pub use validate::ValidShot;
-pub use values::{parse_bytes, ByteSize, Crop, SampleId, TileIndex};
+pub use pixels::{Crop, SampleId};
+pub use values::{parse_bytes, ByteSize, TileIndex};
 
 pub use sets::{Collision, Convention, EmissionKind, Estimator, Filtered, LightSampling, MisHeuristic, PointLookup, SplitBy, TemperatureMap, Tracking};
 

@@ -1,5 +1,5 @@
-//! `[lights]`: lights besides the volume's own emission, as data, and their one
-//! conversion into [`ExternalLights`] (`light::external`).
+//! `[lights]`: lights besides the volume's own emission, as data, with their validation
+//! (the engine turns them into the lights it samples: `plume_engine::light::external::settings`).
 //!
 //! ```toml
 //! [lights]
@@ -241,7 +241,7 @@ impl LightSettings {
     }
 
     /// The light groups (AOV layers), in order of first appearance: what
-    /// [`ExternalLights::groups`] of the built lights holds, known before loading.
+    /// `ExternalLights::groups` of the built lights holds, known before loading.
     #[must_use]
     pub fn groups(&self) -> Vec<String> {
         let e = self.entry_groups();

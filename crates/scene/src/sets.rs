@@ -108,12 +108,11 @@ impl Tracking {
 /// how Cycles reads a volume's emission. It is bounded by the cell's brightest corner (no
 /// weight divides it), but a fire's corners differ by orders of magnitude (a blackbody's
 /// `T⁴` and more), so its tail is heavy. On a camera ray, whose emission reaches the pixel
-/// directly, emission-only motion blur showed fireflies; after scattering, on the README
-/// demo, it saves 18 % of the instructions at the same denoised error, but single samples
-/// in the fire reach twice the largest values of exact emission points (1.1 M samples:
-/// largest 2601 against 1128 times the reference, variance +8 %), and one of three
-/// denoised 32-spp renders kept such a sample as a visible speck (docs/BENCHMARKS.md,
-/// "Stochastic point lookups"). So the default, [`PointLookup::Stochastic`], reads emission
+/// directly, emission-only motion blur shows fireflies; after scattering it saves
+/// instructions at the same denoised error, but single samples in the fire reach about
+/// twice the largest values of exact emission points, and a denoised render can keep such
+/// a sample as a visible speck (measured in docs/BENCHMARKS.md, "Stochastic point
+/// lookups"). So the default, [`PointLookup::Stochastic`], reads emission
 /// points exactly; [`PointLookup::StochasticEmission`] picks them on scattered segments only
 /// ([`PointLookup::on_camera`]), for renders that trade that tail for speed.
 ///

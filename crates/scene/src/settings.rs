@@ -10,8 +10,8 @@ use serde::{Deserialize, Serialize};
 
 use super::choice::{DeferPaths, ProgressFormat, SampleOrderChoice, SamplerKind};
 use super::values::{sample_range_text, ByteSize, TileIndex};
-use crate::Crop;
-use crate::SampleId;
+use crate::pixels::Crop;
+use crate::pixels::SampleId;
 
 /// How the job runs.
 #[derive(Clone, Debug, PartialEq)]
@@ -63,6 +63,12 @@ pub struct RenderOptions {
     /// Where automatic brick caches go (default: beside the input).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub cache_dir: Option<PathBuf>,
+    /// Where automatic brick caches go when `cache_dir` is not given and the input's
+    /// directory cannot be written: the user's cache directory, which the application
+    /// finds (the library reads no environment). Not a scene-file key: it describes the
+    /// machine, not the shot. `None`: beside the input only.
+    #[serde(skip)]
+    pub user_cache_dir: Option<PathBuf>,
     /// Seconds to wait for another process making the same automatic cache before
     /// rendering without it (default: 10 minutes plus 1 s per 10 MB of the input;
     /// `cache::convert::lock_timeout`).

@@ -5,7 +5,7 @@
 
 use std::ops::Range;
 
-use crate::Crop;
+use crate::pixels::Crop;
 
 /// Parse `--tile i/n` (0-based `i`, `0 ≤ i < n`).
 ///

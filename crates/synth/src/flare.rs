@@ -41,10 +41,8 @@
 //! Inside a brick, a loop's distance is computed for every voxel (rows of 8 that the
 //! compiler vectorises) against a reach bounded locally from the loop's along-arc profile
 //! table (`flare/tube.rs`), and only voxels within reach pay for an `atan2` and a table
-//! lookup. NOTE: 4096³ with the defaults, test profile, a shared 2-core Xeon at 2.5 GHz
-//! under load ≈ 5–7: 32–41 k listed bricks/s per CPU second (≈ 125–150 MB/s of occupied
-//! output); the whole dataset took 224 s of CPU and 226 s of wall time on 2 threads
-//! (`synth_flare_full_4096`); listing all 512 slabs takes 1.3–3.2 s on 2 threads.
+//! lookup. NOTE: this is what keeps the whole 4096³ dataset at minutes of CPU rather than
+//! hours (`synth_flare_full_4096`), and listing all its 512 slabs at seconds.
 //!
 //! # Determinism
 //! Same [`FlareParams`] ⇒ bit-identical values at any thread count and in any slab order:
@@ -296,8 +294,8 @@ impl Flare {
     /// listed by [`Flare::bricks_in_slab`] (so an upper estimate: 5–15 % of listed bricks
     /// are empty). Exact up to 64 slabs (512³); above, evenly spaced slabs are counted and
     /// scaled: 64 up to 4096³ (within a few per cent), then fewer as slabs get costlier,
-    /// `64·(4096/resolution)²` but at least 8. Computed once, on first call: ≈ 0.2 s at
-    /// 4096³, ≈ 12 s at 65536³ (2 threads).
+    /// `64·(4096/resolution)²` but at least 8. Computed once, on first call: listing slabs
+    /// takes seconds at the largest resolutions.
     #[must_use]
     pub fn estimated_bytes(&self) -> u64 {
         let bricks = *self.estimated_bricks.get_or_init(|| {

@@ -308,8 +308,7 @@ impl Model {
             return Sample::default();
         }
         // Domain-warped lookup point
-        // FIXME: the warp is a third of generation time (256³, release, one thread: 1.98 s,
-        // 1.32 s without it); a warp interpolated from a cached world-space lattice would
+        // FIXME: the warp is about a third of generation time; a warp interpolated from a cached world-space lattice would
         // remove most of that, at the price of C0 kinks in the warped noise.
         let q = p + WARP * self.warp.fbm_vec3(p, &mut cache.warp);
         // Pyroclastic displacement of the envelope

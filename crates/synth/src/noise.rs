@@ -92,7 +92,7 @@ const GRADIENTS: [[f32; 3]; 16] = [
 /// Dot product of offset `(x, y, z)` with the gradient picked by the top four bits of `h`.
 ///
 /// NOTE: a table load, not Perlin's `if`/`else` selects: LLVM turned those into branches
-/// on random hash bits, and mispredictions made the noise ~4× slower (160 ns vs ~40 ns).
+/// on random hash bits, and mispredictions made the noise roughly 4× slower.
 #[inline(always)]
 fn grad(h: u32, x: f32, y: f32, z: f32) -> f32 {
     let g = GRADIENTS[(h >> 28) as usize];
@@ -119,9 +119,8 @@ fn corner_hashes([ix, iy, iz]: [i32; 3], seed: u32) -> [u32; 8] {
 /// The corner hashes of the last lattice cell one noise stream visited.
 ///
 /// Neighbouring voxels mostly share the cells of the coarse octaves, so keeping one
-/// cell per octave skips most hashing. NOTE: hashing is only ~15 % of a noise evaluation
-/// (36 ns fresh, 31 ns cached); the cache cut a 256³ explosion from 3.05 s to 2.68 s
-/// (release, one thread). A cache must be used with one seed only; results are
+/// cell per octave skips most hashing. NOTE: hashing is only a small part of a noise
+/// evaluation, so the cache saves roughly a tenth of an explosion's generation time. A cache must be used with one seed only; results are
 /// bit-identical with or without it.
 #[derive(Clone, Copy, Debug, Default)]
 pub(crate) struct CellCache {

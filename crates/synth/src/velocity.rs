@@ -1,4 +1,4 @@
-//! The generated explosion's velocity (issue #15): radial expansion from the fire's core
+//! The generated explosion's velocity: radial expansion from the fire's core
 //! plus curl noise, on the density grid's leaves, world units (metres) per second.
 //!
 //! `v(p) = k (p − c) + A ∇×ψ(p)` with `c` the core centre, `k` = [`EXPANSION_RATE`] per

@@ -16,7 +16,7 @@ use glam::{DAffine3, DVec3, IVec3};
 pub use crate::layout::{brick_local, brick_of, floor_div, brick_offset, Brick, BuildReport, PackedSlot, Slot, BRICK, MAX_TABLE_ENTRIES, NO_BRICK};
 use super::builder::slot_at;
 pub use super::builder::{check_same_transform, table_dims, BlockSink, BrickTableBuilder, BuiltTable, Channel};
-use super::field::{Bounds3, VoxelValues};
+use crate::values::{Bounds3, VoxelValues};
 use super::pyramid::Pyramid;
 use crate::out_of_core::storage::Buffer;
 use crate::trilinear::window::{corner_offset, window_index, window_slot, CORNER_STEP};

@@ -20,6 +20,7 @@ pub mod out_of_core;
 pub mod proxy;
 pub mod pyramid;
 pub mod trilinear;
+pub mod values;
 pub mod velocity;
 
 pub use brick::Volume;

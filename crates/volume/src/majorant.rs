@@ -12,11 +12,10 @@
 //! reads (exactly the dual pyramid's node), for both reconstructions; the grid has one
 //! more cell per axis than the level has nodes.
 //!
-//! *Measured:* before `796e1f9` the cells were the bricks, `[8b − ½, 8b + 7½]`, and the
-//! one voxel of reach beyond them took the maximum over the 27 bricks around. On the
-//! README demo's smoke (128³) the majorant integrated over the volume's box fell from
-//! 5.5× the density to 3.9×, and null-collision tracking's instructions by 7.7 %
-//! (docs/BENCHMARKS.md, "Tracking: null collisions after scattering").
+//! *Why these cells:* cells that were the bricks, `[8b − ½, 8b + 7½]`, would need the one
+//! voxel of reach beyond them, so each would take the maximum over the 27 bricks around: a
+//! looser majorant and more null collisions (measured in docs/BENCHMARKS.md, "Tracking:
+//! null collisions after scattering").
 //!
 //! **Level.** A table of more than [`MAX_CELLS`] cells (volumes beyond about 1024³
 //! voxels, e.g. a 4096³ cache) takes the first coarser pyramid level that fits: looser

@@ -1,4 +1,4 @@
-//! Motion blur's data (issue #15; METHOD.md §13): the velocity, the shutter, and the
+//! Motion blur's data (METHOD.md §13): the velocity, the shutter, and the
 //! majorants dilated by the largest displacement.
 //!
 //! **Eulerian blur.** A sample at time `t` (seconds from the frame, in the shutter) sees

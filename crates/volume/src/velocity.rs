@@ -1,4 +1,4 @@
-//! Velocity fields for motion blur (issue #15): world units per second at world points.
+//! Velocity fields for motion blur: world units per second at world points.
 //!
 //! A grid is three float components on the leaves of the velocity grid(s) — a vec3 grid
 //! split by the reader, or three float grids `NAME.x`, `NAME.y`, `NAME.z` (Houdini) — looked

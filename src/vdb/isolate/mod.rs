@@ -2,7 +2,7 @@
 //! exhaust plume.
 //!
 //! OpenVDB 10.0.1 segfaults on about 5% and hangs on about 1% of randomly mutated copies of
-//! real files (issue 7). No amount of checking in the shim makes a C++ parser of that size
+//! real files (`tests/fuzz_mutants.rs`). No amount of checking in the shim makes a C++ parser of that size
 //! safe, so plume runs it where a crash cannot hurt: `plume __read-grids …`, a hidden
 //! subcommand of the same binary, started with
 //!
@@ -57,7 +57,7 @@ use std::time::Duration;
 
 use super::ReadLimits;
 
-pub use child::reader_main;
+pub use child::{reader_main, ReaderFailure};
 pub(in crate::vdb) use parent::{child_error, malformed_reply, unexpected};
 pub use parent::{list_grids_isolated, read_float_grids_isolated, read_grids_isolated, read_vec3_grid_isolated, reader_exe, set_reader_exe, ReadIsolation};
 pub(in crate::vdb) use process::{ChildPipes, Parsed, ReaderRun};

@@ -102,7 +102,7 @@ impl ReaderRun {
         let stderr = self.pipes.get_ref().stderr_excerpt();
         let failed = |what: String| Error::ReaderFailed { path: path.to_path_buf(), grid: grid.clone(), what: with_stderr(what, &stderr) };
         if self.timed_out {
-            return Err(failed(format!("reader did not finish within {} s (--read-timeout); killed", limits.timeout.as_secs_f64())));
+            return Err(failed(format!("reader did not finish within {} s (reading.read_timeout); killed", limits.timeout.as_secs_f64())));
         }
         if let Some(what) = killed_for {
             return Err(failed(format!("{what}; killed")));

@@ -212,9 +212,9 @@ impl PlanckCmf {
 /// `f64` by the sum of [`blackbody_xyz`] and stored as `f32`. Lookups interpolate both linearly in
 /// ln T and clamp negative channels afterwards.
 ///
-/// NOTE: building costs ≈ 11 ms of CPU (965k Planck terms at ≈ 11 ns) on one core of the
-/// shared 2‑core dev VM (opt-level 2), spread over up to 8 threads; ≈ 12 ms wall there
-/// with the second core busy. See the ignored test `table_build_time`.
+/// NOTE: building costs milliseconds of CPU (965k Planck terms), spread over up to 8
+/// threads: cheap enough to compute at start-up rather than ship as data. See the ignored
+/// test `table_build_time`.
 #[derive(Clone, Debug)]
 pub struct BlackbodyTable {
     /// ln of the first node temperature, ln K.
@@ -263,7 +263,7 @@ impl BlackbodyTable {
         let nodes_per_ln_t = (TABLE_NODES - 1) as f64 / (ln_t_max - ln_t_min);
         let node_kelvin = move |k: usize| (ln_t_min + k as f64 / nodes_per_ln_t).exp();
 
-        // Integrate every node (965k Planck terms, ≈ 11 ms on one core here), interleaved
+        // Integrate every node (965k Planck terms), interleaved
         // over a few scoped threads (node k on thread k mod n: high T, where `expm1` is
         // slower, is spread evenly). Nodes are independent and each is summed in a fixed
         // order, so the table is bit-identical for any thread count.
@@ -399,7 +399,7 @@ impl BlackbodyTable {
     }
 }
 
-/// The process‑wide [`BlackbodyTable`], built on first use (≈ 11 ms CPU) and then shared.
+/// The process‑wide [`BlackbodyTable`], built on first use (milliseconds of CPU) and then shared.
 ///
 /// Call it once before rendering (e.g. while building the scene) so that no render thread
 /// waits on the build.
@@ -416,8 +416,8 @@ const CYCLES_NODES: usize = 16384;
 /// Cycles' chromaticity ([`BlackbodyTable::cycles_chromaticity`]) tabulated *uniformly in
 /// T* over 800 … 12000 K, the only range where it varies: a lookup is one multiply and a
 /// lerp, without the logarithm of the ln-T table (volume rendering in Cycles' convention
-/// evaluates it at every emitting voxel a ray meets: ≈ 10 % of such a render's time went
-/// to `ln` and the ln-T lookup). The nodes are the ln-T table's own values, 0.68 K apart,
+/// evaluates it at every emitting voxel a ray meets, so `ln` and the ln-T lookup would sit
+/// on the hot path). The nodes are the ln-T table's own values, 0.68 K apart,
 /// so the two agree to ≈ 1e-7 relative (tested).
 struct CyclesChromaticityTable {
     nodes_per_kelvin: f64,

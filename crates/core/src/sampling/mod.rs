@@ -20,7 +20,7 @@
 //!   path (ray-march's roulette) come
 //!   from the hashed stream ([`Sampler::next_f64`]), never from a Sobol dimension.
 //! - `random`: one SplitMix64 stream per pixel sample, every draw the next number of the
-//!   stream, named or not. This is plume's sampler before issue #16, bit for bit.
+//!   stream, named or not; kept bit for bit, so its images do not change.
 
 pub mod alias;
 pub mod distribution2d;

@@ -16,7 +16,7 @@
 //! ```
 //!
 //! Nothing is left half-written: outputs go to temporary files that are renamed when
-//! complete (`output::write_atomic`), and the next run removes temporaries of dead
+//! complete (`plume_core::fs::write_atomic`), and the next run removes temporaries of dead
 //! processes; a cache being written is complete or absent in the same way.
 //!
 //! - **Registry.** A [`Watch`] registers an address range with a message formatted when

@@ -12,7 +12,7 @@
 //!    to the next page not in memory, so a chunk whose pages the render reads at
 //!    different times is still hashed in pieces. Out of core this matters: the render
 //!    keeps only part of the file in memory at a time, so few 1 MiB chunks are ever
-//!    wholly resident at once (docs/BENCHMARKS.md, issue #17).
+//!    wholly resident at once (docs/out-of-core.md, "Checks and faults").
 //! 2. **When the render asks for the outcome** ([`Verification::wait`]), it reads what
 //!    is still unhashed from the file (`pread`: of a chunk, only the pages after its
 //!    hashed prefix) and lets the kernel drop those pages again (`POSIX_FADV_DONTNEED`),
@@ -204,8 +204,9 @@ impl Progress {
         if !whole {
             // A chunk in memory only in part: the file does not fit, and reading the pages
             // marked them as used. Age them again (`MADV_COLD`), or the check would keep
-            // pages in memory that the render is done with (the 1.5 GiB flare render with
-            // scattering took 52.5–52.8 s without it, 48–51 s with it, as before streaming)
+            // pages in memory that the render is done with, and a render out of core would
+            // read more of the file again (measured in docs/BENCHMARKS.md, "Out of core with
+            // scattering")
             // SAFETY: the range lies inside the mapping and starts on a page boundary; the
             // advice only moves clean file pages on the kernel's reclaim lists.
             unsafe {

@@ -64,9 +64,8 @@ impl PointCorners {
 
     /// Interpolated per-voxel emission density `Σ w_c le(ρ_c, s_c)` per channel (what a
     /// piece interpolates, `volume::trilinear`). Corners without a source are skipped, as
-    /// pieces skip them (`le` is 0 there: the contract of [`plume_engine::medium::Emission::le`]):
-    /// the README demo's null-tracked emission points asked for 5 M of them at 160×120,
-    /// 4 spp.
+    /// pieces skip them (`le` is 0 there: the contract of [`plume_engine::medium::Emission::le`]);
+    /// null-tracked emission points ask for this at every point they score.
     #[must_use]
     #[inline]
     pub fn emission(&self, le: &impl Fn(f32, f32) -> Rgb) -> [f64; 3] {

@@ -13,6 +13,7 @@ if [ ! -x "$venv/bin/openjd" ]; then
         echo "test.sh: WARNING: cannot install openjd-cli into $venv; the OpenJD test will be SKIPPED" >&2
     fi
 fi
+bash scripts/check-quiet.sh  # the library never prints, exits or reads the environment (file:line)
 # Style gates first (cheap, and a failure says exactly where): formatting per rustfmt.toml,
 # and clippy with every warning an error.
 if ! cargo fmt --version >/dev/null 2>&1 || ! cargo clippy --version >/dev/null 2>&1; then

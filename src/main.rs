@@ -1,6 +1,8 @@
 //! The `plume` command-line tool: parses arguments into the library's types, runs the
 //! library, and turns an error into a one-line message on stderr and a non-zero exit
-//! code. The command line (clap) lives here, in `cli/`, and nowhere in the library.
+//! code. The command line (clap) lives here, in `cli/`, and nowhere in the library; so
+//! do the terminal (the logger, progress, printed reports), the process's exit and what
+//! is read from the environment.
 
 mod cli;
 
@@ -9,6 +11,7 @@ use clap::{CommandFactory, FromArgMatches};
 use plume::vdb::isolate;
 
 fn main() {
+    cli::logger::install();
     // Before anything else: this build may use instructions the CPU lacks (src/cpu.rs)
     let missing = plume::cpu::missing_features();
     if !missing.is_empty() {
@@ -19,7 +22,7 @@ fn main() {
     // vdb::isolate). It is dispatched before clap so that it stays out of --help.
     let mut args = std::env::args_os().skip(1);
     if args.next().is_some_and(|a| a == isolate::READER_SUBCOMMAND) {
-        isolate::reader_main(&args.collect::<Vec<_>>());
+        reader_exit(isolate::reader_main(&args.collect::<Vec<_>>()));
     }
     // A mapped file that fails under plume (truncated, I/O error) ends it with a line
     // and exit code 4 instead of SIGBUS. Not in the reader child above: its crash is
@@ -35,9 +38,28 @@ fn main() {
     let parsed = cli::Cli::from_arg_matches(&matches).unwrap_or_else(|e| usage_error(&e));
     if let Err(e) = cli::commands::run(parsed, &matches, &command_line) {
         // Messages already carry their cause; one line, naming the file/grid/flag.
-        eprintln!("plume: error: {e}");
+        eprintln!("plume: error: {}", cli::logger::name_keys(&e.to_string()));
         std::process::exit(e.exit_code());
     }
+}
+
+/// End the reader subcommand (`vdb::isolate`): exit status 0 after a complete reply,
+/// else the failure's line and status.
+///
+/// With `_exit`, skipping C++ static destructors: after a read of a hostile file the heap
+/// may be damaged, and a crash on the way out would turn a good reply into a failure.
+fn reader_exit(result: Result<(), isolate::ReaderFailure>) -> ! {
+    let code = match result {
+        Ok(()) => 0,
+        Err(failure) => {
+            eprintln!("plume {}: {failure}", isolate::READER_SUBCOMMAND);
+            failure.exit_code()
+        }
+    };
+    let _ = std::io::Write::flush(&mut std::io::stderr());
+    // SAFETY: _exit ends the process without running atexit handlers; every output
+    // stream was flushed above (the reply by the reader, stderr here).
+    unsafe { libc::_exit(code) }
 }
 
 /// A command line clap cannot parse: one line naming the flag, exit 2 (help and version

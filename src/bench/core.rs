@@ -156,8 +156,7 @@ pub fn run(resolution: u32, threads: usize, ttfs_file: &Path) -> Result<CoreRepo
     let many = time_render(threads);
 
     // Time to first sample on a real file.
-    let ttfs_out = std::env::temp_dir().join("plume-bench-ttfs.exr");
-    let mut shot = Shot::new(ttfs_file, ttfs_out);
+    let mut shot = Shot::new(ttfs_file, super::spec::UNUSED_OUTPUT);
     shot.settings.render.quiet = true;
     let shot = shot.validate()?;
     let mut ttfs = f64::INFINITY;

@@ -60,6 +60,9 @@ pub struct DemoConfig {
     pub references: Vec<PathBuf>,
     /// Where the renders and the kept references go.
     pub work_dir: PathBuf,
+    /// The directory relative paths are relative to: the scene files written for the
+    /// renders have their paths made absolute against it.
+    pub working_dir: PathBuf,
     /// The time target, wall seconds.
     pub target_seconds: f64,
     /// The error target, relRMSE.
@@ -211,7 +214,7 @@ pub fn run(config: &DemoConfig) -> Result<DemoReport> {
         if (x.width as usize, x.height as usize) != (width, height) {
             return Err(Error::Scene(format!("{} is {}×{}, the references {width}×{height}", image.display(), x.width, x.height)));
         }
-        eprintln!("plume: demo seed {seed}: {wall_seconds:.1} s wall, {cpu_seconds:.1} CPU s");
+        log::info!("demo seed {seed}: {wall_seconds:.1} s wall, {cpu_seconds:.1} CPU s");
         runs.push(DemoRun { seed, wall_seconds, cpu_seconds, error: image_error(&x.pixels, &refs, width, height) });
     }
     let machine = super::machine();
@@ -247,7 +250,7 @@ fn reference(config: &DemoConfig, shot: &Shot, seed: u64) -> Result<RgbaImage> {
     if let Some(kept) = read_exr_contents(&image).ok().filter(complete) {
         return Ok(RgbaImage { width: kept.crop.x1 - kept.crop.x0, height: kept.crop.y1 - kept.crop.y0, pixels: kept.pixels });
     }
-    eprintln!("plume: rendering reference seed {seed} ({} spp) to {}", config.reference_spp, image.display());
+    log::info!("rendering reference seed {seed} ({} spp) to {}", config.reference_spp, image.display());
     let stats = config.work_dir.join(format!("{name}.json"));
     r.settings.output.image.clone_from(&image);
     r.settings.output.stats = Some(stats.clone());
@@ -260,7 +263,7 @@ fn reference(config: &DemoConfig, shot: &Shot, seed: u64) -> Result<RgbaImage> {
 fn render(config: &DemoConfig, shot: &Shot, toml: &Path, stats: &Path) -> Result<(f64, f64)> {
     let mut shot = shot.clone();
     shot.settings.render.quiet = true;
-    plume_scene::file::write(toml, &shot)?;
+    plume_scene::file::write(toml, &shot, &config.working_dir)?;
     // A statistics file gets a line per render: start afresh
     let _ = std::fs::remove_file(stats);
     let start = Instant::now();

@@ -294,7 +294,7 @@ fn density_sweep(cfg: &ExtremesConfig, check: &mut Check) -> Result<()> {
             tolerance,
             finite,
             pass: finite && outside <= tolerance,
-            note: format!("between emission-only {} and L_e/μ_a {}", super::outputs::num(expected), super::outputs::num(upper)),
+            note: format!("between emission-only {} and L_e/μ_a {}", super::numbers::num(expected), super::numbers::num(upper)),
         });
     }
     Ok(())
@@ -329,7 +329,7 @@ fn temperature_sweep(cfg: &ExtremesConfig, check: &mut Check) -> Result<()> {
         let expected = (c[0] + c[1] + c[2]) / 3.0 * phi(sigma);
         for (name, est) in &EMISSION_ONLY[..3] {
             let img = render_image(&scene, Integrator::emission_only(*est), cfg.spp, 2);
-            check.closed_form("temperature", &format!("T = {} K", super::outputs::num(t)), name, *est, &img, expected, sigma, 2e-3);
+            check.closed_form("temperature", &format!("T = {} K", super::numbers::num(t)), name, *est, &img, expected, sigma, 2e-3);
         }
     }
     Ok(())
@@ -469,6 +469,19 @@ fn invalid_voxels(cfg: &ExtremesConfig, check: &mut Check) -> Result<()> {
 }
 
 impl ExtremesReport {
+    /// `Ok` when every check passed; else [`Error::Scene`] saying how many failed (exit
+    /// code 4), to end with once the table is shown.
+    ///
+    /// # Errors
+    /// As said: a failed check.
+    pub fn verdict(&self) -> Result<()> {
+        let failed = self.rows.iter().filter(|r| !r.pass).count();
+        if failed > 0 {
+            return Err(Error::Scene(format!("{failed} extremes checks failed (see the table)")));
+        }
+        Ok(())
+    }
+
     /// The rows as a Markdown table.
     #[must_use]
     pub fn table(&self) -> String {
@@ -476,7 +489,7 @@ impl ExtremesReport {
         let _ = writeln!(s, "| sweep | case | method | expected | measured | error | tolerance | finite | pass | check |");
         let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|");
         for r in &self.rows {
-            let n = super::outputs::num;
+            let n = super::numbers::num;
             let _ = writeln!(
                 s,
                 "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",

@@ -26,8 +26,8 @@ use std::time::Instant;
 
 use serde::Serialize;
 
-use super::outputs::num;
-use super::spec::{bench_shot, load};
+use super::numbers::num;
+use super::spec::{bench_shot, load_file};
 use plume_core::error::{Error, Result};
 use plume_engine::integrator::{AnyScene, Counters, Integrator, LightSampling, Lights};
 use plume_engine::medium::Estimator;
@@ -345,7 +345,7 @@ fn measure_file(file: &CostFile, cfg: &InterpolationConfig, log: &dyn Fn(&str)) 
     let own = format!("[volume]\ninterpolation = \"nearest\"\n[medium]\nalbedo = 0.8\n[camera]\nwidth = {}\nheight = {}", cfg.width, cfg.height);
     // Two fragments: both may name the same table
     let shot = with_keys(&with_keys(&bench_shot(&path.display().to_string()), file.keys)?, &own)?;
-    let loaded = load(shot, vec![], &super::options::default_work_dir())?;
+    let loaded = load_file(shot, vec![])?;
     let base = plume_engine::integrator::Integrator::for_scene(&loaded.shot.scene);
     let proxy_resolution = ProxyGrid::resolution_for(loaded.loaded.scene.volume(), loaded.shot.scene.integrator.proxy_resolution);
     let mut scene = Switch(Some(loaded.loaded.scene));

@@ -20,6 +20,7 @@ pub mod extremes;
 pub mod interpolation;
 pub mod methods;
 pub mod metrics;
+pub mod numbers;
 pub mod options;
 pub mod outputs;
 pub mod plot;

@@ -1,18 +1,14 @@
-//! What `plume bench compare`, `plume bench extremes`, `plume bench interpolation` and
-//! `plume bench report` are asked to do, as plain settings (the binary fills them from
-//! flags), and the commands they run.
+//! What `plume bench compare`, `plume bench extremes` and `plume bench interpolation` are
+//! asked to do, as plain settings (the binary fills them from flags), and the commands
+//! they run. Each returns what it shows (the binary prints it); progress goes through the
+//! `log` facade. (`plume bench report`'s are [`super::report::ReportOptions`].)
 
 use std::path::PathBuf;
 
-use super::compare::{compare, make_reference, read_reference, CompareConfig};
+use super::compare::{compare, make_reference, read_reference, CompareConfig, CompareReport};
+use super::extremes::ExtremesReport;
 use super::spec::{parse_methods, BenchScene};
 use plume_core::error::{Error, Result};
-
-/// Where generated scenes are written by default.
-#[must_use]
-pub fn default_work_dir() -> PathBuf {
-    std::env::temp_dir().join("plume-bench")
-}
 
 /// How `plume bench compare` compares (the scene comes apart).
 #[derive(Clone, Debug)]
@@ -50,11 +46,12 @@ pub struct CompareOptions {
 }
 
 impl CompareOptions {
-    /// Run the comparison: table on stdout, progress on stderr, files under `--out`.
+    /// Run the comparison; returns the report (its `Display` is the table; [`Self::write`]
+    /// writes its files).
     ///
     /// # Errors
     /// Bad flags, unreadable scene or reference, unwritable outputs.
-    pub fn run(&self, mut scene: BenchScene) -> Result<()> {
+    pub fn run(&self, mut scene: BenchScene) -> Result<CompareReport> {
         if self.reference.is_none() && !self.make_reference {
             return Err(Error::invalid("--reference", "give a reference (--reference REF.exr) or --make-reference"));
         }
@@ -64,7 +61,7 @@ impl CompareOptions {
         if let Some(dir) = &self.out {
             std::fs::create_dir_all(dir).map_err(|source| Error::Write { path: dir.clone(), source })?;
         }
-        let log = |l: &str| eprintln!("plume: {l}");
+        let log = |l: &str| log::info!("{l}");
         let methods = parse_methods(&self.methods, scene.shot.scene.integrator.kappa)?;
         let reference = match &self.reference {
             Some(p) => read_reference(p, &scene)?,
@@ -82,11 +79,17 @@ impl CompareOptions {
             }
         };
         let cfg = CompareConfig { methods, cpu_seconds: self.time, spp: self.spp, runs: self.runs, epsilon: self.epsilon, curve_points: self.curve_points };
-        let report = compare(&mut scene, &reference, &cfg, &log)?;
-        print!("{report}");
+        compare(&mut scene, &reference, &cfg, &log)
+    }
+
+    /// Write NAME.csv, NAME.json and the plots of `report` under `out`, if given.
+    ///
+    /// # Errors
+    /// An unwritable file.
+    pub fn write(&self, report: &CompareReport) -> Result<()> {
         if let Some(dir) = &self.out {
             for p in report.write(dir, &self.name, true)? {
-                log(&format!("wrote {}", p.display()));
+                log::info!("wrote {}", p.display());
             }
         }
         Ok(())
@@ -109,24 +112,20 @@ pub struct ExtremesOptions {
 }
 
 impl ExtremesOptions {
-    /// Run the sweep and print its table; exit code 4 when a check fails.
+    /// Run the sweep and write the JSON; returns the report (its table is
+    /// [`ExtremesReport::table`]; failed checks are [`ExtremesReport::verdict`]).
     ///
     /// # Errors
-    /// A failed check, or an unwritable JSON file.
-    pub fn run(&self) -> Result<()> {
+    /// A sweep that cannot run, or an unwritable JSON file.
+    pub fn run(&self) -> Result<ExtremesReport> {
         let cfg =
             super::extremes::ExtremesConfig { box_voxels: self.box_voxels, explosion_resolution: self.explosion_resolution, size: self.size, spp: self.spp };
         let report = super::extremes::run(&cfg)?;
-        print!("{}", report.table());
         if let Some(p) = &self.json {
             let json = serde_json::to_string_pretty(&report).map_err(|e| Error::Scene(e.to_string()))?;
             plume_core::fs::write_atomic(p, |w| std::io::Write::write_all(w, json.as_bytes()))?;
         }
-        let failed = report.rows.iter().filter(|r| !r.pass).count();
-        if failed > 0 {
-            return Err(Error::Scene(format!("{failed} extremes checks failed (see the table)")));
-        }
-        Ok(())
+        Ok(report)
     }
 }
 
@@ -140,39 +139,15 @@ pub struct InterpolationOptions {
 }
 
 impl InterpolationOptions {
-    /// Run the benchmark: Markdown on stdout, progress on stderr, JSON and picture files.
+    /// Run the benchmark, writing the JSON and picture files; returns the Markdown.
     ///
     /// # Errors
     /// See [`super::interpolation::run`]; an unwritable JSON file.
-    pub fn run(&self) -> Result<()> {
-        let report = super::interpolation::run(&self.config, &|l| eprintln!("plume: {l}"))?;
+    pub fn run(&self) -> Result<String> {
+        let report = super::interpolation::run(&self.config, &|l| log::info!("{l}"))?;
         let picture = self.config.closeup.as_ref().map(|c| c.path.display().to_string());
-        print!("{}", report.markdown(&self.config.command(), picture.as_deref()));
-        super::write_json(&self.json, &report)
-    }
-}
-
-/// `plume bench report`.
-#[derive(Clone, Debug)]
-pub struct ReportOptions {
-    /// Directory of BENCHMARKS.md; plots go to DIR/img, CSV and JSON to DIR/bench.
-    pub out: PathBuf,
-    /// Multiply every CPU-time budget by this (e.g. 0.05 for a smoke test).
-    pub time_scale: f64,
-    /// Explosion resolution of the thin/dense scenes.
-    pub resolution: u32,
-    /// Directory of the shared data (smoke and cloud files).
-    pub data: PathBuf,
-    /// Where generated explosions are written.
-    pub work_dir: PathBuf,
-}
-
-impl ReportOptions {
-    /// Run the suite and write the report.
-    ///
-    /// # Errors
-    /// See [`super::report::run`].
-    pub fn run(&self) -> Result<()> {
-        super::report::run(self)
+        let markdown = report.markdown(&self.config.command(), picture.as_deref());
+        super::write_json(&self.json, &report)?;
+        Ok(markdown)
     }
 }

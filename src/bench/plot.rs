@@ -147,8 +147,8 @@ pub fn loglog_panels(path: &Path, panels: &[(&str, &str, &str, Vec<Series>)], pa
                 .y_desc(*yl)
                 .label_style(("sans-serif", 12))
                 .axis_desc_style(("sans-serif", 14))
-                .x_label_formatter(&|v| super::outputs::label(*v))
-                .y_label_formatter(&|v| super::outputs::label(*v))
+                .x_label_formatter(&|v| super::numbers::label(*v))
+                .y_label_formatter(&|v| super::numbers::label(*v))
                 .light_line_style(RGBColor(235, 235, 235))
                 .draw()
                 .map_err(plot_err)?;
@@ -245,7 +245,7 @@ pub fn crop_montage(report: &CompareReport, path: &Path) -> Result<()> {
     let label_h = 34;
     let mut tiles: Vec<(String, String, &[[f32; 4]])> = vec![("reference".into(), format!("{} spp", report.reference.spp), reference.as_slice())];
     for m in &report.methods {
-        tiles.push((m.method.clone(), format!("RMSE {}", super::outputs::num(super::metrics::rmse(&m.image, reference))), m.image.as_slice()));
+        tiles.push((m.method.clone(), format!("RMSE {}", super::numbers::num(super::metrics::rmse(&m.image, reference))), m.image.as_slice()));
     }
     let cols = tiles.len().min(4);
     let rows = tiles.len().div_ceil(cols);

@@ -15,11 +15,11 @@
 //! all, for a quick smoke test of the pipeline.
 
 use std::fmt::Write as _;
+use std::path::PathBuf;
 use std::time::Instant;
 
 use super::compare::{compare, make_reference, CompareConfig, CompareReport, Reference};
-use super::options::ReportOptions;
-use super::outputs::num;
+use super::numbers::num;
 use super::plot::{loglog_panels, Series};
 use super::spec::{bench_shot, load, parse_methods, BenchScene};
 use plume_core::error::{Error, Result};
@@ -33,6 +33,31 @@ const RUN_SECONDS: f64 = 6.0;
 const REFERENCE_SECONDS: f64 = 96.0;
 /// Runs (seeds) per method.
 const RUNS: u32 = 3;
+
+/// `plume bench report`.
+#[derive(Clone, Debug)]
+pub struct ReportOptions {
+    /// Directory of BENCHMARKS.md; plots go to DIR/img, CSV and JSON to DIR/bench.
+    pub out: PathBuf,
+    /// Multiply every CPU-time budget by this (e.g. 0.05 for a smoke test).
+    pub time_scale: f64,
+    /// Explosion resolution of the thin/dense scenes.
+    pub resolution: u32,
+    /// Directory of the shared data (smoke and cloud files).
+    pub data: PathBuf,
+    /// Where generated explosions are written.
+    pub work_dir: PathBuf,
+}
+
+impl ReportOptions {
+    /// Run the suite and write the report.
+    ///
+    /// # Errors
+    /// See [`run`].
+    pub fn run(&self) -> Result<()> {
+        run(self)
+    }
+}
 
 /// The authors' equal-time RMSE ratios FNEE/NEE (METHOD.md §9).
 const PAPER_RATIO: [(&str, f64); 2] = [("thin", 0.748 / 0.983), ("dense", 0.572 / 0.892)];
@@ -176,8 +201,8 @@ fn ratio_line(regime: &str, r: &CompareReport) -> String {
                     * ((f.equal_time.rmse.std / f.equal_time.rmse.mean).powi(2) + (p.equal_time.rmse.std / p.equal_time.rmse.mean).powi(2)).sqrt(),
                 f.equal_spp.rmse.mean / p.equal_spp.rmse.mean,
                 r.efficiency(f) / r.efficiency(p),
-                super::outputs::pm_count(&f.equal_time.spp),
-                super::outputs::pm_count(&p.equal_time.spp),
+                super::numbers::pm_count(&f.equal_time.spp),
+                super::numbers::pm_count(&p.equal_time.spp),
                 paper
             )
         }
@@ -193,7 +218,7 @@ fn ratio_line(regime: &str, r: &CompareReport) -> String {
 pub fn run(args: &ReportOptions) -> Result<()> {
     let start = Instant::now();
     let load_start = load_average();
-    let log = |l: &str| eprintln!("plume: {l}");
+    let log = |l: &str| log::info!("{l}");
     let mut suite = Suite { args, scene_file: Default::default(), md: String::new(), log: &log };
     let res = args.resolution;
     let explosion = format!("explosion:{res}");
@@ -345,6 +370,6 @@ fn write_document(args: &ReportOptions, body: &str, regimes: &[(&str, CompareRep
     md.push_str(body);
     let path = args.out.join("BENCHMARKS.md");
     plume_core::fs::write_atomic(&path, |w| std::io::Write::write_all(w, md.as_bytes()))?;
-    eprintln!("plume: wrote {}", path.display());
+    log::info!("wrote {}", path.display());
     Ok(())
 }

@@ -148,7 +148,8 @@ pub fn scene_file(spec: &str, work_dir: &Path) -> Result<PathBuf> {
     Ok(path)
 }
 
-/// Load `shot`, whose volume file is a scene spec (a file or `explosion:RES[:SEED]`).
+/// Load `shot`, whose volume file is a scene spec (a file or `explosion:RES[:SEED]`,
+/// generated into `work_dir`).
 ///
 /// # Errors
 /// See [`scene_file`], [`Shot::validate`] and [`load_scene`].
@@ -156,15 +157,33 @@ pub fn load(mut shot: Shot, flags: Vec<String>, work_dir: &Path) -> Result<Bench
     let t = std::time::Instant::now();
     let spec = shot.scene.volume.file.display().to_string();
     shot.scene.volume.file = scene_file(&spec, work_dir)?;
+    load_from(shot, spec, flags, t)
+}
+
+/// Load `shot`, whose volume file is a file (never a generated explosion).
+///
+/// # Errors
+/// See [`Shot::validate`] and [`load_scene`].
+pub fn load_file(shot: Shot, flags: Vec<String>) -> Result<BenchScene> {
+    let spec = shot.scene.volume.file.display().to_string();
+    load_from(shot, spec, flags, std::time::Instant::now())
+}
+
+/// Validate and load `shot` (its volume file a file now), started at `t`.
+fn load_from(shot: Shot, spec: String, flags: Vec<String>, t: std::time::Instant) -> Result<BenchScene> {
     let shot = shot.validate()?.into_inner();
     let loaded = load_scene(&shot.scene, &shot.scene.volume.file, &shot.settings, None)?;
     Ok(BenchScene { shot, loaded, spec, flags, load_seconds: t.elapsed().as_secs_f64() })
 }
 
-/// A shot of `spec` for a benchmark: its output is a placeholder that is never written.
+/// The output of a benchmark's shot: a placeholder, never written.
+pub const UNUSED_OUTPUT: &str = "plume-bench-unused.exr";
+
+/// A shot of `spec` for a benchmark: its output is a placeholder that is never written
+/// ([`UNUSED_OUTPUT`]).
 #[must_use]
 pub fn bench_shot(spec: &str) -> Shot {
-    Shot::new(spec, std::env::temp_dir().join("plume-bench-unused.exr"))
+    Shot::new(spec, UNUSED_OUTPUT)
 }
 
 #[cfg(test)]

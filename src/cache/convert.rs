@@ -289,7 +289,7 @@ pub fn check_not_stale(cache: &Cache) -> Result<()> {
 /// Refuse light-sampling tables that would not fit `budget` bytes of anonymous memory.
 ///
 /// # Errors
-/// [`Error::InvalidArgument`] for `--memory-budget`, with the way out.
+/// [`Error::InvalidArgument`] for `render.memory_budget`, with the way out.
 pub fn check_light_budget(volume: &Volume, light_sampling: LightSampling, table: NeeTable, budget: u64) -> Result<()> {
     if light_sampling != LightSampling::Nee {
         return Ok(());
@@ -306,7 +306,7 @@ pub fn check_light_budget(volume: &Volume, light_sampling: LightSampling, table:
     if needed > budget {
         let way_out = match table {
             NeeTable::Voxel => format!(
-                "use --nee-table brick (about {:.1} MiB: the voxel drawn from its brick's values) or the line-fnee method (its proxy needs a few MiB), or raise the memory budget",
+                "use integrator.nee_table brick (about {:.1} MiB: the voxel drawn from its brick's values) or the line-fnee method (its proxy needs a few MiB), or raise the memory budget",
                 brick_table as f64 / (1024.0 * 1024.0)
             ),
             NeeTable::Brick => "use the line-fnee method (its proxy needs a few MiB) or raise the memory budget".into(),
@@ -354,18 +354,18 @@ struct Place {
 }
 
 /// Where the automatic cache of `input` may live, in order: only `render.cache_dir` when
-/// it is given; otherwise beside the input, then `$XDG_CACHE_HOME/plume` (or
-/// `~/.cache/plume`, or `plume` in the temporary directory without a home).
+/// it is given; otherwise beside the input, then `render.user_cache_dir` when the
+/// application gave one (the binary: `$XDG_CACHE_HOME/plume`, or `~/.cache/plume`, or
+/// `plume` in the temporary directory without a home).
 fn cache_places(input: &Path, settings: &JobSettings) -> Vec<Place> {
     if let Some(dir) = &settings.render.cache_dir {
-        return vec![Place { dir: dir.clone(), what: "--cache-dir" }];
+        return vec![Place { dir: dir.clone(), what: "render.cache_dir" }];
     }
-    let user = std::env::var_os("XDG_CACHE_HOME")
-        .filter(|d| !d.is_empty())
-        .map(PathBuf::from)
-        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache")))
-        .unwrap_or_else(std::env::temp_dir);
-    vec![Place { dir: plume_core::fs::parent_dir(input), what: "beside the input" }, Place { dir: user.join("plume"), what: "$XDG_CACHE_HOME/plume" }]
+    let mut places = vec![Place { dir: plume_core::fs::parent_dir(input), what: "beside the input" }];
+    if let Some(user) = &settings.render.user_cache_dir {
+        places.push(Place { dir: user.clone(), what: "$XDG_CACHE_HOME/plume" });
+    }
+    places
 }
 
 /// The automatic cache at `path` if it may be rendered (complete and current; it is
@@ -422,7 +422,7 @@ pub fn auto_cache(scene: &SceneDescription, input: &Path, settings: &JobSettings
         match open_auto(&place.dir.join(&name)) {
             Ok(Some(cache)) => return Ok(Some(cache)),
             Ok(None) => {}
-            Err(e) => eprintln!("plume: rebuilding the automatic cache ({e})"),
+            Err(e) => log::info!("rebuilding the automatic cache ({e})"),
         }
     }
     let mut refused = Vec::new();
@@ -437,7 +437,7 @@ pub fn auto_cache(scene: &SceneDescription, input: &Path, settings: &JobSettings
     if settings.render.cache_dir.is_some() {
         let (place, e) = &refused[0];
         let message = format!(
-            "{e}; --cache-dir (render.cache_dir) must name a writable directory: the automatic brick cache of {} is made there, \
+            "{e}; render.cache_dir must name a writable directory: the automatic brick cache of {} is made there, \
              as the file is larger than a quarter of the memory budget",
             input.display()
         );
@@ -446,8 +446,8 @@ pub fn auto_cache(scene: &SceneDescription, input: &Path, settings: &JobSettings
     let nowhere = refused.iter().map(why).collect::<Vec<_>>().join("; ");
     let needed = in_core_bytes(scene, input, settings)?;
     if needed <= budget {
-        eprintln!(
-            "plume: warning: nowhere to write the automatic brick cache of {} ({nowhere}); reading it into memory instead \
+        log::warn!(
+            "nowhere to write the automatic brick cache of {} ({nowhere}); reading it into memory instead \
              (about {} while reading, within the memory budget of {})",
             input.display(),
             size(needed),
@@ -456,11 +456,12 @@ pub fn auto_cache(scene: &SceneDescription, input: &Path, settings: &JobSettings
         return Ok(None);
     }
     let (place, e) = &refused[0];
+    let others = refused[1..].iter().map(why).collect::<Vec<_>>().join("; ");
+    let nor = if others.is_empty() { others } else { format!("; nor {others}") };
     let message = format!(
-        "{e} ({}); nor {}; so the automatic brick cache of {} cannot be made, and reading it into memory would need about {}, \
-         more than the memory budget of {} (--memory-budget); give a writable --cache-dir",
+        "{e} ({}){nor}; so the automatic brick cache of {} cannot be made, and reading it into memory would need about {}, \
+         more than the memory budget of {} (render.memory_budget); give a writable render.cache_dir",
         place.what,
-        refused[1..].iter().map(why).collect::<Vec<_>>().join("; "),
         input.display(),
         size(needed),
         size(budget)
@@ -500,7 +501,7 @@ const LOCK_WAIT_BYTES_PER_SECOND: u64 = 10_000_000;
 fn make_auto_cache(scene: &SceneDescription, input: &Path, settings: &JobSettings, path: &Path, input_bytes: u64, budget: u64) -> Result<Option<Cache>> {
     let timeout = lock_timeout(settings, input_bytes);
     let at_most = (timeout.as_secs_f64() * 10.0).round() / 10.0;
-    let waiting = format!("waiting for another process that is making the automatic cache {} (at most {at_most} s, --cache-lock-timeout)", path.display());
+    let waiting = format!("waiting for another process that is making the automatic cache {} (at most {at_most} s, render.cache_lock_timeout)", path.display());
     let _lock = match CacheLock::acquire(path, timeout, Some(&waiting))? {
         Acquired::Locked(lock) => lock,
         Acquired::TimedOut { lock, waited } => {
@@ -512,11 +513,11 @@ fn make_auto_cache(scene: &SceneDescription, input: &Path, settings: &JobSetting
         }
     };
     if let Ok(Some(cache)) = open_auto(path) {
-        eprintln!("plume: using the automatic cache {}, which another process made meanwhile", path.display());
+        log::info!("using the automatic cache {}, which another process made meanwhile", path.display());
         return Ok(Some(cache));
     }
-    eprintln!(
-        "plume: {} is {:.2} GiB on disk, more than a quarter of the memory budget ({:.2} GiB, --memory-budget); \
+    log::info!(
+        "{} is {:.2} GiB on disk, more than a quarter of the memory budget ({:.2} GiB, render.memory_budget); \
          converting it once to the brick cache {}",
         input.display(),
         input_bytes as f64 / GIB,
@@ -525,7 +526,7 @@ fn make_auto_cache(scene: &SceneDescription, input: &Path, settings: &JobSetting
     );
     let what = Conversion { volume: &scene.volume, emission: &scene.emission, reading: &settings.reading, proxy_resolution: scene.integrator.proxy_resolution };
     let c = convert(input, &what, path)?;
-    eprintln!("plume: wrote {} ({:.2} GiB) in {:.1} s", c.path.display(), c.bytes as f64 / GIB, c.seconds);
+    log::info!("wrote {} ({:.2} GiB) in {:.1} s", c.path.display(), c.bytes as f64 / GIB, c.seconds);
     let mut cache = Cache::open(&c.path)?;
     cache.check.remove_on_failure();
     Ok(Some(cache))
@@ -536,14 +537,14 @@ fn make_auto_cache(scene: &SceneDescription, input: &Path, settings: &JobSetting
 /// rendered without the cache; the error otherwise.
 fn locked_out(scene: &SceneDescription, input: &Path, settings: &JobSettings, path: &Path, lock: &Path, waited: Duration, budget: u64) -> Result<()> {
     let held = format!(
-        "another process has held this lock for {:.1} s (--cache-lock-timeout) while making the automatic brick cache {}",
+        "another process has held this lock for {:.1} s (render.cache_lock_timeout) while making the automatic brick cache {}",
         waited.as_secs_f64(),
         path.display()
     );
     let needed = in_core_bytes(scene, input, settings)?;
     if needed <= budget {
-        eprintln!(
-            "plume: warning: {}: {held}; reading {} into memory instead (about {}, within the memory budget of {})",
+        log::warn!(
+            "{}: {held}; reading {} into memory instead (about {}, within the memory budget of {})",
             lock.display(),
             input.display(),
             size(needed),
@@ -554,7 +555,7 @@ fn locked_out(scene: &SceneDescription, input: &Path, settings: &JobSettings, pa
     Err(Error::CacheLocked {
         lock: lock.to_path_buf(),
         what: format!(
-            "{held}, and reading {} into memory instead would need about {}, more than the memory budget of {} (--memory-budget); \
+            "{held}, and reading {} into memory instead would need about {}, more than the memory budget of {} (render.memory_budget); \
              run the command again once that process has finished (or end it, if it hangs)",
             input.display(),
             size(needed),

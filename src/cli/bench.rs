@@ -7,13 +7,16 @@ use std::path::PathBuf;
 use clap::{ArgMatches, Args, CommandFactory, FromArgMatches, Subcommand};
 use plume::bench::interpolation::{closeup::CloseupConfig, rule::RuleConfig, InterpolationConfig};
 use plume::bench::metrics::RELMSE_EPSILON;
-use plume::bench::options::{default_work_dir, CompareOptions, ExtremesOptions, InterpolationOptions, ReportOptions};
+use plume::bench::options::{CompareOptions, ExtremesOptions, InterpolationOptions};
+use plume::bench::report::ReportOptions;
 use plume::bench::write_json;
 use plume_core::error::{Error, Result};
 use plume_engine::integrator::MisHeuristic;
 
+use super::environment::{bench_work_dir, working_dir};
 use super::flags::choice;
-use super::render::RenderRequest;
+use super::logger::{set_key_names, KeyNames};
+use super::request::RenderRequest;
 use super::{Cli, Command};
 
 /// `plume bench …`.
@@ -74,7 +77,7 @@ pub struct FlareArgs {
     #[arg(long, short)]
     pub out: Option<PathBuf>,
     /// Where the flare cache is made (once; reused while it is current).
-    #[arg(long, default_value_os_t = default_work_dir())]
+    #[arg(long, default_value_os_t = bench_work_dir())]
     pub work_dir: PathBuf,
     /// More `plume render` flags after `--` (e.g. `-- --interpolation nearest`).
     #[arg(last = true)]
@@ -183,7 +186,7 @@ pub struct CompareArgs {
     #[arg(long, default_value = "compare")]
     pub name: String,
     /// Where generated explosions are written.
-    #[arg(long, default_value_os_t = default_work_dir())]
+    #[arg(long, default_value_os_t = bench_work_dir())]
     pub work_dir: PathBuf,
     /// `plume render` flags after `--`, e.g. `-- --density-scale 20 --albedo 0.8 --width
     /// 320 --height 240 --threads 2`. --method, --spp, --time and -o are not used here.
@@ -232,7 +235,7 @@ pub struct DemoArgs {
     #[arg(long, value_delimiter = ',')]
     pub references: Vec<PathBuf>,
     /// Where the renders go and the references are kept.
-    #[arg(long, default_value_os_t = default_work_dir().join("demo"))]
+    #[arg(long, default_value_os_t = bench_work_dir().join("demo"))]
     pub work_dir: PathBuf,
     /// The time target: wall seconds of one render.
     #[arg(long, default_value_t = 60.0)]
@@ -347,7 +350,7 @@ pub struct ReportArgs {
     #[arg(long, default_value = "../shared/data")]
     pub data: PathBuf,
     /// Where generated explosions are written.
-    #[arg(long, default_value_os_t = default_work_dir())]
+    #[arg(long, default_value_os_t = bench_work_dir())]
     pub work_dir: PathBuf,
 }
 
@@ -370,7 +373,7 @@ pub fn run(command: BenchCommand, _matches: Option<&ArgMatches>) -> Result<()> {
                 args.mis,
                 args.proxy_resolution,
                 &regimes,
-                &|l| eprintln!("plume: {l}"),
+                &|l| log::info!("{l}"),
             )?;
             print!("{report}");
             write_json(&args.json, &report)
@@ -380,10 +383,13 @@ pub fn run(command: BenchCommand, _matches: Option<&ArgMatches>) -> Result<()> {
             print!("{report}");
             write_json(&args.json, &report)
         }
-        BenchCommand::Compare(args) => compare_options(&args).run(compare_scene(&args)?),
+        BenchCommand::Compare(args) => compare(&args),
         BenchCommand::Extremes(args) => {
-            ExtremesOptions { box_voxels: args.box_voxels, explosion_resolution: args.explosion_resolution, size: args.size, spp: args.spp, json: args.json }
-                .run()
+            let report =
+                ExtremesOptions { box_voxels: args.box_voxels, explosion_resolution: args.explosion_resolution, size: args.size, spp: args.spp, json: args.json }
+                    .run()?;
+            print!("{}", report.table());
+            report.verdict()
         }
         BenchCommand::Interpolation(args) => {
             if !(args.time.is_finite() && args.time > 0.0) {
@@ -392,7 +398,9 @@ pub fn run(command: BenchCommand, _matches: Option<&ArgMatches>) -> Result<()> {
             if !(args.closeup_pixels_per_voxel.is_finite() && args.closeup_pixels_per_voxel > 0.0) {
                 return Err(Error::invalid("--closeup-pixels-per-voxel", format!("{} must be positive", args.closeup_pixels_per_voxel)));
             }
-            InterpolationOptions { config: args.config(), json: args.json.clone() }.run()
+            let markdown = InterpolationOptions { config: args.config(), json: args.json.clone() }.run()?;
+            print!("{markdown}");
+            Ok(())
         }
         BenchCommand::Flare(args) => flare(&args),
         BenchCommand::Demo(args) => {
@@ -410,6 +418,7 @@ pub fn run(command: BenchCommand, _matches: Option<&ArgMatches>) -> Result<()> {
                 reference_seeds: args.reference_seeds,
                 references: args.references,
                 work_dir: args.work_dir,
+                working_dir: working_dir(),
                 target_seconds: args.target_seconds,
                 target_rel_rmse: args.target_rel_rmse,
             };
@@ -457,7 +466,15 @@ fn flare(args: &FlareArgs) -> Result<()> {
         work_dir: args.work_dir.clone(),
         render_flags,
     };
-    compare_options(&compare).run(compare_scene(&compare)?)
+    self::compare(&compare)
+}
+
+/// `plume bench compare`: the table on stdout, then the files under `--out`.
+fn compare(args: &CompareArgs) -> Result<()> {
+    let options = compare_options(args);
+    let report = options.run(compare_scene(args)?)?;
+    print!("{report}");
+    options.write(&report)
 }
 
 /// The library's options of `plume bench compare`.
@@ -501,6 +518,7 @@ fn compare_scene(args: &CompareArgs) -> Result<plume::bench::spec::BenchScene> {
     let Command::Render(render) = cli.command else { unreachable!("invariant: parsed a render command") };
     let sub = matches.subcommand().map(|(_, m)| m).expect("invariant: a render subcommand");
     let request = RenderRequest::try_from((&*render, sub))?;
+    set_key_names(KeyNames::of(&request.origin));
     plume::bench::spec::load(request.shot.clone().into_inner(), args.render_flags.clone(), &args.work_dir).map_err(|e| request.origin.explain(e))
 }
 

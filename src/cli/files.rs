@@ -42,7 +42,15 @@ pub struct MergeArgs {
 
 impl From<&MergeArgs> for MergeOptions {
     fn from(a: &MergeArgs) -> MergeOptions {
-        MergeOptions { parts: a.parts.clone(), output: a.output.clone(), sums: a.sums, preview: a.preview.clone(), exposure: a.exposure, quiet: a.quiet }
+        MergeOptions {
+            parts: a.parts.clone(),
+            output: a.output.clone(),
+            sums: a.sums,
+            preview: a.preview.clone(),
+            exposure: a.exposure,
+            quiet: a.quiet,
+            working_dir: super::environment::working_dir(),
+        }
     }
 }
 
@@ -186,7 +194,7 @@ pub fn prepare_command(args: &PrepareArgs) -> Result<()> {
     super::keys::apply_grids(&mut shot, &args.grids, &|_| true);
     let (scene, reading) = (&shot.scene, &shot.settings.reading);
     let input_bytes = std::fs::metadata(&args.file).map(|m| m.len()).unwrap_or(0);
-    let flags = super::render::Origin { scene_file: None, given: Vec::new() };
+    let flags = super::request::Origin { scene_file: None, given: Vec::new() };
     let what = plume::cache::convert::Conversion { volume: &scene.volume, emission: &scene.emission, reading, proxy_resolution: args.proxy_resolution };
     let c = plume::cache::convert::convert(&args.file, &what, &args.output).map_err(|e| flags.explain(e))?;
     if !args.quiet {

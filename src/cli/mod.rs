@@ -5,19 +5,30 @@
 //!
 //! | file | command |
 //! |---|---|
-//! | `render.rs` | `plume render` flags → [`plume_scene::Shot`] (with scene files and `--write-scene`) |
+//! | `render.rs` | `plume render` flags (each sets a scene key; `--write-scene`) |
+//! | `request.rs` | flags and scene file → a validated [`plume_scene::Shot`], and errors back to flags |
 //! | `keys.rs` | the table of render flag → scene key, and back (for error messages) |
 //! | `flags.rs` | value parsers shared by the commands (vectors, sizes, named choices) |
 //! | `bench.rs` | `plume bench …` |
 //! | `files.rs` | `plume info`, `plume prepare`, `plume merge`, `plume synth …` |
 //! | `commands.rs` | dispatch |
+//! | `logger.rs` | the library's log records on stderr, keys named as the flags that set them |
+//! | `observer.rs` | what `plume render` shows while it runs: progress bar and lines, replays |
+//! | `environment.rs` | what the library is given from the environment (directories) |
+//!
+//! The library never prints, exits or reads the environment (`scripts/check-quiet.sh`):
+//! everything on stdout and stderr is written here or by the logger installed here.
 
 pub mod bench;
 pub mod commands;
+pub mod environment;
 pub mod files;
 pub mod flags;
 pub mod keys;
+pub mod logger;
+pub mod observer;
 pub mod render;
+pub mod request;
 
 use clap::{Parser, Subcommand};
 

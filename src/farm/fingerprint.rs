@@ -123,6 +123,7 @@ pub fn settings_hash(shot: &Shot, seed: u64) -> String {
         defer_paths: _,
         memory_budget: _,
         cache_dir: _,
+        user_cache_dir: _,
         cache_lock_timeout: _,
         debug_pixel: _,
         quiet: _,

@@ -19,13 +19,11 @@
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-use indicatif::{ProgressBar, ProgressStyle};
-
 use plume_core::error::{Error, Result};
 use crate::farm::fingerprint::{file_sha256, settings_hash};
-use crate::farm::job::Job;
+use crate::farm::observer::{JobObserver, Pass, Replay, RunContext};
 use crate::farm::part::{assess, stats_metadata, Completion, Existing, Expected, PartInfo};
-use crate::farm::progress::Progress;
+use crate::farm::plan::Job;
 use crate::farm::signals;
 use plume_scene::split::format_range;
 use plume_engine::film::{Crop, Film, FIXED_POINT_BITS};
@@ -35,7 +33,7 @@ use crate::load::{load_scene, LoadedScene};
 use plume_engine::medium::{EmissionKind, Estimator};
 use plume_volume::out_of_core::memory::{MemoryBound, MemoryLimits};
 use crate::output::{write_exr_image, AovChannels, ExrImage};
-use plume_engine::render::{read_ahead_window, render_with, RenderControl, RenderResult, RenderSettings, SampleBudget, SampleOrder, StopReason};
+use plume_engine::render::{read_ahead_window, render_with, RenderControl, RenderObserver, RenderResult, RenderSettings, SampleBudget, SampleOrder, StopReason};
 use plume_scene::{DeferPaths, EmissionSource, SampleOrderChoice};
 use plume_engine::stats::{cpu_seconds, peak_rss_since_reset_bytes, reset_peak_rss, RenderStats};
 use plume_volume::Volume;
@@ -88,12 +86,13 @@ impl FramePaths {
 /// An output to continue: what it holds and its exact sums (and AOV sums).
 type Resume = (PartInfo, Vec<[i128; 4]>, Option<Vec<i128>>);
 
-/// Render frame `frame` (the `index`-th of the run).
+/// Render frame `frame` (the `index`-th of the run), telling `context.observer`.
 ///
 /// # Errors
 /// Input missing or unreadable (code 3), bad values found while loading (2), an output
 /// that cannot be written (4).
-pub fn render_frame(job: &Job<'_>, index: usize, frame: Option<i64>, command_line: &str, progress: &Progress) -> Result<FrameOutcome> {
+pub fn render_frame(job: &Job<'_>, index: usize, frame: Option<i64>, context: &RunContext<'_>) -> Result<FrameOutcome> {
+    let observer = context.observer;
     let settings = &job.shot.settings;
     let start = Instant::now();
     let cpu_at_start = cpu_seconds();
@@ -103,14 +102,14 @@ pub fn render_frame(job: &Job<'_>, index: usize, frame: Option<i64>, command_lin
     let seed = settings.render.seed.unwrap_or(frame.map_or(0, |f| f as u64));
     let hash = settings_hash(job.shot, seed);
 
-    let Some(mut resume) = decide(job, &paths, &hash, index, frame, progress)? else { return Ok(FrameOutcome::Skipped) };
-    progress.frame_start(index, frame, &paths.output.display().to_string());
+    let Some(mut resume) = decide(job, &paths, &hash, index, frame, observer)? else { return Ok(FrameOutcome::Skipped) };
+    observer.frame_started(index, frame, &paths.output);
     for path in std::iter::once(&paths.output).chain(paths.preview.iter()).chain(paths.stats.iter()) {
         plume_core::fs::check_writable(path)?;
     }
     let (input_sha256, input_bytes) = file_sha256(&paths.input)?;
     if resume.as_ref().is_some_and(|(info, ..)| info.input_sha256 != input_sha256) {
-        eprintln!("plume: {}: the input changed since it was started; rendering it again", paths.output.display());
+        log::info!("{}: the input changed since it was started; rendering it again", paths.output.display());
         resume = None;
     }
 
@@ -127,20 +126,20 @@ pub fn render_frame(job: &Job<'_>, index: usize, frame: Option<i64>, command_lin
         integrator: plume_engine::integrator::Integrator::for_scene(job.scene()),
     };
     if let Some(dp) = settings.render.debug_pixel {
-        replay(&loaded, &render_settings, dp);
+        observer.replayed(&replay(&loaded, &render_settings, dp));
         return Ok(FrameOutcome::Replayed);
     }
     if let Some((info, ..)) = &resume {
-        eprintln!("plume: {}: continuing from samples {} ({})", paths.output.display(), format_range(&info.samples), info.status.as_str());
+        log::info!("{}: continuing from samples {} ({})", paths.output.display(), format_range(&info.samples), info.status.as_str());
     }
     let render_start = Instant::now();
     let time_to_first_sample = start.elapsed().as_secs_f64();
-    let result = run_passes(job, &paths, &loaded, &render_settings, &plan, resume, start, &|done, total| {
+    let result = run_passes(job, &paths, &loaded, &render_settings, &plan, resume, start, observer, &|done: u64, total: u64| {
         let fraction = match plan.budget {
             SampleBudget::Spp(_) => (plan.resumed_spp + done) as f64 / (plan.resumed_spp + total).max(1) as f64,
             SampleBudget::Time(t) | SampleBudget::CpuTime(t) => render_start.elapsed().as_secs_f64() / t,
         };
-        progress.pass(index, frame, plan.resumed_spp + done, plan.resumed_spp + total, fraction);
+        observer.pass_done(&Pass { index, frame, done, target: total, resumed: plan.resumed_spp, fraction });
     });
     let spp = plan.resumed_spp + result.spp;
     if spp == 0 {
@@ -153,14 +152,14 @@ pub fn render_frame(job: &Job<'_>, index: usize, frame: Option<i64>, command_lin
     };
     let timing = Timing { wall: start.elapsed().as_secs_f64(), cpu: cpu_seconds() - cpu_at_start, time_to_first_sample };
     let input = InputId { sha256: input_sha256, bytes: input_bytes };
-    let frame_id = FrameId { frame, seed, settings_hash: hash, command_line };
+    let frame_id = FrameId { frame, seed, settings_hash: hash, command_line: context.command_line };
     let record = stats_record(job, &paths, &loaded, &result, &frame_id, input, status, spp, &timing);
-    write_outputs(job, &paths, &loaded, &result, &record, status)?;
+    write_outputs(job, &paths, &loaded, &result, &record, status, context.working_dir)?;
     if !settings.render.quiet {
         let state = if status == Completion::Complete { String::new() } else { format!(", {}", status.as_str()) };
         let crop = job.pixels();
-        eprintln!(
-            "plume: {} ({}x{}, {} spp{state}, {}) in {:.2} s ({:.2} s to first sample, {:.3} core-h)",
+        log::info!(
+            "{} ({}x{}, {} spp{state}, {}) in {:.2} s ({:.2} s to first sample, {:.3} core-h)",
             paths.output.display(),
             crop.width(),
             crop.height(),
@@ -171,7 +170,7 @@ pub fn render_frame(job: &Job<'_>, index: usize, frame: Option<i64>, command_lin
             timing.cpu / 3600.0
         );
     }
-    progress.frame_done(index, frame, status.as_str(), serde_json::to_value(&record).expect("invariant: stats serialize"));
+    observer.frame_done(index, frame, status, &record);
     Ok(FrameOutcome::Written { status, output: paths.output, spp })
 }
 
@@ -180,7 +179,7 @@ pub fn render_frame(job: &Job<'_>, index: usize, frame: Option<i64>, command_lin
 ///
 /// # Errors
 /// None today; kept fallible for the outputs' checks.
-fn decide(job: &Job<'_>, paths: &FramePaths, hash: &str, index: usize, frame: Option<i64>, progress: &Progress) -> Result<Option<Option<Resume>>> {
+fn decide(job: &Job<'_>, paths: &FramePaths, hash: &str, index: usize, frame: Option<i64>, observer: &dyn JobObserver) -> Result<Option<Option<Resume>>> {
     let settings = &job.shot.settings;
     plume_core::fs::remove_stale_temporaries(&paths.output);
     if settings.farm.overwrite || settings.render.debug_pixel.is_some() {
@@ -194,17 +193,17 @@ fn decide(job: &Job<'_>, paths: &FramePaths, hash: &str, index: usize, frame: Op
         Existing::Missing => Some(None),
         Existing::Complete(info) => {
             // Decisions about existing outputs are always logged, also with --quiet
-            eprintln!(
-                "plume: {}: already complete ({} spp), skipped (--overwrite renders it again)",
+            log::info!(
+                "{}: already complete ({} spp), skipped (farm.overwrite renders it again)",
                 paths.output.display(),
                 info.samples.end - info.samples.start
             );
-            progress.frame_skipped(index, frame, &paths.output.display().to_string());
+            observer.frame_skipped(index, frame, &paths.output);
             None
         }
         Existing::Resumable(info, sums, aov) => Some(Some((info, sums, aov))),
         Existing::Stale(reason) => {
-            eprintln!("plume: {}: {reason}; rendering it again", paths.output.display());
+            log::info!("{}: {reason}; rendering it again", paths.output.display());
             Some(None)
         }
     })
@@ -215,7 +214,7 @@ fn decide(job: &Job<'_>, paths: &FramePaths, hash: &str, index: usize, frame: Op
 fn warn_about(job: &Job<'_>, paths: &FramePaths, loaded: &LoadedScene) {
     let input = paths.input.display();
     let volume = loaded.scene.volume();
-    let warn = |msg: String| eprintln!("plume: warning: {msg}");
+    let warn = |msg: String| log::warn!("{msg}");
     if volume.report.density_clamped > 0 {
         warn(format!("{input}: {} density voxels were NaN, infinite or negative and were set to 0", volume.report.density_clamped));
     }
@@ -233,9 +232,9 @@ fn warn_about(job: &Job<'_>, paths: &FramePaths, loaded: &LoadedScene) {
     }
     let integrator = plume_engine::integrator::Integrator::for_scene(job.scene());
     let point =
-        [(integrator.estimator, "--estimator"), (integrator.camera_estimator(), "--camera-estimator")].into_iter().find(|(e, _)| *e == Estimator::Point);
-    if let Some((_, flag)) = point.filter(|_| loaded.scene.medium().emission.emits_without_density()) {
-        warn(format!("{flag} point scores only at collisions: emission where density is 0 (allowed by --convention cycles) is not rendered"));
+        [(integrator.estimator, "integrator.estimator"), (integrator.camera_estimator(), "integrator.camera_estimator")].into_iter().find(|(e, _)| *e == Estimator::Point);
+    if let Some((_, key)) = point.filter(|_| loaded.scene.medium().emission.emits_without_density()) {
+        warn(format!("{key} point scores only at collisions: emission where density is 0 (allowed by emission.convention cycles) is not rendered"));
     }
 }
 
@@ -262,8 +261,8 @@ impl SamplePlan {
     }
 }
 
-/// Replay one pixel sample and print its path.
-fn replay(loaded: &LoadedScene, settings: &RenderSettings, dp: plume_engine::render::SampleId) {
+/// Replay one pixel sample: its path's trace and its value.
+fn replay(loaded: &LoadedScene, settings: &RenderSettings, dp: plume_engine::render::SampleId) -> Replay {
     let (x, y, s) = (dp.x, dp.y, dp.sample);
     let mut trace = LineTrace::default();
     let mut counters = plume_engine::integrator::Counters::default();
@@ -271,15 +270,13 @@ fn replay(loaded: &LoadedScene, settings: &RenderSettings, dp: plume_engine::ren
         let plume_engine::render::PixelSample { ray, mut sampler, time } = plume_engine::render::pixel_sample(scene, settings.sampler, settings.seed, x, y, s);
         // The pixel's split count when splitting by brightness: the same pilot as the render's
         let split_map = plume_engine::pilot::split_map(scene, settings);
-        plume_engine::integrator::split_map::pixel_integrator(&settings.integrator, split_map.as_ref(), x, y).li_aovs(scene, &ray, &mut sampler, (time, &mut counters), &mut trace, &mut plume_engine::integrator::NoAovs)
+        plume_engine::integrator::split_map::pixel_integrator(&settings.integrator, split_map.as_ref(), x, y).li_aovs(scene, &ray, time, plume_engine::integrator::PathState { sampler: &mut sampler, counters: &mut counters, trace: &mut trace, aovs: &mut plume_engine::integrator::NoAovs })
     });
-    for line in &trace.0 {
-        eprintln!("plume: debug {x},{y},{s}: {line}");
-    }
-    println!("{l:?}");
+    Replay { sample: dp, trace: trace.0, value: format!("{l:?}") }
 }
 
-/// Render the frame's passes with a progress bar on a terminal, continuing `resume`.
+/// Render the frame's passes, continuing `resume`, telling `observer` (the passes' start
+/// and end) and `on_pass` (each pass).
 #[allow(clippy::too_many_arguments)]
 fn run_passes(
     job: &Job<'_>,
@@ -289,7 +286,8 @@ fn run_passes(
     plan: &SamplePlan,
     resume: Option<Resume>,
     start: Instant,
-    on_pass: &(dyn Fn(u64, u64) + Sync),
+    observer: &dyn JobObserver,
+    on_pass: &dyn RenderObserver,
 ) -> RenderResult {
     let job_settings = &job.shot.settings;
     let (width, height) = (job.scene().camera.width, job.scene().camera.height);
@@ -297,13 +295,6 @@ fn run_passes(
         SampleBudget::Spp(n) => u64::from(n),
         SampleBudget::Time(_) | SampleBudget::CpuTime(_) => 0,
     };
-    let bar = (!job_settings.render.quiet && std::io::IsTerminal::is_terminal(&std::io::stderr())).then(|| {
-        let pb = if target > 0 { ProgressBar::new(target) } else { ProgressBar::new_spinner() };
-        pb.set_style(
-            ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} spp {msg}").unwrap_or_else(|_| ProgressStyle::default_bar()),
-        );
-        pb
-    });
     let aovs = aov_layout(job, loaded);
     let film = resume.map(|(_, sums, aov)| {
         let mut film = Film::with_aovs(width, height, job.pixels(), aovs.as_ref().map_or(0, AovLayout::channels));
@@ -322,8 +313,8 @@ fn run_passes(
     if order == SampleOrder::TileMajor && auto && !job_settings.render.quiet {
         // Names the cgroup limit when that is what decided
         let what = available.map_or_else(String::new, |a| format!(" ({a})"));
-        eprintln!(
-            "plume: {}: {:.2} GB of bricks, more than the memory available{what}; rendering tile by tile (--sample-order)",
+        log::info!(
+            "{}: {:.2} GB of bricks, more than the memory available{what}; rendering tile by tile (render.sample_order)",
             paths.input.display(),
             volume.memory_bytes() as f64 / 1e9
         );
@@ -344,16 +335,9 @@ fn run_passes(
         aovs,
         half_block: Some(crate::farm::fingerprint::half_block(job_settings)),
     };
-    let on_pass = |done, total| {
-        if let Some(pb) = &bar {
-            pb.set_position(done);
-        }
-        on_pass(done, total);
-    };
-    let result = plume_engine::with_scene!(&loaded.scene, scene => render_with(scene, settings, control, &on_pass));
-    if let Some(pb) = &bar {
-        pb.finish_and_clear();
-    }
+    observer.render_started(target);
+    let result = plume_engine::with_scene!(&loaded.scene, scene => render_with(scene, settings, control, on_pass));
+    observer.render_finished();
     result
 }
 
@@ -445,11 +429,19 @@ fn stats_record(
 ///
 /// # Errors
 /// A failed cache check; an output that cannot be written.
-fn write_outputs(job: &Job<'_>, paths: &FramePaths, loaded: &LoadedScene, result: &RenderResult, record: &RenderStats, status: Completion) -> Result<()> {
+fn write_outputs(
+    job: &Job<'_>,
+    paths: &FramePaths,
+    loaded: &LoadedScene,
+    result: &RenderResult,
+    record: &RenderStats,
+    status: Completion,
+    working_dir: &std::path::Path,
+) -> Result<()> {
     let settings = &job.shot.settings;
-    let warn = |msg: String| eprintln!("plume: warning: {msg}");
+    let warn = |msg: String| log::warn!("{msg}");
     if let Some(c) = result.counters.first_nonfinite {
-        warn(format!("{} non-finite samples dropped; first at --debug-pixel {c}", result.counters.nonfinite_samples));
+        warn(format!("{} non-finite samples dropped; first at render.debug_pixel {c}", result.counters.nonfinite_samples));
     }
     if record.saturated_samples > 0 {
         warn(format!("{} sample values exceeded the fixed-point range (2^63) and were clamped", record.saturated_samples));
@@ -472,7 +464,7 @@ fn write_outputs(job: &Job<'_>, paths: &FramePaths, loaded: &LoadedScene, result
     let film_sums = result.film.sums();
     let sums = (job.write_sums || status != Completion::Complete).then_some(film_sums.as_slice());
     let mut metadata = stats_metadata(record);
-    match plume_scene::file::to_toml(job.shot) {
+    match plume_scene::file::to_toml(job.shot, working_dir) {
         Ok(text) => metadata.push(("plume:scene".into(), text)),
         Err(e) => warn(format!("the scene description is not recorded in {}: {e}", paths.output.display())),
     }

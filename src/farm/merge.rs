@@ -142,7 +142,7 @@ pub fn merge_parts(parts: &[(PartInfo, crate::output::ExrContents)]) -> Result<M
         if c.sums.is_none() {
             return Err(Error::InvalidPart {
                 path: p.path.clone(),
-                message: "has no exact sums; render parts with --crop, --tile, --sample-range or --sums".into(),
+                message: "has no exact sums; render parts with farm.crop, farm.tile, farm.sample_range or output.sums".into(),
             });
         }
     }
@@ -220,6 +220,9 @@ pub struct MergeOptions {
     pub exposure: Option<f32>,
     /// No summary.
     pub quiet: bool,
+    /// The directory relative paths are relative to: the merged frame's scene description
+    /// has its paths made absolute against it.
+    pub working_dir: std::path::PathBuf,
 }
 
 /// Run `plume merge`.
@@ -236,7 +239,7 @@ pub fn merge_command(args: &MergeOptions, command_line: &str) -> Result<()> {
     }
     let parts = args.parts.iter().map(|p| read_part(p)).collect::<Result<Vec<_>>>()?;
     let merged = merge_parts(&parts)?;
-    let metadata = merged_metadata(&parts, &merged, &args.output, command_line);
+    let metadata = merged_metadata(&parts, &merged, &args.output, command_line, &args.working_dir);
     let full = Crop::full(merged.width, merged.height);
     let spp = merged.samples.end - merged.samples.start;
     let layout = merged.aovs.as_ref().and_then(|(names, _)| AovLayout::from_channel_names(names));
@@ -265,11 +268,11 @@ pub fn merge_command(args: &MergeOptions, command_line: &str) -> Result<()> {
         crate::output::write_png(p, merged.width, merged.height, &pixels, exposure)?;
     }
     if merged.saturated > 0 {
-        eprintln!("plume: warning: {} sums exceeded the fixed-point range and were clamped; this image may differ from a single render", merged.saturated);
+        log::warn!("{} sums exceeded the fixed-point range and were clamped; this image may differ from a single render", merged.saturated);
     }
     if !args.quiet {
-        eprintln!(
-            "plume: merged {} parts into {} ({}x{}, samples {}) in {:.2} s",
+        log::info!(
+            "merged {} parts into {} ({}x{}, samples {}) in {:.2} s",
             parts.len(),
             args.output.display(),
             merged.width,
@@ -283,7 +286,13 @@ pub fn merge_command(args: &MergeOptions, command_line: &str) -> Result<()> {
 
 /// The merged image's header: the first part's record without per-process figures, with
 /// the merged sample range and crop, costs summed over the parts, and this command.
-fn merged_metadata(parts: &[(PartInfo, crate::output::ExrContents)], merged: &Merged, output: &Path, command_line: &str) -> Vec<(String, String)> {
+fn merged_metadata(
+    parts: &[(PartInfo, crate::output::ExrContents)],
+    merged: &Merged,
+    output: &Path,
+    command_line: &str,
+    working_dir: &Path,
+) -> Vec<(String, String)> {
     let mut m: BTreeMap<String, String> = parts[0].1.metadata.clone();
     // (The AOV sums' channel order is written with the sums, if they are kept)
     m.retain(|k, _| k.starts_with("plume:") && !PER_PROCESS_KEYS.contains(&k.as_str()) && k != crate::output::AOV_CHANNELS_ATTRIBUTE);
@@ -311,7 +320,7 @@ fn merged_metadata(parts: &[(PartInfo, crate::output::ExrContents)], merged: &Me
         m.insert(k.to_string(), v);
     }
     // The scene that made the parts, as the merged frame: the whole image, all samples
-    if let Some(scene) = m.get("plume:scene").and_then(|t| merged_scene(t, merged, output)) {
+    if let Some(scene) = m.get("plume:scene").and_then(|t| merged_scene(t, merged, output, working_dir)) {
         m.insert("plume:scene".into(), scene);
     }
     m.into_iter().collect()
@@ -320,7 +329,7 @@ fn merged_metadata(parts: &[(PartInfo, crate::output::ExrContents)], merged: &Me
 /// The first part's scene file (`plume:scene`) rewritten for the merged frame: no crop,
 /// tile or sample range, the merged sample count and output. `None` when it does not
 /// parse (an older plume's part); the part's text is kept then.
-fn merged_scene(part_scene: &str, merged: &Merged, output: &Path) -> Option<String> {
+fn merged_scene(part_scene: &str, merged: &Merged, output: &Path, working_dir: &Path) -> Option<String> {
     let mut shot: plume_scene::Shot = toml::from_str(part_scene).ok()?;
     let farm = &mut shot.settings.farm;
     (farm.crop, farm.tile) = (None, None);
@@ -329,7 +338,7 @@ fn merged_scene(part_scene: &str, merged: &Merged, output: &Path) -> Option<Stri
     shot.settings.render.spp = (first == 0).then(|| u32::try_from(merged.samples.end).ok()).flatten();
     shot.settings.render.time = None;
     shot.settings.output.image = output.to_path_buf();
-    plume_scene::file::to_toml(&shot).ok()
+    plume_scene::file::to_toml(&shot, working_dir).ok()
 }
 
 #[cfg(test)]

@@ -224,7 +224,7 @@ pub fn assess(path: &Path, expected: &Expected) -> Existing {
         // A --time budget: any complete image will do; a partial one cannot be continued
         return match info.status {
             Completion::Complete => Existing::Complete(info),
-            status => Existing::Stale(format!("{} and a --time budget cannot be continued", status.as_str())),
+            status => Existing::Stale(format!("{} and a render.time budget cannot be continued", status.as_str())),
         };
     };
     if info.status == Completion::Complete && info.samples == *r {
@@ -237,7 +237,7 @@ pub fn assess(path: &Path, expected: &Expected) -> Existing {
             (Some(sums), _, None) => Existing::Resumable(info, sums, None),
             (Some(sums), Some((names, aov)), Some(n)) if names.len() == n => Existing::Resumable(info, sums, Some(aov)),
             (Some(_), _, Some(_)) => Existing::Stale(format!("holds samples {} without exact AOV sums", range(&info.samples))),
-            (None, ..) => Existing::Stale(format!("holds samples {} without exact sums (--sums), not {}", range(&info.samples), range(r))),
+            (None, ..) => Existing::Stale(format!("holds samples {} without exact sums (output.sums), not {}", range(&info.samples), range(r))),
         }
     } else {
         Existing::Stale(format!("{} with samples {}, not {}", info.status.as_str(), range(&info.samples), range(r)))

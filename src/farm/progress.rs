@@ -1,5 +1,6 @@
-//! Machine-readable progress on stdout for farm schedulers (`--progress`); human logs go
-//! to stderr.
+//! Machine-readable progress for farm schedulers (`render.progress`): the lines, formatted
+//! here and handed to a sink the application gives (the binary writes them to stdout;
+//! human logs go to stderr).
 //!
 //! - `openjd`: Open Job Description's stdout protocol, which AWS Deadline Cloud and
 //!   `openjd run` parse: `openjd_progress: <0–100>` and `openjd_status: <text>` lines,
@@ -10,7 +11,6 @@
 //! Percentages count the whole run (all frames of the chunk). Progress lines are sent at
 //! most once a second; every other event is sent as it happens.
 
-use std::io::Write;
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
@@ -21,34 +21,26 @@ use plume_scene::ProgressFormat;
 /// Least time between two `progress` lines.
 const THROTTLE: Duration = Duration::from_secs(1);
 
+/// Where the lines go: called once per event with its lines, in order.
+pub type Sink = Box<dyn Fn(&[String]) + Send + Sync>;
+
 /// The progress reporter of one run.
 pub struct Progress {
     mode: ProgressFormat,
     frames: usize,
     last: Mutex<Option<Instant>>,
+    sink: Sink,
 }
 
 impl Progress {
-    /// A reporter for a run of `frames` frames.
+    /// A reporter for a run of `frames` frames, sending its lines to `sink`.
     #[must_use]
-    pub fn new(mode: ProgressFormat, frames: usize) -> Progress {
-        // A mapped input that fails under the render ends plume from a signal handler,
-        // which then prints the protocol's failure line too
-        plume_volume::out_of_core::mapfault::report_on_stdout(match mode {
-            ProgressFormat::None => plume_volume::out_of_core::mapfault::StdoutProtocol::None,
-            ProgressFormat::Openjd => plume_volume::out_of_core::mapfault::StdoutProtocol::Openjd,
-            ProgressFormat::Json => plume_volume::out_of_core::mapfault::StdoutProtocol::Json,
-        });
-        Progress { mode, frames: frames.max(1), last: Mutex::new(None) }
+    pub fn new(mode: ProgressFormat, frames: usize, sink: Sink) -> Progress {
+        Progress { mode, frames: frames.max(1), last: Mutex::new(None), sink }
     }
 
     fn emit(&self, lines: &[String]) {
-        let mut out = std::io::stdout().lock();
-        for l in lines {
-            // A closed stdout must not stop the render
-            let _ = writeln!(out, "{l}");
-        }
-        let _ = out.flush();
+        (self.sink)(lines);
     }
 
     fn percent(&self, index: usize, fraction: f64) -> f64 {

@@ -15,7 +15,8 @@ pub use plume_core::stop::stop_requested;
 static INSTALLED: Once = Once::new();
 
 /// Install the handlers (once per process; later calls do nothing). They set the stop
-/// flags of [`plume_core::stop`].
+/// flags of [`plume_core::stop`]. For the application to call: the second signal ends
+/// the process.
 ///
 /// # Errors
 /// The OS error if a handler cannot be installed.

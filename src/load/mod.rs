@@ -125,7 +125,7 @@ pub fn load_scene(scene: &SceneDescription, input: &Path, settings: &JobSettings
         _ => None,
     };
     // Majorants for null collisions in a still volume (a moving one has its own)
-    let majorants = (motion.is_none() && plume_engine::integrator::Integrator::for_scene(&scene).tracking != Tracking::Regular).then(|| MajorantGrid::new(&volume, 0.0));
+    let majorants = (motion.is_none() && plume_engine::integrator::Integrator::for_scene(scene).tracking != Tracking::Regular).then(|| MajorantGrid::new(&volume, 0.0));
     let scene = AnyScene::new(Scene { field: volume, medium, camera, lights, motion, majorants }, scene.volume.interpolation);
     Ok(LoadedScene { scene, emission_kind: emission.kind, source_grid, cache })
 }

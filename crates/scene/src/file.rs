@@ -151,15 +151,15 @@ pub fn resolve_paths(shot: &mut Shot, f: impl Fn(&Path) -> PathBuf) {
     }
 }
 
-/// `shot` as TOML, every path absolute (made so against the working directory), so
-/// the file renders the same from anywhere.
+/// `shot` as TOML, every path absolute (made so against `working_dir`, the directory
+/// relative paths are relative to, which the application gives), so the file renders the
+/// same from anywhere.
 ///
 /// # Errors
 /// A value TOML cannot hold (a seed above 2^63 − 1).
-pub fn to_toml(shot: &Shot) -> Result<String> {
+pub fn to_toml(shot: &Shot, working_dir: &Path) -> Result<String> {
     let mut shot = shot.clone();
-    let cwd = std::env::current_dir().unwrap_or_default();
-    resolve_paths(&mut shot, |p| if p.is_relative() { cwd.join(p) } else { p.to_path_buf() });
+    resolve_paths(&mut shot, |p| if p.is_relative() { working_dir.join(p) } else { p.to_path_buf() });
     to_toml_as_is(&shot)
 }
 
@@ -169,7 +169,7 @@ pub fn to_toml(shot: &Shot) -> Result<String> {
 /// A value TOML cannot hold (a seed above 2^63 − 1).
 pub fn to_toml_as_is(shot: &Shot) -> Result<String> {
     let body = toml::to_string_pretty(shot).map_err(|e| Error::Scene(format!("cannot write the scene as TOML: {e}")))?;
-    Ok(format!("# plume {} scene file (plume render FILE.toml; README, \"Scene files\")\n{body}", env!("CARGO_PKG_VERSION")))
+    Ok(format!("# plume {} scene file (plume render FILE.toml; docs/scene-file.md)\n{body}", env!("CARGO_PKG_VERSION")))
 }
 
 /// `shot` with the keys of a scene-file fragment set (`"[medium]\nalbedo = 0.8"`), for
@@ -194,12 +194,13 @@ pub fn with_keys(shot: &Shot, fragment: &str) -> Result<Shot> {
     table.try_into().map_err(|e| bad(&e))
 }
 
-/// Write `shot` to `path` as TOML ([`to_toml`]), atomically.
+/// Write `shot` to `path` as TOML ([`to_toml`], paths made absolute against
+/// `working_dir`), atomically.
 ///
 /// # Errors
 /// As [`to_toml`]; [`Error::Write`].
-pub fn write(path: &Path, shot: &Shot) -> Result<()> {
-    let text = to_toml(shot)?;
+pub fn write(path: &Path, shot: &Shot, working_dir: &Path) -> Result<()> {
+    let text = to_toml(shot, working_dir)?;
     plume_core::fs::write_atomic(path, |w| std::io::Write::write_all(w, text.as_bytes()))
 }
 

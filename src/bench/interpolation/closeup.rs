@@ -22,7 +22,7 @@ use serde::Serialize;
 
 use super::Switch;
 use crate::bench::progressive::{accumulate, average};
-use crate::bench::spec::{bench_shot, load};
+use crate::bench::spec::{bench_shot, load_file};
 use plume_engine::camera::Camera;
 use plume_core::error::{Error, Result};
 use plume_engine::integrator::{AnyScene, Integrator};
@@ -141,7 +141,7 @@ fn focus(field: &Trilinear, medium: &Medium, camera: &Camera) -> Option<DVec3> {
 pub fn run(data: &Path, cfg: &CloseupConfig, log: &dyn Fn(&str)) -> Result<CloseupReport> {
     let keys = format!("[emission]\nconvention = \"physical\"\n[camera]\nup_axis = \"z\"\nwidth = {}\nheight = {}", cfg.width, cfg.height);
     let shot = with_keys(&bench_shot(&data.join(&cfg.file).display().to_string()), &keys)?;
-    let mut scene = load(shot, vec![], &crate::bench::options::default_work_dir())?.loaded.scene;
+    let mut scene = load_file(shot, vec![])?.loaded.scene;
     let AnyScene::Linear(s) = &scene else { unreachable!("invariant: linear is the default") };
     let at = focus(&s.field, &s.medium, &s.camera).ok_or_else(|| Error::Scene(format!("{}: the middle row meets no emission", cfg.file.display())))?;
     let voxel = s.field.volume().world_from_index().matrix3.x_axis.length();

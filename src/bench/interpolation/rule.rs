@@ -40,7 +40,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::bench::metrics::{mean_rgb, relmse, rmse, RELMSE_EPSILON, RELMSE_TRIM};
-use crate::bench::spec::{bench_shot, load};
+use crate::bench::spec::{bench_shot, load_file};
 use plume_core::error::{Error, Result};
 use plume_engine::integrator::AnyScene;
 use plume_engine::medium::Medium;
@@ -189,7 +189,7 @@ pub fn run(data: &Path, cfg: &RuleConfig, log: &dyn Fn(&str)) -> Result<RuleRepo
                 cfg.width, cfg.height
             );
             let shot = with_keys(&bench_shot(&data.join(file).display().to_string()), &keys)?;
-            let scene = load(shot, vec![], &crate::bench::options::default_work_dir())?.loaded.scene;
+            let scene = load_file(shot, vec![])?.loaded.scene;
             let AnyScene::Linear(s) = &scene else { unreachable!("invariant: loaded with linear interpolation") };
             let (plume, cycles, steps) = images(&s.field, &s.medium, &s.camera, cfg.step_voxels);
             let (pm, cm) = (mean_rgb(&plume), mean_rgb(&cycles));
@@ -221,7 +221,7 @@ impl RuleReport {
     pub fn markdown(&self) -> String {
         let mut s = format!(
             "**Emission rule: per-voxel against temperature first.** The per-voxel rule interpolates each voxel's emission density, `L_e(x) = Σ w_c le(ρ_c, T_c)` (plume, in both conventions: a cubic, integrated in closed form; the expected value of Cycles 5.0.1's stochastic one-tap lookups); the other interpolates ρ and T and applies the blackbody after, `le(ρ(x), T(x))`. Emission-only images ({}×{}, auto-framed, σ_t = 1 per metre as Blender's default density), one ray per pixel centre, a deterministic midpoint march with an index-space step of at most {} voxel, the same transmittance (interpolated ρ) for both: only the emission rule differs. Reference = temperature first. relRMSE = √relMSE, relMSE as in the metrics above (top 0.1 % trimmed) on both images divided by the reference's mean, ε = {} (the conventions' radiances differ by orders of magnitude).\n\n",
-            self.width, self.height, crate::bench::outputs::num(self.step_voxels), self.epsilon
+            self.width, self.height, crate::bench::numbers::num(self.step_voxels), self.epsilon
         );
         s.push_str("| file | convention | image mean, per-voxel rule | image mean, temperature first | mean difference | relRMSE | RMSE ÷ mean |\n|---|---|---|---|---|---|---|\n");
         for r in &self.rows {
@@ -230,8 +230,8 @@ impl RuleReport {
                 "| `{}` | {} | {} | {} | **{:+.2} %** | {:.4} | {:.4} |",
                 r.file,
                 r.convention,
-                crate::bench::outputs::num(r.plume_mean),
-                crate::bench::outputs::num(r.cycles_mean),
+                crate::bench::numbers::num(r.plume_mean),
+                crate::bench::numbers::num(r.cycles_mean),
                 r.mean_difference_percent,
                 r.relrmse,
                 r.rmse_over_mean

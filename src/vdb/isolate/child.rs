@@ -1,6 +1,8 @@
 //! The child side of an isolated read: [`reader_main`] runs inside
 //! `plume __read-grids …` (see the command line in [`super`]), reads with the in-process
-//! reader and writes the reply to its stdout in the format of `vdb/wire/`.
+//! reader and writes the reply to its stdout in the format of `vdb/wire/`. A failure to
+//! do so comes back as a [`ReaderFailure`], which the binary prints before it ends the
+//! process.
 
 use std::ffi::OsString;
 use std::io::{self, BufWriter, Write};
@@ -14,36 +16,55 @@ use crate::vdb::stream::serve_stream;
 use crate::vdb::wire::{ChildError, Encoder};
 use crate::vdb::{list_grids, read_float_grid, read_vec3_grid, GridRequest, GridSelector, ReadLimits};
 
-/// Runs the reader subcommand (the arguments after [`READER_SUBCOMMAND`]) and ends the
-/// process: exit status 0 after a complete reply (which may report a clean failure), 1
-/// when the reply cannot be written, 2 on a malformed command line.
+/// Why the reader subcommand failed; a reply that reports a clean failure (a missing
+/// grid, a corrupt file) is not one.
+#[derive(Debug)]
+pub enum ReaderFailure {
+    /// The reply could not be written (exit status 1).
+    Reply(io::Error),
+    /// A malformed command line (exit status 2); the message is the usage.
+    Usage(String),
+}
+
+impl ReaderFailure {
+    /// The exit status the reader process ends with: 1 for [`ReaderFailure::Reply`], 2
+    /// for [`ReaderFailure::Usage`] (0 is a complete reply).
+    #[must_use]
+    pub fn exit_code(&self) -> i32 {
+        match self {
+            ReaderFailure::Reply(_) => 1,
+            ReaderFailure::Usage(_) => 2,
+        }
+    }
+}
+
+impl std::fmt::Display for ReaderFailure {
+    /// The message after `plume __read-grids: `.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ReaderFailure::Reply(e) => write!(f, "cannot write the reply: {e}"),
+            ReaderFailure::Usage(message) => f.write_str(message),
+        }
+    }
+}
+
+/// Runs the reader subcommand (the arguments after [`READER_SUBCOMMAND`]): `Ok` after a
+/// complete reply (which may report a clean failure).
 ///
-/// The process ends with `_exit`, skipping C++ static destructors: after a read of a
-/// hostile file the heap may be damaged, and a crash on the way out would turn a good
-/// reply into a failure.
-pub fn reader_main(args: &[OsString]) -> ! {
+/// The caller ends the process at once with `_exit` and [`ReaderFailure::exit_code`] (0
+/// for `Ok`), skipping C++ static destructors: after a read of a hostile file the heap
+/// may be damaged, and a crash on the way out would turn a good reply into a failure.
+///
+/// # Errors
+/// [`ReaderFailure`]: the reply could not be written, or the command line is malformed.
+pub fn reader_main(args: &[OsString]) -> Result<(), ReaderFailure> {
     // SAFETY: prctl(PR_SET_DUMPABLE, 0) only changes this process's dumpable flag (no core
     // dump of a crash on a hostile file). It is reset by exec, so it is set here.
     unsafe {
         libc::prctl(libc::PR_SET_DUMPABLE, 0, 0, 0, 0);
     }
-    let code = match ReaderCommand::parse(args) {
-        Ok(command) => match serve(&command) {
-            Ok(()) => 0,
-            Err(e) => {
-                eprintln!("plume {READER_SUBCOMMAND}: cannot write the reply: {e}");
-                1
-            }
-        },
-        Err(message) => {
-            eprintln!("plume {READER_SUBCOMMAND}: {message}");
-            2
-        }
-    };
-    let _ = io::stderr().flush();
-    // SAFETY: _exit ends the process without running atexit handlers; every output
-    // stream was flushed above.
-    unsafe { libc::_exit(code) }
+    let command = ReaderCommand::parse(args).map_err(ReaderFailure::Usage)?;
+    serve(&command).map_err(ReaderFailure::Reply)
 }
 
 /// A parsed reader command line.

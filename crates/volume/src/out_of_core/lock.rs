@@ -67,15 +67,15 @@ impl CacheLock {
     }
 
     /// Lock the cache `cache`, waiting at most `timeout` for another holder. `waiting`,
-    /// when given, is printed (as `plume: …`) once, when the lock is found taken. Without
-    /// locks (see the module docs) a warning is printed and an unheld lock returned.
+    /// when given, is logged (`log::info!`) once, when the lock is found taken. Without
+    /// locks (see the module docs) a warning is logged and an unheld lock returned.
     ///
     /// # Errors
     /// [`Error::Interrupted`] when SIGTERM or SIGINT arrives while waiting.
     pub fn acquire(cache: &Path, timeout: Duration, waiting: Option<&str>) -> Result<Acquired> {
         let lock_path = lock_path(cache);
         let unlocked = |e: std::io::Error| {
-            eprintln!("plume: warning: cannot lock {} ({e}); going on without waiting for other processes", lock_path.display());
+            log::warn!("cannot lock {} ({e}); going on without waiting for other processes", lock_path.display());
             Ok(Acquired::Locked(CacheLock { file: None }))
         };
         let file = match File::options().read(true).write(true).create(true).truncate(false).open(&lock_path) {
@@ -105,7 +105,7 @@ impl CacheLock {
                 return Ok(Acquired::TimedOut { lock: lock_path, waited });
             }
             if let (Some(message), false) = (waiting, announced) {
-                eprintln!("plume: {message}");
+                log::info!("{message}");
                 announced = true;
             }
             std::thread::sleep(sleep.min(timeout - waited));

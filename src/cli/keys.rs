@@ -27,7 +27,6 @@ flags_to_keys! { RENDER_ONLY_FLAGS, apply_render_only, RenderArgs, s, a;
     "spp" => "render.spp": s.settings.render.spp => a.spp;
     "time" => "render.time": s.settings.render.time => a.time;
     "seed" => "render.seed": s.settings.render.seed => a.seed;
-    "sampler" => "render.sampler": s.settings.render.sampler => a.sampler;
     "threads" => "render.threads": s.settings.render.threads => a.threads;
     "width" => "camera.width": s.scene.camera.width => a.width;
     "height" => "camera.height": s.scene.camera.height => a.height;

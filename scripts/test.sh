@@ -19,6 +19,6 @@ bash scripts/check-quiet.sh  # the library never prints, exits or reads the envi
 if ! cargo fmt --version >/dev/null 2>&1 || ! cargo clippy --version >/dev/null 2>&1; then
     command -v rustup >/dev/null 2>&1 && rustup component add rustfmt clippy
 fi
-cargo fmt --check
-cargo clippy --all-targets -- -D warnings
-cargo test --all-targets --no-fail-fast "$@"
+cargo fmt --all --check
+cargo clippy --workspace --all-targets -- -D warnings
+cargo test --workspace --all-targets --no-fail-fast "$@"

@@ -2,7 +2,7 @@
 //! every grid, then read each scalar grid and each vector grid. Crashes found here are crashes of OpenVDB that
 //! the isolated reader (`plume::vdb::isolate`) turns into clean errors; keep small ones in
 //! `data/regressions/`. Only the Rust side is coverage-instrumented (OpenVDB is the
-//! system library), so seed the corpus with real files (see the README).
+//! system library), so seed the corpus with real files (ARCHITECTURE.md, "Untrusted input").
 #![no_main]
 
 use std::io::Write;

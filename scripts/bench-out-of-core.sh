@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Out-of-core benchmark (README, "Out-of-core rendering"): a generated solar flare of
+# Out-of-core benchmark (docs/out-of-core.md): a generated solar flare of
 # about 30 GB rendered from a brick cache under --memory-budget 4GiB.
 #
 #   scripts/bench-out-of-core.sh [WORKDIR]      (default: target/ooc-bench; needs ≈40 GB free)
@@ -59,7 +59,7 @@ vdb_bytes=$(stat -c %s "$WORK/flare2048.vdb")
 cache2048_bytes=$(stat -c %s "$WORK/flare2048.plume")
 conv_s=$(python3 -c "print($t1-$t0)")
 
-# 2. Generation straight to a cache (REUSE=1 keeps an existing one: 5 minutes saved)
+# 2. Generation straight to a cache (REUSE=1 keeps an existing one and skips this step)
 if [ "${REUSE:-0}" = 1 ] && [ -f "$WORK/flare$BIG.plume" ]; then
     gen_s=nan; gen_anon=0
 else
@@ -75,8 +75,9 @@ big_bytes=$(stat -c %s "$WORK/flare$BIG.plume")
 # 3./4. Renders: same flags for every run, stats per run, page cache dropped before each
 # (where allowed). Emission and absorption (camera rays): with scattering, FNEE sends
 # bounces towards emitters anywhere in the volume, which tile-major read-ahead does not
-# cover (README). SPP=64: a production-like sample count; SPP_IO=16 shows the I/O-bound
-# end, where the render reads the whole file for a quarter of the work.
+# cover (docs/out-of-core.md, "Scattering out of core"). SPP=64: a production-like sample
+# count; SPP_IO=16 shows the I/O-bound end, where the render reads the whole file for a
+# quarter of the work.
 FLAGS=(--width 320 --height 240 -q --overwrite)   # default threads: all cores (+1 tile by tile)
 SPP=${SPP:-64}; SPP_IO=${SPP_IO:-16}
 cold() { sync; echo 3 > /proc/sys/vm/drop_caches 2>/dev/null || true; }

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
-"""Equal-CPU budgets of the peer comparison (`compare_cycles.py`, issue #16), kept apart
-from it so that they need nothing beyond the standard library and can be checked on their
-own: `python3 scripts/budget.py` runs the self-test (the test suite does, tests/bench.rs).
+"""Equal-CPU budgets of the peer comparison (`compare_cycles.py`), kept apart from it so
+that they need nothing beyond the standard library and can be checked on their own:
+`python3 scripts/budget.py` runs the self-test (the test suite does, tests/bench.rs).
 
 Model. A render's process CPU time is t(n) = o + c * n for n samples per pixel: a fixed
 cost o (loading, film, output) and a cost c per sample. `cpu_model` fits c by least squares
@@ -55,8 +55,8 @@ def _self_test():
     # Noise on a short rung moves c little: the long rungs weigh (n - 1)^2
     c, _ = cpu_model({1: 0.35, 2: 0.55, 64: 0.2 + 0.15 * 64})
     assert abs(c - 0.15) < 0.001, c
-    # The old rule charged a 4-spp rung t_4 - t_1 = 0.45, three samples' worth; the model
-    # charges c * 4 = 0.6
+    # Subtracting the 1-spp render would charge a 4-spp rung t_4 - t_1 = 0.45, three
+    # samples' worth; the model charges c * 4 = 0.6
     c, o = cpu_model({1: 0.35, 4: 0.8})
     assert close(c * 4, 0.6) and close(o, 0.2), (c, o)
     for bad in ({2: 1.0, 4: 2.0}, {1: 1.0}):

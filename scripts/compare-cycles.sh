@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
-# Peer comparison with Blender Cycles 5.0.1 (issue #16): renders the shared Blender
-# explosions in plume and in Cycles with matched conventions, measures each renderer's
-# relRMSE against its own converged reference at several CPU budgets, and prints a
-# Markdown table (also written to target/compare-cycles/table.md with the raw JSON).
+# Peer comparison with Blender Cycles 5.0.1: renders the shared Blender explosions in plume
+# and in Cycles with matched conventions, measures each renderer's relRMSE against its own
+# converged reference at several CPU budgets, and prints a Markdown table (also written to
+# target/compare-cycles/table.md with the raw JSON).
 #
 # A benchmark, not a test: it installs bpy==5.0.1 (PyPI, Python 3.11) into a venv under
 # target/, builds plume in release, and takes hours for the full set on 2 cores (the
@@ -12,7 +12,7 @@
 #   bash scripts/compare-cycles.sh            # full table
 #   bash scripts/compare-cycles.sh --quick    # a quick look
 #   bash scripts/compare-cycles.sh --lights   # sun, environment map and sphere light
-#                                             # (issue #14; scripts/compare_lights.py)
+#                                             # (scripts/compare_lights.py)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source scripts/setup.sh

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""plume against Blender Cycles 5.0.1 at equal CPU time (issue #16).
+"""plume against Blender Cycles 5.0.1 at equal CPU time.
 
 Runs inside the venv that `scripts/compare-cycles.sh` makes (bpy==5.0.1, OpenEXR, numpy).
 Cycles renders in this process through `bpy`; plume runs as a subprocess.
@@ -26,12 +26,12 @@ o + c * spp: a fixed cost o that every render pays besides its samples (for Cycl
 persistent data, the film and output; for plume, loading the file) and a cost c per sample
 per pixel, fitted over the ladder (its 1-spp render and rungs, through the 1-spp point:
 c = sum((n - 1)(t_n - t_1)) / sum((n - 1)^2), o = t_1 - c). A rung's CPU is c * n. The
-1-spp render is itself the ladder's first rung. Two things this replaces: subtracting the
-whole 1-spp render left a rung of n spp charged for n - 1 samples (a quarter off a 4-spp
-rung, a sixteenth off a 16-spp one), and each small rung's own time, a difference of two
-renders of a few tenths of a second, which varied by up to 40 % between runs; the
-per-sample cost each rung implies scatters about the fitted one by about 10 % (more for
-the shortest rungs), and the fit averages that. The set-up (the first 1-spp
+1-spp render is itself the ladder's first rung. Two simpler rules would do worse:
+subtracting the whole 1-spp render leaves a rung of n spp charged for n - 1 samples (a
+quarter off a 4-spp rung, a sixteenth off a 16-spp one), and each small rung's own time,
+a difference of two renders of a few tenths of a second, varies widely between runs; the
+per-sample cost each rung implies scatters about the fitted one (more for the shortest
+rungs), and the fit averages that. The set-up (the first 1-spp
 render: file load, scene sync, volume build) is reported apart. Each render runs
 `--repeats` times (3) and the least CPU time counts: load from other processes only ever
 adds time. The repeats go round the ladder, so a stretch of load slows one render of each
@@ -282,8 +282,7 @@ REF_SEED = 1000
 def least_cpu(render, spp, path, repeats):
     """The least CPU time of `repeats` renders of `spp` samples to `path` (fixed seeds: the
     same image each time). Load from other processes only ever adds time, so the least is
-    the render's own cost; on a shared 2-core machine single small renders scattered by
-    +-20 %."""
+    the render's own cost; on a shared machine single small renders scatter widely."""
     return min(render(spp, path) for _ in range(repeats))
 
 

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""plume's external lights against Blender Cycles 5.0.1 (issue #14): image means.
+"""plume's external lights against Blender Cycles 5.0.1: image means.
 
 Runs inside the venv of `scripts/compare-cycles.sh` (bpy==5.0.1, OpenEXR, numpy):
 `bash scripts/compare-cycles.sh --lights`. A benchmark, not a test.

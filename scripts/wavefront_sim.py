@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""How many passes over a brick cache a chunked wavefront would need (issue #17).
+"""How many passes over a brick cache a chunked wavefront would need.
 
 Reads the trace that `docs/bench/chunk-trace.patch` makes plume write
 (`PLUME_CHUNK_TRACE=trace.bin plume render ...`): for every scattered path, in the order

@@ -20,7 +20,7 @@
 # requeued or resubmitted tasks finish only what is missing. Slurm sends SIGTERM at the
 # time limit or on preemption and SIGKILL KillWait seconds later: plume finishes its
 # current pass (about a second) and writes the image with its spp (exit 5). Exit codes
-# (README, "Render farms"): 0 ok, 2 bad arguments, 3 input, 4 render/output, 5
+# (docs/farm.md, "Exit codes"): 0 ok, 2 bad arguments, 3 input, 4 render/output, 5
 # interrupted, 6 --time-limit, 7 some frames of the chunk failed. Array size is bounded
 # by Slurm's MaxArraySize (1001 by default): raise CHUNK for long sequences.
 #SBATCH --job-name=plume

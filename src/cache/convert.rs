@@ -480,8 +480,8 @@ fn size(bytes: u64) -> String {
 
 /// How long a render waits for another process making the same automatic cache before it
 /// gives up: `render.cache_lock_timeout`, or by default 10 minutes plus 1 s per 10 MB of
-/// the `.vdb` (a conversion reading it ten times slower than measured on a 2-core machine,
-/// README "Out-of-core figures", still finishes within it).
+/// the `.vdb`, so that a conversion ten times slower than on a small 2-core machine still
+/// finishes within it (docs/out-of-core.md, "Farm nodes sharing a cache directory").
 #[must_use]
 pub fn lock_timeout(settings: &JobSettings, input_bytes: u64) -> Duration {
     match settings.render.cache_lock_timeout {

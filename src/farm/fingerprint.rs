@@ -60,15 +60,16 @@ pub fn settings_hash(shot: &Shot, seed: u64) -> String {
     let EmissionSettings { source, convention, temperature_map, temperature_cutoff, scale, color } = emission;
     let MediumSettings { density_scale, albedo, g } = medium;
     let CameraSettings { from, at, up, fov, width, height, up_axis, shutter, fps, keys } = camera;
-    // Motion blur's keys, only when there is motion: still scenes hash as before
+    // Motion blur's keys, only when there is motion: still scenes hash as without them
     let motion = if velocity_grid.is_some() || !keys.is_empty() {
         format!("\nmotion {velocity_grid:?} {velocity_scale:?} {shutter:?} {fps:?} {keys:?}")
     } else {
         String::new()
     };
     let LightSettings { environment, environment_map, sky, distant, sphere } = lights;
-    // The map's file by name only (paths differ between farm nodes); scenes without
-    // the lights of issue #14 hash as before
+    // The map's file by name only (paths differ between farm nodes); scenes without an
+    // environment map, sky, distant or sphere light keep the hash they had without these
+    // keys
     let map = environment_map.as_ref().map(|m| {
         let EnvironmentMapSettings { file, intensity, rotation, visible, group } = m;
         format!("{:?} {intensity:?} {rotation:?} {visible} {group:?}", file.file_name())
@@ -95,14 +96,14 @@ pub fn settings_hash(shot: &Shot, seed: u64) -> String {
         point_lookup,
     } = integrator;
     // Splitting by brightness changes every scattering pixel's count; uniform (the
-    // default) adds nothing, so earlier hashes stay valid
+    // default) adds nothing, so hashes made without the key stay valid
     let split_by = if split_by.is_uniform() { String::new() } else { format!(" by {split_by}") };
     // A brick table draws other voxels than a voxel table from the same numbers; the
-    // default adds nothing, so earlier hashes stay valid
+    // default adds nothing, so hashes made without the key stay valid
     let nee_table = if nee_table.is_voxel() { String::new() } else { format!(" nee-table {nee_table}") };
     // Picked point lookups draw other numbers than exact ones on a trilinear volume:
     // hashed there, so parts of different kinds do not merge; elsewhere (nearest, or exact
-    // lookups) they add nothing, so hashes of renders from before stay valid (the same
+    // lookups) they add nothing, so hashes made without the key stay valid (the same
     // pixels)
     let point_lookup = match (point_lookup, interpolation) {
         (_, plume_volume::Interpolation::Nearest) | (plume_engine::integrator::PointLookup::Exact, _) => "",

@@ -178,7 +178,7 @@ pub fn render_frame(job: &Job<'_>, index: usize, frame: Option<i64>, context: &R
 /// output to continue, if any.
 ///
 /// # Errors
-/// None today; kept fallible for the outputs' checks.
+/// None; fallible for the outputs' checks.
 fn decide(job: &Job<'_>, paths: &FramePaths, hash: &str, index: usize, frame: Option<i64>, observer: &dyn JobObserver) -> Result<Option<Option<Resume>>> {
     let settings = &job.shot.settings;
     plume_core::fs::remove_stale_temporaries(&paths.output);
@@ -325,8 +325,8 @@ fn run_passes(
         stop: Some(&stop),
         deadline: job_settings.farm.time_limit.map(|t| start + Duration::from_secs_f64(t)),
         order,
-        // Deferral costs a render whose pages stay in memory (the flare, cached: 39.4 s
-        // against 27.7 s direct): `auto` is only for a cache larger than what is available
+        // Deferral slows a render whose pages stay in memory (docs/BENCHMARKS.md, "Deferred
+        // paths"): `auto` is only for a cache larger than what is available
         defer_paths: match job_settings.render.defer_paths {
             DeferPaths::Auto if !larger_than_available(volume, available) => DeferPaths::Never,
             choice => choice,

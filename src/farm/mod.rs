@@ -1,7 +1,7 @@
 //! Render-farm behaviour of `plume render` and `plume merge`: frame sequences and
 //! patterns, skip/continue/overwrite of outputs, splitting a frame into tiles and sample
 //! ranges and merging them exactly, signals, time limits, exit codes, progress lines and
-//! per-frame cost records. See the README's "Render farms" and `ARCHITECTURE.md`.
+//! per-frame cost records. See docs/farm.md and `ARCHITECTURE.md`.
 //!
 //! Nothing here prints: messages go through the `log` facade, progress and replays to
 //! the application's [`observer::JobObserver`], progress lines to its sink

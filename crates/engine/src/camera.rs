@@ -1,5 +1,5 @@
 //! Pinhole camera: pixel coordinates → world rays; optionally moving within the shutter
-//! (a path of placements, linear between knots; motion blur, issue #15).
+//! (a path of placements, linear between knots; motion blur).
 //!
 //! Image x grows to the right and y downwards; pixel `(x, y)` covers `[x, x+1) × [y, y+1)`
 //! (one-pixel box filter). The field of view is horizontal.

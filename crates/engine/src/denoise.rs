@@ -27,10 +27,9 @@
 //!
 //! The weights are symmetric, `w(p, q) = w(q, p)`. The paper subtracts `v_p + min(v_p,
 //! v_q)` instead, which lets a bright (noisier) pixel take from dark neighbours more
-//! readily than they take from it: light leaves bright regions and arrives nowhere.
-//! Measured, the image mean fell by 1.1 % on the README demo and by 3.9 % on a small
-//! explosion; with symmetric weights it moves by +0.24 % and −0.8 %, for a relRMSE of
-//! 0.072 instead of 0.069 on the demo.
+//! readily than they take from it: light leaves bright regions and arrives nowhere, and
+//! the image mean falls. Symmetric weights keep the mean, for a slightly larger error
+//! (docs/BENCHMARKS.md, "Denoising").
 //!
 //! **Cross filtering.** Weights computed on half `b` average half `a`, and weights from
 //! `a` average `b`; the output is the mean of the two. A half's own noise never chooses
@@ -40,28 +39,25 @@
 //!
 //! **What is filtered** ([`Filtered`]). Normally the whole beauty. When the camera
 //! segment is ray-marched (`--camera-estimator ray-march`), its emission is exact along
-//! each ray, with only the pixel footprint's noise (0.002 of the README demo's mean at 32
-//! spp): the halves then hold the beauty less it, the filter sees only the rest (the
-//! scattered light, external lights) and the emission is added back as rendered, so the
-//! fire keeps its texture (README demo: relRMSE 0.072 → 0.049, measured before the
-//! roulette change; docs/BENCHMARKS.md).
+//! each ray, with only the pixel footprint's noise, far below the scattered light's: the
+//! halves then hold the beauty less it, the filter sees only the rest (the scattered
+//! light, external lights) and the emission is added back as rendered, so the fire keeps
+//! its texture and the error falls (docs/BENCHMARKS.md, "Denoising").
 //!
 //! **Opacity.** With a ray-marched camera segment the pixel's alpha, `1 − τ` along its
-//! rays, is exact too (the footprint's noise only: 0.0005 of its mean on the README demo),
-//! and the scattered light is proportional to it where the smoke is thin: the light
-//! scattered toward the camera along a ray is `∫ τ σ_s L_i ds`, at most `α` times the
-//! largest in-scattered radiance `L_i`. So the rest is divided by `max(α, 0.05)`
-//! ([`OPACITY_FLOOR`]) in both halves, filtered, and multiplied back
-//! ([`denoise_per_opacity`]): the filter then averages the in-scattered radiance, which
-//! is smooth across the smoke's wisps and edges, instead of a signal whose structure is
-//! the opacity's, and the opacity's texture comes back exactly. Measured
-//! (docs/BENCHMARKS.md, "Denoising"): README demo relRMSE 0.0385–0.0405 → 0.0369–0.0391
-//! (preview levels 1.57 → 1.20–1.25) with the old filter parameters; on the peer
-//! comparison's thin explosions at albedo 0.8, 16 spp, 0.0078 → 0.0046.
+//! rays, is exact too (the footprint's noise only), and the scattered light is proportional
+//! to it where the smoke is thin: the light scattered toward the camera along a ray is
+//! `∫ τ σ_s L_i ds`, at most `α` times the largest in-scattered radiance `L_i`. So the rest
+//! is divided by `max(α, 0.05)` ([`OPACITY_FLOOR`]) in both halves, filtered, and
+//! multiplied back ([`denoise_per_opacity`]): the filter then averages the in-scattered
+//! radiance, which is smooth across the smoke's wisps and edges, instead of a signal whose
+//! structure is the opacity's, and the opacity's texture comes back exactly. It lowers the
+//! error on the dense demo scene and, more, on thin explosions (docs/BENCHMARKS.md,
+//! "Denoising").
 //!
 //! A noise-free input (`a = b`) has `v = 0`: every pixel whose patch is not identical gets
 //! weight 0 and the image comes back unchanged. The cost is `(2r+1)²` patch distances per
-//! pixel, twice: 0.4 s wall on 2 cores for 640×480 with the defaults.
+//! pixel, twice: with the defaults, small beside the render it filters.
 
 pub use plume_scene::sets::Filtered;
 use rayon::prelude::*;
@@ -81,11 +77,10 @@ pub struct Nlm {
 }
 
 impl Default for Nlm {
-    /// `r = 3`, `f = 4`, `k = 0.6`: the flat optimum over the README demo and, held out,
-    /// the peer comparison's three explosions at albedo 0.8 (docs/BENCHMARKS.md,
-    /// "Denoising"; `r` 3–4, `f` 4–5, `k` 0.5–0.7 are within 3 % of it on each). The
-    /// earlier `r = 7`, `f = 3`, `k = 0.45` was chosen when a 32-spp demo was 1.4× as
-    /// noisy; with less noise to remove a smaller window blurs less.
+    /// `r = 3`, `f = 4`, `k = 0.6`: the flat optimum over the demo scene
+    /// (`data/explosion.toml`) and, held out, the peer comparison's three explosions at
+    /// albedo 0.8 (docs/BENCHMARKS.md, "Denoising"; `r` 3–4, `f` 4–5, `k` 0.5–0.7 are
+    /// nearly as good on each). With little noise to remove a small window blurs less.
     fn default() -> Nlm {
         Nlm { radius: 3, patch: 4, k: 0.6 }
     }
@@ -98,13 +93,12 @@ impl Default for Nlm {
 /// Owen-scrambled Sobol points, a stratified net of its own, so each half is as well
 /// distributed as a render of its size, and `a − b` measures the noise of such renders.
 /// Smaller blocks make halves that are not nets: their difference overstates the noise
-/// of the whole and the filter blurs what it need not. Measured on the README demo (32
-/// spp, relRMSE of the denoised image against a 1024-spp reference): blocks of 16 (two
-/// nets) 0.069, of 8 0.078, of 4 0.100; halves by a hash of the sample 0.134 (with the
-/// paper's asymmetric weights: module docs). Parity, blocks of 1, is worst in principle:
-/// even and odd indices lie in opposite halves of every dimension's first stratum, so
-/// the halves would differ by the image's structure inside the pixel. A function of the sample index and the block alone, so the halves, like
-/// the image, do not depend on how the work was split.
+/// of the whole and the filter blurs what it need not: the denoised error grows as the
+/// blocks shrink, and halves by a hash of the sample are worse still (docs/BENCHMARKS.md,
+/// "Denoising"). Parity, blocks of 1, is worst in principle: even and odd indices lie in
+/// opposite halves of every dimension's first stratum, so the halves would differ by the
+/// image's structure inside the pixel. A function of the sample index and the block
+/// alone, so the halves, like the image, do not depend on how the work was split.
 #[must_use]
 #[inline]
 pub fn half_of(sample: u64, block: u64) -> bool {

@@ -60,11 +60,10 @@ pub fn render<F: Field>(scene: &Scene<F>, settings: &RenderSettings, observer: &
 /// If the rayon pool cannot be built, or `control.film` does not match the crop.
 pub fn render_with<F: Field>(scene: &Scene<F>, settings: &RenderSettings, mut control: RenderControl<'_>, observer: &dyn RenderObserver) -> RenderResult {
     // Out of core, a worker waiting on a page fault leaves its core idle: by default one
-    // worker more than cores keeps them busy (measured: +8 % on the 33 GB flare, 2 cores).
-    // Scattered segments read ahead of themselves (`integrator::tracker`) but still wait
-    // for their first pages: three workers per core (2048³ flare in a 1.5 GiB cgroup,
-    // albedo 0.5: 61.2 s with 3 workers, 50.9 s with 6, 48.6 s with 12; without
-    // scattering more workers widen the working set: 18.0 s with 3, 20.3 s with 8)
+    // worker more than cores keeps them busy. Scattered segments read ahead of themselves
+    // (`integrator::tracker`) but still wait for their first pages: three workers per
+    // core; without scattering more workers only widen the working set
+    // (docs/BENCHMARKS.md, "Out of core")
     let out_of_core = control.order == SampleOrder::TileMajor && scene.field.is_mapped();
     let threads = worker_threads(scene, settings, out_of_core);
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("invariant: a rayon pool can be built");
@@ -252,11 +251,11 @@ impl Pacing {
 ///
 /// Workers take tiles one at a time from a shared list, the costliest of the last pass
 /// first (`tile_seconds`, updated here): the longest-processing-time-first rule, so the
-/// pass ends on cheap tiles and no worker waits long for the last one. Before, rayon's
-/// `par_iter_mut` split the tiles into runs (with 2 workers, about 4 runs of 16 of a
-/// 128² image's 64 tiles) that cannot be split once started, so a run holding the
-/// fireball kept the other worker idle: 1.66 of 2 cores busy (issue #16). The order
-/// changes no pixel: each tile's sums are its own exact integers.
+/// pass ends on cheap tiles and no worker waits long for the last one. Rayon's
+/// `par_iter_mut` would split the tiles into runs (with 2 workers, about 4 runs of 16 of
+/// a 128² image's 64 tiles) that cannot be split once started, so a run holding the
+/// fireball would keep the other worker idle. The order changes no pixel: each tile's
+/// sums are its own exact integers.
 fn progressive_pass<F: Field>(
     scene: &Scene<F>,
     job: TileJob<'_>,

@@ -1,10 +1,10 @@
 //! Reading untrusted VDB files in a child process, so that no file can crash, hang or
 //! exhaust plume.
 //!
-//! OpenVDB 10.0.1 segfaults on about 5% and hangs on about 1% of randomly mutated copies of
-//! real files (`tests/fuzz_mutants.rs`). No amount of checking in the shim makes a C++ parser of that size
-//! safe, so plume runs it where a crash cannot hurt: `plume __read-grids …`, a hidden
-//! subcommand of the same binary, started with
+//! OpenVDB 10.0.1 segfaults or hangs on a few per cent of randomly mutated copies of real
+//! files (`tests/fuzz_mutants.rs`). No amount of checking in the shim makes a C++ parser of
+//! that size safe, so plume runs it where a crash cannot hurt: `plume __read-grids …`, a
+//! hidden subcommand of the same binary, started with
 //!
 //! - `RLIMIT_DATA` = [`IsolationLimits::memory_bytes`]: an allocation sized by a lying
 //!   header fails (`std::bad_alloc` → a clean "out of memory" reply, or an abort);
@@ -70,7 +70,7 @@ pub const READER_SUBCOMMAND: &str = "__read-grids";
 pub const DEFAULT_TIMEOUT: Duration = Duration::from_secs(120);
 
 /// Memory the reader process needs beyond the grids themselves: code, libraries, OpenVDB's
-/// registries, stacks and pipe buffers (it peaks at about 30 MB on an empty read).
+/// registries, stacks and pipe buffers (an empty read peaks at a small part of this).
 pub const BASE_MEMORY_BYTES: u64 = 256 << 20;
 
 /// Resource limits of the reader process.

@@ -31,7 +31,7 @@
 //! and are named `half.rest.R`, `half.rest.G`, `half.rest.B`, so a sums file says which.
 //!
 //! Without `--aovs` or `--denoise` the integrator is instantiated with [`NoAovs`], whose
-//! methods are empty: it compiles to the code it was before AOVs existed.
+//! methods are empty: it compiles to the code of an integrator without AOVs.
 
 pub use plume_scene::Filtered;
 

@@ -1,10 +1,10 @@
 //! Scattered paths of an out-of-core render, traced in rounds: record, fill, rerun
-//! (issue #17; docs/BENCHMARKS.md, "Scattering in a memory limit").
+//! (docs/BENCHMARKS.md, "Scattering in a memory limit").
 //!
 //! **Why.** A volume larger than memory is paged from its cache file. The camera pass
 //! reads it tile by tile, in order; a scattered path instead looks the volume up at
-//! about a hundred points spread over it, each a page read at random (≈ 9 µs of kernel
-//! time per 4 KiB page in a cgroup, against ≈ 0.7 µs for a page read in file order).
+//! about a hundred points spread over it, each a page read at random, which costs the
+//! kernel an order of magnitude more than a page read in file order.
 //!
 //! **How.** Four facts make the paths replayable without a resumable tracker:
 //! - a null-tracked segment's lookups are known before it runs: a walk through a field
@@ -35,14 +35,13 @@
 //! reaches the film with the sums a direct render makes: **images and counters are the
 //! direct render's**, bit for bit, for any thread count and split.
 //!
-//! **Cost** (docs/BENCHMARKS.md, "Deferred paths"). A fill's time grows with its lookups
-//! (about 2.3 µs each in a tight cgroup, 0.8 µs in core), and each fill brings most of
-//! the file's pages in again. The 2048³ flare in a 1.5 GiB cgroup, `--split 1`: 67–85 s
-//! against 126–131 s direct (cached 21.4 s; the host's load varies). Split paths multiply
-//! the lookups past what a few fills serve (`--split 8`: about 35 fills, slower than
-//! direct), so `--defer-paths auto` defers one path per camera collision only (`render`),
-//! and the rounds are given up when the first one's lookups extrapolate to more than
-//! [`MAX_PASSES`] fills.
+//! **Cost** (docs/BENCHMARKS.md, "Deferred paths"). A fill's time grows with its lookups,
+//! and each fill brings most of the file's pages in again. With one path per camera
+//! collision a few fills serve a render in a tight memory limit, faster than tracing it
+//! directly. Split paths multiply the lookups past what a few fills serve (`--split 8`
+//! needs several times as many fills, slower than direct), so `--defer-paths auto` defers
+//! one path per camera collision only (`render`), and the rounds are given up when the
+//! first one's lookups extrapolate to more than [`MAX_PASSES`] fills.
 //!
 //! After [`MAX_ROUNDS`] rounds, or once few samples remain, the rest are traced directly.
 //! Paths whose scene needs exact walks after scattering (classic NEE, external lights),
@@ -267,10 +266,9 @@ const BYTES_PER_LOOKUP: u64 = 152;
 
 /// The rounds are given up, and every path traced directly, when the first round's
 /// lookups, extrapolated to all samples, would take more fills than this. Each fill
-/// brings most of the file's pages in again; in the 2048³ flare's 1.5 GiB cgroup
-/// (`docs/BENCHMARKS.md`), `--split 1` takes 9 rounds (16 M lookups, up to 4 M a fill)
-/// and renders in 67–85 s instead of 126–131 s, while `--split 8` would need about 35
-/// fills of 4 M lookups, slower than its 195–217 s direct.
+/// brings most of the file's pages in again: in a tight memory limit `--split 1` takes a
+/// few fills and renders faster than directly, while `--split 8` would need several times
+/// this many, slower than directly (docs/BENCHMARKS.md, "Deferred paths").
 const MAX_PASSES: usize = 8;
 
 /// Samples rerun together, between checks of how many lookups they recorded.

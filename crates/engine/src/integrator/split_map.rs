@@ -3,9 +3,9 @@
 //!
 //! **Why.** With `--split N` every camera collision starts `N` paths of weight `1/N`
 //! (`integrator::volpath`, "Splitting"). Their noise is not uniform over the image: a
-//! pixel's scattered light `S` and its standard deviation grow together (on the README
-//! demo the log of the per-pixel deviation correlates 0.98 with the log of the scattered
-//! light), so the bright smoke beside the fire carries most of the squared error while
+//! pixel's scattered light `S` and its standard deviation grow together (on the demo
+//! scene, `data/explosion.toml`, the log of the one follows the log of the other
+//! closely), so the bright smoke beside the fire carries most of the squared error while
 //! the dim smoke gets as many paths. Spending paths where the noise is lowers the error
 //! for the cost.
 //!
@@ -19,19 +19,17 @@
 //! less the camera segment's emission) at block `b`, averaged over the 3×3 blocks around
 //! it, and "covered" means a pilot opacity above [`COVERED_ALPHA`]. So the mean count over
 //! the covered blocks stays `N`. Paths in the bright smoke beside the fire live longer, so
-//! the cost grows anyway: +17 % instructions on the README demo.
+//! the cost grows anyway.
 //!
-//! **What it gives** (README demo, 32 spp, `--split 6`, seeds 0, 2 and 3; docs/BENCHMARKS.md,
-//! "Splitting by brightness"): denoised relRMSE 0.0278–0.0288 against 0.0316–0.0320 with
-//! uniform splitting, noisy 0.139–0.141 against 0.160: at +17 % cost, 1.09× the
-//! efficiency denoised and 1.12× noisy (efficiency = 1/(error² · cost)). Tried at 8 spp
-//! (noisy efficiency against uniform, instructions from callgrind): exponent ½ 1.05×,
-//! ¼ 1.08×, ½ divided by the root of the pilot's cost per sample 1.05×, Neyman's
-//! `n ∝ S/√cost` 0.84× (the pilot's noise and the longer paths undo it); a mean weighted
-//! by the blocks' opacity (fewer paths in all) 1.04× denoised at 32 spp.
-//! An oracle map from the noise of earlier renders did no better than this pilot. On thin
-//! smoke it gives nothing (kelvin40 at albedo 0.8: the same noise for 5 % more
-//! instructions), so it is not the default.
+//! **What it gives** (docs/BENCHMARKS.md, "Splitting by brightness"). On the demo scene the
+//! error falls by more than the cost grows, denoised and noisy
+//! (efficiency = 1/(error² · cost)). The exponent ¼ is within the noise of ½ without the
+//! denoiser; ½ is kept for its lower error with it, where the demo is judged. Dividing by the root of the pilot's cost
+//! per sample gains nothing more, Neyman's `n ∝ S/√cost` loses (the pilot's noise and the
+//! longer paths undo it), a mean weighted by the blocks' opacity (fewer paths in all) gains
+//! less, and an oracle map from the noise of other renders does no better than this pilot.
+//! On thin smoke it gives nothing (the same noise for more instructions), so it is not the
+//! default.
 //!
 //! **Unbiased.** Any count fixed before a collision's paths are drawn keeps the split
 //! unbiased (each path estimates the same in-scattered radiance; volpath's module docs).
@@ -43,7 +41,7 @@
 //! render computes, and the map is a function of its exact sums: the image stays a pure
 //! function of (seed, pixel, sample), bit-identical for any thread count, tile, crop and
 //! sample split, and a `--debug-pixel` replay builds the same map. The pilot takes
-//! `4/(64·spp)` of the render's samples (0.2 % of the README demo's).
+//! `4/(64·spp)` of the render's samples.
 //!
 //! This module is the map's data and rule; the pilot render itself is
 //! [`crate::pilot::split_map`].

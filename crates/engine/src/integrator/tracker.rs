@@ -103,9 +103,8 @@ impl<'a, F: Field> Points<'a, F> {
 impl<F: Field> Points<'_, F> {
     /// [`PointField::emission`] for the fill of deferred paths (`integrator::deferred`):
     /// the same value, bit for bit, through an instance of the reconstruction of its own,
-    /// so that the walk's instance keeps its single caller. Measured (callgrind, kelvin40
-    /// line-fnee in core, where nothing is deferred): 869.8 M instructions with the fill
-    /// calling `emission`, 862.1 M with this.
+    /// so that the walk's instance keeps its single caller: with the fill calling
+    /// `emission` too, the in-core walk, where nothing is deferred, runs more instructions.
     #[inline(never)]
     pub(super) fn emission_for_fill(&self, p: glam::DVec3) -> [f64; 3] {
         self.field.reconstruct(self.source_point(p), &|d, s| self.memo.le(d, s)).emission
@@ -156,7 +155,8 @@ impl<F: Field> PointField for Points<'_, F> {
         let albedo = self.field.albedo_at(q);
         if emission {
             // The source comes with the reconstruction: a trilinear field gathers its 8
-            // corners once (reading them again for `values_at` was 3.6 % of the README demo)
+            // corners once (reading them again for `values_at` would cost a visible part of
+            // a render's instructions)
             let v = self.field.reconstruct(q, &|d, s| self.memo.le(d, s));
             PointSample { density: v.density, source: v.source, emission: v.emission, albedo }
         } else {
@@ -256,7 +256,7 @@ impl PointField for Recorder {
 /// recorded, not walked, and the sampler moves on as the recording drew, so that the
 /// path's next segment is recorded as if this one had no real collision, which in thin
 /// media it mostly has not (a guess, checked when the path is rerun). Kept out of
-/// [`Tracker::track`], whose other arms the compiler then inlines as before.
+/// [`Tracker::track`], whose other arms the compiler then inlines.
 // Each argument is a distinct input of the walk (randomness stays an argument: STYLE §3)
 #[allow(clippy::too_many_arguments)]
 #[inline(never)]

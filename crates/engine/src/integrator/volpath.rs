@@ -17,20 +17,19 @@
 //! estimates of the same in-scattered radiance. Roulette compares `β` with `1/N`, not
 //! with 1, or it would undo the split at the first vertex. In thin media the camera walk,
 //! which integrates the emission seen directly with almost no variance, is most of a
-//! sample's cost while the scattered light carries almost all of its variance: `N = 8`
-//! (the default) gave 3.0–3.1× the efficiency on the three Mantaflow explosions at
-//! albedo 0.8 and 1.55× on the dense README demo (docs/BENCHMARKS.md, "Splitting"); since
-//! the roulette change below, 1.8–2.9× at 22–37 spp. At about one sample per pixel
-//! fewer paths win, by 10–15 % since the camera collision is forced (`--split 4`;
-//! "Forced camera collisions").
+//! sample's cost while the scattered light carries almost all of its variance, so `N = 8`
+//! paths a camera walk (the default) are more efficient than one, in thin and dense smoke
+//! alike (docs/BENCHMARKS.md, "Splitting"). At about one sample per pixel fewer paths win,
+//! since the camera collision is forced (`--split 4`; docs/BENCHMARKS.md, "Forced camera
+//! collisions").
 //!
 //! **Forced camera collisions** (`medium::forced`, `--camera-collision`): where paths
 //! scatter the camera segment is ray-marched by default, and its walk forces the
 //! collision: with probability `min(1, K W)` (`W` the analog collision's probability) at the
 //! analog law given a collision, weighted `W/q`, which the split paths' `β` carries. In thin
 //! smoke few camera rays collide, so at a few samples per pixel this, not the split, is
-//! what lowers the scattered light's noise (0.54–1.00× → 0.28–0.42× Cycles' error at the
-//! Cycles comparison's smallest budget; docs/BENCHMARKS.md, "Forced camera collisions").
+//! what lowers the scattered light's noise (docs/BENCHMARKS.md, "Forced camera
+//! collisions").
 //! The split paths of a forced collision start apart, path `k` in stratum `k` of the
 //! collision law (`medium::forced`, "Split paths start apart"); an analog or null-tracked
 //! camera collision is shared by its paths.
@@ -87,10 +86,10 @@ use super::trace::{NoTrace, Trace};
 ///
 /// In an emissive medium every segment after a collision collects emission, so a path
 /// ended early loses light it would surely have gathered: with `t = 1` (survival `β`, as
-/// pbrt does) an albedo of 0.8 ended a fifth of the paths at their first vertex. Measured
-/// (docs/BENCHMARKS.md, "Russian roulette"), 1/(relMSE · CPU s) against `t = 1`: the README
-/// demo 1.24× (split 8) and 1.77× (split 4); `mantaflow_explosion_kelvin_0040.vdb` at
-/// albedo 0.8 1.46×; no roulette at all was slower for the same noise.
+/// pbrt does) an albedo of 0.8 ends a fifth of the paths at their first vertex. A
+/// threshold below 1 is more efficient (1/(relMSE · CPU s)) than `t = 1` on dense and thin
+/// smoke, split or not, and no roulette at all is slower for the same noise
+/// (docs/BENCHMARKS.md, "Russian roulette").
 pub const ROULETTE_THRESHOLD: f64 = 0.3;
 
 /// The path integrator and its settings.

@@ -1,7 +1,7 @@
 //! Classic NEE's table at brick resolution (`--nee-table brick`): for volumes whose
 //! per-voxel table ([`super::nee`], 16 bytes per emitting voxel) does not fit in memory.
 //! The generated 2048³ flare has up to 580 M emitting voxels (13 GiB of table), the 4096³
-//! one eight times as many, the paper's out-of-core experiment (issue #17).
+//! one, the paper's out-of-core experiment, eight times as many.
 //!
 //! **Distribution.** One alias entry per emitting brick `b`, weighted by its power
 //! `Φ_b = Σ_{i∈b} Φ_i`, summed over its voxels in brick order

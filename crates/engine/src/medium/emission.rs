@@ -168,10 +168,10 @@ impl Emission {
 }
 
 /// Slots of each thread's [`EmissionMemo`] table (a power of two): 16384 × 24 bytes,
-/// which L2 holds (kelvin40, line, 160×120: 4096 slots saved 12 % of the render's time,
-/// 16384 saved 15 %, 1024 saved 5 %). The table is static thread-local storage: 384 KiB
-/// of every thread's stack allocation (glibc places it there), far below the 2 MiB of a
-/// Rust or rayon thread.
+/// which L2 holds; smaller tables save markedly less of a render's time, a larger one
+/// hardly more (docs/BENCHMARKS.md, "Interpolation: trilinear vs nearest"). The table is
+/// static thread-local storage: 384 KiB of every thread's stack allocation (glibc places
+/// it there), far below the 2 MiB of a Rust or rayon thread.
 const MEMO_SLOTS: usize = 16384;
 
 /// One slot of the thread's memo table: the key (the tag of the emission model the value
@@ -220,9 +220,10 @@ pub(crate) struct EmissionMemo<'e> {
     emission: &'e Emission,
     tag: u32,
     /// This thread's [`MEMO`], found once: a lookup through `MEMO.with` is a call the
-    /// compiler may keep out of line in every walk that asks (its inlining changed with
-    /// unrelated code, costing a scattering render 14 % of its instructions). A raw
-    /// pointer keeps the memo on its thread: it is neither `Send` nor `Sync`.
+    /// compiler may keep out of line in every walk that asks (whether it does can change
+    /// with unrelated code, and out of line it costs a scattering render a sizeable share
+    /// of its instructions). A raw pointer keeps the memo on its thread: it is neither
+    /// `Send` nor `Sync`.
     table: *const MemoTable,
 }
 
@@ -278,7 +279,7 @@ impl<'e> EmissionMemo<'e> {
 
     /// Runs `task` with [`EmissionMemo::le`] made for the model's kind and convention:
     /// the same values bit for bit, without deciding on them at every corner (a trilinear
-    /// piece asks 8 times; kelvin40's emission–absorption render, 12.9 M times).
+    /// piece asks 8 times, a render millions of times).
     #[inline]
     pub(crate) fn run<T: LeTask>(&self, task: T) -> T::Out {
         match (self.emission.kind, self.emission.convention) {

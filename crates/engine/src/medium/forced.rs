@@ -1,8 +1,8 @@
 //! Forced collisions on the expected-value walk (ray-march): every ray that meets the
 //! medium may scatter, not only the few whose free path ends in it.
 //!
-//! **Why.** In thin media most camera rays cross without colliding (2–7 % of them collide
-//! on the Mantaflow explosions at their own density). With an analog free path the
+//! **Why.** In thin media most camera rays cross without colliding (on the Mantaflow
+//! explosions at their own density all but a few per cent). With an analog free path the
 //! scattered light of a pixel then rests on whether a handful of its samples collide: at
 //! one or two samples per pixel that Bernoulli trial is most of the image's error, and
 //! splitting a collision into several paths does not touch it.
@@ -30,7 +30,7 @@
 //! `y = −ln(1 − v (1 − e^{−x_i}))` into the piece, solved for the distance by the piece's
 //! own free-path rule. This map is monotone in `u`, so Sobol points stratify the collision
 //! as they stratify an analog free path. (A streaming reservoir choice, with no pieces
-//! kept, measured 1.4× the error at 64 spp: its rescaled number is not stratified.)
+//! kept, has a larger error: its rescaled number is not stratified.)
 //!
 //! **Split paths start apart** ([`ForcedCollision::draw_split`]). When `n` paths leave
 //! the camera collision (`--split`), each draws its own first vertex from the same
@@ -39,9 +39,9 @@
 //! `v_k` is uniform on its stratum, so `(1/n) Σ_k g(t_k)` has the expectation of
 //! `g(t)` under the analog law, and each path keeps the weight `W/q`: unbiased as one
 //! shared vertex was, but the paths no longer share where along the ray they scatter,
-//! which a shared vertex left to the pixel's samples alone. The README demo (32 spp, 6
-//! paths a collision): relRMSE 0.0279 / 0.0286 → 0.0260 / 0.0265 (seeds 0 / 2) for the
-//! `n` inversions per camera collision (docs/BENCHMARKS.md, "Split paths start apart").
+//! which a shared vertex left to the pixel's samples alone. On the demo scene this
+//! lowers the error for the cost of `n` inversions per camera collision
+//! (docs/BENCHMARKS.md, "Split paths start apart").
 //! With one path (`n = 1`) its vertex is the walk's own collision, bit for bit.
 
 pub use plume_scene::sets::Collision;
@@ -49,9 +49,9 @@ use super::coefficients::Medium;
 use super::free_path::{analog_collision, DistanceSample};
 use plume_volume::field::Piece;
 
-/// `K`: a forced walk collides with probability `min(1, K W)`. Measured on the three
-/// Mantaflow explosions at albedo 0.8 (docs/BENCHMARKS.md, "Forced collisions"): 4 and 16
-/// gave the same error at every budget, 4 a few per cent less CPU.
+/// `K`: a forced walk collides with probability `min(1, K W)`. On the three Mantaflow
+/// explosions at albedo 0.8, 4 and 16 give the same error at every budget, and 4 costs
+/// less CPU (docs/BENCHMARKS.md, "Forced collisions").
 pub const BOOST: f64 = 4.0;
 
 /// The split paths of a forced camera collision: how many, and where their first vertices

@@ -31,8 +31,8 @@
 //! `integrator::tracker::PointLookup`). A real collision reads exactly what its record
 //! serves: the point estimator's score needs the density and `L_e` there; every other
 //! estimator needs only the albedo factor ([`PointField::albedo`]), and its record's
-//! density and source are NaN (nothing reads them: the 8-corner gather they cost was
-//! 3.7 % of the README demo's instructions).
+//! density and source are NaN (nothing reads them, so the 8-corner gather they would
+//! cost, a visible part of a render's instructions, is skipped).
 //!
 //! The point estimator scores `L_e(x)/μ(x)` at the real collision. Blend (a per-voxel
 //! mix) has no voxels to mix over here and is refused before rendering.

@@ -82,15 +82,14 @@ pub enum SampleOrder {
     /// tiles just ahead of the workers prefetched. For volumes larger than memory. A stop
     /// request or the deadline abandons the pass between tiles and keeps nothing of it.
     ///
-    /// **Read-ahead window.** A tile's camera rays can cross hundreds of MB of bricks
-    /// (up to 340 MB for one 16×16 tile of the 2048³ flare), so a fixed number of tiles
-    /// ahead can ask for more than the memory holds: pages read ahead then push out the
-    /// pages of the tiles being rendered, and both are read again. The prefetch thread
-    /// therefore also waits while the bytes it asked for, for tiles not yet finished
-    /// (being rendered or waiting), exceed [`RenderControl::read_ahead_window`]; a tile
-    /// already taken by a worker is always asked for. In a 1.5 GiB cgroup with the flare
-    /// this took an emission–absorption render from 40–180 k page faults to 16–17 k, and
-    /// one with scattering from 0.71 M to 0.44 M (docs/BENCHMARKS.md, issue #17).
+    /// **Read-ahead window.** A tile's camera rays can cross hundreds of MB of bricks, so a
+    /// fixed number of tiles ahead can ask for more than the memory holds: pages read ahead
+    /// then push out the pages of the tiles being rendered, and both are read again. The
+    /// prefetch thread therefore also waits while the bytes it asked for, for tiles not yet
+    /// finished (being rendered or waiting), exceed [`RenderControl::read_ahead_window`]; a
+    /// tile already taken by a worker is always asked for. In a memory limit smaller than
+    /// the volume this cuts the page faults of emission–absorption and scattering renders
+    /// alike (docs/BENCHMARKS.md, "Out of core with scattering: the solar flare").
     TileMajor,
 }
 

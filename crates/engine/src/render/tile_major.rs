@@ -110,9 +110,9 @@ pub(super) fn tile_major_pass<F: Field>(
     if !pending.is_empty() {
         // The scattered paths, in rounds (the film's sums do not depend on when). Their
         // lookups may hold three quarters of the memory budget: the camera pass's
-        // read-ahead window (half of it) is free by then, and a fill reads 64 MiB ahead
-        // (the 2048³ flare in a 1.5 GiB cgroup, with paths resumed: 74.6–77.6 s against
-        // 80.8–88.8 s with half; docs/BENCHMARKS.md, "Deferred paths")
+        // read-ahead window (half of it) is free by then, and a fill reads 64 MiB ahead.
+        // In a tight memory limit that renders faster than half the budget
+        // (docs/BENCHMARKS.md, "Deferred paths")
         let lookup = job.settings.integrator.point_lookup;
         let memory = read_ahead_window.map(|w| w.saturating_add(w / 2));
         match crate::integrator::deferred::finish(scene, pool, memory, film, pending, lookup, abandon) {

@@ -4,7 +4,7 @@
 //! LZCNT, MOVBE, on top of SSE4.2 and POPCNT): Intel Haswell (2013), AMD Excavator (2015)
 //! and every x86-64 CPU since. The compiler then uses 256-bit vectors and three-operand
 //! instructions everywhere. Renders run faster (the trilinear walk's `f64` arithmetic gains
-//! most; measured in docs/BENCHMARKS.md, "Build target: x86-64-v3"), and the images are bit
+//! most), and the images are bit
 //! for bit the same, since Rust never fuses a multiply and an add by itself.
 //!
 //! A CPU without one of these features would die of `SIGILL` at the first such instruction.

@@ -390,3 +390,81 @@ fn demo_bench_judges_each_seed_and_keeps_its_references() {
     common::plume_exits(&["bench", "demo", "--scene", s(&scene), "--target-seconds", "0", "--work-dir", s(&work)], 2, &["--target-seconds"]);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `plume bench report` at the smallest budgets, with no data directory: every section
+/// that needs a data file says so and the header lists it, the generated sections run, the
+/// README demo runs on a tiny scene file in its place (its volume made as
+/// `scripts/demo.sh` makes it), and the document has the report's form (no history, the
+/// machine named once, a command under every table, the short ideas table).
+#[test]
+fn report_writes_a_document_of_its_form_at_tiny_budgets() {
+    use plume::bench::report::{check_document, Budgets, ReportOptions};
+    let dir = tmpdir("bench-test", "report");
+    // The demo's scene file where the report looks for it, tiny, its volume missing
+    std::fs::create_dir_all(dir.join("data")).unwrap();
+    std::fs::write(
+        dir.join("data/explosion.toml"),
+        "[volume]\nfile = \"../out/explosion.vdb\"\n[medium]\ndensity_scale = 4.0\nalbedo = 0.8\n[camera]\nwidth = 12\nheight = 9\n\
+         [render]\nspp = 2\n[output]\nimage = \"../out/explosion.exr\"\n",
+    )
+    .unwrap();
+    let options = ReportOptions {
+        out: dir.join("docs"),
+        budgets: Budgets { quick: false, time_scale: 0.005, resolution: 16, core_resolution: 16, demo: true },
+        data: dir.join("no-data"),
+        work_dir: dir.join("work"),
+        working_dir: dir.clone(),
+        exe: Some(common::PLUME.into()),
+    };
+    options.run().unwrap();
+    let md = std::fs::read_to_string(dir.join("docs/BENCHMARKS.md")).unwrap();
+    let problems = check_document(&md);
+    assert!(problems.is_empty(), "{}\n\n{md}", problems.join("\n"));
+    assert!(md.contains("This is the full form") && md.contains("(budgets set on the command line)") && md.contains("Not run: "), "{md}");
+    assert!(dir.join("out/explosion.vdb").exists(), "the demo's volume is made when missing");
+    let demo = md.split("## README demo").nth(1).unwrap();
+    assert!(demo.contains("| seed | wall s |") && demo.contains("\n| 3 | "), "{demo}");
+    for generated in ["## Generated explosion 16³, thin", "## FNEE proxy resolution", "## Splitting by brightness", "## Motion blur", "## Numerical extremes"] {
+        let section = md.split(generated).nth(1).unwrap_or_else(|| panic!("no {generated:?}"));
+        assert!(section.contains("```sh\nplume bench "), "{generated}: no command");
+    }
+    // The scene files the commands read are there, with the data's paths as seen from them
+    let thin = std::fs::read_to_string(dir.join("docs/bench/scenes/thin.toml")).unwrap();
+    assert!(thin.contains("explosion:16"), "{thin}");
+    assert!(md.contains("Not measured: ") && md.contains("no-data"), "missing files are named");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// docs/BENCHMARKS.md is what `plume bench report` writes: today's figures only, the
+/// machine named once, each table with the command that reproduces it, no commit hashes,
+/// dates or issue numbers, and the sections other documents cite by name.
+#[test]
+fn benchmarks_md_has_the_reports_form() {
+    use plume::bench::report::{check_document, history};
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/BENCHMARKS.md");
+    let md = std::fs::read_to_string(&path).unwrap();
+    let problems = check_document(&md);
+    assert!(problems.is_empty(), "{}:\n{}", path.display(), problems.join("\n"));
+    for section in [
+        "Headline",
+        "Core renderer",
+        "FNEE proxy resolution",
+        "Tracking",
+        "Splitting at the camera collision",
+        "Splitting by brightness",
+        "Forced camera collisions",
+        "Stochastic point lookups",
+        "Motion blur",
+        "Interpolation",
+        "Numerical extremes",
+        "README demo",
+        "Out of core with scattering",
+        "Peer comparison: Cycles",
+        "Ideas tried and not kept",
+    ] {
+        assert!(md.contains(&format!("\n## {section}")), "no section {section:?} in {}", path.display());
+    }
+    // The check finds history where it is planted
+    let planted = md.replacen("## Numerical extremes\n", "## Numerical extremes\n\nMeasured at `25fc21c` on 2026-11-27 for issue #16.\n", 1);
+    assert_eq!(history(&planted).len(), 3, "{:?}", history(&planted));
+}

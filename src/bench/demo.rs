@@ -1,4 +1,4 @@
-//! `plume bench demo`: issue #16's "clean first picture", measured. The README's main
+//! `plume bench demo`: the "clean first picture", measured. The README's main
 //! command (`scripts/demo.sh`) renders the sample scene file `data/explosion.toml`; this
 //! bench renders that same file as the user would, one `plume render` process per seed,
 //! and judges each image against a converged render:
@@ -21,7 +21,7 @@
 //!
 //! The references are kept in the work directory under their settings hash and spp, so a
 //! second run renders only the demo. The bench judges; it does not fail: its targets
-//! (by default #16's: under a minute, relRMSE ≤ 0.03) are printed as met or not.
+//! (by default: under a minute, relRMSE ≤ 0.03) are printed as met or not.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;

@@ -1,5 +1,5 @@
 //! `plume bench interpolation`: trilinear reconstruction (`--interpolation linear`,
-//! METHOD.md §12) against nearest on real files (issue #13).
+//! METHOD.md §12) against nearest on real files.
 //!
 //! - **Cost per sample.** Each file is loaded once; the same scene (same camera, image,
 //!   spp and seed) is rendered with nearest and with linear reconstruction, alternately
@@ -465,11 +465,11 @@ impl InterpolationReport {
         s
     }
 
-    /// The whole section (Markdown): setup, tables, picture (linked as `picture_link`).
+    /// The whole section (Markdown): setup, tables, the command that reproduces them
+    /// (`command`), picture (linked as `picture_link`).
     #[must_use]
     pub fn markdown(&self, command: &str, picture_link: Option<&str>) -> String {
         let mut md = String::new();
-        let _ = writeln!(md, "Reproduce:\n\n```sh\n{command}\n```\n");
         if !self.cost.is_empty() {
             let _ = writeln!(
                 md,
@@ -489,6 +489,7 @@ impl InterpolationReport {
                 writeln!(md, "**Memory.** Trilinear reads the corners from the volume's own bricks; it adds only the dual pyramid and 8 bytes per brick of block masks.\n\n{}", self.memory_table());
         }
         let _ = writeln!(md, "{}", self.rule.markdown());
+        let _ = writeln!(md, "Every table and the close-up:\n\n```sh\n{command}\n```\n");
         if let (Some(c), Some(link)) = (&self.closeup, picture_link) {
             let _ = writeln!(md, "{}\n\n![nearest | linear close-up]({link})\n", c.caption());
         }

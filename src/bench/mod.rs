@@ -8,10 +8,10 @@
 //!   given or computed reference, several seeds, RMSE / relMSE / bias, CSV, JSON, plots;
 //! - `extremes`: the numerical-extremes sweep with closed forms;
 //! - `demo`: the README's demo timed per seed, and its error against long references
-//!   (issue #16's clean first picture);
+//!   (the clean first picture);
 //! - `interpolation`: trilinear against nearest reconstruction on real files: cost per
 //!   sample, memory, plume's emission rule against Cycles', a close-up picture;
-//! - `report`: the whole suite behind `docs/BENCHMARKS.md`.
+//! - `report`: the whole suite that writes `docs/BENCHMARKS.md` (`--quick`: its short form).
 
 pub mod compare;
 pub mod core;
@@ -70,6 +70,8 @@ pub struct Machine {
     pub cpus: usize,
     /// CPU model name (from `/proc/cpuinfo`), or `unknown CPU`.
     pub model: String,
+    /// Physical memory in bytes (`MemTotal` of `/proc/meminfo`), or 0 where unknown.
+    pub memory_bytes: u64,
 }
 
 /// The machine, for reports.
@@ -79,7 +81,15 @@ pub fn machine() -> Machine {
         .ok()
         .and_then(|s| s.lines().find(|l| l.starts_with("model name")).and_then(|l| l.split_once(':')).map(|(_, m)| m.trim().to_string()))
         .unwrap_or_else(|| "unknown CPU".into());
-    Machine { cpus: n, model }
+    let memory_bytes = std::fs::read_to_string("/proc/meminfo")
+        .ok()
+        .and_then(|s| {
+            let line = s.lines().find(|l| l.starts_with("MemTotal:"))?;
+            let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+            Some(kib * 1024)
+        })
+        .unwrap_or(0);
+    Machine { cpus: n, model, memory_bytes }
 }
 
 #[cfg(test)]

@@ -8,7 +8,7 @@ use clap::{ArgMatches, Args, CommandFactory, FromArgMatches, Subcommand};
 use plume::bench::interpolation::{closeup::CloseupConfig, rule::RuleConfig, InterpolationConfig};
 use plume::bench::metrics::RELMSE_EPSILON;
 use plume::bench::options::{CompareOptions, ExtremesOptions, InterpolationOptions};
-use plume::bench::report::ReportOptions;
+use plume::bench::report::{Budgets, ReportOptions};
 use plume::bench::write_json;
 use plume_core::error::{Error, Result};
 use plume_engine::integrator::MisHeuristic;
@@ -39,16 +39,17 @@ pub enum BenchCommand {
     /// nearest, samples per CPU second), dual-pyramid memory, plume's emission rule
     /// against Cycles', and a close-up picture pair (--pictures).
     Interpolation(InterpolationArgs),
-    /// The paper's solar-flare experiment (issue #17): a generated flare brick cache
+    /// The paper's solar-flare experiment: a generated flare brick cache
     /// (≈33 GB at 4096³, made once in --work-dir) rendered out of core with scattering,
     /// FNEE against classic NEE (brick table) at equal spp: RMSE against a longer
     /// reference, core-hours, picture. `bench compare` with this preset.
     Flare(FlareArgs),
-    /// The README's demo (issue #16's clean first picture): the sample scene file rendered
+    /// The README's demo (the clean first picture): the sample scene file rendered
     /// as `scripts/demo.sh` renders it, timed per seed, and its relRMSE against long
     /// references (rendered once into --work-dir, then kept), with the largest speck.
     Demo(DemoArgs),
-    /// The whole benchmark suite behind docs/BENCHMARKS.md (tables and plots).
+    /// The whole benchmark suite: writes docs/BENCHMARKS.md, its plots and data (--quick:
+    /// the short form, under 20 minutes on 2 cores).
     Report(ReportArgs),
 }
 
@@ -337,19 +338,24 @@ impl InterpolationArgs {
 /// `plume bench report`.
 #[derive(Debug, Args)]
 pub struct ReportArgs {
-    /// Directory of BENCHMARKS.md; plots go to DIR/img, CSV and JSON to DIR/bench.
+    /// Directory of BENCHMARKS.md; plots go to DIR/img, CSV, JSON and scene files to
+    /// DIR/bench.
     #[arg(long, short, default_value = "docs")]
     pub out: PathBuf,
-    /// Multiply every CPU-time budget by this (e.g. 0.05 for a smoke test).
-    #[arg(long, default_value_t = 1.0)]
-    pub time_scale: f64,
-    /// Explosion resolution of the thin/dense scenes.
-    #[arg(long, default_value_t = 256)]
-    pub resolution: u32,
-    /// Directory of the shared data (smoke and cloud files).
+    /// The quick form: a quarter of the CPU-time budgets, a 128³ explosion, no README demo.
+    #[arg(long)]
+    pub quick: bool,
+    /// Multiply every CPU-time budget by this (default: 1, or 0.25 with --quick).
+    #[arg(long)]
+    pub time_scale: Option<f64>,
+    /// Explosion resolution of the thin, dense and proxy sections (default: 256, or 128
+    /// with --quick).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(8..=4096))]
+    pub resolution: Option<u32>,
+    /// Directory of the shared data (smoke, cloud and Blender files).
     #[arg(long, default_value = "../shared/data")]
     pub data: PathBuf,
-    /// Where generated explosions are written.
+    /// Where generated explosions, saved references and the demo's renders are written.
     #[arg(long, default_value_os_t = bench_work_dir())]
     pub work_dir: PathBuf,
 }
@@ -426,9 +432,15 @@ pub fn run(command: BenchCommand, _matches: Option<&ArgMatches>) -> Result<()> {
             print!("{}", report.table());
             write_json(&args.json, &report)
         }
-        BenchCommand::Report(args) => {
-            ReportOptions { out: args.out, time_scale: args.time_scale, resolution: args.resolution, data: args.data, work_dir: args.work_dir }.run()
+        BenchCommand::Report(args) => ReportOptions {
+            out: args.out,
+            budgets: Budgets::form(args.quick).with_overrides(args.time_scale, args.resolution),
+            data: args.data,
+            work_dir: args.work_dir,
+            working_dir: working_dir(),
+            exe: std::env::current_exe().ok(),
         }
+        .run(),
     }
 }
 

@@ -28,8 +28,8 @@
 //! The weights are symmetric, `w(p, q) = w(q, p)`. The paper subtracts `v_p + min(v_p,
 //! v_q)` instead, which lets a bright (noisier) pixel take from dark neighbours more
 //! readily than they take from it: light leaves bright regions and arrives nowhere, and
-//! the image mean falls. Symmetric weights keep the mean, for a slightly larger error
-//! (docs/BENCHMARKS.md, "Denoising").
+//! the image mean falls. Symmetric weights keep the mean, for a slightly larger
+//! error.
 //!
 //! **Cross filtering.** Weights computed on half `b` average half `a`, and weights from
 //! `a` average `b`; the output is the mean of the two. A half's own noise never chooses
@@ -42,7 +42,7 @@
 //! each ray, with only the pixel footprint's noise, far below the scattered light's: the
 //! halves then hold the beauty less it, the filter sees only the rest (the scattered
 //! light, external lights) and the emission is added back as rendered, so the fire keeps
-//! its texture and the error falls (docs/BENCHMARKS.md, "Denoising").
+//! its texture and the error falls.
 //!
 //! **Opacity.** With a ray-marched camera segment the pixel's alpha, `1 − τ` along its
 //! rays, is exact too (the footprint's noise only), and the scattered light is proportional
@@ -52,8 +52,7 @@
 //! multiplied back ([`denoise_per_opacity`]): the filter then averages the in-scattered
 //! radiance, which is smooth across the smoke's wisps and edges, instead of a signal whose
 //! structure is the opacity's, and the opacity's texture comes back exactly. It lowers the
-//! error on the dense demo scene and, more, on thin explosions (docs/BENCHMARKS.md,
-//! "Denoising").
+//! error on the dense demo scene and, more, on thin explosions.
 //!
 //! A noise-free input (`a = b`) has `v = 0`: every pixel whose patch is not identical gets
 //! weight 0 and the image comes back unchanged. The cost is `(2r+1)²` patch distances per
@@ -79,7 +78,7 @@ pub struct Nlm {
 impl Default for Nlm {
     /// `r = 3`, `f = 4`, `k = 0.6`: the flat optimum over the demo scene
     /// (`data/explosion.toml`) and, held out, the peer comparison's three explosions at
-    /// albedo 0.8 (docs/BENCHMARKS.md, "Denoising"; `r` 3–4, `f` 4–5, `k` 0.5–0.7 are
+    /// albedo 0.8 (`r` 3–4, `f` 4–5, `k` 0.5–0.7 are
     /// nearly as good on each). With little noise to remove a small window blurs less.
     fn default() -> Nlm {
         Nlm { radius: 3, patch: 4, k: 0.6 }
@@ -94,8 +93,7 @@ impl Default for Nlm {
 /// distributed as a render of its size, and `a − b` measures the noise of such renders.
 /// Smaller blocks make halves that are not nets: their difference overstates the noise
 /// of the whole and the filter blurs what it need not: the denoised error grows as the
-/// blocks shrink, and halves by a hash of the sample are worse still (docs/BENCHMARKS.md,
-/// "Denoising"). Parity, blocks of 1, is worst in principle: even and odd indices lie in
+/// blocks shrink, and halves by a hash of the sample are worse still. Parity, blocks of 1, is worst in principle: even and odd indices lie in
 /// opposite halves of every dimension's first stratum, so the halves would differ by the
 /// image's structure inside the pixel. A function of the sample index and the block
 /// alone, so the halves, like the image, do not depend on how the work was split.

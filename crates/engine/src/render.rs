@@ -63,7 +63,7 @@ pub fn render_with<F: Field>(scene: &Scene<F>, settings: &RenderSettings, mut co
     // worker more than cores keeps them busy. Scattered segments read ahead of themselves
     // (`integrator::tracker`) but still wait for their first pages: three workers per
     // core; without scattering more workers only widen the working set
-    // (docs/BENCHMARKS.md, "Out of core")
+    // (docs/BENCHMARKS.md, "Out of core with scattering: the solar flare")
     let out_of_core = control.order == SampleOrder::TileMajor && scene.field.is_mapped();
     let threads = worker_threads(scene, settings, out_of_core);
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("invariant: a rayon pool can be built");
@@ -86,7 +86,7 @@ pub fn render_with<F: Field>(scene: &Scene<F>, settings: &RenderSettings, mut co
         && settings.integrator.defers(scene)
         && match control.defer_paths {
             // One path per camera collision: with more, the paths' lookups outgrow what a
-            // few fills serve (docs/BENCHMARKS.md, "Out of core")
+            // few fills serve (docs/BENCHMARKS.md, "Out of core with scattering: the solar flare")
             DeferPaths::Auto => out_of_core && settings.integrator.split == 1 && split_map.is_none(),
             DeferPaths::Always => true,
             DeferPaths::Never => false,
@@ -132,7 +132,7 @@ pub fn render_with<F: Field>(scene: &Scene<F>, settings: &RenderSettings, mut co
 /// Rayon workers: as asked, or by default one more than cores out of core, where a
 /// worker waiting on a page fault leaves its core idle, and three per core when paths
 /// scatter out of core, since scattered segments still wait for their first pages
-/// (docs/BENCHMARKS.md, "Out of core"). Without scattering, more workers only widen the
+/// (docs/BENCHMARKS.md, "Out of core with scattering: the solar flare"). Without scattering, more workers only widen the
 /// working set.
 fn worker_threads<F: Field>(scene: &Scene<F>, settings: &RenderSettings, out_of_core: bool) -> usize {
     let cores = std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get);

@@ -300,7 +300,7 @@ impl Volume {
     /// cells in 8 along each axis), else 2, 4 or 8. A corner's brick and offset come from
     /// the table of the 9³ voxels a cell's corners can reach (`trilinear::dual`), not
     /// from interleaving its coordinates' bits: one load instead of the bit arithmetic
-    /// (measured in docs/BENCHMARKS.md, "Interpolation").
+    /// (measured in docs/BENCHMARKS.md, "Interpolation: trilinear vs nearest").
     pub fn voxel_block(&self, cell: IVec3) -> [VoxelValues; 8] {
         let l = IVec3::new(cell.x.rem_euclid(BRICK), cell.y.rem_euclid(BRICK), cell.z.rem_euclid(BRICK));
         let b = IVec3::new(floor_div(cell.x, BRICK), floor_div(cell.y, BRICK), floor_div(cell.z, BRICK));
@@ -308,8 +308,7 @@ impl Volume {
         let edge = l.cmpeq(IVec3::splat(BRICK - 1)).bitmask() as usize;
         let read = |br: &Brick, o: usize| VoxelValues { density: slot_at(&self.values, br.density, o), source: slot_at(&self.values, br.source, o) };
         // Plain loops: as `array::from_fn` the per-corner closure may be left out of line,
-        // depending on how unrelated code falls into codegen units (docs/BENCHMARKS.md,
-        // "Cost when unused, found")
+        // depending on how unrelated code falls into codegen units
         if edge == 0 {
             let mut out = [VoxelValues::ZERO; 8];
             if let Some(br) = self.brick(b) {

@@ -1,5 +1,5 @@
 //! Scattered paths of an out-of-core render, traced in rounds: record, fill, rerun
-//! (docs/BENCHMARKS.md, "Scattering in a memory limit").
+//! (docs/BENCHMARKS.md, "Out of core with scattering: the solar flare").
 //!
 //! **Why.** A volume larger than memory is paged from its cache file. The camera pass
 //! reads it tile by tile, in order; a scattered path instead looks the volume up at
@@ -35,7 +35,7 @@
 //! reaches the film with the sums a direct render makes: **images and counters are the
 //! direct render's**, bit for bit, for any thread count and split.
 //!
-//! **Cost** (docs/BENCHMARKS.md, "Deferred paths"). A fill's time grows with its lookups,
+//! **Cost** (docs/BENCHMARKS.md, "Out of core with scattering: the solar flare"). A fill's time grows with its lookups,
 //! and each fill brings most of the file's pages in again. With one path per camera
 //! collision a few fills serve a render in a tight memory limit, faster than tracing it
 //! directly. Split paths multiply the lookups past what a few fills serve (`--split 8`
@@ -268,7 +268,7 @@ const BYTES_PER_LOOKUP: u64 = 152;
 /// lookups, extrapolated to all samples, would take more fills than this. Each fill
 /// brings most of the file's pages in again: in a tight memory limit `--split 1` takes a
 /// few fills and renders faster than directly, while `--split 8` would need several times
-/// this many, slower than directly (docs/BENCHMARKS.md, "Deferred paths").
+/// this many, slower than directly (docs/BENCHMARKS.md, "Out of core with scattering: the solar flare").
 const MAX_PASSES: usize = 8;
 
 /// Samples rerun together, between checks of how many lookups they recorded.

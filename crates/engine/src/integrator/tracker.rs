@@ -12,7 +12,7 @@
 //! points stratify it. After a scattering event a segment's emission is one sample of the
 //! in-scattered radiance, far noisier than the integral's own estimate, and in thin media
 //! it crosses the whole volume: there the cheap tentative points win (`Tracking::Mixed`,
-//! the default where it applies; measured in docs/BENCHMARKS.md, "Tracking").
+//! the default where it applies; measured in docs/BENCHMARKS.md, "Tracking: null collisions after scattering").
 //! Shadow rays (NEE, external lights) of a still volume are exact under every tracking:
 //! they only sum optical depth, and an exact `τ` adds no noise to the light it carries.
 //! A moving volume is tracked by null collisions everywhere (no closed form exists).

@@ -19,7 +19,7 @@
 //! which integrates the emission seen directly with almost no variance, is most of a
 //! sample's cost while the scattered light carries almost all of its variance, so `N = 8`
 //! paths a camera walk (the default) are more efficient than one, in thin and dense smoke
-//! alike (docs/BENCHMARKS.md, "Splitting"). At about one sample per pixel fewer paths win,
+//! alike (docs/BENCHMARKS.md, "Splitting at the camera collision"). At about one sample per pixel fewer paths win,
 //! since the camera collision is forced (`--split 4`; docs/BENCHMARKS.md, "Forced camera
 //! collisions").
 //!
@@ -88,8 +88,7 @@ use super::trace::{NoTrace, Trace};
 /// ended early loses light it would surely have gathered: with `t = 1` (survival `β`, as
 /// pbrt does) an albedo of 0.8 ends a fifth of the paths at their first vertex. A
 /// threshold below 1 is more efficient (1/(relMSE · CPU s)) than `t = 1` on dense and thin
-/// smoke, split or not, and no roulette at all is slower for the same noise
-/// (docs/BENCHMARKS.md, "Russian roulette").
+/// smoke, split or not, and no roulette at all is slower for the same noise.
 pub const ROULETTE_THRESHOLD: f64 = 0.3;
 
 /// The path integrator and its settings.

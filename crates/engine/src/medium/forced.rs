@@ -41,7 +41,7 @@
 //! shared vertex was, but the paths no longer share where along the ray they scatter,
 //! which a shared vertex left to the pixel's samples alone. On the demo scene this
 //! lowers the error for the cost of `n` inversions per camera collision
-//! (docs/BENCHMARKS.md, "Split paths start apart").
+//! (docs/BENCHMARKS.md, "Forced camera collisions").
 //! With one path (`n = 1`) its vertex is the walk's own collision, bit for bit.
 
 pub use plume_scene::sets::Collision;
@@ -51,7 +51,7 @@ use plume_volume::field::Piece;
 
 /// `K`: a forced walk collides with probability `min(1, K W)`. On the three Mantaflow
 /// explosions at albedo 0.8, 4 and 16 give the same error at every budget, and 4 costs
-/// less CPU (docs/BENCHMARKS.md, "Forced collisions").
+/// less CPU (docs/BENCHMARKS.md, "Forced camera collisions").
 pub const BOOST: f64 = 4.0;
 
 /// The split paths of a forced camera collision: how many, and where their first vertices

@@ -112,7 +112,7 @@ pub(super) fn tile_major_pass<F: Field>(
         // lookups may hold three quarters of the memory budget: the camera pass's
         // read-ahead window (half of it) is free by then, and a fill reads 64 MiB ahead.
         // In a tight memory limit that renders faster than half the budget
-        // (docs/BENCHMARKS.md, "Deferred paths")
+        // (docs/BENCHMARKS.md, "Out of core with scattering: the solar flare")
         let lookup = job.settings.integrator.point_lookup;
         let memory = read_ahead_window.map(|w| w.saturating_add(w / 2));
         match crate::integrator::deferred::finish(scene, pool, memory, film, pending, lookup, abandon) {

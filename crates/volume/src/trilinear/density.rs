@@ -13,7 +13,7 @@
 //! (`σ_t ρ Δ`) and a cubic one there, and such neighbouring constant pieces merge here.
 //!
 //! Shadow rays are a large share of a lit render, and this walk costs them far fewer
-//! instructions than the full one (measured in docs/BENCHMARKS.md, "Interpolation").
+//! instructions than the full one (measured in docs/BENCHMARKS.md, "Interpolation: trilinear vs nearest").
 
 use glam::{DVec3, IVec3};
 

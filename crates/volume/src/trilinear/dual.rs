@@ -21,7 +21,7 @@
 //! bit for bit). In a fire many dense cells lie in clear blocks. Shadow rays' density walk
 //! (`density`) does not ask: it crosses few cells per dual brick, and forming the masks
 //! costs it more than they save, where the full walk's free paths still gain (measured in
-//! docs/BENCHMARKS.md, "Interpolation").
+//! docs/BENCHMARKS.md, "Interpolation: trilinear vs nearest").
 //!
 //! **Clip box.** The union of the cells that can be non-zero: `[8·brick_lo − 1,
 //! 8·(brick_lo + dims)]`, the nearest volume's index bounds grown by ½ voxel on every side

@@ -19,7 +19,7 @@ pub const fn corner_offset(c: usize) -> IVec3 {
 /// `(9 v.z + v.y)·9 + v.x`: `(k << 9) | o`, voxel brick `k` of the 8 (bit 0: +x, bit 1: +y,
 /// bit 2: +z) and offset `o` ([`brick_offset`]) in it. One load instead of the Morton
 /// interleaving per corner read (bit-identical; measured in docs/BENCHMARKS.md,
-/// "Interpolation"). [`Volume::voxel_block`] places a point lookup's corners
+/// "Interpolation: trilinear vs nearest"). [`Volume::voxel_block`] places a point lookup's corners
 /// with it too: a cell at local `l` of any brick reaches the 9³ voxels from `l`. Padded
 /// to 1024 entries, so a read masks its index instead of taking it modulo 729 (the
 /// compiler cannot see that the index is below 729; the mask keeps the read in bounds

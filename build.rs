@@ -16,7 +16,8 @@ use std::path::PathBuf;
 /// The shim's C++ sources, one concept each (see `cpp/shim_internal.h`); a new file must be
 /// added here to be compiled. Longest compile first (`write.cc` takes about twice as long
 /// as any other), so that the parallel compile does not end on the longest one alone.
-const SHIM_SOURCES: [&str; 6] = ["cpp/write.cc", "cpp/read.cc", "cpp/stream.cc", "cpp/list.cc", "cpp/scan.cc", "cpp/common.cc"];
+const SHIM_SOURCES: [&str; 6] =
+    ["cpp/write.cc", "cpp/read.cc", "cpp/stream.cc", "cpp/list.cc", "cpp/scan.cc", "cpp/common.cc"];
 /// `vdb_shim.h` is the header the bridge includes; `shim_internal.h` is shared by the sources.
 const SHIM_HEADERS: [&str; 2] = ["cpp/vdb_shim.h", "cpp/shim_internal.h"];
 
@@ -28,7 +29,10 @@ fn main() {
     println!("cargo:rerun-if-env-changed=OPENVDB_LIB_DIR");
 
     let include_dir = env::var_os("OPENVDB_INCLUDE_DIR").map(PathBuf::from);
-    let search = include_dir.iter().cloned().chain(["/usr/include", "/usr/local/include"].map(PathBuf::from));
+    let search = include_dir
+        .iter()
+        .cloned()
+        .chain(["/usr/include", "/usr/local/include"].map(PathBuf::from));
     let found = search.clone().any(|dir| dir.join("openvdb/openvdb.h").is_file());
     if !found {
         panic!(
@@ -69,5 +73,9 @@ fn main() {
 /// `RUSTC_WORKSPACE_WRAPPER` (an environment variable it documents for build scripts),
 /// and clippy only checks, so nothing the script compiles is ever linked.
 fn checked_only() -> bool {
-    env::var_os("RUSTC_WORKSPACE_WRAPPER").is_some_and(|w| PathBuf::from(w).file_stem().is_some_and(|s| s.to_string_lossy().starts_with("clippy-driver")))
+    env::var_os("RUSTC_WORKSPACE_WRAPPER").is_some_and(|w| {
+        PathBuf::from(w)
+            .file_stem()
+            .is_some_and(|s| s.to_string_lossy().starts_with("clippy-driver"))
+    })
 }

@@ -29,7 +29,10 @@ macro_rules! features {
 
 /// The features [`missing_features`] checks.
 #[cfg(target_arch = "x86_64")]
-const FEATURES: &[Feature] = features!("sse3", "ssse3", "sse4.1", "sse4.2", "popcnt", "avx", "avx2", "fma", "bmi1", "bmi2", "f16c", "lzcnt", "movbe");
+const FEATURES: &[Feature] = features!(
+    "sse3", "ssse3", "sse4.1", "sse4.2", "popcnt", "avx", "avx2", "fma", "bmi1", "bmi2", "f16c",
+    "lzcnt", "movbe"
+);
 #[cfg(not(target_arch = "x86_64"))]
 const FEATURES: &[Feature] = &[];
 
@@ -84,6 +87,11 @@ mod tests {
     #[test]
     fn the_refusal_names_the_features_and_the_rebuild() {
         let line = refusal(&["avx2", "fma"]);
-        assert!(line.contains("avx2, fma") && line.contains("target-cpu=native") && !line.contains('\n'), "{line}");
+        assert!(
+            line.contains("avx2, fma")
+                && line.contains("target-cpu=native")
+                && !line.contains('\n'),
+            "{line}"
+        );
     }
 }

@@ -66,14 +66,24 @@ fn reader_exit(result: Result<(), isolate::ReaderFailure>) -> ! {
 /// requests print as clap prints them).
 fn usage_error(e: &clap::Error) -> ! {
     use clap::error::ErrorKind;
-    if matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand) {
+    if matches!(
+        e.kind(),
+        ErrorKind::DisplayHelp
+            | ErrorKind::DisplayVersion
+            | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand
+    ) {
         e.exit();
     }
     // clap's message, its possible values and tips, without the usage and help pointers
     let text = e.render().to_string();
-    let parts: Vec<&str> =
-        text.lines().map(str::trim).take_while(|l| !l.starts_with("Usage:") && !l.starts_with("For more information")).filter(|l| !l.is_empty()).collect();
-    let line = if parts.is_empty() { "error: invalid command line".to_string() } else { parts.join(" ") };
+    let parts: Vec<&str> = text
+        .lines()
+        .map(str::trim)
+        .take_while(|l| !l.starts_with("Usage:") && !l.starts_with("For more information"))
+        .filter(|l| !l.is_empty())
+        .collect();
+    let line =
+        if parts.is_empty() { "error: invalid command line".to_string() } else { parts.join(" ") };
     eprintln!("plume: {line}");
     std::process::exit(2);
 }

@@ -14,8 +14,25 @@ use plume_engine::film::Crop;
 ///
 /// # Errors
 /// [`Error::Write`] naming `path`.
-pub fn write_exr(path: &Path, width: u32, height: u32, pixels: &[[f32; 4]], metadata: &[(String, String)]) -> Result<()> {
-    write_exr_image(path, &ExrImage { width, height, crop: Crop::full(width, height), pixels, sums: None, aovs: None, metadata })
+pub fn write_exr(
+    path: &Path,
+    width: u32,
+    height: u32,
+    pixels: &[[f32; 4]],
+    metadata: &[(String, String)],
+) -> Result<()> {
+    write_exr_image(
+        path,
+        &ExrImage {
+            width,
+            height,
+            crop: Crop::full(width, height),
+            pixels,
+            sums: None,
+            aovs: None,
+            metadata,
+        },
+    )
 }
 
 /// Names of the 16 `u32` channels that hold a pixel's exact `i128` sums: `sum.{R,G,B,A}.w{0..3}`,
@@ -76,7 +93,10 @@ pub fn write_exr_image(path: &Path, image: &ExrImage<'_>) -> Result<()> {
     assert_eq!(image.pixels.len(), n, "invariant: one pixel per crop pixel");
     let mut list: Vec<AnyChannel<FlatSamples>> = Vec::new();
     for (c, name) in ["R", "G", "B", "A"].iter().enumerate() {
-        list.push(AnyChannel::new(*name, FlatSamples::F32(image.pixels.iter().map(|p| p[c]).collect())));
+        list.push(AnyChannel::new(
+            *name,
+            FlatSamples::F32(image.pixels.iter().map(|p| p[c]).collect()),
+        ));
     }
     if let Some(sums) = image.sums {
         assert_eq!(sums.len(), n, "invariant: one sum per crop pixel");
@@ -99,16 +119,25 @@ pub fn write_exr_image(path: &Path, image: &ExrImage<'_>) -> Result<()> {
             assert_eq!(sums.len(), n * k, "invariant: one sum per AOV channel and crop pixel");
             for (c, name) in names.iter().enumerate() {
                 for w in 0..4 {
-                    let words = (0..n).map(|i| ((sums[i * k + c] as u128) >> (32 * w)) as u32).collect();
-                    list.push(AnyChannel::new(format!("sum.{name}.w{w}").as_str(), FlatSamples::U32(words)));
+                    let words =
+                        (0..n).map(|i| ((sums[i * k + c] as u128) >> (32 * w)) as u32).collect();
+                    list.push(AnyChannel::new(
+                        format!("sum.{name}.w{w}").as_str(),
+                        FlatSamples::U32(words),
+                    ));
                 }
             }
             aov_order = Some(names.join(","));
         }
     }
-    let mut attributes = LayerAttributes { layer_position: Vec2(image.crop.x0 as i32, image.crop.y0 as i32), ..LayerAttributes::default() };
+    let mut attributes = LayerAttributes {
+        layer_position: Vec2(image.crop.x0 as i32, image.crop.y0 as i32),
+        ..LayerAttributes::default()
+    };
     if let Some(order) = aov_order.and_then(|o| Text::new_or_none(&o)) {
-        attributes.other.insert(Text::new_or_panic(AOV_CHANNELS_ATTRIBUTE), AttributeValue::Text(order));
+        attributes
+            .other
+            .insert(Text::new_or_panic(AOV_CHANNELS_ATTRIBUTE), AttributeValue::Text(order));
     }
     for (k, v) in image.metadata {
         let key = Text::new_or_none(k).unwrap_or_else(|| Text::new_or_panic("plume:invalid"));
@@ -118,10 +147,17 @@ pub fn write_exr_image(path: &Path, image: &ExrImage<'_>) -> Result<()> {
         }
     }
     let size = (image.crop.width() as usize, image.crop.height() as usize);
-    let layer = Layer::new(size, attributes, Encoding::FAST_LOSSLESS, AnyChannels::sort(list.into()));
+    let layer =
+        Layer::new(size, attributes, Encoding::FAST_LOSSLESS, AnyChannels::sort(list.into()));
     let display = IntegerBounds::new(Vec2(0, 0), Vec2(image.width as usize, image.height as usize));
     let exr_image = Image::new(ImageAttributes::new(display), layer);
-    write_atomic(path, |out| exr_image.write().non_parallel().to_buffered(out).map_err(|e| std::io::Error::other(e.to_string())))
+    write_atomic(path, |out| {
+        exr_image
+            .write()
+            .non_parallel()
+            .to_buffered(out)
+            .map_err(|e| std::io::Error::other(e.to_string()))
+    })
 }
 
 /// Everything [`write_exr_image`] stores, read back and decoded.
@@ -150,9 +186,9 @@ pub struct ExrContents {
 /// # Errors
 /// [`Error::Scene`] naming the file if it cannot be read or decoded, or lacks RGBA.
 pub fn read_exr_contents(path: &Path) -> Result<ExrContents> {
+    use exr::prelude::*;
     use plume_core::error::Error;
     use plume_engine::film::Crop;
-    use exr::prelude::*;
     let bad = |m: String| Error::Scene(format!("cannot read EXR {}: {m}", path.display()));
     let image = read()
         .no_deep_data()
@@ -168,8 +204,10 @@ pub fn read_exr_contents(path: &Path) -> Result<ExrContents> {
     let pos = layer.attributes.layer_position;
     let (w, h) = (layer.size.0, layer.size.1);
     let crop = Crop {
-        x0: u32::try_from(pos.0 - display.position.0).map_err(|_| bad("data window outside the display window".into()))?,
-        y0: u32::try_from(pos.1 - display.position.1).map_err(|_| bad("data window outside the display window".into()))?,
+        x0: u32::try_from(pos.0 - display.position.0)
+            .map_err(|_| bad("data window outside the display window".into()))?,
+        y0: u32::try_from(pos.1 - display.position.1)
+            .map_err(|_| bad("data window outside the display window".into()))?,
         x1: 0,
         y1: 0,
     };
@@ -200,7 +238,8 @@ pub fn read_exr_contents(path: &Path) -> Result<ExrContents> {
             .map(|i| {
                 let mut s = [0i128; 4];
                 for (c, v) in s.iter_mut().enumerate() {
-                    let u = (0..4).fold(0u128, |acc, k| acc | (u128::from(words[c * 4 + k][i]) << (32 * k)));
+                    let u = (0..4)
+                        .fold(0u128, |acc, k| acc | (u128::from(words[c * 4 + k][i]) << (32 * k)));
                     *v = u as i128;
                 }
                 s
@@ -224,7 +263,9 @@ pub fn read_exr_contents(path: &Path) -> Result<ExrContents> {
                 let mut sums = vec![0i128; w * h * k];
                 for (i, s) in sums.iter_mut().enumerate() {
                     let (pixel, c) = (i / k, i % k);
-                    *s = (0..4).fold(0u128, |acc, q| acc | (u128::from(words[c * 4 + q][pixel]) << (32 * q))) as i128;
+                    *s = (0..4).fold(0u128, |acc, q| {
+                        acc | (u128::from(words[c * 4 + q][pixel]) << (32 * q))
+                    }) as i128;
                 }
                 (names, sums)
             })
@@ -273,10 +314,16 @@ pub fn read_exr(path: &Path) -> Result<RgbaImage> {
             px[y * *w + x] = [r, g, b, a];
         },
     )
-    .map_err(|e| plume_core::error::Error::Scene(format!("cannot read EXR {}: {e}", path.display())))?;
+    .map_err(|e| {
+        plume_core::error::Error::Scene(format!("cannot read EXR {}: {e}", path.display()))
+    })?;
     let size = image.layer_data.size;
     // `self::`: the exr prelude has an `RgbaImage` of its own
-    Ok(self::RgbaImage { width: size.0 as u32, height: size.1 as u32, pixels: image.layer_data.channel_data.pixels.1 })
+    Ok(self::RgbaImage {
+        width: size.0 as u32,
+        height: size.1 as u32,
+        pixels: image.layer_data.channel_data.pixels.1,
+    })
 }
 
 /// sRGB transfer function of a linear value in `[0, 1]`.
@@ -291,7 +338,11 @@ fn srgb_encode(v: f32) -> f32 {
 /// Exposure multiplier that maps the 99.5th percentile of pixel luminance to 0.9.
 #[must_use]
 pub fn auto_exposure(pixels: &[[f32; 4]]) -> f32 {
-    let mut lum: Vec<f32> = pixels.iter().map(|p| 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2]).filter(|l| l.is_finite() && *l > 0.0).collect();
+    let mut lum: Vec<f32> = pixels
+        .iter()
+        .map(|p| 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2])
+        .filter(|l| l.is_finite() && *l > 0.0)
+        .collect();
     if lum.is_empty() {
         return 1.0;
     }
@@ -309,7 +360,13 @@ pub fn auto_exposure(pixels: &[[f32; 4]]) -> f32 {
 ///
 /// # Errors
 /// [`Error::Write`] naming `path`.
-pub fn write_png(path: &Path, width: u32, height: u32, pixels: &[[f32; 4]], exposure: f32) -> Result<()> {
+pub fn write_png(
+    path: &Path,
+    width: u32,
+    height: u32,
+    pixels: &[[f32; 4]],
+    exposure: f32,
+) -> Result<()> {
     let mut data = Vec::with_capacity(pixels.len() * 3);
     for p in pixels {
         for c in &p[..3] {

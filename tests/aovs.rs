@@ -9,10 +9,12 @@ use std::path::Path;
 
 use common::{bits, channels, explosion, grid, grid_emission, mean_stderr, plume, s, tmpdir};
 use glam::{DAffine3, DMat3, DVec3, IVec3};
-use plume_engine::camera::Camera;
-use plume_engine::integrator::{AovLayout, AovSample, Counters, Integrator, Lights, NoTrace, Scene};
-use plume_engine::medium::{Convention, Emission, EmissionKind, Estimator, Medium};
 use plume_core::sampling::Sampler;
+use plume_engine::camera::Camera;
+use plume_engine::integrator::{
+    AovLayout, AovSample, Counters, Integrator, Lights, NoTrace, Scene,
+};
+use plume_engine::medium::{Convention, Emission, EmissionKind, Estimator, Medium};
 use plume_volume::field::Ray;
 use plume_volume::Volume;
 
@@ -70,9 +72,15 @@ fn colour_layers_sum_to_the_beauty_and_the_beauty_does_not_change() {
     let mut energy = [0.0f64; 5];
     for ch in ["R", "G", "B"] {
         for (i, &beauty) in c[ch].iter().enumerate() {
-            let parts: Vec<f64> = ["emission", "scattered", "key", "fill", "environment"].iter().map(|l| f64::from(c[&format!("{l}.{ch}")][i])).collect();
+            let parts: Vec<f64> = ["emission", "scattered", "key", "fill", "environment"]
+                .iter()
+                .map(|l| f64::from(c[&format!("{l}.{ch}")][i]))
+                .collect();
             let sum: f64 = parts.iter().sum();
-            assert!((sum - f64::from(beauty)).abs() <= 1e-6 * f64::from(beauty).abs() + 1e-30, "{ch} pixel {i}: layers {parts:?} sum {sum}, beauty {beauty}");
+            assert!(
+                (sum - f64::from(beauty)).abs() <= 1e-6 * f64::from(beauty).abs() + 1e-30,
+                "{ch} pixel {i}: layers {parts:?} sum {sum}, beauty {beauty}"
+            );
             for (e, p) in energy.iter_mut().zip(parts) {
                 *e += p;
             }
@@ -82,7 +90,10 @@ fn colour_layers_sum_to_the_beauty_and_the_beauty_does_not_change() {
     assert!(energy.iter().all(|&e| e > 0.0), "layer energies {energy:?}");
     // Depth lies within the camera's view of the volume (4 m cube, framed automatically)
     let z = &c["depth.Z"];
-    assert!(z.iter().all(|v| v.is_finite() && *v >= 0.0) && z.iter().any(|v| *v > 0.0), "depth {z:?}");
+    assert!(
+        z.iter().all(|v| v.is_finite() && *v >= 0.0) && z.iter().any(|v| *v > 0.0),
+        "depth {z:?}"
+    );
 }
 
 #[test]
@@ -105,12 +116,20 @@ fn layers_are_bit_identical_across_tiles_sample_ranges_merges_and_resumes() {
     args.extend(parts.iter().map(|p| s(p)));
     let o = plume(&args);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    assert_eq!(bits(&channels(&whole)), bits(&channels(&merged)), "merged parts differ from one render");
+    assert_eq!(
+        bits(&channels(&whole)),
+        bits(&channels(&merged)),
+        "merged parts differ from one render"
+    );
     // A render of 2 spp with sums, continued to 6
     let resumed = d.join("resumed.exr");
     render(&ex, &resumed, &["--spp", "2", "--sums"]);
     render(&ex, &resumed, &["--spp", "6"]);
-    assert_eq!(bits(&channels(&whole)), bits(&channels(&resumed)), "a resumed render differs from one render");
+    assert_eq!(
+        bits(&channels(&whole)),
+        bits(&channels(&resumed)),
+        "a resumed render differs from one render"
+    );
 }
 
 #[test]
@@ -125,12 +144,27 @@ fn depth_is_the_expected_distance_to_the_first_collision() {
     );
     let leaves: Vec<IVec3> = (0..n * n).map(|i| IVec3::new(i % n, i / n, 0) * 8).collect();
     let e = grid_emission(Convention::Cycles);
-    let vol = Volume::build(&grid("density", xf, &leaves, |_| 1.0), None, |v| e.map_source(v)).unwrap();
-    let medium = Medium { sigma_t: sigma, albedo: 0.0, g: 0.0, emission: Emission { kind: EmissionKind::None, ..e } };
-    let cam = Camera::look_at(DVec3::new(0.0, 0.0, -1.0), DVec3::ZERO, DVec3::Y, 1.0, 1, 1).unwrap();
-    let scene = Scene { field: vol, medium, camera: cam, lights: Lights::default(), motion: None, majorants: None };
+    let vol =
+        Volume::build(&grid("density", xf, &leaves, |_| 1.0), None, |v| e.map_source(v)).unwrap();
+    let medium = Medium {
+        sigma_t: sigma,
+        albedo: 0.0,
+        g: 0.0,
+        emission: Emission { kind: EmissionKind::None, ..e },
+    };
+    let cam =
+        Camera::look_at(DVec3::new(0.0, 0.0, -1.0), DVec3::ZERO, DVec3::Y, 1.0, 1, 1).unwrap();
+    let scene = Scene {
+        field: vol,
+        medium,
+        camera: cam,
+        lights: Lights::default(),
+        motion: None,
+        majorants: None,
+    };
     let layout = AovLayout { groups: vec![], halves: None };
-    let expected = 1.0 + 1.0 / sigma - depth * (-sigma * depth).exp() / (1.0 - (-sigma * depth).exp());
+    let expected =
+        1.0 + 1.0 / sigma - depth * (-sigma * depth).exp() / (1.0 - (-sigma * depth).exp());
     let ray = Ray { origin: DVec3::new(0.0, 0.0, -1.0), direction: DVec3::Z };
     for estimator in [Estimator::Line, Estimator::RayMarch, Estimator::Point] {
         let integ = Integrator::emission_only(estimator);
@@ -139,7 +173,17 @@ fn depth_is_the_expected_distance_to_the_first_collision() {
         let mut a = AovSample::new(layout.channels(), layout.half_at().zip(layout.halves));
         for i in 0..20_000u64 {
             a.values.fill(0.0);
-            integ.li_aovs(&scene, &ray, None, plume_engine::integrator::PathState { sampler: &mut Sampler::new(3, 0, i), counters: &mut c, trace: &mut NoTrace, aovs: &mut a });
+            integ.li_aovs(
+                &scene,
+                &ray,
+                None,
+                plume_engine::integrator::PathState {
+                    sampler: &mut Sampler::new(3, 0, i),
+                    counters: &mut c,
+                    trace: &mut NoTrace,
+                    aovs: &mut a,
+                },
+            );
             let k = layout.channels();
             if a.values[k - 1] == 1.0 {
                 ts.push(a.values[k - 2]);
@@ -147,7 +191,10 @@ fn depth_is_the_expected_distance_to_the_first_collision() {
         }
         let hit_rate = ts.len() as f64 / 20_000.0;
         let p_hit = 1.0 - (-sigma * depth).exp();
-        assert!((hit_rate - p_hit).abs() < 4.0 * (p_hit * (1.0 - p_hit) / 20_000.0).sqrt(), "{estimator:?}: hit rate {hit_rate} vs {p_hit}");
+        assert!(
+            (hit_rate - p_hit).abs() < 4.0 * (p_hit * (1.0 - p_hit) / 20_000.0).sqrt(),
+            "{estimator:?}: hit rate {hit_rate} vs {p_hit}"
+        );
         let (m, se) = mean_stderr(&ts);
         assert!((m - expected).abs() < 4.0 * se, "{estimator:?}: depth {m} ± {se} vs {expected}");
     }

@@ -71,7 +71,15 @@ fn extremes_sweep_passes_at_small_size() {
     assert_eq!(count("voxel size"), 9 * 3);
     assert_eq!(count("invalid voxels"), 1 + 4);
     // The closed forms span the extremes: 1e-6 … 1 for density, up to 1e7 K
-    let rm = |case: &str| report.rows.iter().find(|r| r.case == case && r.method == "ray-march").unwrap().expected.unwrap();
+    let rm = |case: &str| {
+        report
+            .rows
+            .iter()
+            .find(|r| r.case == case && r.method == "ray-march")
+            .unwrap()
+            .expected
+            .unwrap()
+    };
     assert!((rm("σ_t = 1e6") - 1e-6).abs() < 1e-12);
     assert!((rm("σ_t = 1e-6") - 1.0).abs() < 1e-6);
     assert_eq!(rm("T = 300.0 K"), 0.0);
@@ -120,13 +128,27 @@ fn compare_measures_every_method_and_writes_all_outputs() {
         assert!(m.equal_time.cpu_seconds.mean >= 0.2, "{}: the budget is spent", m.method);
         assert!(m.equal_time.spp.mean >= m.curve[0].spp.mean);
         assert!(m.equal_spp.spp.mean == report.equal_spp as f64);
-        for v in [m.equal_time.rmse.mean, m.equal_time.relmse.mean, m.equal_time.bias.mean, m.equal_spp.rmse.mean] {
+        for v in [
+            m.equal_time.rmse.mean,
+            m.equal_time.relmse.mean,
+            m.equal_time.bias.mean,
+            m.equal_spp.rmse.mean,
+        ] {
             assert!(v.is_finite(), "{}: {v}", m.method);
         }
-        assert!(m.equal_time.rmse.mean > 0.0 && m.peak_rss_bytes > 0 && m.samples_per_cpu_second.mean > 0.0);
+        assert!(
+            m.equal_time.rmse.mean > 0.0
+                && m.peak_rss_bytes > 0
+                && m.samples_per_cpu_second.mean > 0.0
+        );
         assert_eq!(m.image.len(), 24 * 18);
         // Unbiased methods: the image mean is near the reference's (loose: few samples)
-        assert!(m.equal_time.bias.mean.abs() < 0.5 * report.reference_mean, "{}: bias {}", m.method, m.equal_time.bias.mean);
+        assert!(
+            m.equal_time.bias.mean.abs() < 0.5 * report.reference_mean,
+            "{}: bias {}",
+            m.method,
+            m.equal_time.bias.mean
+        );
     }
     assert_eq!(report.methods[1].proxy_resolution, Some(8));
     let files = report.write(&dir.join("out"), "t", true).unwrap();
@@ -134,8 +156,13 @@ fn compare_measures_every_method_and_writes_all_outputs() {
         assert!(std::fs::metadata(f).unwrap().len() > 100, "{}", f.display());
     }
     let csv = std::fs::read_to_string(&files[0]).unwrap();
-    assert_eq!(csv.lines().count(), 1 + 4 * (2 + 3), "header + per method: equal-time, equal-spp, 3 curve points");
-    let json: serde_json::Value = serde_json::from_slice(&std::fs::read(&files[1]).unwrap()).unwrap();
+    assert_eq!(
+        csv.lines().count(),
+        1 + 4 * (2 + 3),
+        "header + per method: equal-time, equal-spp, 3 curve points"
+    );
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&files[1]).unwrap()).unwrap();
     assert_eq!(json["methods"].as_array().unwrap().len(), 4);
     for png in &files[2..] {
         let dec = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(png).unwrap()));
@@ -182,9 +209,17 @@ fn compare_command_runs_end_to_end_and_refuses_bad_flags() {
     ]);
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{stderr}");
-    assert!(stderr.contains("expected-value estimator"), "emission-only scenes get a ray-march reference: {stderr}");
+    assert!(
+        stderr.contains("expected-value estimator"),
+        "emission-only scenes get a ray-march reference: {stderr}"
+    );
     let stdout = String::from_utf8_lossy(&o.stdout);
-    assert!(stdout.contains("Equal CPU time") && stdout.contains("Equal spp") && stdout.contains("line+none"), "{stdout}");
+    assert!(
+        stdout.contains("Equal CPU time")
+            && stdout.contains("Equal spp")
+            && stdout.contains("line+none"),
+        "{stdout}"
+    );
     for f in ["e.csv", "e.json", "e-error.png", "e-crops.png"] {
         assert!(out.join(f).exists(), "{f}");
     }
@@ -193,10 +228,29 @@ fn compare_command_runs_end_to_end_and_refuses_bad_flags() {
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("--make-reference"));
     // Bad method, bad render flag
-    let o = plume(&["bench", "compare", "explosion:16", "--make-reference", "--methods", "line+sun", "--work-dir", s(&work)]);
+    let o = plume(&[
+        "bench",
+        "compare",
+        "explosion:16",
+        "--make-reference",
+        "--methods",
+        "line+sun",
+        "--work-dir",
+        s(&work),
+    ]);
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("line+sun"));
-    let o = plume(&["bench", "compare", "explosion:16", "--make-reference", "--work-dir", s(&work), "--", "--albedo", "2"]);
+    let o = plume(&[
+        "bench",
+        "compare",
+        "explosion:16",
+        "--make-reference",
+        "--work-dir",
+        s(&work),
+        "--",
+        "--albedo",
+        "2",
+    ]);
     assert_eq!(o.status.code(), Some(2), "{}", String::from_utf8_lossy(&o.stderr));
     let _ = std::fs::remove_dir_all(&dir);
 }
@@ -214,11 +268,30 @@ fn render_warns_with_the_exact_count_of_negative_voxels() {
     let file = dir.join("neg.vdb");
     plume::vdb::write_float_grids(&file, &[&d, &t]).unwrap();
     let exr = dir.join("o.exr");
-    let o = plume(&["render", s(&file), "-o", s(&exr), "--spp", "2", "--width", "16", "--height", "12", "-q"]);
+    let o = plume(&[
+        "render",
+        s(&file),
+        "-o",
+        s(&exr),
+        "--spp",
+        "2",
+        "--width",
+        "16",
+        "--height",
+        "12",
+        "-q",
+    ]);
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{stderr}");
-    assert!(stderr.contains("128 density voxels were NaN, infinite or negative and were set to 0"), "{stderr}");
-    assert!(stderr.contains("64 emission-source voxels were NaN, infinite or negative and were set to 0"), "{stderr}");
+    assert!(
+        stderr.contains("128 density voxels were NaN, infinite or negative and were set to 0"),
+        "{stderr}"
+    );
+    assert!(
+        stderr
+            .contains("64 emission-source voxels were NaN, infinite or negative and were set to 0"),
+        "{stderr}"
+    );
     let px = exr_pixels(&exr);
     assert!(px.iter().flatten().all(|v| v.is_finite()));
     assert!(px.iter().any(|p| p[0] > 0.0));
@@ -240,11 +313,26 @@ fn non_finite_voxels_in_a_file_are_clamped_and_counted_or_refused_by_name() {
     let file = dir.join("nan.vdb");
     plume::vdb::write_float_grids(&file, &[&d]).unwrap();
     let exr = dir.join("o.exr");
-    let o = plume(&["render", s(&file), "-o", s(&exr), "--spp", "2", "--width", "16", "--height", "12", "-q"]);
+    let o = plume(&[
+        "render",
+        s(&file),
+        "-o",
+        s(&exr),
+        "--spp",
+        "2",
+        "--width",
+        "16",
+        "--height",
+        "12",
+        "-q",
+    ]);
     let stderr = String::from_utf8_lossy(&o.stderr);
     match o.status.code() {
         Some(0) => {
-            assert!(stderr.contains("192 density voxels were NaN, infinite or negative"), "{stderr}");
+            assert!(
+                stderr.contains("192 density voxels were NaN, infinite or negative"),
+                "{stderr}"
+            );
             assert!(exr_pixels(&exr).iter().flatten().all(|v| v.is_finite()));
         }
         Some(3) => {
@@ -270,7 +358,12 @@ fn interpolation_bench_runs_at_a_tiny_size_with_sane_figures() {
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{stderr}");
     let stdout = String::from_utf8_lossy(&o.stdout);
-    assert!(stdout.contains("linear cost ÷ nearest") && stdout.contains("dual pyramid") && stdout.contains("temperature first"), "{stdout}");
+    assert!(
+        stdout.contains("linear cost ÷ nearest")
+            && stdout.contains("dual pyramid")
+            && stdout.contains("temperature first"),
+        "{stdout}"
+    );
     let report: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
     let cost = report["cost"].as_array().unwrap();
     assert_eq!(cost.len(), 4, "ray-march, line, line-fnee, point-nee");
@@ -295,7 +388,16 @@ fn interpolation_bench_runs_at_a_tiny_size_with_sane_figures() {
     let info = png.read_info().unwrap();
     assert!(info.info().width >= 2 * 24 && info.info().height >= 16);
     // An unknown file name is refused, naming the flag
-    let o = plume(&["bench", "interpolation", "--data", s(&data), "--files", "nope", "--rule-files", "explosion/mantaflow_explosion_kelvin_0020.vdb"]);
+    let o = plume(&[
+        "bench",
+        "interpolation",
+        "--data",
+        s(&data),
+        "--files",
+        "nope",
+        "--rule-files",
+        "explosion/mantaflow_explosion_kelvin_0020.vdb",
+    ]);
     assert_eq!(o.status.code(), Some(2), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(String::from_utf8_lossy(&o.stderr).contains("--files"));
     let _ = std::fs::remove_dir_all(&dir);
@@ -310,12 +412,19 @@ fn the_peer_comparisons_budget_rules_pass_their_self_test() {
     let output = match std::process::Command::new("python3").arg(&script).output() {
         Ok(o) => o,
         Err(e) => {
-            eprintln!("\n!!!!!!!!!! SKIPPED budget.py self-test: cannot run python3: {e} !!!!!!!!!!\n");
+            eprintln!(
+                "\n!!!!!!!!!! SKIPPED budget.py self-test: cannot run python3: {e} !!!!!!!!!!\n"
+            );
             return;
         }
     };
     let stdout = String::from_utf8_lossy(&output.stdout);
-    assert!(output.status.success() && stdout.contains("self-test ok"), "{}: {stdout}{}", script.display(), String::from_utf8_lossy(&output.stderr));
+    assert!(
+        output.status.success() && stdout.contains("self-test ok"),
+        "{}: {stdout}{}",
+        script.display(),
+        String::from_utf8_lossy(&output.stderr)
+    );
 }
 
 /// `plume bench demo` on a tiny scene file: it times each seed's render, judges it against
@@ -355,7 +464,10 @@ fn demo_bench_judges_each_seed_and_keeps_its_references() {
     assert!(o.status.success(), "{err}");
     assert_eq!(err.matches("rendering reference").count(), 2, "{err}");
     let table = String::from_utf8_lossy(&o.stdout);
-    assert!(table.contains("| seed | wall s |") && table.contains("relRMSE ≤ 5 on every seed: yes"), "{table}");
+    assert!(
+        table.contains("| seed | wall s |") && table.contains("relRMSE ≤ 5 on every seed: yes"),
+        "{table}"
+    );
     let report: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
     let runs = report["runs"].as_array().unwrap();
     assert_eq!(runs.len(), 2);
@@ -365,29 +477,51 @@ fn demo_bench_judges_each_seed_and_keeps_its_references() {
         // 4 spp of a scattering render against two 16-spp references: noisy, not wrong
         assert!(rel.is_finite() && rel > 0.0 && rel < 5.0, "{run}");
         assert!((e["mean_ratio"].as_f64().unwrap() - 1.0).abs() < 0.5, "{run}");
-        assert!(run["wall_seconds"].as_f64().unwrap() > 0.0 && run["cpu_seconds"].as_f64().unwrap() > 0.0, "{run}");
+        assert!(
+            run["wall_seconds"].as_f64().unwrap() > 0.0
+                && run["cpu_seconds"].as_f64().unwrap() > 0.0,
+            "{run}"
+        );
         assert!(e["speck"]["ratio"].as_f64().unwrap() >= 1.0, "{run}");
     }
     // The user's image is untouched: every render went to the work directory
     assert!(!dir.join("shot.exr").exists());
     // A second run renders no reference
     let o = plume(&args);
-    assert!(o.status.success() && !String::from_utf8_lossy(&o.stderr).contains("rendering reference"), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        o.status.success() && !String::from_utf8_lossy(&o.stderr).contains("rendering reference"),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
     // A reference seed among the demo's would share its noise; one reference image has no spread
-    common::plume_exits(&["bench", "demo", "--scene", s(&scene), "--seeds", "11", "--work-dir", s(&work)], 2, &["--reference-seeds", "11"]);
+    common::plume_exits(
+        &["bench", "demo", "--scene", s(&scene), "--seeds", "11", "--work-dir", s(&work)],
+        2,
+        &["--reference-seeds", "11"],
+    );
     let one = work
         .read_dir()
         .unwrap()
         .map(|e| e.unwrap().path())
-        .find(|p| p.to_string_lossy().contains("reference-") && p.extension().is_some_and(|e| e == "exr"))
+        .find(|p| {
+            p.to_string_lossy().contains("reference-") && p.extension().is_some_and(|e| e == "exr")
+        })
         .unwrap();
-    common::plume_exits(&["bench", "demo", "--scene", s(&scene), "--references", s(&one), "--work-dir", s(&work)], 2, &["--references"]);
+    common::plume_exits(
+        &["bench", "demo", "--scene", s(&scene), "--references", s(&one), "--work-dir", s(&work)],
+        2,
+        &["--references"],
+    );
     // A damaged reference (or an interrupted render's partial one) is rendered again
     std::fs::write(&one, b"not an image").unwrap();
     let o = plume(&args);
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success() && err.matches("rendering reference").count() == 1, "{err}");
-    common::plume_exits(&["bench", "demo", "--scene", s(&scene), "--target-seconds", "0", "--work-dir", s(&work)], 2, &["--target-seconds"]);
+    common::plume_exits(
+        &["bench", "demo", "--scene", s(&scene), "--target-seconds", "0", "--work-dir", s(&work)],
+        2,
+        &["--target-seconds"],
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -410,7 +544,13 @@ fn report_writes_a_document_of_its_form_at_tiny_budgets() {
     .unwrap();
     let options = ReportOptions {
         out: dir.join("docs"),
-        budgets: Budgets { quick: false, time_scale: 0.005, resolution: 16, core_resolution: 16, demo: true },
+        budgets: Budgets {
+            quick: false,
+            time_scale: 0.005,
+            resolution: 16,
+            core_resolution: 16,
+            demo: true,
+        },
         data: dir.join("no-data"),
         work_dir: dir.join("work"),
         working_dir: dir.clone(),
@@ -420,11 +560,22 @@ fn report_writes_a_document_of_its_form_at_tiny_budgets() {
     let md = std::fs::read_to_string(dir.join("docs/BENCHMARKS.md")).unwrap();
     let problems = check_document(&md);
     assert!(problems.is_empty(), "{}\n\n{md}", problems.join("\n"));
-    assert!(md.contains("This is the full form") && md.contains("(budgets set on the command line)") && md.contains("Not run: "), "{md}");
+    assert!(
+        md.contains("This is the full form")
+            && md.contains("(budgets set on the command line)")
+            && md.contains("Not run: "),
+        "{md}"
+    );
     assert!(dir.join("out/explosion.vdb").exists(), "the demo's volume is made when missing");
     let demo = md.split("## README demo").nth(1).unwrap();
     assert!(demo.contains("| seed | wall s |") && demo.contains("\n| 3 | "), "{demo}");
-    for generated in ["## Generated explosion 16³, thin", "## FNEE proxy resolution", "## Splitting by brightness", "## Motion blur", "## Numerical extremes"] {
+    for generated in [
+        "## Generated explosion 16³, thin",
+        "## FNEE proxy resolution",
+        "## Splitting by brightness",
+        "## Motion blur",
+        "## Numerical extremes",
+    ] {
         let section = md.split(generated).nth(1).unwrap_or_else(|| panic!("no {generated:?}"));
         assert!(section.contains("```sh\nplume bench "), "{generated}: no command");
     }
@@ -462,9 +613,17 @@ fn benchmarks_md_has_the_reports_form() {
         "Peer comparison: Cycles",
         "Ideas tried and not kept",
     ] {
-        assert!(md.contains(&format!("\n## {section}")), "no section {section:?} in {}", path.display());
+        assert!(
+            md.contains(&format!("\n## {section}")),
+            "no section {section:?} in {}",
+            path.display()
+        );
     }
     // The check finds history where it is planted
-    let planted = md.replacen("## Numerical extremes\n", "## Numerical extremes\n\nMeasured at `25fc21c` on 2026-11-27 for issue #16.\n", 1);
+    let planted = md.replacen(
+        "## Numerical extremes\n",
+        "## Numerical extremes\n\nMeasured at `25fc21c` on 2026-11-27 for issue #16.\n",
+        1,
+    );
     assert_eq!(history(&planted).len(), 3, "{:?}", history(&planted));
 }

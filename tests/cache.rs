@@ -7,14 +7,28 @@ use std::path::{Path, PathBuf};
 
 use common::{explosion, exr_pixels, grid, hash, plume, plume_exits, s, stderr, tmpdir, PLUME};
 use glam::{DAffine3, DVec3, IVec3};
+use plume_volume::field::{Ray, RayGrid};
 use plume_volume::out_of_core::format::{Header, PAGE};
 use plume_volume::out_of_core::{write_volume, Cache, CacheInfo};
-use plume_volume::field::{Ray, RayGrid};
 use plume_volume::{Field, Volume};
 
 /// Render `input` with `extra` flags; returns the pixels.
 fn render(input: &Path, out: &Path, extra: &[&str]) -> Vec<[f32; 4]> {
-    let mut args = vec!["render", s(input), "-o", s(out), "--spp", "3", "--width", "40", "--height", "30", "--seed", "11", "-q"];
+    let mut args = vec![
+        "render",
+        s(input),
+        "-o",
+        s(out),
+        "--spp",
+        "3",
+        "--width",
+        "40",
+        "--height",
+        "30",
+        "--seed",
+        "11",
+        "-q",
+    ];
     args.extend_from_slice(extra);
     let o = plume(&args);
     assert!(o.status.success(), "render {}: {}", input.display(), stderr(&o));
@@ -23,9 +37,13 @@ fn render(input: &Path, out: &Path, extra: &[&str]) -> Vec<[f32; 4]> {
 
 fn assert_bitwise(a: &[[f32; 4]], b: &[[f32; 4]], what: &str) {
     assert_eq!(a.len(), b.len());
-    let same = a.iter().zip(b).all(|(p, q)| p.iter().zip(q).all(|(x, y)| x.to_bits() == y.to_bits()));
+    let same =
+        a.iter().zip(b).all(|(p, q)| p.iter().zip(q).all(|(x, y)| x.to_bits() == y.to_bits()));
     assert!(same, "{what}: pixels differ");
-    assert!(a.iter().any(|p| p[0] > 0.0 || p[3] > 0.0), "{what}: the image is empty, the test proves nothing");
+    assert!(
+        a.iter().any(|p| p[0] > 0.0 || p[3] > 0.0),
+        "{what}: the image is empty, the test proves nothing"
+    );
 }
 
 #[test]
@@ -37,7 +55,10 @@ fn cached_renders_are_bit_identical_to_in_core_renders() {
     let dead = std::process::Command::new("true").spawn().unwrap();
     let pid = dead.id();
     let _ = dead.wait_with_output();
-    let host = std::fs::read_to_string("/proc/sys/kernel/hostname").unwrap().trim().replace(['/', '.'], "_");
+    let host = std::fs::read_to_string("/proc/sys/kernel/hostname")
+        .unwrap()
+        .trim()
+        .replace(['/', '.'], "_");
     let stale = dir.join(format!(".ex.plume.{host}.{pid}.tmp"));
     std::fs::write(&stale, b"half a cache").unwrap();
     let o = plume(&["prepare", s(&vdb), "-o", s(&cache)]);
@@ -50,20 +71,44 @@ fn cached_renders_are_bit_identical_to_in_core_renders() {
         ("point-nee", &["--method", "point-nee", "--albedo", "0.8"]),
         ("ray-march", &["--method", "ray-march"]),
         ("fnee proxy 16 (rebuilt from bricks)", &["--albedo", "0.5", "--proxy-resolution", "16"]),
-        ("scaled and tinted", &["--albedo", "0.7", "--emission-scale", "3", "--emission-color", "1,0.5,0.25", "--density-scale", "4"]),
+        (
+            "scaled and tinted",
+            &[
+                "--albedo",
+                "0.7",
+                "--emission-scale",
+                "3",
+                "--emission-color",
+                "1,0.5,0.25",
+                "--density-scale",
+                "4",
+            ],
+        ),
         ("line-fnee, nearest", &["--albedo", "0.8", "--interpolation", "nearest"]),
     ] {
         let a = render(&vdb, &dir.join("a.exr"), flags);
         let b = render(&cache, &dir.join("b.exr"), flags);
         assert_bitwise(&a, &b, name);
-        let scene = plume::output::read_exr_contents(&dir.join("b.exr")).unwrap().metadata.remove("plume:scene").unwrap_or_default();
-        let expected = if flags.contains(&"nearest") { "interpolation = \"nearest\"" } else { "interpolation = \"linear\"" };
+        let scene = plume::output::read_exr_contents(&dir.join("b.exr"))
+            .unwrap()
+            .metadata
+            .remove("plume:scene")
+            .unwrap_or_default();
+        let expected = if flags.contains(&"nearest") {
+            "interpolation = \"nearest\""
+        } else {
+            "interpolation = \"linear\""
+        };
         assert!(scene.contains(expected), "{name}: rendered with {expected}? {scene}");
     }
     // Tile-major order with read-ahead from the mapped cache, against progressive in core
     let flags = ["--albedo", "0.8", "--g", "0.3"];
     let a = render(&vdb, &dir.join("a.exr"), &flags);
-    let b = render(&cache, &dir.join("b.exr"), &[&flags[..], &["--sample-order", "tile-major"]].concat());
+    let b = render(
+        &cache,
+        &dir.join("b.exr"),
+        &[&flags[..], &["--sample-order", "tile-major"]].concat(),
+    );
     assert_bitwise(&a, &b, "tile-major from the cache");
 }
 
@@ -74,14 +119,19 @@ fn real_files_convert_by_streaming_and_render_identically() {
         // Active tiles (voxelized as constant bricks), one grid, no emission
         ("../shared/data/cloud/wdas_cloud_sixteenth.vdb", &["--density-scale", "20"][..]),
         // Blender's own grid names; emission from flame_noise
-        ("../shared/data/explosion/blender_fluid_noise_0040.vdb", &["--density-grid", "density_noise", "--albedo", "0.7"]),
+        (
+            "../shared/data/explosion/blender_fluid_noise_0040.vdb",
+            &["--density-grid", "density_noise", "--albedo", "0.7"],
+        ),
         // Kelvin temperature, blackbody
         ("../shared/data/explosion/mantaflow_explosion_kelvin_0020.vdb", &["--albedo", "0.5"]),
     ] {
         let vdb = Path::new(file);
         let cache = dir.join("real.plume");
         let mut args = vec!["prepare", file, "-o", s(&cache)];
-        args.extend(flags.iter().filter(|f| f.starts_with("--density-grid") || f.starts_with("density_")));
+        args.extend(
+            flags.iter().filter(|f| f.starts_with("--density-grid") || f.starts_with("density_")),
+        );
         let o = plume(&args);
         assert!(o.status.success(), "{file}: {}", stderr(&o));
         let a = render(vdb, &dir.join("a.exr"), flags);
@@ -106,10 +156,28 @@ fn a_flare_generated_straight_to_a_cache_renders_like_its_vdb() {
 
 /// A volume with dense, constant, albedo and empty bricks, built in memory.
 fn test_volume() -> Volume {
-    let xf = DAffine3::from_scale_rotation_translation(DVec3::new(0.1, 0.12, 0.09), glam::DQuat::from_rotation_y(0.3), DVec3::new(1.0, -2.0, 0.5));
-    let leaves: Vec<IVec3> = (0..5).flat_map(|x| (0..4).map(move |y| IVec3::new(8 * x, 8 * y, 8 * ((x + y) % 3)))).collect();
-    let density = grid("density", xf, &leaves, |p| if p.x < 16 { 0.5 } else { (hash(p, 1) % 100) as f32 * 0.03 });
-    let temp = grid("temperature", xf, &leaves[3..], |p| if (hash(p, 2) % 4) == 0 { 0.0 } else { 1500.0 + (hash(p, 3) % 2000) as f32 });
+    let xf = DAffine3::from_scale_rotation_translation(
+        DVec3::new(0.1, 0.12, 0.09),
+        glam::DQuat::from_rotation_y(0.3),
+        DVec3::new(1.0, -2.0, 0.5),
+    );
+    let leaves: Vec<IVec3> = (0..5)
+        .flat_map(|x| (0..4).map(move |y| IVec3::new(8 * x, 8 * y, 8 * ((x + y) % 3))))
+        .collect();
+    let density =
+        grid(
+            "density",
+            xf,
+            &leaves,
+            |p| if p.x < 16 { 0.5 } else { (hash(p, 1) % 100) as f32 * 0.03 },
+        );
+    let temp = grid("temperature", xf, &leaves[3..], |p| {
+        if (hash(p, 2) % 4) == 0 {
+            0.0
+        } else {
+            1500.0 + (hash(p, 3) % 2000) as f32
+        }
+    });
     let albedo = grid("albedo", xf, &leaves[..7], |p| (hash(p, 4) % 100) as f32 * 0.011);
     Volume::build_with_albedo(&density, Some(&temp), |v| v, Some(&albedo)).unwrap()
 }
@@ -130,7 +198,8 @@ fn info() -> CacheInfo {
 /// and opened from it.
 fn test_cache(test: &str) -> (Volume, Cache) {
     let volume = test_volume();
-    let path = write_volume(&tmpdir("cache", test).join("v.plume"), &volume, &info(), None).unwrap();
+    let path =
+        write_volume(&tmpdir("cache", test).join("v.plume"), &volume, &info(), None).unwrap();
     let cache = Cache::open(&path).unwrap();
     (volume, cache)
 }
@@ -141,7 +210,8 @@ fn parallel_grid(lo: DVec3, hi: DVec3, n: usize) -> RayGrid {
     for j in 0..=n {
         for i in 0..=n {
             let f = DVec3::new(i as f64 / n as f64, j as f64 / n as f64, 0.0);
-            let origin = DVec3::new(lo.x + (hi.x - lo.x) * f.x, lo.y + (hi.y - lo.y) * f.y, lo.z - 1.0);
+            let origin =
+                DVec3::new(lo.x + (hi.x - lo.x) * f.x, lo.y + (hi.y - lo.y) * f.y, lo.z - 1.0);
             rays.push(Ray { origin, direction: DVec3::Z });
         }
     }
@@ -158,7 +228,11 @@ fn read_ahead_reports_the_bytes_it_asks_for() {
     let all = cache.meta.value_blocks * 512 * 4;
     let b = mapped.world_bounds();
     let pad = DVec3::splat(0.5);
-    assert_eq!(mapped.read_ahead(&parallel_grid(b.lo - pad, b.hi + pad, 2)), all, "every block, once");
+    assert_eq!(
+        mapped.read_ahead(&parallel_grid(b.lo - pad, b.hi + pad, 2)),
+        all,
+        "every block, once"
+    );
     let mid = DVec3::new((b.lo.x + b.hi.x) / 2.0, b.hi.y, b.hi.z);
     let part = mapped.read_ahead(&parallel_grid(b.lo - pad, mid, 2));
     // (Blocks less than 16 apart are read as one run, so a part may come to all 36 here)
@@ -188,8 +262,20 @@ fn a_mapped_volume_gives_the_same_segments_bit_for_bit() {
         assert_eq!(a.len(), b.len());
         for (x, y) in a.iter().zip(&b) {
             assert_eq!(
-                [x.t0.to_bits(), x.t1.to_bits(), u64::from(x.density.to_bits()), u64::from(x.source.to_bits()), u64::from(x.albedo.to_bits())],
-                [y.t0.to_bits(), y.t1.to_bits(), u64::from(y.density.to_bits()), u64::from(y.source.to_bits()), u64::from(y.albedo.to_bits())]
+                [
+                    x.t0.to_bits(),
+                    x.t1.to_bits(),
+                    u64::from(x.density.to_bits()),
+                    u64::from(x.source.to_bits()),
+                    u64::from(x.albedo.to_bits())
+                ],
+                [
+                    y.t0.to_bits(),
+                    y.t1.to_bits(),
+                    u64::from(y.density.to_bits()),
+                    u64::from(y.source.to_bits()),
+                    u64::from(y.albedo.to_bits())
+                ]
             );
         }
         rays += usize::from(a.len() > 1);
@@ -210,7 +296,19 @@ fn prepared(dir: &Path) -> (PathBuf, PathBuf) {
 /// every one of `needles`, and no output file.
 fn refused(input: &Path, dir: &Path, code: i32, needles: &[&str], extra: &[&str]) {
     let out = dir.join("refused.exr");
-    let mut args = vec!["render", s(input), "-o", s(&out), "--spp", "1", "--width", "8", "--height", "8", "-q"];
+    let mut args = vec![
+        "render",
+        s(input),
+        "-o",
+        s(&out),
+        "--spp",
+        "1",
+        "--width",
+        "8",
+        "--height",
+        "8",
+        "-q",
+    ];
     args.extend_from_slice(extra);
     let err = plume_exits(&args, code, needles);
     assert_eq!(err.lines().filter(|l| l.starts_with("plume: error")).count(), 1, "{err}");
@@ -241,8 +339,15 @@ fn damaged_truncated_and_foreign_caches_are_refused() {
         p
     };
     // A bit flipped in each section, in the header, and the section table
-    for kind in [SectionKind::Values, SectionKind::Table, SectionKind::Bricks, SectionKind::Pyramid, SectionKind::Proxy, SectionKind::Meta, SectionKind::Chunks]
-    {
+    for kind in [
+        SectionKind::Values,
+        SectionKind::Table,
+        SectionKind::Bricks,
+        SectionKind::Pyramid,
+        SectionKind::Proxy,
+        SectionKind::Meta,
+        SectionKind::Chunks,
+    ] {
         let p = copy(&format!("flip-{}.plume", kind as u32));
         let (offset, len) = section(&p, kind);
         flip(&p, offset + len / 2);
@@ -278,7 +383,13 @@ fn stale_and_mismatched_caches_are_refused_and_automatic_caches_rebuilt() {
     let dir = tmpdir("cache", "stale");
     let (vdb, cache) = prepared(&dir);
     // Flags that map the source differently, or select other grids
-    refused(&cache, &dir, 2, &["--temperature-map/--temperature-cutoff/--convention", "prepare"], &["--temperature-cutoff", "900"]);
+    refused(
+        &cache,
+        &dir,
+        2,
+        &["--temperature-map/--temperature-cutoff/--convention", "prepare"],
+        &["--temperature-cutoff", "900"],
+    );
     refused(&cache, &dir, 2, &["--density-grid"], &["--density-grid", "smoke"]);
     refused(&cache, &dir, 2, &["--emission"], &["--emission", "grid"]);
     // The source changed after prepare: stale
@@ -297,12 +408,30 @@ fn stale_and_mismatched_caches_are_refused_and_automatic_caches_rebuilt() {
     let auto = render(&vdb, &dir.join("auto.exr"), &flags);
     assert_bitwise(&in_core, &auto, "automatic cache");
     // The cache, and the lock file of its conversion (`.NAME.lock`)
-    let made: Vec<_> = std::fs::read_dir(&cache_dir).unwrap().map(|e| e.unwrap().path()).filter(|p| plume::cache::is_cache_path(p)).collect();
+    let made: Vec<_> = std::fs::read_dir(&cache_dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| plume::cache::is_cache_path(p))
+        .collect();
     assert_eq!(made.len(), 1, "{made:?}");
     let (offset, len) = section(&made[0], plume_volume::out_of_core::format::SectionKind::Meta);
     flip(&made[0], offset + len / 3);
     let again = dir.join("again.exr");
-    let mut args = vec!["render", s(&vdb), "-o", s(&again), "--spp", "3", "--width", "40", "--height", "30", "--seed", "11", "-q"];
+    let mut args = vec![
+        "render",
+        s(&vdb),
+        "-o",
+        s(&again),
+        "--spp",
+        "3",
+        "--width",
+        "40",
+        "--height",
+        "30",
+        "--seed",
+        "11",
+        "-q",
+    ];
     args.extend_from_slice(&flags);
     let o = plume(&args);
     assert!(o.status.success(), "{}", stderr(&o));
@@ -332,7 +461,20 @@ fn a_1_gib_cache_renders_within_a_256_mib_budget() {
     assert!(bytes > 4 * BUDGET, "the dataset ({bytes} bytes) must dwarf the budget");
     let out = dir.join("flare.exr");
     let mut child = std::process::Command::new(PLUME)
-        .args(["render", s(&cache), "-o", s(&out), "--spp", "2", "--width", "96", "--height", "72", "--albedo", "0.5"])
+        .args([
+            "render",
+            s(&cache),
+            "-o",
+            s(&out),
+            "--spp",
+            "2",
+            "--width",
+            "96",
+            "--height",
+            "72",
+            "--albedo",
+            "0.5",
+        ])
         .args(["--memory-budget", "256MiB", "--threads", "2", "--sample-order", "tile-major", "-q"])
         .stderr(std::process::Stdio::piped())
         .spawn()
@@ -363,8 +505,12 @@ fn a_1_gib_cache_renders_within_a_256_mib_budget() {
 /// A cache of 34 × 32 × 32 dense bricks written from memory: 68 MiB of values, more than
 /// the 64 MiB checked at open, so its values are checked in the background.
 fn background_checked_cache(path: &Path) -> PathBuf {
-    let leaves: Vec<IVec3> = (0..34).flat_map(|x| (0..32).flat_map(move |y| (0..32).map(move |z| 8 * IVec3::new(x, y, z)))).collect();
-    let density = grid("density", DAffine3::from_scale(DVec3::splat(0.1)), &leaves, |p| 0.001 + (hash(p, 5) % 1000) as f32 * 1e-3);
+    let leaves: Vec<IVec3> = (0..34)
+        .flat_map(|x| (0..32).flat_map(move |y| (0..32).map(move |z| 8 * IVec3::new(x, y, z))))
+        .collect();
+    let density = grid("density", DAffine3::from_scale(DVec3::splat(0.1)), &leaves, |p| {
+        0.001 + (hash(p, 5) % 1000) as f32 * 1e-3
+    });
     let volume = Volume::build(&density, None, |v| v).unwrap();
     let info = CacheInfo {
         density_grid: "density".into(),
@@ -392,18 +538,25 @@ fn a_damaged_automatic_cache_is_removed_only_while_it_is_the_file_checked() {
     let dir = tmpdir("cache", "remove-damaged");
     let good = background_checked_cache(&dir.join("good.plume"));
     let (offset, len) = section(&good, SectionKind::Values);
-    assert!(len > plume_volume::out_of_core::reader::EAGER_BYTES, "the values must be checked in the background");
+    assert!(
+        len > plume_volume::out_of_core::reader::EAGER_BYTES,
+        "the values must be checked in the background"
+    );
     let path = dir.join("auto.plume");
     let damaged_cache = || {
         std::fs::copy(&good, &path).unwrap();
         flip(&path, offset + len / 2);
-        let mut cache = Cache::open(&path).expect("damage in the values is found only in the background");
+        let mut cache =
+            Cache::open(&path).expect("damage in the values is found only in the background");
         cache.check.remove_on_failure();
         cache
     };
     let checked = |cache: Cache| {
         let err = cache.check.verified().expect_err("the values fail their checksum").to_string();
-        assert!(err.contains(s(&path)) && err.contains("values section fails its checksum"), "{err}");
+        assert!(
+            err.contains(s(&path)) && err.contains("values section fails its checksum"),
+            "{err}"
+        );
         err
     };
     // Nobody else: removed
@@ -418,7 +571,11 @@ fn a_damaged_automatic_cache_is_removed_only_while_it_is_the_file_checked() {
     let new_ino = std::fs::metadata(&path).unwrap().ino();
     let err = checked(cache);
     assert!(err.contains("already replaced"), "{err}");
-    assert_eq!(std::fs::metadata(&path).map(|m| m.ino()).ok(), Some(new_ino), "the new cache was removed");
+    assert_eq!(
+        std::fs::metadata(&path).map(|m| m.ino()).ok(),
+        Some(new_ino),
+        "the new cache was removed"
+    );
     Cache::open(&path).unwrap().check.verified().expect("the new cache is whole");
     // Another process holds the conversion lock (it is making a new one): left to it
     let cache = damaged_cache();

@@ -40,8 +40,16 @@ fn render_is_bit_identical_for_1_and_2_threads_and_writes_all_outputs() {
         ]);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         assert!(std::fs::metadata(&png).unwrap().len() > 100);
-        let st: serde_json::Value = serde_json::from_slice(&std::fs::read(&stats).unwrap()).unwrap();
-        for key in ["spp", "wall_seconds", "cpu_seconds", "core_hours", "samples_per_second", "peak_rss_bytes"] {
+        let st: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(&stats).unwrap()).unwrap();
+        for key in [
+            "spp",
+            "wall_seconds",
+            "cpu_seconds",
+            "core_hours",
+            "samples_per_second",
+            "peak_rss_bytes",
+        ] {
             assert!(st.get(key).is_some(), "stats lacks {key}");
         }
         assert_eq!(st["spp"], 4);
@@ -79,15 +87,42 @@ fn bad_input_gives_one_line_errors_and_exit_codes() {
     let cases: Vec<(Vec<&str>, i32, &str)> = vec![
         (vec!["render", "../shared/data/missing.vdb", "-o", &o_s], 3, "missing.vdb"),
         (vec!["render", SMOKE, "-o", &o_s, "--density-grid", "smoke"], 3, "available: density"),
-        (vec!["render", "../shared/data/edge_cases/oiio_sphereCd.vdb", "--density-grid", "Cd", "-o", &o_s], 3, "vec3s"),
-        (vec!["render", "../shared/data/edge_cases/malformed/oiio_truncated.vdb", "-o", &o_s], 3, "oiio_truncated.vdb"),
-        (vec!["render", "../shared/data/nanovdb/openvdb_fvdb_smoke-blosc.nvdb", "-o", &o_s], 3, "NanoVDB"),
+        (
+            vec![
+                "render",
+                "../shared/data/edge_cases/oiio_sphereCd.vdb",
+                "--density-grid",
+                "Cd",
+                "-o",
+                &o_s,
+            ],
+            3,
+            "vec3s",
+        ),
+        (
+            vec!["render", "../shared/data/edge_cases/malformed/oiio_truncated.vdb", "-o", &o_s],
+            3,
+            "oiio_truncated.vdb",
+        ),
+        (
+            vec!["render", "../shared/data/nanovdb/openvdb_fvdb_smoke-blosc.nvdb", "-o", &o_s],
+            3,
+            "NanoVDB",
+        ),
         (vec!["render", SMOKE, "-o", &o_s, "--emission", "blackbody"], 3, "temperature"),
-        (vec!["render", SMOKE, "-o", "/nonexistent-dir/o.exr", "--spp", "1"], 4, "/nonexistent-dir/o.exr"),
+        (
+            vec!["render", SMOKE, "-o", "/nonexistent-dir/o.exr", "--spp", "1"],
+            4,
+            "/nonexistent-dir/o.exr",
+        ),
         (vec!["render", SMOKE, "-o", &o_s, "--spp", "0"], 2, "--spp"),
         (vec!["render", SMOKE, "-o", &o_s, "--density-scale", "-1"], 2, "--density-scale"),
         (vec!["render", SMOKE, "-o", &o_s, "--temperature-map", "celsius"], 2, "--temperature-map"),
-        (vec!["render", SMOKE, "-o", &o_s, "--camera-from", "0,0,0", "--camera-at", "0,0,0"], 2, "--camera-at"),
+        (
+            vec!["render", SMOKE, "-o", &o_s, "--camera-from", "0,0,0", "--camera-at", "0,0,0"],
+            2,
+            "--camera-at",
+        ),
         (vec!["render", SMOKE, "-o", &o_s, "--camera-from", "1,2"], 2, "--camera-from"),
         (vec!["render", SMOKE, "-o", &o_s, "--estimator", "magic"], 2, "--estimator"),
         (vec!["render", SMOKE, "-o", &png_s], 2, "--output"),
@@ -120,14 +155,30 @@ fn every_real_and_malformed_file_renders_or_is_refused_cleanly() {
     for f in files {
         let out = d.join("o.exr");
         let _ = std::fs::remove_file(&out);
-        let o = plume(&["render", s(&f), "-o", s(&out), "--spp", "1", "--width", "16", "--height", "12", "-q"]);
+        let o = plume(&[
+            "render",
+            s(&f),
+            "-o",
+            s(&out),
+            "--spp",
+            "1",
+            "--width",
+            "16",
+            "--height",
+            "12",
+            "-q",
+        ]);
         let code = o.status.code();
         let err = String::from_utf8_lossy(&o.stderr);
         assert!(code == Some(0) || code == Some(3), "{}: exit {code:?} {err}", f.display());
         if code == Some(0) {
             assert!(exr_pixels(&out).iter().flatten().all(|v| v.is_finite()), "{}", f.display());
         } else {
-            assert!(err.contains(f.file_name().unwrap().to_str().unwrap()), "{}: {err}", f.display());
+            assert!(
+                err.contains(f.file_name().unwrap().to_str().unwrap()),
+                "{}: {err}",
+                f.display()
+            );
             assert!(!out.exists());
         }
     }
@@ -149,7 +200,21 @@ fn numerical_extremes_give_finite_pixels() {
     for extra in cases {
         for est in ["point", "line", "ray-march"] {
             let out = d.join("o.exr");
-            let mut args = vec!["render", s(&ex), "-o", s(&out), "--spp", "2", "--width", "24", "--height", "16", "-q", "--estimator", est];
+            let mut args = vec![
+                "render",
+                s(&ex),
+                "-o",
+                s(&out),
+                "--spp",
+                "2",
+                "--width",
+                "24",
+                "--height",
+                "16",
+                "-q",
+                "--estimator",
+                est,
+            ];
             args.extend_from_slice(extra);
             let o = plume(&args);
             assert!(o.status.success(), "{args:?}: {}", String::from_utf8_lossy(&o.stderr));

@@ -8,7 +8,11 @@ use common::{explosion, exr_pixels, pixel_bits, plume, refused_in_one_line, s, t
 
 /// A small lat-long map: a bright warm band above the horizon, dim below.
 fn write_map(path: &std::path::Path, width: u32, height: u32) {
-    let pixels: Vec<[f32; 4]> = (0..width * height).map(|i| if i / width < height / 2 { [2.0, 1.5, 1.0, 1.0] } else { [0.05, 0.05, 0.05, 1.0] }).collect();
+    let pixels: Vec<[f32; 4]> = (0..width * height)
+        .map(
+            |i| if i / width < height / 2 { [2.0, 1.5, 1.0, 1.0] } else { [0.05, 0.05, 0.05, 1.0] },
+        )
+        .collect();
     plume::output::write_exr(path, width, height, &pixels, &[]).unwrap();
 }
 
@@ -38,7 +42,10 @@ fn every_light_type_renders_and_brightens_the_smoke() {
     for (i, (flag, value)) in [
         ("--distant-light", "direction = [0.3, -0.2, -1], irradiance = 5, kelvin = 5500"),
         ("--distant-light", "direction = [0, -1, 0], illuminance = 3000, angle = 0"),
-        ("--sphere-light", "position = [0, 3, 0], radius = 0.3, power = 2000, color = [1, 0.8, 0.6]"),
+        (
+            "--sphere-light",
+            "position = [0, 3, 0], radius = 0.3, power = 2000, color = [1, 0.8, 0.6]",
+        ),
         ("--sphere-light", "position = [2, 2, 2], intensity = 40"),
         ("--environment-map", env_arg.as_str()),
         ("--environment", "0.2,0.2,0.3"),
@@ -81,11 +88,17 @@ fn lights_round_trip_through_scene_files_bit_identically() {
     write.extend(["--write-scene", s(&toml)]);
     assert!(plume(&write).status.success());
     let text = std::fs::read_to_string(&toml).unwrap();
-    for key in ["[[lights.distant]]", "[[lights.sphere]]", "[lights.environment_map]", "kelvin = 5500"] {
+    for key in
+        ["[[lights.distant]]", "[[lights.sphere]]", "[lights.environment_map]", "kelvin = 5500"]
+    {
         assert!(text.contains(key), "scene file lacks {key}:\n{text}");
     }
     assert!(plume(&["render", s(&toml), "-o", s(&from_file), "-q"]).status.success());
-    assert_eq!(pixel_bits(&exr_pixels(&direct)), pixel_bits(&exr_pixels(&from_file)), "scene file and flags render the same bits");
+    assert_eq!(
+        pixel_bits(&exr_pixels(&direct)),
+        pixel_bits(&exr_pixels(&from_file)),
+        "scene file and flags render the same bits"
+    );
 }
 
 #[test]
@@ -101,11 +114,36 @@ fn bad_light_input_is_one_line_and_no_output() {
     plume::output::write_exr(&nan, 32, 16, &px, &[]).unwrap();
     let missing = d.join("missing.exr");
     let cases: [(&str, String, i32, Vec<&str>); 9] = [
-        ("--sphere-light", "position = [0, 0, 3], power = -5".into(), 2, vec!["--sphere-light", "power"]),
-        ("--sphere-light", "position = [0, 0, 3], radius = -1".into(), 2, vec!["--sphere-light", "radius"]),
-        ("--distant-light", "direction = [0, 0, 0]".into(), 2, vec!["--distant-light", "direction"]),
-        ("--distant-light", "direction = [0, 0, -1], irradiance = 1, illuminance = 2".into(), 2, vec!["--distant-light", "not both"]),
-        ("--distant-light", "direction = [0, 0, -1], brightness = 2".into(), 2, vec!["--distant-light", "brightness"]),
+        (
+            "--sphere-light",
+            "position = [0, 0, 3], power = -5".into(),
+            2,
+            vec!["--sphere-light", "power"],
+        ),
+        (
+            "--sphere-light",
+            "position = [0, 0, 3], radius = -1".into(),
+            2,
+            vec!["--sphere-light", "radius"],
+        ),
+        (
+            "--distant-light",
+            "direction = [0, 0, 0]".into(),
+            2,
+            vec!["--distant-light", "direction"],
+        ),
+        (
+            "--distant-light",
+            "direction = [0, 0, -1], irradiance = 1, illuminance = 2".into(),
+            2,
+            vec!["--distant-light", "not both"],
+        ),
+        (
+            "--distant-light",
+            "direction = [0, 0, -1], brightness = 2".into(),
+            2,
+            vec!["--distant-light", "brightness"],
+        ),
         ("--sky", "turbidity = 0".into(), 2, vec!["--sky", "turbidity"]),
         ("--environment-map", s(&missing).into(), 3, vec!["missing.exr"]),
         ("--environment-map", s(&square).into(), 3, vec!["square.exr", "lat-long"]),
@@ -127,21 +165,52 @@ fn the_sky_lights_like_its_own_environment_map() {
     let d = tmpdir("lights", "sky");
     let ex = explosion(&d, 32, None);
     let map = d.join("sky.exr");
-    let o = plume(&["synth", "sky", "-o", s(&map), "--elevation", "40", "--azimuth", "30", "--turbidity", "3"]);
+    let o = plume(&[
+        "synth",
+        "sky",
+        "-o",
+        s(&map),
+        "--elevation",
+        "40",
+        "--azimuth",
+        "30",
+        "--turbidity",
+        "3",
+    ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let (a, b) = (d.join("sky_light.exr"), d.join("sky_map.exr"));
-    let common = ["--width", "32", "--height", "24", "--spp", "64", "-q", "--albedo", "0.8", "--emission", "none"];
-    let mut args = vec!["render", s(&ex), "-o", s(&a), "--sky", "elevation = 40, azimuth = 30, turbidity = 3"];
+    let common = [
+        "--width",
+        "32",
+        "--height",
+        "24",
+        "--spp",
+        "64",
+        "-q",
+        "--albedo",
+        "0.8",
+        "--emission",
+        "none",
+    ];
+    let mut args =
+        vec!["render", s(&ex), "-o", s(&a), "--sky", "elevation = 40, azimuth = 30, turbidity = 3"];
     args.extend(common);
     assert!(plume(&args).status.success());
     let mut args = vec!["render", s(&ex), "-o", s(&b), "--environment-map", s(&map), "--seed", "1"];
     args.extend(common);
     assert!(plume(&args).status.success());
     let (pa, pb) = (exr_pixels(&a), exr_pixels(&b));
-    let diff: Vec<f64> = pa.iter().zip(&pb).map(|(x, y)| f64::from(x[0] + x[1] + x[2]) - f64::from(y[0] + y[1] + y[2])).collect();
+    let diff: Vec<f64> = pa
+        .iter()
+        .zip(&pb)
+        .map(|(x, y)| f64::from(x[0] + x[1] + x[2]) - f64::from(y[0] + y[1] + y[2]))
+        .collect();
     let (m, se) = common::mean_stderr(&diff);
     let level = pa.iter().map(|x| f64::from(x[0] + x[1] + x[2])).sum::<f64>() / pa.len() as f64;
-    assert!(level > 0.0 && m.abs() < 4.0 * se + 1e-6 * level, "sky light vs its map: mean difference {m} ± {se} at level {level}");
+    assert!(
+        level > 0.0 && m.abs() < 4.0 * se + 1e-6 * level,
+        "sky light vs its map: mean difference {m} ± {se} at level {level}"
+    );
     assert!(se < 0.05 * level, "too noisy to tell: {se} at level {level}");
 }
 
@@ -175,7 +244,10 @@ fn debug_pixel_replays_a_lit_sample_exactly() {
     let pixels = exr_pixels(&out);
     // The camera segment is ray-marched (alpha is 1 − τ) and its collision forced: where
     // 1 − τ ≥ 1/4 every sample collides (`medium::forced`)
-    let i = (0..pixels.len()).filter(|&i| pixels[i][3] >= 0.25).min_by_key(|&i| (i % 20).abs_diff(10) + (i / 20).abs_diff(7)).expect("a collided path");
+    let i = (0..pixels.len())
+        .filter(|&i| pixels[i][3] >= 0.25)
+        .min_by_key(|&i| (i % 20).abs_diff(10) + (i / 20).abs_diff(7))
+        .expect("a collided path");
     let (px, at) = (pixels[i], format!("{},{},0", i % 20, i / 20));
     let mut args = vec!["render", s(&ex), "-o", s(&out), "--debug-pixel", &at];
     args.extend(common);

@@ -36,9 +36,18 @@ fn every_method_preset_renders_and_reports_its_counters() {
             "-q",
         ]);
         assert!(o.status.success(), "{method}: {}", String::from_utf8_lossy(&o.stderr));
-        let st: serde_json::Value = serde_json::from_slice(&std::fs::read(&stats).unwrap()).unwrap();
+        let st: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(&stats).unwrap()).unwrap();
         let c = &st["counters"];
-        for key in ["segments", "voxel_steps", "collisions", "fnee_samples", "nee_samples", "nonfinite_samples", "first_nonfinite"] {
+        for key in [
+            "segments",
+            "voxel_steps",
+            "collisions",
+            "fnee_samples",
+            "nee_samples",
+            "nonfinite_samples",
+            "first_nonfinite",
+        ] {
             assert!(c.get(key).is_some(), "{method}: counters lack {key}");
         }
         assert!(c["voxel_steps"].as_u64().unwrap() >= c["segments"].as_u64().unwrap() / 2);
@@ -87,7 +96,10 @@ fn debug_pixel_replays_the_rendered_sample() {
             // so that the replay goes through a scattering vertex and its light sample
             let pixels = exr_pixels(&out);
             let distance = |i: usize| (i % 20).abs_diff(10) + (i / 20).abs_diff(7);
-            let i = (0..pixels.len()).filter(|&i| pixels[i][3] == 1.0 && pixels[i][0] > 0.0).min_by_key(|&i| distance(i)).expect("a scattered path");
+            let i = (0..pixels.len())
+                .filter(|&i| pixels[i][3] == 1.0 && pixels[i][0] > 0.0)
+                .min_by_key(|&i| distance(i))
+                .expect("a scattered path");
             let (px, at) = (pixels[i], format!("{},{},0", i % 20, i / 20));
             let mut args = vec!["render", s(&ex), "-o", s(&out), "--debug-pixel", &at];
             args.extend_from_slice(&common);
@@ -95,12 +107,19 @@ fn debug_pixel_replays_the_rendered_sample() {
             assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
             let err = String::from_utf8_lossy(&o.stderr);
             let light = if method == "line-fnee" { "fnee:" } else { "nee:" };
-            for needle in [format!("plume: debug {at}: segment depth 0"), format!("plume: debug {at}: segment depth 1"), light.to_string()] {
+            for needle in [
+                format!("plume: debug {at}: segment depth 0"),
+                format!("plume: debug {at}: segment depth 1"),
+                light.to_string(),
+            ] {
                 assert!(err.contains(&needle), "{interpolation} {method}: no {needle:?} in {err}");
             }
             let values = common::replayed_values(&o);
             for c in 0..4 {
-                assert_eq!(values[c] as f32, px[c], "{interpolation} {method} channel {c}: replay {values:?} vs pixel {px:?}");
+                assert_eq!(
+                    values[c] as f32, px[c],
+                    "{interpolation} {method} channel {c}: replay {values:?} vs pixel {px:?}"
+                );
             }
         }
     }
@@ -111,11 +130,29 @@ fn scattering_flags_are_validated() {
     let d = tmpdir("clim", "flags");
     let ex = explosion(&d, 48, None);
     let out = d.join("o.exr");
-    for (flag, value) in
-        [("--albedo", "1.5"), ("--g", "1"), ("--g", "-1.2"), ("--proxy-resolution", "12"), ("--debug-pixel", "99,0,0"), ("--environment", "1,-1,0")]
-    {
+    for (flag, value) in [
+        ("--albedo", "1.5"),
+        ("--g", "1"),
+        ("--g", "-1.2"),
+        ("--proxy-resolution", "12"),
+        ("--debug-pixel", "99,0,0"),
+        ("--environment", "1,-1,0"),
+    ] {
         let albedo = if flag == "--albedo" { value } else { "0.5" };
-        let mut args = vec!["render", s(&ex), "-o", s(&out), "--albedo", albedo, "--width", "16", "--height", "12", "--spp", "1"];
+        let mut args = vec![
+            "render",
+            s(&ex),
+            "-o",
+            s(&out),
+            "--albedo",
+            albedo,
+            "--width",
+            "16",
+            "--height",
+            "12",
+            "--spp",
+            "1",
+        ];
         if flag != "--albedo" {
             args.extend_from_slice(&[flag, value]);
         }
@@ -135,7 +172,21 @@ fn default_proxy_resolution_adapts_to_small_volumes() {
     let ex = d.join("small.vdb");
     synth_explosion(&ex, 24, None);
     let out = d.join("o.exr");
-    let base = ["render", s(&ex), "-o", s(&out), "--albedo", "0.7", "--spp", "1", "--width", "12", "--height", "8", "-q"];
+    let base = [
+        "render",
+        s(&ex),
+        "-o",
+        s(&out),
+        "--albedo",
+        "0.7",
+        "--spp",
+        "1",
+        "--width",
+        "12",
+        "--height",
+        "8",
+        "-q",
+    ];
     let o = plume(&base);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let mut explicit = base.to_vec();

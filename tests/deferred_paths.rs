@@ -15,13 +15,32 @@ fn render(input: &Path, dir: &Path, name: &str, extra: &[&str]) -> (Vec<u32>, se
     let (out, stats) = (dir.join(format!("{name}.exr")), dir.join(format!("{name}.json")));
     // A stats file gains a line per render
     let _ = std::fs::remove_file(&stats);
-    let mut args =
-        vec!["render", s(input), "-o", s(&out), "--overwrite", "--stats", s(&stats), "--spp", "4", "--width", "40", "--height", "30", "--seed", "5", "-q"];
+    let mut args = vec![
+        "render",
+        s(input),
+        "-o",
+        s(&out),
+        "--overwrite",
+        "--stats",
+        s(&stats),
+        "--spp",
+        "4",
+        "--width",
+        "40",
+        "--height",
+        "30",
+        "--seed",
+        "5",
+        "-q",
+    ];
     args.extend_from_slice(extra);
     let o = plume(&args);
     assert!(o.status.success(), "{name}: {}", stderr(&o));
     let pixels = common::exr_pixels(&out);
-    assert!(pixels.iter().any(|p| p[0] > 0.0), "{name}: the image is black, the test proves nothing");
+    assert!(
+        pixels.iter().any(|p| p[0] > 0.0),
+        "{name}: the image is black, the test proves nothing"
+    );
     let stats: serde_json::Value = serde_json::from_slice(&std::fs::read(&stats).unwrap()).unwrap();
     (pixels.iter().flatten().map(|v| v.to_bits()).collect(), stats["counters"].clone())
 }
@@ -37,22 +56,45 @@ fn deferred_paths_give_the_direct_images_bit_for_bit() {
     let tile_major = ["--sample-order", "tile-major"];
     for (name, flags) in [
         ("line-fnee, one path", &["--albedo", "0.8", "--split", "1", "--threads", "1"][..]),
-        ("line-fnee, 3 split paths, 3 threads", &["--albedo", "0.8", "--g", "0.3", "--split", "3", "--threads", "3"]),
+        (
+            "line-fnee, 3 split paths, 3 threads",
+            &["--albedo", "0.8", "--g", "0.3", "--split", "3", "--threads", "3"],
+        ),
         ("exact point lookups", &["--albedo", "0.9", "--point-lookup", "exact", "--threads", "2"]),
         ("picked emission points", &["--albedo", "0.9", "--point-lookup", "stochastic-emission"]),
-        ("no light sampling, deep paths", &["--albedo", "0.95", "--light-sampling", "none", "--max-depth", "32"]),
+        (
+            "no light sampling, deep paths",
+            &["--albedo", "0.95", "--light-sampling", "none", "--max-depth", "32"],
+        ),
         ("ray-march after scattering", &["--albedo", "0.8", "--estimator", "ray-march"]),
         ("nearest", &["--albedo", "0.8", "--interpolation", "nearest"]),
     ] {
         let progressive = render(&ex, &dir, "progressive", flags);
-        let direct = render(&ex, &dir, "direct", &[flags, &tile_major[..], &["--defer-paths", "never"]].concat());
-        let deferred = render(&ex, &dir, "deferred", &[flags, &tile_major[..], &["--defer-paths", "always"]].concat());
+        let direct = render(
+            &ex,
+            &dir,
+            "direct",
+            &[flags, &tile_major[..], &["--defer-paths", "never"]].concat(),
+        );
+        let deferred = render(
+            &ex,
+            &dir,
+            "deferred",
+            &[flags, &tile_major[..], &["--defer-paths", "always"]].concat(),
+        );
         assert!(progressive.0 == direct.0, "{name}: tile-major differs from progressive");
         assert!(deferred.0 == direct.0, "{name}: deferred paths change the image");
         let c = &deferred.1;
         assert!(counter(c, "deferred_samples") > 0, "{name}: nothing was deferred: {c}");
-        assert!(counter(c, "deferred_rounds") >= 2 && counter(c, "deferred_lookups") > 0, "{name}: no round read values: {c}");
-        assert_eq!(counter(&direct.1, "deferred_samples"), 0, "{name}: --defer-paths never deferred");
+        assert!(
+            counter(c, "deferred_rounds") >= 2 && counter(c, "deferred_lookups") > 0,
+            "{name}: no round read values: {c}"
+        );
+        assert_eq!(
+            counter(&direct.1, "deferred_samples"),
+            0,
+            "{name}: --defer-paths never deferred"
+        );
         // The paths' own counters are those of the direct render: each path is counted
         // once, from the run that committed it
         for key in ["samples", "segments", "collisions", "fnee_samples", "voxel_steps"] {
@@ -69,7 +111,10 @@ fn paths_that_need_exact_walks_are_traced_where_they_scatter() {
     for (name, flags) in [
         ("classic NEE (exact shadow rays)", &["--method", "point-nee", "--albedo", "0.8"][..]),
         ("regular tracking after scattering", &["--albedo", "0.8", "--tracking", "regular"]),
-        ("a distant light (exact shadow rays)", &["--albedo", "0.8", "--distant-light", "direction = [0.3, -0.2, -1], irradiance = 5"]),
+        (
+            "a distant light (exact shadow rays)",
+            &["--albedo", "0.8", "--distant-light", "direction = [0.3, -0.2, -1], irradiance = 5"],
+        ),
     ] {
         let direct = render(&ex, &dir, "direct", flags);
         let asked = render(&ex, &dir, "asked", &[flags, &always[..]].concat());
@@ -92,13 +137,31 @@ fn a_mapped_cache_that_fits_in_memory_defers_only_when_asked() {
     let in_core = render(&ex, &dir, "core", &flags);
     let tile_major = [&flags[..], &["--sample-order", "tile-major"]].concat();
     let mapped = render(&cache, &dir, "mapped", &tile_major);
-    assert_eq!(counter(&mapped.1, "deferred_samples"), 0, "auto deferred a cache that fits: {}", mapped.1);
-    let asked = render(&cache, &dir, "mapped-always", &[&tile_major[..], &["--defer-paths", "always"]].concat());
+    assert_eq!(
+        counter(&mapped.1, "deferred_samples"),
+        0,
+        "auto deferred a cache that fits: {}",
+        mapped.1
+    );
+    let asked = render(
+        &cache,
+        &dir,
+        "mapped-always",
+        &[&tile_major[..], &["--defer-paths", "always"]].concat(),
+    );
     assert!(counter(&asked.1, "deferred_samples") > 0, "always did not defer: {}", asked.1);
     for (name, r) in [("auto", &mapped), ("always", &asked)] {
-        assert!(r.0 == in_core.0, "the mapped tile-major render ({name}) differs from the in-core one");
+        assert!(
+            r.0 == in_core.0,
+            "the mapped tile-major render ({name}) differs from the in-core one"
+        );
     }
-    let progressive = render(&cache, &dir, "mapped-progressive", &[&flags[..], &["--defer-paths", "always"]].concat());
+    let progressive = render(
+        &cache,
+        &dir,
+        "mapped-progressive",
+        &[&flags[..], &["--defer-paths", "always"]].concat(),
+    );
     assert_eq!(counter(&progressive.1, "deferred_samples"), 0, "progressive order deferred");
 }
 
@@ -108,13 +171,20 @@ fn a_mapped_cache_that_fits_in_memory_defers_only_when_asked() {
 /// (4), where it says stop.
 #[test]
 fn a_stop_during_the_rounds_keeps_nothing_of_the_pass() {
-    use plume_engine::integrator::{Integrator, LightSampling, Lights, MisHeuristic, PointLookup, SplitBy, Tracking};
+    use plume_engine::integrator::{
+        Integrator, LightSampling, Lights, MisHeuristic, PointLookup, SplitBy, Tracking,
+    };
     use plume_engine::medium::{Collision, Estimator};
-    use plume_engine::render::{render_with, RenderControl, RenderSettings, SampleBudget, SampleOrder, StopReason};
+    use plume_engine::render::{
+        render_with, RenderControl, RenderSettings, SampleBudget, SampleOrder, StopReason,
+    };
     use plume_scene::DeferPaths;
     use std::sync::atomic::{AtomicUsize, Ordering};
 
-    let scene = common::explosion_scene(4.0, plume_volume::Interpolation::Linear, true, |vol, e| Lights::build(vol, e, LightSampling::Fnee, 8).unwrap());
+    let scene =
+        common::explosion_scene(4.0, plume_volume::Interpolation::Linear, true, |vol, e| {
+            Lights::build(vol, e, LightSampling::Fnee, 8).unwrap()
+        });
     let integrator = Integrator {
         estimator: Estimator::Line,
         camera_estimator: None,
@@ -127,8 +197,14 @@ fn a_stop_during_the_rounds_keeps_nothing_of_the_pass() {
         camera_collision: Collision::Analog,
         point_lookup: PointLookup::Stochastic,
     };
-    let settings =
-        RenderSettings { budget: SampleBudget::Spp(4), seed: 3, sampler: plume_core::sampling::SamplerKind::Sobol, threads: 1, first_sample: 0, integrator };
+    let settings = RenderSettings {
+        budget: SampleBudget::Spp(4),
+        seed: 3,
+        sampler: plume_core::sampling::SamplerKind::Sobol,
+        threads: 1,
+        first_sample: 0,
+        integrator,
+    };
     plume_engine::with_scene!(&scene, s => {
         let control = |defer_paths| RenderControl { order: SampleOrder::TileMajor, defer_paths, ..Default::default() };
         let direct = render_with(s, &settings, control(DeferPaths::Never), &|_, _| {});

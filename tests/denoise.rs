@@ -13,7 +13,8 @@ use common::{bits, channels, explosion, plume, s, stderr, tmpdir};
 /// A scattering explosion. Non-local means needs structure larger than its window (15
 /// pixels) to average along: the 16³ volume is about 6 pixels per voxel here (on 64×48
 /// pixels of a 48³ volume, a voxel a pixel, it blurs more than it removes).
-const SHOT: [&str; 9] = ["--width", "128", "--height", "96", "--albedo", "0.8", "--density-scale", "4", "-q"];
+const SHOT: [&str; 9] =
+    ["--width", "128", "--height", "96", "--albedo", "0.8", "--density-scale", "4", "-q"];
 
 fn render(ex: &Path, out: &Path, extra: &[&str]) -> String {
     let mut args = vec!["render", s(ex), "-o", s(out)];
@@ -25,7 +26,9 @@ fn render(ex: &Path, out: &Path, extra: &[&str]) -> String {
 }
 
 fn luminance(c: &std::collections::BTreeMap<String, Vec<f32>>, layer: &str, i: usize) -> f64 {
-    let ch = |n: &str| f64::from(c[&if layer.is_empty() { n.to_string() } else { format!("{layer}.{n}") }][i]);
+    let ch = |n: &str| {
+        f64::from(c[&if layer.is_empty() { n.to_string() } else { format!("{layer}.{n}") }][i])
+    };
     0.2126 * ch("R") + 0.7152 * ch("G") + 0.0722 * ch("B")
 }
 
@@ -33,29 +36,46 @@ fn luminance(c: &std::collections::BTreeMap<String, Vec<f32>>, layer: &str, i: u
 fn the_denoised_beauty_is_closer_to_the_converged_image_and_the_noisy_one_is_the_plain_render() {
     let d = tmpdir("denoise", "closer");
     let ex = explosion(&d, 16, None);
-    let (plain, denoised, reference) = (d.join("plain.exr"), d.join("denoised.exr"), d.join("reference.exr"));
+    let (plain, denoised, reference) =
+        (d.join("plain.exr"), d.join("denoised.exr"), d.join("reference.exr"));
     render(&ex, &plain, &["--spp", "32"]);
     render(&ex, &denoised, &["--spp", "32", "--denoise"]);
     render(&ex, &reference, &["--spp", "256", "--seed", "1"]);
     let (p, dn, r) = (channels(&plain), channels(&denoised), channels(&reference));
     // The noisy beauty is the plain render, bit for bit; the AOV layers are written too
     for ch in ["R", "G", "B", "A"] {
-        assert_eq!(bits(&dn)[&format!("noisy.{ch}")], bits(&p)[ch], "noisy.{ch} is not the plain render's {ch}");
+        assert_eq!(
+            bits(&dn)[&format!("noisy.{ch}")],
+            bits(&p)[ch],
+            "noisy.{ch} is not the plain render's {ch}"
+        );
     }
-    assert!(dn.contains_key("scattered.R") && dn.contains_key("depth.Z"), "{:?}", dn.keys().collect::<Vec<_>>());
+    assert!(
+        dn.contains_key("scattered.R") && dn.contains_key("depth.Z"),
+        "{:?}",
+        dn.keys().collect::<Vec<_>>()
+    );
     // Squared luminance error over the pixels the smoke covers. The reference (another
     // seed, 8× the samples) has its own variance, about 1/8 of the noisy render's
     // squared error; it is subtracted from both
     let covered: Vec<usize> = (0..r["A"].len()).filter(|&i| r["A"][i] > 0.05).collect();
     assert!(covered.len() > 1000, "{} pixels covered", covered.len());
     let mse = |c: &std::collections::BTreeMap<String, Vec<f32>>, layer: &str| {
-        covered.iter().map(|&i| (luminance(c, layer, i) - luminance(&r, "", i)).powi(2)).sum::<f64>() / covered.len() as f64
+        covered
+            .iter()
+            .map(|&i| (luminance(c, layer, i) - luminance(&r, "", i)).powi(2))
+            .sum::<f64>()
+            / covered.len() as f64
     };
     let (noisy, filtered) = (mse(&dn, "noisy"), mse(&dn, ""));
     let reference_var = noisy / 8.0;
     let gain = (noisy - reference_var) / (filtered - reference_var).max(1e-30);
     let mean = covered.iter().map(|&i| luminance(&r, "", i)).sum::<f64>() / covered.len() as f64;
-    eprintln!("relRMSE noisy {:.4}, denoised {:.4}: squared error ÷ {gain:.1}", noisy.sqrt() / mean, filtered.sqrt() / mean);
+    eprintln!(
+        "relRMSE noisy {:.4}, denoised {:.4}: squared error ÷ {gain:.1}",
+        noisy.sqrt() / mean,
+        filtered.sqrt() / mean
+    );
     // The gain is about 2 on this small image, more on larger ones with more structure
     // to average along. No filter gives 1
     assert!(gain > 1.5, "denoising divided the squared error by only {gain:.2}");
@@ -71,7 +91,8 @@ fn denoised_frames_are_bit_identical_across_threads_and_merged_sample_ranges() {
     let d = tmpdir("denoise", "split");
     let ex = explosion(&d, 32, None);
     // The whole beauty filtered, and the beauty less a ray-marched camera emission
-    for (name, camera) in [("beauty", &[][..]), ("rest", &["--camera-estimator", "ray-march"][..])] {
+    for (name, camera) in [("beauty", &[][..]), ("rest", &["--camera-estimator", "ray-march"][..])]
+    {
         let with = |extra: &[&'static str]| [extra, camera].concat();
         let whole = d.join(format!("{name}_whole.exr"));
         render(&ex, &whole, &with(&["--spp", "32", "--denoise", "--threads", "2"]));
@@ -89,7 +110,11 @@ fn denoised_frames_are_bit_identical_across_threads_and_merged_sample_ranges() {
         let merged = d.join(format!("{name}_merged.exr"));
         let o = plume(&["merge", "-o", s(&merged), "-q", s(&parts[0]), s(&parts[1])]);
         assert!(o.status.success(), "{}", stderr(&o));
-        assert_eq!(want, bits(&channels(&merged)), "{name}: merged parts differ from one denoised render");
+        assert_eq!(
+            want,
+            bits(&channels(&merged)),
+            "{name}: merged parts differ from one denoised render"
+        );
         // The denoised frame is not the noisy one (the test would pass without a filter)
         assert_ne!(want["R"], want["noisy.R"], "{name}");
     }
@@ -112,7 +137,11 @@ fn a_ray_marched_camera_emission_is_kept_out_of_the_filter() {
     let (m, l) = (bits(&channels(&marched)), bits(&channels(&line)));
     for ch in ["R", "G", "B"] {
         assert_eq!(m[ch], m[&format!("noisy.{ch}")], "{ch}: the kept emission was filtered");
-        assert_ne!(l[ch], l[&format!("noisy.{ch}")], "{ch}: the line estimator's emission was not filtered");
+        assert_ne!(
+            l[ch],
+            l[&format!("noisy.{ch}")],
+            "{ch}: the line estimator's emission was not filtered"
+        );
     }
     assert_eq!(m["A"], m["noisy.A"], "the ray-marched alpha was filtered");
     assert_ne!(l["A"], l["noisy.A"], "the line estimator's alpha was not filtered");

@@ -20,10 +20,10 @@ use std::path::Path;
 
 use common::{chi2_test, direction_bin, mean_stderr_from_sums, rng, tmpdir};
 use glam::DVec3;
-use plume_core::color::Rgb;
-use plume_engine::light::envmap::EnvironmentMap;
-use plume_core::sampling::distribution2d::Distribution2D;
 use plume::Error;
+use plume_core::color::Rgb;
+use plume_core::sampling::distribution2d::Distribution2D;
+use plume_engine::light::envmap::EnvironmentMap;
 
 const W: u32 = 16;
 const H: u32 = 8;
@@ -73,7 +73,12 @@ fn random_map() -> EnvironmentMap {
 
 /// `∫ f(d(θ, φ)) sin θ dθ dφ` over `θ ∈ [t0, t1]`, `φ ∈ [p0, p1]` by the midpoint rule on
 /// `n × n` points.
-fn integrate(f: &impl Fn(DVec3) -> f64, (t0, t1): (f64, f64), (p0, p1): (f64, f64), n: usize) -> f64 {
+fn integrate(
+    f: &impl Fn(DVec3) -> f64,
+    (t0, t1): (f64, f64),
+    (p0, p1): (f64, f64),
+    n: usize,
+) -> f64 {
     let (dt, dp) = ((t1 - t0) / n as f64, (p1 - p0) / n as f64);
     let mut sum = 0.0;
     for a in 0..n {
@@ -100,7 +105,12 @@ fn split(a: f64, b: f64, step: f64) -> Vec<(f64, f64)> {
 /// [`integrate`] over pieces cut where the documented convention puts a `W × H` map's
 /// pixel edges (`θ = jπ/H`, `φ = 2πk/W`): the integrand is smooth on each piece, so the
 /// midpoint rule does not straddle a jump.
-fn integrate_by_pixels(f: &impl Fn(DVec3) -> f64, (t0, t1): (f64, f64), (p0, p1): (f64, f64), n: usize) -> f64 {
+fn integrate_by_pixels(
+    f: &impl Fn(DVec3) -> f64,
+    (t0, t1): (f64, f64),
+    (p0, p1): (f64, f64),
+    n: usize,
+) -> f64 {
     let mut sum = 0.0;
     for thetas in split(t0, t1, PI / f64::from(H)) {
         for phis in split(p0, p1, 2.0 * PI / f64::from(W)) {
@@ -114,7 +124,10 @@ fn integrate_by_pixels(f: &impl Fn(DVec3) -> f64, (t0, t1): (f64, f64), (p0, p1)
 fn sample_chi_square_on_cos_theta_phi_bins() {
     let map = random_map();
     let (nz, nphi, samples) = (20usize, 40usize, 200_000usize);
-    let bin = |d: DVec3| direction_bin(d, DVec3::Z, (DVec3::X, DVec3::Y), -1.0, nz, nphi).expect("every direction has a bin");
+    let bin = |d: DVec3| {
+        direction_bin(d, DVec3::Z, (DVec3::X, DVec3::Y), -1.0, nz, nphi)
+            .expect("every direction has a bin")
+    };
     let mut observed = vec![0.0; nz * nphi];
     let mut s = rng(7);
     for _ in 0..samples {
@@ -122,7 +135,13 @@ fn sample_chi_square_on_cos_theta_phi_bins() {
         let sample = map.sample(u).unwrap_or_else(|| panic!("no sample for {u:?}"));
         let d = sample.direction;
         assert!((d.length() - 1.0).abs() < 1e-12, "{u:?}: |d| = {}", d.length());
-        assert_eq!(sample.pdf.to_bits(), map.pdf(d).to_bits(), "{u:?}: sample pdf {} vs pdf(d) {}", sample.pdf, map.pdf(d));
+        assert_eq!(
+            sample.pdf.to_bits(),
+            map.pdf(d).to_bits(),
+            "{u:?}: sample pdf {} vs pdf(d) {}",
+            sample.pdf,
+            map.pdf(d)
+        );
         assert_eq!(sample.radiance, map.eval(d), "{u:?}");
         assert!(!sample.radiance.is_black(), "{u:?}: sampled a black pixel towards {d}");
         observed[bin(d)] += 1.0;
@@ -131,10 +150,13 @@ fn sample_chi_square_on_cos_theta_phi_bins() {
     let pdf = |d: DVec3| map.pdf(d);
     let mut expected = vec![0.0; nz * nphi];
     for iz in 0..nz {
-        let (z0, z1) = (-1.0 + 2.0 * iz as f64 / nz as f64, -1.0 + 2.0 * (iz + 1) as f64 / nz as f64);
+        let (z0, z1) =
+            (-1.0 + 2.0 * iz as f64 / nz as f64, -1.0 + 2.0 * (iz + 1) as f64 / nz as f64);
         for ip in 0..nphi {
-            let phis = (2.0 * PI * ip as f64 / nphi as f64, 2.0 * PI * (ip + 1) as f64 / nphi as f64);
-            expected[iz * nphi + ip] = samples as f64 * integrate_by_pixels(&pdf, (z1.acos(), z0.acos()), phis, 8);
+            let phis =
+                (2.0 * PI * ip as f64 / nphi as f64, 2.0 * PI * (ip + 1) as f64 / nphi as f64);
+            expected[iz * nphi + ip] =
+                samples as f64 * integrate_by_pixels(&pdf, (z1.acos(), z0.acos()), phis, 8);
         }
     }
     let total: f64 = expected.iter().sum::<f64>() / samples as f64;
@@ -150,7 +172,8 @@ fn distribution2d_chi_square_on_a_foreign_grid() {
     // 7 × 5 cells with zeros, binned on 17 × 13: bins straddle cell edges
     let (w, h) = (7usize, 5usize);
     let mut s = rng(11);
-    let weights: Vec<f64> = (0..w * h).map(|k| if k % 6 == 2 || k / w == 3 { 0.0 } else { s.next_f64() }).collect();
+    let weights: Vec<f64> =
+        (0..w * h).map(|k| if k % 6 == 2 || k / w == 3 { 0.0 } else { s.next_f64() }).collect();
     let d = Distribution2D::new(&weights, w, h).unwrap();
     let (bu, bv, samples) = (17usize, 13usize, 100_000usize);
     let mut observed = vec![0.0; bu * bv];
@@ -168,8 +191,14 @@ fn distribution2d_chi_square_on_a_foreign_grid() {
         let (x, y) = ((k % bu) as f64, (k / bu) as f64);
         for (c, &wc) in weights.iter().enumerate() {
             let (i, j) = ((c % w) as f64, (c / w) as f64);
-            let area = overlap(x / bu as f64, (x + 1.0) / bu as f64, i / w as f64, (i + 1.0) / w as f64)
-                * overlap(y / bv as f64, (y + 1.0) / bv as f64, j / h as f64, (j + 1.0) / h as f64);
+            let area =
+                overlap(x / bu as f64, (x + 1.0) / bu as f64, i / w as f64, (i + 1.0) / w as f64)
+                    * overlap(
+                        y / bv as f64,
+                        (y + 1.0) / bv as f64,
+                        j / h as f64,
+                        (j + 1.0) / h as f64,
+                    );
             *e += samples as f64 * area * wc / total * (w * h) as f64;
         }
     }
@@ -205,11 +234,17 @@ fn each_pixel_is_chosen_in_proportion_to_its_luminous_power() {
         let omega = 2.0 * PI / f64::from(W) * (thetas.0.cos() - thetas.1.cos());
         for i in 0..W {
             // u = (1 − φ/π)/2: column i spans φ ∈ [π(1 − 2(i+1)/W), π(1 − 2i/W)]
-            let phis = (PI * (1.0 - 2.0 * f64::from(i + 1) / f64::from(W)), PI * (1.0 - 2.0 * f64::from(i) / f64::from(W)));
+            let phis = (
+                PI * (1.0 - 2.0 * f64::from(i + 1) / f64::from(W)),
+                PI * (1.0 - 2.0 * f64::from(i) / f64::from(W)),
+            );
             let mass = integrate(&pdf, thetas, phis, 8);
             let y = luminance(pixels[(j * W + i) as usize]);
             let share = y * omega / map.luminance_integral();
-            assert!((mass - share).abs() <= 1e-9 * share.max(1e-3), "pixel ({i}, {j}): mass {mass} vs power share {share}");
+            assert!(
+                (mass - share).abs() <= 1e-9 * share.max(1e-3),
+                "pixel ({i}, {j}): mass {mass} vs power share {share}"
+            );
             luminance_integral += y * omega;
         }
     }
@@ -221,7 +256,11 @@ fn luminance_integral_matches_quadrature_of_eval() {
     let map = random_map();
     let y = |d: DVec3| luminance(map.eval(d));
     let quadrature = integrate(&y, (0.0, PI), (-PI, PI), 1499);
-    assert!((quadrature / map.luminance_integral() - 1.0).abs() < 2e-3, "{quadrature} vs {}", map.luminance_integral());
+    assert!(
+        (quadrature / map.luminance_integral() - 1.0).abs() < 2e-3,
+        "{quadrature} vs {}",
+        map.luminance_integral()
+    );
 }
 
 /// `Σ L/pdf` over samples, per channel and for luminance: mean and standard error.
@@ -309,7 +348,8 @@ fn convention_axes() {
         let d = dir((2.0 * s.next_f64() - 1.0).acos(), 2.0 * PI * s.next_f64());
         let u = 0.5 * (1.0 - d.y.atan2(d.x) / PI);
         let v = d.z.acos() / PI;
-        let expected = (((u * f64::from(W)) as u32).min(W - 1), ((v * f64::from(H)) as u32).min(H - 1));
+        let expected =
+            (((u * f64::from(W)) as u32).min(W - 1), ((v * f64::from(H)) as u32).min(H - 1));
         assert_eq!(at(d), expected, "{d}");
     }
 }
@@ -357,7 +397,8 @@ fn loads_f32_rgb_and_f16_rgba() {
 /// An 8 × 4 EXR with a single `Y` channel.
 fn write_luminance_only(path: &Path) {
     use exr::prelude::*;
-    let channels = AnyChannels::sort(vec![AnyChannel::new("Y", FlatSamples::F32(vec![1.0; 32]))].into());
+    let channels =
+        AnyChannels::sort(vec![AnyChannel::new("Y", FlatSamples::F32(vec![1.0; 32]))].into());
     Image::from_channels((8, 4), channels).write().to_file(path).unwrap();
 }
 
@@ -366,7 +407,11 @@ fn load_error(path: &Path) -> (Error, String) {
     let e = EnvironmentMap::load(path).expect_err("loading should fail");
     let message = e.to_string();
     assert_eq!(e.exit_code(), 3, "{message}");
-    assert!(message.contains(path.to_str().unwrap()), "{message:?} does not name {}", path.display());
+    assert!(
+        message.contains(path.to_str().unwrap()),
+        "{message:?} does not name {}",
+        path.display()
+    );
     assert!(!message.contains('\n'), "{message:?} is not one line");
     (e, message)
 }
@@ -389,12 +434,22 @@ fn bad_files_are_errors_naming_the_file() {
     assert!(m.contains("3x3") && m.contains("not a lat-long map"), "{m}");
 
     let nan = dir.join("nan.exr");
-    write_rgb(&nan, 8, 4, |x, y| if (x, y) == (3, 1) { (0.5, f32::NAN, 0.5) } else { (1.0, 1.0, 1.0) });
+    write_rgb(
+        &nan,
+        8,
+        4,
+        |x, y| if (x, y) == (3, 1) { (0.5, f32::NAN, 0.5) } else { (1.0, 1.0, 1.0) },
+    );
     let (_, m) = load_error(&nan);
     assert!(m.contains("pixel (3, 1)") && m.contains("NaN"), "{m}");
 
     let negative = dir.join("negative.exr");
-    write_rgb(&negative, 8, 4, |x, y| if (x, y) == (7, 3) { (-1.0, 0.0, 0.0) } else { (1.0, 1.0, 1.0) });
+    write_rgb(
+        &negative,
+        8,
+        4,
+        |x, y| if (x, y) == (7, 3) { (-1.0, 0.0, 0.0) } else { (1.0, 1.0, 1.0) },
+    );
     let (_, m) = load_error(&negative);
     assert!(m.contains("pixel (7, 3)") && m.contains("negative"), "{m}");
 

@@ -7,9 +7,12 @@ use crate::common;
 use common::{grid_emission, mean_stderr_from_sums};
 use glam::DVec3;
 use plume_core::color::Rgb;
-use plume_engine::medium::tracking::{phi, sample_exponential};
-use plume_engine::medium::{track, Collision, Convention, DistanceSample, Emission, EmissionKind, Estimator, Medium, TemperatureMap};
 use plume_core::sampling::Sampler;
+use plume_engine::medium::tracking::{phi, sample_exponential};
+use plume_engine::medium::{
+    track, Collision, Convention, DistanceSample, Emission, EmissionKind, Estimator, Medium,
+    TemperatureMap,
+};
 use plume_volume::field::{Constant, Ray, Segment, Strip};
 use plume_volume::Field;
 
@@ -17,10 +20,18 @@ fn medium(sigma_t: f64, convention: Convention) -> Medium {
     Medium { sigma_t, albedo: 0.0, g: 0.0, emission: grid_emission(convention) }
 }
 
-const ALL: [Estimator; 4] = [Estimator::Point, Estimator::Line, Estimator::RayMarch, Estimator::Blend { kappa: 4.0 }];
+const ALL: [Estimator; 4] =
+    [Estimator::Point, Estimator::Line, Estimator::RayMarch, Estimator::Blend { kappa: 4.0 }];
 
 /// Mean and standard error of the red channel of F over `n` independent samples.
-fn mc_emission<F: Field>(field: &F, m: &Medium, ray: &Ray, est: Estimator, n: u64, seed: u64) -> (f64, f64, f64) {
+fn mc_emission<F: Field>(
+    field: &F,
+    m: &Medium,
+    ray: &Ray,
+    est: Estimator,
+    n: u64,
+    seed: u64,
+) -> (f64, f64, f64) {
     let (mut s, mut s2, mut tr) = (0.0, 0.0, 0.0);
     for i in 0..n {
         let mut sampler = Sampler::new(seed, 0, i);
@@ -55,22 +66,32 @@ fn homogeneous_box_matches_closed_form_for_every_estimator() {
     // L = L_e (1 − e^{−μd}) / μ with d = 2, for thin, medium and dense boxes.
     let le = 3.0f32;
     for &(density, sigma_t) in &[(0.05f32, 1.0f64), (1.0, 1.0), (5.0, 2.0)] {
-        let field = Constant { lo: DVec3::ZERO, hi: DVec3::new(2.0, 1.0, 1.0), density, source: le };
+        let field =
+            Constant { lo: DVec3::ZERO, hi: DVec3::new(2.0, 1.0, 1.0), density, source: le };
         for conv in [Convention::Cycles, Convention::Physical] {
             let m = medium(sigma_t, conv);
             let mu = sigma_t * f64::from(density);
             let le_eff = f64::from(m.emission.le(density, le).0[0]);
             let closed = le_eff * (1.0 - (-mu * 2.0).exp()) / mu;
             let (ev, tau) = exact(&field, &m, &box_ray());
-            assert!((ev - closed).abs() <= 1e-12 * closed, "expected-value closed form {ev} vs {closed}");
+            assert!(
+                (ev - closed).abs() <= 1e-12 * closed,
+                "expected-value closed form {ev} vs {closed}"
+            );
             assert!((tau - (-mu * 2.0).exp()).abs() < 1e-15);
             for est in ALL {
                 let (mean, se, tr) = mc_emission(&field, &m, &box_ray(), est, 40_000, 7);
                 // Relative floor: in the dense box every sample collides (escape odds e^-20), so the
                 // sample variance of point is 0 while its mean differs from closed by e^-20.
                 let tol = 4.0 * se + 1e-6 * closed;
-                assert!((mean - closed).abs() <= tol, "{est:?} ρ={density}: {mean} vs {closed} (4σ = {tol})");
-                assert!((tr - tau).abs() <= 4.0 * (tau * (1.0 - tau) / 40_000.0).sqrt() + 1e-3, "{est:?} transmittance {tr} vs {tau}");
+                assert!(
+                    (mean - closed).abs() <= tol,
+                    "{est:?} ρ={density}: {mean} vs {closed} (4σ = {tol})"
+                );
+                assert!(
+                    (tr - tau).abs() <= 4.0 * (tau * (1.0 - tau) / 40_000.0).sqrt() + 1e-3,
+                    "{est:?} transmittance {tr} vs {tau}"
+                );
             }
         }
     }
@@ -79,7 +100,8 @@ fn homogeneous_box_matches_closed_form_for_every_estimator() {
 #[test]
 fn thin_limit_is_emission_times_length() {
     // μ_t → 0: L → L_e d for every estimator but point (which needs collisions).
-    let field = Constant { lo: DVec3::ZERO, hi: DVec3::new(2.0, 1.0, 1.0), density: 1e-9, source: 2.0 };
+    let field =
+        Constant { lo: DVec3::ZERO, hi: DVec3::new(2.0, 1.0, 1.0), density: 1e-9, source: 2.0 };
     let m = medium(1.0, Convention::Cycles);
     for est in [Estimator::Line, Estimator::RayMarch] {
         let (mean, _, _) = mc_emission(&field, &m, &box_ray(), est, 100, 1);
@@ -113,7 +135,16 @@ fn free_path_samples_invert_optical_depth() {
     let mut collided = 0;
     for i in 0..2000 {
         let u = (i as f64 + 0.5) / 2000.0;
-        let r = track(&field, &m, &ray, f64::INFINITY, Estimator::Line, Collision::Skip, u, &mut sampler);
+        let r = track(
+            &field,
+            &m,
+            &ray,
+            f64::INFINITY,
+            Estimator::Line,
+            Collision::Skip,
+            u,
+            &mut sampler,
+        );
         let e = sample_exponential(u);
         match r.event {
             DistanceSample::Collided { t, density, .. } => {
@@ -122,7 +153,9 @@ fn free_path_samples_invert_optical_depth() {
                 assert!((od_at(t) - e).abs() < 1e-9 * (1.0 + e), "u={u}: OD(t)={} E={e}", od_at(t));
                 assert!(density > 0.0, "never collides in a zero-density cell");
             }
-            DistanceSample::Escaped => assert!(e >= total - 1e-12, "escaped with E={e} < OD={total}"),
+            DistanceSample::Escaped => {
+                assert!(e >= total - 1e-12, "escaped with E={e} < OD={total}")
+            }
         }
     }
     assert!(collided > 1000);
@@ -137,14 +170,33 @@ fn linear_ramp_transmittance_is_exact() {
     let ray = Ray { origin: DVec3::new(-0.5, 0.5, 0.5), direction: DVec3::X };
     let expected_od = 0.7 * (0..32).map(|i| f64::from(i as f32 * 0.1)).sum::<f64>() * 0.25;
     let mut sampler = Sampler::new(0, 0, 0);
-    let r = track(&field, &m, &ray, f64::INFINITY, Estimator::RayMarch, Collision::Skip, 0.5, &mut sampler);
+    let r = track(
+        &field,
+        &m,
+        &ray,
+        f64::INFINITY,
+        Estimator::RayMarch,
+        Collision::Skip,
+        0.5,
+        &mut sampler,
+    );
     // OD ≈ 8.7: τ = 1.7e-4 is below the roulette threshold, so the estimate is either 0 or
     // τ·(1/q); its mean over many runs is τ.
     let mut mean = 0.0;
     let n = 20_000;
     for i in 0..n {
         let mut s = Sampler::new(1, 0, i);
-        mean += track(&field, &m, &ray, f64::INFINITY, Estimator::RayMarch, Collision::Skip, 0.5, &mut s).transmittance;
+        mean += track(
+            &field,
+            &m,
+            &ray,
+            f64::INFINITY,
+            Estimator::RayMarch,
+            Collision::Skip,
+            0.5,
+            &mut s,
+        )
+        .transmittance;
     }
     mean /= n as f64;
     let tau = (-expected_od).exp();
@@ -152,7 +204,16 @@ fn linear_ramp_transmittance_is_exact() {
     assert!(r.transmittance == 0.0 || (r.transmittance - 1e-2).abs() < 1e-2);
     // A thinner ramp stays above the threshold: exact.
     let m = medium(0.07, Convention::Physical);
-    let r = track(&field, &m, &ray, f64::INFINITY, Estimator::RayMarch, Collision::Skip, 0.5, &mut sampler);
+    let r = track(
+        &field,
+        &m,
+        &ray,
+        f64::INFINITY,
+        Estimator::RayMarch,
+        Collision::Skip,
+        0.5,
+        &mut sampler,
+    );
     assert!((r.transmittance - (-expected_od / 10.0).exp()).abs() < 1e-12);
 }
 
@@ -182,7 +243,10 @@ fn all_estimators_agree_in_expectation_on_random_strips() {
             let (reference, _) = exact(&field, &m, &ray);
             for est in ALL {
                 let (mean, se, _) = mc_emission(&field, &m, &ray, est, 20_000, 100 + seed);
-                assert!((mean - reference).abs() <= 4.5 * se + 1e-9 * reference, "{est:?} scale={scale} seed={seed}: {mean} vs {reference} (se {se})");
+                assert!(
+                    (mean - reference).abs() <= 4.5 * se + 1e-9 * reference,
+                    "{est:?} scale={scale} seed={seed}: {mean} vs {reference} (se {se})"
+                );
             }
         }
     }
@@ -192,7 +256,11 @@ fn all_estimators_agree_in_expectation_on_random_strips() {
 fn line_integration_collects_emission_where_density_is_zero() {
     // Cycles convention: emission in an empty cell. Line and ray-march see it; this is the
     // case where the point estimator is undefined (METHOD §4).
-    let field = Strip { lo: DVec3::ZERO, hi: DVec3::new(2.0, 1.0, 1.0), cells: vec![(0.0, 3.0), (1.0, 0.0)] };
+    let field = Strip {
+        lo: DVec3::ZERO,
+        hi: DVec3::new(2.0, 1.0, 1.0),
+        cells: vec![(0.0, 3.0), (1.0, 0.0)],
+    };
     let m = medium(1.0, Convention::Cycles);
     let ray = Ray { origin: DVec3::new(-0.5, 0.5, 0.5), direction: DVec3::X };
     let (reference, _) = exact(&field, &m, &ray);
@@ -218,17 +286,28 @@ fn extreme_densities_and_temperatures_stay_finite() {
                     cutoff_kelvin: 500.0,
                 };
                 let source = emission.map_source(temperature);
-                let field = Constant { lo: DVec3::ZERO, hi: DVec3::new(2.0, 1.0, 1.0), density: 1.0, source };
+                let field = Constant {
+                    lo: DVec3::ZERO,
+                    hi: DVec3::new(2.0, 1.0, 1.0),
+                    density: 1.0,
+                    source,
+                };
                 let m = Medium { sigma_t: density_scale, albedo: 0.0, g: 0.0, emission };
                 for est in ALL {
                     for i in 0..50 {
                         let mut s = Sampler::new(9, 1, i);
                         let u = s.next_f64();
-                        let r = track(&field, &m, &ray, f64::INFINITY, est, Collision::Skip, u, &mut s);
+                        let r =
+                            track(&field, &m, &ray, f64::INFINITY, est, Collision::Skip, u, &mut s);
                         // Cycles' blackbody colour is not gamut-clamped: below ~1900 K its blue
                         // channel is negative, as in Cycles. Physical emission never is.
-                        let nonneg = conv == Convention::Cycles || r.emission.iter().all(|v| *v >= 0.0);
-                        assert!(r.emission.iter().all(|v| v.is_finite()) && nonneg, "{est:?} σ={density_scale} T={temperature}: {:?}", r.emission);
+                        let nonneg =
+                            conv == Convention::Cycles || r.emission.iter().all(|v| *v >= 0.0);
+                        assert!(
+                            r.emission.iter().all(|v| v.is_finite()) && nonneg,
+                            "{est:?} σ={density_scale} T={temperature}: {:?}",
+                            r.emission
+                        );
                         assert!(r.transmittance.is_finite());
                     }
                 }
@@ -245,10 +324,25 @@ fn the_point_estimator_warns_where_it_misses_emission_without_density() {
     let d = common::tmpdir("estimators", "point-warning");
     let ex = common::explosion(&d, 16, None);
     let out = d.join("x.exr");
-    let cycles = ["--convention", "cycles", "--emission", "grid", "--emission-grid", "temperature", "--width", "8", "--height", "6", "--spp", "1"];
-    for (flags, named) in
-        [(&["--estimator", "point"][..], "--estimator point"), (&["--camera-estimator", "point"][..], "--camera-estimator point"), (&[][..], "")]
-    {
+    let cycles = [
+        "--convention",
+        "cycles",
+        "--emission",
+        "grid",
+        "--emission-grid",
+        "temperature",
+        "--width",
+        "8",
+        "--height",
+        "6",
+        "--spp",
+        "1",
+    ];
+    for (flags, named) in [
+        (&["--estimator", "point"][..], "--estimator point"),
+        (&["--camera-estimator", "point"][..], "--camera-estimator point"),
+        (&[][..], ""),
+    ] {
         let mut args = vec!["render", common::s(&ex), "-o", common::s(&out), "--overwrite"];
         args.extend(cycles);
         args.extend(flags);
@@ -258,7 +352,10 @@ fn the_point_estimator_warns_where_it_misses_emission_without_density() {
         if named.is_empty() {
             assert!(!err.contains("scores only at collisions"), "{flags:?}: {err}");
         } else {
-            assert!(err.contains(&format!("{named} scores only at collisions")), "{flags:?}: {err}");
+            assert!(
+                err.contains(&format!("{named} scores only at collisions")),
+                "{flags:?}: {err}"
+            );
         }
     }
 }

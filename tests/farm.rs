@@ -14,7 +14,12 @@ use plume::farm::part::{read_part, Completion};
 use plume::output::read_exr_contents;
 
 fn spawn(args: &[&str]) -> Child {
-    Command::new(PLUME).args(args).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().expect("spawn plume")
+    Command::new(PLUME)
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("spawn plume")
 }
 
 /// `dir/ex.NNNN.vdb` for each frame: 32³ explosions, noise seed = frame, so frames differ.
@@ -52,7 +57,21 @@ fn sequence_with_patterns_renders_each_frame_with_its_seed_and_skips_complete_ou
     let output = d.join("out.%04d.exr");
     let preview = d.join("prev.####.png");
     let stats = d.join("stats.jsonl");
-    let mut args = vec!["render", s(&input), "-o", s(&output), "--preview", s(&preview), "--stats", s(&stats), "--frames", "1001-1003", "--spp", "2", "-q"];
+    let mut args = vec![
+        "render",
+        s(&input),
+        "-o",
+        s(&output),
+        "--preview",
+        s(&preview),
+        "--stats",
+        s(&stats),
+        "--frames",
+        "1001-1003",
+        "--spp",
+        "2",
+        "-q",
+    ];
     args.extend(SMALL);
     let o = plume(&args);
     assert!(o.status.success(), "{}", stderr(&o));
@@ -63,7 +82,16 @@ fn sequence_with_patterns_renders_each_frame_with_its_seed_and_skips_complete_ou
         assert_eq!(meta(out, "frame"), f.to_string());
         assert_eq!(meta(out, "status"), "complete");
         assert_eq!(meta(out, "spp"), "2");
-        for key in ["coreHours", "cpuSeconds", "wallSeconds", "peakRssBytes", "inputSha256", "host", "commandLine", "samplesPerSecond"] {
+        for key in [
+            "coreHours",
+            "cpuSeconds",
+            "wallSeconds",
+            "peakRssBytes",
+            "inputSha256",
+            "host",
+            "commandLine",
+            "samplesPerSecond",
+        ] {
             assert!(!meta(out, key).is_empty(), "header lacks plume:{key}");
         }
     }
@@ -107,7 +135,21 @@ fn sequence_with_patterns_renders_each_frame_with_its_seed_and_skips_complete_ou
     assert_eq!(stats_lines(&stats).len(), 4);
 
     // Other settings: rendered again; --overwrite: everything rendered again
-    let mut other = vec!["render", s(&input), "-o", s(&output), "--stats", s(&stats), "--frames", "1001", "--spp", "2", "--seed", "7", "-q"];
+    let mut other = vec![
+        "render",
+        s(&input),
+        "-o",
+        s(&output),
+        "--stats",
+        s(&stats),
+        "--frames",
+        "1001",
+        "--spp",
+        "2",
+        "--seed",
+        "7",
+        "-q",
+    ];
     other.extend(SMALL);
     let o = plume(&other);
     assert!(o.status.success());
@@ -156,8 +198,16 @@ fn every_exit_code_comes_from_a_real_failure() {
         (vec!["render", &first, "-o", &one, "--time-limit", "0"], 2, "--time-limit"),
         (vec!["render", &seq, "-o", &out, "--frames", "2"], 3, "ex.0002.vdb"),
         (vec!["render", &first, "-o", "/nonexistent-dir/o.exr"], 4, "/nonexistent-dir/o.exr"),
-        (vec!["render", &first, "-o", &one, "--spp", "100000000", "--time-limit", "0.5"], 6, "time limit"),
-        (vec!["render", &seq, "-o", &out, "--frames", "1-3", "--spp", "1"], 7, "1 of 3 frames failed: 2"),
+        (
+            vec!["render", &first, "-o", &one, "--spp", "100000000", "--time-limit", "0.5"],
+            6,
+            "time limit",
+        ),
+        (
+            vec!["render", &seq, "-o", &out, "--frames", "1-3", "--spp", "1"],
+            7,
+            "1 of 3 frames failed: 2",
+        ),
         (vec!["merge", "-o", &one, &first], 3, "ex.0001.vdb"),
         (vec!["merge", "-o", &one, "/nonexistent.exr"], 3, "/nonexistent.exr"),
     ];
@@ -176,7 +226,19 @@ fn every_exit_code_comes_from_a_real_failure() {
     let spp = info.samples.end;
     assert!((1..100_000_000).contains(&spp), "{spp}");
     let stats = d.join("s.jsonl");
-    let mut args = vec!["render", &first, "-o", &one, "--spp", "100000000", "--time-limit", "0.5", "-q", "--stats", s(&stats)];
+    let mut args = vec![
+        "render",
+        &first,
+        "-o",
+        &one,
+        "--spp",
+        "100000000",
+        "--time-limit",
+        "0.5",
+        "-q",
+        "--stats",
+        s(&stats),
+    ];
     args.extend(SMALL);
     let o = plume(&args);
     assert_eq!(o.status.code(), Some(6), "{}", stderr(&o));
@@ -207,11 +269,26 @@ fn sigterm_writes_a_valid_partial_image_and_the_rerun_finishes_it_bit_identicall
     let reference = d.join("ref.exr");
     let out = d.join("o.exr");
     let base = |o: &Path, spp: &str| {
-        let mut a: Vec<String> =
-            ["render", s(&input), "-o", s(o), "--spp", spp, "--width", "32", "--height", "32", "--threads", "1", "-q", "--progress", "json"]
-                .iter()
-                .map(|x| x.to_string())
-                .collect();
+        let mut a: Vec<String> = [
+            "render",
+            s(&input),
+            "-o",
+            s(o),
+            "--spp",
+            spp,
+            "--width",
+            "32",
+            "--height",
+            "32",
+            "--threads",
+            "1",
+            "-q",
+            "--progress",
+            "json",
+        ]
+        .iter()
+        .map(|x| x.to_string())
+        .collect();
         a.extend(["--density-scale", "3"].iter().map(|x| x.to_string()));
         a
     };
@@ -341,8 +418,23 @@ fn four_tiles_times_two_sample_ranges_merge_bit_identical_to_one_render() {
     sequence(&d, &[5]);
     let input = d.join("ex.####.vdb");
     // Scattering paths with FNEE, an image size no tile divides evenly
-    let common =
-        ["--frames", "5", "--width", "37", "--height", "23", "--albedo", "0.6", "--max-depth", "4", "--proxy-resolution", "16", "--density-scale", "2", "-q"];
+    let common = [
+        "--frames",
+        "5",
+        "--width",
+        "37",
+        "--height",
+        "23",
+        "--albedo",
+        "0.6",
+        "--max-depth",
+        "4",
+        "--proxy-resolution",
+        "16",
+        "--density-scale",
+        "2",
+        "-q",
+    ];
     let single = d.join("single.exr");
     let mut a = vec!["render", s(&input), "-o", s(&single), "--spp", "6"];
     a.extend(common);
@@ -354,7 +446,18 @@ fn four_tiles_times_two_sample_ranges_merge_bit_identical_to_one_render() {
         for (k, range) in ["0..2", "2..6"].iter().enumerate() {
             let p = d.join(format!("part.t{tile}.s{k}.exr"));
             let tile_arg = format!("{tile}/4");
-            let mut a = vec!["render", s(&input), "-o", s(&p), "--tile", &tile_arg, "--sample-range", range, "--threads", "1"];
+            let mut a = vec![
+                "render",
+                s(&input),
+                "-o",
+                s(&p),
+                "--tile",
+                &tile_arg,
+                "--sample-range",
+                range,
+                "--threads",
+                "1",
+            ];
             a.extend(common);
             children.push(Command::new(PLUME).args(&a).output());
             parts.push(p);
@@ -375,7 +478,11 @@ fn four_tiles_times_two_sample_ranges_merge_bit_identical_to_one_render() {
     assert_eq!(meta(&merged, "mergedParts"), "8");
     assert_eq!(meta(&merged, "settingsHash"), meta(&single, "settingsHash"));
     // With the default reconstruction, trilinear: this is also the linear + scattering check
-    assert!(meta(&single, "scene").contains("interpolation = \"linear\""), "{}", meta(&single, "scene"));
+    assert!(
+        meta(&single, "scene").contains("interpolation = \"linear\""),
+        "{}",
+        meta(&single, "scene")
+    );
     let c = read_exr_contents(&parts[0]).unwrap();
     assert_eq!((c.width, c.height), (37, 23), "display window: the whole image");
     assert!(c.crop.width() < 37, "data window: the tile");
@@ -397,7 +504,18 @@ fn four_tiles_times_two_sample_ranges_merge_bit_identical_to_one_render() {
     refuse(&dup, "overlap");
     refuse(&[all[0], all[1], &single], "no exact sums");
     let other = d.join("other.exr");
-    let mut a = vec!["render", s(&input), "-o", s(&other), "--tile", "0/4", "--sample-range", "0..2", "--seed", "9"];
+    let mut a = vec![
+        "render",
+        s(&input),
+        "-o",
+        s(&other),
+        "--tile",
+        "0/4",
+        "--sample-range",
+        "0..2",
+        "--seed",
+        "9",
+    ];
     a.extend(common);
     assert!(plume(&a).status.success());
     let mut mixed = all.clone();
@@ -434,15 +552,28 @@ fn progress_lines_for_openjd_and_json() {
     assert!(o.status.success());
     let text = String::from_utf8(o.stdout).unwrap();
     let lines: Vec<&str> = text.lines().collect();
-    assert!(lines.iter().all(|l| l.starts_with("openjd_progress: ") || l.starts_with("openjd_status: ")), "{text}");
-    let progress: Vec<f64> = lines.iter().filter_map(|l| l.strip_prefix("openjd_progress: ")).map(|v| v.parse().unwrap()).collect();
+    assert!(
+        lines
+            .iter()
+            .all(|l| l.starts_with("openjd_progress: ") || l.starts_with("openjd_status: ")),
+        "{text}"
+    );
+    let progress: Vec<f64> = lines
+        .iter()
+        .filter_map(|l| l.strip_prefix("openjd_progress: "))
+        .map(|v| v.parse().unwrap())
+        .collect();
     assert!(progress.windows(2).all(|w| w[0] <= w[1]), "{progress:?}");
     assert_eq!(progress.last(), Some(&100.0));
     assert!(text.contains("openjd_status: frame 2 (2/2)"), "{text}");
 
     let o = Command::new(PLUME).args(args("json")).output().unwrap();
     assert!(o.status.success());
-    let events: Vec<serde_json::Value> = String::from_utf8(o.stdout).unwrap().lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    let events: Vec<serde_json::Value> = String::from_utf8(o.stdout)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
     let names: Vec<&str> = events.iter().map(|e| e["event"].as_str().unwrap()).collect();
     assert_eq!(names.first(), Some(&"frame_start"));
     assert_eq!(names.iter().filter(|n| **n == "frame_done").count(), 2);
@@ -452,7 +583,8 @@ fn progress_lines_for_openjd_and_json() {
     assert_eq!(done["stats"]["frame"], 1);
 
     // A failing run says so in the protocol
-    let mut bad = vec!["render", s(&input), "-o", s(&out), "--frames", "7", "-q", "--progress", "openjd"];
+    let mut bad =
+        vec!["render", s(&input), "-o", s(&out), "--frames", "7", "-q", "--progress", "openjd"];
     bad.extend(SMALL);
     let o = plume(&bad);
     assert_eq!(o.status.code(), Some(3));
@@ -465,8 +597,14 @@ fn openjd_cli() -> Option<PathBuf> {
     let venv = Path::new(env!("CARGO_TARGET_TMPDIR")).parent().unwrap().join("openjd-venv");
     let bin = venv.join("bin").join("openjd");
     if !bin.exists() {
-        let ok = Command::new("python3").args(["-m", "venv", s(&venv)]).status().is_ok_and(|st| st.success())
-            && Command::new(venv.join("bin").join("python")).args(["-m", "pip", "install", "--quiet", "openjd-cli"]).status().is_ok_and(|st| st.success());
+        let ok = Command::new("python3")
+            .args(["-m", "venv", s(&venv)])
+            .status()
+            .is_ok_and(|st| st.success())
+            && Command::new(venv.join("bin").join("python"))
+                .args(["-m", "pip", "install", "--quiet", "openjd-cli"])
+                .status()
+                .is_ok_and(|st| st.success());
         if !ok || !bin.exists() {
             eprintln!("\n!!!!!!!!!! SKIPPED openjd_template: cannot install openjd-cli into {} (python3 -m venv + pip install openjd-cli failed; offline?) !!!!!!!!!!\n", venv.display());
             return None;
@@ -480,7 +618,12 @@ fn openjd_template_validates_and_renders_a_sequence_with_openjd_run() {
     let Some(openjd) = openjd_cli() else { return };
     let template = Path::new(env!("CARGO_MANIFEST_DIR")).join("farm/openjd/plume-render.yaml");
     let o = Command::new(&openjd).args(["check", s(&template)]).output().unwrap();
-    assert!(o.status.success(), "openjd check: {}{}", String::from_utf8_lossy(&o.stdout), stderr(&o));
+    assert!(
+        o.status.success(),
+        "openjd check: {}{}",
+        String::from_utf8_lossy(&o.stdout),
+        stderr(&o)
+    );
     let d = tmpdir("farm", "openjd");
     sequence(&d, &[1, 2, 3]);
     let stats = d.join("stats.jsonl");
@@ -552,14 +695,24 @@ fn slurm_array_script_renders_tiles_and_sample_splits_then_merges_bit_identicall
             c.env("SLURM_ARRAY_TASK_ID", t.to_string()).env("SLURM_CPUS_PER_TASK", "1");
         }
         let o = c.output().unwrap();
-        assert!(o.status.success(), "{mode} {task:?}: {}{}", String::from_utf8_lossy(&o.stdout), stderr(&o));
+        assert!(
+            o.status.success(),
+            "{mode} {task:?}: {}{}",
+            String::from_utf8_lossy(&o.stdout),
+            stderr(&o)
+        );
     };
     run("submit", None);
     let submitted = std::fs::read_to_string(&log).unwrap();
     let jobs: Vec<&str> = submitted.lines().collect();
     assert_eq!(jobs.len(), 2, "{submitted}");
     assert!(jobs[0].contains("--array=0-3") && jobs[0].ends_with("render"), "{submitted}");
-    assert!(jobs[1].contains("--dependency=afterok:42421") && jobs[1].contains("--array=0-0") && jobs[1].ends_with("merge"), "{submitted}");
+    assert!(
+        jobs[1].contains("--dependency=afterok:42421")
+            && jobs[1].contains("--array=0-0")
+            && jobs[1].ends_with("merge"),
+        "{submitted}"
+    );
     for task in 0..4 {
         run("render", Some(task));
     }

@@ -26,7 +26,9 @@ use std::os::unix::ffi::OsStrExt as _;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 
-use common::{explosion, exr_pixels, names_in, pixel_bits, plume, s, stderr, synth_explosion, tmpdir, PLUME};
+use common::{
+    explosion, exr_pixels, names_in, pixel_bits, plume, s, stderr, synth_explosion, tmpdir, PLUME,
+};
 
 const MIB: u64 = 1 << 20;
 
@@ -43,14 +45,26 @@ impl Tmpfs {
         if euid != 0 {
             return Err(format!("not root (effective uid {euid}); mounting a tmpfs needs root"));
         }
-        std::fs::create_dir_all(dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
+        std::fs::create_dir_all(dir)
+            .map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
         let target = c_path(dir);
         let options = CString::new(format!("size={bytes},mode=0755")).unwrap();
         // SAFETY: every pointer is a NUL-terminated string that outlives the call.
-        let r = unsafe { libc::mount(c"plume-test".as_ptr(), target.as_ptr(), c"tmpfs".as_ptr(), 0, options.as_ptr().cast()) };
+        let r = unsafe {
+            libc::mount(
+                c"plume-test".as_ptr(),
+                target.as_ptr(),
+                c"tmpfs".as_ptr(),
+                0,
+                options.as_ptr().cast(),
+            )
+        };
         if r != 0 {
             let e = std::io::Error::last_os_error();
-            return Err(format!("cannot mount a tmpfs on {}: {e} (a container without CAP_SYS_ADMIN?)", dir.display()));
+            return Err(format!(
+                "cannot mount a tmpfs on {}: {e} (a container without CAP_SYS_ADMIN?)",
+                dir.display()
+            ));
         }
         Ok(Tmpfs { dir: dir.to_path_buf() })
     }
@@ -60,9 +74,21 @@ impl Tmpfs {
     fn read_only(&self) -> Result<(), String> {
         let target = c_path(&self.dir);
         // SAFETY: as in `mount`; null source, type and data are allowed for a remount.
-        let r = unsafe { libc::mount(std::ptr::null(), target.as_ptr(), std::ptr::null(), libc::MS_REMOUNT | libc::MS_RDONLY, std::ptr::null()) };
+        let r = unsafe {
+            libc::mount(
+                std::ptr::null(),
+                target.as_ptr(),
+                std::ptr::null(),
+                libc::MS_REMOUNT | libc::MS_RDONLY,
+                std::ptr::null(),
+            )
+        };
         if r != 0 {
-            return Err(format!("cannot remount {} read-only: {}", self.dir.display(), std::io::Error::last_os_error()));
+            return Err(format!(
+                "cannot remount {} read-only: {}",
+                self.dir.display(),
+                std::io::Error::last_os_error()
+            ));
         }
         Ok(())
     }
@@ -74,7 +100,12 @@ impl Drop for Tmpfs {
         // SAFETY: a NUL-terminated path. Lazily if a process still holds a file there.
         let r = unsafe { libc::umount2(target.as_ptr(), 0) };
         if r != 0 && unsafe { libc::umount2(target.as_ptr(), libc::MNT_DETACH) } != 0 {
-            let _ = writeln!(std::io::stderr(), "warning: cannot unmount {}: {}", self.dir.display(), std::io::Error::last_os_error());
+            let _ = writeln!(
+                std::io::stderr(),
+                "warning: cannot unmount {}: {}",
+                self.dir.display(),
+                std::io::Error::last_os_error()
+            );
         }
     }
 }
@@ -99,7 +130,10 @@ fn tmpfs_or_skip(test: &str, dir: &Path, name: &str, bytes: u64) -> Option<Tmpfs
 /// Say why a test did not run, straight to stderr: `std::io::stderr()` is not the
 /// harness's captured output (an `eprintln!` of a passing test would be hidden).
 fn skip(test: &str, reason: &str) {
-    let _ = writeln!(std::io::stderr(), "\n**********\nSKIPPED: {test} did not run: {reason}\n**********");
+    let _ = writeln!(
+        std::io::stderr(),
+        "\n**********\nSKIPPED: {test} did not run: {reason}\n**********"
+    );
 }
 
 /// Fill the file system of `dir` to the last block with `dir/filler`.
@@ -115,7 +149,11 @@ fn fill(dir: &Path) {
         }
     }
     let _ = f.flush();
-    assert!(std::fs::write(dir.join("probe-full"), [0u8; 4096]).is_err(), "{} is not full", dir.display());
+    assert!(
+        std::fs::write(dir.join("probe-full"), [0u8; 4096]).is_err(),
+        "{} is not full",
+        dir.display()
+    );
     let _ = std::fs::remove_file(dir.join("probe-full"));
 }
 
@@ -135,12 +173,31 @@ fn assert_output_failure(o: &Output, file: &Path, what: &str) {
     let lines = error_lines(o);
     assert_eq!(o.status.code(), Some(4), "{}", stderr(o));
     assert_eq!(lines.len(), 1, "one error line: {}", stderr(o));
-    assert!(lines[0].contains(s(file)) && lines[0].contains(what), "{:?} names {} and {what:?}", lines[0], file.display());
+    assert!(
+        lines[0].contains(s(file)) && lines[0].contains(what),
+        "{:?} names {} and {what:?}",
+        lines[0],
+        file.display()
+    );
 }
 
 /// Render `input` small and fast with `extra` flags.
 fn render(input: &Path, out: &Path, extra: &[&str]) -> Output {
-    let mut args = vec!["render", s(input), "-o", s(out), "--spp", "2", "--width", "32", "--height", "24", "--seed", "3", "-q"];
+    let mut args = vec![
+        "render",
+        s(input),
+        "-o",
+        s(out),
+        "--spp",
+        "2",
+        "--width",
+        "32",
+        "--height",
+        "24",
+        "--seed",
+        "3",
+        "-q",
+    ];
     args.extend_from_slice(extra);
     plume(&args)
 }
@@ -161,9 +218,12 @@ fn a_full_disk_leaves_every_render_output_as_it_was() {
     while old_stats.len() < 4096 - 100 - 16 {
         old_stats.push_str(&format!("{{\"old\":{:>6}}}\n", old_stats.len()));
     }
-    let old_stats = format!("{old_stats}{}\n", "x".repeat(4096 - 100 - old_stats.len() - 1)).into_bytes();
+    let old_stats =
+        format!("{old_stats}{}\n", "x".repeat(4096 - 100 - old_stats.len() - 1)).into_bytes();
     assert_eq!(old_stats.len(), 3996);
-    for (name, bytes) in [("out.exr", &old_exr), ("preview.png", &old_png), ("stats.jsonl", &old_stats)] {
+    for (name, bytes) in
+        [("out.exr", &old_exr), ("preview.png", &old_png), ("stats.jsonl", &old_stats)]
+    {
         std::fs::write(full.join(name), bytes).unwrap();
     }
     fill(&full);
@@ -195,7 +255,12 @@ fn a_full_disk_leaves_every_render_output_as_it_was() {
     let o = render(&vdb, &exr, &["--preview", s(&preview), "--stats", s(&stats)]);
     assert!(o.status.success(), "{}", stderr(&o));
     let stats_now = std::fs::read(&stats).unwrap();
-    assert!(stats_now.starts_with(&old_stats) && stats_now.len() > old_stats.len() && stats_now.ends_with(b"}\n"), "one whole line appended");
+    assert!(
+        stats_now.starts_with(&old_stats)
+            && stats_now.len() > old_stats.len()
+            && stats_now.ends_with(b"}\n"),
+        "one whole line appended"
+    );
     assert!(!exr_pixels(&exr).is_empty());
     drop(disk);
     let _ = std::fs::remove_dir_all(&dir);
@@ -263,7 +328,11 @@ fn a_full_cache_directory_fails_the_render_and_keeps_the_old_cache() {
     let o = render(&vdb, &exr, &[&budget[..], &["--cache-dir", s(&full)]].concat());
     assert_output_failure(&o, &full.join(&name), "No space left on device");
     assert!(stderr(&o).contains("rebuilding the automatic cache"), "{}", stderr(&o));
-    assert_eq!(std::fs::read(full.join(&name)).unwrap(), damaged, "the old cache stays until a new one replaces it");
+    assert_eq!(
+        std::fs::read(full.join(&name)).unwrap(),
+        damaged,
+        "the old cache stays until a new one replaces it"
+    );
     assert_eq!(std::fs::read(&exr).unwrap(), old_exr, "no image was written");
     assert_eq!(temporaries(&full), Vec::<String>::new(), "temporaries left");
     // With room again the cache is rebuilt and renders as in the scratch directory
@@ -283,7 +352,8 @@ fn in_core_estimate(vdb: &Path) -> u64 {
     let o = plume(&["info", "--json", s(vdb)]);
     assert!(o.status.success(), "{}", stderr(&o));
     let grids: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-    let leaves: u64 = grids.as_array().unwrap().iter().map(|g| g["leaf_count"].as_u64().unwrap()).sum();
+    let leaves: u64 =
+        grids.as_array().unwrap().iter().map(|g| g["leaf_count"].as_u64().unwrap()).sum();
     leaves * 2 * 512 * 4
 }
 
@@ -292,7 +362,8 @@ fn read_only_cache_directories() {
     let test = "read_only_cache_directories";
     let dir = tmpdir("faults", "read-only");
     let Some(ro) = tmpfs_or_skip(test, &dir, "ro", 16 * MIB) else { return };
-    let (input_dir, shared, xdg) = (ro.dir.join("input"), ro.dir.join("shared"), ro.dir.join("xdg"));
+    let (input_dir, shared, xdg) =
+        (ro.dir.join("input"), ro.dir.join("shared"), ro.dir.join("xdg"));
     for d in [&input_dir, &shared, &xdg] {
         std::fs::create_dir(d).unwrap();
     }
@@ -306,7 +377,11 @@ fn read_only_cache_directories() {
     let fits = ((estimate + 4 * file_bytes) / 2).to_string();
     let budget = ["--memory-budget", &fits];
     // A cache prepared in the shared directory before it becomes read-only
-    let o = render(&vdb, &dir.join("shared.exr"), &[&budget[..], &["--cache-dir", s(&shared)]].concat());
+    let o = render(
+        &vdb,
+        &dir.join("shared.exr"),
+        &[&budget[..], &["--cache-dir", s(&shared)]].concat(),
+    );
     assert!(o.status.success(), "{}", stderr(&o));
     let reference = pixel_bits(&exr_pixels(&dir.join("shared.exr")));
     if let Err(reason) = ro.read_only() {
@@ -316,7 +391,21 @@ fn read_only_cache_directories() {
     }
     let run = |out: &str, flags: &[&str], xdg_home: &Path| {
         Command::new(PLUME)
-            .args(["render", s(&vdb), "-o", s(&dir.join(out)), "--spp", "2", "--width", "32", "--height", "24", "--seed", "3", "-q"])
+            .args([
+                "render",
+                s(&vdb),
+                "-o",
+                s(&dir.join(out)),
+                "--spp",
+                "2",
+                "--width",
+                "32",
+                "--height",
+                "24",
+                "--seed",
+                "3",
+                "-q",
+            ])
             .args(flags)
             .env("XDG_CACHE_HOME", xdg_home)
             .output()
@@ -327,13 +416,15 @@ fn read_only_cache_directories() {
     // An explicit --cache-dir that cannot be written: exit 4, naming it and the flag,
     // whether it exists or would have to be made
     for cache_dir in [ro.dir.join("empty"), xdg.clone()] {
-        let o = run("x.exr", &[&budget[..], &["--cache-dir", s(&cache_dir)]].concat(), &writable_xdg);
+        let o =
+            run("x.exr", &[&budget[..], &["--cache-dir", s(&cache_dir)]].concat(), &writable_xdg);
         assert_output_failure(&o, &cache_dir, "--cache-dir");
         assert!(stderr(&o).contains("Read-only file system"), "{}", stderr(&o));
         assert!(!dir.join("x.exr").exists());
     }
     // …but a read-only one that holds a current cache is used as it is
-    let o = run("shared-ro.exr", &[&budget[..], &["--cache-dir", s(&shared)]].concat(), &writable_xdg);
+    let o =
+        run("shared-ro.exr", &[&budget[..], &["--cache-dir", s(&shared)]].concat(), &writable_xdg);
     assert!(o.status.success() && !stderr(&o).contains("converting"), "{}", stderr(&o));
     assert_eq!(pixel_bits(&exr_pixels(&dir.join("shared-ro.exr"))), reference);
 
@@ -346,7 +437,12 @@ fn read_only_cache_directories() {
     // Neither is writable: read in core, as it fits the budget, with a warning
     let o = run("core.exr", &budget, &xdg);
     assert!(o.status.success(), "{}", stderr(&o));
-    assert!(stderr(&o).contains("nowhere to write the automatic brick cache") && stderr(&o).contains("reading it into memory"), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("nowhere to write the automatic brick cache")
+            && stderr(&o).contains("reading it into memory"),
+        "{}",
+        stderr(&o)
+    );
     assert_eq!(pixel_bits(&exr_pixels(&dir.join("core.exr"))), reference);
     // …and refused when it does not fit
     let o = run("none.exr", &["--memory-budget", "1MiB"], &xdg);
@@ -373,34 +469,67 @@ fn two_processes_making_the_same_automatic_cache_share_it() {
         // Odd rounds start from a damaged cache, which both find stale: the one that
         // waited must use the other's new cache, not delete it as stale
         if round % 2 == 1 {
-            let name = names_in(&dir.join(format!("cache{}", round - 1)), |n| n.ends_with(".plume")).pop().unwrap();
+            let name =
+                names_in(&dir.join(format!("cache{}", round - 1)), |n| n.ends_with(".plume"))
+                    .pop()
+                    .unwrap();
             std::fs::write(cache_dir.join(name), b"damaged").unwrap();
         }
         let children: Vec<_> = (0..2)
             .map(|k| {
                 let out = dir.join(format!("r{round}-{k}.exr"));
                 Command::new(PLUME)
-                    .args(["render", s(&vdb), "-o", s(&out), "--spp", "2", "--width", "32", "--height", "24", "--seed", "3", "-q"])
+                    .args([
+                        "render",
+                        s(&vdb),
+                        "-o",
+                        s(&out),
+                        "--spp",
+                        "2",
+                        "--width",
+                        "32",
+                        "--height",
+                        "24",
+                        "--seed",
+                        "3",
+                        "-q",
+                    ])
                     .args(["--memory-budget", "64KiB", "--cache-dir", s(&cache_dir)])
                     .stderr(Stdio::piped())
                     .spawn()
                     .unwrap()
             })
             .collect();
-        let outputs: Vec<Output> = children.into_iter().map(|c| c.wait_with_output().unwrap()).collect();
+        let outputs: Vec<Output> =
+            children.into_iter().map(|c| c.wait_with_output().unwrap()).collect();
         let messages: Vec<String> = outputs.iter().map(stderr).collect();
         for (k, o) in outputs.iter().enumerate() {
             assert!(o.status.success(), "round {round}, render {k}: {}", messages[k]);
-            assert_eq!(pixel_bits(&exr_pixels(&dir.join(format!("r{round}-{k}.exr")))), reference, "round {round}, render {k}");
+            assert_eq!(
+                pixel_bits(&exr_pixels(&dir.join(format!("r{round}-{k}.exr")))),
+                reference,
+                "round {round}, render {k}"
+            );
         }
         let conversions = messages.iter().filter(|m| m.contains("converting it once")).count();
-        assert_eq!(conversions, 1, "round {round}: one process converts, the other uses its cache: {messages:#?}");
+        assert_eq!(
+            conversions, 1,
+            "round {round}: one process converts, the other uses its cache: {messages:#?}"
+        );
         waited += messages.iter().filter(|m| m.contains("waiting for another process")).count();
         let caches = names_in(&cache_dir, |n| n.ends_with(".plume"));
         assert_eq!(caches.len(), 1, "{caches:?}");
         let info = plume(&["info", s(&cache_dir.join(&caches[0]))]);
-        assert!(info.status.success() && String::from_utf8_lossy(&info.stdout).contains("checksums ok"), "{}", stderr(&info));
-        assert_eq!(temporaries(&cache_dir), Vec::<String>::new(), "round {round}: temporaries left");
+        assert!(
+            info.status.success() && String::from_utf8_lossy(&info.stdout).contains("checksums ok"),
+            "{}",
+            stderr(&info)
+        );
+        assert_eq!(
+            temporaries(&cache_dir),
+            Vec::<String>::new(),
+            "round {round}: temporaries left"
+        );
     }
     // How often the two overlapped (the second waited for the first's lock) depends on
     // the scheduler; the assertions above hold either way
@@ -438,7 +567,21 @@ fn a_cache_lock_held_past_the_timeout_is_given_up() {
     let timed = |out: &str, flags: &[&str]| {
         let start = Instant::now();
         let mut child = Command::new(PLUME)
-            .args(["render", s(&vdb), "-o", s(&dir.join(out)), "--spp", "2", "--width", "32", "--height", "24", "--seed", "3", "-q"])
+            .args([
+                "render",
+                s(&vdb),
+                "-o",
+                s(&dir.join(out)),
+                "--spp",
+                "2",
+                "--width",
+                "32",
+                "--height",
+                "24",
+                "--seed",
+                "3",
+                "-q",
+            ])
             .args(["--cache-dir", s(&cache_dir), "--cache-lock-timeout", "1"])
             .args(flags)
             .stderr(Stdio::piped())
@@ -457,16 +600,34 @@ fn a_cache_lock_held_past_the_timeout_is_given_up() {
     let (o, took) = timed("core.exr", &budget);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(took >= Duration::from_secs(1), "it gave up before the timeout: {took:?}");
-    let warnings: Vec<String> = stderr(&o).lines().filter(|l| l.starts_with("plume: warning:")).map(str::to_owned).collect();
+    let warnings: Vec<String> = stderr(&o)
+        .lines()
+        .filter(|l| l.starts_with("plume: warning:"))
+        .map(str::to_owned)
+        .collect();
     assert_eq!(warnings.len(), 1, "{}", stderr(&o));
-    assert!(warnings[0].contains(s(&lock_path)) && warnings[0].contains("--cache-lock-timeout") && warnings[0].contains("into memory"), "{}", warnings[0]);
+    assert!(
+        warnings[0].contains(s(&lock_path))
+            && warnings[0].contains("--cache-lock-timeout")
+            && warnings[0].contains("into memory"),
+        "{}",
+        warnings[0]
+    );
     assert!(stderr(&o).contains("waiting for another process"), "{}", stderr(&o));
     assert_eq!(pixel_bits(&exr_pixels(&dir.join("core.exr"))), reference);
-    assert_eq!(names_in(&cache_dir, |n| n.ends_with(".plume") || n.ends_with(".tmp")), Vec::<String>::new());
+    assert_eq!(
+        names_in(&cache_dir, |n| n.ends_with(".plume") || n.ends_with(".tmp")),
+        Vec::<String>::new()
+    );
     // Does not fit: exit 4, one line naming the lock file and the way out; no image
     let (o, _) = timed("none.exr", &["--memory-budget", "1MiB"]);
     assert_output_failure(&o, &lock_path, "--cache-lock-timeout");
-    assert!(error_lines(&o)[0].contains(s(&cache_dir.join(&name))) && error_lines(&o)[0].contains("--memory-budget"), "{}", stderr(&o));
+    assert!(
+        error_lines(&o)[0].contains(s(&cache_dir.join(&name)))
+            && error_lines(&o)[0].contains("--memory-budget"),
+        "{}",
+        stderr(&o)
+    );
     assert!(!dir.join("none.exr").exists());
     // Once the holder lets go, the cache is made and used as usual
     drop(lock);

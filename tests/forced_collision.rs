@@ -8,11 +8,11 @@ use crate::common;
 
 use common::{explosion_scene, explosion_volume, region_means_with};
 use glam::DVec3;
+use plume_core::sampling::{Sampler, SamplerKind};
 use plume_engine::integrator::{Integrator, LightSampling, Lights, MisHeuristic, Tracking};
 use plume_engine::medium::forced::BOOST;
 use plume_engine::medium::tracking::optical_depth;
 use plume_engine::medium::{track, Collision, DistanceSample, Estimator, Medium};
-use plume_core::sampling::{Sampler, SamplerKind};
 use plume_volume::field::{Constant, Ray};
 use plume_volume::trilinear::Trilinear;
 use plume_volume::{Field, Interpolation, Volume};
@@ -32,25 +32,50 @@ fn crossing(volume: &Volume) -> (Ray, f64, f64) {
 /// Weighted collision mass per bin of `[t0, t1]` over `n` forced walks, with standard
 /// errors, the fraction of walks that collided, and the exact `τ(a) − τ(b)` per bin (bins
 /// pooled as below).
-fn masses<F: Field>(field: &F, medium: &Medium, ray: &Ray, (t0, t1): (f64, f64), bins: usize, n: u64, seed: u64) -> (Vec<(f64, f64)>, f64, Vec<f64>) {
+fn masses<F: Field>(
+    field: &F,
+    medium: &Medium,
+    ray: &Ray,
+    (t0, t1): (f64, f64),
+    bins: usize,
+    n: u64,
+    seed: u64,
+) -> (Vec<(f64, f64)>, f64, Vec<f64>) {
     let (mut sum, mut sum_sq) = (vec![0.0f64; bins], vec![0.0f64; bins]);
     let mut collided = 0u64;
     for i in 0..n {
         let mut sampler = Sampler::new(seed, 0, i);
         let u = sampler.next_f64();
-        let r = track(field, medium, ray, f64::INFINITY, Estimator::RayMarch, Collision::Forced, u, &mut sampler);
+        let r = track(
+            field,
+            medium,
+            ray,
+            f64::INFINITY,
+            Estimator::RayMarch,
+            Collision::Forced,
+            u,
+            &mut sampler,
+        );
         if let DistanceSample::Collided { t, .. } = r.event {
             collided += 1;
-            assert!(r.collision_weight > 0.0 && r.collision_weight.is_finite(), "weight {}", r.collision_weight);
+            assert!(
+                r.collision_weight > 0.0 && r.collision_weight.is_finite(),
+                "weight {}",
+                r.collision_weight
+            );
             let k = (((t - t0) / (t1 - t0)) * bins as f64).clamp(0.0, bins as f64 - 1.0) as usize;
             sum[k] += r.collision_weight;
             sum_sq[k] += r.collision_weight * r.collision_weight;
         } else {
-            assert_eq!(r.collision_weight, 1.0, "a walk without a collision has no collision weight");
+            assert_eq!(
+                r.collision_weight, 1.0,
+                "a walk without a collision has no collision weight"
+            );
         }
     }
     let tau = |t: f64| (-optical_depth(field, medium, ray, t, f64::INFINITY).optical_depth).exp();
-    let edges: Vec<f64> = (0..=bins).map(|k| tau(t0 + (t1 - t0) * k as f64 / bins as f64)).collect();
+    let edges: Vec<f64> =
+        (0..=bins).map(|k| tau(t0 + (t1 - t0) * k as f64 / bins as f64)).collect();
     // Bins pooled with their successors until they expect a mass of 10⁻³ (hundreds of
     // hits in `n` walks, fewer where roulette's weights are large); a sample lands in one
     // bin only, so pooled sums of squares stay exact
@@ -69,7 +94,10 @@ fn masses<F: Field>(field: &F, medium: &Medium, ray: &Ray, (t0, t1): (f64, f64),
         }
     }
     let nf = n as f64;
-    let got = pooled.iter().map(|(s, s2, _)| (s / nf, ((s2 / nf - (s / nf).powi(2)).max(0.0) / nf).sqrt())).collect();
+    let got = pooled
+        .iter()
+        .map(|(s, s2, _)| (s / nf, ((s2 / nf - (s / nf).powi(2)).max(0.0) / nf).sqrt()))
+        .collect();
     (got, collided as f64 / nf, pooled.iter().map(|p| p.2).collect())
 }
 
@@ -83,7 +111,9 @@ fn forced_collisions_have_the_analog_law_on_nearest_and_trilinear_fields() {
     let emission = common::explosion_emission();
     let unit = Medium { sigma_t: 1.0, albedo: 0.8, g: 0.0, emission };
     let trilinear = Trilinear::new(explosion_volume());
-    for (name, field) in [("nearest", &volume as &dyn FieldRef), ("trilinear", &trilinear as &dyn FieldRef)] {
+    for (name, field) in
+        [("nearest", &volume as &dyn FieldRef), ("trilinear", &trilinear as &dyn FieldRef)]
+    {
         let od = field.od(&unit, &ray, t1);
         assert!(od > 0.0, "{name}: the ray misses the volume");
         // Total optical depths 0.05 (thin: 1 − τ ≈ 0.05, so the boost shows), 1, and 9
@@ -93,7 +123,10 @@ fn forced_collisions_have_the_analog_law_on_nearest_and_trilinear_fields() {
             let (got, collided, expected) = field.masses(&medium, &ray, (t0, t1), 24, 40_000, 11);
             for (k, ((m, se), e)) in got.iter().zip(&expected).enumerate() {
                 if *e <= 0.0 {
-                    assert_eq!(*m, 0.0, "{name} OD {target} bin {k}: mass {m} where τ does not fall");
+                    assert_eq!(
+                        *m, 0.0,
+                        "{name} OD {target} bin {k}: mass {m} where τ does not fall"
+                    );
                     continue;
                 }
                 let z = (m - e) / se.max(1e-15);
@@ -104,10 +137,16 @@ fn forced_collisions_have_the_analog_law_on_nearest_and_trilinear_fields() {
             if target < 5.0 {
                 // No roulette: W is exact, and the walk collides with probability min(1, K W)
                 let se = (q * (1.0 - q) / 40_000.0).sqrt().max(1e-9);
-                assert!((collided - q).abs() < 4.3 * se + 1e-12, "{name} OD {target}: collided {collided}, expected {q} (analog {w})");
+                assert!(
+                    (collided - q).abs() < 4.3 * se + 1e-12,
+                    "{name} OD {target}: collided {collided}, expected {q} (analog {w})"
+                );
             }
             if target < 0.1 {
-                assert!(collided > 2.0 * w, "{name} OD {target}: forcing collided {collided}, no more than the analog {w}");
+                assert!(
+                    collided > 2.0 * w,
+                    "{name} OD {target}: forcing collided {collided}, no more than the analog {w}"
+                );
             }
         }
     }
@@ -116,14 +155,30 @@ fn forced_collisions_have_the_analog_law_on_nearest_and_trilinear_fields() {
 /// The two fields behind one interface for the test's loop.
 trait FieldRef {
     fn od(&self, medium: &Medium, ray: &Ray, t: f64) -> f64;
-    fn masses(&self, medium: &Medium, ray: &Ray, range: (f64, f64), bins: usize, n: u64, seed: u64) -> (Vec<(f64, f64)>, f64, Vec<f64>);
+    fn masses(
+        &self,
+        medium: &Medium,
+        ray: &Ray,
+        range: (f64, f64),
+        bins: usize,
+        n: u64,
+        seed: u64,
+    ) -> (Vec<(f64, f64)>, f64, Vec<f64>);
 }
 
 impl<F: Field> FieldRef for F {
     fn od(&self, medium: &Medium, ray: &Ray, t: f64) -> f64 {
         optical_depth(self, medium, ray, t, f64::INFINITY).optical_depth
     }
-    fn masses(&self, medium: &Medium, ray: &Ray, range: (f64, f64), bins: usize, n: u64, seed: u64) -> (Vec<(f64, f64)>, f64, Vec<f64>) {
+    fn masses(
+        &self,
+        medium: &Medium,
+        ray: &Ray,
+        range: (f64, f64),
+        bins: usize,
+        n: u64,
+        seed: u64,
+    ) -> (Vec<(f64, f64)>, f64, Vec<f64>) {
         masses(self, medium, ray, range, bins, n, seed)
     }
 }
@@ -133,8 +188,10 @@ fn forced_collisions_have_the_analog_law_within_one_dense_piece() {
     // A homogeneous box is one piece: the position within a piece (the truncated
     // exponential) is all there is to get right. Optical depth 3 (τ = 0.05, no roulette):
     // 24 bins, |z| < 3.9 (Šidák at α = 0.01 over 24)
-    let field = Constant { lo: DVec3::ZERO, hi: DVec3::new(2.0, 1.0, 1.0), density: 1.5, source: 1.0 };
-    let medium = Medium { sigma_t: 1.0, albedo: 0.8, g: 0.0, emission: common::explosion_emission() };
+    let field =
+        Constant { lo: DVec3::ZERO, hi: DVec3::new(2.0, 1.0, 1.0), density: 1.5, source: 1.0 };
+    let medium =
+        Medium { sigma_t: 1.0, albedo: 0.8, g: 0.0, emission: common::explosion_emission() };
     let ray = Ray { origin: DVec3::new(-1.0, 0.5, 0.5), direction: DVec3::X };
     let (got, collided, expected) = masses(&field, &medium, &ray, (1.0, 3.0), 24, 40_000, 12);
     assert_eq!(got.len(), 24, "no bin was pooled");
@@ -153,14 +210,27 @@ fn analog_and_skipped_collisions_are_unchanged_by_the_forced_walk() {
     let volume = explosion_volume();
     let (ray, _, t1) = crossing(&volume);
     let unit = Medium { sigma_t: 1.0, albedo: 0.8, g: 0.0, emission: common::explosion_emission() };
-    let medium = Medium { sigma_t: 1.0 / optical_depth(&volume, &unit, &ray, t1, f64::INFINITY).optical_depth, ..unit };
+    let medium = Medium {
+        sigma_t: 1.0 / optical_depth(&volume, &unit, &ray, t1, f64::INFINITY).optical_depth,
+        ..unit
+    };
     for i in 0..200 {
         let run = |collision| {
             let mut sampler = Sampler::new(5, 0, i);
             let u = sampler.next_f64();
-            track(&volume, &medium, &ray, f64::INFINITY, Estimator::RayMarch, collision, u, &mut sampler)
+            track(
+                &volume,
+                &medium,
+                &ray,
+                f64::INFINITY,
+                Estimator::RayMarch,
+                collision,
+                u,
+                &mut sampler,
+            )
         };
-        let (forced, analog, skip) = (run(Collision::Forced), run(Collision::Analog), run(Collision::Skip));
+        let (forced, analog, skip) =
+            (run(Collision::Forced), run(Collision::Analog), run(Collision::Skip));
         assert_eq!(forced.emission, skip.emission);
         assert_eq!(forced.transmittance, skip.transmittance);
         assert_eq!(analog.emission, skip.emission);
@@ -175,9 +245,18 @@ fn forced_camera_collisions_give_the_same_image_means() {
     // stay: thin and dense, both reconstructions, the paper's method, MIS in volume
     // measure and forward paths, split as the defaults: 2 × 2 × 3 × 5 regions = 60
     // comparisons, |z| < 4.2 (Šidák at α = 0.01)
-    for (interpolation, sigma_t) in [Interpolation::Nearest, Interpolation::Linear].into_iter().flat_map(|i| [(i, 1.5), (i, 25.0)]) {
-        for (est, ls) in [(Estimator::Line, LightSampling::Fnee), (Estimator::Point, LightSampling::Nee), (Estimator::Line, LightSampling::None)] {
-            let scene = explosion_scene(sigma_t, interpolation, false, |vol, e| Lights::build(vol, e, ls, 8).unwrap());
+    for (interpolation, sigma_t) in [Interpolation::Nearest, Interpolation::Linear]
+        .into_iter()
+        .flat_map(|i| [(i, 1.5), (i, 25.0)])
+    {
+        for (est, ls) in [
+            (Estimator::Line, LightSampling::Fnee),
+            (Estimator::Point, LightSampling::Nee),
+            (Estimator::Line, LightSampling::None),
+        ] {
+            let scene = explosion_scene(sigma_t, interpolation, false, |vol, e| {
+                Lights::build(vol, e, ls, 8).unwrap()
+            });
             let analog = Integrator {
                 estimator: est,
                 camera_estimator: Some(Estimator::RayMarch),
@@ -194,7 +273,12 @@ fn forced_camera_collisions_give_the_same_image_means() {
             let reference = region_means_with(SamplerKind::Sobol, &scene, analog, 8, 12, 900);
             let got = region_means_with(SamplerKind::Sobol, &scene, forced, 8, 12, 900);
             assert_ne!(got, reference, "forcing the camera collision changed nothing");
-            common::assert_same_means(&format!("{interpolation} σ_t={sigma_t} {est:?}/{ls:?}, forced vs analog"), &got, &reference, 4.2);
+            common::assert_same_means(
+                &format!("{interpolation} σ_t={sigma_t} {est:?}/{ls:?}, forced vs analog"),
+                &got,
+                &reference,
+                4.2,
+            );
         }
     }
 }
@@ -210,11 +294,22 @@ fn where_paths_scatter_the_camera_is_ray_marched_and_its_collision_forced_by_def
     let scattering = plume_engine::integrator::Integrator::for_scene(&scene);
     assert_eq!(scattering.camera_estimator(), Estimator::RayMarch);
     assert_eq!(scattering.camera_collision, Collision::Forced);
-    assert_eq!(scattering.estimator, Estimator::Line, "the other segments keep the method's estimator");
+    assert_eq!(
+        scattering.estimator,
+        Estimator::Line,
+        "the other segments keep the method's estimator"
+    );
     scene.integrator.camera_collision = CameraCollision::Analog;
-    assert_eq!(plume_engine::integrator::Integrator::for_scene(&scene).camera_collision, Collision::Analog);
+    assert_eq!(
+        plume_engine::integrator::Integrator::for_scene(&scene).camera_collision,
+        Collision::Analog
+    );
     scene.integrator.camera_estimator = Some(plume_scene::EstimatorKind::Line);
-    assert_eq!(plume_engine::integrator::Integrator::for_scene(&scene).camera_estimator(), Estimator::Line, "an asked camera estimator wins");
+    assert_eq!(
+        plume_engine::integrator::Integrator::for_scene(&scene).camera_estimator(),
+        Estimator::Line,
+        "an asked camera estimator wins"
+    );
 }
 
 #[test]
@@ -222,9 +317,30 @@ fn camera_collision_is_a_flag_a_scene_key_and_part_of_the_settings_hash() {
     use common::{exr_pixels, plume, s, tmpdir};
     let dir = tmpdir("forced", "cli");
     let vdb = common::explosion(&dir, 32, Some(3));
-    let base = ["render", s(&vdb), "--width", "24", "--height", "16", "--spp", "4", "--albedo", "0.8", "--stats"];
-    let hashes = common::settings_hashes(&dir, &base, "--camera-collision", &[("forced", Some("forced")), ("analog", Some("analog")), ("default", None)]);
-    assert_eq!(exr_pixels(&dir.join("default.exr")), exr_pixels(&dir.join("forced.exr")), "forced is the default");
+    let base = [
+        "render",
+        s(&vdb),
+        "--width",
+        "24",
+        "--height",
+        "16",
+        "--spp",
+        "4",
+        "--albedo",
+        "0.8",
+        "--stats",
+    ];
+    let hashes = common::settings_hashes(
+        &dir,
+        &base,
+        "--camera-collision",
+        &[("forced", Some("forced")), ("analog", Some("analog")), ("default", None)],
+    );
+    assert_eq!(
+        exr_pixels(&dir.join("default.exr")),
+        exr_pixels(&dir.join("forced.exr")),
+        "forced is the default"
+    );
     assert_ne!(exr_pixels(&dir.join("analog.exr")), exr_pixels(&dir.join("forced.exr")));
     assert_eq!(hashes[0], hashes[2]);
     assert_ne!(hashes[0], hashes[1], "the camera collision is not in the settings hash");
@@ -238,8 +354,18 @@ fn camera_collision_is_a_flag_a_scene_key_and_part_of_the_settings_hash() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert_eq!(exr_pixels(&out), exr_pixels(&dir.join("analog.exr")));
     // A misspelt value names the flag and the choices
-    let o = plume(&["render", s(&vdb), "--camera-collision", "sometimes", "-o", s(&dir.join("bad.exr"))]);
+    let o = plume(&[
+        "render",
+        s(&vdb),
+        "--camera-collision",
+        "sometimes",
+        "-o",
+        s(&dir.join("bad.exr")),
+    ]);
     assert!(!o.status.success());
     let err = common::stderr(&o);
-    assert!(err.contains("--camera-collision") && err.contains("forced") && err.contains("analog"), "{err}");
+    assert!(
+        err.contains("--camera-collision") && err.contains("forced") && err.contains("analog"),
+        "{err}"
+    );
 }

@@ -86,8 +86,22 @@ impl Rng {
 }
 
 /// Values that break length and count fields.
-const SMASH_32: [u32; 12] = [0, 1, 0x7f, 0xff, 0x100, 0xffff, 0x10000, 0x7fff_ffff, 0x8000_0000, 0xffff_fffe, 0xffff_ffff, 0x0100_0000];
-const SMASH_64: [u64; 8] = [0, 1, u64::MAX, i64::MAX as u64, 1 << 32, 1 << 40, 1 << 62, 0x8000_0000_0000_0000];
+const SMASH_32: [u32; 12] = [
+    0,
+    1,
+    0x7f,
+    0xff,
+    0x100,
+    0xffff,
+    0x10000,
+    0x7fff_ffff,
+    0x8000_0000,
+    0xffff_fffe,
+    0xffff_ffff,
+    0x0100_0000,
+];
+const SMASH_64: [u64; 8] =
+    [0, 1, u64::MAX, i64::MAX as u64, 1 << 32, 1 << 40, 1 << 62, 0x8000_0000_0000_0000];
 
 /// Applies one to three random mutations: bit flips, smashed 4- and 8-byte integer
 /// fields, truncation, deleted and duplicated chunks. Returns the mutant and a
@@ -233,7 +247,9 @@ fn judge(run: Option<Run>, file: &Path, image: Option<&Path>) -> Result<Outcome,
     }
     if run.code == Some(0) {
         if let Some(image) = image {
-            let pixels = plume::output::read_exr(image).map_err(|e| format!("no image after success: {e}"))?.pixels;
+            let pixels = plume::output::read_exr(image)
+                .map_err(|e| format!("no image after success: {e}"))?
+                .pixels;
             if !pixels.iter().flatten().all(|v| v.is_finite()) {
                 return Err("non-finite pixels after success".into());
             }
@@ -242,7 +258,10 @@ fn judge(run: Option<Run>, file: &Path, image: Option<&Path>) -> Result<Outcome,
     }
     let errors: Vec<&str> = run.stderr.lines().filter(|l| l.contains("error")).collect();
     let [line] = errors.as_slice() else {
-        return Err(format!("exit {:?} without exactly one error line: {:?}", run.code, run.stderr));
+        return Err(format!(
+            "exit {:?} without exactly one error line: {:?}",
+            run.code, run.stderr
+        ));
     };
     if !line.starts_with("plume: error: ") {
         return Err(format!("error line not in plume's form: {line:?}"));
@@ -297,12 +316,14 @@ fn campaign(count: usize) -> Tally {
 /// The campaign over the mutants numbered `indices`.
 fn campaign_of(indices: &[usize]) -> Tally {
     let count = indices.len();
-    let sources: Vec<(PathBuf, Vec<u8>)> = SOURCES.iter().map(|s| (PathBuf::from(s), fs::read(s).expect("source file"))).collect();
+    let sources: Vec<(PathBuf, Vec<u8>)> =
+        SOURCES.iter().map(|s| (PathBuf::from(s), fs::read(s).expect("source file"))).collect();
     // Per process and per campaign: campaigns run at once (debug suite and release
     // figures; tests of one binary in parallel)
     static CAMPAIGNS: AtomicUsize = AtomicUsize::new(0);
     let nth = CAMPAIGNS.fetch_add(1, Ordering::Relaxed);
-    let root = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("fuzz-mutants-{}-{nth}", std::process::id()));
+    let root = PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("fuzz-mutants-{}-{nth}", std::process::id()));
     let findings_dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("fuzz-findings");
     let _ = fs::remove_dir_all(&root);
     fs::create_dir_all(&findings_dir).unwrap();
@@ -312,7 +333,8 @@ fn campaign_of(indices: &[usize]) -> Tally {
     let start = Instant::now();
     std::thread::scope(|scope| {
         for thread in 0..threads {
-            let (sources, root, findings_dir, next, tally) = (&sources, &root, &findings_dir, &next, &tally);
+            let (sources, root, findings_dir, next, tally) =
+                (&sources, &root, &findings_dir, &next, &tally);
             scope.spawn(move || {
                 let scratch = root.join(format!("t{thread}"));
                 fs::create_dir_all(&scratch).unwrap();
@@ -323,7 +345,11 @@ fn campaign_of(indices: &[usize]) -> Tally {
                     let image = scratch.join("out.exr");
                     let _ = fs::remove_file(&image);
                     let f = file.to_str().unwrap();
-                    let info = judge(run_plume(&["info", f, "--read-timeout", READ_TIMEOUT], &scratch), &file, None);
+                    let info = judge(
+                        run_plume(&["info", f, "--read-timeout", READ_TIMEOUT], &scratch),
+                        &file,
+                        None,
+                    );
                     let render_args = [
                         "render",
                         f,
@@ -348,18 +374,32 @@ fn campaign_of(indices: &[usize]) -> Tally {
                         match result {
                             Ok(outcome) => {
                                 *t.counts.entry((command, outcome)).or_default() += 1;
-                                finding |= matches!(outcome, Outcome::ChildCrash | Outcome::ChildHang | Outcome::ChildOutOfMemory);
+                                finding |= matches!(
+                                    outcome,
+                                    Outcome::ChildCrash
+                                        | Outcome::ChildHang
+                                        | Outcome::ChildOutOfMemory
+                                );
                             }
-                            Err(what_failed) => {
-                                t.failures.push(Failure { mutant: index, command, what: format!("{what_failed} [{}: {what}]", sources[source].0.display()) })
-                            }
+                            Err(what_failed) => t.failures.push(Failure {
+                                mutant: index,
+                                command,
+                                what: format!(
+                                    "{what_failed} [{}: {what}]",
+                                    sources[source].0.display()
+                                ),
+                            }),
                         }
                     }
                     if finding {
                         t.findings += 1;
                         let name = format!("mutant_{index}");
                         fs::write(findings_dir.join(format!("{name}.vdb")), &bytes).unwrap();
-                        fs::write(findings_dir.join(format!("{name}.txt")), format!("{}: {what}\n", sources[source].0.display())).unwrap();
+                        fs::write(
+                            findings_dir.join(format!("{name}.txt")),
+                            format!("{}: {what}\n", sources[source].0.display()),
+                        )
+                        .unwrap();
                     }
                     drop(t);
                     let _ = fs::remove_file(&file);
@@ -383,14 +423,22 @@ fn report(tally: &Tally, count: usize, wall: Duration) {
     for ((command, outcome), n) in &tally.counts {
         eprintln!("  {command:<6} {outcome:?}: {n}");
     }
-    eprintln!("  plume failures (crashes, hangs, silent or unclear failures): {}", tally.failures.len());
+    eprintln!(
+        "  plume failures (crashes, hangs, silent or unclear failures): {}",
+        tally.failures.len()
+    );
     for f in tally.failures.iter().take(20) {
         eprintln!("    {f}");
     }
 }
 
 fn assert_clean(tally: &Tally) {
-    assert!(tally.failures.is_empty(), "{} plume failures; first: {}", tally.failures.len(), tally.failures[0]);
+    assert!(
+        tally.failures.is_empty(),
+        "{} plume failures; first: {}",
+        tally.failures.len(),
+        tally.failures[0]
+    );
 }
 
 #[test]
@@ -400,7 +448,9 @@ fn mutants_never_crash_hang_or_silently_fail_plume() {
     let total: usize = tally.counts.values().sum();
     assert_eq!(total, 2 * 240);
     // The campaign must exercise both sides: files that still read, files that do not
-    let count = |o: Outcome| tally.counts.iter().filter(|((_, x), _)| *x == o).map(|(_, n)| n).sum::<usize>();
+    let count = |o: Outcome| {
+        tally.counts.iter().filter(|((_, x), _)| *x == o).map(|(_, n)| n).sum::<usize>()
+    };
     assert!(count(Outcome::Success) > 0 && count(Outcome::CleanError) > 0);
 }
 

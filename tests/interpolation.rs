@@ -8,18 +8,36 @@ use crate::common;
 
 use std::path::Path;
 
-use common::{explosion, exr_pixels, grid, grid_emission, mean_stderr, pixel_bits, plume, plume_exits, s, stderr, tmpdir};
+use common::{
+    explosion, exr_pixels, grid, grid_emission, mean_stderr, pixel_bits, plume, plume_exits, s,
+    stderr, tmpdir,
+};
 use glam::{DAffine3, DVec3, IVec3};
+use plume_core::sampling::SamplerKind;
 use plume_engine::camera::Camera;
-use plume_engine::integrator::{AnyScene, Integrator, LightSampling, Lights, MisHeuristic, Scene, Tracking};
+use plume_engine::integrator::{
+    AnyScene, Integrator, LightSampling, Lights, MisHeuristic, Scene, Tracking,
+};
 use plume_engine::medium::{Collision, Convention, Emission, EmissionKind, Estimator, Medium};
 use plume_engine::render::{render, RenderSettings, SampleBudget};
-use plume_core::sampling::SamplerKind;
 use plume_volume::{Interpolation, Volume};
 
 /// Render `scene` with `spp` samples and `seed`; the averaged RGBA pixels.
-fn pixels(scene: &AnyScene, integrator: Integrator, spp: u32, seed: u64, threads: usize) -> Vec<[f32; 4]> {
-    let settings = RenderSettings { budget: SampleBudget::Spp(spp), seed, sampler: SamplerKind::Sobol, threads, first_sample: 0, integrator };
+fn pixels(
+    scene: &AnyScene,
+    integrator: Integrator,
+    spp: u32,
+    seed: u64,
+    threads: usize,
+) -> Vec<[f32; 4]> {
+    let settings = RenderSettings {
+        budget: SampleBudget::Spp(spp),
+        seed,
+        sampler: SamplerKind::Sobol,
+        threads,
+        first_sample: 0,
+        integrator,
+    };
     let r = plume_engine::with_scene!(scene, s => render(s, &settings, &|_, _| {}));
     r.film.average(r.spp)
 }
@@ -52,11 +70,22 @@ fn linear_close_ups_are_continuous_and_nearest_ones_are_not() {
     let (width, distance, span) = (240u32, 1000.0f64, 6.0);
     let centre = DVec3::splat(1.5);
     let fov = 2.0 * (0.5 * span / distance).atan().to_degrees();
-    let camera = Camera::look_at(centre - DVec3::Z * distance, centre, DVec3::Y, fov, width, width).unwrap();
+    let camera =
+        Camera::look_at(centre - DVec3::Z * distance, centre, DVec3::Y, fov, width, width).unwrap();
     let scene = |interpolation| {
         let vol = Volume::build(&density, Some(&emission), |v| e.map_source(v)).unwrap();
         let medium = Medium { sigma_t: 1e-10, albedo: 0.0, g: 0.0, emission: e };
-        AnyScene::new(Scene { field: vol, medium, camera, lights: Lights::default(), motion: None, majorants: None }, interpolation)
+        AnyScene::new(
+            Scene {
+                field: vol,
+                medium,
+                camera,
+                lights: Lights::default(),
+                motion: None,
+                majorants: None,
+            },
+            interpolation,
+        )
     };
     let w = width as usize;
 
@@ -107,20 +136,36 @@ fn linear_close_ups_are_continuous_and_nearest_ones_are_not() {
     let mut jumps = Vec::new();
     for interpolation in [Interpolation::Linear, Interpolation::Nearest] {
         let px = pixels(&scene(interpolation), integrator, 2, 17, 0);
-        assert!(px.iter().all(|p| p[3] == 0.0), "{interpolation}: a sample collided; the line estimate is no longer ∫ L_e ds");
+        assert!(
+            px.iter().all(|p| p[3] == 0.0),
+            "{interpolation}: a sample collided; the line estimate is no longer ∫ L_e ds"
+        );
         // At the column through voxel centres (x, y) = (1, 2) both reconstructions give
         // Σ_k v_1,2,k (unit tents and boxes); a pixel whose centre is within Δ/2 of it on
         // both axes (its footprint within Δ) is within L·2Δ of that.
         let column: f64 = (0..4).map(|k| f64::from(block_value(IVec3::new(1, 2, k)))).sum();
         // (the image's x runs along world −x, its y along −y: `right` = forward × up)
-        let (cx, cy) = ((0.5 * w as f64 + (centre.x - 1.0) / pixel) as usize, (0.5 * w as f64 + (centre.y - 2.0) / pixel) as usize);
+        let (cx, cy) = (
+            (0.5 * w as f64 + (centre.x - 1.0) / pixel) as usize,
+            (0.5 * w as f64 + (centre.y - 2.0) / pixel) as usize,
+        );
         let ray = camera.ray(cx as f64 + 0.5, cy as f64 + 0.5);
         let hit = ray.origin + ray.direction * ((centre.z - ray.origin.z) / ray.direction.z);
         let off = 0.5 * pixel * (1.0 + 1e-6);
-        assert!((hit.x - 1.0).abs() < off && (hit.y - 2.0).abs() < off, "pixel ({cx}, {cy}) looks at {hit}, not at the column (1, 2)");
+        assert!(
+            (hit.x - 1.0).abs() < off && (hit.y - 2.0).abs() < off,
+            "pixel ({cx}, {cy}) looks at {hit}, not at the column (1, 2)"
+        );
         let at_column = f64::from(px[cy * w + cx][0]);
-        let near = if interpolation == Interpolation::Linear { 2.0 * lipschitz * pixel * (1.0 + 1e-6) + 1e-4 } else { 1e-4 };
-        assert!((at_column - column).abs() <= near, "{interpolation}: pixel ({cx}, {cy}) = {at_column}, column sum {column}");
+        let near = if interpolation == Interpolation::Linear {
+            2.0 * lipschitz * pixel * (1.0 + 1e-6) + 1e-4
+        } else {
+            1e-4
+        };
+        assert!(
+            (at_column - column).abs() <= near,
+            "{interpolation}: pixel ({cx}, {cy}) = {at_column}, column sum {column}"
+        );
         jumps.push(max_jump(&px));
     }
     let (linear, nearest) = (jumps[0], jumps[1]);
@@ -190,16 +235,28 @@ fn nearest_and_linear_agree_on_smooth_data_up_to_the_boundary_band() {
     let n = f64::from(N);
     let leaves: Vec<IVec3> = (0..8).map(|i| IVec3::new(i & 1, (i >> 1) & 1, i >> 2) * 8).collect();
     let density = grid("density", DAffine3::IDENTITY, &leaves, |_| 1.0);
-    let emission = grid("emission", DAffine3::IDENTITY, &leaves, |p| (A + B * f64::from(p.x)) as f32);
+    let emission =
+        grid("emission", DAffine3::IDENTITY, &leaves, |p| (A + B * f64::from(p.x)) as f32);
     let e = grid_emission(Convention::Cycles);
     let (width, distance, span) = (80u32, 1e6f64, 20.0);
     let centre = DVec3::splat(0.5 * (n - 1.0));
     let fov = 2.0 * (0.5 * span / distance).atan().to_degrees();
-    let camera = Camera::look_at(centre - DVec3::Z * distance, centre, DVec3::Y, fov, width, width).unwrap();
+    let camera =
+        Camera::look_at(centre - DVec3::Z * distance, centre, DVec3::Y, fov, width, width).unwrap();
     let scene = |interpolation| {
         let vol = Volume::build(&density, Some(&emission), |v| e.map_source(v)).unwrap();
         let medium = Medium { sigma_t: C / n, albedo: 0.0, g: 0.0, emission: e };
-        AnyScene::new(Scene { field: vol, medium, camera, lights: Lights::default(), motion: None, majorants: None }, interpolation)
+        AnyScene::new(
+            Scene {
+                field: vol,
+                medium,
+                camera,
+                lights: Lights::default(),
+                motion: None,
+                majorants: None,
+            },
+            interpolation,
+        )
     };
     let (linear, nearest) = (scene(Interpolation::Linear), scene(Interpolation::Nearest));
     let w = width as usize;
@@ -210,8 +267,12 @@ fn nearest_and_linear_agree_on_smooth_data_up_to_the_boundary_band() {
     for run in 0..runs {
         for (k, any) in [&linear, &nearest].into_iter().enumerate() {
             let px = pixels(any, Integrator::emission_only(Estimator::Line), 4, 100 + run, 0);
-            let (px, whole) = (&px, px.iter().map(|p| f64::from(p[0])).sum::<f64>() / px.len() as f64);
-            let region: f64 = inner.clone().flat_map(|y| inner.clone().map(move |x| f64::from(px[y * w + x][0]))).sum();
+            let (px, whole) =
+                (&px, px.iter().map(|p| f64::from(p[0])).sum::<f64>() / px.len() as f64);
+            let region: f64 = inner
+                .clone()
+                .flat_map(|y| inner.clone().map(move |x| f64::from(px[y * w + x][0])))
+                .sum();
             per_run[k].push(whole);
             per_run[2 + k].push(region / (inner.len() * inner.len()) as f64);
         }
@@ -224,7 +285,9 @@ fn nearest_and_linear_agree_on_smooth_data_up_to_the_boundary_band() {
     // paired per-run differences (runs are independent). 16 runs: t with 15 degrees of
     // freedom, P(|t| > 5) ≈ 1.6e-4, for each of the 4 comparisons.
     let k = 5.0;
-    let diff = |a: &[f64], b: &[f64]| mean_stderr(&a.iter().zip(b).map(|(x, y)| x - y).collect::<Vec<_>>());
+    let diff = |a: &[f64], b: &[f64]| {
+        mean_stderr(&a.iter().zip(b).map(|(x, y)| x - y).collect::<Vec<_>>())
+    };
     let (lw, nw) = (mean_stderr(&per_run[0]), mean_stderr(&per_run[1]));
     let (dw, di) = (diff(&per_run[0], &per_run[1]), diff(&per_run[2], &per_run[3]));
     println!("whole image: linear {lw:?}, nearest {nw:?}, closed forms {predicted:?}; difference {dw:?}, band {band}; interior difference {di:?}");
@@ -234,11 +297,24 @@ fn nearest_and_linear_agree_on_smooth_data_up_to_the_boundary_band() {
         assert!((m - p).abs() < k * se + slack, "{what}: image mean {m} ± {se}, closed form {p}");
     }
     // Interior: no structural difference at all
-    assert!(di.0.abs() < k * di.1 + slack, "interior region means differ by {} ± {} between linear and nearest", di.0, di.1);
+    assert!(
+        di.0.abs() < k * di.1 + slack,
+        "interior region means differ by {} ± {} between linear and nearest",
+        di.0,
+        di.1
+    );
     // Whole image: exactly the boundary band's difference, resolved by these samples (a
     // reconstruction that changed the interior, or lost the band, fails here)
-    assert!((dw.0 - band).abs() < k * dw.1 + slack, "whole-image means differ by {} ± {}, the band predicts {band}", dw.0, dw.1);
-    assert!(band.abs() > 10.0 * (k * dw.1 + slack), "the band difference {band} is not resolved by this many samples ({dw:?})");
+    assert!(
+        (dw.0 - band).abs() < k * dw.1 + slack,
+        "whole-image means differ by {} ± {}, the band predicts {band}",
+        dw.0,
+        dw.1
+    );
+    assert!(
+        band.abs() > 10.0 * (k * dw.1 + slack),
+        "the band difference {band} is not resolved by this many samples ({dw:?})"
+    );
 }
 
 // ---------------------------------------------------------------------------------------
@@ -246,14 +322,34 @@ fn nearest_and_linear_agree_on_smooth_data_up_to_the_boundary_band() {
 
 #[test]
 fn linear_scattering_renders_are_bit_identical_for_any_thread_count() {
-    let ex = plume_synth::explosion(&plume_synth::ExplosionParams { resolution: 32, seed: 5, ..Default::default() });
-    let e = Emission { kind: EmissionKind::Blackbody, scale: 1e-3, cutoff_kelvin: 500.0, ..grid_emission(Convention::Physical) };
-    let camera = Camera::look_at(DVec3::new(0.0, 0.2, -6.5), DVec3::new(0.0, 0.2, 0.0), DVec3::Y, 40.0, 24, 16).unwrap();
+    let ex = plume_synth::explosion(&plume_synth::ExplosionParams {
+        resolution: 32,
+        seed: 5,
+        ..Default::default()
+    });
+    let e = Emission {
+        kind: EmissionKind::Blackbody,
+        scale: 1e-3,
+        cutoff_kelvin: 500.0,
+        ..grid_emission(Convention::Physical)
+    };
+    let camera = Camera::look_at(
+        DVec3::new(0.0, 0.2, -6.5),
+        DVec3::new(0.0, 0.2, 0.0),
+        DVec3::Y,
+        40.0,
+        24,
+        16,
+    )
+    .unwrap();
     for ls in [LightSampling::Fnee, LightSampling::Nee] {
         let vol = Volume::build(&ex.density, Some(&ex.temperature), |v| e.map_source(v)).unwrap();
         let lights = Lights::build(&vol, &e, ls, 8).unwrap();
         let medium = Medium { sigma_t: 4.0, albedo: 0.8, g: 0.3, emission: e };
-        let scene = AnyScene::new(Scene { field: vol, medium, camera, lights, motion: None, majorants: None }, Interpolation::Linear);
+        let scene = AnyScene::new(
+            Scene { field: vol, medium, camera, lights, motion: None, majorants: None },
+            Interpolation::Linear,
+        );
         assert_eq!(scene.interpolation(), Interpolation::Linear);
         let estimator = if ls == LightSampling::Nee { Estimator::Point } else { Estimator::Line };
         let integrator = Integrator {
@@ -279,7 +375,8 @@ fn linear_scattering_renders_are_bit_identical_for_any_thread_count() {
 // The command line and scene files
 
 /// Flags of the small renders below (a generated 32³ explosion, scattering).
-const SMALL: [&str; 9] = ["--width", "24", "--height", "16", "--density-scale", "3", "--albedo", "0.8", "-q"];
+const SMALL: [&str; 9] =
+    ["--width", "24", "--height", "16", "--density-scale", "3", "--albedo", "0.8", "-q"];
 
 /// `plume render input -o out` with `SMALL` and `extra`, which must succeed.
 #[track_caller]
@@ -293,7 +390,12 @@ fn render_cli(input: &Path, out: &Path, extra: &[&str]) -> std::process::Output 
 }
 
 fn header(p: &Path, key: &str) -> String {
-    plume::output::read_exr_contents(p).unwrap().metadata.get(&format!("plume:{key}")).cloned().unwrap_or_default()
+    plume::output::read_exr_contents(p)
+        .unwrap()
+        .metadata
+        .get(&format!("plume:{key}"))
+        .cloned()
+        .unwrap_or_default()
 }
 
 fn bits(p: &Path) -> Vec<u32> {
@@ -310,14 +412,26 @@ fn the_flag_and_the_scene_key_choose_the_reconstruction_and_the_image_records_it
     render_cli(&ex, &image("default.exr"), &["--spp", "2"]);
     assert!(exr_pixels(&image("linear.exr")).iter().any(|p| p[0] > 0.0), "the explosion emits");
     assert_eq!(bits(&image("default.exr")), bits(&image("linear.exr")), "linear is the default");
-    assert_ne!(bits(&image("nearest.exr")), bits(&image("linear.exr")), "nearest and linear are different volumes");
+    assert_ne!(
+        bits(&image("nearest.exr")),
+        bits(&image("linear.exr")),
+        "nearest and linear are different volumes"
+    );
     // The header's scene says which, and the settings hash tells them apart
-    for (name, value) in [("linear.exr", "linear"), ("nearest.exr", "nearest"), ("default.exr", "linear")] {
+    for (name, value) in
+        [("linear.exr", "linear"), ("nearest.exr", "nearest"), ("default.exr", "linear")]
+    {
         let scene = header(&image(name), "scene");
         assert!(scene.contains(&format!("interpolation = \"{value}\"")), "{name}: {scene}");
     }
-    assert_eq!(header(&image("default.exr"), "settingsHash"), header(&image("linear.exr"), "settingsHash"));
-    assert_ne!(header(&image("nearest.exr"), "settingsHash"), header(&image("linear.exr"), "settingsHash"));
+    assert_eq!(
+        header(&image("default.exr"), "settingsHash"),
+        header(&image("linear.exr"), "settingsHash")
+    );
+    assert_ne!(
+        header(&image("nearest.exr"), "settingsHash"),
+        header(&image("linear.exr"), "settingsHash")
+    );
 
     // The scene key is honoured, a flag beside the file overrides it
     let shot = d.join("shot.toml");
@@ -329,10 +443,25 @@ fn the_flag_and_the_scene_key_choose_the_reconstruction_and_the_image_records_it
     .unwrap();
     let o = plume(&["render", s(&shot), "-o", s(&image("file.exr"))]);
     assert!(o.status.success(), "{}", stderr(&o));
-    assert_eq!(bits(&image("file.exr")), bits(&image("nearest.exr")), "volume.interpolation = \"nearest\"");
-    let o = plume(&["render", s(&shot), "-o", s(&image("file-linear.exr")), "--interpolation", "linear"]);
+    assert_eq!(
+        bits(&image("file.exr")),
+        bits(&image("nearest.exr")),
+        "volume.interpolation = \"nearest\""
+    );
+    let o = plume(&[
+        "render",
+        s(&shot),
+        "-o",
+        s(&image("file-linear.exr")),
+        "--interpolation",
+        "linear",
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    assert_eq!(bits(&image("file-linear.exr")), bits(&image("linear.exr")), "--interpolation beside the file");
+    assert_eq!(
+        bits(&image("file-linear.exr")),
+        bits(&image("linear.exr")),
+        "--interpolation beside the file"
+    );
 
     // --write-scene writes the resolved choice
     for (extra, value) in [(&[][..], "linear"), (&["--interpolation", "nearest"][..], "nearest")] {
@@ -345,9 +474,20 @@ fn the_flag_and_the_scene_key_choose_the_reconstruction_and_the_image_records_it
         let text = std::fs::read_to_string(&written).unwrap();
         assert!(text.contains(&format!("\ninterpolation = \"{value}\"\n")), "{extra:?}: {text}");
     }
-    let o = plume(&["render", s(&shot), "-o", s(&image("unused.exr")), "--write-scene", s(&d.join("over.toml")), "--interpolation", "linear"]);
+    let o = plume(&[
+        "render",
+        s(&shot),
+        "-o",
+        s(&image("unused.exr")),
+        "--write-scene",
+        s(&d.join("over.toml")),
+        "--interpolation",
+        "linear",
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    assert!(std::fs::read_to_string(d.join("over.toml")).unwrap().contains("interpolation = \"linear\""));
+    assert!(std::fs::read_to_string(d.join("over.toml"))
+        .unwrap()
+        .contains("interpolation = \"linear\""));
 }
 
 #[test]
@@ -355,10 +495,18 @@ fn a_bad_interpolation_is_refused_naming_the_flag_or_the_file_line_and_key() {
     let d = tmpdir("interp", "bad");
     let ex = explosion(&d, 32, Some(2));
     let out = d.join("o.exr");
-    let err = plume_exits(&["render", s(&ex), "-o", s(&out), "--interpolation", "cubic"], 2, &["--interpolation", "cubic"]);
+    let err = plume_exits(
+        &["render", s(&ex), "-o", s(&out), "--interpolation", "cubic"],
+        2,
+        &["--interpolation", "cubic"],
+    );
     assert_eq!(err.lines().filter(|l| l.contains("error")).count(), 1, "one error line: {err}");
     let shot = d.join("bad.toml");
-    std::fs::write(&shot, "[volume]\nfile = \"ex.vdb\"\ninterpolation = \"cubic\"\n[output]\nimage = \"o.exr\"\n").unwrap();
+    std::fs::write(
+        &shot,
+        "[volume]\nfile = \"ex.vdb\"\ninterpolation = \"cubic\"\n[output]\nimage = \"o.exr\"\n",
+    )
+    .unwrap();
     let at = format!("{}:3:", shot.display());
     let err = plume_exits(&["render", s(&shot)], 2, &[&at, "volume.interpolation", "cubic"]);
     assert_eq!(err.trim_end().lines().count(), 1, "one line: {err}");
@@ -378,7 +526,11 @@ fn parts_and_resumed_renders_never_mix_nearest_and_linear() {
     let lin_a = part("lin.a.exr", "0..2", "linear");
     let lin_b = part("lin.b.exr", "2..4", "linear");
     let merged = d.join("merged.exr");
-    let err = plume_exits(&["merge", "-o", s(&merged), s(&near_a), s(&lin_b)], 3, &["settings hash", s(&lin_b)]);
+    let err = plume_exits(
+        &["merge", "-o", s(&merged), s(&near_a), s(&lin_b)],
+        3,
+        &["settings hash", s(&lin_b)],
+    );
     assert_eq!(err.lines().filter(|l| l.contains("error")).count(), 1, "{err}");
     assert!(!merged.exists());
     // The same parts rendered linear merge, to the bits of one linear render
@@ -392,7 +544,11 @@ fn parts_and_resumed_renders_never_mix_nearest_and_linear() {
     let resumed = d.join("resumed.exr");
     render_cli(&ex, &resumed, &["--spp", "2", "--sums", "--interpolation", "nearest"]);
     let o = render_cli(&ex, &resumed, &["--spp", "4", "--sums", "--interpolation", "linear"]);
-    assert!(stderr(&o).contains("other settings") && !stderr(&o).contains("continuing"), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("other settings") && !stderr(&o).contains("continuing"),
+        "{}",
+        stderr(&o)
+    );
     assert_eq!(bits(&resumed), bits(&whole), "rendered again from sample 0, linear");
 }
 
@@ -405,7 +561,11 @@ fn linear_renders_through_an_automatic_cache_tile_by_tile_equal_in_core_ones() {
     let cache_dir = d.join("cache");
     let flags = ["--spp", "3", "--interpolation", "linear", "--seed", "8"];
     render_cli(&ex, &d.join("core.exr"), &flags);
-    let out_of_core = [&flags[..], &["--memory-budget", "64KiB", "--cache-dir", s(&cache_dir), "--sample-order", "tile-major"]].concat();
+    let out_of_core = [
+        &flags[..],
+        &["--memory-budget", "64KiB", "--cache-dir", s(&cache_dir), "--sample-order", "tile-major"],
+    ]
+    .concat();
     render_cli(&ex, &d.join("ooc.exr"), &out_of_core);
     let caches = common::names_in(&cache_dir, |n| n.ends_with(".plume"));
     assert_eq!(caches.len(), 1, "an automatic cache was made: {caches:?}");
@@ -452,15 +612,31 @@ fn cycles_convention_interpolates_each_voxels_emission() {
         let p = DVec3::new(x0 + (f64::from(k) + 0.5) * h, ray.origin.y, ray.origin.z);
         let v = plume_volume::Field::values_at(&field, p);
         of_temperature += f64::from(emission.le(v.density, v.source).0[0]) * h;
-        per_voxel += plume_volume::Field::reconstruct(&field, p, &|d, s| emission.le(d, s)).emission[0] * h;
+        per_voxel +=
+            plume_volume::Field::reconstruct(&field, p, &|d, s| emission.le(d, s)).emission[0] * h;
     }
     for i in 0..16u64 {
         let mut sampler = plume_core::sampling::Sampler::new(77, 0, i);
         let u = sampler.next_f64();
-        let r = plume_engine::medium::track(&field, &medium, &ray, f64::INFINITY, Estimator::Line, Collision::Skip, u, &mut sampler);
+        let r = plume_engine::medium::track(
+            &field,
+            &medium,
+            &ray,
+            f64::INFINITY,
+            Estimator::Line,
+            Collision::Skip,
+            u,
+            &mut sampler,
+        );
         let line = r.emission[0];
-        assert!((line - per_voxel).abs() <= 1e-6 * per_voxel, "path {i}: line estimator {line}, per-voxel rule {per_voxel}");
+        assert!(
+            (line - per_voxel).abs() <= 1e-6 * per_voxel,
+            "path {i}: line estimator {line}, per-voxel rule {per_voxel}"
+        );
     }
-    assert!((per_voxel - of_temperature).abs() > 0.01 * per_voxel, "per-voxel {per_voxel} too close to the temperature-interpolated {of_temperature}");
+    assert!(
+        (per_voxel - of_temperature).abs() > 0.01 * per_voxel,
+        "per-voxel {per_voxel} too close to the temperature-interpolated {of_temperature}"
+    );
     println!("per-voxel rule: ∫L_e = {per_voxel:.6e}; temperature interpolated first {of_temperature:.6e}");
 }

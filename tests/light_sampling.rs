@@ -15,14 +15,17 @@ use crate::common;
 
 use std::f64::consts::PI;
 
-use common::{chi2_test, direction_bin, frame, grid, hash, mean_stderr, rng, SAMPLING_ALPHA as ALPHA, SAMPLING_TESTS as TESTS};
+use common::{
+    chi2_test, direction_bin, frame, grid, hash, mean_stderr, rng, SAMPLING_ALPHA as ALPHA,
+    SAMPLING_TESTS as TESTS,
+};
 use glam::{DAffine3, DMat3, DVec3, IVec3};
-use plume_engine::light::EmitterDistribution;
+use plume::Error;
 use plume_core::sampling::phase::sample_uniform_sphere;
 use plume_engine::light::fnee::ProxySampling;
+use plume_engine::light::EmitterDistribution;
 use plume_volume::proxy::ProxyGrid;
 use plume_volume::Volume;
-use plume::Error;
 
 /// Luminance of the test emission: depends on both channels, non-zero where density is 0.
 fn power(density: f32, source: f32) -> f64 {
@@ -46,7 +49,13 @@ fn emitter_volume(xf: DAffine3) -> Volume {
     let constant = IVec3::new(0, 1, 1);
     let cold = IVec3::new(-1, 0, 1);
     let brick = |p: IVec3| p.div_euclid(IVec3::splat(8));
-    let density = grid("density", xf, &leaves, |p| if brick(p) == constant { 0.5 } else { (hash(p, 1) % 100) as f32 / 50.0 });
+    let density = grid("density", xf, &leaves, |p| {
+        if brick(p) == constant {
+            0.5
+        } else {
+            (hash(p, 1) % 100) as f32 / 50.0
+        }
+    });
     let source = grid("emission", xf, &leaves, |p| {
         if brick(p) == constant {
             2.0
@@ -63,7 +72,10 @@ fn emitter_volume(xf: DAffine3) -> Volume {
 /// Non-uniform scale, shear, rotation and translation.
 fn skewed_transform() -> DAffine3 {
     let shear = DMat3::from_cols(DVec3::X, DVec3::new(0.3, 1.0, 0.0), DVec3::new(0.0, -0.2, 1.0));
-    let m = DMat3::from_rotation_z(0.4) * DMat3::from_rotation_x(-0.3) * DMat3::from_diagonal(DVec3::new(0.5, 1.3, 2.0)) * shear;
+    let m = DMat3::from_rotation_z(0.4)
+        * DMat3::from_rotation_x(-0.3)
+        * DMat3::from_diagonal(DVec3::new(0.5, 1.3, 2.0))
+        * shear;
     DAffine3::from_mat3_translation(m, DVec3::new(1.0, -2.0, 3.0))
 }
 
@@ -89,7 +101,8 @@ fn brute_cell_probabilities(volume: &Volume, proxy: &ProxyGrid) -> (Vec<f64>, f6
                 let v = IVec3::new(x, y, z);
                 let plume_volume::VoxelValues { density: d, source: s } = volume.voxel(v);
                 let c = (v - vlo) / e;
-                phi[(c.x + dims.x * (c.y + dims.y * c.z)) as usize] += volume.voxel_volume() * power(d, s);
+                phi[(c.x + dims.x * (c.y + dims.y * c.z)) as usize] +=
+                    volume.voxel_volume() * power(d, s);
             }
         }
     }
@@ -117,11 +130,17 @@ fn proxy_cell_powers_and_selection_chi2() {
         let mut sampler = rng(seed);
         let inverse = volume.index_from_world();
         for _ in 0..n {
-            let s = proxy.sample_point(sampler.next_f64(), [sampler.next_f64(), sampler.next_f64(), sampler.next_f64()]);
+            let s = proxy.sample_point(
+                sampler.next_f64(),
+                [sampler.next_f64(), sampler.next_f64(), sampler.next_f64()],
+            );
             assert_eq!(s.pmf.to_bits(), proxy.cell_probability(s.cell).to_bits());
             let (lo, hi) = proxy.cell_index_bounds(s.cell);
             let p = inverse.transform_point3(s.p_world);
-            assert!(p.cmpge(lo - 1e-9).all() && p.cmple(hi + 1e-9).all(), "point {p} outside cell [{lo}, {hi}]");
+            assert!(
+                p.cmpge(lo - 1e-9).all() && p.cmple(hi + 1e-9).all(),
+                "point {p} outside cell [{lo}, {hi}]"
+            );
             observed[s.cell] += 1.0;
         }
         let expected: Vec<f64> = brute.iter().map(|p| n as f64 * p).collect();
@@ -145,7 +164,8 @@ fn proxy_resolution_is_validated() {
     let full = ProxyGrid::build(&volume, 32, power).unwrap().unwrap();
     assert_eq!((full.cell_edge_voxels(), full.dims()), (1, IVec3::new(24, 16, 16)));
     // An empty volume has no data resolution: any power of two ≥ 8, and nothing emits
-    let empty = Volume::build(&grid("density", DAffine3::IDENTITY, &[], |_| 0.0), None, |v| v).unwrap();
+    let empty =
+        Volume::build(&grid("density", DAffine3::IDENTITY, &[], |_| 0.0), None, |v| v).unwrap();
     assert!(ProxyGrid::build(&empty, 64, power).unwrap().is_none());
     assert!(matches!(ProxyGrid::build(&empty, 12, power), Err(Error::InvalidArgument { .. })));
     assert!(EmitterDistribution::build(&empty, power).unwrap().is_none());
@@ -153,7 +173,10 @@ fn proxy_resolution_is_validated() {
     assert!(ProxyGrid::build(&volume, 8, |_, _| 0.0).unwrap().is_none());
     assert!(matches!(ProxyGrid::build(&volume, 8, |_, _| f64::NAN), Err(Error::Scene(_))));
     assert!(EmitterDistribution::build(&volume, |_, _| 0.0).unwrap().is_none());
-    assert!(matches!(EmitterDistribution::build(&volume, |_, s| if s > 5.0 { -1.0 } else { 1.0 }), Err(Error::Scene(_))));
+    assert!(matches!(
+        EmitterDistribution::build(&volume, |_, s| if s > 5.0 { -1.0 } else { 1.0 }),
+        Err(Error::Scene(_))
+    ));
     eprintln!(
         "proxy memory: r8 {} B for {} cells ({} emitting); r32 {} B for {} cells ({} emitting)",
         ProxyGrid::build(&volume, 8, power).unwrap().unwrap().memory_bytes(),
@@ -196,7 +219,9 @@ fn brute_direction_pdf(proxy: &ProxyGrid, index_from_world: DAffine3, x: DVec3, 
             crossings[a].iter().filter(|c| c.1 >= t).map(|c| c.0).max().unwrap_or(-1)
         }
     };
-    let mut ts: Vec<f64> = std::iter::once(0.0).chain(crossings.iter().flatten().map(|c| c.1).filter(|&t| t > 0.0)).collect();
+    let mut ts: Vec<f64> = std::iter::once(0.0)
+        .chain(crossings.iter().flatten().map(|c| c.1).filter(|&t| t > 0.0))
+        .collect();
     ts.sort_by(f64::total_cmp);
     let mut sum = 0.0;
     for pair in ts.windows(2) {
@@ -206,7 +231,8 @@ fn brute_direction_pdf(proxy: &ProxyGrid, index_from_world: DAffine3, x: DVec3, 
         }
         let c: Vec<i64> = (0..3).map(|a| cell_at(a, 0.5 * (t0 + t1))).collect();
         if (0..3).all(|a| c[a] >= 0 && c[a] < i64::from(dims[a])) {
-            let cell = c[0] as usize + dims.x as usize * (c[1] as usize + dims.y as usize * c[2] as usize);
+            let cell =
+                c[0] as usize + dims.x as usize * (c[1] as usize + dims.y as usize * c[2] as usize);
             sum += proxy.cell_probability(cell) * (t1 - t0) * (t1 * t1 + t1 * t0 + t0 * t0) / 3.0;
         }
     }
@@ -224,7 +250,11 @@ fn direction_pdf_matches_an_independent_walk() {
             let mut checked = 0;
             for k in 0..3000 {
                 // Origins inside and outside, some on cell faces; directions some axis-aligned
-                let mut o = DVec3::new(-14.0 + 36.0 * sampler.next_f64(), -6.0 + 28.0 * sampler.next_f64(), -6.0 + 28.0 * sampler.next_f64());
+                let mut o = DVec3::new(
+                    -14.0 + 36.0 * sampler.next_f64(),
+                    -6.0 + 28.0 * sampler.next_f64(),
+                    -6.0 + 28.0 * sampler.next_f64(),
+                );
                 if k % 3 == 0 {
                     o = (o / 3.0).round() * 3.0 - 0.5; // on r8 faces (x from −8.5 in steps of 3)
                 }
@@ -241,7 +271,10 @@ fn direction_pdf_matches_an_independent_walk() {
                 let fast = proxy.direction_pdf(x, w);
                 let brute = brute_direction_pdf(&proxy, inverse, x, w);
                 assert!(fast.is_finite() && fast >= 0.0);
-                assert!((fast - brute).abs() <= 1e-9 * brute.max(1e-12), "r{resolution} x={x} w={w}: {fast} vs {brute}");
+                assert!(
+                    (fast - brute).abs() <= 1e-9 * brute.max(1e-12),
+                    "r{resolution} x={x} w={w}: {fast} vs {brute}"
+                );
                 checked += usize::from(brute > 0.0);
             }
             assert!(checked > 500, "too few rays hit emission: {checked}");
@@ -253,14 +286,23 @@ fn direction_pdf_matches_an_independent_walk() {
 /// sets of `strata²` uniform directions, with the standard error of that mean taken from
 /// the spread of the replicates (honest for the stratified estimator, which the i.i.d.
 /// formula would overstate several-fold).
-fn sphere_integral(proxy: &ProxyGrid, x: DVec3, strata: usize, replicates: usize, seed: u64) -> (f64, f64) {
+fn sphere_integral(
+    proxy: &ProxyGrid,
+    x: DVec3,
+    strata: usize,
+    replicates: usize,
+    seed: u64,
+) -> (f64, f64) {
     let estimates: Vec<f64> = (0..replicates)
         .map(|r| {
             let mut sampler = rng(seed * 1000 + r as u64);
             let mut sum = 0.0f64;
             for i in 0..strata {
                 for j in 0..strata {
-                    let u = [(i as f64 + sampler.next_f64()) / strata as f64, (j as f64 + sampler.next_f64()) / strata as f64];
+                    let u = [
+                        (i as f64 + sampler.next_f64()) / strata as f64,
+                        (j as f64 + sampler.next_f64()) / strata as f64,
+                    ];
                     sum += 4.0 * PI * proxy.direction_pdf(x, sample_uniform_sphere(u));
                 }
             }
@@ -286,7 +328,10 @@ fn p_sigma_integrates_to_one_over_the_sphere() {
             for (place, x) in [("inside", inside), ("outside", outside), ("centre", centre)] {
                 let (mean, se) = sphere_integral(&proxy, x, 128, 16, 40 + u64::from(resolution));
                 println!("∫p_σ dω {name} r{resolution} {place}: {mean:.6} ± {se:.6} (1 s.e.)");
-                assert!(se > 0.0 && (mean - 1.0).abs() <= 5.0 * se, "{name} r{resolution} {place}: {mean} ± {se}");
+                assert!(
+                    se > 0.0 && (mean - 1.0).abs() <= 5.0 * se,
+                    "{name} r{resolution} {place}: {mean} ± {se}"
+                );
             }
         }
     }
@@ -298,7 +343,17 @@ fn p_sigma_integrates_to_one_over_the_sphere() {
 /// p_σ is continuous for `x` off cell faces (chords shrink to 0 at silhouettes), so the
 /// rule converges as O(1/k²).
 #[allow(clippy::too_many_arguments)] // a test driver: every knob named at the call site
-fn fnee_chi2(name: &str, proxy: &ProxyGrid, x: DVec3, pole: DVec3, c_min: f64, bins: (usize, usize), k: usize, n: usize, seed: u64) {
+fn fnee_chi2(
+    name: &str,
+    proxy: &ProxyGrid,
+    x: DVec3,
+    pole: DVec3,
+    c_min: f64,
+    bins: (usize, usize),
+    k: usize,
+    n: usize,
+    seed: u64,
+) {
     let (nc, nphi) = bins;
     let basis = frame(pole);
     let mut observed = vec![0.0; nc * nphi];
@@ -311,7 +366,11 @@ fn fnee_chi2(name: &str, proxy: &ProxyGrid, x: DVec3, pole: DVec3, c_min: f64, b
             dropped += 1;
             continue;
         };
-        assert_eq!(s.pdf.to_bits(), proxy.direction_pdf(x, s.direction).to_bits(), "sample and pdf paths differ");
+        assert_eq!(
+            s.pdf.to_bits(),
+            proxy.direction_pdf(x, s.direction).to_bits(),
+            "sample and pdf paths differ"
+        );
         match direction_bin(s.direction, pole, basis, c_min, nc, nphi) {
             Some(b) => observed[b] += 1.0,
             None => below += 1,
@@ -328,7 +387,8 @@ fn fnee_chi2(name: &str, proxy: &ProxyGrid, x: DVec3, pole: DVec3, c_min: f64, b
             let s = (1.0 - c * c).max(0.0).sqrt();
             for q in 0..k {
                 let phi = (ip as f64 + (q as f64 + 0.5) / k as f64) * dphi;
-                let w = (basis.0 * (s * phi.cos()) + basis.1 * (s * phi.sin()) + pole * c).normalize();
+                let w =
+                    (basis.0 * (s * phi.cos()) + basis.1 * (s * phi.sin()) + pole * c).normalize();
                 let p = proxy.direction_pdf(x, w);
                 integral += p;
                 zero |= p == 0.0;
@@ -356,7 +416,11 @@ fn cone_of_grid(proxy: &ProxyGrid, xf: DAffine3, x: DVec3, pole: DVec3) -> f64 {
     let (_, hi) = proxy.cell_index_bounds(proxy.cell_count() - 1);
     (0..8)
         .map(|i| {
-            let c = DVec3::new(if i & 1 == 0 { lo.x } else { hi.x }, if i & 2 == 0 { lo.y } else { hi.y }, if i & 4 == 0 { lo.z } else { hi.z });
+            let c = DVec3::new(
+                if i & 1 == 0 { lo.x } else { hi.x },
+                if i & 2 == 0 { lo.y } else { hi.y },
+                if i & 4 == 0 { lo.z } else { hi.z },
+            );
             (xf.transform_point3(c) - x).normalize().dot(pole)
         })
         .fold(1.0, f64::min)
@@ -368,7 +432,17 @@ fn fnee_directions_match_p_sigma_chi2() {
     let volume = emitter_volume(DAffine3::IDENTITY);
     let proxy = ProxyGrid::build(&volume, 8, power).unwrap().unwrap();
     let inside = DVec3::new(3.3, 6.2, 8.7);
-    fnee_chi2("fnee_inside_r8", &proxy, inside, DVec3::new(0.2, 0.3, 0.9).normalize(), -1.0, (16, 32), 8, 400_000, 21);
+    fnee_chi2(
+        "fnee_inside_r8",
+        &proxy,
+        inside,
+        DVec3::new(0.2, 0.3, 0.9).normalize(),
+        -1.0,
+        (16, 32),
+        8,
+        400_000,
+        21,
+    );
     // Outside, identity, r8: bins over the cone that holds the grid
     let outside = DVec3::new(-20.0, 25.0, 30.0);
     let pole = (world_centre(&volume) - outside).normalize();
@@ -438,7 +512,8 @@ fn nee_hat_chi2(volume: &Volume, table: &str, nee: &EmitterDistribution) {
     let total: f64 = weights.iter().sum();
     // ∫ p_V = 1: the pdf is trilinear on every dual cell, so the midpoint rule on 2³
     // sub-cells of each dual cell is exact
-    let (inverse, forward, vv) = (volume.index_from_world(), volume.world_from_index(), volume.voxel_volume());
+    let (inverse, forward, vv) =
+        (volume.index_from_world(), volume.world_from_index(), volume.voxel_volume());
     let mut integral = 0.0;
     for z in 2 * vlo.z..2 * vhi.z {
         for y in 2 * vlo.y..2 * vhi.y {
@@ -453,11 +528,23 @@ fn nee_hat_chi2(volume: &Volume, table: &str, nee: &EmitterDistribution) {
     let mut observed = vec![0.0; weights.len()];
     let mut sampler = rng(37);
     for _ in 0..n {
-        let s = nee.sample(volume, sampler.next_f64(), [sampler.next_f64(), sampler.next_f64(), sampler.next_f64()]);
+        let s = nee.sample(
+            volume,
+            sampler.next_f64(),
+            [sampler.next_f64(), sampler.next_f64(), sampler.next_f64()],
+        );
         let p = inverse.transform_point3(s.p_world);
-        assert!((p - s.voxel.as_dvec3()).abs().max_element() < 1.0 + 1e-9, "{p} outside the hat of {}", s.voxel);
+        assert!(
+            (p - s.voxel.as_dvec3()).abs().max_element() < 1.0 + 1e-9,
+            "{p} outside the hat of {}",
+            s.voxel
+        );
         let again = nee.pdf(volume, s.p_world);
-        assert!(s.pdf > 0.0 && (again - s.pdf).abs() <= 1e-9 * s.pdf, "sample pdf {} vs pdf {again}", s.pdf);
+        assert!(
+            s.pdf > 0.0 && (again - s.pdf).abs() <= 1e-9 * s.pdf,
+            "sample pdf {} vs pdf {again}",
+            s.pdf
+        );
         observed[slot((p + 0.5).floor().as_ivec3())] += 1.0;
     }
     let expected: Vec<f64> = weights.iter().map(|w| n as f64 * w / total).collect();
@@ -490,7 +577,12 @@ fn nee_voxel_pdfs_chi2_and_bitwise_agreement() {
         }
     }
     assert!(worst < 1e-6, "voxel and brick tables differ by {worst:e} (relative)");
-    assert!(bricks.memory_bytes() < voxels.memory_bytes() / 8, "{} vs {} bytes", bricks.memory_bytes(), voxels.memory_bytes());
+    assert!(
+        bricks.memory_bytes() < voxels.memory_bytes() / 8,
+        "{} vs {} bytes",
+        bricks.memory_bytes(),
+        voxels.memory_bytes()
+    );
 }
 
 fn nee_voxel_chi2(volume: &Volume, table: &str, nee: &EmitterDistribution) {
@@ -516,17 +608,27 @@ fn nee_voxel_chi2(volume: &Volume, table: &str, nee: &EmitterDistribution) {
                 emissive += usize::from(p > 0.0);
                 pdf_sum += pdf * vv;
                 // pdf at the voxel centre goes through the world → index lookup
-                assert_eq!(nee.pdf(volume, volume.world_from_index().transform_point3(v.as_dvec3())).to_bits(), pdf.to_bits());
+                assert_eq!(
+                    nee.pdf(volume, volume.world_from_index().transform_point3(v.as_dvec3()))
+                        .to_bits(),
+                    pdf.to_bits()
+                );
             }
         }
     }
     let emitting_bricks = (vlo.z..vhi.z)
-        .flat_map(|z| (vlo.y..vhi.y).flat_map(move |y| (vlo.x..vhi.x).map(move |x| IVec3::new(x, y, z))))
+        .flat_map(|z| {
+            (vlo.y..vhi.y).flat_map(move |y| (vlo.x..vhi.x).map(move |x| IVec3::new(x, y, z)))
+        })
         .filter(|&v| brute[slot(v)] > 0.0)
         .map(|v| v.div_euclid(IVec3::splat(8)))
         .collect::<std::collections::HashSet<_>>()
         .len();
-    assert_eq!(nee.entry_count(), if table == "voxel" { emissive } else { emitting_bricks }, "{table}");
+    assert_eq!(
+        nee.entry_count(),
+        if table == "voxel" { emissive } else { emitting_bricks },
+        "{table}"
+    );
     assert!((pdf_sum - 1.0).abs() < 1e-12, "Σ pdf V = {pdf_sum}");
     let total: f64 = brute.iter().sum();
     assert!((nee.total_power() - vv * total).abs() < 1e-12 * vv * total);
@@ -539,10 +641,18 @@ fn nee_voxel_chi2(volume: &Volume, table: &str, nee: &EmitterDistribution) {
     let inverse = volume.index_from_world();
     let mut face_rounding = 0usize;
     for _ in 0..n {
-        let s = nee.sample(volume, sampler.next_f64(), [sampler.next_f64(), sampler.next_f64(), sampler.next_f64()]);
+        let s = nee.sample(
+            volume,
+            sampler.next_f64(),
+            [sampler.next_f64(), sampler.next_f64(), sampler.next_f64()],
+        );
         assert_eq!(s.pdf.to_bits(), nee.pdf_voxel(volume, s.voxel).to_bits());
         let p = inverse.transform_point3(s.p_world);
-        assert!((p - s.voxel.as_dvec3()).abs().max_element() <= 0.5 + 1e-9, "{p} not in voxel {}", s.voxel);
+        assert!(
+            (p - s.voxel.as_dvec3()).abs().max_element() <= 0.5 + 1e-9,
+            "{p} not in voxel {}",
+            s.voxel
+        );
         if (p + 0.5).floor().as_ivec3() == s.voxel {
             assert_eq!(nee.pdf(volume, s.p_world).to_bits(), s.pdf.to_bits());
         } else {

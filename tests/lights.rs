@@ -7,13 +7,17 @@ use crate::common;
 
 use common::{grid, grid_emission, mean_stderr_from_sums};
 use glam::{DAffine3, DMat3, DVec3, IVec3};
-use plume_engine::camera::Camera;
 use plume_core::color::Rgb;
-use plume_engine::integrator::{Counters, Integrator, LightSampling, Lights, MisHeuristic, NoTrace, Scene, Tracking};
-use plume_engine::light::external::{Distant, Environment, ExternalLights, Light, Radiance, Sphere};
-use plume_engine::medium::{Collision, Convention, Emission, EmissionKind, Estimator, Medium};
 use plume_core::sampling::phase::hg_pdf;
 use plume_core::sampling::Sampler;
+use plume_engine::camera::Camera;
+use plume_engine::integrator::{
+    Counters, Integrator, LightSampling, Lights, MisHeuristic, NoTrace, Scene, Tracking,
+};
+use plume_engine::light::external::{
+    Distant, Environment, ExternalLights, Light, Radiance, Sphere,
+};
+use plume_engine::medium::{Collision, Convention, Emission, EmissionKind, Estimator, Medium};
 use plume_volume::field::Ray;
 use plume_volume::Volume;
 
@@ -30,7 +34,11 @@ const G: f64 = 0.3;
 fn slab() -> Volume {
     let n = 8; // leaves a side
     let xf = DAffine3::from_mat3_translation(
-        DMat3::from_diagonal(DVec3::new(2.0 * HALF / f64::from(8 * n), 2.0 * HALF / f64::from(8 * n), D / 8.0)),
+        DMat3::from_diagonal(DVec3::new(
+            2.0 * HALF / f64::from(8 * n),
+            2.0 * HALF / f64::from(8 * n),
+            D / 8.0,
+        )),
         DVec3::new(-HALF + HALF / f64::from(8 * n), -HALF + HALF / f64::from(8 * n), D / 16.0),
     );
     let leaves: Vec<IVec3> = (0..n * n).map(|i| IVec3::new(i % n, i / n, 0) * 8).collect();
@@ -39,12 +47,18 @@ fn slab() -> Volume {
 }
 
 fn medium() -> Medium {
-    Medium { sigma_t: SIGMA_T, albedo: ALBEDO, g: G, emission: Emission { kind: EmissionKind::None, ..grid_emission(Convention::Cycles) } }
+    Medium {
+        sigma_t: SIGMA_T,
+        albedo: ALBEDO,
+        g: G,
+        emission: Emission { kind: EmissionKind::None, ..grid_emission(Convention::Cycles) },
+    }
 }
 
 /// The slab seen along +z from below through its centre, lit by `lights`.
 fn scene(lights: Vec<Light>) -> Scene<Volume> {
-    let cam = Camera::look_at(DVec3::new(0.0, 0.0, -1.0), DVec3::ZERO, DVec3::Y, 1.0, 1, 1).unwrap();
+    let cam =
+        Camera::look_at(DVec3::new(0.0, 0.0, -1.0), DVec3::ZERO, DVec3::Y, 1.0, 1, 1).unwrap();
     let lights = Lights { external: ExternalLights::new(lights, HALF), ..Lights::default() };
     Scene { field: slab(), medium: medium(), camera: cam, lights, motion: None, majorants: None }
 }
@@ -95,7 +109,10 @@ fn sun_over_a_thin_slab_matches_single_scattering() {
         let sc = scene(vec![Light::Distant(Distant::new(-to_light, Rgb::splat(e as f32), 0.0))]);
         let expected = e * hg_pdf(G, alpha.cos()) * kernel(alpha.cos());
         let (m, se) = single_scattering(&sc, estimator, 40_000, 7);
-        assert!((m - expected).abs() < 4.0 * se + 1e-4 * expected, "{estimator:?}: {m} ± {se} vs closed form {expected}");
+        assert!(
+            (m - expected).abs() < 4.0 * se + 1e-4 * expected,
+            "{estimator:?}: {m} ± {se} vs closed form {expected}"
+        );
         assert!(se < 0.05 * expected, "{estimator:?}: noise {se} of {expected}");
     }
 }
@@ -146,7 +163,10 @@ fn wide_distant_light_matches_single_scattering_with_mis() {
             s2 += l * l;
         }
         let (m, se) = mean_stderr_from_sums(s, s2, n);
-        assert!((m - expected).abs() < 4.0 * se + 1e-4 * expected, "{mis:?}: {m} ± {se} vs {expected}");
+        assert!(
+            (m - expected).abs() < 4.0 * se + 1e-4 * expected,
+            "{mis:?}: {m} ± {se} vs {expected}"
+        );
     }
 }
 
@@ -164,7 +184,10 @@ fn point_light_closed_form(p: DVec3, intensity: f64) -> f64 {
         let r = to.length();
         let w = to / r;
         let inside = (D - s) / w.z;
-        sum += sigma_s * (-SIGMA_T * s).exp() * hg_pdf(G, w.z) * intensity * (-SIGMA_T * inside).exp() / (r * r) * (D / f64::from(n));
+        sum +=
+            sigma_s * (-SIGMA_T * s).exp() * hg_pdf(G, w.z) * intensity * (-SIGMA_T * inside).exp()
+                / (r * r)
+                * (D / f64::from(n));
     }
     sum
 }
@@ -179,7 +202,10 @@ fn point_and_small_sphere_lights_match_single_scattering() {
     for (radius, label) in [(0.0, "point"), (6e-4, "sphere")] {
         let sc = scene(vec![Light::Sphere(Sphere::new(p, radius, Rgb::splat(power as f32)))]);
         let (m, se) = single_scattering(&sc, Estimator::Line, 40_000, 9);
-        assert!((m - expected).abs() < 4.0 * se + 1e-4 * expected, "{label}: {m} ± {se} vs {expected}");
+        assert!(
+            (m - expected).abs() < 4.0 * se + 1e-4 * expected,
+            "{label}: {m} ± {se} vs {expected}"
+        );
     }
 }
 
@@ -188,11 +214,21 @@ fn light_pdfs_agree_with_sampling_and_mis_weights_sum_to_one() {
     // For every light type: the pdf the integrator evaluates for a forward direction is
     // the one light sampling used for that direction, and w_light + w_phase = 1.
     let lights = vec![
-        Light::Distant(Distant::new(DVec3::new(0.2, -0.3, -1.0).normalize(), Rgb::splat(2.0), 10f64.to_radians())),
+        Light::Distant(Distant::new(
+            DVec3::new(0.2, -0.3, -1.0).normalize(),
+            Rgb::splat(2.0),
+            10f64.to_radians(),
+        )),
         Light::Distant(Distant::new(DVec3::new(-0.5, 0.1, -1.0).normalize(), Rgb::splat(1.0), 0.0)),
         Light::Sphere(Sphere::new(DVec3::new(1.0, 2.0, 3.0), 0.5, Rgb::splat(100.0))),
         Light::Sphere(Sphere::new(DVec3::new(-1.0, 0.0, 2.0), 0.0, Rgb::splat(10.0))),
-        Light::Environment(Environment::new(Radiance::Constant(Rgb([0.1, 0.2, 0.3])), 1.0, DVec3::Z, 0.3, true)),
+        Light::Environment(Environment::new(
+            Radiance::Constant(Rgb([0.1, 0.2, 0.3])),
+            1.0,
+            DVec3::Z,
+            0.3,
+            true,
+        )),
     ];
     let set = ExternalLights::new(lights, 2.0).unwrap();
     let pmf_total: f64 = (0..5).map(|i| set.pmf(i)).sum();
@@ -211,7 +247,12 @@ fn light_pdfs_agree_with_sampling_and_mis_weights_sum_to_one() {
             assert_eq!(pdf, 0.0, "a delta light has no density for forward paths");
             continue;
         }
-        assert!((pdf - c.pmf * s.pdf).abs() <= 1e-9 * pdf, "light {}: pdf {pdf} vs sampled {}", c.index, c.pmf * s.pdf);
+        assert!(
+            (pdf - c.pmf * s.pdf).abs() <= 1e-9 * pdf,
+            "light {}: pdf {pdf} vs sampled {}",
+            c.index,
+            c.pmf * s.pdf
+        );
         let f = hg_pdf(0.4, DVec3::X.dot(s.direction));
         for mis in [MisHeuristic::Power, MisHeuristic::Balance] {
             let sum = mis.weight(pdf, f) + mis.weight(f, pdf);
@@ -229,7 +270,9 @@ fn sphere_light_intersection_and_cone_are_consistent() {
     for _ in 0..10_000 {
         let ls = s.sample(x, [sampler.next_f64(), sampler.next_f64()]).unwrap();
         // Every sampled direction hits the sphere at the distance it reports
-        let t = s.intersect(&Ray { origin: x, direction: ls.direction }).expect("a sampled direction hits the sphere");
+        let t = s
+            .intersect(&Ray { origin: x, direction: ls.direction })
+            .expect("a sampled direction hits the sphere");
         assert!((t - ls.distance).abs() < 1e-9, "{t} vs {}", ls.distance);
         let p = x + ls.direction * t;
         assert!(((p - DVec3::new(0.0, 0.0, 5.0)).length() - 1.0).abs() < 1e-9);
@@ -266,7 +309,11 @@ fn environment_maps_follow_the_up_axis_and_turn_counter_clockwise() {
             }
         })
         .collect();
-    let map = || Radiance::Map(Box::new(EnvironmentMap::from_pixels(w, h, pixels.clone(), "test map").unwrap()));
+    let map = || {
+        Radiance::Map(Box::new(
+            EnvironmentMap::from_pixels(w, h, pixels.clone(), "test map").unwrap(),
+        ))
+    };
     let red = |e: &Environment, d: DVec3| e.radiance(d.normalize())[0];
     let blue = |e: &Environment, d: DVec3| e.radiance(d.normalize())[2];
     // +z up: +x sees the red patch, +z the blue zenith

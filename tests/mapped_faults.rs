@@ -27,7 +27,8 @@ const PATIENCE: Duration = Duration::from_secs(300);
 const RENDERING: u64 = 30;
 
 fn send(pid: u32, signal: &str) {
-    let ok = Command::new("kill").args([signal, &pid.to_string()]).status().expect("run kill").success();
+    let ok =
+        Command::new("kill").args([signal, &pid.to_string()]).status().expect("run kill").success();
     assert!(ok, "kill {signal} {pid}");
 }
 
@@ -35,10 +36,14 @@ fn send(pid: u32, signal: &str) {
 fn family(pid: u32) -> Vec<u32> {
     let mut all = vec![pid];
     for entry in std::fs::read_dir("/proc").unwrap().flatten() {
-        let Some(child) = entry.file_name().to_str().and_then(|n| n.parse::<u32>().ok()) else { continue };
+        let Some(child) = entry.file_name().to_str().and_then(|n| n.parse::<u32>().ok()) else {
+            continue;
+        };
         let Ok(stat) = std::fs::read_to_string(format!("/proc/{child}/stat")) else { continue };
         // pid (comm) state ppid …: comm may hold spaces, so parse after the last ')'
-        let ppid = stat.rsplit_once(')').and_then(|(_, rest)| rest.split_whitespace().nth(1)?.parse::<u32>().ok());
+        let ppid = stat
+            .rsplit_once(')')
+            .and_then(|(_, rest)| rest.split_whitespace().nth(1)?.parse::<u32>().ok());
         if ppid == Some(pid) {
             all.push(child);
         }
@@ -55,9 +60,11 @@ fn maps(pid: u32, ino: u64) -> bool {
 /// User + system CPU time of `pid` in clock ticks.
 fn cpu_ticks(pid: u32) -> u64 {
     let Ok(stat) = std::fs::read_to_string(format!("/proc/{pid}/stat")) else { return 0 };
-    let fields: Vec<&str> = stat.rsplit_once(')').map_or(vec![], |(_, rest)| rest.split_whitespace().collect());
+    let fields: Vec<&str> =
+        stat.rsplit_once(')').map_or(vec![], |(_, rest)| rest.split_whitespace().collect());
     // Fields 14 and 15 of stat(5), counted from the state (field 3) here
-    fields.get(11).and_then(|u| u.parse::<u64>().ok()).unwrap_or(0) + fields.get(12).and_then(|u| u.parse::<u64>().ok()).unwrap_or(0)
+    fields.get(11).and_then(|u| u.parse::<u64>().ok()).unwrap_or(0)
+        + fields.get(12).and_then(|u| u.parse::<u64>().ok()).unwrap_or(0)
 }
 
 /// Wait until a process of `child`'s family maps `file` and has used `ticks` of CPU,
@@ -68,11 +75,21 @@ fn stop_when_mapped(child: &mut Child, file: &Path, ticks: u64) -> Option<u32> {
     while child.try_wait().unwrap().is_none() {
         assert!(start.elapsed() < PATIENCE, "{} was never mapped", file.display());
         // plume itself first (cheap), then its children
-        let found = if maps(child.id(), ino) { Some(child.id()) } else { family(child.id()).into_iter().find(|&p| maps(p, ino)) };
+        let found = if maps(child.id(), ino) {
+            Some(child.id())
+        } else {
+            family(child.id()).into_iter().find(|&p| maps(p, ino))
+        };
         if let Some(pid) = found {
             // A process that ended between the look and the signal (an isolated reader
             // finishing its file) is not stopped: look again
-            if cpu_ticks(pid) >= ticks && Command::new("kill").args(["-STOP", &pid.to_string()]).status().expect("run kill").success() {
+            if cpu_ticks(pid) >= ticks
+                && Command::new("kill")
+                    .args(["-STOP", &pid.to_string()])
+                    .status()
+                    .expect("run kill")
+                    .success()
+            {
                 return Some(pid);
             }
         }
@@ -83,7 +100,13 @@ fn stop_when_mapped(child: &mut Child, file: &Path, ticks: u64) -> Option<u32> {
 
 /// Run plume with `args` in `dir` (where a core dump would go), output captured.
 fn spawn(dir: &Path, args: &[&str]) -> Child {
-    Command::new(PLUME).args(args).current_dir(dir).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().expect("run plume")
+    Command::new(PLUME)
+        .args(args)
+        .current_dir(dir)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("run plume")
 }
 
 /// Wait for `child` (at most [`PATIENCE`]).
@@ -108,7 +131,11 @@ fn assert_failed_cleanly(o: &Output, file: &Path, needles: &[&str]) -> String {
     assert_eq!(o.status.code(), Some(4), "{err}");
     let lines: Vec<&str> = err.lines().collect();
     assert_eq!(lines.len(), 1, "one line on stderr: {err}");
-    assert!(lines[0].starts_with("plume: error: ") && lines[0].contains(s(file)), "the line names {}: {err}", file.display());
+    assert!(
+        lines[0].starts_with("plume: error: ") && lines[0].contains(s(file)),
+        "the line names {}: {err}",
+        file.display()
+    );
     for needle in needles {
         assert!(lines[0].contains(needle), "{err:?} lacks {needle:?}");
     }
@@ -121,7 +148,10 @@ fn truncate(file: &Path, bytes: u64) {
 
 /// The names in `dir`, sorted.
 fn listing(dir: &Path) -> Vec<String> {
-    let mut names: Vec<String> = std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
     names.sort();
     names
 }
@@ -140,7 +170,19 @@ fn a_cache_truncated_under_a_render_ends_it_with_exit_code_4() {
     let cache = flare(&dir, "flare.plume", "1");
     let out = dir.join("out.exr");
     // An earlier output, which a failed render must leave as it was
-    let o = plume(&["render", s(&cache), "-o", s(&out), "--spp", "1", "--width", "32", "--height", "24", "-q"]);
+    let o = plume(&[
+        "render",
+        s(&cache),
+        "-o",
+        s(&out),
+        "--spp",
+        "1",
+        "--width",
+        "32",
+        "--height",
+        "24",
+        "-q",
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let before = std::fs::read(&out).unwrap();
     for (order, progress) in [("tile-major", "openjd"), ("progressive", "json")] {
@@ -150,10 +192,35 @@ fn a_cache_truncated_under_a_render_ends_it_with_exit_code_4() {
         // inside the volume's bounds, so that every ray reads the brick table: in
         // tile-major order, a first tile whose rays all miss the volume would render its
         // million samples without touching the file
-        let args = ["render", s(&victim), "-o", s(&out), "--overwrite", "--spp", "1000000", "--width", "64", "--height", "48", "--sample-order", order];
-        let inside = ["--camera-from", "0,20,0", "--camera-at", "10,20,10", "--threads", "2", "-q", "--progress", progress];
+        let args = [
+            "render",
+            s(&victim),
+            "-o",
+            s(&out),
+            "--overwrite",
+            "--spp",
+            "1000000",
+            "--width",
+            "64",
+            "--height",
+            "48",
+            "--sample-order",
+            order,
+        ];
+        let inside = [
+            "--camera-from",
+            "0,20,0",
+            "--camera-at",
+            "10,20,10",
+            "--threads",
+            "2",
+            "-q",
+            "--progress",
+            progress,
+        ];
         let mut child = spawn(&dir, &[&args[..], &inside].concat());
-        let pid = stop_when_mapped(&mut child, &victim, RENDERING).expect("the render ended before the test truncated its input");
+        let pid = stop_when_mapped(&mut child, &victim, RENDERING)
+            .expect("the render ended before the test truncated its input");
         // The header page stays: every section is lost
         truncate(&victim, 8192);
         send(pid, "-CONT");
@@ -167,8 +234,12 @@ fn a_cache_truncated_under_a_render_ends_it_with_exit_code_4() {
         if progress == "openjd" {
             assert_eq!(last, format!("openjd_fail: exit code 4: {message}"), "{stdout}");
         } else {
-            let event: serde_json::Value = serde_json::from_str(last).unwrap_or_else(|e| panic!("{e}: {stdout}"));
-            assert_eq!((event["event"].as_str(), event["exit_code"].as_i64(), event["error"].as_str()), (Some("done"), Some(4), Some(message)));
+            let event: serde_json::Value =
+                serde_json::from_str(last).unwrap_or_else(|e| panic!("{e}: {stdout}"));
+            assert_eq!(
+                (event["event"].as_str(), event["exit_code"].as_i64(), event["error"].as_str()),
+                (Some("done"), Some(4), Some(message))
+            );
         }
         assert_eq!(std::fs::read(&out).unwrap(), before, "{order}: the earlier output is intact");
         std::fs::remove_file(&victim).unwrap();
@@ -220,7 +291,24 @@ fn a_cache_replaced_under_a_render_is_refused_before_writing() {
     let staged = dir.join("staged.plume");
     let out = dir.join("out.exr");
     // About a second unloaded; stopped when the cache is mapped, long before it ends
-    let render = || spawn(&dir, &["render", s(&victim), "-o", s(&out), "--spp", "4096", "--width", "32", "--height", "24", "-q"]);
+    let render = || {
+        spawn(
+            &dir,
+            &[
+                "render",
+                s(&victim),
+                "-o",
+                s(&out),
+                "--spp",
+                "4096",
+                "--width",
+                "32",
+                "--height",
+                "24",
+                "-q",
+            ],
+        )
+    };
     // Another cache renamed over it (`plume prepare` again with changed data): the render
     // goes on from the file it mapped, then refuses to save a frame of a file that is
     // no longer the one at that path. (On a loaded machine the stop may come only after
@@ -229,7 +317,8 @@ fn a_cache_replaced_under_a_render_is_refused_before_writing() {
     for _ in 0..10 {
         std::fs::copy(&cache, &victim).unwrap();
         let mut child = render();
-        let pid = stop_when_mapped(&mut child, &victim, 0).expect("the render ended before it was stopped");
+        let pid = stop_when_mapped(&mut child, &victim, 0)
+            .expect("the render ended before it was stopped");
         std::fs::copy(&other, &staged).unwrap();
         std::fs::rename(&staged, &victim).unwrap();
         send(pid, "-CONT");
@@ -238,7 +327,11 @@ fn a_cache_replaced_under_a_render_is_refused_before_writing() {
             std::fs::remove_file(&out).unwrap();
             continue;
         }
-        let err = assert_failed_cleanly(&o, &victim, &["brick cache", "replaced by another file", "nothing computed from it was written"]);
+        let err = assert_failed_cleanly(
+            &o,
+            &victim,
+            &["brick cache", "replaced by another file", "nothing computed from it was written"],
+        );
         eprintln!("{err}");
         assert!(!out.exists(), "no output from a replaced input");
         refused = true;
@@ -249,7 +342,8 @@ fn a_cache_replaced_under_a_render_is_refused_before_writing() {
     // change nothing
     std::fs::copy(&cache, &victim).unwrap();
     let mut child = render();
-    let pid = stop_when_mapped(&mut child, &victim, 0).expect("the render ended before it was stopped");
+    let pid =
+        stop_when_mapped(&mut child, &victim, 0).expect("the render ended before it was stopped");
     std::fs::copy(&cache, &staged).unwrap();
     std::fs::rename(&staged, &victim).unwrap();
     send(pid, "-CONT");
@@ -273,7 +367,21 @@ fn a_sequence_stops_at_an_input_that_fails_while_in_use_with_exit_code_4() {
     let frame = |n: u32| dir.join(format!("seq.{n:04}.plume"));
     let out = |n: u32| dir.join(format!("out.{n:04}.exr"));
     let (inputs, outputs) = (dir.join("seq.####.plume"), dir.join("out.####.exr"));
-    let args = ["render", s(&inputs), "-o", s(&outputs), "--frames", "1-3", "--width", "32", "--height", "24", "-q", "--progress", "json"];
+    let args = [
+        "render",
+        s(&inputs),
+        "-o",
+        s(&outputs),
+        "--frames",
+        "1-3",
+        "--width",
+        "32",
+        "--height",
+        "24",
+        "-q",
+        "--progress",
+        "json",
+    ];
     let sequence = |spp: &str, extra: &[&str]| {
         for n in 1..=3 {
             std::fs::copy(&cache, frame(n)).unwrap();
@@ -284,10 +392,19 @@ fn a_sequence_stops_at_an_input_that_fails_while_in_use_with_exit_code_4() {
         let err = assert_failed_cleanly(o, &frame(1), needles);
         let message = err.trim_end().strip_prefix("plume: error: ").unwrap();
         let stdout = String::from_utf8(o.stdout.clone()).unwrap();
-        let event: serde_json::Value = serde_json::from_str(stdout.lines().last().unwrap_or_default()).unwrap_or_else(|e| panic!("{e}: {stdout}"));
-        assert_eq!((event["event"].as_str(), event["exit_code"].as_i64(), event["error"].as_str()), (Some("done"), Some(4), Some(message)));
-        let events = stdout.lines().filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok());
-        let started: Vec<i64> = events.filter(|e| e["event"] == "frame_start").filter_map(|e| e["frame"].as_i64()).collect();
+        let event: serde_json::Value =
+            serde_json::from_str(stdout.lines().last().unwrap_or_default())
+                .unwrap_or_else(|e| panic!("{e}: {stdout}"));
+        assert_eq!(
+            (event["event"].as_str(), event["exit_code"].as_i64(), event["error"].as_str()),
+            (Some("done"), Some(4), Some(message))
+        );
+        let events =
+            stdout.lines().filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok());
+        let started: Vec<i64> = events
+            .filter(|e| e["event"] == "frame_start")
+            .filter_map(|e| e["frame"].as_i64())
+            .collect();
         assert_eq!(started, [1], "frames after the failed one were started: {stdout}");
         for n in 1..=3 {
             assert!(!out(n).exists(), "frame {n} was written");
@@ -299,7 +416,8 @@ fn a_sequence_stops_at_an_input_that_fails_while_in_use_with_exit_code_4() {
     let mut refused = false;
     for _ in 0..10 {
         let mut child = sequence("4096", &[]);
-        let pid = stop_when_mapped(&mut child, &frame(1), 0).expect("the render ended before it was stopped");
+        let pid = stop_when_mapped(&mut child, &frame(1), 0)
+            .expect("the render ended before it was stopped");
         std::fs::copy(&other, &staged).unwrap();
         std::fs::rename(&staged, frame(1)).unwrap();
         send(pid, "-CONT");
@@ -315,7 +433,8 @@ fn a_sequence_stops_at_an_input_that_fails_while_in_use_with_exit_code_4() {
     assert!(refused, "the render was never stopped before its last check in 10 attempts");
     // Truncated under frame 1, far from its end (camera inside the volume, as above)
     let mut child = sequence("1000000", &["--camera-from", "0,20,0", "--camera-at", "10,20,10"]);
-    let pid = stop_when_mapped(&mut child, &frame(1), RENDERING).expect("the render ended before the test truncated its input");
+    let pid = stop_when_mapped(&mut child, &frame(1), RENDERING)
+        .expect("the render ended before the test truncated its input");
     truncate(&frame(1), 8192);
     send(pid, "-CONT");
     eprintln!("truncated: {}", stopped(&finish(child), &["brick cache", "truncated"]));
@@ -330,8 +449,24 @@ fn a_sequence_stops_at_an_input_that_fails_while_in_use_with_exit_code_4() {
 fn a_sigbus_from_elsewhere_still_kills() {
     let dir = tmpdir("faults", "kill");
     let cache = flare(&dir, "flare.plume", "1");
-    let mut child = spawn(&dir, &["render", s(&cache), "-o", s(&dir.join("out.exr")), "--spp", "1000000", "--width", "32", "--height", "24", "-q"]);
-    let pid = stop_when_mapped(&mut child, &cache, 0).expect("the render ended before it was stopped");
+    let mut child = spawn(
+        &dir,
+        &[
+            "render",
+            s(&cache),
+            "-o",
+            s(&dir.join("out.exr")),
+            "--spp",
+            "1000000",
+            "--width",
+            "32",
+            "--height",
+            "24",
+            "-q",
+        ],
+    );
+    let pid =
+        stop_when_mapped(&mut child, &cache, 0).expect("the render ended before it was stopped");
     // Sent, not a fault in a mapped file: the handler leaves it to the default action
     send(pid, "-BUS");
     send(pid, "-CONT");
@@ -353,8 +488,10 @@ fn a_vdb_truncated_while_prepare_streams_it_fails_cleanly() {
     // OpenVDB maps the file in the isolated reader (default) or in plume itself
     for isolation in [&[][..], &["--no-isolation"][..]] {
         std::fs::copy(&vdb, &victim).unwrap();
-        let mut child = spawn(&dir, &[&["prepare", s(&victim), "-o", s(&out), "-q"][..], isolation].concat());
-        let pid = stop_when_mapped(&mut child, &victim, 0).expect("prepare ended before it was stopped");
+        let mut child =
+            spawn(&dir, &[&["prepare", s(&victim), "-o", s(&out), "-q"][..], isolation].concat());
+        let pid =
+            stop_when_mapped(&mut child, &victim, 0).expect("prepare ended before it was stopped");
         truncate(&victim, bytes / 2);
         // The stopped reader may be gone already: plume itself can notice the truncation,
         // fail, and take its isolated reader with it (PDEATHSIG), stopped or not
@@ -370,6 +507,10 @@ fn a_vdb_truncated_while_prepare_streams_it_fails_cleanly() {
     // The conversion's temporary file is removed by the next conversion, which succeeds
     let o = plume(&["prepare", s(&vdb), "-o", s(&out), "-q"]);
     assert!(o.status.success(), "{}", stderr(&o));
-    assert_eq!(listing(&dir), ["explosion.plume", "explosion.vdb", "victim.vdb"], "no temporary file is left");
+    assert_eq!(
+        listing(&dir),
+        ["explosion.plume", "explosion.vdb", "victim.vdb"],
+        "no temporary file is left"
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -33,22 +33,34 @@ struct TestCgroup {
 impl TestCgroup {
     /// A new cgroup limited to `limit` bytes, or why this machine cannot have one.
     fn new(name: &str, limit: u64) -> Result<TestCgroup, String> {
-        let euid = std::fs::read_to_string("/proc/self/status")
-            .ok()
-            .and_then(|t| t.lines().find_map(|l| l.strip_prefix("Uid:").and_then(|v| v.split_whitespace().nth(1).map(str::to_owned))));
+        let euid = std::fs::read_to_string("/proc/self/status").ok().and_then(|t| {
+            t.lines().find_map(|l| {
+                l.strip_prefix("Uid:").and_then(|v| v.split_whitespace().nth(1).map(str::to_owned))
+            })
+        });
         if euid.as_deref() != Some("0") {
-            return Err(format!("not root (effective uid {}); making a cgroup needs root", euid.as_deref().unwrap_or("unknown")));
+            return Err(format!(
+                "not root (effective uid {}); making a cgroup needs root",
+                euid.as_deref().unwrap_or("unknown")
+            ));
         }
         let leaf = format!("plume-test-{}-{name}", std::process::id());
         let unified = Path::new("/sys/fs/cgroup");
         if let Ok(controllers) = std::fs::read_to_string(unified.join("cgroup.controllers")) {
             if !controllers.split_whitespace().any(|c| c == "memory") {
-                return Err(format!("cgroup v2 at {} has no memory controller (controllers: {:?})", unified.display(), controllers.trim()));
+                return Err(format!(
+                    "cgroup v2 at {} has no memory controller (controllers: {:?})",
+                    unified.display(),
+                    controllers.trim()
+                ));
             }
             let subtree = unified.join("cgroup.subtree_control");
-            let enabled = std::fs::read_to_string(&subtree).is_ok_and(|t| t.split_whitespace().any(|c| c == "memory"));
+            let enabled = std::fs::read_to_string(&subtree)
+                .is_ok_and(|t| t.split_whitespace().any(|c| c == "memory"));
             if !enabled {
-                std::fs::write(&subtree, "+memory").map_err(|e| format!("cannot enable the memory controller in {}: {e}", subtree.display()))?;
+                std::fs::write(&subtree, "+memory").map_err(|e| {
+                    format!("cannot enable the memory controller in {}: {e}", subtree.display())
+                })?;
             }
             return TestCgroup::make(unified.join(leaf), CgroupVersion::V2, "memory.max", limit);
         }
@@ -61,26 +73,48 @@ impl TestCgroup {
         let own = own.lines().find_map(|l| {
             let mut fields = l.splitn(3, ':');
             let (_, controllers, path) = (fields.next()?, fields.next()?, fields.next()?);
-            controllers.split(',').any(|c| c == "memory").then(|| v1.join(path.trim_start_matches('/')))
+            controllers
+                .split(',')
+                .any(|c| c == "memory")
+                .then(|| v1.join(path.trim_start_matches('/')))
         });
-        let parent = own.filter(|p| p.is_dir() && !p.to_string_lossy().contains("..")).unwrap_or(v1.to_path_buf());
+        let parent = own
+            .filter(|p| p.is_dir() && !p.to_string_lossy().contains(".."))
+            .unwrap_or(v1.to_path_buf());
         TestCgroup::make(parent.join(leaf), CgroupVersion::V1, "memory.limit_in_bytes", limit)
     }
 
-    fn make(dir: PathBuf, version: CgroupVersion, limit_file: &str, limit: u64) -> Result<TestCgroup, String> {
+    fn make(
+        dir: PathBuf,
+        version: CgroupVersion,
+        limit_file: &str,
+        limit: u64,
+    ) -> Result<TestCgroup, String> {
         std::fs::create_dir(&dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
         let cgroup = TestCgroup { dir, version };
         let path = cgroup.dir.join(limit_file);
-        std::fs::write(&path, limit.to_string()).map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        std::fs::write(&path, limit.to_string())
+            .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
         Ok(cgroup)
     }
 
     /// Run `plume args` in this cgroup; `Err` when the process could not join it.
     fn plume(&self, args: &[&str]) -> Result<Output, String> {
-        let script = format!("echo $$ > \"$PLUME_TEST_CGROUP/cgroup.procs\" || exit {CANNOT_JOIN}; exec \"$@\"");
-        let o = Command::new("sh").args(["-c", &script, "sh", PLUME]).args(args).env("PLUME_TEST_CGROUP", &self.dir).output().expect("run sh");
+        let script = format!(
+            "echo $$ > \"$PLUME_TEST_CGROUP/cgroup.procs\" || exit {CANNOT_JOIN}; exec \"$@\""
+        );
+        let o = Command::new("sh")
+            .args(["-c", &script, "sh", PLUME])
+            .args(args)
+            .env("PLUME_TEST_CGROUP", &self.dir)
+            .output()
+            .expect("run sh");
         if o.status.code() == Some(CANNOT_JOIN) {
-            return Err(format!("cannot move a process into {}: {}", self.dir.display(), stderr(&o).trim()));
+            return Err(format!(
+                "cannot move a process into {}: {}",
+                self.dir.display(),
+                stderr(&o).trim()
+            ));
         }
         Ok(o)
     }
@@ -114,7 +148,10 @@ fn cgroup_or_skip(name: &str, limit: u64) -> Option<TestCgroup> {
 /// capture (`eprintln!` output of a passing test would be hidden).
 fn skip(reason: &str) {
     use std::io::Write as _;
-    let _ = writeln!(std::io::stderr(), "\n**********\nSKIPPED: the real-cgroup test did not run: {reason}\n**********");
+    let _ = writeln!(
+        std::io::stderr(),
+        "\n**********\nSKIPPED: the real-cgroup test did not run: {reason}\n**********"
+    );
 }
 
 /// A flare brick cache at `resolution` in `dir`.
@@ -141,7 +178,23 @@ fn a_cache_larger_than_the_cgroup_limit_renders_tile_by_tile() {
             machine.mem_available
         ));
     }
-    let args = |out: &Path| ["render", s(&cache), "-o", s(out), "--width", "32", "--height", "24", "--spp", "2", "--threads", "2"].map(str::to_owned);
+    let args = |out: &Path| {
+        [
+            "render",
+            s(&cache),
+            "-o",
+            s(out),
+            "--width",
+            "32",
+            "--height",
+            "24",
+            "--spp",
+            "2",
+            "--threads",
+            "2",
+        ]
+        .map(str::to_owned)
+    };
     let inside = dir.join("inside.exr");
     let args_inside = args(&inside);
     let o = match cgroup.plume(&args_inside.iter().map(String::as_str).collect::<Vec<_>>()) {
@@ -151,14 +204,25 @@ fn a_cache_larger_than_the_cgroup_limit_renders_tile_by_tile() {
     let message = stderr(&o);
     assert!(o.status.success(), "render in a {} MiB cgroup: {message}", limit / MIB);
     let cgroup_name = format!("{} memory limit", cgroup.version);
-    assert!(message.contains("rendering tile by tile") && message.contains(&cgroup_name), "auto order in the cgroup: {message}");
+    assert!(
+        message.contains("rendering tile by tile") && message.contains(&cgroup_name),
+        "auto order in the cgroup: {message}"
+    );
     eprintln!("in {}: {message}", cgroup.dir.display());
     // Outside the cgroup the same render stays progressive (when this process has room)
     if machine.available().is_some_and(|a| a.bytes > cache_bytes) {
         let outside = dir.join("outside.exr");
         let o = plume(&args(&outside).iter().map(String::as_str).collect::<Vec<_>>());
-        assert!(o.status.success() && !stderr(&o).contains("tile by tile"), "outside the cgroup: {}", stderr(&o));
-        assert_eq!(pixel_bits(&exr_pixels(&inside)), pixel_bits(&exr_pixels(&outside)), "the order changes no pixel");
+        assert!(
+            o.status.success() && !stderr(&o).contains("tile by tile"),
+            "outside the cgroup: {}",
+            stderr(&o)
+        );
+        assert_eq!(
+            pixel_bits(&exr_pixels(&inside)),
+            pixel_bits(&exr_pixels(&outside)),
+            "the order changes no pixel"
+        );
     }
     drop(cgroup);
     let _ = std::fs::remove_dir_all(&dir);
@@ -173,17 +237,38 @@ fn the_default_memory_budget_is_half_the_cgroup_limit() {
     let dir = tmpdir("memory", "budget");
     let cache = flare(&dir, 256);
     let out = dir.join("nee.exr");
-    let args = ["render", s(&cache), "-o", s(&out), "--width", "16", "--height", "12", "--spp", "1", "--method", "line-nee", "--albedo", "0.5"];
+    let args = [
+        "render",
+        s(&cache),
+        "-o",
+        s(&out),
+        "--width",
+        "16",
+        "--height",
+        "12",
+        "--spp",
+        "1",
+        "--method",
+        "line-nee",
+        "--albedo",
+        "0.5",
+    ];
     let o = match cgroup.plume(&args) {
         Ok(o) => o,
         Err(reason) => return skip(&reason),
     };
     let message = stderr(&o);
-    let budget = format!("more than the budget of {:.2} GiB", (limit / 2) as f64 / f64::from(1u32 << 30));
+    let budget =
+        format!("more than the budget of {:.2} GiB", (limit / 2) as f64 / f64::from(1u32 << 30));
     assert_eq!(o.status.code(), Some(2), "{message}");
-    assert!(message.contains("classic NEE") && message.contains(&budget), "{message:?} lacks {budget:?}");
+    assert!(
+        message.contains("classic NEE") && message.contains(&budget),
+        "{message:?} lacks {budget:?}"
+    );
     // An explicit budget overrides the cgroup's, even one above the limit itself
-    let o = cgroup.plume(&[&args[..], &["--memory-budget", "40MiB"]].concat()).expect("joined once already");
+    let o = cgroup
+        .plume(&[&args[..], &["--memory-budget", "40MiB"]].concat())
+        .expect("joined once already");
     assert!(stderr(&o).contains("more than the budget of 0.04 GiB"), "{}", stderr(&o));
     drop(cgroup);
     let _ = std::fs::remove_dir_all(&dir);
@@ -201,12 +286,31 @@ fn a_cache_larger_than_the_cgroup_limit_defers_one_path_per_collision() {
     // The pixels' bits and the number of deferred samples, or why the cgroup refused
     let render = |name: &str, extra: &[&str]| -> Result<(Vec<u32>, u64), String> {
         let (out, stats) = (dir.join(format!("{name}.exr")), dir.join(format!("{name}.json")));
-        let args =
-            ["render", s(&cache), "-o", s(&out), "--stats", s(&stats), "--width", "32", "--height", "24", "--spp", "2", "--threads", "2", "--albedo", "0.5"];
+        let args = [
+            "render",
+            s(&cache),
+            "-o",
+            s(&out),
+            "--stats",
+            s(&stats),
+            "--width",
+            "32",
+            "--height",
+            "24",
+            "--spp",
+            "2",
+            "--threads",
+            "2",
+            "--albedo",
+            "0.5",
+        ];
         let o = cgroup.plume(&[&args[..], extra].concat())?;
         assert!(o.status.success(), "{name} in a {} MiB cgroup: {}", limit / MIB, stderr(&o));
-        let stats: serde_json::Value = serde_json::from_slice(&std::fs::read(&stats).unwrap()).unwrap();
-        let deferred = stats["counters"]["deferred_samples"].as_u64().unwrap_or_else(|| panic!("{name}: no deferred_samples in {stats}"));
+        let stats: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(&stats).unwrap()).unwrap();
+        let deferred = stats["counters"]["deferred_samples"]
+            .as_u64()
+            .unwrap_or_else(|| panic!("{name}: no deferred_samples in {stats}"));
         Ok((pixel_bits(&exr_pixels(&out)), deferred))
     };
     let (auto, deferred) = match render("auto", &["--split", "1"]) {
@@ -214,7 +318,8 @@ fn a_cache_larger_than_the_cgroup_limit_defers_one_path_per_collision() {
         Err(reason) => return skip(&reason),
     };
     assert!(deferred > 0, "auto did not defer a cache larger than the limit");
-    let (never, none) = render("never", &["--split", "1", "--defer-paths", "never"]).expect("joined once already");
+    let (never, none) =
+        render("never", &["--split", "1", "--defer-paths", "never"]).expect("joined once already");
     assert_eq!(none, 0, "--defer-paths never deferred");
     assert_eq!(auto, never, "deferral changed the image");
     // Several paths per collision outgrow the fills (`integrator::deferred`)

@@ -6,12 +6,17 @@
 
 use crate::common;
 
-use common::{explosion_emission, exr_pixels, mean_stderr, pixel_bits, plume, plume_exits, refused_in_one_line, s, tmpdir};
+use common::{
+    explosion_emission, exr_pixels, mean_stderr, pixel_bits, plume, plume_exits,
+    refused_in_one_line, s, tmpdir,
+};
 use glam::{DAffine3, DVec3};
-use plume_engine::camera::Camera;
-use plume_engine::integrator::{AnyScene, Integrator, LightSampling, Lights, MisHeuristic, PointLookup, Scene, Tracking};
-use plume_engine::medium::{Collision, Estimator, Medium};
 use plume_core::sampling::{Sampler, SamplerKind};
+use plume_engine::camera::Camera;
+use plume_engine::integrator::{
+    AnyScene, Integrator, LightSampling, Lights, MisHeuristic, PointLookup, Scene, Tracking,
+};
+use plume_engine::medium::{Collision, Estimator, Medium};
 use plume_synth::{explosion, ExplosionParams};
 use plume_volume::grid::FloatGrid;
 use plume_volume::motion::Motion;
@@ -21,19 +26,43 @@ use plume_volume::{Interpolation, Volume};
 /// The generated explosion moved by `shift` (world).
 fn volume(shift: DVec3) -> Volume {
     let ex = explosion(&ExplosionParams { resolution: 32, seed: 5, ..Default::default() });
-    let moved = |g: &FloatGrid| FloatGrid { world_from_index: DAffine3::from_translation(shift) * g.world_from_index, ..g.clone() };
+    let moved = |g: &FloatGrid| FloatGrid {
+        world_from_index: DAffine3::from_translation(shift) * g.world_from_index,
+        ..g.clone()
+    };
     let e = explosion_emission();
     Volume::build(&moved(&ex.density), Some(&moved(&ex.temperature)), |v| e.map_source(v)).unwrap()
 }
 
-fn scene(shift: DVec3, motion: Option<(DVec3, [f64; 2])>, ls: LightSampling, interpolation: Interpolation, albedo: f32) -> AnyScene {
+fn scene(
+    shift: DVec3,
+    motion: Option<(DVec3, [f64; 2])>,
+    ls: LightSampling,
+    interpolation: Interpolation,
+    albedo: f32,
+) -> AnyScene {
     let vol = volume(shift);
     let e = explosion_emission();
     let lights = Lights::build(&vol, &e, ls, 8).unwrap();
     let motion = motion.map(|(v, shutter)| Motion::new(&vol, Velocity::Uniform(v), 1.0, shutter));
-    let cam = Camera::look_at(DVec3::new(0.0, 0.2, -6.5), DVec3::new(0.0, 0.2, 0.0), DVec3::Y, 40.0, 12, 10).unwrap();
+    let cam = Camera::look_at(
+        DVec3::new(0.0, 0.2, -6.5),
+        DVec3::new(0.0, 0.2, 0.0),
+        DVec3::Y,
+        40.0,
+        12,
+        10,
+    )
+    .unwrap();
     AnyScene::new(
-        Scene { field: vol, medium: Medium { sigma_t: 2.0, albedo, g: 0.3, emission: e }, camera: cam, lights, motion, majorants: None },
+        Scene {
+            field: vol,
+            medium: Medium { sigma_t: 2.0, albedo, g: 0.3, emission: e },
+            camera: cam,
+            lights,
+            motion,
+            majorants: None,
+        },
         interpolation,
     )
 }
@@ -87,18 +116,24 @@ fn zero_velocity_agrees_with_regular_tracking() {
     // 3 reconstructions (trilinear with exact point lookups, and with emission points
     // picked too after scattering) × 4 method
     // set-ups × 5 regions = 60 comparisons, |z| < 4.2
-    for (interpolation, lookup) in
-        [(Interpolation::Nearest, PointLookup::Exact), (Interpolation::Linear, PointLookup::Exact), (Interpolation::Linear, PointLookup::StochasticEmission)]
-    {
+    for (interpolation, lookup) in [
+        (Interpolation::Nearest, PointLookup::Exact),
+        (Interpolation::Linear, PointLookup::Exact),
+        (Interpolation::Linear, PointLookup::StochasticEmission),
+    ] {
         for (est, ls, albedo) in [
             (Estimator::Line, LightSampling::Fnee, 0.8),
             (Estimator::Point, LightSampling::None, 0.8),
             (Estimator::RayMarch, LightSampling::Fnee, 0.8),
             (Estimator::Line, LightSampling::None, 0.0),
         ] {
-            let integ = Integrator { point_lookup: lookup, ..integrator(est, ls, if albedo > 0.0 { 16 } else { 0 }) };
+            let integ = Integrator {
+                point_lookup: lookup,
+                ..integrator(est, ls, if albedo > 0.0 { 16 } else { 0 })
+            };
             let still = scene(DVec3::ZERO, None, ls, interpolation, albedo);
-            let moving = scene(DVec3::ZERO, Some((DVec3::ZERO, [-0.01, 0.01])), ls, interpolation, albedo);
+            let moving =
+                scene(DVec3::ZERO, Some((DVec3::ZERO, [-0.01, 0.01])), ls, interpolation, albedo);
             let a: Vec<[f64; 5]> = (0..8).map(|r| regions(&still, integ, 8, 100 + r)).collect();
             let b: Vec<[f64; 5]> = (0..8).map(|r| regions(&moving, integ, 8, 200 + r)).collect();
             compare(&format!("{interpolation} {lookup:?} {est:?}/{ls:?} albedo {albedo}"), &a, &b);
@@ -116,41 +151,73 @@ fn uniform_velocity_blurs_like_the_average_of_translated_volumes() {
     let shutter = [0.0, 0.1];
     for interpolation in [Interpolation::Nearest, Interpolation::Linear] {
         // The blurred render with the default stochastic point lookups
-        let integ = Integrator { point_lookup: PointLookup::Stochastic, ..integrator(Estimator::Line, LightSampling::Fnee, 16) };
-        let blurred = scene(DVec3::ZERO, Some((v, shutter)), LightSampling::Fnee, interpolation, 0.8);
+        let integ = Integrator {
+            point_lookup: PointLookup::Stochastic,
+            ..integrator(Estimator::Line, LightSampling::Fnee, 16)
+        };
+        let blurred =
+            scene(DVec3::ZERO, Some((v, shutter)), LightSampling::Fnee, interpolation, 0.8);
         let a: Vec<[f64; 5]> = (0..12).map(|r| regions(&blurred, integ, 16, 300 + r)).collect();
         let mut times = Sampler::new(77, 0, 0);
         let b: Vec<[f64; 5]> = (0..24)
             .map(|r| {
                 let t = shutter[0] + times.next_f64() * (shutter[1] - shutter[0]);
-                regions(&scene(v * t, None, LightSampling::Fnee, interpolation, 0.8), integ, 16, 400 + r)
+                regions(
+                    &scene(v * t, None, LightSampling::Fnee, interpolation, 0.8),
+                    integ,
+                    16,
+                    400 + r,
+                )
             })
             .collect();
         compare(&format!("{interpolation} blur"), &a, &b);
         // …and the blur is visible: the still frame differs
-        let still: Vec<[f64; 5]> = (0..12).map(|r| regions(&scene(DVec3::ZERO, None, LightSampling::Fnee, interpolation, 0.8), integ, 16, 500 + r)).collect();
+        let still: Vec<[f64; 5]> = (0..12)
+            .map(|r| {
+                regions(
+                    &scene(DVec3::ZERO, None, LightSampling::Fnee, interpolation, 0.8),
+                    integ,
+                    16,
+                    500 + r,
+                )
+            })
+            .collect();
         let z = largest_z(&still, &a);
-        assert!(z > 6.0, "{interpolation}: the blur is not visible in any region (largest |z| {z:.2})");
+        assert!(
+            z > 6.0,
+            "{interpolation}: the blur is not visible in any region (largest |z| {z:.2})"
+        );
     }
 }
 
 /// The generated explosion with a uniform velocity written as `vel.x`, `vel.y`, `vel.z`.
 fn moving_vdb(dir: &std::path::Path, vx: f32) -> std::path::PathBuf {
     let ex = explosion(&ExplosionParams { resolution: 32, seed: 5, ..Default::default() });
-    let component = |name: &str, v: f32| FloatGrid { name: name.into(), values: vec![v; ex.density.values.len()], ..ex.density.clone() };
+    let component = |name: &str, v: f32| FloatGrid {
+        name: name.into(),
+        values: vec![v; ex.density.values.len()],
+        ..ex.density.clone()
+    };
     let (x, y, z) = (component("vel.x", vx), component("vel.y", 0.0), component("vel.z", 0.5 * vx));
     let path = dir.join("moving.vdb");
     plume::vdb::write_float_grids(&path, &[&ex.density, &ex.temperature, &x, &y, &z]).unwrap();
     path
 }
 
-const SMALL: [&str; 10] = ["--width", "20", "--height", "14", "--spp", "4", "-q", "--albedo", "0.7", "--density-scale"];
+const SMALL: [&str; 10] =
+    ["--width", "20", "--height", "14", "--spp", "4", "-q", "--albedo", "0.7", "--density-scale"];
 
 #[test]
 fn motion_blur_renders_through_the_binary_and_splits_bit_identically() {
     let d = tmpdir("motion", "cli");
     let vdb = moving_vdb(&d, 6.0);
-    let (blur, still, t1, t2, merged) = (d.join("blur.exr"), d.join("still.exr"), d.join("t1.exr"), d.join("t2.exr"), d.join("merged.exr"));
+    let (blur, still, t1, t2, merged) = (
+        d.join("blur.exr"),
+        d.join("still.exr"),
+        d.join("t1.exr"),
+        d.join("t2.exr"),
+        d.join("merged.exr"),
+    );
     let run = |out: &std::path::Path, extra: &[&str]| {
         let mut args = vec!["render", s(&vdb), "-o", s(out)];
         args.extend(SMALL);
@@ -161,7 +228,11 @@ fn motion_blur_renders_through_the_binary_and_splits_bit_identically() {
     };
     run(&blur, &["--velocity-grid", "vel", "--shutter", "-0.5,0.5", "--threads", "2"]);
     run(&still, &[]);
-    assert_ne!(pixel_bits(&exr_pixels(&blur)), pixel_bits(&exr_pixels(&still)), "the velocity changes the image");
+    assert_ne!(
+        pixel_bits(&exr_pixels(&blur)),
+        pixel_bits(&exr_pixels(&still)),
+        "the velocity changes the image"
+    );
     // Any thread count, tiles and a merge: the same bits
     let one = d.join("one.exr");
     run(&one, &["--velocity-grid", "vel", "--shutter", "-0.5,0.5", "--threads", "1"]);
@@ -169,7 +240,11 @@ fn motion_blur_renders_through_the_binary_and_splits_bit_identically() {
     run(&t1, &["--velocity-grid", "vel", "--shutter", "-0.5,0.5", "--tile", "0/2"]);
     run(&t2, &["--velocity-grid", "vel", "--shutter", "-0.5,0.5", "--tile", "1/2"]);
     assert!(plume(&["merge", "-o", s(&merged), "-q", s(&t1), s(&t2)]).status.success());
-    assert_eq!(pixel_bits(&exr_pixels(&blur)), pixel_bits(&exr_pixels(&merged)), "tiles merged differ from one render");
+    assert_eq!(
+        pixel_bits(&exr_pixels(&blur)),
+        pixel_bits(&exr_pixels(&merged)),
+        "tiles merged differ from one render"
+    );
 }
 
 #[test]
@@ -199,13 +274,16 @@ fn the_generated_explosion_expands_and_swirls() {
     let params = ExplosionParams { resolution: 48, seed: 2, ..Default::default() };
     let ex = explosion(&params);
     let v = explosion_velocity(&params, &ex.density);
-    let grid = plume_volume::velocity::VelocityGrid::from_components([&v[0], &v[1], &v[2]], "synth").unwrap();
+    let grid =
+        plume_volume::velocity::VelocityGrid::from_components([&v[0], &v[1], &v[2]], "synth")
+            .unwrap();
     let h = 4.0 / 48.0; // one voxel
     let (mut div, mut swirl, mut n) = (0.0f64, 0.0f64, 0);
     let mut rng = Sampler::new(5, 0, 0);
     while n < 400 {
         let p = DVec3::new(rng.next_f64() - 0.5, rng.next_f64() * 0.8 + 0.1, rng.next_f64() - 0.5);
-        let probes = [DVec3::X, DVec3::Y, DVec3::Z].map(|a| (grid.at(p + a * h), grid.at(p - a * h)));
+        let probes =
+            [DVec3::X, DVec3::Y, DVec3::Z].map(|a| (grid.at(p + a * h), grid.at(p - a * h)));
         if probes.iter().any(|(a, b)| *a == DVec3::ZERO || *b == DVec3::ZERO) {
             continue; // outside the leaves
         }
@@ -215,7 +293,10 @@ fn the_generated_explosion_expands_and_swirls() {
         n += 1;
     }
     let (div, swirl) = (div / f64::from(n), swirl / f64::from(n));
-    assert!((div - 3.0 * f64::from(EXPANSION_RATE)).abs() < 0.15 * 3.0 * f64::from(EXPANSION_RATE), "mean divergence {div}");
+    assert!(
+        (div - 3.0 * f64::from(EXPANSION_RATE)).abs() < 0.15 * 3.0 * f64::from(EXPANSION_RATE),
+        "mean divergence {div}"
+    );
     assert!(swirl > 0.2, "no curl noise: mean |v − radial| = {swirl}");
 }
 
@@ -226,13 +307,33 @@ fn vector_velocity_grids_are_read_and_bad_ones_refused() {
     let d = tmpdir("motion", "vec3");
     let fixture = common::fixture("vec3.vdb");
     let out = d.join("o.exr");
-    let base = ["render", s(&fixture), "-o", s(&out), "--width", "8", "--height", "6", "--spp", "2", "-q", "--emission", "none", "--environment", "1,1,1"];
+    let base = [
+        "render",
+        s(&fixture),
+        "-o",
+        s(&out),
+        "--width",
+        "8",
+        "--height",
+        "6",
+        "--spp",
+        "2",
+        "-q",
+        "--emission",
+        "none",
+        "--environment",
+        "1,1,1",
+    ];
     let mut ok = base.to_vec();
     ok.extend(["--velocity-grid", "vel_double", "--albedo", "0.5"]);
     let o = plume(&ok);
     assert!(o.status.success(), "a vec3d velocity renders: {}", String::from_utf8_lossy(&o.stderr));
     std::fs::remove_file(&out).unwrap();
-    for (grid, needles) in [("vel_nan", vec!["vel_nan", "NaN"]), ("density", vec!["density", "not a vector grid"]), ("nothing", vec!["nothing.x"])] {
+    for (grid, needles) in [
+        ("vel_nan", vec!["vel_nan", "NaN"]),
+        ("density", vec!["density", "not a vector grid"]),
+        ("nothing", vec!["nothing.x"]),
+    ] {
         let mut args = base.to_vec();
         args.extend(["--velocity-grid", grid]);
         refused_in_one_line(&args, 3, &needles, &out);
@@ -247,14 +348,26 @@ fn a_moving_camera_equals_the_average_over_its_positions() {
     let shutter = [0.0, 0.04];
     let place = |t: f64| {
         let x = 15.0 * t;
-        LookAt { from: DVec3::new(x, 0.2, -6.5), at: DVec3::new(x, 0.2, 0.0), up: DVec3::Y, fov: 40.0 }
+        LookAt {
+            from: DVec3::new(x, 0.2, -6.5),
+            at: DVec3::new(x, 0.2, 0.0),
+            up: DVec3::Y,
+            fov: 40.0,
+        }
     };
     let with_camera = |camera: Camera| -> AnyScene {
         let vol = volume(DVec3::ZERO);
         let e = explosion_emission();
         let lights = Lights::build(&vol, &e, LightSampling::Fnee, 8).unwrap();
         AnyScene::new(
-            Scene { field: vol, medium: Medium { sigma_t: 2.0, albedo: 0.8, g: 0.3, emission: e }, camera, lights, motion: None, majorants: None },
+            Scene {
+                field: vol,
+                medium: Medium { sigma_t: 2.0, albedo: 0.8, g: 0.3, emission: e },
+                camera,
+                lights,
+                motion: None,
+                majorants: None,
+            },
             Interpolation::Linear,
         )
     };
@@ -263,14 +376,32 @@ fn a_moving_camera_equals_the_average_over_its_positions() {
         Camera::look_at(k.from, k.at, k.up, k.fov, 12, 10).unwrap()
     };
     let mut moving = still_at(0.0);
-    moving.motion = Some(CameraMotion::new(&[(shutter[0], place(shutter[0])), (shutter[1], place(shutter[1]))], 12, 10).unwrap());
+    moving.motion = Some(
+        CameraMotion::new(
+            &[(shutter[0], place(shutter[0])), (shutter[1], place(shutter[1]))],
+            12,
+            10,
+        )
+        .unwrap(),
+    );
     let integ = integrator(Estimator::Line, LightSampling::Fnee, 16);
-    let a: Vec<[f64; 5]> = (0..12).map(|r| regions(&with_camera(moving), integ, 16, 600 + r)).collect();
+    let a: Vec<[f64; 5]> =
+        (0..12).map(|r| regions(&with_camera(moving), integ, 16, 600 + r)).collect();
     let mut times = Sampler::new(78, 0, 0);
-    let b: Vec<[f64; 5]> = (0..24).map(|r| regions(&with_camera(still_at(shutter[0] + times.next_f64() * 0.04)), integ, 16, 700 + r)).collect();
+    let b: Vec<[f64; 5]> = (0..24)
+        .map(|r| {
+            regions(
+                &with_camera(still_at(shutter[0] + times.next_f64() * 0.04)),
+                integ,
+                16,
+                700 + r,
+            )
+        })
+        .collect();
     compare("moving camera", &a, &b);
     // …and the motion shows
-    let still: Vec<[f64; 5]> = (0..12).map(|r| regions(&with_camera(still_at(0.0)), integ, 16, 800 + r)).collect();
+    let still: Vec<[f64; 5]> =
+        (0..12).map(|r| regions(&with_camera(still_at(0.0)), integ, 16, 800 + r)).collect();
     let z = largest_z(&still, &a);
     assert!(z > 6.0, "the camera's motion does not show (largest |z| {z:.2})");
 }
@@ -302,7 +433,11 @@ fn camera_keys_animate_a_sequence_from_a_scene_file() {
         assert!(o.status.success(), "{}: {}", file.display(), String::from_utf8_lossy(&o.stderr));
     }
     let px = |name: &str| pixel_bits(&exr_pixels(&d.join(name)));
-    assert_eq!(px("zero.0002.exr"), px("fixed.0002.exr"), "frame 2 of the keys is the camera halfway");
+    assert_eq!(
+        px("zero.0002.exr"),
+        px("fixed.0002.exr"),
+        "frame 2 of the keys is the camera halfway"
+    );
     assert_ne!(px("moving.0002.exr"), px("zero.0002.exr"), "the camera moves within the shutter");
     assert_ne!(px("moving.0001.exr"), px("moving.0003.exr"), "the keys animate the sequence");
 }
@@ -318,16 +453,43 @@ fn synth_explosion_writes_its_velocity_as_a_vector_grid() {
     let params = ExplosionParams { resolution: 32, seed: 4, ..Default::default() };
     let ex = explosion(&params);
     let expected = plume_synth::velocity::explosion_velocity(&params, &ex.density);
-    let read = plume::vdb::read_vec3_grid(&path, &"velocity".parse().unwrap(), &plume::vdb::ReadLimits::default()).unwrap();
+    let read = plume::vdb::read_vec3_grid(
+        &path,
+        &"velocity".parse().unwrap(),
+        &plume::vdb::ReadLimits::default(),
+    )
+    .unwrap();
     let grid = |g: &FloatGrid| -> std::collections::HashMap<glam::IVec3, Vec<u32>> {
-        g.origins.iter().enumerate().map(|(i, o)| (*o, g.values[i * 512..(i + 1) * 512].iter().map(|v| v.to_bits()).collect())).collect()
+        g.origins
+            .iter()
+            .enumerate()
+            .map(|(i, o)| {
+                (*o, g.values[i * 512..(i + 1) * 512].iter().map(|v| v.to_bits()).collect())
+            })
+            .collect()
     };
     for axis in 0..3 {
         assert_eq!(grid(&read[axis]), grid(&expected[axis]), "component {axis}");
     }
     // The render reads it
     let out = d.join("o.exr");
-    let o = plume(&["render", s(&path), "-o", s(&out), "--width", "8", "--height", "6", "--spp", "1", "-q", "--albedo", "0.5", "--velocity-grid", "velocity"]);
+    let o = plume(&[
+        "render",
+        s(&path),
+        "-o",
+        s(&out),
+        "--width",
+        "8",
+        "--height",
+        "6",
+        "--spp",
+        "1",
+        "-q",
+        "--albedo",
+        "0.5",
+        "--velocity-grid",
+        "velocity",
+    ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }
 
@@ -386,7 +548,19 @@ fn real_velocity_grids_of_the_openusd_sequence() {
     }
     let d = tmpdir("motion", "openusd");
     let out = d.join("o.exr");
-    let base = ["--width", "16", "--height", "12", "--spp", "2", "-q", "--albedo", "0.6", "--velocity-grid", "velocity"];
+    let base = [
+        "--width",
+        "16",
+        "--height",
+        "12",
+        "--spp",
+        "2",
+        "-q",
+        "--albedo",
+        "0.6",
+        "--velocity-grid",
+        "velocity",
+    ];
     let mut args = vec!["render", s(&one), "-o", s(&out)];
     args.extend(base);
     let o = plume(&args);

@@ -8,15 +8,19 @@
 use crate::common;
 
 use common::{explosion, plume, plume_exits, region_means_with, s, tmpdir};
-use plume_engine::integrator::{AnyScene, Integrator, LightSampling, Lights, MisHeuristic, Tracking};
-use plume_engine::medium::{Collision, Estimator};
 use plume_core::sampling::SamplerKind;
+use plume_engine::integrator::{
+    AnyScene, Integrator, LightSampling, Lights, MisHeuristic, Tracking,
+};
+use plume_engine::medium::{Collision, Estimator};
 use plume_scene::NeeTable;
 use plume_volume::Interpolation;
 
 /// The generated explosion with classic NEE from `table`.
 fn scene(table: NeeTable, interpolation: Interpolation) -> AnyScene {
-    common::explosion_scene(1.5, interpolation, false, |vol, e| Lights::build_with(vol, e, LightSampling::Nee, 8, table).unwrap())
+    common::explosion_scene(1.5, interpolation, false, |vol, e| {
+        Lights::build_with(vol, e, LightSampling::Nee, 8, table).unwrap()
+    })
 }
 
 #[test]
@@ -24,7 +28,8 @@ fn brick_table_gives_the_image_means_of_the_voxel_table() {
     // 2 estimators × 2 reconstructions × 5 regions = 20 comparisons; Šidák at α = 0.01
     // gives |z| < 3.5 per test
     for interpolation in [Interpolation::Nearest, Interpolation::Linear] {
-        let (voxels, bricks) = (scene(NeeTable::Voxel, interpolation), scene(NeeTable::Brick, interpolation));
+        let (voxels, bricks) =
+            (scene(NeeTable::Voxel, interpolation), scene(NeeTable::Brick, interpolation));
         for estimator in [Estimator::Point, Estimator::Line] {
             let integrator = Integrator {
                 estimator,
@@ -41,7 +46,12 @@ fn brick_table_gives_the_image_means_of_the_voxel_table() {
             let a = region_means_with(SamplerKind::Sobol, &voxels, integrator, 16, 16, 11);
             let b = region_means_with(SamplerKind::Sobol, &bricks, integrator, 16, 16, 500);
             assert!(a[0].0 > 0.0);
-            common::assert_same_means(&format!("{interpolation} {estimator:?}, brick table vs voxel table"), &b, &a, 3.5);
+            common::assert_same_means(
+                &format!("{interpolation} {estimator:?}, brick table vs voxel table"),
+                &b,
+                &a,
+                3.5,
+            );
         }
     }
 }
@@ -50,8 +60,27 @@ fn brick_table_gives_the_image_means_of_the_voxel_table() {
 fn nee_table_is_a_flag_a_scene_key_and_part_of_the_settings_hash() {
     let dir = tmpdir("nee_table", "cli");
     let vdb = explosion(&dir, 32, Some(3));
-    let base = ["render", s(&vdb), "--width", "24", "--height", "16", "--spp", "4", "--albedo", "0.8", "--method", "line-nee", "--stats"];
-    let hashes = common::settings_hashes(&dir, &base, "--nee-table", &[("default", None), ("voxel", Some("voxel")), ("brick", Some("brick"))]);
+    let base = [
+        "render",
+        s(&vdb),
+        "--width",
+        "24",
+        "--height",
+        "16",
+        "--spp",
+        "4",
+        "--albedo",
+        "0.8",
+        "--method",
+        "line-nee",
+        "--stats",
+    ];
+    let hashes = common::settings_hashes(
+        &dir,
+        &base,
+        "--nee-table",
+        &[("default", None), ("voxel", Some("voxel")), ("brick", Some("brick"))],
+    );
     let pixels = |name: &str| common::exr_pixels(&dir.join(format!("{name}.exr")));
     assert_eq!(pixels("default"), pixels("voxel"));
     assert_ne!(pixels("voxel"), pixels("brick"));
@@ -70,7 +99,11 @@ fn nee_table_is_a_flag_a_scene_key_and_part_of_the_settings_hash() {
     let o = plume(&["render", s(&scene_file), "--spp", "4", "-o", s(&out)]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert_eq!(common::exr_pixels(&out), pixels("brick"));
-    plume_exits(&["render", s(&vdb), "--nee-table", "octree", "-o", s(&out)], 2, &["--nee-table", "voxel", "brick"]);
+    plume_exits(
+        &["render", s(&vdb), "--nee-table", "octree", "-o", s(&out)],
+        2,
+        &["--nee-table", "voxel", "brick"],
+    );
 }
 
 #[test]
@@ -78,7 +111,22 @@ fn a_voxel_table_over_the_budget_names_the_brick_table_which_fits() {
     let dir = tmpdir("nee_table", "budget");
     let vdb = explosion(&dir, 32, Some(3));
     let out = dir.join("x.exr");
-    let args = ["render", s(&vdb), "--width", "16", "--height", "12", "--spp", "2", "--albedo", "0.8", "--method", "line-nee", "--memory-budget", "64KiB"];
+    let args = [
+        "render",
+        s(&vdb),
+        "--width",
+        "16",
+        "--height",
+        "12",
+        "--spp",
+        "2",
+        "--albedo",
+        "0.8",
+        "--method",
+        "line-nee",
+        "--memory-budget",
+        "64KiB",
+    ];
     let mut refused = args.to_vec();
     refused.extend(["-o", s(&out)]);
     plume_exits(&refused, 2, &["--memory-budget", "voxel table", "--nee-table brick"]);

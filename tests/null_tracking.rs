@@ -7,10 +7,13 @@ use crate::common;
 
 use common::{chi2_test, mean_stderr};
 use glam::DVec3;
+use plume_core::sampling::Sampler;
 use plume_engine::medium::null_tracking::{null_track, ratio_transmittance, PointSample};
 use plume_engine::medium::tracking::optical_depth;
-use plume_engine::medium::{track, Collision, Convention, DistanceSample, Emission, EmissionKind, Estimator, Medium, TemperatureMap};
-use plume_core::sampling::Sampler;
+use plume_engine::medium::{
+    track, Collision, Convention, DistanceSample, Emission, EmissionKind, Estimator, Medium,
+    TemperatureMap,
+};
 use plume_synth::{explosion, ExplosionParams};
 use plume_volume::field::{Field, Ray};
 use plume_volume::majorant::{MajorantGrid, MAX_CELLS};
@@ -61,7 +64,9 @@ fn majorants_bound_every_displaced_lookup() {
     let tri = Trilinear::new(volume());
     let voxel = 4.0 / 32.0;
     // The finest level (5³ cells), and coarser ones as a large volume would take them
-    for (displacement, max_cells) in [(0.0, MAX_CELLS), (2.5, MAX_CELLS), (11.0, MAX_CELLS), (0.0, 30), (2.5, 30), (0.0, 1)] {
+    for (displacement, max_cells) in
+        [(0.0, MAX_CELLS), (2.5, MAX_CELLS), (11.0, MAX_CELLS), (0.0, 30), (2.5, 30), (0.0, 1)]
+    {
         let grid = MajorantGrid::with_max_cells(&vol, displacement, max_cells);
         let mut s = Sampler::new(1, 0, 0);
         let mut checked = 0;
@@ -69,15 +74,27 @@ fn majorants_bound_every_displaced_lookup() {
             for seg in grid.segments(&ray, 0.0, f64::INFINITY) {
                 for _ in 0..80 {
                     let t = seg.t0 + s.next_f64() * (seg.t1 - seg.t0);
-                    let offset = DVec3::new(s.next_f64() - 0.5, s.next_f64() - 0.5, s.next_f64() - 0.5) * (2.0 * displacement * voxel);
+                    let offset =
+                        DVec3::new(s.next_f64() - 0.5, s.next_f64() - 0.5, s.next_f64() - 0.5)
+                            * (2.0 * displacement * voxel);
                     let p = ray.at(t) + offset;
-                    let (dn, dt) = (vol.values_at(p).density, tri.reconstruct(p, &|_, _| plume_core::color::Rgb::ZERO).density);
-                    assert!(dn <= seg.bounds.density && dt <= seg.bounds.density, "D {displacement}, {max_cells} cells: {dn}/{dt} above {:?}", seg.bounds);
+                    let (dn, dt) = (
+                        vol.values_at(p).density,
+                        tri.reconstruct(p, &|_, _| plume_core::color::Rgb::ZERO).density,
+                    );
+                    assert!(
+                        dn <= seg.bounds.density && dt <= seg.bounds.density,
+                        "D {displacement}, {max_cells} cells: {dn}/{dt} above {:?}",
+                        seg.bounds
+                    );
                     checked += 1;
                 }
             }
         }
-        assert!(checked > 400, "D {displacement}, {max_cells} cells: too few points checked: {checked}");
+        assert!(
+            checked > 400,
+            "D {displacement}, {max_cells} cells: too few points checked: {checked}"
+        );
     }
 }
 
@@ -101,11 +118,18 @@ fn majorants_are_the_dual_cells_bounds() {
                 let c = glam::IVec3::new(x, y, z);
                 // A short ray inside the cell, away from its faces
                 let p = base + c.as_dvec3() * 8.0 + DVec3::new(3.3, 4.1, 2.7);
-                let ray = Ray { origin: world_from_index.transform_point3(p), direction: world_from_index.transform_vector3(DVec3::X).normalize() };
+                let ray = Ray {
+                    origin: world_from_index.transform_point3(p),
+                    direction: world_from_index.transform_vector3(DVec3::X).normalize(),
+                };
                 let segs: Vec<_> = grid.segments(&ray, 0.0, 1e-6).collect();
                 assert_eq!(segs.len(), 1, "cell {c}: {segs:?}");
                 let node = dual.get(c);
-                assert_eq!((segs[0].bounds.density, segs[0].bounds.source), (node.density_max, node.source_max), "cell {c}");
+                assert_eq!(
+                    (segs[0].bounds.density, segs[0].bounds.source),
+                    (node.density_max, node.source_max),
+                    "cell {c}"
+                );
                 // The bound the point had before: its brick's cell, the 27 bricks around
                 // brick c − 1 (relative to the table), which hold the 8 of the dual cell
                 let mut old = 0.0f32;
@@ -115,7 +139,11 @@ fn majorants_are_the_dual_cells_bounds() {
                         old = old.max(level0.get(q).density_max);
                     }
                 }
-                assert!(old >= node.density_max, "cell {c}: the dual bound {} above the old {old}", node.density_max);
+                assert!(
+                    old >= node.density_max,
+                    "cell {c}: the dual bound {} above the old {old}",
+                    node.density_max
+                );
                 looser += usize::from(old > node.density_max);
             }
         }
@@ -189,15 +217,34 @@ fn ratio_tracking_averages_to_the_transmittance() {
         (
             "nearest",
             Box::new(sampler_of(&vol, &m)) as Box<dyn Fn(DVec3) -> PointSample>,
-            Box::new(|r: &Ray, t: f64| optical_depth(&vol, &m, r, t, f64::INFINITY).optical_depth) as Box<dyn Fn(&Ray, f64) -> f64>,
+            Box::new(|r: &Ray, t: f64| optical_depth(&vol, &m, r, t, f64::INFINITY).optical_depth)
+                as Box<dyn Fn(&Ray, f64) -> f64>,
         ),
-        ("trilinear", Box::new(sampler_of(&tri, &m)), Box::new(|r: &Ray, t: f64| optical_depth(&tri, &m, r, t, f64::INFINITY).optical_depth)),
+        (
+            "trilinear",
+            Box::new(sampler_of(&tri, &m)),
+            Box::new(|r: &Ray, t: f64| optical_depth(&tri, &m, r, t, f64::INFINITY).optical_depth),
+        ),
     ] {
         for ray in rays().iter().take(3) {
             let tau = (-exact(ray, f64::INFINITY)).exp();
-            let values: Vec<f64> = (0..20_000u64).map(|i| ratio_transmittance(&grid, &eval, &m, ray, f64::INFINITY, &mut Sampler::new(11, 0, i))).collect();
+            let values: Vec<f64> = (0..20_000u64)
+                .map(|i| {
+                    ratio_transmittance(
+                        &grid,
+                        &eval,
+                        &m,
+                        ray,
+                        f64::INFINITY,
+                        &mut Sampler::new(11, 0, i),
+                    )
+                })
+                .collect();
             let (mean, se) = mean_stderr(&values);
-            assert!((mean - tau).abs() < 4.0 * se + 1e-9, "{name}: ratio tracking {mean} ± {se} vs τ {tau}");
+            assert!(
+                (mean - tau).abs() < 4.0 * se + 1e-9,
+                "{name}: ratio tracking {mean} ± {se} vs τ {tau}"
+            );
         }
     }
 }
@@ -225,20 +272,47 @@ fn every_estimator_agrees_with_regular_tracking_in_mean() {
         }
     };
     for estimator in [Estimator::Line, Estimator::Point, Estimator::RayMarch] {
-        let run_regular = |f: &dyn Fn(&mut Sampler, f64) -> plume_engine::medium::TrackResult, i: u64| {
+        let run_regular = |f: &dyn Fn(&mut Sampler, f64) -> plume_engine::medium::TrackResult,
+                           i: u64| {
             let mut s = Sampler::new(21, 0, i);
             let u = s.next_f64();
             let r = f(&mut s, u);
             [r.emission[0], r.transmittance]
         };
         let (en, et) = (sampler_of(&vol, &m), sampler_of(&tri, &m));
-        check(&format!("{estimator:?} nearest"), &|i| run_regular(&|s, u| track(&vol, &m, &ray, f64::INFINITY, estimator, Collision::Analog, u, s), i), &|i| {
-            run_regular(&|s, u| null_track(&grid, &en, &m, &ray, f64::INFINITY, estimator, true, u, s), i + n)
-        });
+        check(
+            &format!("{estimator:?} nearest"),
+            &|i| {
+                run_regular(
+                    &|s, u| {
+                        track(&vol, &m, &ray, f64::INFINITY, estimator, Collision::Analog, u, s)
+                    },
+                    i,
+                )
+            },
+            &|i| {
+                run_regular(
+                    &|s, u| null_track(&grid, &en, &m, &ray, f64::INFINITY, estimator, true, u, s),
+                    i + n,
+                )
+            },
+        );
         check(
             &format!("{estimator:?} trilinear"),
-            &|i| run_regular(&|s, u| track(&tri, &m, &ray, f64::INFINITY, estimator, Collision::Analog, u, s), i),
-            &|i| run_regular(&|s, u| null_track(&grid, &et, &m, &ray, f64::INFINITY, estimator, true, u, s), i + n),
+            &|i| {
+                run_regular(
+                    &|s, u| {
+                        track(&tri, &m, &ray, f64::INFINITY, estimator, Collision::Analog, u, s)
+                    },
+                    i,
+                )
+            },
+            &|i| {
+                run_regular(
+                    &|s, u| null_track(&grid, &et, &m, &ray, f64::INFINITY, estimator, true, u, s),
+                    i + n,
+                )
+            },
         );
     }
 }
@@ -267,7 +341,10 @@ fn a_collision_record_holds_what_its_estimator_reads() {
                 assert_eq!((density, source), (v.density, v.source), "{estimator:?} at t = {t}");
                 assert!(density > 0.0, "{estimator:?}: a collision where the density is 0");
             } else {
-                assert!(density.is_nan() && source.is_nan(), "{estimator:?}: read {density}, {source} it does not use");
+                assert!(
+                    density.is_nan() && source.is_nan(),
+                    "{estimator:?}: read {density}, {source} it does not use"
+                );
             }
         }
         assert!(collided > 50, "{estimator:?}: only {collided} of 200 paths collided");

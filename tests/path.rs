@@ -5,26 +5,35 @@
 
 use crate::common;
 
-use common::{assert_same_means, explosion_emission, grid_emission, mean_stderr, mean_stderr_from_sums, region_means_with};
+use common::{
+    assert_same_means, explosion_emission, grid_emission, mean_stderr, mean_stderr_from_sums,
+    region_means_with,
+};
 use glam::{DAffine3, DMat3, DVec3, IVec3};
-use plume_engine::camera::Camera;
+use plume::vdb::{FloatGrid, LEAF_VOXELS};
 use plume_core::color::Rgb;
-use plume_engine::integrator::{AnyScene, Counters, Integrator, LightSampling, Lights, MisHeuristic, NoTrace, Scene, Tracking};
-use plume_engine::light::external::{Environment, ExternalLights, Light, Radiance};
-use plume_engine::medium::{Collision, Convention, Emission, EmissionKind, Estimator, Medium};
-use plume_engine::render::{render, RenderSettings, SampleBudget};
 use plume_core::sampling::phase::sample_uniform_sphere;
 use plume_core::sampling::Sampler;
 use plume_core::sampling::SamplerKind;
+use plume_engine::camera::Camera;
+use plume_engine::integrator::{
+    AnyScene, Counters, Integrator, LightSampling, Lights, MisHeuristic, NoTrace, Scene, Tracking,
+};
+use plume_engine::light::external::{Environment, ExternalLights, Light, Radiance};
+use plume_engine::medium::{Collision, Convention, Emission, EmissionKind, Estimator, Medium};
+use plume_engine::render::{render, RenderSettings, SampleBudget};
 use plume_synth::{explosion, ExplosionParams};
-use plume::vdb::{FloatGrid, LEAF_VOXELS};
 use plume_volume::field::Ray;
 use plume_volume::{Interpolation, Volume};
 
 /// A constant cube of `8n` voxels a side spanning `[0, size]³` metres.
 fn cube(n: i32, size: f64, density: f32, source: f32) -> Volume {
-    let xf = DAffine3::from_mat3_translation(DMat3::from_diagonal(DVec3::splat(size / f64::from(8 * n))), DVec3::splat(size / f64::from(16 * n)));
-    let origins: Vec<IVec3> = (0..n * n * n).map(|i| IVec3::new(i % n, (i / n) % n, i / (n * n)) * 8).collect();
+    let xf = DAffine3::from_mat3_translation(
+        DMat3::from_diagonal(DVec3::splat(size / f64::from(8 * n))),
+        DVec3::splat(size / f64::from(16 * n)),
+    );
+    let origins: Vec<IVec3> =
+        (0..n * n * n).map(|i| IVec3::new(i % n, (i / n) % n, i / (n * n)) * 8).collect();
     let g = |name: &str, v: f32| FloatGrid {
         name: name.into(),
         world_from_index: xf,
@@ -33,10 +42,16 @@ fn cube(n: i32, size: f64, density: f32, source: f32) -> Volume {
         values: vec![v; origins.len() * LEAF_VOXELS],
     };
     let e = grid_emission(Convention::Cycles);
-    Volume::build(&g("density", density), Some(&g("emission", source)), |v| e.map_source(v)).unwrap()
+    Volume::build(&g("density", density), Some(&g("emission", source)), |v| e.map_source(v))
+        .unwrap()
 }
 
-fn integrator(estimator: Estimator, light_sampling: LightSampling, mis: MisHeuristic, max_depth: u32) -> Integrator {
+fn integrator(
+    estimator: Estimator,
+    light_sampling: LightSampling,
+    mis: MisHeuristic,
+    max_depth: u32,
+) -> Integrator {
     Integrator {
         estimator,
         camera_estimator: None,
@@ -70,13 +85,20 @@ const COMBOS: [(Estimator, LightSampling); 12] = [
 /// Mean and standard error of the red channel from a point inside, over random directions.
 /// The standard error comes from the samples' own spread, which needs independent samples:
 /// the `random` stream (`Sampler::new`), not Sobol points.
-fn mean_from_inside(scene: &Scene<Volume>, integ: &Integrator, origin: DVec3, n: u64, seed: u64) -> (f64, f64) {
+fn mean_from_inside(
+    scene: &Scene<Volume>,
+    integ: &Integrator,
+    origin: DVec3,
+    n: u64,
+    seed: u64,
+) -> (f64, f64) {
     let (mut s, mut s2) = (0.0, 0.0);
     let mut c = Counters::default();
     for i in 0..n {
         let mut sampler = Sampler::new(seed, 1, i);
         let dir = sample_uniform_sphere([sampler.next_f64(), sampler.next_f64()]);
-        let l = integ.li(scene, &Ray { origin, direction: dir }, &mut sampler, &mut c, &mut NoTrace)[0];
+        let l =
+            integ.li(scene, &Ray { origin, direction: dir }, &mut sampler, &mut c, &mut NoTrace)[0];
         s += l;
         s2 += l * l;
     }
@@ -94,12 +116,23 @@ fn infinite_medium_reaches_equilibrium_radiance_with_every_method() {
     for (est, ls) in COMBOS {
         let lights = Lights::build(&vol, &e, ls, 8).unwrap();
         let cam = Camera::look_at(DVec3::ZERO, DVec3::ONE, DVec3::Y, 40.0, 1, 1).unwrap();
-        let scene =
-            Scene { field: cube(4, 2.0, 1.0, le), medium: Medium { sigma_t, albedo, g: 0.3, emission: e }, camera: cam, lights, motion: None, majorants: None };
-        for (max_depth, expected) in [(10_000u32, f64::from(le) / mu_a), (2, f64::from(le) / mu_a * (1.0 - 0.8f64.powi(3)))] {
+        let scene = Scene {
+            field: cube(4, 2.0, 1.0, le),
+            medium: Medium { sigma_t, albedo, g: 0.3, emission: e },
+            camera: cam,
+            lights,
+            motion: None,
+            majorants: None,
+        };
+        for (max_depth, expected) in
+            [(10_000u32, f64::from(le) / mu_a), (2, f64::from(le) / mu_a * (1.0 - 0.8f64.powi(3)))]
+        {
             let integ = integrator(est, ls, MisHeuristic::Power, max_depth);
             let (m, se) = mean_from_inside(&scene, &integ, DVec3::ONE, 3000, 11);
-            assert!((m - expected).abs() < 4.0 * se + 2e-3 * expected, "{est:?}/{ls:?} depth {max_depth}: {m} ± {se} vs {expected}");
+            assert!(
+                (m - expected).abs() < 4.0 * se + 2e-3 * expected,
+                "{est:?}/{ls:?} depth {max_depth}: {m} ± {se} vs {expected}"
+            );
         }
     }
 }
@@ -112,36 +145,66 @@ fn white_furnace_with_albedo_one_renders_the_environment() {
     // spread of the pixels (each pixel has its own Sobol scramble, so pixels are
     // independent).
     let e = Emission { kind: EmissionKind::None, ..grid_emission(Convention::Cycles) };
-    let cam = Camera::look_at(DVec3::new(1.0, 1.0, -3.0), DVec3::ONE, DVec3::Y, 50.0, 8, 8).unwrap();
+    let cam =
+        Camera::look_at(DVec3::new(1.0, 1.0, -3.0), DVec3::ONE, DVec3::Y, 50.0, 8, 8).unwrap();
     for est in [Estimator::Line, Estimator::Point, Estimator::RayMarch] {
         for ls in [LightSampling::None, LightSampling::Fnee, LightSampling::Nee] {
             let vol = cube(2, 2.0, 1.0, 0.0);
             let mut lights = Lights::build(&vol, &e, ls, 8).unwrap();
             let env = Environment::new(Radiance::Constant(Rgb::ONE), 1.0, DVec3::Y, 0.0, true);
             lights.external = ExternalLights::new(vec![Light::Environment(env)], 2.0);
-            let scene =
-                Scene { field: vol, medium: Medium { sigma_t: 2.0, albedo: 1.0, g: 0.5, emission: e }, camera: cam, lights, motion: None, majorants: None };
+            let scene = Scene {
+                field: vol,
+                medium: Medium { sigma_t: 2.0, albedo: 1.0, g: 0.5, emission: e },
+                camera: cam,
+                lights,
+                motion: None,
+                majorants: None,
+            };
             let integ = integrator(est, ls, MisHeuristic::Power, 100_000);
             let r = render(
                 &scene,
-                &RenderSettings { budget: SampleBudget::Spp(32), seed: 3, sampler: SamplerKind::Sobol, threads: 0, first_sample: 0, integrator: integ },
+                &RenderSettings {
+                    budget: SampleBudget::Spp(32),
+                    seed: 3,
+                    sampler: SamplerKind::Sobol,
+                    threads: 0,
+                    first_sample: 0,
+                    integrator: integ,
+                },
                 &|_, _| {},
             );
             let px: Vec<f64> = r.film.average(r.spp).iter().map(|p| f64::from(p[0])).collect();
             let (mean, se) = mean_stderr(&px);
-            assert!((mean - 1.0).abs() < 4.0 * se + 1e-6, "{est:?}/{ls:?}: furnace mean {mean} ± {se}");
+            assert!(
+                (mean - 1.0).abs() < 4.0 * se + 1e-6,
+                "{est:?}/{ls:?}: furnace mean {mean} ± {se}"
+            );
             assert!(se < 0.02, "{est:?}/{ls:?}: furnace spread {se} is too large for a furnace");
         }
     }
 }
 
 /// [`common::region_means_with`] with Sobol points.
-fn region_means(scene: &AnyScene, integ: Integrator, spp: u32, runs: u64, seed0: u64) -> Vec<(f64, f64)> {
+fn region_means(
+    scene: &AnyScene,
+    integ: Integrator,
+    spp: u32,
+    runs: u64,
+    seed0: u64,
+) -> Vec<(f64, f64)> {
     region_means_with(SamplerKind::Sobol, scene, integ, spp, runs, seed0)
 }
 
-fn explosion_scene(sigma_t: f64, ls: LightSampling, proxy_resolution: u32, interpolation: Interpolation) -> AnyScene {
-    common::explosion_scene(sigma_t, interpolation, false, |vol, e| Lights::build(vol, e, ls, proxy_resolution).unwrap())
+fn explosion_scene(
+    sigma_t: f64,
+    ls: LightSampling,
+    proxy_resolution: u32,
+    interpolation: Interpolation,
+) -> AnyScene {
+    common::explosion_scene(sigma_t, interpolation, false, |vol, e| {
+        Lights::build(vol, e, ls, proxy_resolution).unwrap()
+    })
 }
 
 #[test]
@@ -149,7 +212,10 @@ fn every_method_gives_the_same_image_means_on_thin_and_dense_explosions() {
     // Reference: forward-only line integration with many runs, per reconstruction (nearest
     // and trilinear are different volumes). 2 reconstructions × 2 densities × ≈ 10 combos
     // × 5 regions ≈ 200 comparisons; Šidák at α = 0.01 gives |z| < 4.1 per test; we use 4.2.
-    for (interpolation, sigma_t) in [Interpolation::Nearest, Interpolation::Linear].into_iter().flat_map(|i| [(i, 1.5), (i, 25.0)]) {
+    for (interpolation, sigma_t) in [Interpolation::Nearest, Interpolation::Linear]
+        .into_iter()
+        .flat_map(|i| [(i, 1.5), (i, 25.0)])
+    {
         let reference = region_means(
             &explosion_scene(sigma_t, LightSampling::None, 8, interpolation),
             integrator(Estimator::Line, LightSampling::None, MisHeuristic::Power, 64),
@@ -173,7 +239,12 @@ fn every_method_gives_the_same_image_means_on_thin_and_dense_explosions() {
                 }
                 let scene = explosion_scene(sigma_t, ls, 8, interpolation);
                 let got = region_means(&scene, integrator(est, ls, mis, 64), 8, 12, 7);
-                assert_same_means(&format!("{interpolation} σ_t={sigma_t} {est:?}/{ls:?}/{mis:?}"), &got, &reference, 4.2);
+                assert_same_means(
+                    &format!("{interpolation} σ_t={sigma_t} {est:?}/{ls:?}/{mis:?}"),
+                    &got,
+                    &reference,
+                    4.2,
+                );
             }
         }
     }
@@ -183,13 +254,23 @@ fn every_method_gives_the_same_image_means_on_thin_and_dense_explosions() {
 fn sobol_and_random_samplers_converge_to_the_same_means() {
     // Thin and dense, nearest and trilinear, line-fnee and ray-march (the one-point rule's
     // Sobol draw): 2 × 2 × 2 × 5 regions = 40 comparisons, |z| < 4.2 as above
-    for (interpolation, sigma_t) in [Interpolation::Nearest, Interpolation::Linear].into_iter().flat_map(|i| [(i, 1.5), (i, 25.0)]) {
-        for (est, ls) in [(Estimator::Line, LightSampling::Fnee), (Estimator::RayMarch, LightSampling::None)] {
+    for (interpolation, sigma_t) in [Interpolation::Nearest, Interpolation::Linear]
+        .into_iter()
+        .flat_map(|i| [(i, 1.5), (i, 25.0)])
+    {
+        for (est, ls) in
+            [(Estimator::Line, LightSampling::Fnee), (Estimator::RayMarch, LightSampling::None)]
+        {
             let scene = explosion_scene(sigma_t, ls, 8, interpolation);
             let integ = integrator(est, ls, MisHeuristic::Power, 64);
             let sobol = region_means_with(SamplerKind::Sobol, &scene, integ, 8, 12, 300);
             let random = region_means_with(SamplerKind::Random, &scene, integ, 8, 12, 400);
-            assert_same_means(&format!("{interpolation} σ_t={sigma_t} {est:?}/{ls:?}, sobol vs random"), &sobol, &random, 4.2);
+            assert_same_means(
+                &format!("{interpolation} σ_t={sigma_t} {est:?}/{ls:?}, sobol vs random"),
+                &sobol,
+                &random,
+                4.2,
+            );
         }
     }
 }
@@ -199,7 +280,10 @@ fn splitting_changes_variance_not_the_mean() {
     // 4 paths per camera collision against 1, thin and dense, both reconstructions, the
     // paper's method, MIS in volume measure, forward paths, and ray-march with FNEE:
     // 2 × 2 × 4 × 5 regions = 80 comparisons, |z| < 4.2 as above
-    for (interpolation, sigma_t) in [Interpolation::Nearest, Interpolation::Linear].into_iter().flat_map(|i| [(i, 1.5), (i, 25.0)]) {
+    for (interpolation, sigma_t) in [Interpolation::Nearest, Interpolation::Linear]
+        .into_iter()
+        .flat_map(|i| [(i, 1.5), (i, 25.0)])
+    {
         for (est, ls) in [
             (Estimator::Line, LightSampling::Fnee),
             (Estimator::Point, LightSampling::Nee),
@@ -211,7 +295,12 @@ fn splitting_changes_variance_not_the_mean() {
             let split = Integrator { split: 4, ..one };
             let reference = region_means(&scene, one, 8, 12, 500);
             let got = region_means(&scene, split, 8, 12, 600);
-            assert_same_means(&format!("{interpolation} σ_t={sigma_t} {est:?}/{ls:?}, split 4 vs 1"), &got, &reference, 4.2);
+            assert_same_means(
+                &format!("{interpolation} σ_t={sigma_t} {est:?}/{ls:?}, split 4 vs 1"),
+                &got,
+                &reference,
+                4.2,
+            );
         }
     }
 }
@@ -222,8 +311,15 @@ fn a_ray_marched_camera_segment_gives_the_same_means() {
     // emission is then exact along each ray), so every region's mean must stay; with
     // splitting, as the demo renders. 2 reconstructions × 2 densities × 3 combos × 5
     // regions = 60 comparisons, |z| < 4.2 as above.
-    for (interpolation, sigma_t) in [Interpolation::Nearest, Interpolation::Linear].into_iter().flat_map(|i| [(i, 1.5), (i, 25.0)]) {
-        for (est, ls) in [(Estimator::Line, LightSampling::Fnee), (Estimator::Point, LightSampling::Nee), (Estimator::Line, LightSampling::None)] {
+    for (interpolation, sigma_t) in [Interpolation::Nearest, Interpolation::Linear]
+        .into_iter()
+        .flat_map(|i| [(i, 1.5), (i, 25.0)])
+    {
+        for (est, ls) in [
+            (Estimator::Line, LightSampling::Fnee),
+            (Estimator::Point, LightSampling::Nee),
+            (Estimator::Line, LightSampling::None),
+        ] {
             let scene = explosion_scene(sigma_t, ls, 8, interpolation);
             let one = Integrator { split: 4, ..integrator(est, ls, MisHeuristic::Power, 64) };
             let marched = Integrator { camera_estimator: Some(Estimator::RayMarch), ..one };
@@ -233,7 +329,12 @@ fn a_ray_marched_camera_segment_gives_the_same_means() {
             let reference = region_means(&scene, one, 8, 12, 700);
             let got = region_means(&scene, marched, 8, 12, 700);
             assert_ne!(got, reference, "the camera estimator changed nothing");
-            assert_same_means(&format!("{interpolation} σ_t={sigma_t} {est:?}/{ls:?}, ray-marched camera vs not"), &got, &reference, 4.2);
+            assert_same_means(
+                &format!("{interpolation} σ_t={sigma_t} {est:?}/{ls:?}, ray-marched camera vs not"),
+                &got,
+                &reference,
+                4.2,
+            );
         }
     }
 }
@@ -250,18 +351,34 @@ fn splitting_divides_the_variance_of_the_paths() {
     let vol = cube(4, 2.0, 1.0, le);
     let lights = Lights::build(&vol, &e, LightSampling::Fnee, 8).unwrap();
     let cam = Camera::look_at(DVec3::ZERO, DVec3::ONE, DVec3::Y, 40.0, 1, 1).unwrap();
-    let scene = Scene { field: vol, medium: Medium { sigma_t, albedo, g: 0.3, emission: e }, camera: cam, lights, motion: None, majorants: None };
+    let scene = Scene {
+        field: vol,
+        medium: Medium { sigma_t, albedo, g: 0.3, emission: e },
+        camera: cam,
+        lights,
+        motion: None,
+        majorants: None,
+    };
     let expected = f64::from(le) / (sigma_t * f64::from(1.0 - albedo));
     let one = integrator(Estimator::RayMarch, LightSampling::Fnee, MisHeuristic::Power, 10_000);
     let n = 4000;
     let (m1, se1) = mean_from_inside(&scene, &one, DVec3::ONE, n, 21);
     for split in [4u32, 16] {
         let (m, se) = mean_from_inside(&scene, &Integrator { split, ..one }, DVec3::ONE, n, 22);
-        assert!((m - expected).abs() < 4.0 * se + 2e-3 * expected, "split {split}: {m} ± {se} vs {expected}");
+        assert!(
+            (m - expected).abs() < 4.0 * se + 2e-3 * expected,
+            "split {split}: {m} ± {se} vs {expected}"
+        );
         let ratio = (se / se1).powi(2);
-        assert!(ratio < 1.5 / f64::from(split), "split {split}: variance ratio {ratio} (expected about 1/{split})");
+        assert!(
+            ratio < 1.5 / f64::from(split),
+            "split {split}: variance ratio {ratio} (expected about 1/{split})"
+        );
     }
-    assert!((m1 - expected).abs() < 4.0 * se1 + 2e-3 * expected, "split 1: {m1} ± {se1} vs {expected}");
+    assert!(
+        (m1 - expected).abs() < 4.0 * se1 + 2e-3 * expected,
+        "split 1: {m1} ± {se1} vs {expected}"
+    );
 }
 
 #[test]
@@ -269,7 +386,15 @@ fn proxy_resolution_changes_variance_not_the_mean() {
     let integ = integrator(Estimator::Line, LightSampling::Fnee, MisHeuristic::Power, 64);
     let results: Vec<_> = [8u32, 16, 32]
         .iter()
-        .map(|&r| region_means(&explosion_scene(8.0, LightSampling::Fnee, r, Interpolation::Nearest), integ, 8, 12, 50 + u64::from(r)))
+        .map(|&r| {
+            region_means(
+                &explosion_scene(8.0, LightSampling::Fnee, r, Interpolation::Nearest),
+                integ,
+                8,
+                12,
+                50 + u64::from(r),
+            )
+        })
         .collect();
     for other in &results[1..] {
         for ((m, se), (rm, rse)) in other.iter().zip(&results[0]) {
@@ -283,7 +408,10 @@ fn proxy_resolution_changes_variance_not_the_mean() {
 fn extreme_phase_albedo_and_density_stay_finite() {
     // Both reconstructions: trilinear adds Newton solves and cubics, which must hold at
     // σ_t from 10⁻⁵ to 10⁷ too
-    for (interpolation, sigma_t) in [Interpolation::Nearest, Interpolation::Linear].into_iter().flat_map(|i| [(i, 1e-6 * 8.0), (i, 8.0), (i, 1e6 * 8.0)]) {
+    for (interpolation, sigma_t) in [Interpolation::Nearest, Interpolation::Linear]
+        .into_iter()
+        .flat_map(|i| [(i, 1e-6 * 8.0), (i, 8.0), (i, 1e6 * 8.0)])
+    {
         for (g, albedo) in [(0.999, 1.0f32), (-0.999, 0.5), (0.0, 0.0), (0.5, 1.0)] {
             for (est, ls) in COMBOS {
                 let mut scene = explosion_scene(sigma_t, ls, 8, interpolation);
@@ -300,7 +428,10 @@ fn extreme_phase_albedo_and_density_stay_finite() {
                     integrator: integrator(est, ls, MisHeuristic::Power, 32),
                 };
                 let r = plume_engine::with_scene!(&scene, s => render(s, &settings, &|_, _| {}));
-                assert_eq!(r.counters.nonfinite_samples, 0, "{interpolation} σ={sigma_t} g={g} a={albedo} {est:?}/{ls:?}");
+                assert_eq!(
+                    r.counters.nonfinite_samples, 0,
+                    "{interpolation} σ={sigma_t} g={g} a={albedo} {est:?}/{ls:?}"
+                );
                 assert!(r.film.average(r.spp).iter().flatten().all(|v| v.is_finite()));
             }
         }
@@ -323,16 +454,48 @@ fn albedo_grid_matches_constant_albedo_and_varies_per_voxel() {
     // albedo 0.8 without a grid; a grid of 0 removes all scattering.
     let ex = explosion(&ExplosionParams { resolution: 32, seed: 5, ..Default::default() });
     let e = explosion_emission();
-    let albedo_grid = |a: f32| FloatGrid { name: "albedo".into(), values: vec![a; ex.density.values.len()], ..ex.density.clone() };
-    let cam = Camera::look_at(DVec3::new(0.0, 0.2, -6.5), DVec3::new(0.0, 0.2, 0.0), DVec3::Y, 40.0, 10, 8).unwrap();
+    let albedo_grid = |a: f32| FloatGrid {
+        name: "albedo".into(),
+        values: vec![a; ex.density.values.len()],
+        ..ex.density.clone()
+    };
+    let cam = Camera::look_at(
+        DVec3::new(0.0, 0.2, -6.5),
+        DVec3::new(0.0, 0.2, 0.0),
+        DVec3::Y,
+        40.0,
+        10,
+        8,
+    )
+    .unwrap();
     let render_with = |grid: Option<FloatGrid>, albedo: f32| {
-        let vol = Volume::build_with_albedo(&ex.density, Some(&ex.temperature), |v| e.map_source(v), grid.as_ref()).unwrap();
+        let vol = Volume::build_with_albedo(
+            &ex.density,
+            Some(&ex.temperature),
+            |v| e.map_source(v),
+            grid.as_ref(),
+        )
+        .unwrap();
         let lights = Lights::build(&vol, &e, LightSampling::Fnee, 8).unwrap();
-        let scene = Scene { field: vol, medium: Medium { sigma_t: 5.0, albedo, g: 0.3, emission: e }, camera: cam, lights, motion: None, majorants: None };
+        let scene = Scene {
+            field: vol,
+            medium: Medium { sigma_t: 5.0, albedo, g: 0.3, emission: e },
+            camera: cam,
+            lights,
+            motion: None,
+            majorants: None,
+        };
         let integ = integrator(Estimator::Line, LightSampling::Fnee, MisHeuristic::Power, 16);
         let r = render(
             &scene,
-            &RenderSettings { budget: SampleBudget::Spp(4), seed: 2, sampler: SamplerKind::Sobol, threads: 0, first_sample: 0, integrator: integ },
+            &RenderSettings {
+                budget: SampleBudget::Spp(4),
+                seed: 2,
+                sampler: SamplerKind::Sobol,
+                threads: 0,
+                first_sample: 0,
+                integrator: integ,
+            },
             &|_, _| {},
         );
         (r.film.average(r.spp), r.counters)
@@ -349,12 +512,24 @@ fn albedo_grid_matches_constant_albedo_and_varies_per_voxel() {
 /// The explosion lit by a sun (a 5° disc, so phase sampling reaches it too), a sphere
 /// light and a constant environment, besides its own fire.
 fn lit_explosion_scene(sigma_t: f64, ls: LightSampling, interpolation: Interpolation) -> AnyScene {
-    use plume_engine::light::external::{Distant, Environment, ExternalLights, Light, Radiance, Sphere};
+    use plume_engine::light::external::{
+        Distant, Environment, ExternalLights, Light, Radiance, Sphere,
+    };
     let mut scene = explosion_scene(sigma_t, ls, 8, interpolation);
     let lights = vec![
-        Light::Distant(Distant::new(DVec3::new(0.4, -0.8, 0.45).normalize(), Rgb([6.0, 5.0, 4.0]), 5f64.to_radians())),
+        Light::Distant(Distant::new(
+            DVec3::new(0.4, -0.8, 0.45).normalize(),
+            Rgb([6.0, 5.0, 4.0]),
+            5f64.to_radians(),
+        )),
         Light::Sphere(Sphere::new(DVec3::new(-2.5, 1.0, -1.5), 0.4, Rgb([80.0, 90.0, 120.0]))),
-        Light::Environment(Environment::new(Radiance::Constant(Rgb([0.3, 0.35, 0.45])), 1.0, DVec3::Y, 0.0, true)),
+        Light::Environment(Environment::new(
+            Radiance::Constant(Rgb([0.3, 0.35, 0.45])),
+            1.0,
+            DVec3::Y,
+            0.0,
+            true,
+        )),
     ];
     let external = ExternalLights::new(lights, 2.0);
     plume_engine::with_scene!(&mut scene, s => s.lights.external = external);
@@ -382,10 +557,16 @@ fn every_method_gives_the_same_image_means_under_external_lights() {
             2000,
         );
         // The lights carry a good part of the image, so an error in them would show
-        assert!(reference[0].0 > 1.5 * unlit[0].0, "{interpolation}: lit {:?} vs unlit {:?}", reference[0], unlit[0]);
+        assert!(
+            reference[0].0 > 1.5 * unlit[0].0,
+            "{interpolation}: lit {:?} vs unlit {:?}",
+            reference[0],
+            unlit[0]
+        );
         for (est, ls) in COMBOS {
             let scene = lit_explosion_scene(1.5, ls, interpolation);
-            let got = region_means(&scene, integrator(est, ls, MisHeuristic::Power, 64), 8, 12, 2007);
+            let got =
+                region_means(&scene, integrator(est, ls, MisHeuristic::Power, 64), 8, 12, 2007);
             assert_same_means(&format!("{interpolation} {est:?}/{ls:?}"), &got, &reference, 4.2);
         }
     }

@@ -38,22 +38,39 @@ fn a_picked_voxel_is_an_unbiased_estimate_of_the_interpolated_one() {
             p = linear.volume().world_from_index().transform_point3(index);
         }
         let it = linear.interpolate_world(p);
-        let exact = [it.density(), it.source(), it.corners.iter().zip(&it.weights).map(|(v, w)| w * f64::from(v.density) * f64::from(v.source)).sum()];
+        let exact = [
+            it.density(),
+            it.source(),
+            it.corners
+                .iter()
+                .zip(&it.weights)
+                .map(|(v, w)| w * f64::from(v.density) * f64::from(v.source))
+                .sum(),
+        ];
         let mut sum = [0.0f64; 3];
         let mut distinct = std::collections::BTreeSet::new();
         for i in 0..n {
             let v = linear.values_picked(p, (f64::from(i) + 0.5) / f64::from(n));
             assert!(it.corners.contains(&v), "at {p}: picked {v:?}, not one of the corners");
             distinct.insert((v.density.to_bits(), v.source.to_bits()));
-            for (s, x) in sum.iter_mut().zip([f64::from(v.density), f64::from(v.source), f64::from(v.density) * f64::from(v.source)]) {
+            for (s, x) in sum.iter_mut().zip([
+                f64::from(v.density),
+                f64::from(v.source),
+                f64::from(v.density) * f64::from(v.source),
+            ]) {
                 *s += x;
             }
         }
         let range = |g: &dyn Fn(&plume_volume::field::VoxelValues) -> f64| {
             let vals: Vec<f64> = it.corners.iter().map(g).collect();
-            vals.iter().copied().fold(f64::MIN, f64::max) - vals.iter().copied().fold(f64::MAX, f64::min)
+            vals.iter().copied().fold(f64::MIN, f64::max)
+                - vals.iter().copied().fold(f64::MAX, f64::min)
         };
-        let ranges = [range(&|v| f64::from(v.density)), range(&|v| f64::from(v.source)), range(&|v| f64::from(v.density) * f64::from(v.source))];
+        let ranges = [
+            range(&|v| f64::from(v.density)),
+            range(&|v| f64::from(v.source)),
+            range(&|v| f64::from(v.density) * f64::from(v.source)),
+        ];
         for c in 0..3 {
             let mean = sum[c] / f64::from(n);
             assert!(
@@ -79,8 +96,25 @@ fn a_picked_voxel_is_an_unbiased_estimate_of_the_interpolated_one() {
 fn the_point_lookup_is_a_flag_a_scene_key_and_hashed_where_it_changes_pixels() {
     let dir = tmpdir("point_lookup", "cli");
     let vdb = explosion(&dir, 32, Some(3));
-    let base = ["render", s(&vdb), "--width", "24", "--height", "16", "--spp", "4", "--albedo", "0.8", "--stats"];
-    let values = [("default", None), ("stochastic-emission", Some("stochastic-emission")), ("stochastic", Some("stochastic")), ("exact", Some("exact"))];
+    let base = [
+        "render",
+        s(&vdb),
+        "--width",
+        "24",
+        "--height",
+        "16",
+        "--spp",
+        "4",
+        "--albedo",
+        "0.8",
+        "--stats",
+    ];
+    let values = [
+        ("default", None),
+        ("stochastic-emission", Some("stochastic-emission")),
+        ("stochastic", Some("stochastic")),
+        ("exact", Some("exact")),
+    ];
     let linear = common::settings_hashes(&dir, &base, "--point-lookup", &values);
     let pixels = |name: &str| common::exr_pixels(&dir.join(format!("{name}.exr")));
     // Stochastic is the default; each kind changes a trilinear render's pixels and its hash
@@ -92,15 +126,42 @@ fn the_point_lookup_is_a_flag_a_scene_key_and_hashed_where_it_changes_pixels() {
     }
     let exact = pixels("exact");
     // A scene file's key
-    assert_eq!(common::render_integrator_keys(&dir, &vdb, "point_lookup = \"exact\"", (24, 16)), exact);
-    assert_eq!(common::render_integrator_keys(&dir, &vdb, "point_lookup = \"stochastic\"", (24, 16)), pixels("stochastic"));
+    assert_eq!(
+        common::render_integrator_keys(&dir, &vdb, "point_lookup = \"exact\"", (24, 16)),
+        exact
+    );
+    assert_eq!(
+        common::render_integrator_keys(&dir, &vdb, "point_lookup = \"stochastic\"", (24, 16)),
+        pixels("stochastic")
+    );
     // Nearest: one voxel per point either way; the same pixels and the same hash
-    let nearest_base = ["render", s(&vdb), "--width", "24", "--height", "16", "--spp", "4", "--albedo", "0.8", "--interpolation", "nearest", "--stats"];
+    let nearest_base = [
+        "render",
+        s(&vdb),
+        "--width",
+        "24",
+        "--height",
+        "16",
+        "--spp",
+        "4",
+        "--albedo",
+        "0.8",
+        "--interpolation",
+        "nearest",
+        "--stats",
+    ];
     let nearest = common::settings_hashes(&dir, &nearest_base, "--point-lookup", &values);
-    assert!(pixels("exact") == pixels("stochastic-emission") && pixels("stochastic") == pixels("stochastic-emission"));
+    assert!(
+        pixels("exact") == pixels("stochastic-emission")
+            && pixels("stochastic") == pixels("stochastic-emission")
+    );
     assert!(nearest.iter().all(|h| *h == nearest[0]), "nearest hashes differ: {nearest:?}");
     // A bad value is refused naming the flag
-    common::plume_exits(&["render", s(&vdb), "--point-lookup", "sometimes", "-o", s(&dir.join("bad.exr"))], 2, &["--point-lookup"]);
+    common::plume_exits(
+        &["render", s(&vdb), "--point-lookup", "sometimes", "-o", s(&dir.join("bad.exr"))],
+        2,
+        &["--point-lookup"],
+    );
 }
 
 #[test]

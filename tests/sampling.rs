@@ -17,7 +17,9 @@ use crate::common;
 
 use std::f64::consts::PI;
 
-use common::{chi2_test, direction_bin, frame, hash, rng, SAMPLING_ALPHA as ALPHA, SAMPLING_TESTS as TESTS};
+use common::{
+    chi2_test, direction_bin, frame, hash, rng, SAMPLING_ALPHA as ALPHA, SAMPLING_TESTS as TESTS,
+};
 use glam::{DVec3, IVec3};
 use plume_core::sampling::alias::AliasTable;
 use plume_core::sampling::phase::{hg_pdf, sample_hg};
@@ -47,13 +49,21 @@ fn hg_sampling_matches_its_pdf_chi2() {
             let s = sample_hg(g, direction, [sampler.next_f64(), sampler.next_f64()]);
             assert_eq!(s.weight, 1.0);
             let c = s.direction.dot(direction);
-            assert!((s.pdf - hg_pdf(g, c)).abs() <= 1e-9 * s.pdf, "g={g}: pdf {} vs {}", s.pdf, hg_pdf(g, c));
-            observed[direction_bin(s.direction, direction, basis, -1.0, nc, nphi).expect("c ≥ -1")] += 1.0;
+            assert!(
+                (s.pdf - hg_pdf(g, c)).abs() <= 1e-9 * s.pdf,
+                "g={g}: pdf {} vs {}",
+                s.pdf,
+                hg_pdf(g, c)
+            );
+            observed
+                [direction_bin(s.direction, direction, basis, -1.0, nc, nphi).expect("c ≥ -1")] +=
+                1.0;
         }
         let expected: Vec<f64> = (0..nc * nphi)
             .map(|b| {
                 let ic = b / nphi;
-                let (c0, c1) = (-1.0 + 2.0 * ic as f64 / nc as f64, -1.0 + 2.0 * (ic + 1) as f64 / nc as f64);
+                let (c0, c1) =
+                    (-1.0 + 2.0 * ic as f64 / nc as f64, -1.0 + 2.0 * (ic + 1) as f64 / nc as f64);
                 n as f64 * (hg_cdf(g, c1) - hg_cdf(g, c0)) / nphi as f64
             })
             .collect();
@@ -85,7 +95,10 @@ fn hg_pdf_integrates_to_one_and_matches_the_cdf() {
         for (c0, c1) in [(-1.0, -0.5), (-0.3, 0.2), (0.6, 0.95), (0.95, 1.0)] {
             let part = integrate_hg(g, c0, c1);
             let cdf = hg_cdf(g, c1) - hg_cdf(g, c0);
-            assert!((part - cdf).abs() < 1e-6 * cdf.max(1e-3), "g={g} [{c0},{c1}]: {part} vs {cdf}");
+            assert!(
+                (part - cdf).abs() < 1e-6 * cdf.max(1e-3),
+                "g={g} [{c0},{c1}]: {part} vs {cdf}"
+            );
         }
     }
 }
@@ -95,9 +108,17 @@ fn hg_extremes_are_finite_and_unit() {
     let one_minus_eps = 1.0 - f64::EPSILON / 2.0;
     for direction in [DVec3::Z, -DVec3::Z, DVec3::new(1.0, 0.0, -0.0), DVec3::new(0.6, -0.8, 0.0)] {
         for g in [-1.0, -0.999, 0.999, 1.0] {
-            for u in [[0.0, 0.0], [0.0, one_minus_eps], [one_minus_eps, 0.0], [one_minus_eps, one_minus_eps]] {
+            for u in [
+                [0.0, 0.0],
+                [0.0, one_minus_eps],
+                [one_minus_eps, 0.0],
+                [one_minus_eps, one_minus_eps],
+            ] {
                 let s = sample_hg(g, direction, u);
-                assert!(s.direction.is_finite() && (s.direction.length() - 1.0).abs() < 1e-12, "g={g} u={u:?}: {s:?}");
+                assert!(
+                    s.direction.is_finite() && (s.direction.length() - 1.0).abs() < 1e-12,
+                    "g={g} u={u:?}: {s:?}"
+                );
                 assert!(s.pdf > 0.0 && !s.pdf.is_nan() && s.weight == 1.0, "g={g} u={u:?}: {s:?}");
             }
         }
@@ -187,8 +208,15 @@ fn assert_net(points: &[[f64; 2]], what: &str) {
     for i in 0..=m {
         let mut seen = vec![false; points.len()];
         for p in points {
-            let cell = ((p[0] * f64::from(1u32 << i)) as usize) << (m - i) | (p[1] * f64::from(1u32 << (m - i))) as usize;
-            assert!(!seen[cell], "{what}: two of {} points in one {}×{} interval", points.len(), 1u32 << i, 1u32 << (m - i));
+            let cell = ((p[0] * f64::from(1u32 << i)) as usize) << (m - i)
+                | (p[1] * f64::from(1u32 << (m - i))) as usize;
+            assert!(
+                !seen[cell],
+                "{what}: two of {} points in one {}×{} interval",
+                points.len(),
+                1u32 << i,
+                1u32 << (m - i)
+            );
             seen[cell] = true;
         }
     }
@@ -201,13 +229,17 @@ fn sobol_direction_of_any_segment_is_a_net_over_the_first_power_of_two_samples()
     for (pixel, depth) in [(0u64, 0u32), (77, 0), (77, 3), (5000, 64)] {
         for m in [1, 4, 8, 12] {
             for start in [0, 1u64 << m] {
-                let points: Vec<[f64; 2]> = (start..start + (1 << m)).map(|i| sobol_at(9, pixel, i, depth).get_2d(Dim::Direction)).collect();
+                let points: Vec<[f64; 2]> = (start..start + (1 << m))
+                    .map(|i| sobol_at(9, pixel, i, depth).get_2d(Dim::Direction))
+                    .collect();
                 assert_net(&points, &format!("pixel {pixel} depth {depth} samples {start}+2^{m}"));
             }
         }
     }
     // Each 1-D draw alone is stratified: one of the first 2^m samples per 2^-m interval
-    for (k, dim) in [Dim::FreePath, Dim::OnePoint, Dim::LightChoice, Dim::Roulette].into_iter().enumerate() {
+    for (k, dim) in
+        [Dim::FreePath, Dim::OnePoint, Dim::LightChoice, Dim::Roulette].into_iter().enumerate()
+    {
         let m = 10;
         let mut seen = vec![false; 1 << m];
         for i in 0..1u64 << m {
@@ -268,7 +300,8 @@ fn sobol_segments_sets_and_pixels_are_decorrelated() {
     }
     let (x, y) = (draws(3, false, 2, Dim::Direction, 0), draws(3, false, 2, Dim::Direction, 1));
     assert!(correlation(&x, &y).abs() < bound, "direction x / y");
-    let (p0, p2) = (draws(8, true, 1, Dim::LightPosition, 0), draws(8, true, 1, Dim::LightPosition, 2));
+    let (p0, p2) =
+        (draws(8, true, 1, Dim::LightPosition, 0), draws(8, true, 1, Dim::LightPosition, 2));
     assert!(correlation(&p0, &p2).abs() < bound, "light position lanes");
 }
 
@@ -303,7 +336,10 @@ fn split_paths_of_a_pixel_form_one_sobol_sequence() {
                     s.get_2d(Dim::Direction)
                 })
                 .collect();
-            assert_net(&points, &format!("split {n} × {samples} samples, pixel {pixel} depth {depth}"));
+            assert_net(
+                &points,
+                &format!("split {n} × {samples} samples, pixel {pixel} depth {depth}"),
+            );
         }
     }
     // Past 2^16 split indices the next run of the sequence takes over with its own scramble
@@ -335,7 +371,10 @@ fn one_split_is_the_sampler_itself_and_splits_have_their_own_streams() {
             let mut p = s.split(k, 4);
             p.start_vertex(2);
             let v = (block_values(&mut p), p.next_f64());
-            assert!(seen.iter().all(|o| o.0 != v.0 && o.1 != v.1), "{kind:?}: split {k} repeats another's numbers");
+            assert!(
+                seen.iter().all(|o| o.0 != v.0 && o.1 != v.1),
+                "{kind:?}: split {k} repeats another's numbers"
+            );
             let mut unsplit = s.clone();
             unsplit.start_vertex(2);
             assert_ne!(v.0, block_values(&mut unsplit));

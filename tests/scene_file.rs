@@ -111,7 +111,12 @@ image = "file.exr"
     // The header says how the image was made: the resolved scene, itself a scene file
     let meta = plume::output::read_exr_contents(&from_file).unwrap().metadata;
     let scene = meta.get("plume:scene").expect("plume:scene attribute");
-    assert!(scene.contains("estimator = \"blend\"") && scene.contains("camera_estimator = \"ray-march\"") && scene.contains("density_scale = 4.0"), "{scene}");
+    assert!(
+        scene.contains("estimator = \"blend\"")
+            && scene.contains("camera_estimator = \"ray-march\"")
+            && scene.contains("density_scale = 4.0"),
+        "{scene}"
+    );
     let again = dir.join("from-header.toml");
     std::fs::write(&again, scene).unwrap();
     let out = dir.join("from-header.exr");
@@ -136,7 +141,11 @@ fn write_scene_then_render_gives_the_same_image() {
     ok(&plume(&argv));
     // Rendered from another directory: the written paths are absolute
     let elsewhere = tmpdir("scene", "roundtrip-cwd");
-    let o = std::process::Command::new(env!("CARGO_BIN_EXE_plume")).current_dir(&elsewhere).args(["render", s(&written), "-o", "again.exr"]).output().unwrap();
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_plume"))
+        .current_dir(&elsewhere)
+        .args(["render", s(&written), "-o", "again.exr"])
+        .output()
+        .unwrap();
     ok(&o);
     assert_eq!(bits(&pixels(&direct)), bits(&pixels(&elsewhere.join("again.exr"))));
     // Writing the scene of the written scene gives the same file
@@ -153,7 +162,21 @@ fn flags_beside_a_scene_file_override_its_keys() {
     std::fs::write(&shot, "[volume]\nfile = \"ex.vdb\"\n[camera]\nwidth = 40\nheight = 30\n[render]\nspp = 2\nquiet = true\n[output]\nimage = \"a.exr\"\n")
         .unwrap();
     let by_flags = dir.join("flags.exr");
-    ok(&plume(&["render", s(&vdb), "-o", s(&by_flags), "--width", "40", "--height", "30", "--spp", "4", "--density-scale", "3", "-q"]));
+    ok(&plume(&[
+        "render",
+        s(&vdb),
+        "-o",
+        s(&by_flags),
+        "--width",
+        "40",
+        "--height",
+        "30",
+        "--spp",
+        "4",
+        "--density-scale",
+        "3",
+        "-q",
+    ]));
     let over = dir.join("over.exr");
     ok(&plume(&["render", s(&shot), "-o", s(&over), "--spp", "4", "--density-scale", "3"]));
     assert!(!dir.join("a.exr").exists());
@@ -166,7 +189,10 @@ fn flags_beside_a_scene_file_override_its_keys() {
     let err = String::from_utf8_lossy(&o.stderr);
     // The file lies in another directory than the working one: still "required", not a
     // directory taken for the image
-    assert!(o.status.code() == Some(2) && err.contains("output.image") && err.contains("required"), "{err}");
+    assert!(
+        o.status.code() == Some(2) && err.contains("output.image") && err.contains("required"),
+        "{err}"
+    );
     let from_bare = dir.join("bare.exr");
     ok(&plume(&["render", s(&bare), "-o", s(&from_bare)]));
     assert_eq!(bits(&pixels(&by_flags)), bits(&pixels(&from_bare)));
@@ -199,12 +225,32 @@ fn bad_scene_files_name_the_file_line_and_key() {
     refused("unknown-key", &format!("{head}[camera]\nwidht = 3\n"), 6, "widht");
     refused("unknown-table", &format!("{head}[camra]\nwidth = 3\n"), 5, "camra");
     refused("wrong-type", &format!("{head}[camera]\nwidth = \"wide\"\n"), 6, "camera.width");
-    refused("bad-choice", &format!("{head}[integrator]\nmethod = \"fast\"\n"), 6, "integrator.method");
-    refused("out-of-range", &format!("{head}[medium]\ng = 0.5\nalbedo = 1.5\n"), 7, "medium.albedo");
+    refused(
+        "bad-choice",
+        &format!("{head}[integrator]\nmethod = \"fast\"\n"),
+        6,
+        "integrator.method",
+    );
+    refused(
+        "out-of-range",
+        &format!("{head}[medium]\ng = 0.5\nalbedo = 1.5\n"),
+        7,
+        "medium.albedo",
+    );
     refused("no-paths", &format!("{head}[integrator]\nsplit = 0\n"), 6, "integrator.split");
     refused("negative-size", &format!("{head}\n[camera]\nheight = -4\n"), 7, "camera.height");
-    refused("bad-output", "[volume]\nfile = \"ex.vdb\"\n[output]\nimage = \"out.png\"\n", 4, "output.image");
-    refused("no-volume-file", "[volume]\ndensity_grid = \"d\"\n[output]\nimage = \"out.exr\"\n", 1, "volume");
+    refused(
+        "bad-output",
+        "[volume]\nfile = \"ex.vdb\"\n[output]\nimage = \"out.png\"\n",
+        4,
+        "output.image",
+    );
+    refused(
+        "no-volume-file",
+        "[volume]\ndensity_grid = \"d\"\n[output]\nimage = \"out.exr\"\n",
+        1,
+        "volume",
+    );
 }
 
 #[test]
@@ -242,8 +288,15 @@ fn the_example_scene_file_is_complete_and_valid() {
     }
     // The demo script's main command renders this file (and `plume bench demo` times it),
     // so the two cannot drift apart
-    let demo = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/demo.sh")).unwrap();
-    assert!(demo.lines().any(|l| l.trim_start().starts_with("./target/release/plume render data/explosion.toml")), "{demo}");
+    let demo =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/demo.sh"))
+            .unwrap();
+    assert!(
+        demo.lines().any(|l| l
+            .trim_start()
+            .starts_with("./target/release/plume render data/explosion.toml")),
+        "{demo}"
+    );
 }
 
 #[test]
@@ -253,17 +306,41 @@ fn a_merged_frame_records_the_scene_of_the_whole_frame() {
     let part = |i: &str| dir.join(format!("part{i}.exr"));
     for i in ["0", "1"] {
         let tile = format!("{i}/2");
-        ok(&plume(&["render", s(&vdb), "-o", s(&part(i)), "--tile", &tile, "--spp", "3", "--width", "40", "--height", "30", "--albedo", "0.5", "-q"]));
+        ok(&plume(&[
+            "render",
+            s(&vdb),
+            "-o",
+            s(&part(i)),
+            "--tile",
+            &tile,
+            "--spp",
+            "3",
+            "--width",
+            "40",
+            "--height",
+            "30",
+            "--albedo",
+            "0.5",
+            "-q",
+        ]));
     }
     let merged = dir.join("merged.exr");
     ok(&plume(&["merge", s(&part("0")), s(&part("1")), "-o", s(&merged), "-q"]));
-    let scene = plume::output::read_exr_contents(&merged).unwrap().metadata.remove("plume:scene").expect("plume:scene");
+    let scene = plume::output::read_exr_contents(&merged)
+        .unwrap()
+        .metadata
+        .remove("plume:scene")
+        .expect("plume:scene");
     assert!(!scene.contains("tile") && !scene.contains("crop"), "{scene}");
     let shot = dir.join("merged.toml");
     std::fs::write(&shot, &scene).unwrap();
     let again = dir.join("again.exr");
     ok(&plume(&["render", s(&shot), "-o", s(&again)]));
-    assert_eq!(bits(&pixels(&merged)), bits(&pixels(&again)), "the merged frame's scene renders the merged frame");
+    assert_eq!(
+        bits(&pixels(&merged)),
+        bits(&pixels(&again)),
+        "the merged frame's scene renders the merged frame"
+    );
 }
 
 /// The sampler is a scene-file key only (`render.sampler`): the independent random
@@ -273,7 +350,8 @@ fn sampler_is_chosen_by_key_is_written_and_changes_the_image() {
     let dir = tmpdir("scene", "sampler");
     explosion(&dir);
     let scene = |sampler: &str| {
-        let line = if sampler.is_empty() { String::new() } else { format!("sampler = \"{sampler}\"\n") };
+        let line =
+            if sampler.is_empty() { String::new() } else { format!("sampler = \"{sampler}\"\n") };
         format!("[volume]\nfile = \"ex.vdb\"\n[camera]\nwidth = 24\nheight = 16\n[medium]\nalbedo = 0.8\ndensity_scale = 4.0\n[render]\nspp = 2\n{line}quiet = true\n")
     };
     let render = |name: &str, sampler: &str| {
@@ -289,10 +367,21 @@ fn sampler_is_chosen_by_key_is_written_and_changes_the_image() {
     assert_ne!(default, random);
     // --write-scene records the choice
     let written = dir.join("written.toml");
-    ok(&plume(&["render", s(&dir.join("random.toml")), "-o", s(&dir.join("unused.exr")), "--write-scene", s(&written)]));
+    ok(&plume(&[
+        "render",
+        s(&dir.join("random.toml")),
+        "-o",
+        s(&dir.join("unused.exr")),
+        "--write-scene",
+        s(&written),
+    ]));
     assert!(std::fs::read_to_string(&written).unwrap().contains("sampler = \"random\""));
     // No flag: the sampler is not a tuning knob of the command line
-    common::plume_exits(&["render", s(&dir.join("ex.vdb")), "-o", s(&dir.join("x.exr")), "--sampler", "random"], 2, &["--sampler"]);
+    common::plume_exits(
+        &["render", s(&dir.join("ex.vdb")), "-o", s(&dir.join("x.exr")), "--sampler", "random"],
+        2,
+        &["--sampler"],
+    );
     let bad = dir.join("bad.toml");
     std::fs::write(&bad, scene("halton")).unwrap();
     common::plume_exits(&["render", s(&bad), "-o", s(&dir.join("x.exr"))], 2, &["sobol", "random"]);

@@ -6,14 +6,22 @@
 
 use crate::common;
 
-use common::{assert_same_means, explosion, explosion_emission, explosion_volume, pixel_bits, region_means_with, s, tmpdir};
+use common::{
+    assert_same_means, explosion, explosion_emission, explosion_volume, pixel_bits,
+    region_means_with, s, tmpdir,
+};
 use glam::DVec3;
+use plume_core::sampling::SamplerKind;
 use plume_engine::film::Crop;
 use plume_engine::integrator::split_map::pixel_integrator;
-use plume_engine::integrator::{AnyScene, Counters, Integrator, LightSampling, Lights, MisHeuristic, NoTrace, PointLookup, SplitBy, Tracking};
+use plume_engine::integrator::{
+    AnyScene, Counters, Integrator, LightSampling, Lights, MisHeuristic, NoTrace, PointLookup,
+    SplitBy, Tracking,
+};
 use plume_engine::medium::{Collision, Estimator, Medium};
-use plume_engine::render::{pixel_sample, render, render_with, PixelSample, RenderControl, RenderSettings, SampleBudget};
-use plume_core::sampling::SamplerKind;
+use plume_engine::render::{
+    pixel_sample, render, render_with, PixelSample, RenderControl, RenderSettings, SampleBudget,
+};
 use plume_volume::Interpolation;
 
 /// The test explosion (32³) filling a 40×32 image (5×4 pilot blocks), albedo 0.8, lit by
@@ -22,9 +30,27 @@ fn scene() -> AnyScene {
     let vol = explosion_volume();
     let e = explosion_emission();
     let lights = Lights::build(&vol, &e, LightSampling::Fnee, 8).unwrap();
-    let camera = plume_engine::camera::Camera::look_at(DVec3::new(0.0, 0.2, -4.5), DVec3::new(0.0, 0.2, 0.0), DVec3::Y, 40.0, 40, 32).unwrap();
+    let camera = plume_engine::camera::Camera::look_at(
+        DVec3::new(0.0, 0.2, -4.5),
+        DVec3::new(0.0, 0.2, 0.0),
+        DVec3::Y,
+        40.0,
+        40,
+        32,
+    )
+    .unwrap();
     let medium = Medium { sigma_t: 4.0, albedo: 0.8, g: 0.3, emission: e };
-    AnyScene::new(plume_engine::integrator::Scene { field: vol, medium, camera, lights, motion: None, majorants: None }, Interpolation::Linear)
+    AnyScene::new(
+        plume_engine::integrator::Scene {
+            field: vol,
+            medium,
+            camera,
+            lights,
+            motion: None,
+            majorants: None,
+        },
+        Interpolation::Linear,
+    )
 }
 
 /// line-fnee with a ray-marched, forced camera collision and `split` paths from it.
@@ -44,7 +70,14 @@ fn integrator(split: u32, split_by: SplitBy) -> Integrator {
 }
 
 fn settings(spp: u32, seed: u64, integrator: Integrator) -> RenderSettings {
-    RenderSettings { budget: SampleBudget::Spp(spp), seed, sampler: SamplerKind::Sobol, threads: 2, first_sample: 0, integrator }
+    RenderSettings {
+        budget: SampleBudget::Spp(spp),
+        seed,
+        sampler: SamplerKind::Sobol,
+        threads: 2,
+        first_sample: 0,
+        integrator,
+    }
 }
 
 #[test]
@@ -59,7 +92,8 @@ fn the_pilot_gives_varied_counts_and_the_image_mean_is_kept() {
     // Uniform splitting builds no map
     assert!(plume_engine::with_scene!(&scene, s => plume_engine::pilot::split_map(s, &settings(1, 0, integrator(4, SplitBy::Uniform)))).is_none());
     // Image and quadrant means over 12 independent runs each (5 comparisons, |z| < 4)
-    let uniform = region_means_with(SamplerKind::Sobol, &scene, integrator(4, SplitBy::Uniform), 4, 12, 100);
+    let uniform =
+        region_means_with(SamplerKind::Sobol, &scene, integrator(4, SplitBy::Uniform), 4, 12, 100);
     let by_brightness = region_means_with(SamplerKind::Sobol, &scene, brightness, 4, 12, 200);
     assert_same_means("split by brightness against uniform", &by_brightness, &uniform, 4.0);
 }
@@ -115,8 +149,21 @@ fn splitting_by_brightness_is_deterministic_over_threads_ranges_crops_and_replay
 fn split_by_is_a_flag_a_scene_key_and_hashed_when_not_uniform() {
     let dir = tmpdir("split_by", "cli");
     let vdb = explosion(&dir, 32, Some(3));
-    let base = ["render", s(&vdb), "--width", "48", "--height", "32", "--spp", "4", "--albedo", "0.8", "--stats"];
-    let values = [("default", None), ("uniform", Some("uniform")), ("brightness", Some("brightness"))];
+    let base = [
+        "render",
+        s(&vdb),
+        "--width",
+        "48",
+        "--height",
+        "32",
+        "--spp",
+        "4",
+        "--albedo",
+        "0.8",
+        "--stats",
+    ];
+    let values =
+        [("default", None), ("uniform", Some("uniform")), ("brightness", Some("brightness"))];
     let hashes = common::settings_hashes(&dir, &base, "--split-by", &values);
     let pixels = |name: &str| common::exr_pixels(&dir.join(format!("{name}.exr")));
     // Uniform is the default and adds nothing to the hash; brightness changes both
@@ -125,7 +172,14 @@ fn split_by_is_a_flag_a_scene_key_and_hashed_when_not_uniform() {
     assert_ne!(pixels("brightness"), pixels("uniform"));
     assert_ne!(hashes[2], hashes[1]);
     // The scene key gives the flag's image
-    assert_eq!(common::render_integrator_keys(&dir, &vdb, "split_by = \"brightness\"", (48, 32)), pixels("brightness"));
+    assert_eq!(
+        common::render_integrator_keys(&dir, &vdb, "split_by = \"brightness\"", (48, 32)),
+        pixels("brightness")
+    );
     // A bad value is refused naming the flag
-    common::plume_exits(&["render", s(&vdb), "--split-by", "luck", "-o", s(&dir.join("bad.exr"))], 2, &["--split-by"]);
+    common::plume_exits(
+        &["render", s(&vdb), "--split-by", "luck", "-o", s(&dir.join("bad.exr"))],
+        2,
+        &["--split-by"],
+    );
 }

@@ -14,8 +14,9 @@ use std::time::{Duration, Instant};
 use common::{data, fixture, retry_while_busy, scratch_dir, shell_script, PLUME};
 use glam::{DAffine3, DVec3, IVec3};
 use plume::vdb::{
-    leaf_offset, list_grids, read_float_grid, read_grids_isolated, write_float_grids, FloatGrid, GridRequest, GridSelector, IsolationLimits, LeafData,
-    ReadIsolation, ReadLimits, StreamedGrid, LEAF_VOXELS,
+    leaf_offset, list_grids, read_float_grid, read_grids_isolated, write_float_grids, FloatGrid,
+    GridRequest, GridSelector, IsolationLimits, LeafData, ReadIsolation, ReadLimits, StreamedGrid,
+    LEAF_VOXELS,
 };
 use plume::Error;
 
@@ -40,7 +41,12 @@ struct Collected {
     constants: u64,
 }
 
-fn stream(mode: &ReadIsolation, path: &Path, selector: &GridSelector, limits: &ReadLimits) -> plume::Result<(StreamedGrid, Collected)> {
+fn stream(
+    mode: &ReadIsolation,
+    path: &Path,
+    selector: &GridSelector,
+    limits: &ReadLimits,
+) -> plume::Result<(StreamedGrid, Collected)> {
     let mut got = Collected::default();
     let mut header = |g: &StreamedGrid| {
         assert!(got.header.is_none(), "header visited twice");
@@ -82,7 +88,8 @@ fn assert_same(what: &str, whole: &FloatGrid, grid: &StreamedGrid, got: &Collect
     assert_eq!((got.leaves, got.constants), (grid.leaf_count, grid.tile_blocks), "{what}");
     assert_eq!(got.origins, whole.origins, "{what}: blocks or their order differ");
     assert_eq!(got.values.len(), whole.values.len(), "{what}");
-    let differing = got.values.iter().zip(&whole.values).filter(|(a, b)| a.to_bits() != b.to_bits());
+    let differing =
+        got.values.iter().zip(&whole.values).filter(|(a, b)| a.to_bits() != b.to_bits());
     assert_eq!(differing.count(), 0, "{what}: values differ");
     let bbox = (!whole.origins.is_empty()).then(|| {
         let lo = whole.origins.iter().fold(IVec3::MAX, |m, &o| m.min(o));
@@ -140,7 +147,9 @@ fn streams_equal_whole_grid_reads() {
 fn tiles_come_as_constant_blocks_after_the_leaves() {
     let path = fixture("affine_tiles.vdb");
     for mode in modes() {
-        let (grid, got) = stream(&mode, &path, &GridSelector::first("heat_double"), &ReadLimits::default()).unwrap();
+        let (grid, got) =
+            stream(&mode, &path, &GridSelector::first("heat_double"), &ReadLimits::default())
+                .unwrap();
         assert_eq!((grid.leaf_count, grid.tile_blocks), (1, 1 + 4096), "{mode:?}");
         assert_eq!(grid.background, 0.5);
         assert_eq!(grid.index_bbox, Some((IVec3::new(-8, 0, 0), IVec3::new(255, 127, 127))));
@@ -187,14 +196,20 @@ fn a_root_tile_is_announced_before_any_block() {
         assert_eq!(blocks, 0);
 
         let mut seen = Vec::new();
-        let result = mode.stream_float_grid(&path, &selector, &ReadLimits::default(), &mut |_| Ok(()), &mut |origin, data| {
-            assert_eq!(data, LeafData::Constant(1.0));
-            seen.push(origin);
-            if seen.len() == 1000 {
-                return Err(Error::invalid("test", "enough"));
-            }
-            Ok(())
-        });
+        let result = mode.stream_float_grid(
+            &path,
+            &selector,
+            &ReadLimits::default(),
+            &mut |_| Ok(()),
+            &mut |origin, data| {
+                assert_eq!(data, LeafData::Constant(1.0));
+                seen.push(origin);
+                if seen.len() == 1000 {
+                    return Err(Error::invalid("test", "enough"));
+                }
+                Ok(())
+            },
+        );
         assert!(result.unwrap_err().to_string().contains("enough"), "{mode:?}");
         assert_eq!(seen.len(), 1000);
         assert_eq!(seen[999], IVec3::new(0, 8, 8 * (999 - 512)));
@@ -207,14 +222,20 @@ fn a_visitor_error_aborts_the_stream() {
     let path = data("smoke/openvdb_org_smoke1.vdb");
     for mode in modes() {
         let mut visits = 0;
-        let result = mode.stream_float_grid(&path, &GridSelector::first("density"), &ReadLimits::default(), &mut |_| Ok(()), &mut |_, _| {
-            visits += 1;
-            if visits == 300 {
-                // past the first batch of 256
-                return Err(Error::invalid("--visitor", "leaf 300 refused"));
-            }
-            Ok(())
-        });
+        let result = mode.stream_float_grid(
+            &path,
+            &GridSelector::first("density"),
+            &ReadLimits::default(),
+            &mut |_| Ok(()),
+            &mut |_, _| {
+                visits += 1;
+                if visits == 300 {
+                    // past the first batch of 256
+                    return Err(Error::invalid("--visitor", "leaf 300 refused"));
+                }
+                Ok(())
+            },
+        );
         match result {
             Err(Error::InvalidArgument { flag, message }) => {
                 assert_eq!((flag.as_str(), message.as_str()), ("--visitor", "leaf 300 refused"));
@@ -274,7 +295,13 @@ fn big_grid(dir: &Path) -> PathBuf {
             }
         }
     }
-    let grid = FloatGrid { name: "density".into(), world_from_index: DAffine3::from_scale(DVec3::splat(0.01)), background: 0.0, origins, values };
+    let grid = FloatGrid {
+        name: "density".into(),
+        world_from_index: DAffine3::from_scale(DVec3::splat(0.01)),
+        background: 0.0,
+        origins,
+        values,
+    };
     let path = dir.join("big.vdb");
     write_float_grids(&path, &[&grid]).unwrap();
     path
@@ -322,8 +349,18 @@ fn streaming_memory_is_bounded_by_the_topology() {
         other => panic!("{:?}", other.map(|g| g.leaf_count())),
     }
     // RLIMIT_DATA of 96 MiB: less than the values alone (125 MiB)
-    let tight = IsolationLimits { memory_bytes: 96 << 20, cpu_seconds: 60, timeout: Duration::from_secs(60) };
-    let whole = read_grids_isolated(Path::new(PLUME), &path, &[GridRequest::required(selector.clone())], &ReadLimits::default(), &tight);
+    let tight = IsolationLimits {
+        memory_bytes: 96 << 20,
+        cpu_seconds: 60,
+        timeout: Duration::from_secs(60),
+    };
+    let whole = read_grids_isolated(
+        Path::new(PLUME),
+        &path,
+        &[GridRequest::required(selector.clone())],
+        &ReadLimits::default(),
+        &tight,
+    );
     match whole {
         // Out of memory, or a crash on it: blosc does not check every allocation
         Err(Error::ReaderFailed { what, grid, .. }) => {
@@ -345,10 +382,14 @@ fn streaming_memory_is_bounded_by_the_topology() {
             count += 1;
             Ok(())
         };
-        let grid = mode.stream_float_grid(&path, &selector, &limits, &mut |_| Ok(()), &mut leaf).unwrap();
+        let grid =
+            mode.stream_float_grid(&path, &selector, &limits, &mut |_| Ok(()), &mut leaf).unwrap();
         let seconds = start.elapsed().as_secs_f64();
         assert_eq!((grid.leaf_count, count), (leaves, leaves));
-        println!("{mode:?}: {leaves} leaves in {seconds:.2} s, {:.0} leaves/s", leaves as f64 / seconds);
+        println!(
+            "{mode:?}: {leaves} leaves in {seconds:.2} s, {:.0} leaves/s",
+            leaves as f64 / seconds
+        );
     }
 
     // Peak RSS of the reader, whole grid vs stream (no rlimits here)
@@ -379,7 +420,10 @@ fn hostile_files_stream_to_clean_errors() {
     let limits = IsolationLimits::new(&ReadLimits::default(), Duration::from_secs(30));
     let isolated = child(limits.clone());
     let mut files = Vec::new();
-    for dir in [data("edge_cases/malformed"), Path::new(env!("CARGO_MANIFEST_DIR")).join("data/regressions")] {
+    for dir in [
+        data("edge_cases/malformed"),
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("data/regressions"),
+    ] {
         for entry in fs::read_dir(&dir).unwrap() {
             let path = entry.unwrap().path();
             if path.extension().is_some_and(|e| e == "vdb") {
@@ -396,7 +440,13 @@ fn hostile_files_stream_to_clean_errors() {
         for selector in ["density", "heat", own] {
             let what = format!("{} {selector}", path.display());
             let selector: GridSelector = selector.parse().unwrap();
-            let whole = read_grids_isolated(Path::new(PLUME), path, &[GridRequest::required(selector.clone())], &ReadLimits::default(), &limits);
+            let whole = read_grids_isolated(
+                Path::new(PLUME),
+                path,
+                &[GridRequest::required(selector.clone())],
+                &ReadLimits::default(),
+                &limits,
+            );
             match (whole, stream(&isolated, path, &selector, &ReadLimits::default())) {
                 (Ok(mut found), Ok((grid, got))) => {
                     let whole = found.remove(0).expect("required").grid;
@@ -409,11 +459,17 @@ fn hostile_files_stream_to_clean_errors() {
                     assert!(!message.contains('\n'), "{what}: {message:?}");
                     assert!(message.contains(stem), "{what}: {message}");
                     if let Ok(found) = whole {
-                        panic!("{what}: stream failed ({message}), whole read gave {} grid", found.len());
+                        panic!(
+                            "{what}: stream failed ({message}), whole read gave {} grid",
+                            found.len()
+                        );
                     }
                     if stem.starts_with("crash_") && stem.ends_with(selector.name.as_str()) {
                         assert!(message.contains("reader crashed with SIG"), "{what}: {message}");
-                        assert!(message.contains(&format!("grid \"{}\"", selector.name)), "{message}");
+                        assert!(
+                            message.contains(&format!("grid \"{}\"", selector.name)),
+                            "{message}"
+                        );
                     }
                     if stem.starts_with("scan_") {
                         assert!(message.contains("truncated or corrupt"), "{what}: {message}");
@@ -437,7 +493,11 @@ fn replaying_reader(name: &str, reply: &[u8], exit: &str) -> PathBuf {
     fs::create_dir_all(&dir).unwrap();
     let data = dir.join(format!("{name}.bin"));
     fs::write(&data, reply).unwrap();
-    shell_script("stream_replies", &format!("{name}.sh"), &format!("cat '{}'\n{exit}", data.display()))
+    shell_script(
+        "stream_replies",
+        &format!("{name}.sh"),
+        &format!("cat '{}'\n{exit}", data.display()),
+    )
 }
 
 /// Streams SMOKE through `reader`, retrying while another test thread's fork still holds
@@ -448,10 +508,18 @@ fn stream_with(reader: &Path) -> (plume::Result<StreamedGrid>, u64) {
     let mut visited = 0u64;
     let result = retry_while_busy(reader, || {
         visited = 0;
-        plume::vdb::stream_float_grid_isolated(reader, &path, &GridSelector::first("density"), &ReadLimits::default(), &limits, &mut |_| Ok(()), &mut |_, _| {
-            visited += 1;
-            Ok(())
-        })
+        plume::vdb::stream_float_grid_isolated(
+            reader,
+            &path,
+            &GridSelector::first("density"),
+            &ReadLimits::default(),
+            &limits,
+            &mut |_| Ok(()),
+            &mut |_, _| {
+                visited += 1;
+                Ok(())
+            },
+        )
     });
     (result, visited)
 }
@@ -462,8 +530,12 @@ fn stream_with(reader: &Path) -> (plume::Result<StreamedGrid>, u64) {
 #[test]
 fn broken_stream_replies_are_refused() {
     let path = data("smoke/openvdb_org_smoke1.vdb");
-    let output =
-        Command::new(PLUME).args(["__read-grids", "stream"]).arg(&path).args([&ReadLimits::default().max_bytes.to_string(), "density"]).output().unwrap();
+    let output = Command::new(PLUME)
+        .args(["__read-grids", "stream"])
+        .arg(&path)
+        .args([&ReadLimits::default().max_bytes.to_string(), "density"])
+        .output()
+        .unwrap();
     assert!(output.status.success());
     let reply = output.stdout;
     // magic + version, BEGIN, STREAM (name "density", no tiles), then LEAVES of 256
@@ -474,15 +546,16 @@ fn broken_stream_replies_are_refused() {
     let (result, visited) = stream_with(&replaying_reader("good", &reply, "exit 0"));
     assert_eq!((result.unwrap().leaf_count, visited), (3117, 3117), "the replay itself is good");
 
-    let failed = |(result, visited): (plume::Result<StreamedGrid>, u64), needle: &str, seen: u64| {
-        let error = result.unwrap_err();
-        let message = error.to_string();
-        assert!(matches!(error, Error::ReaderFailed { .. }), "{error:?}");
-        assert!(message.contains("openvdb_org_smoke1.vdb"), "{message}");
-        assert!(message.contains("grid \"density\""), "{message}");
-        assert!(message.contains(needle), "{message:?} lacks {needle:?}");
-        assert_eq!(visited, seen, "{message}");
-    };
+    let failed =
+        |(result, visited): (plume::Result<StreamedGrid>, u64), needle: &str, seen: u64| {
+            let error = result.unwrap_err();
+            let message = error.to_string();
+            assert!(matches!(error, Error::ReaderFailed { .. }), "{error:?}");
+            assert!(message.contains("openvdb_org_smoke1.vdb"), "{message}");
+            assert!(message.contains("grid \"density\""), "{message}");
+            assert!(message.contains(needle), "{message:?} lacks {needle:?}");
+            assert_eq!(visited, seen, "{message}");
+        };
     let cut = &reply[..first + 2 * batch + 1000];
     failed(stream_with(&replaying_reader("cut", cut, "exit 0")), "before finishing", 512);
 
@@ -492,7 +565,11 @@ fn broken_stream_replies_are_refused() {
 
     let mut smashed = reply.clone();
     smashed[first + batch + 1..first + batch + 5].copy_from_slice(&u32::MAX.to_le_bytes());
-    failed(stream_with(&replaying_reader("smashed", &smashed, "exit 0")), "batch of 4294967295", 256);
+    failed(
+        stream_with(&replaying_reader("smashed", &smashed, "exit 0")),
+        "batch of 4294967295",
+        256,
+    );
 
     let crash = replaying_reader("crash", &reply[..first + batch], "kill -SEGV $$");
     failed(stream_with(&crash), "crashed with SIGSEGV", 256);

@@ -61,7 +61,10 @@ fn every_test_file_is_a_module_of_the_suite() {
         let path = entry.unwrap().path();
         let Some(name) = path.file_stem().and_then(|s| s.to_str()) else { continue };
         if path.extension().is_some_and(|e| e == "rs") && name != "suite" {
-            assert!(root.lines().any(|l| l == format!("mod {name};")), "tests/{name}.rs is not declared in tests/suite.rs: add `mod {name};`");
+            assert!(
+                root.lines().any(|l| l == format!("mod {name};")),
+                "tests/{name}.rs is not declared in tests/suite.rs: add `mod {name};`"
+            );
             files += 1;
         }
     }

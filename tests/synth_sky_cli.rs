@@ -4,14 +4,27 @@
 use crate::common;
 
 use common::{plume, plume_exits, tmpdir};
-use plume_engine::light::sky::{latlong_pixel_solid_angle, Sky, SkyParams};
 use plume::output::read_exr;
+use plume_engine::light::sky::{latlong_pixel_solid_angle, Sky, SkyParams};
 
 #[test]
 fn synth_sky_writes_a_latlong_exr() {
     let d = tmpdir("sky", "exr");
     let p = d.join("sky.exr");
-    let args = ["synth", "sky", "-o", p.to_str().unwrap(), "--width", "128", "--height", "64", "--elevation", "40", "--azimuth", "-30"];
+    let args = [
+        "synth",
+        "sky",
+        "-o",
+        p.to_str().unwrap(),
+        "--width",
+        "128",
+        "--height",
+        "64",
+        "--elevation",
+        "40",
+        "--azimuth",
+        "-30",
+    ];
     let o = plume(&args);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let image = read_exr(&p).expect("read the sky back");
@@ -34,7 +47,13 @@ fn synth_sky_writes_a_latlong_exr() {
     assert!((extra / expected - 1.0).abs() < 1e-5, "{extra} vs {expected}");
     // The sun's pixel: azimuth −30° is u = (1 + 30/180)/2, elevation 40° is v = 50/180.
     let (i, j) = (((1.0 + 30.0 / 180.0) / 2.0 * 128.0) as usize, (50.0 / 180.0 * 64.0) as usize);
-    let brightest = image.pixels.iter().enumerate().max_by(|a, b| a.1[1].total_cmp(&b.1[1])).map(|(k, _)| k).unwrap();
+    let brightest = image
+        .pixels
+        .iter()
+        .enumerate()
+        .max_by(|a, b| a.1[1].total_cmp(&b.1[1]))
+        .map(|(k, _)| k)
+        .unwrap();
     assert_eq!((brightest % w, brightest / w), (i, j));
     let _ = std::fs::remove_dir_all(&d);
 }
@@ -43,7 +62,17 @@ fn synth_sky_writes_a_latlong_exr() {
 fn synth_sky_without_sun_defaults() {
     let d = tmpdir("sky", "nosun");
     let p = d.join("sky.exr");
-    let o = plume(&["synth", "sky", "-o", p.to_str().unwrap(), "--no-sun", "--width", "64", "--height", "32"]);
+    let o = plume(&[
+        "synth",
+        "sky",
+        "-o",
+        p.to_str().unwrap(),
+        "--no-sun",
+        "--width",
+        "64",
+        "--height",
+        "32",
+    ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let image = read_exr(&p).unwrap();
     let sky = Sky::new(&SkyParams::default()).unwrap().image(64, 32, false);
@@ -56,12 +85,23 @@ fn synth_sky_refuses_bad_values_and_writes_nothing() {
     let d = tmpdir("sky", "bad");
     let p = d.join("sky.exr");
     let out = p.to_str().unwrap();
-    for (flag, value) in [("--turbidity", "0"), ("--turbidity", "nan"), ("--elevation", "91"), ("--azimuth", "inf"), ("--width", "0"), ("--height", "99999")] {
+    for (flag, value) in [
+        ("--turbidity", "0"),
+        ("--turbidity", "nan"),
+        ("--elevation", "91"),
+        ("--azimuth", "inf"),
+        ("--width", "0"),
+        ("--height", "99999"),
+    ] {
         let message = plume_exits(&["synth", "sky", "-o", out, flag, value], 2, &[flag]);
         assert_eq!(message.trim_end().lines().count(), 1, "{message}");
         assert!(!p.exists(), "{flag} {value}");
     }
-    plume_exits(&["synth", "sky", "-o", d.join("sky.png").to_str().unwrap()], 2, &["--output", ".exr"]);
+    plume_exits(
+        &["synth", "sky", "-o", d.join("sky.png").to_str().unwrap()],
+        2,
+        &["--output", ".exr"],
+    );
     assert!(std::fs::read_dir(&d).unwrap().next().is_none(), "nothing written");
     let _ = std::fs::remove_dir_all(&d);
 }

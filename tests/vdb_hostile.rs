@@ -68,7 +68,8 @@ fn file_truncated_in_leaf_data_is_an_error() {
         for percent in [30, 60, 99] {
             let path = dir.join(format!("{percent}.vdb"));
             fs::write(&path, &bytes[..bytes.len() * percent / 100]).unwrap();
-            let result = read_float_grid(&path, &GridSelector::first("density"), &ReadLimits::default());
+            let result =
+                read_float_grid(&path, &GridSelector::first("density"), &ReadLimits::default());
             match result {
                 Err(Error::Vdb { message, .. }) => {
                     assert!(message.contains("truncated"), "{message}")
@@ -85,8 +86,10 @@ fn nanovdb_file_gets_a_clear_error() {
     let path = data("nanovdb/openvdb_fvdb_smoke-blosc.nvdb");
     for error in [
         list_grids(&path).unwrap_err(),
-        read_float_grid(&path, &GridSelector::first("density"), &ReadLimits::default()).unwrap_err(),
-        read_vec3_grid(&path, &GridSelector::first("velocity"), &ReadLimits::default()).unwrap_err(),
+        read_float_grid(&path, &GridSelector::first("density"), &ReadLimits::default())
+            .unwrap_err(),
+        read_vec3_grid(&path, &GridSelector::first("velocity"), &ReadLimits::default())
+            .unwrap_err(),
     ] {
         assert!(matches!(error, Error::Vdb { .. }), "{error:?}");
         let message = error.to_string();
@@ -115,7 +118,8 @@ fn memory_limit_is_checked_before_allocating() {
 fn missing_paths_and_grids() {
     let missing = data("no/such/file.vdb");
     assert!(matches!(list_grids(&missing), Err(Error::Open { .. })));
-    let error = read_float_grid(&missing, &GridSelector::first("density"), &ReadLimits::default()).unwrap_err();
+    let error = read_float_grid(&missing, &GridSelector::first("density"), &ReadLimits::default())
+        .unwrap_err();
     assert!(matches!(error, Error::Open { .. }), "{error:?}");
     assert!(error.to_string().contains("file.vdb"));
 

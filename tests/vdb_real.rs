@@ -15,7 +15,10 @@ use std::collections::HashSet;
 
 use common::{data, fixture, leaves_by_origin, read};
 use glam::{DAffine3, DVec3, IVec3};
-use plume::vdb::{leaf_offset, list_grids, read_float_grid, FloatGrid, GridInfo, GridSelector, ReadLimits, LEAF_VOXELS};
+use plume::vdb::{
+    leaf_offset, list_grids, read_float_grid, FloatGrid, GridInfo, GridSelector, ReadLimits,
+    LEAF_VOXELS,
+};
 use plume::Error;
 
 fn grid<'a>(infos: &'a [GridInfo], selector: &str) -> &'a GridInfo {
@@ -25,7 +28,10 @@ fn grid<'a>(infos: &'a [GridInfo], selector: &str) -> &'a GridInfo {
 #[track_caller]
 fn assert_close(actual: f64, expected: f64, relative: f64) {
     let tolerance = relative * expected.abs().max(1e-30);
-    assert!((actual - expected).abs() <= tolerance, "{actual} differs from {expected} by more than {relative} relative");
+    assert!(
+        (actual - expected).abs() <= tolerance,
+        "{actual} differs from {expected} by more than {relative} relative"
+    );
 }
 
 #[track_caller]
@@ -136,8 +142,11 @@ fn fire_has_non_uniform_voxels() {
     assert_well_formed(&grid);
     assert_eq!(grid.leaf_count(), 37);
     assert_close(value_sum(&grid), 276.5202852, 1e-6);
-    let scale =
-        DVec3::new(grid.world_from_index.matrix3.x_axis.length(), grid.world_from_index.matrix3.y_axis.length(), grid.world_from_index.matrix3.z_axis.length());
+    let scale = DVec3::new(
+        grid.world_from_index.matrix3.x_axis.length(),
+        grid.world_from_index.matrix3.y_axis.length(),
+        grid.world_from_index.matrix3.z_axis.length(),
+    );
     assert!(scale.abs_diff_eq(DVec3::new(0.703377, 0.703377, 0.716455), 1e-5), "{scale}");
     // OpenVDB: indexToWorld(1, 2, 3) = (-7.73714, -7.03377, -21.9855).
     let p_world = grid.world_from_index.transform_point3(DVec3::new(1.0, 2.0, 3.0));
@@ -148,8 +157,12 @@ fn fire_has_non_uniform_voxels() {
 fn sequence_frames_in_file_order() {
     let infos = list_grids(&data("sequence/openusd_smoke_000001.vdb")).unwrap();
     // File order, not io::File's alphabetical density/obstacles/shadow/velocity.
-    let listed: Vec<(&str, &str)> = infos.iter().map(|g| (g.name.as_str(), g.value_type.as_str())).collect();
-    assert_eq!(listed, [("density", "float"), ("shadow", "float"), ("velocity", "vec3s"), ("obstacles", "int32")]);
+    let listed: Vec<(&str, &str)> =
+        infos.iter().map(|g| (g.name.as_str(), g.value_type.as_str())).collect();
+    assert_eq!(
+        listed,
+        [("density", "float"), ("shadow", "float"), ("velocity", "vec3s"), ("obstacles", "int32")]
+    );
     assert_eq!(infos.iter().map(|g| g.file_index).collect::<Vec<_>>(), [0, 1, 2, 3]);
     for info in &infos {
         assert_eq!(info.active_voxels, 0);
@@ -174,7 +187,10 @@ fn sequence_frames_in_file_order() {
         }
     }
 
-    for (file, voxels, sum) in [("sequence/openusd_smoke_000002.vdb", 71_983, 26291.57048), ("sequence/openusd_smoke_000003.vdb", 90_197, 29401.88654)] {
+    for (file, voxels, sum) in [
+        ("sequence/openusd_smoke_000002.vdb", 71_983, 26291.57048),
+        ("sequence/openusd_smoke_000003.vdb", 90_197, 29401.88654),
+    ] {
         let infos = list_grids(&data(file)).unwrap();
         assert_eq!(infos.len(), 1);
         assert_eq!(infos[0].active_voxels, voxels);
@@ -193,14 +209,26 @@ fn sequence_frames_in_file_order() {
 fn duplicate_names_are_addressed_in_file_order() {
     let path = "edge_cases/arnold_usd_grids_3x_density.vdb";
     let infos = list_grids(&data(path)).unwrap();
-    let listed: Vec<(&str, &str, u64)> = infos.iter().map(|g| (g.name.as_str(), g.selector.as_str(), g.active_voxels)).collect();
-    assert_eq!(listed, [("density", "density", 491), ("density", "density[1]", 2222), ("density", "density[2]", 803)]);
+    let listed: Vec<(&str, &str, u64)> =
+        infos.iter().map(|g| (g.name.as_str(), g.selector.as_str(), g.active_voxels)).collect();
+    assert_eq!(
+        listed,
+        [
+            ("density", "density", 491),
+            ("density", "density[1]", 2222),
+            ("density", "density[2]", 803)
+        ]
+    );
     for info in &infos {
         assert_close(info.max.unwrap(), 10.0, 1e-6);
     }
 
     // The three grids differ in translation: OpenVDB's indexToWorld(1, 2, 3).
-    for (selector, sum, x_world) in [("density", 2057.87622, 4.1), ("density[1]", 9430.390897, 2.1), ("density[2]", 2959.641949, 0.1)] {
+    for (selector, sum, x_world) in [
+        ("density", 2057.87622, 4.1),
+        ("density[1]", 9430.390897, 2.1),
+        ("density[2]", 2959.641949, 0.1),
+    ] {
         let grid = read(path, selector).unwrap();
         assert_well_formed(&grid);
         assert_eq!(grid.name, "density");
@@ -257,17 +285,30 @@ fn converted_nanovdb_file_has_an_unnamed_grid() {
 #[test]
 fn explosions_list_in_file_order() {
     let infos = list_grids(&data("explosion/blender_fluid_noise_0040.vdb")).unwrap();
-    let listed: Vec<(&str, u64)> = infos.iter().map(|g| (g.name.as_str(), g.active_voxels)).collect();
+    let listed: Vec<(&str, u64)> =
+        infos.iter().map(|g| (g.name.as_str(), g.active_voxels)).collect();
     assert_eq!(
         listed,
-        [("density_noise", 932_846), ("flame_noise", 637_305), ("color_r_noise", 897_835), ("color_g_noise", 897_835), ("color_b_noise", 897_835),]
+        [
+            ("density_noise", 932_846),
+            ("flame_noise", 637_305),
+            ("color_r_noise", 897_835),
+            ("color_g_noise", 897_835),
+            ("color_b_noise", 897_835),
+        ]
     );
     assert_stats(&infos[0], 1.000032626e-06, 0.901350379, 0.1888253611);
 
     for (file, density, temperature, t_min, t_max) in [
         ("mantaflow_explosion_kelvin_0020.vdb", 417_098, 306_341, 1515.000977, 2961.415283),
         ("mantaflow_explosion_kelvin_0040.vdb", 932_846, 599_176, 1515.000244, 2461.865723),
-        ("mantaflow_explosion_r192n2_kelvin_0040.vdb", 2_503_234, 1_777_897, 1515.000122, 2507.559326),
+        (
+            "mantaflow_explosion_r192n2_kelvin_0040.vdb",
+            2_503_234,
+            1_777_897,
+            1515.000122,
+            2507.559326,
+        ),
     ] {
         let infos = list_grids(&data(&format!("explosion/{file}"))).unwrap();
         assert_eq!(grid(&infos, "density").active_voxels, density, "{file}");
@@ -301,7 +342,8 @@ fn double_grid_with_affine_map_and_tiles_of_two_levels() {
     assert_close(heat.voxel_size[1], 0.3, 1e-12);
     assert_close(heat.voxel_size[2], 0.4, 1e-12);
 
-    let grid = read_float_grid(&path, &GridSelector::first("heat_double"), &ReadLimits::default()).unwrap();
+    let grid = read_float_grid(&path, &GridSelector::first("heat_double"), &ReadLimits::default())
+        .unwrap();
     assert_well_formed(&grid);
     assert_eq!(grid.background, 0.5);
     // 1 leaf + 1 block for the 8³ tile + 16³ blocks for the 128³ tile.
@@ -314,7 +356,11 @@ fn double_grid_with_affine_map_and_tiles_of_two_levels() {
     assert!(leaves[&IVec3::new(64, 0, 0)].iter().all(|&v| v == 2.0));
     assert!(leaves[&IVec3::new(248, 120, 120)].iter().all(|&v| v == 3.0));
     assert!(!leaves.contains_key(&IVec3::new(-64, 0, 0)), "inactive tiles are not voxelized");
-    assert_close(value_sum(&grid), 1.25 + 3.0 + 510.0 * 0.5 + 512.0 * 2.0 + 2_097_152.0 * 3.0, 1e-12);
+    assert_close(
+        value_sum(&grid),
+        1.25 + 3.0 + 510.0 * 0.5 + 512.0 * 2.0 + 2_097_152.0 * 3.0,
+        1e-12,
+    );
 
     // The map as OpenVDB's indexToWorld reports it (make_fixtures output), and exactly
     // as the fixture built it: x axis 0.2·(cos ½, sin ½, 0), y axis 0.3·(−sin ½, cos ½, 0),
@@ -328,8 +374,12 @@ fn double_grid_with_affine_map_and_tiles_of_two_levels() {
         assert!(p_world.abs_diff_eq(expected, 1e-5), "{p_index} -> {p_world}");
     }
     let (s, c) = 0.5f64.sin_cos();
-    let expected =
-        DAffine3::from_cols(DVec3::new(0.2 * c, 0.2 * s, 0.0), DVec3::new(-0.3 * s, 0.3 * c, 0.0), DVec3::new(0.0, 0.0, 0.4), DVec3::new(1.0, -2.0, 3.0));
+    let expected = DAffine3::from_cols(
+        DVec3::new(0.2 * c, 0.2 * s, 0.0),
+        DVec3::new(-0.3 * s, 0.3 * c, 0.0),
+        DVec3::new(0.0, 0.0, 0.4),
+        DVec3::new(1.0, -2.0, 3.0),
+    );
     assert!(grid.world_from_index.abs_diff_eq(expected, 1e-12), "{:?}", grid.world_from_index);
 }
 
@@ -361,7 +411,8 @@ fn frustum_transform_is_unsupported() {
     let infos = list_grids(&path).unwrap();
     assert_eq!(infos[0].transform, "frustum");
     assert_eq!(infos[0].active_voxels, 1);
-    let error = read_float_grid(&path, &GridSelector::first("fog"), &ReadLimits::default()).unwrap_err();
+    let error =
+        read_float_grid(&path, &GridSelector::first("fog"), &ReadLimits::default()).unwrap_err();
     assert!(matches!(error, Error::UnsupportedGrid { .. }), "{error:?}");
     assert!(error.to_string().contains("frustum"), "{error}");
 }

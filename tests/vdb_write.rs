@@ -9,14 +9,20 @@ use std::fs;
 
 use common::{leaves_by_origin, scratch_dir};
 use glam::{DAffine3, DMat3, DVec3, IVec3};
-use plume::vdb::{leaf_offset, list_grids, read_float_grid, write_float_grids, FloatGrid, GridSelector, ReadLimits, LEAF_VOXELS};
+use plume::vdb::{
+    leaf_offset, list_grids, read_float_grid, write_float_grids, FloatGrid, GridSelector,
+    ReadLimits, LEAF_VOXELS,
+};
 use plume::Error;
 
 /// A grid with a rotated, non-uniformly scaled, translated transform, a non-zero
 /// background, negative origins, inactive (background) voxels and one all-background leaf.
 fn synthetic_grid(name: &str, background: f32) -> FloatGrid {
     let rotation = DMat3::from_rotation_z(0.3) * DMat3::from_rotation_x(-0.2);
-    let world_from_index = DAffine3::from_mat3_translation(rotation * DMat3::from_diagonal(DVec3::new(0.5, 0.25, 0.75)), DVec3::new(-1.5, 2.0, 10.0));
+    let world_from_index = DAffine3::from_mat3_translation(
+        rotation * DMat3::from_diagonal(DVec3::new(0.5, 0.25, 0.75)),
+        DVec3::new(-1.5, 2.0, 10.0),
+    );
     let origins = vec![IVec3::new(-16, 0, 8), IVec3::new(0, -8, -8), IVec3::new(24, 24, 24)];
     let mut values = vec![background; origins.len() * LEAF_VOXELS];
     for (i, v) in values[..2 * LEAF_VOXELS].iter_mut().enumerate() {
@@ -45,16 +51,23 @@ fn write_then_read_round_trips() {
     assert_eq!(infos[0].active_voxels, active);
 
     for (selector, expected) in [("density", &first), ("density[1]", &second)] {
-        let grid = read_float_grid(&path, &selector.parse().unwrap(), &ReadLimits::default()).unwrap();
+        let grid =
+            read_float_grid(&path, &selector.parse().unwrap(), &ReadLimits::default()).unwrap();
         assert_eq!(grid.name, "density");
         assert_eq!(grid.background, expected.background);
-        assert!(grid.world_from_index.abs_diff_eq(expected.world_from_index, 1e-12), "{:?} vs {:?}", grid.world_from_index, expected.world_from_index);
+        assert!(
+            grid.world_from_index.abs_diff_eq(expected.world_from_index, 1e-12),
+            "{:?} vs {:?}",
+            grid.world_from_index,
+            expected.world_from_index
+        );
         let mut written = leaves_by_origin(expected);
         written.remove(&IVec3::new(24, 24, 24));
         assert_eq!(leaves_by_origin(&grid), written, "{selector}");
     }
     // Leaf values are in OpenVDB offset order: check one voxel through leaf_offset.
-    let grid = read_float_grid(&path, &GridSelector::first("density"), &ReadLimits::default()).unwrap();
+    let grid =
+        read_float_grid(&path, &GridSelector::first("density"), &ReadLimits::default()).unwrap();
     let leaf = grid.origins.iter().position(|&o| o == IVec3::new(0, -8, -8)).unwrap();
     let offset = leaf_offset(1, 2, 4);
     assert_eq!(grid.leaf_values(leaf)[offset], first.leaf_values(1)[offset]);

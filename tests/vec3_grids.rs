@@ -24,8 +24,8 @@ use std::time::Duration;
 use common::{data, fixture, leaves_by_origin, plume, s, scratch_dir, stderr, PLUME};
 use glam::{DAffine3, DVec3, IVec3};
 use plume::vdb::{
-    leaf_offset, list_grids, read_float_grid, read_vec3_grid, read_vec3_grid_isolated, FloatGrid, GridSelector, IsolationLimits, ReadIsolation, ReadLimits,
-    LEAF_VOXELS,
+    leaf_offset, list_grids, read_float_grid, read_vec3_grid, read_vec3_grid_isolated, FloatGrid,
+    GridSelector, IsolationLimits, ReadIsolation, ReadLimits, LEAF_VOXELS,
 };
 use plume::Error;
 use serde_json::Value;
@@ -39,7 +39,10 @@ fn selector(text: &str) -> GridSelector {
 }
 
 fn isolation() -> ReadIsolation {
-    ReadIsolation::Child { reader_exe: PLUME.into(), limits: IsolationLimits::new(&ReadLimits::default(), Duration::from_secs(60)) }
+    ReadIsolation::Child {
+        reader_exe: PLUME.into(),
+        limits: IsolationLimits::new(&ReadLimits::default(), Duration::from_secs(60)),
+    }
 }
 
 fn read_local(path: &Path, grid: &str) -> plume::Result<[FloatGrid; 3]> {
@@ -68,7 +71,11 @@ fn assert_same_bits(a: &FloatGrid, b: &FloatGrid) {
     assert_eq!(a.background.to_bits(), b.background.to_bits(), "{}", a.name);
     assert_eq!(a.origins, b.origins, "{}", a.name);
     assert_eq!(a.values.len(), b.values.len(), "{}", a.name);
-    assert!(a.values.iter().zip(&b.values).all(|(x, y)| x.to_bits() == y.to_bits()), "{}: values differ", a.name);
+    assert!(
+        a.values.iter().zip(&b.values).all(|(x, y)| x.to_bits() == y.to_bits()),
+        "{}: values differ",
+        a.name
+    );
 }
 
 /// The component invariants: names `NAME.x/y/z`, shared origins and transform, sizes that
@@ -94,7 +101,10 @@ fn assert_components(grids: &[FloatGrid; 3], name: &str) {
 fn vector_at(leaves: &[HashMap<IVec3, Vec<f32>>; 3], p: IVec3) -> [f32; 3] {
     let origin = p & !7;
     let offset = leaf_offset(p.x, p.y, p.z);
-    [0, 1, 2].map(|c| leaves[c].get(&origin).unwrap_or_else(|| panic!("no leaf at {origin} for voxel {p}"))[offset])
+    [0, 1, 2].map(|c| {
+        leaves[c].get(&origin).unwrap_or_else(|| panic!("no leaf at {origin} for voxel {p}"))
+            [offset]
+    })
 }
 
 fn leaves_of(grids: &[FloatGrid; 3]) -> [HashMap<IVec3, Vec<f32>>; 3] {
@@ -118,13 +128,18 @@ fn pyopenvdb(args: &[&str]) -> Option<Vec<u8>> {
         );
         return None;
     }
-    assert!(output.status.success(), "pyopenvdb helper {args:?} failed: {}", String::from_utf8_lossy(&output.stderr));
+    assert!(
+        output.status.success(),
+        "pyopenvdb helper {args:?} failed: {}",
+        String::from_utf8_lossy(&output.stderr)
+    );
     Some(output.stdout)
 }
 
 /// OpenVDB's view of one grid (see `dump()` in the helper), or `None` without pyopenvdb.
 fn openvdb_dump(path: &Path, grid: &str) -> Option<Value> {
-    pyopenvdb(&["dump", s(path), grid]).map(|out| serde_json::from_slice(&out).expect("helper prints JSON"))
+    pyopenvdb(&["dump", s(path), grid])
+        .map(|out| serde_json::from_slice(&out).expect("helper prints JSON"))
 }
 
 fn vec3_of(value: &Value) -> [f32; 3] {
@@ -133,7 +148,11 @@ fn vec3_of(value: &Value) -> [f32; 3] {
 }
 
 fn ivec3_of(value: &Value) -> IVec3 {
-    IVec3::new(value[0].as_i64().unwrap() as i32, value[1].as_i64().unwrap() as i32, value[2].as_i64().unwrap() as i32)
+    IVec3::new(
+        value[0].as_i64().unwrap() as i32,
+        value[1].as_i64().unwrap() as i32,
+        value[2].as_i64().unwrap() as i32,
+    )
 }
 
 /// Asserts that the components hold exactly what OpenVDB holds: the file leaves (every
@@ -145,24 +164,44 @@ fn assert_matches_openvdb(grids: &[FloatGrid; 3], dump: &Value) -> usize {
     let leaves = leaves_of(grids);
     let background = vec3_of(&dump["background"]);
     for c in 0..3 {
-        assert_eq!(grids[c].background.to_bits(), background[c].to_bits(), "background component {c}");
+        assert_eq!(
+            grids[c].background.to_bits(),
+            background[c].to_bits(),
+            "background component {c}"
+        );
     }
     let voxels = dump["voxels"].as_array().unwrap();
     let file_leaves = dump["leaf_count"].as_u64().unwrap() as usize;
-    assert_eq!(voxels.len(), file_leaves * LEAF_VOXELS, "pyopenvdb lists every voxel of every leaf");
+    assert_eq!(
+        voxels.len(),
+        file_leaves * LEAF_VOXELS,
+        "pyopenvdb lists every voxel of every leaf"
+    );
     let mut active = 0;
     for voxel in voxels {
         let v = voxel.as_array().unwrap();
-        let p = IVec3::new(v[0].as_i64().unwrap() as i32, v[1].as_i64().unwrap() as i32, v[2].as_i64().unwrap() as i32);
+        let p = IVec3::new(
+            v[0].as_i64().unwrap() as i32,
+            v[1].as_i64().unwrap() as i32,
+            v[2].as_i64().unwrap() as i32,
+        );
         let expected = vec3_of(&Value::from(v[3..6].to_vec()));
         let got = vector_at(&leaves, p);
-        assert_eq!(got.map(f32::to_bits), expected.map(f32::to_bits), "voxel {p}: {got:?} vs OpenVDB {expected:?}");
+        assert_eq!(
+            got.map(f32::to_bits),
+            expected.map(f32::to_bits),
+            "voxel {p}: {got:?} vs OpenVDB {expected:?}"
+        );
         active += usize::from(v[6].as_bool().unwrap());
     }
     // The file's leaves come first, tile blocks after them
-    let leaf_origins: std::collections::HashSet<IVec3> = voxels.iter().map(|v| ivec3_of(v) & !7).collect();
+    let leaf_origins: std::collections::HashSet<IVec3> =
+        voxels.iter().map(|v| ivec3_of(v) & !7).collect();
     assert_eq!(leaf_origins.len(), file_leaves);
-    assert!(grids[0].origins[..file_leaves].iter().all(|o| leaf_origins.contains(o)), "file leaves are not first");
+    assert!(
+        grids[0].origins[..file_leaves].iter().all(|o| leaf_origins.contains(o)),
+        "file leaves are not first"
+    );
     let mut tile_blocks = 0;
     for tile in dump["tiles"].as_array().unwrap() {
         let (lo, hi, value) = (ivec3_of(&tile[0]), ivec3_of(&tile[1]), vec3_of(&tile[2]));
@@ -171,8 +210,14 @@ fn assert_matches_openvdb(grids: &[FloatGrid; 3], dump: &Value) -> usize {
                 for z in (lo.z..=hi.z).step_by(8) {
                     let origin = IVec3::new(x, y, z);
                     for c in 0..3 {
-                        let block = leaves[c].get(&origin).unwrap_or_else(|| panic!("tile block {origin} missing"));
-                        assert!(block.iter().all(|v| v.to_bits() == value[c].to_bits()), "tile block {origin} component {c} is not {}", value[c]);
+                        let block = leaves[c]
+                            .get(&origin)
+                            .unwrap_or_else(|| panic!("tile block {origin} missing"));
+                        assert!(
+                            block.iter().all(|v| v.to_bits() == value[c].to_bits()),
+                            "tile block {origin} component {c} is not {}",
+                            value[c]
+                        );
                     }
                     tile_blocks += 1;
                 }
@@ -203,13 +248,18 @@ fn blender_velocity_grid_reads_as_three_empty_components() {
     let scale = velocity[0].world_from_index.matrix3.x_axis.length();
     assert!((scale - 0.132601).abs() < 1e-6, "{scale}");
     if let Some(dump) = openvdb_dump(&path, "velocity") {
-        assert_eq!((dump["active_voxels"].as_u64(), dump["leaf_count"].as_u64()), (Some(0), Some(0)));
+        assert_eq!(
+            (dump["active_voxels"].as_u64(), dump["leaf_count"].as_u64()),
+            (Some(0), Some(0))
+        );
         assert_matches_openvdb(&velocity, &dump);
     }
 
     let noise = data("explosion/blender_fluid_noise_0040.vdb");
     match read_local(&noise, "velocity") {
-        Err(Error::GridNotFound { available, .. }) => assert!(available.contains(&"density_noise".to_string()), "{available:?}"),
+        Err(Error::GridNotFound { available, .. }) => {
+            assert!(available.contains(&"density_noise".to_string()), "{available:?}")
+        }
         other => panic!("expected GridNotFound, got {other:?}"),
     }
 }
@@ -242,13 +292,20 @@ fn real_vec3_grid_matches_openvdb_voxel_for_voxel() {
     let json: Value = serde_json::from_slice(&plume(&["info", "--json", s(&path)]).stdout).unwrap();
     assert_eq!(json[0]["type"], "vec3s");
     for key in ["min", "max"] {
-        let (shown, expected) = (json[0][key].as_f64().unwrap(), dump[format!("magnitude_{key}")].as_f64().unwrap());
-        assert!((shown - expected).abs() <= 1e-6 * expected.max(1.0), "{key}: plume info {shown}, OpenVDB {expected}");
+        let (shown, expected) =
+            (json[0][key].as_f64().unwrap(), dump[format!("magnitude_{key}")].as_f64().unwrap());
+        assert!(
+            (shown - expected).abs() <= 1e-6 * expected.max(1.0),
+            "{key}: plume info {shown}, OpenVDB {expected}"
+        );
     }
     let table = plume(&["info", s(&path)]);
     let text = String::from_utf8_lossy(&table.stdout);
     assert!(text.contains("vec3s") && text.contains("(magnitude)"), "{text}");
-    assert!(text.contains(&format!("max {:.6}", dump["magnitude_max"].as_f64().unwrap())), "{text}");
+    assert!(
+        text.contains(&format!("max {:.6}", dump["magnitude_max"].as_f64().unwrap())),
+        "{text}"
+    );
 }
 
 /// A vec3s grid written by pyopenvdb with voxels, a partial fill, eight level-1 tiles and
@@ -273,10 +330,18 @@ fn synthetic_tiles_are_voxelized_in_every_component() {
     assert_eq!(vel[0].world_from_index, DAffine3::from_scale(DVec3::splat(0.25)));
     let leaves = leaves_of(&vel);
     assert_eq!(vector_at(&leaves, IVec3::new(1, 2, 3)), [1.0, -2.0, 3.5]);
-    assert_eq!(vector_at(&leaves, IVec3::new(2, 2, 3)), [4.0, 4.0, 4.0], "inactive voxels keep their value");
+    assert_eq!(
+        vector_at(&leaves, IVec3::new(2, 2, 3)),
+        [4.0, 4.0, 4.0],
+        "inactive voxels keep their value"
+    );
     assert_eq!(vector_at(&leaves, IVec3::new(-9, 0, 4)), [0.25, 0.5, -0.75]);
     assert_eq!(vector_at(&leaves, IVec3::new(3, 19, 3)), [9.0, -9.0, 0.125]);
-    assert_eq!(vector_at(&leaves, IVec3::new(4, 19, 3)), [0.5, 0.0, -0.5], "background beside the fill");
+    assert_eq!(
+        vector_at(&leaves, IVec3::new(4, 19, 3)),
+        [0.5, 0.0, -0.5],
+        "background beside the fill"
+    );
     assert_eq!(vector_at(&leaves, IVec3::new(47, 15, 15)), [1.5, -2.5, 3.5]);
     assert_eq!(vector_at(&leaves, IVec3::new(200, 127, 64)), [-0.5, 0.75, 2.0]);
     assert!(!leaves[0].contains_key(&IVec3::new(48, 0, 0)));
@@ -288,8 +353,12 @@ fn synthetic_tiles_are_voxelized_in_every_component() {
 
     let dump = openvdb_dump(&path, "vel").expect("pyopenvdb wrote the file, so it can read it");
     let active = assert_matches_openvdb(&vel, &dump);
-    let tile_voxels: u64 =
-        dump["tiles"].as_array().unwrap().iter().map(|t| (ivec3_of(&t[1]) - ivec3_of(&t[0]) + 1).as_i64vec3().element_product() as u64).sum();
+    let tile_voxels: u64 = dump["tiles"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| (ivec3_of(&t[1]) - ivec3_of(&t[0]) + 1).as_i64vec3().element_product() as u64)
+        .sum();
     assert_eq!(active as u64 + tile_voxels, dump["active_voxels"].as_u64().unwrap());
     assert_eq!(tile_voxels, 8 * 512 + 128 * 128 * 128);
 }
@@ -307,15 +376,27 @@ fn vec3d_half_float_and_nan_fixtures() {
     assert_eq!(vel[0].origins, [IVec3::new(-8, 0, 0), IVec3::new(64, 0, 0)]);
     let leaves = leaves_of(&vel);
     assert_eq!(vector_at(&leaves, IVec3::new(-3, 5, 7)), [1.25, -2.5, 3.75]);
-    assert_eq!(vector_at(&leaves, IVec3::new(-2, 5, 7)), [3.0, 3.0, 3.0], "inactive voxels keep their value");
+    assert_eq!(
+        vector_at(&leaves, IVec3::new(-2, 5, 7)),
+        [3.0, 3.0, 3.0],
+        "inactive voxels keep their value"
+    );
     for (c, background) in [0.5, -0.5, 0.25].into_iter().enumerate() {
-        assert_eq!(leaves[c][&IVec3::new(-8, 0, 0)].iter().filter(|&&v| v == background).count(), 510);
+        assert_eq!(
+            leaves[c][&IVec3::new(-8, 0, 0)].iter().filter(|&&v| v == background).count(),
+            510
+        );
     }
     for (c, tile) in [2.0, -4.0, 6.0].into_iter().enumerate() {
         assert!(vel[c].leaf_values(1).iter().all(|&v| v == tile), "tile component {c}");
     }
     // The same map as affine_tiles.vdb's heat_double (make_fixtures.cc builds both from m)
-    let heat = read_float_grid(&fixture("affine_tiles.vdb"), &selector("heat_double"), &ReadLimits::default()).unwrap();
+    let heat = read_float_grid(
+        &fixture("affine_tiles.vdb"),
+        &selector("heat_double"),
+        &ReadLimits::default(),
+    )
+    .unwrap();
     assert_eq!(vel[0].world_from_index, heat.world_from_index);
 
     // Half floats read as the halves they are: 0.1 is stored as 0.0999755859375
@@ -330,10 +411,16 @@ fn vec3d_half_float_and_nan_fixtures() {
         match result {
             Err(Error::Vdb { message, path: p }) => {
                 assert_eq!(p, path);
-                assert!(message.contains("vel_nan") && message.contains("1 of 1536 vector components"), "{message}");
+                assert!(
+                    message.contains("vel_nan") && message.contains("1 of 1536 vector components"),
+                    "{message}"
+                );
                 assert!(message.contains("NaN or infinite"), "{message}");
             }
-            other => panic!("expected Vdb error for NaN, got {:?}", other.map(|grids| grids[1].values.iter().filter(|v| v.is_nan()).count())),
+            other => panic!(
+                "expected Vdb error for NaN, got {:?}",
+                other.map(|grids| grids[1].values.iter().filter(|v| v.is_nan()).count())
+            ),
         }
     }
 }
@@ -354,13 +441,18 @@ fn wrong_types_and_missing_grids_are_refused() {
         match local {
             Error::UnsupportedGrid { path: p, grid: g, message } => {
                 assert_eq!((p, g.as_str()), (path.clone(), grid));
-                assert!(message.contains(&format!("value type {value_type} is not a vector grid")), "{message}");
+                assert!(
+                    message.contains(&format!("value type {value_type} is not a vector grid")),
+                    "{message}"
+                );
             }
             other => panic!("{grid}: expected UnsupportedGrid, got {other:?}"),
         }
         assert!(isolated.to_string().contains(s(&path)), "{isolated}");
     }
-    for (path, grid) in [(data(SPHERE_CD), "velocity"), (data(SPHERE_CD), "Cd[1]"), (fixture("vec3.vdb"), "vel")] {
+    for (path, grid) in
+        [(data(SPHERE_CD), "velocity"), (data(SPHERE_CD), "Cd[1]"), (fixture("vec3.vdb"), "vel")]
+    {
         let local = read_local(&path, grid).unwrap_err();
         let isolated = read_isolated(&path, grid).unwrap_err();
         assert_eq!(local.to_string(), isolated.to_string());
@@ -373,7 +465,10 @@ fn wrong_types_and_missing_grids_are_refused() {
         }
     }
     // The float reader still refuses vectors
-    assert!(matches!(read_float_grid(&data(SPHERE_CD), &selector("Cd"), &ReadLimits::default()), Err(Error::UnsupportedGrid { .. })));
+    assert!(matches!(
+        read_float_grid(&data(SPHERE_CD), &selector("Cd"), &ReadLimits::default()),
+        Err(Error::UnsupportedGrid { .. })
+    ));
 }
 
 /// The limit covers three float grids' worth of output (values and origins per
@@ -385,8 +480,13 @@ fn memory_limit_counts_three_components() {
     for limit in [needed - 1, needed] {
         let limits = ReadLimits { max_bytes: limit };
         let local = read_vec3_grid(&path, &selector("Cd"), &limits);
-        let isolated =
-            read_vec3_grid_isolated(Path::new(PLUME), &path, &selector("Cd"), &limits, &IsolationLimits::new(&ReadLimits::default(), Duration::from_secs(60)));
+        let isolated = read_vec3_grid_isolated(
+            Path::new(PLUME),
+            &path,
+            &selector("Cd"),
+            &limits,
+            &IsolationLimits::new(&ReadLimits::default(), Duration::from_secs(60)),
+        );
         for result in [local, isolated] {
             match result {
                 Err(Error::TooLarge { needed: n, limit: l, grid, .. }) if limit < needed => {
@@ -411,13 +511,19 @@ fn damaged_files_are_clean_errors_for_vec3_reads() {
         fs::write(&path, &bytes[..bytes.len() * percent / 100]).unwrap();
         for result in [read_local(&path, "Cd"), read_isolated(&path, "Cd")] {
             match result {
-                Err(Error::Vdb { message, .. }) => assert!(message.contains("truncated"), "{percent}%: {message}"),
+                Err(Error::Vdb { message, .. }) => {
+                    assert!(message.contains("truncated"), "{percent}%: {message}")
+                }
                 other => panic!("{percent}%: expected a Vdb error, got {other:?}"),
             }
         }
     }
     let regressions = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/regressions");
-    let mut files: Vec<_> = fs::read_dir(&regressions).unwrap().map(|e| e.unwrap().path()).filter(|p| p.extension().is_some_and(|e| e == "vdb")).collect();
+    let mut files: Vec<_> = fs::read_dir(&regressions)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "vdb"))
+        .collect();
     files.sort();
     assert!(files.len() >= 6);
     for file in files {
@@ -435,14 +541,16 @@ fn plume_info_lists_vector_grids() {
     let out = plume(&["info", s(&data(FRAME_1))]);
     assert!(out.status.success(), "{}", stderr(&out));
     let text = String::from_utf8_lossy(&out.stdout);
-    let velocity = text.split("\n\n").find(|block| block.contains("] velocity")).expect("velocity listed");
+    let velocity =
+        text.split("\n\n").find(|block| block.contains("] velocity")).expect("velocity listed");
     assert!(velocity.contains("vec3s") && velocity.contains("staggered"), "{velocity}");
     assert!(velocity.contains("values        -"), "{velocity}");
 
     let out = plume(&["info", s(&fixture("vec3.vdb"))]);
     let text = String::from_utf8_lossy(&out.stdout);
     // vel_double: the voxel (1.25, -2.5, 3.75) and the tile (2, -4, 6)
-    let (low, high) = (f64::sqrt(1.25 * 1.25 + 2.5 * 2.5 + 3.75 * 3.75), f64::sqrt(4.0 + 16.0 + 36.0));
+    let (low, high) =
+        (f64::sqrt(1.25 * 1.25 + 2.5 * 2.5 + 3.75 * 3.75), f64::sqrt(4.0 + 16.0 + 36.0));
     assert!(text.contains(&format!("min {low:.6}  max {high:.6}")), "{text}");
     assert!(text.contains("vec3d"), "{text}");
 }

@@ -36,11 +36,18 @@ fn random_volume(seed: u32, xf: DAffine3) -> Volume {
             }
         }
     });
-    let s = grid("temperature", xf, &leaves, |p| if hash(p, seed + 3) % 2 == 0 { 1000.0 } else { 0.0 });
+    let s =
+        grid("temperature", xf, &leaves, |p| if hash(p, seed + 3) % 2 == 0 { 1000.0 } else { 0.0 });
     // Albedo: constant 0.5 in some leaves, varying in others, absent elsewhere (→ 1).
-    let a_leaves: Vec<IVec3> = leaves.iter().copied().filter(|o| hash(*o, seed + 4) % 3 != 0).collect();
-    let a =
-        grid("albedo", xf, &a_leaves, |p| if hash(p.div_euclid(IVec3::splat(8)), seed + 5) % 2 == 0 { 0.5 } else { (hash(p, seed + 6) % 100) as f32 / 99.0 });
+    let a_leaves: Vec<IVec3> =
+        leaves.iter().copied().filter(|o| hash(*o, seed + 4) % 3 != 0).collect();
+    let a = grid("albedo", xf, &a_leaves, |p| {
+        if hash(p.div_euclid(IVec3::splat(8)), seed + 5) % 2 == 0 {
+            0.5
+        } else {
+            (hash(p, seed + 6) % 100) as f32 / 99.0
+        }
+    });
     Volume::build_with_albedo(&d, Some(&s), |v| v, Some(&a)).unwrap()
 }
 
@@ -65,11 +72,18 @@ fn check_segments(vol: &Volume, ray: &Ray, t_min: f64, t_max: f64) -> Result<(),
                 // whose midpoint may round onto a face).
                 if s.t1 - s.t0 > 1e-6 * (1.0 + s.t1.abs()) {
                     let mid = ray.at(0.5 * (s.t0 + s.t1));
-                    let plume_volume::VoxelValues { density: dv, source: sv } = vol.lookup_world(mid);
+                    let plume_volume::VoxelValues { density: dv, source: sv } =
+                        vol.lookup_world(mid);
                     prop_assert_eq!((dv, sv), (s.density, s.source), "segment {:?}", s);
                     if dv > 0.0 {
-                        let ijk = (vol.index_from_world().transform_point3(mid) + 0.5).floor().as_ivec3();
-                        prop_assert_eq!(vol.voxel_albedo(ijk), s.albedo, "albedo of segment {:?}", s);
+                        let ijk =
+                            (vol.index_from_world().transform_point3(mid) + 0.5).floor().as_ivec3();
+                        prop_assert_eq!(
+                            vol.voxel_albedo(ijk),
+                            s.albedo,
+                            "albedo of segment {:?}",
+                            s
+                        );
                     } else {
                         prop_assert_eq!(s.albedo, 1.0, "no albedo where there is no density");
                     }
@@ -125,8 +139,14 @@ fn pyramid_bounds_cover_every_voxel() {
                     let plume_volume::VoxelValues { density: d, source: s } = vol.voxel(v);
                     for (k, level) in levels.iter().enumerate() {
                         let node = level.get((v - lo).div_euclid(IVec3::splat(8 << k)));
-                        assert!(node.density_max >= d && node.density_min <= d, "level {k} density at {v}");
-                        assert!(node.source_max >= s && node.source_min <= s, "level {k} source at {v}");
+                        assert!(
+                            node.density_max >= d && node.density_min <= d,
+                            "level {k} density at {v}"
+                        );
+                        assert!(
+                            node.source_max >= s && node.source_min <= s,
+                            "level {k} source at {v}"
+                        );
                     }
                 }
             }

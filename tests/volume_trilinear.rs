@@ -39,9 +39,22 @@ fn sparse_volume(seed: u32, xf: DAffine3) -> Trilinear {
             }
         }
     });
-    let s = grid("temperature", xf, &leaves, |p| if kind(p) == 0 || hash(p, seed + 3) % 2 == 0 { 1000.0 } else { 0.0 });
-    let a_leaves: Vec<IVec3> = leaves.iter().copied().filter(|o| hash(*o, seed + 4) % 3 != 0).collect();
-    let a = grid("albedo", xf, &a_leaves, |p| if kind(p) == 0 { 0.5 } else { (hash(p, seed + 6) % 100) as f32 / 99.0 });
+    let s = grid("temperature", xf, &leaves, |p| {
+        if kind(p) == 0 || hash(p, seed + 3) % 2 == 0 {
+            1000.0
+        } else {
+            0.0
+        }
+    });
+    let a_leaves: Vec<IVec3> =
+        leaves.iter().copied().filter(|o| hash(*o, seed + 4) % 3 != 0).collect();
+    let a = grid("albedo", xf, &a_leaves, |p| {
+        if kind(p) == 0 {
+            0.5
+        } else {
+            (hash(p, seed + 6) % 100) as f32 / 99.0
+        }
+    });
     Trilinear::new(Volume::build_with_albedo(&d, Some(&s), |v| v, Some(&a)).unwrap())
 }
 
@@ -50,23 +63,48 @@ fn sparse_volume(seed: u32, xf: DAffine3) -> Trilinear {
 /// with a source): what the walk's empty-block masks (`volume::trilinear::dual`, "Empty
 /// cells") skip, next to blocks it must not skip, also across brick faces.
 fn blocky_volume(seed: u32, xf: DAffine3) -> Trilinear {
-    let leaves: Vec<IVec3> =
-        (-2..2).flat_map(|x| (-1..2).flat_map(move |y| (0..2).map(move |z| IVec3::new(x, y, z)))).filter(|b| hash(*b, seed) % 4 != 0).map(|b| b * 8).collect();
+    let leaves: Vec<IVec3> = (-2..2)
+        .flat_map(|x| (-1..2).flat_map(move |y| (0..2).map(move |z| IVec3::new(x, y, z))))
+        .filter(|b| hash(*b, seed) % 4 != 0)
+        .map(|b| b * 8)
+        .collect();
     let block = move |p: IVec3, salt: u32| hash(p.div_euclid(IVec3::splat(2)), seed + salt);
-    let d = grid("density", xf, &leaves, |p| if block(p, 1) % 5 < 2 { 0.1 + (hash(p, seed + 2) % 100) as f32 / 20.0 } else { 0.0 });
-    let s = grid("temperature", xf, &leaves, |p| if block(p, 1) % 5 < 2 && block(p, 3) % 2 == 0 { 1500.0 } else { 0.0 });
+    let d = grid("density", xf, &leaves, |p| {
+        if block(p, 1) % 5 < 2 {
+            0.1 + (hash(p, seed + 2) % 100) as f32 / 20.0
+        } else {
+            0.0
+        }
+    });
+    let s = grid("temperature", xf, &leaves, |p| {
+        if block(p, 1) % 5 < 2 && block(p, 3) % 2 == 0 {
+            1500.0
+        } else {
+            0.0
+        }
+    });
     Trilinear::new(Volume::build(&d, Some(&s), |v| v).unwrap())
 }
 
 fn scaled() -> DAffine3 {
-    DAffine3::from_mat3_translation(DMat3::from_diagonal(DVec3::new(0.7, 0.7, 0.716)) * DMat3::from_rotation_y(0.3), DVec3::new(1.0, -2.0, 3.0))
+    DAffine3::from_mat3_translation(
+        DMat3::from_diagonal(DVec3::new(0.7, 0.7, 0.716)) * DMat3::from_rotation_y(0.3),
+        DVec3::new(1.0, -2.0, 3.0),
+    )
 }
 
 /// The ray's parameter range clipped to the field's dilated index box.
 fn clipped(tri: &Trilinear, ray: &Ray, t_min: f64, t_max: f64) -> Option<(f64, f64)> {
     let xf = tri.volume().index_from_world();
     let Bounds3 { lo, hi } = tri.index_bounds();
-    clip_to_box(xf.transform_point3(ray.origin), xf.transform_vector3(ray.direction), lo, hi, t_min, t_max)
+    clip_to_box(
+        xf.transform_point3(ray.origin),
+        xf.transform_vector3(ray.direction),
+        lo,
+        hi,
+        t_min,
+        t_max,
+    )
 }
 
 /// `∫₀ᴸ ρ(u) du` of a piece's density cubic.
@@ -100,9 +138,16 @@ fn check_pieces(tri: &Trilinear, ray: &Ray, t_min: f64, t_max: f64) -> Result<()
         prop_assert!(p.t0 < p.t1, "non-empty, increasing: {:?}", p);
         if p.constant {
             prop_assert_eq!(p.density_cubic(), [f64::from(p.corners[0].density), 0.0, 0.0, 0.0]);
-            prop_assert!(p.corners.iter().all(|c| *c == p.corners[0]) && p.albedo.iter().all(|&x| x == p.albedo[0]));
+            prop_assert!(
+                p.corners.iter().all(|c| *c == p.corners[0])
+                    && p.albedo.iter().all(|&x| x == p.albedo[0])
+            );
         } else {
-            prop_assert!(p.f0.cmpge(DVec3::ZERO).all() && p.f0.cmple(DVec3::ONE).all(), "f0 in the cell: {:?}", p);
+            prop_assert!(
+                p.f0.cmpge(DVec3::ZERO).all() && p.f0.cmple(DVec3::ONE).all(),
+                "f0 in the cell: {:?}",
+                p
+            );
         }
     }
     Ok(())
@@ -122,7 +167,14 @@ fn check_albedo(tri: &Trilinear, ray: &Ray, t_min: f64, t_max: f64) -> Result<()
         for (c, (&albedo, corner)) in p.albedo.iter().zip(&p.corners).enumerate() {
             let v = cell + IVec3::new((c & 1) as i32, ((c >> 1) & 1) as i32, ((c >> 2) & 1) as i32);
             let want = if corner.density > 0.0 { vol.voxel_albedo(v) } else { 1.0 };
-            prop_assert_eq!(albedo.to_bits(), want.to_bits(), "corner {} (voxel {}) of {:?}", c, v, p);
+            prop_assert_eq!(
+                albedo.to_bits(),
+                want.to_bits(),
+                "corner {} (voxel {}) of {:?}",
+                c,
+                v,
+                p
+            );
         }
     }
     Ok(())
@@ -142,14 +194,24 @@ fn uniforms(seed: u64, n: usize) -> Vec<f64> {
         .collect()
 }
 
-fn check_cubics(tri: &Trilinear, ray: &Ray, t_min: f64, t_max: f64, u_seed: u64) -> Result<(), TestCaseError> {
+fn check_cubics(
+    tri: &Trilinear,
+    ray: &Ray,
+    t_min: f64,
+    t_max: f64,
+    u_seed: u64,
+) -> Result<(), TestCaseError> {
     for (k, p) in tri.segments(ray, t_min, t_max).enumerate() {
         let len = p.t1 - p.t0;
         for f in uniforms(u_seed + k as u64, 4) {
             let u = f * len;
             let got = poly::eval(&p.density_cubic(), u);
             let want = f64::from(tri.values_at(ray.at(p.t0 + u)).density);
-            prop_assert!((got - want).abs() <= 1e-5 * want.abs() + 1e-6, "ρ(u = {u}) = {got}, interpolated {want}, piece {:?}", p);
+            prop_assert!(
+                (got - want).abs() <= 1e-5 * want.abs() + 1e-6,
+                "ρ(u = {u}) = {got}, interpolated {want}, piece {:?}",
+                p
+            );
         }
     }
     Ok(())
@@ -177,7 +239,8 @@ fn snap(v: f64, mode: u8) -> f64 {
 /// mapped to world space; `None` for a (near) zero direction.
 fn make_ray(xf: DAffine3, o: DVec3, snaps: [u8; 3], dir: DVec3) -> Option<Ray> {
     let o_index = DVec3::new(snap(o.x, snaps[0]), snap(o.y, snaps[1]), snap(o.z, snaps[2]));
-    (dir.length() > 1e-3).then(|| Ray { origin: xf.transform_point3(o_index), direction: dir.normalize() })
+    (dir.length() > 1e-3)
+        .then(|| Ray { origin: xf.transform_point3(o_index), direction: dir.normalize() })
 }
 
 proptest! {
@@ -305,13 +368,23 @@ fn point_values_follow_box_sampler() {
     let vol = tri.volume();
     for (k, f) in uniforms(11, 60).chunks(3).enumerate() {
         // At a voxel centre: that voxel's values
-        let v = IVec3::new(-17, -9, -1) + (DVec3::new(f[0], f[1], f[2]) * DVec3::new(34.0, 26.0, 18.0)).as_ivec3();
+        let v = IVec3::new(-17, -9, -1)
+            + (DVec3::new(f[0], f[1], f[2]) * DVec3::new(34.0, 26.0, 18.0)).as_ivec3();
         let at = tri.values_at(v.as_dvec3());
-        assert_eq!((at.density, at.source), (vol.voxel(v).density, vol.voxel(v).source), "centre {v}");
+        assert_eq!(
+            (at.density, at.source),
+            (vol.voxel(v).density, vol.voxel(v).source),
+            "centre {v}"
+        );
         // Half-way along +x: the mean of the two voxels
         let mid = tri.interpolate_index(v.as_dvec3() + DVec3::new(0.5, 0.0, 0.0));
-        let want = 0.5 * (f64::from(vol.voxel(v).density) + f64::from(vol.voxel(v + IVec3::X).density));
-        assert!((mid.density() - want).abs() <= 1e-12 * (1.0 + want), "{k}: {} vs {want}", mid.density());
+        let want =
+            0.5 * (f64::from(vol.voxel(v).density) + f64::from(vol.voxel(v + IVec3::X).density));
+        assert!(
+            (mid.density() - want).abs() <= 1e-12 * (1.0 + want),
+            "{k}: {} vs {want}",
+            mid.density()
+        );
         assert!((mid.weights.iter().sum::<f64>() - 1.0).abs() < 1e-15);
     }
 }
@@ -320,7 +393,11 @@ fn point_values_follow_box_sampler() {
 /// (15,15,15). `neighbours`: also store the 26 bricks around it (all zero), so the
 /// neighbours are uniform zero pyramid nodes rather than missing bricks.
 fn corner_voxels(neighbours: bool) -> Trilinear {
-    let leaves: Vec<IVec3> = if neighbours { (0..27).map(|i| IVec3::new(i % 3, (i / 3) % 3, i / 9) * 8).collect() } else { vec![IVec3::splat(8)] };
+    let leaves: Vec<IVec3> = if neighbours {
+        (0..27).map(|i| IVec3::new(i % 3, (i / 3) % 3, i / 9) * 8).collect()
+    } else {
+        vec![IVec3::splat(8)]
+    };
     let hot = |p: IVec3| p == IVec3::splat(8) || p == IVec3::splat(15);
     let d = grid("density", DAffine3::IDENTITY, &leaves, |p| if hot(p) { 3.0 } else { 0.0 });
     let s = grid("temperature", DAffine3::IDENTITY, &leaves, |p| if hot(p) { 2000.0 } else { 0.0 });
@@ -330,10 +407,15 @@ fn corner_voxels(neighbours: bool) -> Trilinear {
 /// `∫ρ` along `ray` by a 10⁵-step midpoint march of [`Field::values_at`] over the part of
 /// the ray inside `[lo, hi]` (index space = world space here), where all density lies.
 fn marched_integral(tri: &Trilinear, ray: &Ray, lo: DVec3, hi: DVec3) -> f64 {
-    let Some((a, b)) = clip_to_box(ray.origin, ray.direction, lo, hi, 0.0, f64::INFINITY) else { return 0.0 };
+    let Some((a, b)) = clip_to_box(ray.origin, ray.direction, lo, hi, 0.0, f64::INFINITY) else {
+        return 0.0;
+    };
     let n = 100_000;
     let h = (b - a) / f64::from(n);
-    (0..n).map(|k| f64::from(tri.values_at(ray.at(a + (f64::from(k) + 0.5) * h)).density)).sum::<f64>() * h
+    (0..n)
+        .map(|k| f64::from(tri.values_at(ray.at(a + (f64::from(k) + 0.5) * h)).density))
+        .sum::<f64>()
+        * h
 }
 
 /// Rays that cross only the bricks next to a hot voxel's brick (in nearest terms) within
@@ -347,7 +429,8 @@ fn skipping_sees_density_across_node_faces() {
         for (k, u) in us.chunks(4).enumerate() {
             // Low corner (8,8,8): a plane z ∈ (7, 7.5), below brick (1,1,1)'s first voxel
             // face; high corner (15,15,15): z ∈ (15.5, 16), above its last.
-            let (hot, z) = if k % 2 == 0 { (8.0, 7.0 + 0.5 * u[0]) } else { (15.0, 15.5 + 0.5 * u[0]) };
+            let (hot, z) =
+                if k % 2 == 0 { (8.0, 7.0 + 0.5 * u[0]) } else { (15.0, 15.5 + 0.5 * u[0]) };
             let through = DVec3::new(hot - 1.0 + 2.0 * u[1], hot - 1.0 + 2.0 * u[2], z);
             let phi = std::f64::consts::TAU * u[3];
             let direction = match k % 8 {
@@ -358,7 +441,8 @@ fn skipping_sees_density_across_node_faces() {
             let ray = Ray { origin: through - 40.0 * direction, direction };
             let pieces: Vec<CubicSegment> = tri.segments(&ray, 0.0, f64::INFINITY).collect();
             let got: f64 = pieces.iter().map(density_integral).sum();
-            let want = marched_integral(&tri, &ray, DVec3::splat(hot - 1.0), DVec3::splat(hot + 1.0));
+            let want =
+                marched_integral(&tri, &ray, DVec3::splat(hot - 1.0), DVec3::splat(hot + 1.0));
             assert!(want > 0.0, "ray {k} passes through the support");
             assert!((got - want).abs() <= 1e-6 * want, "neighbours {neighbours}, ray {k} {ray:?}: ∫ρ = {got}, marched {want}; pieces {pieces:?}");
         }
@@ -382,19 +466,38 @@ fn constant_volume_gives_constant_pieces() {
         let a = xf.transform_point3(lo + (hi - lo) * DVec3::new(u[0], u[1], u[2]));
         let b = xf.transform_point3(lo + (hi - lo) * DVec3::new(u[3], u[4], u[5]));
         let ray = Ray { origin: a, direction: (b - a).normalize() };
-        let (t0, t1) = clip_to_box(ifw.transform_point3(a), ifw.transform_vector3(ray.direction), lo, hi, -1e9, 1e9).expect("origin inside");
+        let (t0, t1) = clip_to_box(
+            ifw.transform_point3(a),
+            ifw.transform_vector3(ray.direction),
+            lo,
+            hi,
+            -1e9,
+            1e9,
+        )
+        .expect("origin inside");
         let pieces: Vec<CubicSegment> = tri.segments(&ray, t0, t1).collect();
         assert_eq!(pieces.len(), 1, "ray {k}: {pieces:?}");
-        assert!(pieces[0].constant && pieces[0].density_cubic() == [2.0, 0.0, 0.0, 0.0], "ray {k}: {:?}", pieces[0]);
-        let near: f64 = nearest.segments(&ray, t0, t1).map(|s| f64::from(s.density) * s.length()).sum();
+        assert!(
+            pieces[0].constant && pieces[0].density_cubic() == [2.0, 0.0, 0.0, 0.0],
+            "ray {k}: {:?}",
+            pieces[0]
+        );
+        let near: f64 =
+            nearest.segments(&ray, t0, t1).map(|s| f64::from(s.density) * s.length()).sum();
         assert!((density_integral(&pieces[0]) - near).abs() <= 1e-12 * near, "ray {k}");
     }
     // Whole axis-parallel rays through the interior: the ramps at the faces integrate to
     // what the nearest voxels' half-voxel overhang does.
     for (k, u) in uniforms(6, 40).chunks(2).enumerate() {
-        let ray = Ray { origin: xf.transform_point3(DVec3::new(-5.0, 15.0 * u[0], 15.0 * u[1])), direction: xf.transform_vector3(DVec3::X).normalize() };
+        let ray = Ray {
+            origin: xf.transform_point3(DVec3::new(-5.0, 15.0 * u[0], 15.0 * u[1])),
+            direction: xf.transform_vector3(DVec3::X).normalize(),
+        };
         let got: f64 = tri.segments(&ray, 0.0, f64::INFINITY).map(|p| density_integral(&p)).sum();
-        let near: f64 = nearest.segments(&ray, 0.0, f64::INFINITY).map(|s| f64::from(s.density) * s.length()).sum();
+        let near: f64 = nearest
+            .segments(&ray, 0.0, f64::INFINITY)
+            .map(|s| f64::from(s.density) * s.length())
+            .sum();
         assert!((got - near).abs() <= 1e-12 * near, "axis ray {k}: {got} vs {near}");
     }
 }
@@ -418,8 +521,14 @@ fn dual_pyramid_bounds_cover_every_corner() {
                         let v = vol.voxel(i + IVec3::new(c & 1, (c >> 1) & 1, c >> 2));
                         for (k, level) in levels.iter().enumerate() {
                             let node = level.get((i - first).div_euclid(IVec3::splat(8 << k)));
-                            assert!(node.density_min <= v.density && v.density <= node.density_max, "level {k} density, cell {i}");
-                            assert!(node.source_min <= v.source && v.source <= node.source_max, "level {k} source, cell {i}");
+                            assert!(
+                                node.density_min <= v.density && v.density <= node.density_max,
+                                "level {k} density, cell {i}"
+                            );
+                            assert!(
+                                node.source_min <= v.source && v.source <= node.source_max,
+                                "level {k} source, cell {i}"
+                            );
                         }
                     }
                 }
@@ -433,12 +542,22 @@ fn dual_pyramid_bounds_cover_every_corner() {
 /// more, on a table one brick larger per axis, and 8 bytes per brick).
 #[test]
 fn dual_pyramid_is_small_next_to_the_volume() {
-    let ex = plume_synth::explosion(&plume_synth::ExplosionParams { resolution: 128, ..Default::default() });
+    let ex = plume_synth::explosion(&plume_synth::ExplosionParams {
+        resolution: 128,
+        ..Default::default()
+    });
     let tri = Trilinear::new(Volume::build(&ex.density, Some(&ex.temperature), |v| v).unwrap());
     let (dual, volume) = (tri.dual_bytes(), tri.volume().memory_bytes());
     let ratio = dual as f64 / volume as f64;
-    println!("128³ explosion: dual pyramid and block masks {dual} B, volume {volume} B: {:.2} %", 100.0 * ratio);
-    assert!(ratio <= 0.10, "dual pyramid and block masks {dual} B is {:.1} % of the volume's {volume} B", 100.0 * ratio);
+    println!(
+        "128³ explosion: dual pyramid and block masks {dual} B, volume {volume} B: {:.2} %",
+        100.0 * ratio
+    );
+    assert!(
+        ratio <= 0.10,
+        "dual pyramid and block masks {dual} B is {:.1} % of the volume's {volume} B",
+        100.0 * ratio
+    );
     assert_eq!(tri.data_bytes(), dual + volume);
 }
 
@@ -457,8 +576,14 @@ fn voxel_block_matches_eight_voxel_lookups() {
                 let cell = IVec3::new(x, y, z);
                 let block = volume.voxel_block(cell);
                 for (c, got) in block.iter().enumerate() {
-                    let want = volume.voxel(cell + IVec3::new((c & 1) as i32, ((c >> 1) & 1) as i32, (c >> 2) as i32));
-                    assert_eq!((got.density.to_bits(), got.source.to_bits()), (want.density.to_bits(), want.source.to_bits()), "cell {cell}, corner {c}");
+                    let want = volume.voxel(
+                        cell + IVec3::new((c & 1) as i32, ((c >> 1) & 1) as i32, (c >> 2) as i32),
+                    );
+                    assert_eq!(
+                        (got.density.to_bits(), got.source.to_bits()),
+                        (want.density.to_bits(), want.source.to_bits()),
+                        "cell {cell}, corner {c}"
+                    );
                 }
                 checked += 1;
             }
@@ -472,7 +597,11 @@ fn voxel_block_matches_eight_voxel_lookups() {
 /// layers of bricks around its table, where some corners fall outside it.
 #[test]
 fn brick_block_finds_the_bricks_brick_finds() {
-    let ex = plume_synth::explosion(&plume_synth::ExplosionParams { resolution: 40, seed: 3, ..Default::default() });
+    let ex = plume_synth::explosion(&plume_synth::ExplosionParams {
+        resolution: 40,
+        seed: 3,
+        ..Default::default()
+    });
     let volume = Volume::build(&ex.density, Some(&ex.temperature), |v| v).unwrap();
     let (lo, hi) = (volume.brick_lo - 2, volume.brick_lo + volume.dims + 1);
     let (mut found, mut missing) = (0, 0);
@@ -483,9 +612,15 @@ fn brick_block_finds_the_bricks_brick_finds() {
                 for (c, got) in volume.brick_block(b).into_iter().enumerate() {
                     let want = volume.brick(b + plume_volume::trilinear::window::corner_offset(c));
                     match (got.map(|(_, b)| b), want) {
-                        (Some(g), Some(w)) => assert!(std::ptr::eq(g, w), "dual brick {b}, corner {c}"),
+                        (Some(g), Some(w)) => {
+                            assert!(std::ptr::eq(g, w), "dual brick {b}, corner {c}")
+                        }
                         (None, None) => {}
-                        _ => panic!("dual brick {b}, corner {c}: {} against {}", got.is_some(), want.is_some()),
+                        _ => panic!(
+                            "dual brick {b}, corner {c}: {} against {}",
+                            got.is_some(),
+                            want.is_some()
+                        ),
                     }
                     if want.is_some() {
                         found += 1;
@@ -498,5 +633,8 @@ fn brick_block_finds_the_bricks_brick_finds() {
     }
     // Not vacuous: both kinds occur, inside the table too
     assert!(found > 0 && missing > 0, "{found} found, {missing} missing");
-    assert!(volume.dims.cmpgt(IVec3::splat(1)).all() && volume.brick_count() < (volume.dims.x * volume.dims.y * volume.dims.z) as usize);
+    assert!(
+        volume.dims.cmpgt(IVec3::splat(1)).all()
+            && volume.brick_count() < (volume.dims.x * volume.dims.y * volume.dims.z) as usize
+    );
 }

@@ -62,21 +62,40 @@ pub fn emission_only(scene: &BenchScene) -> bool {
 
 /// Build the light structures of `light_sampling` into the scene (nothing when paths do
 /// not scatter); returns their heap bytes.
-fn install_lights(scene: &mut BenchScene, light_sampling: LightSampling, proxy_resolution: u32) -> Result<u64> {
+fn install_lights(
+    scene: &mut BenchScene,
+    light_sampling: LightSampling,
+    proxy_resolution: u32,
+) -> Result<u64> {
     let only = emission_only(scene);
     let s = &mut scene.loaded.scene;
     let lights = if only {
         Lights::default()
     } else {
-        Lights::build_with(s.volume(), &s.medium().emission, light_sampling, proxy_resolution, scene.shot.scene.integrator.nee_table)?
+        Lights::build_with(
+            s.volume(),
+            &s.medium().emission,
+            light_sampling,
+            proxy_resolution,
+            scene.shot.scene.integrator.nee_table,
+        )?
     };
     s.set_lights(lights);
     let l = scene.loaded.scene.lights();
-    Ok((l.nee.as_ref().map_or(0, |n| n.memory_bytes()) + l.proxy.as_ref().map_or(0, |p| p.memory_bytes())) as u64)
+    Ok((l.nee.as_ref().map_or(0, |n| n.memory_bytes())
+        + l.proxy.as_ref().map_or(0, |p| p.memory_bytes())) as u64)
 }
 
-fn integrator_for(scene: &BenchScene, estimator: Estimator, light_sampling: LightSampling) -> Integrator {
-    plume_engine::integrator::Integrator::for_scene_with(&scene.shot.scene, estimator, light_sampling)
+fn integrator_for(
+    scene: &BenchScene,
+    estimator: Estimator,
+    light_sampling: LightSampling,
+) -> Integrator {
+    plume_engine::integrator::Integrator::for_scene_with(
+        &scene.shot.scene,
+        estimator,
+        light_sampling,
+    )
 }
 
 /// Read a reference EXR and check its size against the scene's.
@@ -88,7 +107,12 @@ pub fn read_reference(path: &std::path::Path, scene: &BenchScene) -> Result<Refe
     if (w, h) != (scene.shot.scene.camera.width, scene.shot.scene.camera.height) {
         return Err(Error::invalid(
             "--reference",
-            format!("{} is {w}x{h}, the scene renders {}x{}", path.display(), scene.shot.scene.camera.width, scene.shot.scene.camera.height),
+            format!(
+                "{} is {w}x{h}, the scene renders {}x{}",
+                path.display(),
+                scene.shot.scene.camera.width,
+                scene.shot.scene.camera.height
+            ),
         ));
     }
     Ok(Reference {
@@ -108,13 +132,34 @@ pub fn read_reference(path: &std::path::Path, scene: &BenchScene) -> Result<Refe
 ///
 /// # Errors
 /// Light structures cannot be built (an invalid `--proxy-resolution`).
-pub fn make_reference(scene: &mut BenchScene, cpu_seconds: f64, on_line: &dyn Fn(&str)) -> Result<Reference> {
+pub fn make_reference(
+    scene: &mut BenchScene,
+    cpu_seconds: f64,
+    on_line: &dyn Fn(&str),
+) -> Result<Reference> {
     let (method, estimator, ls, why) = if emission_only(scene) {
-        ("ray-march", Estimator::RayMarch, LightSampling::None, "expected-value estimator (ray-march, forward only): the scene is emission-only")
+        (
+            "ray-march",
+            Estimator::RayMarch,
+            LightSampling::None,
+            "expected-value estimator (ray-march, forward only): the scene is emission-only",
+        )
     } else {
-        ("line-fnee", Estimator::Line, LightSampling::Fnee, "long line-fnee run: the scene scatters")
+        (
+            "line-fnee",
+            Estimator::Line,
+            LightSampling::Fnee,
+            "long line-fnee run: the scene scatters",
+        )
     };
-    install_lights(scene, ls, plume_volume::proxy::ProxyGrid::resolution_for(scene.loaded.scene.volume(), scene.shot.scene.integrator.proxy_resolution))?;
+    install_lights(
+        scene,
+        ls,
+        plume_volume::proxy::ProxyGrid::resolution_for(
+            scene.loaded.scene.volume(),
+            scene.shot.scene.integrator.proxy_resolution,
+        ),
+    )?;
     let integ = integrator_for(scene, estimator, ls);
     let wall = Instant::now();
     let halves: Vec<RunResult> = REFERENCE_SEEDS
@@ -132,7 +177,12 @@ pub fn make_reference(scene: &mut BenchScene, cpu_seconds: f64, on_line: &dyn Fn
         .collect();
     let (a, b) = (&halves[0], &halves[1]);
     let (na, nb) = (a.spp as f64, b.spp as f64);
-    let sums: Vec<[f64; 4]> = a.sums.iter().zip(&b.sums).map(|(x, y)| [x[0] + y[0], x[1] + y[1], x[2] + y[2], x[3] + y[3]]).collect();
+    let sums: Vec<[f64; 4]> = a
+        .sums
+        .iter()
+        .zip(&b.sums)
+        .map(|(x, y)| [x[0] + y[0], x[1] + y[1], x[2] + y[2], x[3] + y[3]])
+        .collect();
     let pixels = progressive::average(&sums, a.spp + b.spp);
     let noise = super::metrics::rmse(&a.image, &b.image) * (na * nb).sqrt() / (na + nb);
     let spp = a.spp + b.spp;
@@ -277,20 +327,39 @@ pub struct CompareReport {
 ///
 /// # Errors
 /// A reference of the wrong size, or light structures that cannot be built.
-pub fn compare(scene: &mut BenchScene, reference: &Reference, cfg: &CompareConfig, on_line: &dyn Fn(&str)) -> Result<CompareReport> {
+pub fn compare(
+    scene: &mut BenchScene,
+    reference: &Reference,
+    cfg: &CompareConfig,
+    on_line: &dyn Fn(&str),
+) -> Result<CompareReport> {
     let (w, h) = (scene.shot.scene.camera.width, scene.shot.scene.camera.height);
     if (reference.width, reference.height) != (w, h) {
-        return Err(Error::invalid("--reference", format!("reference is {}x{}, the scene renders {w}x{h}", reference.width, reference.height)));
+        return Err(Error::invalid(
+            "--reference",
+            format!(
+                "reference is {}x{}, the scene renders {w}x{h}",
+                reference.width, reference.height
+            ),
+        ));
     }
     if !(cfg.cpu_seconds.is_finite() && cfg.cpu_seconds > 0.0) || cfg.runs == 0 {
-        return Err(Error::invalid("--time/--runs", "need a positive CPU time and at least one run"));
+        return Err(Error::invalid(
+            "--time/--runs",
+            "need a positive CPU time and at least one run",
+        ));
     }
-    let curve: Vec<f64> = (0..cfg.curve_points.max(1)).rev().map(|k| cfg.cpu_seconds / f64::from(1u32 << k)).collect();
+    let curve: Vec<f64> = (0..cfg.curve_points.max(1))
+        .rev()
+        .map(|k| cfg.cpu_seconds / f64::from(1u32 << k))
+        .collect();
     let mut raw: Vec<(MethodResult, Vec<RunResult>)> = Vec::new();
     for m in &cfg.methods {
         let per_method = reset_peak_rss();
-        let proxy =
-            plume_volume::proxy::ProxyGrid::resolution_for(scene.loaded.scene.volume(), m.proxy_resolution.or(scene.shot.scene.integrator.proxy_resolution));
+        let proxy = plume_volume::proxy::ProxyGrid::resolution_for(
+            scene.loaded.scene.volume(),
+            m.proxy_resolution.or(scene.shot.scene.integrator.proxy_resolution),
+        );
         let t = Instant::now();
         let light_bytes = install_lights(scene, m.light_sampling, proxy)?;
         let light_build_seconds = t.elapsed().as_secs_f64();
@@ -307,7 +376,14 @@ pub fn compare(scene: &mut BenchScene, reference: &Reference, cfg: &CompareConfi
             let res = plume_engine::with_scene!(&scene.loaded.scene, s => progressive::run(s, &integ, &plan, Some(&reference.pixels), cfg.epsilon));
             let last = res.time_points.last().copied();
             if let Some(s) = last {
-                on_line(&format!("{}: run {}: {} spp in {:.1} CPU s, RMSE {:.4e}", m.name, r + 1, s.spp, s.cpu_seconds, s.errors.rmse));
+                on_line(&format!(
+                    "{}: run {}: {} spp in {:.1} CPU s, RMSE {:.4e}",
+                    m.name,
+                    r + 1,
+                    s.spp,
+                    s.cpu_seconds,
+                    s.errors.rmse
+                ));
             }
             runs.push(res);
         }
@@ -323,10 +399,19 @@ pub fn compare(scene: &mut BenchScene, reference: &Reference, cfg: &CompareConfi
             estimator: format!("{:?}", m.estimator),
             light_sampling: format!("{:?}", m.light_sampling),
             proxy_resolution: uses_proxy.then_some(proxy),
-            equal_time: Point::of(&runs.iter().filter_map(|r| r.time_points.last().copied()).collect::<Vec<_>>()),
+            equal_time: Point::of(
+                &runs.iter().filter_map(|r| r.time_points.last().copied()).collect::<Vec<_>>(),
+            ),
             equal_spp: Point::default(),
-            curve: (0..curve.len()).map(|k| Point::of(&runs.iter().map(|r| r.time_points[k]).collect::<Vec<_>>())).collect(),
-            samples_per_cpu_second: Spread::of(&runs.iter().map(|r| r.counters.samples as f64 / r.cpu_seconds.max(1e-9)).collect::<Vec<_>>()),
+            curve: (0..curve.len())
+                .map(|k| Point::of(&runs.iter().map(|r| r.time_points[k]).collect::<Vec<_>>()))
+                .collect(),
+            samples_per_cpu_second: Spread::of(
+                &runs
+                    .iter()
+                    .map(|r| r.counters.samples as f64 / r.cpu_seconds.max(1e-9))
+                    .collect::<Vec<_>>(),
+            ),
             light_build_seconds,
             scene_bytes: scene.loaded.scene.volume().memory_bytes() as u64 + light_bytes,
             peak_rss_bytes: peak_rss_bytes(),
@@ -340,13 +425,21 @@ pub fn compare(scene: &mut BenchScene, reference: &Reference, cfg: &CompareConfi
     let equal_spp = match cfg.spp {
         Some(n) => u64::from(n),
         None => {
-            let reached = raw.iter().flat_map(|(_, runs)| runs.iter().map(|r| r.spp)).min().unwrap_or(1).max(1);
+            let reached = raw
+                .iter()
+                .flat_map(|(_, runs)| runs.iter().map(|r| r.spp))
+                .min()
+                .unwrap_or(1)
+                .max(1);
             1u64 << (63 - reached.leading_zeros())
         }
     };
     let mut methods = Vec::new();
     for (mut result, runs) in raw {
-        let snaps: Vec<Snapshot> = runs.iter().filter_map(|r| r.spp_points.iter().find(|s| s.spp == equal_spp).copied()).collect();
+        let snaps: Vec<Snapshot> = runs
+            .iter()
+            .filter_map(|r| r.spp_points.iter().find(|s| s.spp == equal_spp).copied())
+            .collect();
         result.equal_spp = Point::of(&snaps);
         methods.push(result);
     }
@@ -355,7 +448,11 @@ pub fn compare(scene: &mut BenchScene, reference: &Reference, cfg: &CompareConfi
         flags: scene.flags.clone(),
         width: w,
         height: h,
-        threads: if scene.shot.settings.render.threads == 0 { rayon::current_num_threads() } else { scene.shot.settings.render.threads },
+        threads: if scene.shot.settings.render.threads == 0 {
+            rayon::current_num_threads()
+        } else {
+            scene.shot.settings.render.threads
+        },
         emission_only: emission_only(scene),
         load_seconds: scene.load_seconds,
         reference: reference.clone(),
@@ -376,7 +473,8 @@ impl CompareReport {
     pub fn efficiency(&self, m: &MethodResult) -> f64 {
         let base = &self.methods[0].equal_time;
         let e = &m.equal_time;
-        (base.rmse.mean.powi(2) * base.cpu_seconds.mean) / (e.rmse.mean.powi(2) * e.cpu_seconds.mean)
+        (base.rmse.mean.powi(2) * base.cpu_seconds.mean)
+            / (e.rmse.mean.powi(2) * e.cpu_seconds.mean)
     }
 
     /// Errors of a method's equal-time images as [`Errors`] means (for summaries).

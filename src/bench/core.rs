@@ -15,18 +15,18 @@ use std::time::Instant;
 use glam::DVec3;
 use serde::Serialize;
 
-use plume_engine::camera::Camera;
+use crate::load::load_scene;
 use plume_core::color::Rgb;
 use plume_core::error::Result;
+use plume_core::sampling::Sampler;
+use plume_engine::camera::Camera;
 use plume_engine::integrator::{Integrator, Scene};
-use crate::load::load_scene;
 use plume_engine::medium::{Convention, Emission, EmissionKind, Estimator, Medium, TemperatureMap};
 use plume_engine::render::{render, RenderSettings, SampleBudget};
-use plume_core::sampling::Sampler;
 use plume_scene::Shot;
 use plume_synth::{explosion, ExplosionParams};
-use plume_volume::grid::LEAF_VOXELS;
 use plume_volume::field::Ray;
+use plume_volume::grid::LEAF_VOXELS;
 use plume_volume::{Field, Volume};
 
 /// Results of `plume bench core`.
@@ -77,7 +77,8 @@ fn emission() -> Emission {
 /// If the time-to-first-sample file cannot be loaded.
 pub fn run(resolution: u32, threads: usize, ttfs_file: &Path) -> Result<CoreReport> {
     let ex = explosion(&ExplosionParams { resolution, ..Default::default() });
-    let raw_bytes = ((ex.density.leaf_count() + ex.temperature.leaf_count()) * LEAF_VOXELS * 4) as u64;
+    let raw_bytes =
+        ((ex.density.leaf_count() + ex.temperature.leaf_count()) * LEAF_VOXELS * 4) as u64;
     let em = emission();
     let volume = Volume::build(&ex.density, Some(&ex.temperature), |v| em.map_source(v))?;
     let volume_bytes = volume.memory_bytes() as u64;
@@ -95,7 +96,8 @@ pub fn run(resolution: u32, threads: usize, ttfs_file: &Path) -> Result<CoreRepo
         let phi = std::f64::consts::TAU * sampler.next_f64();
         let r = (1.0 - z * z).sqrt();
         let origin = centre + DVec3::new(r * phi.cos(), r * phi.sin(), z) * radius * 1.5;
-        let target = lo + (hi - lo) * DVec3::new(sampler.next_f64(), sampler.next_f64(), sampler.next_f64());
+        let target =
+            lo + (hi - lo) * DVec3::new(sampler.next_f64(), sampler.next_f64(), sampler.next_f64());
         let ray = Ray { origin, direction: (target - origin).normalize() };
         let mut it = volume.segments(&ray, 0.0, f64::INFINITY);
         for s in it.by_ref() {
@@ -107,7 +109,8 @@ pub fn run(resolution: u32, threads: usize, ttfs_file: &Path) -> Result<CoreRepo
 
     // DDA on coherent rays: a 640×480 camera's rays in 16×16 tiles, as the renderer
     // traces them.
-    let camera = Camera::frame_bounds(lo, hi, DVec3::new(0.35, 0.25, 1.0), DVec3::Y, 40.0, 640, 480)?;
+    let camera =
+        Camera::frame_bounds(lo, hi, DVec3::new(0.35, 0.25, 1.0), DVec3::Y, 40.0, 640, 480)?;
     let mut coherent_steps = 0u64;
     let t = Instant::now();
     for ty in (0..480).step_by(16) {
@@ -127,7 +130,8 @@ pub fn run(resolution: u32, threads: usize, ttfs_file: &Path) -> Result<CoreRepo
     let coherent_seconds = t.elapsed().as_secs_f64();
 
     // Parallel speed-up of a whole render.
-    let camera = Camera::frame_bounds(lo, hi, DVec3::new(0.35, 0.25, 1.0), DVec3::Y, 40.0, 320, 240)?;
+    let camera =
+        Camera::frame_bounds(lo, hi, DVec3::new(0.35, 0.25, 1.0), DVec3::Y, 40.0, 320, 240)?;
     let scene = Scene {
         field: volume,
         medium: Medium { sigma_t: 4.0, albedo: 0.0, g: 0.0, emission: em },
@@ -150,7 +154,11 @@ pub fn run(resolution: u32, threads: usize, ttfs_file: &Path) -> Result<CoreRepo
         std::hint::black_box(r.spp);
         t.elapsed().as_secs_f64()
     };
-    let threads = if threads == 0 { std::thread::available_parallelism().map_or(2, |n| n.get()) } else { threads };
+    let threads = if threads == 0 {
+        std::thread::available_parallelism().map_or(2, |n| n.get())
+    } else {
+        threads
+    };
     time_render(threads); // warm-up
     let one = time_render(1);
     let many = time_render(threads);
@@ -187,14 +195,26 @@ impl std::fmt::Display for CoreReport {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         writeln!(f, "| figure ({}³ generated explosion) | value | target |", self.resolution)?;
         writeln!(f, "|---|---|---|")?;
-        writeln!(f, "| voxel steps per second, 1 core, camera rays in tile order | {:.1} M | ≥ 20 M |", self.coherent_voxel_steps_per_second_millions)?;
-        writeln!(f, "| voxel steps per second, 1 core, random incoherent chords | {:.1} M | (worst case) |", self.voxel_steps_per_second_millions)?;
+        writeln!(
+            f,
+            "| voxel steps per second, 1 core, camera rays in tile order | {:.1} M | ≥ 20 M |",
+            self.coherent_voxel_steps_per_second_millions
+        )?;
+        writeln!(
+            f,
+            "| voxel steps per second, 1 core, random incoherent chords | {:.1} M | (worst case) |",
+            self.voxel_steps_per_second_millions
+        )?;
         writeln!(
             f,
             "| render speed-up, {} threads vs 1 | {:.2}× ({:.2} s → {:.2} s) | ≥ 1.8× |",
             self.threads, self.speedup, self.render_seconds_1_thread, self.render_seconds_n_threads
         )?;
-        writeln!(f, "| time to first sample, {} | {:.3} s | < 0.5 s |", self.ttfs_file, self.time_to_first_sample_seconds)?;
+        writeln!(
+            f,
+            "| time to first sample, {} | {:.3} s | < 0.5 s |",
+            self.ttfs_file, self.time_to_first_sample_seconds
+        )?;
         writeln!(
             f,
             "| brick memory / raw f32 voxel data | {:.2} ({:.1} MiB / {:.1} MiB) | ≤ 1.5 |",

@@ -28,9 +28,9 @@ use std::time::Instant;
 
 use serde::Serialize;
 
+use crate::output::{read_exr, read_exr_contents, ExrContents, RgbaImage};
 use plume_core::color::rec709_luminance;
 use plume_core::error::{Error, Result};
-use crate::output::{read_exr, read_exr_contents, ExrContents, RgbaImage};
 use plume_scene::file::SceneFile;
 use plume_scene::Shot;
 
@@ -134,7 +134,12 @@ impl DemoReport {
     #[must_use]
     pub fn table(&self) -> String {
         let refs = if self.references.is_empty() {
-            format!("{} × {} spp (seeds {:?})", self.reference_seeds.len(), self.reference_spp, self.reference_seeds)
+            format!(
+                "{} × {} spp (seeds {:?})",
+                self.reference_seeds.len(),
+                self.reference_spp,
+                self.reference_seeds
+            )
         } else {
             self.references.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", ")
         };
@@ -150,13 +155,26 @@ impl DemoReport {
             let e = &r.error;
             s += &format!(
                 "| {} | {:.1} | {:.1} | {:.4} | {:.4} | {:.1}× ({}, {}) |\n",
-                r.seed, r.wall_seconds, r.cpu_seconds, e.rel_rmse, e.mean_ratio, e.speck.ratio, e.speck.x, e.speck.y
+                r.seed,
+                r.wall_seconds,
+                r.cpu_seconds,
+                e.rel_rmse,
+                e.mean_ratio,
+                e.speck.ratio,
+                e.speck.x,
+                e.speck.y
             );
         }
         let yes = |b: bool| if b { "yes" } else { "no" };
         let fast = self.runs.iter().all(|r| r.wall_seconds < self.target_seconds);
         let clean = self.runs.iter().all(|r| r.error.rel_rmse <= self.target_rel_rmse);
-        s += &format!("\nunder {} s on every seed: {}; relRMSE ≤ {} on every seed: {}\n", self.target_seconds, yes(fast), self.target_rel_rmse, yes(clean));
+        s += &format!(
+            "\nunder {} s on every seed: {}; relRMSE ≤ {} on every seed: {}\n",
+            self.target_seconds,
+            yes(fast),
+            self.target_rel_rmse,
+            yes(clean)
+        );
         s
     }
 }
@@ -169,16 +187,30 @@ impl DemoReport {
 /// images of different sizes.
 pub fn run(config: &DemoConfig) -> Result<DemoReport> {
     if config.references.len() == 1 {
-        return Err(Error::invalid("--references", "needs at least 2 images (their spread is the references' noise)"));
+        return Err(Error::invalid(
+            "--references",
+            "needs at least 2 images (their spread is the references' noise)",
+        ));
     }
     if config.references.is_empty() && config.reference_seeds.len() < 2 {
-        return Err(Error::invalid("--reference-seeds", "needs at least 2 seeds (their spread is the references' noise)"));
+        return Err(Error::invalid(
+            "--reference-seeds",
+            "needs at least 2 seeds (their spread is the references' noise)",
+        ));
     }
-    if let Some(s) = config.seeds.iter().find(|s| config.references.is_empty() && config.reference_seeds.contains(s)) {
-        return Err(Error::invalid("--reference-seeds", format!("seed {s} is also a demo seed: the reference would share its noise")));
+    if let Some(s) = config
+        .seeds
+        .iter()
+        .find(|s| config.references.is_empty() && config.reference_seeds.contains(s))
+    {
+        return Err(Error::invalid(
+            "--reference-seeds",
+            format!("seed {s} is also a demo seed: the reference would share its noise"),
+        ));
     }
     let (shot, _) = SceneFile::read(&config.scene)?;
-    std::fs::create_dir_all(&config.work_dir).map_err(|e| Error::invalid("--work-dir", format!("{}: {e}", config.work_dir.display())))?;
+    std::fs::create_dir_all(&config.work_dir)
+        .map_err(|e| Error::invalid("--work-dir", format!("{}: {e}", config.work_dir.display())))?;
     let mut references = Vec::new();
     if config.references.is_empty() {
         for &seed in &config.reference_seeds {
@@ -189,10 +221,16 @@ pub fn run(config: &DemoConfig) -> Result<DemoReport> {
             references.push(read_exr(path)?);
         }
     }
-    if let Some(r) = references.iter().find(|r| (r.width, r.height) != (references[0].width, references[0].height)) {
+    if let Some(r) = references
+        .iter()
+        .find(|r| (r.width, r.height) != (references[0].width, references[0].height))
+    {
         return Err(Error::invalid(
             "--references",
-            format!("images of different sizes: {}×{} and {}×{}", references[0].width, references[0].height, r.width, r.height),
+            format!(
+                "images of different sizes: {}×{} and {}×{}",
+                references[0].width, references[0].height, r.width, r.height
+            ),
         ));
     }
     let refs: Vec<&[[f32; 4]]> = references.iter().map(|r| r.pixels.as_slice()).collect();
@@ -209,13 +247,24 @@ pub fn run(config: &DemoConfig) -> Result<DemoReport> {
         demo.settings.output.stats = Some(stats.clone());
         // Rendered afresh each time (a complete image of the same shot would be kept)
         demo.settings.farm.overwrite = true;
-        let (wall_seconds, cpu_seconds) = render(config, &demo, &dir.join(format!("demo-seed{seed}.toml")), &stats)?;
+        let (wall_seconds, cpu_seconds) =
+            render(config, &demo, &dir.join(format!("demo-seed{seed}.toml")), &stats)?;
         let x = read_exr(&image)?;
         if (x.width as usize, x.height as usize) != (width, height) {
-            return Err(Error::Scene(format!("{} is {}×{}, the references {width}×{height}", image.display(), x.width, x.height)));
+            return Err(Error::Scene(format!(
+                "{} is {}×{}, the references {width}×{height}",
+                image.display(),
+                x.width,
+                x.height
+            )));
         }
         log::info!("demo seed {seed}: {wall_seconds:.1} s wall, {cpu_seconds:.1} CPU s");
-        runs.push(DemoRun { seed, wall_seconds, cpu_seconds, error: image_error(&x.pixels, &refs, width, height) });
+        runs.push(DemoRun {
+            seed,
+            wall_seconds,
+            cpu_seconds,
+            error: image_error(&x.pixels, &refs, width, height),
+        });
     }
     let machine = super::machine();
     Ok(DemoReport {
@@ -223,7 +272,11 @@ pub fn run(config: &DemoConfig) -> Result<DemoReport> {
         cpus: machine.cpus,
         cpu_model: machine.model,
         reference_spp: config.reference_spp,
-        reference_seeds: if config.references.is_empty() { config.reference_seeds.clone() } else { Vec::new() },
+        reference_seeds: if config.references.is_empty() {
+            config.reference_seeds.clone()
+        } else {
+            Vec::new()
+        },
         references: config.references.clone(),
         runs,
         target_seconds: config.target_seconds,
@@ -246,11 +299,20 @@ fn reference(config: &DemoConfig, shot: &Shot, seed: u64) -> Result<RgbaImage> {
     let name = format!("reference-{hash}-{}spp", config.reference_spp);
     let image = config.work_dir.join(format!("{name}.exr"));
     // A kept reference is read once: for its status and, when complete, its pixels
-    let complete = |c: &ExrContents| c.metadata.get("plume:status").is_some_and(|s| s == "complete");
+    let complete =
+        |c: &ExrContents| c.metadata.get("plume:status").is_some_and(|s| s == "complete");
     if let Some(kept) = read_exr_contents(&image).ok().filter(complete) {
-        return Ok(RgbaImage { width: kept.crop.x1 - kept.crop.x0, height: kept.crop.y1 - kept.crop.y0, pixels: kept.pixels });
+        return Ok(RgbaImage {
+            width: kept.crop.x1 - kept.crop.x0,
+            height: kept.crop.y1 - kept.crop.y0,
+            pixels: kept.pixels,
+        });
     }
-    log::info!("rendering reference seed {seed} ({} spp) to {}", config.reference_spp, image.display());
+    log::info!(
+        "rendering reference seed {seed} ({} spp) to {}",
+        config.reference_spp,
+        image.display()
+    );
     let stats = config.work_dir.join(format!("{name}.json"));
     r.settings.output.image.clone_from(&image);
     r.settings.output.stats = Some(stats.clone());
@@ -275,9 +337,14 @@ fn render(config: &DemoConfig, shot: &Shot, toml: &Path, stats: &Path) -> Result
     let wall = start.elapsed().as_secs_f64();
     if !out.status.success() {
         let err = String::from_utf8_lossy(&out.stderr);
-        return Err(Error::Scene(format!("rendering {} failed: {}", toml.display(), err.trim().lines().last().unwrap_or("no message"))));
+        return Err(Error::Scene(format!(
+            "rendering {} failed: {}",
+            toml.display(),
+            err.trim().lines().last().unwrap_or("no message")
+        )));
     }
-    let text = std::fs::read_to_string(stats).map_err(|source| Error::Open { path: stats.to_path_buf(), source })?;
+    let text = std::fs::read_to_string(stats)
+        .map_err(|source| Error::Open { path: stats.to_path_buf(), source })?;
     let cpu = text
         .lines()
         .last()
@@ -297,11 +364,21 @@ fn luminance(p: &[f32; 4]) -> f64 {
 /// # Panics
 /// If fewer than 2 references are given or the images differ in size.
 #[must_use]
-pub fn image_error(x: &[[f32; 4]], refs: &[&[[f32; 4]]], width: usize, height: usize) -> ImageError {
+pub fn image_error(
+    x: &[[f32; 4]],
+    refs: &[&[[f32; 4]]],
+    width: usize,
+    height: usize,
+) -> ImageError {
     assert!(refs.len() >= 2, "invariant: two references or more");
-    assert!(refs.iter().all(|r| r.len() == x.len()) && x.len() == width * height, "invariant: images of one size");
+    assert!(
+        refs.iter().all(|r| r.len() == x.len()) && x.len() == width * height,
+        "invariant: images of one size"
+    );
     let n = refs.len() as f64;
-    let covered: Vec<bool> = (0..x.len()).map(|i| refs.iter().map(|r| r[i][3]).sum::<f32>() / refs.len() as f32 > COVERED_ALPHA).collect();
+    let covered: Vec<bool> = (0..x.len())
+        .map(|i| refs.iter().map(|r| r[i][3]).sum::<f32>() / refs.len() as f32 > COVERED_ALPHA)
+        .collect();
     let lum: Vec<f64> = x.iter().map(luminance).collect();
     let (mut sum_ref, mut sum_x, mut sq, mut var, mut count) = (0.0, 0.0, 0.0, 0.0, 0usize);
     for i in (0..x.len()).filter(|&i| covered[i]) {
@@ -316,7 +393,12 @@ pub fn image_error(x: &[[f32; 4]], refs: &[&[[f32; 4]]], width: usize, height: u
         count += 1;
     }
     if count == 0 {
-        return ImageError { rel_rmse: 0.0, mean_ratio: 1.0, reference_noise: 0.0, speck: Speck { x: 0, y: 0, ratio: 0.0 } };
+        return ImageError {
+            rel_rmse: 0.0,
+            mean_ratio: 1.0,
+            reference_noise: 0.0,
+            speck: Speck { x: 0, y: 0, ratio: 0.0 },
+        };
     }
     let c = count as f64;
     let mean = sum_ref / c;
@@ -331,7 +413,13 @@ pub fn image_error(x: &[[f32; 4]], refs: &[&[[f32; 4]]], width: usize, height: u
 /// The covered pixel with the largest `lum ÷ max(median of its 5×5, floor)` (the window
 /// clipped at the image's edges).
 #[must_use]
-pub fn largest_speck(lum: &[f64], covered: &[bool], width: usize, height: usize, floor: f64) -> Speck {
+pub fn largest_speck(
+    lum: &[f64],
+    covered: &[bool],
+    width: usize,
+    height: usize,
+    floor: f64,
+) -> Speck {
     let mut best = Speck { x: 0, y: 0, ratio: 0.0 };
     let mut window = Vec::with_capacity(25);
     for y in 0..height {
@@ -369,16 +457,23 @@ mod tests {
         let (w, h) = (8, 6);
         // Two references that differ by ±0.1 around 1 on every covered pixel: the mean is
         // 1, the variance of the mean (0.1² · 2 / 1) / 2 = 0.01
-        let r1: Vec<_> = (0..w * h).map(|i| if i % w < 6 { grey(1.1, 1.0) } else { grey(0.0, 0.0) }).collect();
-        let r2: Vec<_> = (0..w * h).map(|i| if i % w < 6 { grey(0.9, 1.0) } else { grey(0.0, 0.0) }).collect();
+        let r1: Vec<_> =
+            (0..w * h).map(|i| if i % w < 6 { grey(1.1, 1.0) } else { grey(0.0, 0.0) }).collect();
+        let r2: Vec<_> =
+            (0..w * h).map(|i| if i % w < 6 { grey(0.9, 1.0) } else { grey(0.0, 0.0) }).collect();
         // An image 1.2 on the covered pixels (and anything outside them)
-        let x: Vec<_> = (0..w * h).map(|i| if i % w < 6 { grey(1.2, 1.0) } else { grey(50.0, 0.0) }).collect();
+        let x: Vec<_> =
+            (0..w * h).map(|i| if i % w < 6 { grey(1.2, 1.0) } else { grey(50.0, 0.0) }).collect();
         let e = image_error(&x, &[&r1, &r2], w, h);
         // (1.2 − 1)² − 0.01 = 0.03
         assert!((e.rel_rmse - 0.03f64.sqrt()).abs() < 1e-6, "{e:?}");
-        assert!((e.mean_ratio - 1.2).abs() < 1e-6 && (e.reference_noise - 0.1).abs() < 1e-6, "{e:?}");
+        assert!(
+            (e.mean_ratio - 1.2).abs() < 1e-6 && (e.reference_noise - 0.1).abs() < 1e-6,
+            "{e:?}"
+        );
         // The image that is the references' mean has no error, not a negative one
-        let mean: Vec<_> = r1.iter().zip(&r2).map(|(a, b)| std::array::from_fn(|c| 0.5 * (a[c] + b[c]))).collect();
+        let mean: Vec<_> =
+            r1.iter().zip(&r2).map(|(a, b)| std::array::from_fn(|c| 0.5 * (a[c] + b[c]))).collect();
         assert_eq!(image_error(&mean, &[&r1, &r2], w, h).rel_rmse, 0.0);
     }
 

@@ -35,15 +35,17 @@ use std::fmt::Write as _;
 use glam::{DAffine3, DVec3, IVec3};
 use serde::Serialize;
 
-use plume_engine::camera::Camera;
+use crate::vdb::{leaf_offset, FloatGrid, LEAF_VOXELS};
 use plume_core::color::blackbody::blackbody_rgb_exact;
 use plume_core::color::Rgb;
 use plume_core::error::{Error, Result};
+use plume_engine::camera::Camera;
 use plume_engine::integrator::{Integrator, LightSampling, Lights, MisHeuristic, Scene, Tracking};
 use plume_engine::medium::tracking::phi;
-use plume_engine::medium::{Collision, Convention, Emission, EmissionKind, Estimator, Medium, TemperatureMap};
+use plume_engine::medium::{
+    Collision, Convention, Emission, EmissionKind, Estimator, Medium, TemperatureMap,
+};
 use plume_engine::render::{render, RenderSettings, SampleBudget};
-use crate::vdb::{leaf_offset, FloatGrid, LEAF_VOXELS};
 use plume_volume::{Field, Volume};
 
 /// Sizes of the sweep.
@@ -95,8 +97,12 @@ pub struct ExtremesReport {
     pub seconds: f64,
 }
 
-const EMISSION_ONLY: [(&str, Estimator); 4] =
-    [("ray-march", Estimator::RayMarch), ("line", Estimator::Line), ("point", Estimator::Point), ("blend", Estimator::Blend { kappa: 4.0 })];
+const EMISSION_ONLY: [(&str, Estimator); 4] = [
+    ("ray-march", Estimator::RayMarch),
+    ("line", Estimator::Line),
+    ("point", Estimator::Point),
+    ("blend", Estimator::Blend { kappa: 4.0 }),
+];
 
 /// A grid of `n³` voxels (from index 0) with voxel edge `h`, centred on the origin.
 #[must_use]
@@ -121,12 +127,20 @@ pub fn box_grid(name: &str, n: u32, h: f64, value: impl Fn(IVec3) -> f32) -> Flo
             }
         }
     }
-    let world_from_index = DAffine3::from_scale(DVec3::splat(h)) * DAffine3::from_translation(DVec3::splat(0.5 - 0.5 * f64::from(n)));
+    let world_from_index = DAffine3::from_scale(DVec3::splat(h))
+        * DAffine3::from_translation(DVec3::splat(0.5 - 0.5 * f64::from(n)));
     FloatGrid { name: name.into(), world_from_index, background: 0.0, origins, values }
 }
 
 fn grid_emission(convention: Convention) -> Emission {
-    Emission { kind: EmissionKind::Grid, convention, scale: 1.0, color: Rgb::ONE, temperature_map: TemperatureMap::Kelvin, cutoff_kelvin: 500.0 }
+    Emission {
+        kind: EmissionKind::Grid,
+        convention,
+        scale: 1.0,
+        color: Rgb::ONE,
+        temperature_map: TemperatureMap::Kelvin,
+        cutoff_kelvin: 500.0,
+    }
 }
 
 /// A far camera looking at the origin along +z, the box covering ~2/3 of the image.
@@ -136,10 +150,22 @@ fn box_camera(edge: f64, size: u32) -> Result<Camera> {
     Camera::look_at(DVec3::new(0.0, 0.0, -distance), DVec3::ZERO, DVec3::Y, fov, size, size)
 }
 
-fn render_image(scene: &Scene<Volume>, integrator: Integrator, spp: u32, seed: u64) -> Vec<[f32; 4]> {
+fn render_image(
+    scene: &Scene<Volume>,
+    integrator: Integrator,
+    spp: u32,
+    seed: u64,
+) -> Vec<[f32; 4]> {
     let r = render(
         scene,
-        &RenderSettings { budget: SampleBudget::Spp(spp), seed, sampler: plume_core::sampling::SamplerKind::default(), threads: 0, first_sample: 0, integrator },
+        &RenderSettings {
+            budget: SampleBudget::Spp(spp),
+            seed,
+            sampler: plume_core::sampling::SamplerKind::default(),
+            threads: 0,
+            first_sample: 0,
+            integrator,
+        },
         &|_, _| {},
     );
     r.film.average(r.spp)
@@ -172,7 +198,11 @@ fn all_finite(img: &[[f32; 4]]) -> bool {
 /// voxel, so its standard deviation is at most `α σ_line + (1 − α) σ_point` (Minkowski).
 fn relative_variance(est: Estimator, d: f64, x: f64) -> Option<f64> {
     let point = if d > 700.0 { 0.0 } else { (-d).exp() / -(-d).exp_m1() };
-    let line = if d < 1e-3 { d / 3.0 } else { 2.0 * (1.0 - (1.0 + d) * (-d).exp()) / (-(-d).exp_m1()).powi(2) - 1.0 };
+    let line = if d < 1e-3 {
+        d / 3.0
+    } else {
+        2.0 * (1.0 - (1.0 + d) * (-d).exp()) / (-(-d).exp_m1()).powi(2) - 1.0
+    };
     match est {
         Estimator::Point => Some(point),
         Estimator::Line => Some(line),
@@ -192,12 +222,27 @@ struct Check<'a> {
 impl Check<'_> {
     /// Compare the central mean of `img` with `expected` for a box of optical depth `depth`.
     #[allow(clippy::too_many_arguments)] // one per column of the row
-    fn closed_form(&mut self, sweep: &str, case: &str, method: &str, est: Estimator, img: &[[f32; 4]], expected: f64, depth: f64, exact_tol: f64) {
+    fn closed_form(
+        &mut self,
+        sweep: &str,
+        case: &str,
+        method: &str,
+        est: Estimator,
+        img: &[[f32; 4]],
+        expected: f64,
+        depth: f64,
+        exact_tol: f64,
+    ) {
         let size = self.cfg.size;
         let (mean, se_emp) = central(img, size, None);
         let n = f64::from((size - 2 * (size / 3)).pow(2)) * f64::from(self.cfg.spp);
-        let se_theory = relative_variance(est, depth, depth / f64::from(self.cfg.box_voxels)).map_or(0.0, |rv| expected.abs() * (rv / n).sqrt());
-        let abs_tol = if est == Estimator::RayMarch { exact_tol * expected.abs() } else { 5.0 * se_emp.max(se_theory) + exact_tol * expected.abs() };
+        let se_theory = relative_variance(est, depth, depth / f64::from(self.cfg.box_voxels))
+            .map_or(0.0, |rv| expected.abs() * (rv / n).sqrt());
+        let abs_tol = if est == Estimator::RayMarch {
+            exact_tol * expected.abs()
+        } else {
+            5.0 * se_emp.max(se_theory) + exact_tol * expected.abs()
+        };
         let scale = if expected != 0.0 { expected.abs() } else { 1.0 };
         let finite = all_finite(img);
         let err = (mean - expected).abs();
@@ -227,7 +272,10 @@ impl Check<'_> {
 pub fn run(cfg: &ExtremesConfig) -> Result<ExtremesReport> {
     let start = std::time::Instant::now();
     if cfg.box_voxels == 0 || cfg.box_voxels % 8 != 0 || cfg.size < 3 || cfg.spp == 0 {
-        return Err(Error::invalid("--box-voxels/--size/--spp", "box voxels must be a positive multiple of 8, size ≥ 3, spp ≥ 1"));
+        return Err(Error::invalid(
+            "--box-voxels/--size/--spp",
+            "box voxels must be a positive multiple of 8, size ≥ 3, spp ≥ 1",
+        ));
     }
     let mut check = Check { cfg, rows: Vec::new() };
     density_sweep(cfg, &mut check)?;
@@ -294,7 +342,11 @@ fn density_sweep(cfg: &ExtremesConfig, check: &mut Check) -> Result<()> {
             tolerance,
             finite,
             pass: finite && outside <= tolerance,
-            note: format!("between emission-only {} and L_e/μ_a {}", super::numbers::num(expected), super::numbers::num(upper)),
+            note: format!(
+                "between emission-only {} and L_e/μ_a {}",
+                super::numbers::num(expected),
+                super::numbers::num(upper)
+            ),
         });
     }
     Ok(())
@@ -329,7 +381,16 @@ fn temperature_sweep(cfg: &ExtremesConfig, check: &mut Check) -> Result<()> {
         let expected = (c[0] + c[1] + c[2]) / 3.0 * phi(sigma);
         for (name, est) in &EMISSION_ONLY[..3] {
             let img = render_image(&scene, Integrator::emission_only(*est), cfg.spp, 2);
-            check.closed_form("temperature", &format!("T = {} K", super::numbers::num(t)), name, *est, &img, expected, sigma, 2e-3);
+            check.closed_form(
+                "temperature",
+                &format!("T = {} K", super::numbers::num(t)),
+                name,
+                *est,
+                &img,
+                expected,
+                sigma,
+                2e-3,
+            );
         }
     }
     Ok(())
@@ -353,7 +414,8 @@ fn explosion_at(ex: &plume_synth::Explosion, h: f64, h0: f64, size: u32) -> Resu
     };
     let vol = Volume::build(&d, Some(&t), |v| emission.map_source(v))?;
     let plume_volume::Bounds3 { lo, hi } = vol.world_bounds();
-    let camera = Camera::frame_bounds(lo, hi, DVec3::new(0.35, 0.25, 1.0), DVec3::Y, 40.0, size, size)?;
+    let camera =
+        Camera::frame_bounds(lo, hi, DVec3::new(0.35, 0.25, 1.0), DVec3::Y, 40.0, size, size)?;
     Ok(Scene {
         field: vol,
         medium: Medium { sigma_t: 4.0 * h0 / h, albedo: 0.0, g: 0.0, emission },
@@ -366,19 +428,36 @@ fn explosion_at(ex: &plume_synth::Explosion, h: f64, h0: f64, size: u32) -> Resu
 
 fn voxel_size_sweep(cfg: &ExtremesConfig, check: &mut Check) -> Result<()> {
     let res = cfg.explosion_resolution;
-    let ex = plume_synth::explosion(&plume_synth::ExplosionParams { resolution: res, seed: 1, ..Default::default() });
+    let ex = plume_synth::explosion(&plume_synth::ExplosionParams {
+        resolution: res,
+        seed: 1,
+        ..Default::default()
+    });
     let h0 = plume_synth::WORLD_SIZE / f64::from(res);
     let base = explosion_at(&ex, h0, h0, cfg.size)?;
     let methods = &EMISSION_ONLY[..3];
-    let refs: Vec<Vec<[f32; 4]>> = methods.iter().map(|(_, e)| render_image(&base, Integrator::emission_only(*e), cfg.spp, 3)).collect();
+    let refs: Vec<Vec<[f32; 4]>> = methods
+        .iter()
+        .map(|(_, e)| render_image(&base, Integrator::emission_only(*e), cfg.spp, 3))
+        .collect();
     for k in -4..=4 {
         let h = 10f64.powi(k);
         let scene = explosion_at(&ex, h, h0, cfg.size)?;
         for ((name, est), reference) in methods.iter().zip(&refs) {
             let img = render_image(&scene, Integrator::emission_only(*est), cfg.spp, 3);
-            let peak = reference.iter().flat_map(|p| p[..3].iter()).fold(0.0f32, |m, v| m.max(*v)).max(f32::MIN_POSITIVE);
-            let max_diff = img.iter().zip(reference).flat_map(|(a, b)| (0..3).map(move |c| (a[c] - b[c]).abs())).fold(0.0f32, f32::max) / peak;
-            let mean_diff = (super::metrics::mean_rgb(&img) / super::metrics::mean_rgb(reference) - 1.0).abs();
+            let peak = reference
+                .iter()
+                .flat_map(|p| p[..3].iter())
+                .fold(0.0f32, |m, v| m.max(*v))
+                .max(f32::MIN_POSITIVE);
+            let max_diff = img
+                .iter()
+                .zip(reference)
+                .flat_map(|(a, b)| (0..3).map(move |c| (a[c] - b[c]).abs()))
+                .fold(0.0f32, f32::max)
+                / peak;
+            let mean_diff =
+                (super::metrics::mean_rgb(&img) / super::metrics::mean_rgb(reference) - 1.0).abs();
             // Stochastic estimators may flip a collision decision at a near-tie, which moves
             // one sample of one pixel; their mean must still agree closely.
             let (measured, tol, note) = if *est == Estimator::RayMarch {
@@ -424,16 +503,23 @@ fn invalid_voxels(cfg: &ExtremesConfig, check: &mut Check) -> Result<()> {
     let dirty_s = box_grid("emission", n, h, |p| bad_source(p).unwrap_or(2.0));
     let clean_d = box_grid("density", n, h, |p| if bad_density(p).is_some() { 0.0 } else { 1.0 });
     let clean_s = box_grid("emission", n, h, |p| if bad_source(p).is_some() { 0.0 } else { 2.0 });
-    let all = (0..n as i32).flat_map(|z| (0..n as i32).flat_map(move |y| (0..n as i32).map(move |x| IVec3::new(x, y, z))));
+    let all = (0..n as i32).flat_map(|z| {
+        (0..n as i32).flat_map(move |y| (0..n as i32).map(move |x| IVec3::new(x, y, z)))
+    });
     let expected_d = all.clone().filter(|p| bad_density(*p).is_some()).count() as u64;
     let expected_s = all.filter(|p| bad_source(*p).is_some()).count() as u64;
     let emission = grid_emission(Convention::Physical);
     let dirty = Volume::build(&dirty_d, Some(&dirty_s), |v| emission.map_source(v))?;
     let clean = Volume::build(&clean_d, Some(&clean_s), |v| emission.map_source(v))?;
-    let counts_ok = dirty.report.density_clamped == expected_d && dirty.report.source_invalid == expected_s && clean.report == Default::default();
+    let counts_ok = dirty.report.density_clamped == expected_d
+        && dirty.report.source_invalid == expected_s
+        && clean.report == Default::default();
     check.push(Row {
         sweep: "invalid voxels".into(),
-        case: format!("{expected_d} density + {expected_s} source voxels NaN/±inf/negative of {}", n * n * n),
+        case: format!(
+            "{expected_d} density + {expected_s} source voxels NaN/±inf/negative of {}",
+            n * n * n
+        ),
         method: "build".into(),
         expected: Some((expected_d + expected_s) as f64),
         measured: (dirty.report.density_clamped + dirty.report.source_invalid) as f64,
@@ -441,16 +527,34 @@ fn invalid_voxels(cfg: &ExtremesConfig, check: &mut Check) -> Result<()> {
         tolerance: 0.0,
         finite: true,
         pass: counts_ok,
-        note: format!("clamped and counted: density {}, source {}", dirty.report.density_clamped, dirty.report.source_invalid),
+        note: format!(
+            "clamped and counted: density {}, source {}",
+            dirty.report.density_clamped, dirty.report.source_invalid
+        ),
     });
     let medium = Medium { sigma_t: 3.0, albedo: 0.0, g: 0.0, emission };
     let camera = box_camera(1.0, cfg.size)?;
-    let dirty = Scene { field: dirty, medium, camera, lights: Lights::default(), motion: None, majorants: None };
-    let clean = Scene { field: clean, medium, camera, lights: Lights::default(), motion: None, majorants: None };
+    let dirty = Scene {
+        field: dirty,
+        medium,
+        camera,
+        lights: Lights::default(),
+        motion: None,
+        majorants: None,
+    };
+    let clean = Scene {
+        field: clean,
+        medium,
+        camera,
+        lights: Lights::default(),
+        motion: None,
+        majorants: None,
+    };
     for (name, est) in EMISSION_ONLY {
         let a = render_image(&dirty, Integrator::emission_only(est), cfg.spp, 4);
         let b = render_image(&clean, Integrator::emission_only(est), cfg.spp, 4);
-        let same = a.iter().flatten().zip(b.iter().flatten()).all(|(x, y)| x.to_bits() == y.to_bits());
+        let same =
+            a.iter().flatten().zip(b.iter().flatten()).all(|(x, y)| x.to_bits() == y.to_bits());
         let finite = all_finite(&a);
         check.push(Row {
             sweep: "invalid voxels".into(),
@@ -506,7 +610,8 @@ impl ExtremesReport {
             );
         }
         let failed = self.rows.iter().filter(|r| !r.pass).count();
-        let _ = writeln!(s, "\n{} checks, {} failed, {:.1} s.", self.rows.len(), failed, self.seconds);
+        let _ =
+            writeln!(s, "\n{} checks, {} failed, {:.1} s.", self.rows.len(), failed, self.seconds);
         s
     }
 }

@@ -32,8 +32,8 @@ use plume_core::error::{Error, Result};
 use plume_engine::integrator::{AnyScene, Counters, Integrator, LightSampling, Lights};
 use plume_engine::medium::Estimator;
 use plume_engine::render::{render, RenderSettings, SampleBudget};
-use plume_scene::file::with_keys;
 use plume_engine::stats::cpu_seconds;
+use plume_scene::file::with_keys;
 use plume_volume::proxy::ProxyGrid;
 use plume_volume::Interpolation;
 
@@ -91,7 +91,8 @@ enum CostMethod {
 }
 
 impl CostMethod {
-    const ALL: [CostMethod; 4] = [CostMethod::RayMarch, CostMethod::Line, CostMethod::LineFnee, CostMethod::PointNee];
+    const ALL: [CostMethod; 4] =
+        [CostMethod::RayMarch, CostMethod::Line, CostMethod::LineFnee, CostMethod::PointNee];
 
     fn name(self) -> &'static str {
         match self {
@@ -107,8 +108,16 @@ impl CostMethod {
         match self {
             CostMethod::RayMarch => Integrator::emission_only(Estimator::RayMarch),
             CostMethod::Line => Integrator::emission_only(Estimator::Line),
-            CostMethod::LineFnee => Integrator { estimator: Estimator::Line, light_sampling: LightSampling::Fnee, ..base },
-            CostMethod::PointNee => Integrator { estimator: Estimator::Point, light_sampling: LightSampling::Nee, ..base },
+            CostMethod::LineFnee => Integrator {
+                estimator: Estimator::Line,
+                light_sampling: LightSampling::Fnee,
+                ..base
+            },
+            CostMethod::PointNee => Integrator {
+                estimator: Estimator::Point,
+                light_sampling: LightSampling::Nee,
+                ..base
+            },
         }
     }
 }
@@ -150,7 +159,12 @@ impl InterpolationConfig {
             cpu_seconds: 0.5,
             repeats: 3,
             threads: 1,
-            rule: rule::RuleConfig { files: Vec::new(), width: 320, height: 240, step_voxels: 0.125 },
+            rule: rule::RuleConfig {
+                files: Vec::new(),
+                width: 320,
+                height: 240,
+                step_voxels: 0.125,
+            },
             closeup: picture.map(|path| closeup::CloseupConfig {
                 path,
                 file: PathBuf::from(CLOSEUP_FILE),
@@ -166,7 +180,11 @@ impl InterpolationConfig {
     /// The data files this configuration reads that do not exist.
     #[must_use]
     pub fn missing_files(&self) -> Vec<PathBuf> {
-        let mut files: Vec<PathBuf> = COST_FILES.iter().filter(|f| self.files.iter().any(|n| n == f.name)).map(|f| self.data.join(f.file)).collect();
+        let mut files: Vec<PathBuf> = COST_FILES
+            .iter()
+            .filter(|f| self.files.iter().any(|n| n == f.name))
+            .map(|f| self.data.join(f.file))
+            .collect();
         files.extend(self.rule.files.iter().map(|f| self.data.join(f)));
         files.extend(self.closeup.iter().map(|c| self.data.join(&c.file)));
         files.retain(|f| !f.exists());
@@ -190,7 +208,8 @@ impl InterpolationConfig {
             num(self.rule.step_voxels)
         );
         if !self.rule.files.is_empty() {
-            let files: Vec<String> = self.rule.files.iter().map(|f| f.display().to_string()).collect();
+            let files: Vec<String> =
+                self.rule.files.iter().map(|f| f.display().to_string()).collect();
             let _ = write!(c, " --rule-files {}", files.join(","));
         }
         if let Some(p) = &self.closeup {
@@ -287,9 +306,20 @@ impl Switch {
 }
 
 /// CPU seconds and counters of one render of `spp` at seed 0.
-fn timed_render(scene: &AnyScene, integrator: Integrator, spp: u32, threads: usize) -> (f64, Counters) {
-    let settings =
-        RenderSettings { budget: SampleBudget::Spp(spp), seed: 0, sampler: plume_core::sampling::SamplerKind::default(), threads, first_sample: 0, integrator };
+fn timed_render(
+    scene: &AnyScene,
+    integrator: Integrator,
+    spp: u32,
+    threads: usize,
+) -> (f64, Counters) {
+    let settings = RenderSettings {
+        budget: SampleBudget::Spp(spp),
+        seed: 0,
+        sampler: plume_core::sampling::SamplerKind::default(),
+        threads,
+        first_sample: 0,
+        integrator,
+    };
     plume_engine::with_scene!(scene, s => {
         let c0 = cpu_seconds();
         let r = render(s, &settings, &|_, _| {});
@@ -308,7 +338,13 @@ fn median(v: &[f64]) -> f64 {
 }
 
 /// Measure one method on a loaded scene: calibrate the spp, then alternate.
-fn measure(scene: &mut Switch, file: &str, method: CostMethod, base: Integrator, cfg: &InterpolationConfig) -> CostRow {
+fn measure(
+    scene: &mut Switch,
+    file: &str,
+    method: CostMethod,
+    base: Integrator,
+    cfg: &InterpolationConfig,
+) -> CostRow {
     let integrator = method.integrator(base);
     let pixels = f64::from(cfg.width) * f64::from(cfg.height);
     // Calibration (and warm-up of both): one spp each
@@ -319,7 +355,11 @@ fn measure(scene: &mut Switch, file: &str, method: CostMethod, base: Integrator,
     let mut runs = [Vec::new(), Vec::new()];
     let mut counters = [Counters::default(), Counters::default()];
     for k in 0..cfg.repeats.max(1) {
-        let order = if k % 2 == 0 { [Interpolation::Nearest, Interpolation::Linear] } else { [Interpolation::Linear, Interpolation::Nearest] };
+        let order = if k % 2 == 0 {
+            [Interpolation::Nearest, Interpolation::Linear]
+        } else {
+            [Interpolation::Linear, Interpolation::Nearest]
+        };
         for i in order {
             let (cpu, c) = timed_render(scene.to(i), integrator, spp, cfg.threads);
             let slot = usize::from(i == Interpolation::Linear);
@@ -330,36 +370,66 @@ fn measure(scene: &mut Switch, file: &str, method: CostMethod, base: Integrator,
     let rates = |slot: usize| {
         let c = &counters[slot];
         let n = c.samples.max(1) as f64;
-        Rates { median: median(&runs[slot]), runs: runs[slot].clone(), pieces_per_sample: c.voxel_steps as f64 / n, segments_per_sample: c.segments as f64 / n }
+        Rates {
+            median: median(&runs[slot]),
+            runs: runs[slot].clone(),
+            pieces_per_sample: c.voxel_steps as f64 / n,
+            segments_per_sample: c.segments as f64 / n,
+        }
     };
     let (nearest, linear) = (rates(0), rates(1));
     let pairs: Vec<f64> = nearest.runs.iter().zip(&linear.runs).map(|(n, l)| n / l).collect();
     let lo = pairs.iter().copied().fold(f64::INFINITY, f64::min);
     let hi = pairs.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-    CostRow { file: file.into(), method: method.name().into(), spp, cost_ratio: nearest.median / linear.median, cost_ratio_range: [lo, hi], nearest, linear }
+    CostRow {
+        file: file.into(),
+        method: method.name().into(),
+        spp,
+        cost_ratio: nearest.median / linear.median,
+        cost_ratio_range: [lo, hi],
+        nearest,
+        linear,
+    }
 }
 
 /// Load `file` (nearest; albedo 0.8) and measure its memory and every method's cost.
-fn measure_file(file: &CostFile, cfg: &InterpolationConfig, log: &dyn Fn(&str)) -> Result<(MemoryRow, Vec<CostRow>)> {
+fn measure_file(
+    file: &CostFile,
+    cfg: &InterpolationConfig,
+    log: &dyn Fn(&str),
+) -> Result<(MemoryRow, Vec<CostRow>)> {
     let path = cfg.data.join(file.file);
     let own = format!("[volume]\ninterpolation = \"nearest\"\n[medium]\nalbedo = 0.8\n[camera]\nwidth = {}\nheight = {}", cfg.width, cfg.height);
     // Two fragments: both may name the same table
     let shot = with_keys(&with_keys(&bench_shot(&path.display().to_string()), file.keys)?, &own)?;
     let loaded = load_file(shot, vec![])?;
     let base = plume_engine::integrator::Integrator::for_scene(&loaded.shot.scene);
-    let proxy_resolution = ProxyGrid::resolution_for(loaded.loaded.scene.volume(), loaded.shot.scene.integrator.proxy_resolution);
+    let proxy_resolution = ProxyGrid::resolution_for(
+        loaded.loaded.scene.volume(),
+        loaded.shot.scene.integrator.proxy_resolution,
+    );
     let mut scene = Switch(Some(loaded.loaded.scene));
     let volume_bytes = scene.to(Interpolation::Nearest).volume().memory_bytes() as u64;
     let dual_bytes = match scene.to(Interpolation::Linear) {
         AnyScene::Linear(s) => s.field.dual_bytes() as u64,
         AnyScene::Nearest(_) => unreachable!("invariant: switched to linear"),
     };
-    let memory = MemoryRow { file: file.name.into(), volume_bytes, dual_bytes, percent: 100.0 * dual_bytes as f64 / volume_bytes.max(1) as f64 };
+    let memory = MemoryRow {
+        file: file.name.into(),
+        volume_bytes,
+        dual_bytes,
+        percent: 100.0 * dual_bytes as f64 / volume_bytes.max(1) as f64,
+    };
     let mut rows = Vec::new();
     for method in CostMethod::ALL {
         // Light structures for this method, outside the timed renders
         let current = scene.0.as_mut().expect("invariant: the scene is in place");
-        let lights = Lights::build(current.volume(), &current.medium().emission, method.integrator(base).light_sampling, proxy_resolution)?;
+        let lights = Lights::build(
+            current.volume(),
+            &current.medium().emission,
+            method.integrator(base).light_sampling,
+            proxy_resolution,
+        )?;
         current.set_lights(lights);
         let row = measure(&mut scene, file.name, method, base, cfg);
         log(&format!(
@@ -385,7 +455,13 @@ pub fn run(cfg: &InterpolationConfig, log: &dyn Fn(&str)) -> Result<Interpolatio
     let mut files = Vec::new();
     for name in &cfg.files {
         let f = COST_FILES.iter().find(|f| f.name == name).ok_or_else(|| {
-            Error::invalid("--files", format!("{name:?}: expected some of {}", COST_FILES.iter().map(|f| f.name).collect::<Vec<_>>().join(", ")))
+            Error::invalid(
+                "--files",
+                format!(
+                    "{name:?}: expected some of {}",
+                    COST_FILES.iter().map(|f| f.name).collect::<Vec<_>>().join(", ")
+                ),
+            )
         })?;
         files.push(*f);
     }

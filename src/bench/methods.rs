@@ -17,11 +17,13 @@ use std::time::Instant;
 use glam::DVec3;
 use serde::Serialize;
 
-use plume_engine::camera::Camera;
 use plume_core::color::Rgb;
 use plume_core::error::Result;
+use plume_engine::camera::Camera;
 use plume_engine::integrator::{Integrator, LightSampling, Lights, MisHeuristic, Scene, Tracking};
-use plume_engine::medium::{Collision, Convention, Emission, EmissionKind, Estimator, Medium, TemperatureMap};
+use plume_engine::medium::{
+    Collision, Convention, Emission, EmissionKind, Estimator, Medium, TemperatureMap,
+};
 use plume_engine::render::{render, RenderSettings, SampleBudget};
 use plume_engine::stats::cpu_seconds;
 use plume_synth::{explosion, ExplosionParams};
@@ -71,7 +73,14 @@ pub struct MethodsReport {
     pub results: Vec<MethodResult>,
 }
 
-fn scene(resolution: u32, sigma_t: f64, ls: LightSampling, width: u32, height: u32, proxy: u32) -> Result<Scene<Volume>> {
+fn scene(
+    resolution: u32,
+    sigma_t: f64,
+    ls: LightSampling,
+    width: u32,
+    height: u32,
+    proxy: u32,
+) -> Result<Scene<Volume>> {
     let ex = explosion(&ExplosionParams { resolution, seed: 1, ..Default::default() });
     let e = Emission {
         kind: EmissionKind::Blackbody,
@@ -84,11 +93,23 @@ fn scene(resolution: u32, sigma_t: f64, ls: LightSampling, width: u32, height: u
     let vol = Volume::build(&ex.density, Some(&ex.temperature), |v| e.map_source(v))?;
     let lights = Lights::build(&vol, &e, ls, proxy.min(resolution.next_power_of_two()))?;
     let plume_volume::Bounds3 { lo, hi } = vol.world_bounds();
-    let camera = Camera::frame_bounds(lo, hi, DVec3::new(0.35, 0.25, 1.0), DVec3::Y, 40.0, width, height)?;
-    Ok(Scene { field: vol, medium: Medium { sigma_t, albedo: 0.8, g: 0.3, emission: e }, camera, lights, motion: None, majorants: None })
+    let camera =
+        Camera::frame_bounds(lo, hi, DVec3::new(0.35, 0.25, 1.0), DVec3::Y, 40.0, width, height)?;
+    Ok(Scene {
+        field: vol,
+        medium: Medium { sigma_t, albedo: 0.8, g: 0.3, emission: e },
+        camera,
+        lights,
+        motion: None,
+        majorants: None,
+    })
 }
 
-fn integrator(estimator: Estimator, light_sampling: LightSampling, mis: MisHeuristic) -> Integrator {
+fn integrator(
+    estimator: Estimator,
+    light_sampling: LightSampling,
+    mis: MisHeuristic,
+) -> Integrator {
     Integrator {
         estimator,
         camera_estimator: None,
@@ -113,7 +134,9 @@ pub fn parse_regimes(list: &str) -> Result<Vec<(String, f64)>> {
     let mut regimes = Vec::new();
     for part in list.split(',') {
         let bad = |m: String| crate::Error::invalid("regimes", m);
-        let (name, v) = part.split_once('=').ok_or_else(|| bad(format!("{part:?} is not NAME=DENSITY_SCALE")))?;
+        let (name, v) = part
+            .split_once('=')
+            .ok_or_else(|| bad(format!("{part:?} is not NAME=DENSITY_SCALE")))?;
         let v: f64 = v.parse().map_err(|_| bad(format!("{v:?} is not a number")))?;
         regimes.push((name.to_string(), v));
     }
@@ -154,7 +177,11 @@ pub fn run(
             },
             &|_, _| {},
         );
-        on_line(&format!("{regime}: reference line-fnee {} spp in {:.0} s", reference.spp, t.elapsed().as_secs_f64()));
+        on_line(&format!(
+            "{regime}: reference line-fnee {} spp in {:.0} s",
+            reference.spp,
+            t.elapsed().as_secs_f64()
+        ));
         reference_spp.push((regime.to_string(), reference.spp));
         let ref_px = reference.film.average(reference.spp);
         for (name, est, ls) in METHODS {
@@ -185,16 +212,34 @@ pub fn run(
             results.push(res);
         }
     }
-    Ok(MethodsReport { resolution, width, height, seconds_per_method: seconds, reference_spp, results })
+    Ok(MethodsReport {
+        resolution,
+        width,
+        height,
+        seconds_per_method: seconds,
+        reference_spp,
+        results,
+    })
 }
 
 impl std::fmt::Display for MethodsReport {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        writeln!(f, "Equal CPU time ({:.0} CPU s per method), {}³ explosion, {}x{}:", self.seconds_per_method, self.resolution, self.width, self.height)?;
-        writeln!(f, "| regime | method | RMSE | RMSE / point-nee | spp | samples per CPU s | core-hours |")?;
+        writeln!(
+            f,
+            "Equal CPU time ({:.0} CPU s per method), {}³ explosion, {}x{}:",
+            self.seconds_per_method, self.resolution, self.width, self.height
+        )?;
+        writeln!(
+            f,
+            "| regime | method | RMSE | RMSE / point-nee | spp | samples per CPU s | core-hours |"
+        )?;
         writeln!(f, "|---|---|---|---|---|---|---|")?;
         for r in &self.results {
-            let base = self.results.iter().find(|b| b.regime == r.regime && b.method == "point-nee").map_or(f64::NAN, |b| b.rmse);
+            let base = self
+                .results
+                .iter()
+                .find(|b| b.regime == r.regime && b.method == "point-nee")
+                .map_or(f64::NAN, |b| b.rmse);
             writeln!(
                 f,
                 "| {} | {} | {:.5} | {:.2} | {} | {:.0} | {:.5} |",

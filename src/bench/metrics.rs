@@ -41,7 +41,11 @@ impl Errors {
     /// If the images differ in size.
     #[must_use]
     pub fn of(x: &[[f32; 4]], reference: &[[f32; 4]], epsilon: f64) -> Errors {
-        Errors { rmse: rmse(x, reference), relmse: relmse(x, reference, epsilon, RELMSE_TRIM), bias: bias(x, reference) }
+        Errors {
+            rmse: rmse(x, reference),
+            relmse: relmse(x, reference, epsilon, RELMSE_TRIM),
+            bias: bias(x, reference),
+        }
     }
 }
 
@@ -59,7 +63,11 @@ pub fn rmse(x: &[[f32; 4]], reference: &[[f32; 4]]) -> f64 {
     if x.is_empty() {
         return 0.0;
     }
-    let s: f64 = x.iter().zip(reference).flat_map(|(p, q)| (0..3).map(move |c| (f64::from(p[c]) - f64::from(q[c])).powi(2))).sum();
+    let s: f64 = x
+        .iter()
+        .zip(reference)
+        .flat_map(|(p, q)| (0..3).map(move |c| (f64::from(p[c]) - f64::from(q[c])).powi(2)))
+        .sum();
     (s / (3 * x.len()) as f64).sqrt()
 }
 
@@ -138,7 +146,11 @@ impl Spread {
             return Spread { mean: f64::NAN, std: f64::NAN, n };
         }
         let mean = values.iter().sum::<f64>() / n as f64;
-        let std = if n > 1 { (values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1) as f64).sqrt() } else { 0.0 };
+        let std = if n > 1 {
+            (values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1) as f64).sqrt()
+        } else {
+            0.0
+        };
         Spread { mean, std, n }
     }
 }

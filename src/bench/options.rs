@@ -53,13 +53,20 @@ impl CompareOptions {
     /// Bad flags, unreadable scene or reference, unwritable outputs.
     pub fn run(&self, mut scene: BenchScene) -> Result<CompareReport> {
         if self.reference.is_none() && !self.make_reference {
-            return Err(Error::invalid("--reference", "give a reference (--reference REF.exr) or --make-reference"));
+            return Err(Error::invalid(
+                "--reference",
+                "give a reference (--reference REF.exr) or --make-reference",
+            ));
         }
         if !(self.epsilon.is_finite() && self.epsilon > 0.0) {
-            return Err(Error::invalid("--epsilon", format!("{} must be a positive number", self.epsilon)));
+            return Err(Error::invalid(
+                "--epsilon",
+                format!("{} must be a positive number", self.epsilon),
+            ));
         }
         if let Some(dir) = &self.out {
-            std::fs::create_dir_all(dir).map_err(|source| Error::Write { path: dir.clone(), source })?;
+            std::fs::create_dir_all(dir)
+                .map_err(|source| Error::Write { path: dir.clone(), source })?;
         }
         let log = |l: &str| log::info!("{l}");
         let methods = parse_methods(&self.methods, scene.shot.scene.integrator.kappa)?;
@@ -68,7 +75,10 @@ impl CompareOptions {
             None => {
                 let t = self.reference_time.unwrap_or(16.0 * self.time);
                 if !(t.is_finite() && t > 0.0) {
-                    return Err(Error::invalid("--reference-time", format!("{t} must be a positive number of CPU seconds")));
+                    return Err(Error::invalid(
+                        "--reference-time",
+                        format!("{t} must be a positive number of CPU seconds"),
+                    ));
                 }
                 let r = make_reference(&mut scene, t, &log)?;
                 if let Some(p) = &self.save_reference {
@@ -78,7 +88,14 @@ impl CompareOptions {
                 r
             }
         };
-        let cfg = CompareConfig { methods, cpu_seconds: self.time, spp: self.spp, runs: self.runs, epsilon: self.epsilon, curve_points: self.curve_points };
+        let cfg = CompareConfig {
+            methods,
+            cpu_seconds: self.time,
+            spp: self.spp,
+            runs: self.runs,
+            epsilon: self.epsilon,
+            curve_points: self.curve_points,
+        };
         compare(&mut scene, &reference, &cfg, &log)
     }
 
@@ -118,11 +135,16 @@ impl ExtremesOptions {
     /// # Errors
     /// A sweep that cannot run, or an unwritable JSON file.
     pub fn run(&self) -> Result<ExtremesReport> {
-        let cfg =
-            super::extremes::ExtremesConfig { box_voxels: self.box_voxels, explosion_resolution: self.explosion_resolution, size: self.size, spp: self.spp };
+        let cfg = super::extremes::ExtremesConfig {
+            box_voxels: self.box_voxels,
+            explosion_resolution: self.explosion_resolution,
+            size: self.size,
+            spp: self.spp,
+        };
         let report = super::extremes::run(&cfg)?;
         if let Some(p) = &self.json {
-            let json = serde_json::to_string_pretty(&report).map_err(|e| Error::Scene(e.to_string()))?;
+            let json =
+                serde_json::to_string_pretty(&report).map_err(|e| Error::Scene(e.to_string()))?;
             plume_core::fs::write_atomic(p, |w| std::io::Write::write_all(w, json.as_bytes()))?;
         }
         Ok(report)

@@ -50,7 +50,11 @@ impl CompareReport {
     pub fn equal_spp_table(&self) -> String {
         let mut s = String::new();
         let base = &self.methods[0];
-        let _ = writeln!(s, "| method | spp | CPU s | core-h | RMSE | RMSE / {} | relMSE | bias |", base.method);
+        let _ = writeln!(
+            s,
+            "| method | spp | CPU s | core-h | RMSE | RMSE / {} | relMSE | bias |",
+            base.method
+        );
         let _ = writeln!(s, "|---|---|---|---|---|---|---|---|");
         for m in &self.methods {
             let e = &m.equal_spp;
@@ -167,9 +171,12 @@ impl CompareReport {
     /// # Errors
     /// A file cannot be written.
     pub fn write(&self, dir: &Path, name: &str, crops: bool) -> Result<Vec<PathBuf>> {
-        std::fs::create_dir_all(dir).map_err(|source| Error::Write { path: dir.to_path_buf(), source })?;
+        std::fs::create_dir_all(dir)
+            .map_err(|source| Error::Write { path: dir.to_path_buf(), source })?;
         let csv = dir.join(format!("{name}.csv"));
-        plume_core::fs::write_atomic(&csv, |w| std::io::Write::write_all(w, self.to_csv().as_bytes()))?;
+        plume_core::fs::write_atomic(&csv, |w| {
+            std::io::Write::write_all(w, self.to_csv().as_bytes())
+        })?;
         let json = dir.join(format!("{name}.json"));
         let text = serde_json::to_string_pretty(self).map_err(|e| Error::Scene(e.to_string()))?;
         plume_core::fs::write_atomic(&json, |w| std::io::Write::write_all(w, text.as_bytes()))?;

@@ -84,7 +84,8 @@ fn log_ticks(lo: f64, hi: f64) -> Vec<f64> {
     if !(lo > 0.0 && hi > lo && hi.is_finite()) {
         return vec![1.0];
     }
-    let mantissas: &[f64] = if hi / lo < 30.0 { &[1.0, 1.5, 2.0, 3.0, 5.0, 7.0] } else { &[1.0, 2.0, 5.0] };
+    let mantissas: &[f64] =
+        if hi / lo < 30.0 { &[1.0, 1.5, 2.0, 3.0, 5.0, 7.0] } else { &[1.0, 2.0, 5.0] };
     let mut out = Vec::new();
     for e in lo.log10().floor() as i32..=hi.log10().ceil() as i32 {
         for m in mantissas {
@@ -109,7 +110,12 @@ pub struct Series {
 ///
 /// # Errors
 /// Drawing or writing fails.
-pub fn loglog_panels(path: &Path, panels: &[(&str, &str, &str, Vec<Series>)], panel_width: u32, height: u32) -> Result<()> {
+pub fn loglog_panels(
+    path: &Path,
+    panels: &[(&str, &str, &str, Vec<Series>)],
+    panel_width: u32,
+    height: u32,
+) -> Result<()> {
     font_ready();
     let width = panel_width * panels.len() as u32;
     let mut buf = vec![255u8; (width * height * 3) as usize];
@@ -137,8 +143,12 @@ pub fn loglog_panels(path: &Path, panels: &[(&str, &str, &str, Vec<Series>)], pa
                 .x_label_area_size(38)
                 .y_label_area_size(70)
                 .build_cartesian_2d(
-                    (x0 / 1.15..x1 * 1.15).log_scale().with_key_points(log_ticks(x0 / 1.15, x1 * 1.15)),
-                    (y0 / 1.15..y1 * 1.15).log_scale().with_key_points(log_ticks(y0 / 1.15, y1 * 1.15)),
+                    (x0 / 1.15..x1 * 1.15)
+                        .log_scale()
+                        .with_key_points(log_ticks(x0 / 1.15, x1 * 1.15)),
+                    (y0 / 1.15..y1 * 1.15)
+                        .log_scale()
+                        .with_key_points(log_ticks(y0 / 1.15, y1 * 1.15)),
                 )
                 .map_err(plot_err)?;
             chart
@@ -154,19 +164,36 @@ pub fn loglog_panels(path: &Path, panels: &[(&str, &str, &str, Vec<Series>)], pa
                 .map_err(plot_err)?;
             for (i, s) in series.iter().enumerate() {
                 let c = COLORS[i % COLORS.len()];
-                let good: Vec<(f64, f64, f64)> = s.points.iter().copied().filter(|p| p.0 > 0.0 && p.1 > 0.0 && p.1.is_finite()).collect();
+                let good: Vec<(f64, f64, f64)> = s
+                    .points
+                    .iter()
+                    .copied()
+                    .filter(|p| p.0 > 0.0 && p.1 > 0.0 && p.1.is_finite())
+                    .collect();
                 chart
-                    .draw_series(LineSeries::new(good.iter().map(|p| (p.0, p.1)), c.stroke_width(2)))
+                    .draw_series(LineSeries::new(
+                        good.iter().map(|p| (p.0, p.1)),
+                        c.stroke_width(2),
+                    ))
                     .map_err(plot_err)?
                     .label(s.label.clone())
-                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], c.stroke_width(2)));
-                chart.draw_series(good.iter().map(|p| Circle::new((p.0, p.1), 3, c.filled()))).map_err(plot_err)?;
+                    .legend(move |(x, y)| {
+                        PathElement::new(vec![(x, y), (x + 18, y)], c.stroke_width(2))
+                    });
                 chart
-                    .draw_series(
-                        good.iter()
-                            .filter(|p| p.2 > 0.0)
-                            .map(|p| ErrorBar::new_vertical(p.0, (p.1 - p.2).max(p.1 * 0.5), p.1, p.1 + p.2, c.stroke_width(1), 6)),
-                    )
+                    .draw_series(good.iter().map(|p| Circle::new((p.0, p.1), 3, c.filled())))
+                    .map_err(plot_err)?;
+                chart
+                    .draw_series(good.iter().filter(|p| p.2 > 0.0).map(|p| {
+                        ErrorBar::new_vertical(
+                            p.0,
+                            (p.1 - p.2).max(p.1 * 0.5),
+                            p.1,
+                            p.1 + p.2,
+                            c.stroke_width(1),
+                            6,
+                        )
+                    }))
                     .map_err(plot_err)?;
             }
             chart
@@ -207,7 +234,15 @@ pub fn error_vs_time(report: &CompareReport, path: &Path) -> Result<()> {
     };
     let rmse = series(&|p| (p.rmse.mean, p.rmse.std));
     let rel = series(&|p| (p.relmse.mean, p.relmse.std));
-    loglog_panels(path, &[("RMSE vs CPU time", "CPU seconds", "RMSE", rmse), ("relMSE vs CPU time", "CPU seconds", "relMSE (trimmed)", rel)], 440, 330)
+    loglog_panels(
+        path,
+        &[
+            ("RMSE vs CPU time", "CPU seconds", "RMSE", rmse),
+            ("relMSE vs CPU time", "CPU seconds", "relMSE (trimmed)", rel),
+        ],
+        440,
+        330,
+    )
 }
 
 fn srgb8(v: f32) -> u8 {
@@ -243,9 +278,14 @@ pub fn crop_montage(report: &CompareReport, path: &Path) -> Result<()> {
     let scale = if crop <= 48 { 3 } else { 2 };
     let tile = crop * scale;
     let label_h = 34;
-    let mut tiles: Vec<(String, String, &[[f32; 4]])> = vec![("reference".into(), format!("{} spp", report.reference.spp), reference.as_slice())];
+    let mut tiles: Vec<(String, String, &[[f32; 4]])> =
+        vec![("reference".into(), format!("{} spp", report.reference.spp), reference.as_slice())];
     for m in &report.methods {
-        tiles.push((m.method.clone(), format!("RMSE {}", super::numbers::num(super::metrics::rmse(&m.image, reference))), m.image.as_slice()));
+        tiles.push((
+            m.method.clone(),
+            format!("RMSE {}", super::numbers::num(super::metrics::rmse(&m.image, reference))),
+            m.image.as_slice(),
+        ));
     }
     let cols = tiles.len().min(4);
     let rows = tiles.len().div_ceil(cols);
@@ -268,10 +308,20 @@ pub fn crop_montage(report: &CompareReport, path: &Path) -> Result<()> {
     {
         let root = BitMapBackend::with_buffer(&mut buf, (mw as u32, mh as u32)).into_drawing_area();
         for (k, (name, sub, _)) in tiles.iter().enumerate() {
-            let (ox, oy) = (gap + (k % cols) * (tile + gap), gap + (k / cols) * (tile + label_h + gap) + tile);
-            root.draw(&Text::new(name.clone(), (ox as i32 + 2, oy as i32 + 2), ("sans-serif", 14).into_font().color(&BLACK))).map_err(plot_err)?;
-            root.draw(&Text::new(sub.clone(), (ox as i32 + 2, oy as i32 + 18), ("sans-serif", 12).into_font().color(&RGBColor(70, 70, 70))))
-                .map_err(plot_err)?;
+            let (ox, oy) =
+                (gap + (k % cols) * (tile + gap), gap + (k / cols) * (tile + label_h + gap) + tile);
+            root.draw(&Text::new(
+                name.clone(),
+                (ox as i32 + 2, oy as i32 + 2),
+                ("sans-serif", 14).into_font().color(&BLACK),
+            ))
+            .map_err(plot_err)?;
+            root.draw(&Text::new(
+                sub.clone(),
+                (ox as i32 + 2, oy as i32 + 18),
+                ("sans-serif", 12).into_font().color(&RGBColor(70, 70, 70)),
+            ))
+            .map_err(plot_err)?;
         }
         root.present().map_err(plot_err)?;
     }
@@ -286,7 +336,13 @@ pub fn crop_montage(report: &CompareReport, path: &Path) -> Result<()> {
 ///
 /// # Panics
 /// If an image is not `width × height`.
-pub fn side_by_side(path: &Path, width: u32, height: u32, panels: &[(String, &[[f32; 4]])], exposure: f32) -> Result<()> {
+pub fn side_by_side(
+    path: &Path,
+    width: u32,
+    height: u32,
+    panels: &[(String, &[[f32; 4]])],
+    exposure: f32,
+) -> Result<()> {
     font_ready();
     let (w, h) = (width as usize, height as usize);
     let (gap, label_h) = (4, 24);
@@ -308,7 +364,12 @@ pub fn side_by_side(path: &Path, width: u32, height: u32, panels: &[(String, &[[
         let root = BitMapBackend::with_buffer(&mut buf, (mw as u32, mh as u32)).into_drawing_area();
         for (k, (label, _)) in panels.iter().enumerate() {
             let (x, y) = ((gap + k * (w + gap)) as i32 + 2, (gap + h) as i32 + 4);
-            root.draw(&Text::new(label.clone(), (x, y), ("sans-serif", 15).into_font().color(&BLACK))).map_err(plot_err)?;
+            root.draw(&Text::new(
+                label.clone(),
+                (x, y),
+                ("sans-serif", 15).into_font().color(&BLACK),
+            ))
+            .map_err(plot_err)?;
         }
         root.present().map_err(plot_err)?;
     }

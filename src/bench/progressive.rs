@@ -19,7 +19,9 @@ use serde::Serialize;
 use super::metrics::Errors;
 use plume_engine::film::Film;
 use plume_engine::integrator::{Counters, Integrator, Scene};
-use plume_engine::render::{read_ahead_window, render_with, RenderControl, RenderSettings, SampleBudget, SampleOrder};
+use plume_engine::render::{
+    read_ahead_window, render_with, RenderControl, RenderSettings, SampleBudget, SampleOrder,
+};
 use plume_engine::stats::cpu_seconds;
 use plume_volume::Field;
 
@@ -98,7 +100,13 @@ pub fn average(sums: &[[f64; 4]], spp: u64) -> Vec<[f32; 4]> {
 /// Render `scene` progressively by `plan`, measuring errors against `reference` (if any)
 /// with relMSE `epsilon`.
 #[must_use]
-pub fn run<F: Field>(scene: &Scene<F>, integrator: &Integrator, plan: &RunPlan, reference: Option<&[[f32; 4]]>, epsilon: f64) -> RunResult {
+pub fn run<F: Field>(
+    scene: &Scene<F>,
+    integrator: &Integrator,
+    plan: &RunPlan,
+    reference: Option<&[[f32; 4]]>,
+    epsilon: f64,
+) -> RunResult {
     let (w, h) = (scene.camera.width, scene.camera.height);
     let mut sums = vec![[0.0f64; 4]; (w * h) as usize];
     let mut counters = Counters::default();
@@ -122,7 +130,11 @@ pub fn run<F: Field>(scene: &Scene<F>, integrator: &Integrator, plan: &RunPlan, 
     let memory = plume_volume::out_of_core::memory::MemoryLimits::read();
     let available = memory.available().map_or(u64::MAX, |a| a.bytes);
     let read_ahead_window = read_ahead_window(memory.default_budget());
-    let order = if scene.field.is_mapped() && scene.field.data_bytes() as u64 > available { SampleOrder::TileMajor } else { SampleOrder::Progressive };
+    let order = if scene.field.is_mapped() && scene.field.data_bytes() as u64 > available {
+        SampleOrder::TileMajor
+    } else {
+        SampleOrder::Progressive
+    };
     loop {
         let next_time = plan.cpu_checkpoints.get(time_points.len()).copied();
         if next_time.is_none() && spp >= plan.min_spp {
@@ -135,7 +147,9 @@ pub fn run<F: Field>(scene: &Scene<F>, integrator: &Integrator, plan: &RunPlan, 
         }
         let n_spp = next_spp - spp;
         let n_time = match (next_time, cpu_per_spp) {
-            (Some(target), Some(rate)) if rate > 0.0 => ((0.8 * (target - cpu) / rate).floor() as u64).max(1),
+            (Some(target), Some(rate)) if rate > 0.0 => {
+                ((0.8 * (target - cpu) / rate).floor() as u64).max(1)
+            }
             (Some(_), _) => 1,
             (None, _) => u64::MAX,
         };
@@ -149,7 +163,12 @@ pub fn run<F: Field>(scene: &Scene<F>, integrator: &Integrator, plan: &RunPlan, 
             integrator: *integrator,
         };
         let c0 = cpu_seconds();
-        let r = render_with(scene, &settings, RenderControl { order, read_ahead_window, ..RenderControl::default() }, &|_, _| {});
+        let r = render_with(
+            scene,
+            &settings,
+            RenderControl { order, read_ahead_window, ..RenderControl::default() },
+            &|_, _| {},
+        );
         let pass_cpu = cpu_seconds() - c0;
         accumulate(&mut sums, &r.film);
         counters.merge(&r.counters);
@@ -161,9 +180,21 @@ pub fn run<F: Field>(scene: &Scene<F>, integrator: &Integrator, plan: &RunPlan, 
             spp_points.push(snapshot(&sums, spp, cpu, wall));
         }
         while plan.cpu_checkpoints.get(time_points.len()).is_some_and(|&t| cpu >= t) {
-            let s = spp_points.last().filter(|s| s.spp == spp).copied().unwrap_or_else(|| snapshot(&sums, spp, cpu, wall));
+            let s = spp_points
+                .last()
+                .filter(|s| s.spp == spp)
+                .copied()
+                .unwrap_or_else(|| snapshot(&sums, spp, cpu, wall));
             time_points.push(s);
         }
     }
-    RunResult { time_points, spp_points, image: average(&sums, spp), sums, spp, cpu_seconds: cpu, counters }
+    RunResult {
+        time_points,
+        spp_points,
+        image: average(&sums, spp),
+        sums,
+        spp,
+        cpu_seconds: cpu,
+        counters,
+    }
 }

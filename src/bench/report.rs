@@ -84,10 +84,22 @@ pub struct Budgets {
 impl Budgets {
     /// The full form: budgets × 1, a 256³ explosion, every section that runs from the
     /// binary.
-    pub const FULL: Budgets = Budgets { quick: false, time_scale: 1.0, resolution: 256, core_resolution: 256, demo: true };
+    pub const FULL: Budgets = Budgets {
+        quick: false,
+        time_scale: 1.0,
+        resolution: 256,
+        core_resolution: 256,
+        demo: true,
+    };
     /// The quick form: budgets × [`QUICK_TIME_SCALE`], a 128³ explosion, no README demo;
     /// under 20 minutes of wall time on 2 cores.
-    pub const QUICK: Budgets = Budgets { quick: true, time_scale: QUICK_TIME_SCALE, resolution: 128, core_resolution: 128, demo: false };
+    pub const QUICK: Budgets = Budgets {
+        quick: true,
+        time_scale: QUICK_TIME_SCALE,
+        resolution: 128,
+        core_resolution: 128,
+        demo: false,
+    };
 
     /// The quick form or the full one.
     #[must_use]
@@ -178,7 +190,14 @@ impl Suite<'_> {
 
     /// The `plume bench compare` command that reproduces a comparison of `scene_file`;
     /// with `name`, it writes its files beside the report's.
-    fn compare_command(&self, scene_file: &Path, methods: &str, curve_points: u32, reference: &RefArg<'_>, name: Option<&str>) -> String {
+    fn compare_command(
+        &self,
+        scene_file: &Path,
+        methods: &str,
+        curve_points: u32,
+        reference: &RefArg<'_>,
+        name: Option<&str>,
+    ) -> String {
         let mut c = format!(
             "plume bench compare {} --methods {methods} --time {} --runs {RUNS} --curve-points {curve_points}",
             scene_file.display(),
@@ -189,7 +208,12 @@ impl Suite<'_> {
                 let _ = write!(c, " --make-reference --reference-time {}", arg(*s));
             }
             RefArg::MakeAndSave(s, p) => {
-                let _ = write!(c, " --make-reference --reference-time {} --save-reference {}", arg(*s), p.display());
+                let _ = write!(
+                    c,
+                    " --make-reference --reference-time {} --save-reference {}",
+                    arg(*s),
+                    p.display()
+                );
             }
             RefArg::Given(p) => {
                 let _ = write!(c, " --reference {}", p.display());
@@ -206,14 +230,25 @@ impl Suite<'_> {
     /// `keys` are fragments applied in order (each may name the same tables).
     fn scene(&mut self, name: &str, spec: &str, keys: &[&str]) -> Result<(BenchScene, PathBuf)> {
         let (shot, path, _) = self.write_scene(name, spec, keys)?;
-        let summary = keys.iter().flat_map(|k| k.lines()).map(str::trim).filter(|l| !l.is_empty()).collect::<Vec<_>>().join(" ");
+        let summary = keys
+            .iter()
+            .flat_map(|k| k.lines())
+            .map(str::trim)
+            .filter(|l| !l.is_empty())
+            .collect::<Vec<_>>()
+            .join(" ");
         Ok((load(shot, vec![summary], &self.args.work_dir)?, path))
     }
 
     /// The shot of `spec` with the fragments `keys`, written as the scene file
     /// `DIR/bench/scenes/NAME.toml` (its volume file as seen from there); returns the shot,
     /// the file and its text.
-    fn write_scene(&self, name: &str, spec: &str, keys: &[&str]) -> Result<(plume_scene::Shot, PathBuf, String)> {
+    fn write_scene(
+        &self,
+        name: &str,
+        spec: &str,
+        keys: &[&str],
+    ) -> Result<(plume_scene::Shot, PathBuf, String)> {
         let mut shot = bench_shot(spec);
         for k in keys {
             shot = with_keys(&shot, k)?;
@@ -224,16 +259,23 @@ impl Suite<'_> {
         let mut written = shot.clone();
         let up: PathBuf = dir.components().map(|_| "..").collect();
         if !spec.starts_with("explosion:") && Path::new(spec).is_relative() {
-            written.scene.volume.file = if dir.is_relative() { up.join(spec) } else { self.args.working_dir.join(spec) };
+            written.scene.volume.file =
+                if dir.is_relative() { up.join(spec) } else { self.args.working_dir.join(spec) };
         }
-        std::fs::create_dir_all(&dir).map_err(|source| Error::Write { path: dir.clone(), source })?;
+        std::fs::create_dir_all(&dir)
+            .map_err(|source| Error::Write { path: dir.clone(), source })?;
         let text = to_toml_as_is(&written)?;
         let path = dir.join(format!("{name}.toml"));
         plume_core::fs::write_atomic(&path, |w| std::io::Write::write_all(w, text.as_bytes()))?;
         Ok((shot, path, text))
     }
 
-    fn config(&self, scene: &BenchScene, methods: &str, curve_points: u32) -> Result<CompareConfig> {
+    fn config(
+        &self,
+        scene: &BenchScene,
+        methods: &str,
+        curve_points: u32,
+    ) -> Result<CompareConfig> {
         Ok(CompareConfig {
             methods: parse_methods(methods, scene.shot.scene.integrator.kappa)?,
             cpu_seconds: self.seconds(RUN_SECONDS),
@@ -266,12 +308,19 @@ impl Suite<'_> {
         let files = report.write(&self.bench_dir(), name, crops)?;
         // Plots live in img/, tables in bench/
         let img = self.args.out.join("img");
-        std::fs::create_dir_all(&img).map_err(|source| Error::Write { path: img.clone(), source })?;
+        std::fs::create_dir_all(&img)
+            .map_err(|source| Error::Write { path: img.clone(), source })?;
         for f in &files[2..] {
             let to = img.join(f.file_name().unwrap_or_default());
             std::fs::rename(f, &to).map_err(|source| Error::Write { path: to.clone(), source })?;
         }
-        let command = self.compare_command(scene_file, methods, CURVE_POINTS, &RefArg::Make(reference_seconds), Some(name));
+        let command = self.compare_command(
+            scene_file,
+            methods,
+            CURVE_POINTS,
+            &RefArg::Make(reference_seconds),
+            Some(name),
+        );
         let md = &mut self.md;
         let _ = writeln!(md, "## {title}\n\n{intro}\n");
         let _ = writeln!(md, "{}\n", report.setup());
@@ -282,10 +331,21 @@ impl Suite<'_> {
             report.runs,
             report.equal_time_table()
         );
-        let _ = writeln!(md, "**Equal spp** ({} spp, the largest power of two every run reached):\n\n{}", report.equal_spp, report.equal_spp_table());
+        let _ = writeln!(
+            md,
+            "**Equal spp** ({} spp, the largest power of two every run reached):\n\n{}",
+            report.equal_spp,
+            report.equal_spp_table()
+        );
         let _ = writeln!(md, "**Cost of the light structures** (built once per method, outside the render budget):\n\n{}", report.cost_table());
-        let _ = writeln!(md, "All three tables, and the files linked below:\n\n```sh\n{command}\n```\n");
-        let best = report.methods.iter().max_by(|a, b| report.efficiency(a).total_cmp(&report.efficiency(b)));
+        let _ = writeln!(
+            md,
+            "All three tables, and the files linked below:\n\n```sh\n{command}\n```\n"
+        );
+        let best = report
+            .methods
+            .iter()
+            .max_by(|a, b| report.efficiency(a).total_cmp(&report.efficiency(b)));
         if let Some(b) = best {
             let _ = writeln!(
                 md,
@@ -298,7 +358,9 @@ impl Suite<'_> {
         let growing: Vec<&str> = report
             .methods
             .iter()
-            .filter(|m| m.curve.len() > 1 && m.curve[m.curve.len() - 1].relmse.mean > m.curve[0].relmse.mean)
+            .filter(|m| {
+                m.curve.len() > 1 && m.curve[m.curve.len() - 1].relmse.mean > m.curve[0].relmse.mean
+            })
             .map(|m| m.method.as_str())
             .collect();
         if !growing.is_empty() {
@@ -334,13 +396,17 @@ fn ratio_line(regime: &str, r: &CompareReport) -> String {
             let paper = PAPER_RATIO.iter().find(|x| x.0 == regime).map_or(f64::NAN, |x| x.1);
             // Remove the reference's own noise from both MSEs (E[RMSE²] = MSE + MSE_ref)
             let floor = r.reference.noise_rmse.unwrap_or(0.0).powi(2);
-            let corrected = ((f.equal_time.rmse.mean.powi(2) - floor).max(0.0) / (p.equal_time.rmse.mean.powi(2) - floor).max(f64::MIN_POSITIVE)).sqrt();
+            let corrected = ((f.equal_time.rmse.mean.powi(2) - floor).max(0.0)
+                / (p.equal_time.rmse.mean.powi(2) - floor).max(f64::MIN_POSITIVE))
+            .sqrt();
             format!(
                 "| {regime} | {:.3} ± {:.3} | {corrected:.3} | {:.3} | {:.2}× | {} vs {} | {:.3} |",
                 f.equal_time.rmse.mean / p.equal_time.rmse.mean,
                 // Spread of the ratio from the relative spreads (independent runs)
                 (f.equal_time.rmse.mean / p.equal_time.rmse.mean)
-                    * ((f.equal_time.rmse.std / f.equal_time.rmse.mean).powi(2) + (p.equal_time.rmse.std / p.equal_time.rmse.mean).powi(2)).sqrt(),
+                    * ((f.equal_time.rmse.std / f.equal_time.rmse.mean).powi(2)
+                        + (p.equal_time.rmse.std / p.equal_time.rmse.mean).powi(2))
+                    .sqrt(),
                 f.equal_spp.rmse.mean / p.equal_spp.rmse.mean,
                 r.efficiency(f) / r.efficiency(p),
                 pm_count(&f.equal_time.spp),
@@ -361,17 +427,28 @@ fn ratio_line(regime: &str, r: &CompareReport) -> String {
 pub fn run(args: &ReportOptions) -> Result<()> {
     let b = args.budgets;
     if !(b.time_scale.is_finite() && b.time_scale > 0.0) {
-        return Err(Error::invalid("--time-scale", format!("{} must be a positive number", b.time_scale)));
+        return Err(Error::invalid(
+            "--time-scale",
+            format!("{} must be a positive number", b.time_scale),
+        ));
     }
     if !(8..=4096).contains(&b.resolution) {
         return Err(Error::invalid("--resolution", format!("{} must be 8 to 4096", b.resolution)));
     }
     for dir in [args.out.join("bench").join("scenes"), args.out.join("img")] {
-        std::fs::create_dir_all(&dir).map_err(|source| Error::Write { path: dir.clone(), source })?;
+        std::fs::create_dir_all(&dir)
+            .map_err(|source| Error::Write { path: dir.clone(), source })?;
     }
     let start = Instant::now();
     let log = |l: &str| log::info!("{l}");
-    let mut suite = Suite { args, md: String::new(), skipped: Vec::new(), references: Vec::new(), measured: Vec::new(), log: &log };
+    let mut suite = Suite {
+        args,
+        md: String::new(),
+        skipped: Vec::new(),
+        references: Vec::new(),
+        measured: Vec::new(),
+        log: &log,
+    };
     core_section(&mut suite)?;
     let headline = explosion_sections(&mut suite)?;
     real_file_sections(&mut suite)?;
@@ -384,7 +461,12 @@ pub fn run(args: &ReportOptions) -> Result<()> {
     suite.md.push_str(OUT_OF_CORE);
     suite.md.push_str(CYCLES);
     suite.md.push_str(&ideas_section());
-    let document = format!("{}{}{}", header(args, &suite.skipped, start.elapsed().as_secs_f64()), headline, suite.md);
+    let document = format!(
+        "{}{}{}",
+        header(args, &suite.skipped, start.elapsed().as_secs_f64()),
+        headline,
+        suite.md
+    );
     let path = args.out.join("BENCHMARKS.md");
     plume_core::fs::write_atomic(&path, |w| std::io::Write::write_all(w, document.as_bytes()))?;
     for problem in history(&document) {
@@ -423,13 +505,22 @@ fn explosion_sections(suite: &mut Suite<'_>) -> Result<String> {
     for (regime, r) in &regimes {
         let _ = writeln!(md, "{}", ratio_line(regime, r));
     }
-    let _ = writeln!(md, "\nFrom the thin and the dense sections' runs:\n\n```sh\n{}\n```\n", commands.join("\n"));
+    let _ = writeln!(
+        md,
+        "\nFrom the thin and the dense sections' runs:\n\n```sh\n{}\n```\n",
+        commands.join("\n")
+    );
     let _ = writeln!(md, "The paper's ratios are from the authors' slides (METHOD.md §9: thin 0.748/0.983 at 48 vs 43 spp, dense 0.572/0.892 at 196 vs 73 spp), on their explosion and machine with 10 and 30 minute budgets; ours are seconds on a generated explosion, so compare directions and orders, not digits.\n");
     Ok(md)
 }
 
 /// The FNEE proxy-resolution sweep on the dense explosion, against its reference.
-fn proxy_sweep(suite: &mut Suite<'_>, scene: (&mut BenchScene, &Path), reference: &Reference, reference_seconds: f64) -> Result<()> {
+fn proxy_sweep(
+    suite: &mut Suite<'_>,
+    scene: (&mut BenchScene, &Path),
+    reference: &Reference,
+    reference_seconds: f64,
+) -> Result<()> {
     let res = suite.args.budgets.resolution;
     let mut proxies = Vec::new();
     let mut p = 8;
@@ -465,15 +556,24 @@ fn proxy_sweep(suite: &mut Suite<'_>, scene: (&mut BenchScene, &Path), reference
                 "proxy cells per axis",
                 "RMSE",
                 vec![
-                    Series { label: "equal CPU time".into(), points: pts(&|m| (m.equal_time.rmse.mean, m.equal_time.rmse.std)) },
-                    Series { label: format!("equal spp ({})", sweep.equal_spp), points: pts(&|m| (m.equal_spp.rmse.mean, m.equal_spp.rmse.std)) },
+                    Series {
+                        label: "equal CPU time".into(),
+                        points: pts(&|m| (m.equal_time.rmse.mean, m.equal_time.rmse.std)),
+                    },
+                    Series {
+                        label: format!("equal spp ({})", sweep.equal_spp),
+                        points: pts(&|m| (m.equal_spp.rmse.mean, m.equal_spp.rmse.std)),
+                    },
                 ],
             ),
             (
                 "Cost vs proxy resolution",
                 "proxy cells per axis",
                 "samples per CPU second",
-                vec![Series { label: "samples / CPU s".into(), points: pts(&|m| (m.samples_per_cpu_second.mean, m.samples_per_cpu_second.std)) }],
+                vec![Series {
+                    label: "samples / CPU s".into(),
+                    points: pts(&|m| (m.samples_per_cpu_second.mean, m.samples_per_cpu_second.std)),
+                }],
             ),
         ],
         440,

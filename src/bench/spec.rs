@@ -15,9 +15,9 @@
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
+use crate::load::{load_scene, LoadedScene};
 use plume_core::error::{Error, Result};
 use plume_engine::integrator::LightSampling;
-use crate::load::{load_scene, LoadedScene};
 use plume_engine::medium::Estimator;
 use plume_scene::Shot;
 
@@ -91,7 +91,10 @@ fn parse_method(raw: &str, kappa: f64) -> Result<MethodSpec> {
         }
     };
     if proxy.is_some() && light_sampling != LightSampling::Fnee {
-        return Err(Error::invalid("--methods", format!("{raw:?}: @PROXY applies to FNEE methods only")));
+        return Err(Error::invalid(
+            "--methods",
+            format!("{raw:?}: @PROXY applies to FNEE methods only"),
+        ));
     }
     Ok(MethodSpec { name: raw.to_string(), estimator, light_sampling, proxy_resolution: proxy })
 }
@@ -121,9 +124,15 @@ static GENERATED: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
 /// A malformed `explosion:` spec, or the explosion cannot be written.
 pub fn scene_file(spec: &str, work_dir: &Path) -> Result<PathBuf> {
     // A spec read from a scene file has that file's directory in front
-    let name = Path::new(spec).file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let name =
+        Path::new(spec).file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
     let Some(rest) = name.strip_prefix("explosion:") else { return Ok(PathBuf::from(spec)) };
-    let bad = || Error::invalid("SCENE", format!("{spec:?}: expected explosion:RESOLUTION[:SEED], e.g. explosion:256"));
+    let bad = || {
+        Error::invalid(
+            "SCENE",
+            format!("{spec:?}: expected explosion:RESOLUTION[:SEED], e.g. explosion:256"),
+        )
+    };
     let mut parts = rest.split(':');
     let resolution: u32 = parts.next().ok_or_else(bad)?.parse().map_err(|_| bad())?;
     let seed: u64 = match parts.next() {
@@ -134,9 +143,11 @@ pub fn scene_file(spec: &str, work_dir: &Path) -> Result<PathBuf> {
         return Err(bad());
     }
     let path = work_dir.join(format!("explosion-{resolution}-seed{seed}.vdb"));
-    let mut done = GENERATED.lock().map_err(|_| Error::Scene("bench: generator lock poisoned".into()))?;
+    let mut done =
+        GENERATED.lock().map_err(|_| Error::Scene("bench: generator lock poisoned".into()))?;
     if !done.contains(&path) {
-        std::fs::create_dir_all(work_dir).map_err(|source| Error::Write { path: work_dir.to_path_buf(), source })?;
+        std::fs::create_dir_all(work_dir)
+            .map_err(|source| Error::Write { path: work_dir.to_path_buf(), source })?;
         let params = plume_synth::ExplosionParams { resolution, seed, ..Default::default() };
         let ex = plume_synth::explosion(&params);
         // With its velocity, as `plume synth explosion` writes it (`--velocity-grid velocity`)
@@ -170,7 +181,12 @@ pub fn load_file(shot: Shot, flags: Vec<String>) -> Result<BenchScene> {
 }
 
 /// Validate and load `shot` (its volume file a file now), started at `t`.
-fn load_from(shot: Shot, spec: String, flags: Vec<String>, t: std::time::Instant) -> Result<BenchScene> {
+fn load_from(
+    shot: Shot,
+    spec: String,
+    flags: Vec<String>,
+    t: std::time::Instant,
+) -> Result<BenchScene> {
     let shot = shot.validate()?.into_inner();
     let loaded = load_scene(&shot.scene, &shot.scene.volume.file, &shot.settings, None)?;
     Ok(BenchScene { shot, loaded, spec, flags, load_seconds: t.elapsed().as_secs_f64() })
@@ -198,7 +214,9 @@ mod tests {
         assert_eq!((m[1].estimator, m[1].light_sampling), (Estimator::Line, LightSampling::None));
         assert_eq!(m[2].estimator, Estimator::Blend { kappa: 4.0 });
         assert_eq!(m[3].proxy_resolution, Some(16));
-        for bad in ["", "line", "line+sun", "fast", "point-nee@16", "line-fnee@x", "line-fnee,line-fnee"] {
+        for bad in
+            ["", "line", "line+sun", "fast", "point-nee@16", "line-fnee@x", "line-fnee,line-fnee"]
+        {
             assert!(parse_methods(bad, 4.0).is_err(), "{bad:?}");
         }
     }

@@ -14,19 +14,21 @@ use std::time::{Duration, Instant};
 
 use glam::IVec3;
 
+use crate::load::bind::{emission_kind, grid_requests, reader, unit_emission_model, FileReader};
+use crate::vdb::{FileStamp, GridSelector, LeafData, ReadIsolation, ReadLimits, StreamedGrid};
+use plume_core::error::{Error, Result};
+use plume_engine::integrator::{light_power, LightSampling};
+use plume_engine::medium::EmissionKind;
+use plume_engine::stats::GIB;
+use plume_scene::NeeTable;
+use plume_scene::{
+    EmissionSettings, EmissionSource, JobSettings, ReadSettings, SceneDescription, VolumeInput,
+};
+use plume_volume::brick::{brick_of, check_same_transform, table_dims, Channel, Slot};
 use plume_volume::out_of_core::format::InputFingerprint;
 use plume_volume::out_of_core::lock::{Acquired, CacheLock};
 use plume_volume::out_of_core::reader::Cache;
 use plume_volume::out_of_core::writer::{CacheInfo, CacheWriter, ProxySpec};
-use plume_core::error::{Error, Result};
-use plume_engine::integrator::{light_power, LightSampling};
-use plume_engine::medium::EmissionKind;
-use crate::load::bind::{emission_kind, grid_requests, reader, unit_emission_model, FileReader};
-use plume_scene::NeeTable;
-use plume_scene::{EmissionSettings, EmissionSource, JobSettings, ReadSettings, SceneDescription, VolumeInput};
-use plume_engine::stats::GIB;
-use crate::vdb::{FileStamp, GridSelector, LeafData, ReadIsolation, ReadLimits, StreamedGrid};
-use plume_volume::brick::{brick_of, check_same_transform, table_dims, Channel, Slot};
 use plume_volume::Volume;
 
 /// What a conversion wrote.
@@ -71,7 +73,12 @@ const HEADER_ONLY: &str = "plume: header probe";
 
 /// The header of grid `selector` in `file` (its topology is read, no values), or `None`
 /// when the file has no such grid.
-fn probe(isolation: &ReadIsolation, file: &Path, selector: &GridSelector, limits: &ReadLimits) -> Result<Option<StreamedGrid>> {
+fn probe(
+    isolation: &ReadIsolation,
+    file: &Path,
+    selector: &GridSelector,
+    limits: &ReadLimits,
+) -> Result<Option<StreamedGrid>> {
     let mut header = None;
     let result = isolation.stream_float_grid(
         file,
@@ -122,7 +129,8 @@ pub fn convert(file: &Path, what: &Conversion<'_>, out: &Path) -> Result<Convert
     // garbage (OpenVDB reads the zeros past a new end), and a conversion that succeeded
     // may hold leaves of two versions: either way the file failed under plume (exit code
     // 4). Errors of the output (a full disk) stay what they are.
-    let input_error = result.as_ref().err().is_none_or(|e| e.exit_code() == plume_core::error::exit::INPUT);
+    let input_error =
+        result.as_ref().err().is_none_or(|e| e.exit_code() == plume_core::error::exit::INPUT);
     match before.and_then(|b| b.change(file)) {
         Some(change) if input_error => {
             if let Ok(c) = &result {
@@ -158,7 +166,8 @@ fn convert_unchecked(file: &Path, what: &Conversion<'_>, out: &Path) -> Result<C
         chosen.push(found);
     }
     let mut chosen = chosen.into_iter();
-    let (_, density_sel, density) = chosen.next().flatten().expect("invariant: the density request is required");
+    let (_, density_sel, density) =
+        chosen.next().flatten().expect("invariant: the density request is required");
     let source = if source_kind == EmissionSource::None { None } else { chosen.next().flatten() };
     let albedo = chosen.next().flatten();
     let kind = emission_kind(source_kind, source.as_ref().map(|f| f.0));
@@ -180,7 +189,11 @@ fn convert_unchecked(file: &Path, what: &Conversion<'_>, out: &Path) -> Result<C
             hi = hi.max(brick_of(b));
         }
     }
-    let (lo, dims) = if lo.x > hi.x { (IVec3::ZERO, IVec3::ZERO) } else { (lo, table_dims(lo, hi, &density.name)?) };
+    let (lo, dims) = if lo.x > hi.x {
+        (IVec3::ZERO, IVec3::ZERO)
+    } else {
+        (lo, table_dims(lo, hi, &density.name)?)
+    };
     let mut writer = CacheWriter::create(out, w, lo, dims, &density.name)?;
     let mut backgrounds = [None; 3];
     let mut names: [Option<String>; 3] = Default::default();
@@ -189,10 +202,16 @@ fn convert_unchecked(file: &Path, what: &Conversion<'_>, out: &Path) -> Result<C
         let map = |v: f32| if channel == Channel::Source { emission.map_source(v) } else { v };
         backgrounds[i] = Some(map(header.background));
         names[i] = Some(header.name.clone());
-        isolation.stream_float_grid(file, &sel, &limits, &mut |_| Ok(()), &mut |origin, data| match data {
-            LeafData::Values(values) => writer.put(brick_of(origin), channel, values, map),
-            LeafData::Constant(v) => writer.put_constant(brick_of(origin), channel, map(v)),
-        })?;
+        isolation.stream_float_grid(
+            file,
+            &sel,
+            &limits,
+            &mut |_| Ok(()),
+            &mut |origin, data| match data {
+                LeafData::Values(values) => writer.put(brick_of(origin), channel, values, map),
+                LeafData::Constant(v) => writer.put_constant(brick_of(origin), channel, map(v)),
+            },
+        )?;
     }
     let [density_grid, source_grid, albedo_grid] = names;
     let info = CacheInfo {
@@ -205,7 +224,11 @@ fn convert_unchecked(file: &Path, what: &Conversion<'_>, out: &Path) -> Result<C
         backgrounds: [backgrounds[0], Some(backgrounds[1].unwrap_or(0.0)), backgrounds[2]],
     };
     let power = light_power(&emission);
-    let proxy = (kind != EmissionKind::None).then(|| ProxySpec { resolution: proxy_resolution, power_key: emission.light_key(), power: &power });
+    let proxy = (kind != EmissionKind::None).then(|| ProxySpec {
+        resolution: proxy_resolution,
+        power_key: emission.light_key(),
+        power: &power,
+    });
     let path = writer.finish(&info, proxy)?;
     let bytes = std::fs::metadata(&path).map(|m| m.len()).unwrap_or(0);
     Ok(Converted { path, bytes, seconds: start.elapsed().as_secs_f64() })
@@ -216,7 +239,11 @@ fn convert_unchecked(file: &Path, what: &Conversion<'_>, out: &Path) -> Result<C
 ///
 /// # Errors
 /// [`Error::InvalidArgument`] naming the key that disagrees with the cache.
-pub fn check_description(cache: &Cache, grids: &VolumeInput, source: EmissionSource) -> Result<EmissionKind> {
+pub fn check_description(
+    cache: &Cache,
+    grids: &VolumeInput,
+    source: EmissionSource,
+) -> Result<EmissionKind> {
     let meta = &cache.meta;
     let stored = match meta.emission_kind.as_str() {
         "blackbody" => EmissionKind::Blackbody,
@@ -239,7 +266,10 @@ pub fn check_description(cache: &Cache, grids: &VolumeInput, source: EmissionSou
     if grids.density_grid != "density" && grids.density_grid != meta.density_grid {
         return Err(Error::invalid(
             "volume.density_grid",
-            format!("{path} holds density grid {:?}, not {:?}; prepare it again with this density grid", meta.density_grid, grids.density_grid),
+            format!(
+                "{path} holds density grid {:?}, not {:?}; prepare it again with this density grid",
+                meta.density_grid, grids.density_grid
+            ),
         ));
     }
     if let Some(a) = &grids.albedo_grid {
@@ -281,7 +311,13 @@ pub fn check_not_stale(cache: &Cache) -> Result<()> {
     let Some(input) = &cache.meta.input else { return Ok(()) };
     let Ok(now) = fingerprint(Path::new(&input.path)) else { return Ok(()) };
     if now.size != input.size || now.mtime_ns != input.mtime_ns {
-        return Err(Error::Cache { path: cache.path.clone(), what: format!("stale: {} changed since it was prepared; run `plume prepare` again", input.path) });
+        return Err(Error::Cache {
+            path: cache.path.clone(),
+            what: format!(
+                "stale: {} changed since it was prepared; run `plume prepare` again",
+                input.path
+            ),
+        });
     }
     Ok(())
 }
@@ -290,17 +326,28 @@ pub fn check_not_stale(cache: &Cache) -> Result<()> {
 ///
 /// # Errors
 /// [`Error::InvalidArgument`] for `render.memory_budget`, with the way out.
-pub fn check_light_budget(volume: &Volume, light_sampling: LightSampling, table: NeeTable, budget: u64) -> Result<()> {
+pub fn check_light_budget(
+    volume: &Volume,
+    light_sampling: LightSampling,
+    table: NeeTable,
+    budget: u64,
+) -> Result<()> {
     if light_sampling != LightSampling::Nee {
         return Ok(());
     }
-    let emitting_bricks: u64 = volume.bricks.iter().map(|b| u64::from(!matches!(b.source.get(), Slot::Constant(s) if s == 0.0))).sum();
+    let emitting_bricks: u64 = volume
+        .bricks
+        .iter()
+        .map(|b| u64::from(!matches!(b.source.get(), Slot::Constant(s) if s == 0.0)))
+        .sum();
     // A brick table: an alias slot, a cell and a power per emitting brick (light::nee_bricks)
     let brick_table = emitting_bricks * 32;
     // A voxel table: an alias slot and index per emitting voxel, a record per brick, a table
     let emitting_voxels = emitting_bricks * 512;
     let needed = match table {
-        NeeTable::Voxel => emitting_voxels * 24 + volume.table.len() as u64 * 4 + volume.bricks.len() as u64 * 16,
+        NeeTable::Voxel => {
+            emitting_voxels * 24 + volume.table.len() as u64 * 4 + volume.bricks.len() as u64 * 16
+        }
         NeeTable::Brick => brick_table,
     };
     if needed > budget {
@@ -344,7 +391,11 @@ fn auto_cache_name(scene: &SceneDescription, input: &Path) -> String {
     );
     let hash = Sha256::digest(key.as_bytes());
     let tag: String = hash[..6].iter().map(|b| format!("{b:02x}")).collect();
-    format!("{}.{tag}.{}", input.file_name().map_or_else(|| "input".into(), |n| n.to_string_lossy()), super::EXTENSION)
+    format!(
+        "{}.{tag}.{}",
+        input.file_name().map_or_else(|| "input".into(), |n| n.to_string_lossy()),
+        super::EXTENSION
+    )
 }
 
 /// A directory an automatic cache may live in, and how the user knows it.
@@ -361,7 +412,8 @@ fn cache_places(input: &Path, settings: &JobSettings) -> Vec<Place> {
     if let Some(dir) = &settings.render.cache_dir {
         return vec![Place { dir: dir.clone(), what: "render.cache_dir" }];
     }
-    let mut places = vec![Place { dir: plume_core::fs::parent_dir(input), what: "beside the input" }];
+    let mut places =
+        vec![Place { dir: plume_core::fs::parent_dir(input), what: "beside the input" }];
     if let Some(user) = &settings.render.user_cache_dir {
         places.push(Place { dir: user.clone(), what: "$XDG_CACHE_HOME/plume" });
     }
@@ -411,7 +463,12 @@ fn writable(dir: &Path, path: &Path) -> std::io::Result<()> {
 /// code 4); [`Error::Interrupted`] for a signal while waiting for another converter;
 /// [`Error::CacheLocked`] (exit code 4) when it waited in vain and the file does not fit
 /// the memory budget.
-pub fn auto_cache(scene: &SceneDescription, input: &Path, settings: &JobSettings, budget: u64) -> Result<Option<Cache>> {
+pub fn auto_cache(
+    scene: &SceneDescription,
+    input: &Path,
+    settings: &JobSettings,
+    budget: u64,
+) -> Result<Option<Cache>> {
     let Ok(meta) = std::fs::metadata(input) else { return Ok(None) };
     if meta.len().saturating_mul(4) <= budget {
         return Ok(None);
@@ -433,7 +490,9 @@ pub fn auto_cache(scene: &SceneDescription, input: &Path, settings: &JobSettings
             Err(e) => refused.push((place, e)),
         }
     }
-    let why = |(place, e): &(&Place, std::io::Error)| format!("{} ({}): {e}", place.dir.display(), place.what);
+    let why = |(place, e): &(&Place, std::io::Error)| {
+        format!("{} ({}): {e}", place.dir.display(), place.what)
+    };
     if settings.render.cache_dir.is_some() {
         let (place, e) = &refused[0];
         let message = format!(
@@ -441,7 +500,10 @@ pub fn auto_cache(scene: &SceneDescription, input: &Path, settings: &JobSettings
              as the file is larger than a quarter of the memory budget",
             input.display()
         );
-        return Err(Error::Write { path: place.dir.clone(), source: std::io::Error::new(e.kind(), message) });
+        return Err(Error::Write {
+            path: place.dir.clone(),
+            source: std::io::Error::new(e.kind(), message),
+        });
     }
     let nowhere = refused.iter().map(why).collect::<Vec<_>>().join("; ");
     let needed = in_core_bytes(scene, input, settings)?;
@@ -498,7 +560,14 @@ const LOCK_WAIT_BYTES_PER_SECOND: u64 = 10_000_000;
 /// Convert `input` to the automatic cache `path` (whose directory is writable), unless
 /// another process made it while this one waited for the lock. `None` when the lock
 /// stayed taken past [`lock_timeout`] and the file is read into memory instead.
-fn make_auto_cache(scene: &SceneDescription, input: &Path, settings: &JobSettings, path: &Path, input_bytes: u64, budget: u64) -> Result<Option<Cache>> {
+fn make_auto_cache(
+    scene: &SceneDescription,
+    input: &Path,
+    settings: &JobSettings,
+    path: &Path,
+    input_bytes: u64,
+    budget: u64,
+) -> Result<Option<Cache>> {
     let timeout = lock_timeout(settings, input_bytes);
     let at_most = (timeout.as_secs_f64() * 10.0).round() / 10.0;
     let waiting = format!("waiting for another process that is making the automatic cache {} (at most {at_most} s, render.cache_lock_timeout)", path.display());
@@ -513,7 +582,10 @@ fn make_auto_cache(scene: &SceneDescription, input: &Path, settings: &JobSetting
         }
     };
     if let Ok(Some(cache)) = open_auto(path) {
-        log::info!("using the automatic cache {}, which another process made meanwhile", path.display());
+        log::info!(
+            "using the automatic cache {}, which another process made meanwhile",
+            path.display()
+        );
         return Ok(Some(cache));
     }
     log::info!(
@@ -524,9 +596,19 @@ fn make_auto_cache(scene: &SceneDescription, input: &Path, settings: &JobSetting
         budget as f64 / GIB,
         path.display()
     );
-    let what = Conversion { volume: &scene.volume, emission: &scene.emission, reading: &settings.reading, proxy_resolution: scene.integrator.proxy_resolution };
+    let what = Conversion {
+        volume: &scene.volume,
+        emission: &scene.emission,
+        reading: &settings.reading,
+        proxy_resolution: scene.integrator.proxy_resolution,
+    };
     let c = convert(input, &what, path)?;
-    log::info!("wrote {} ({:.2} GiB) in {:.1} s", c.path.display(), c.bytes as f64 / GIB, c.seconds);
+    log::info!(
+        "wrote {} ({:.2} GiB) in {:.1} s",
+        c.path.display(),
+        c.bytes as f64 / GIB,
+        c.seconds
+    );
     let mut cache = Cache::open(&c.path)?;
     cache.check.remove_on_failure();
     Ok(Some(cache))
@@ -535,7 +617,15 @@ fn make_auto_cache(scene: &SceneDescription, input: &Path, settings: &JobSetting
 /// After waiting `waited` in vain for the `lock` of the automatic cache `path`: `Ok` (with
 /// a warning) when `input` read into memory fits the memory `budget`, so the frame is
 /// rendered without the cache; the error otherwise.
-fn locked_out(scene: &SceneDescription, input: &Path, settings: &JobSettings, path: &Path, lock: &Path, waited: Duration, budget: u64) -> Result<()> {
+fn locked_out(
+    scene: &SceneDescription,
+    input: &Path,
+    settings: &JobSettings,
+    path: &Path,
+    lock: &Path,
+    waited: Duration,
+    budget: u64,
+) -> Result<()> {
     let held = format!(
         "another process has held this lock for {:.1} s (render.cache_lock_timeout) while making the automatic brick cache {}",
         waited.as_secs_f64(),

@@ -9,15 +9,15 @@ use std::time::Instant;
 use rayon::prelude::*;
 
 use super::convert::{kind_name, Converted};
-use plume_volume::out_of_core::writer::{CacheInfo, CacheWriter, ProxySpec};
+use crate::load::bind::unit_emission_model;
 use plume_core::error::Result;
 use plume_engine::integrator::light_power;
 use plume_engine::medium::EmissionKind;
-use crate::load::bind::unit_emission_model;
 use plume_scene::EmissionSettings;
 use plume_synth::Flare;
-use plume_volume::grid::LEAF_VOXELS;
 use plume_volume::brick::Channel;
+use plume_volume::grid::LEAF_VOXELS;
+use plume_volume::out_of_core::writer::{CacheInfo, CacheWriter, ProxySpec};
 
 /// One generated brick: coordinate, density and temperature in leaf order.
 type GeneratedBrick = (glam::IVec3, Box<[f32; LEAF_VOXELS]>, Box<[f32; LEAF_VOXELS]>);
@@ -28,17 +28,24 @@ type GeneratedBrick = (glam::IVec3, Box<[f32; LEAF_VOXELS]>, Box<[f32; LEAF_VOXE
 ///
 /// # Errors
 /// Write errors.
-pub fn write_flare(flare: &Flare, out: &Path, proxy_resolution: Option<u32>, progress: &dyn Fn(u64, i32, i32)) -> Result<Converted> {
+pub fn write_flare(
+    flare: &Flare,
+    out: &Path,
+    proxy_resolution: Option<u32>,
+    progress: &dyn Fn(u64, i32, i32),
+) -> Result<Converted> {
     let start = Instant::now();
     let emission = unit_emission_model(&EmissionSettings::default(), EmissionKind::Blackbody)?;
     let dims = flare.brick_dims();
-    let mut writer = CacheWriter::create(out, flare.world_from_index(), glam::IVec3::ZERO, dims, "density")?;
+    let mut writer =
+        CacheWriter::create(out, flare.world_from_index(), glam::IVec3::ZERO, dims, "density")?;
     for bz in 0..dims.z {
         let bricks: Vec<GeneratedBrick> = flare
             .bricks_in_slab(bz)
             .into_par_iter()
             .filter_map(|b| {
-                let (mut d, mut t) = (Box::new([0.0f32; LEAF_VOXELS]), Box::new([0.0f32; LEAF_VOXELS]));
+                let (mut d, mut t) =
+                    (Box::new([0.0f32; LEAF_VOXELS]), Box::new([0.0f32; LEAF_VOXELS]));
                 flare.fill_brick(b, &mut d, &mut t).then_some((b, d, t))
             })
             .collect();
@@ -58,7 +65,8 @@ pub fn write_flare(flare: &Flare, out: &Path, proxy_resolution: Option<u32>, pro
         backgrounds: [Some(0.0), Some(emission.map_source(0.0)), None],
     };
     let power = light_power(&emission);
-    let proxy = ProxySpec { resolution: proxy_resolution, power_key: emission.light_key(), power: &power };
+    let proxy =
+        ProxySpec { resolution: proxy_resolution, power_key: emission.light_key(), power: &power };
     let path = writer.finish(&info, Some(proxy))?;
     let bytes = std::fs::metadata(&path).map(|m| m.len()).unwrap_or(0);
     Ok(Converted { path, bytes, seconds: start.elapsed().as_secs_f64() })

@@ -7,4 +7,7 @@
 pub mod convert;
 pub mod generate;
 
-pub use plume_volume::out_of_core::{is_cache_path, Cache, CacheCheck, CacheInfo, CacheWriter, InputFingerprint, Meta, ProxySpec, EXTENSION};
+pub use plume_volume::out_of_core::{
+    is_cache_path, Cache, CacheCheck, CacheInfo, CacheWriter, InputFingerprint, Meta, ProxySpec,
+    EXTENSION,
+};

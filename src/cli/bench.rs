@@ -321,7 +321,12 @@ impl InterpolationArgs {
             cpu_seconds: self.time,
             repeats: self.repeats,
             threads: self.threads,
-            rule: RuleConfig { files: self.rule_files.clone(), width: self.rule_width, height: self.rule_height, step_voxels: self.rule_step },
+            rule: RuleConfig {
+                files: self.rule_files.clone(),
+                width: self.rule_width,
+                height: self.rule_height,
+                step_voxels: self.rule_step,
+            },
             closeup: self.pictures.as_ref().map(|path| CloseupConfig {
                 path: path.clone(),
                 file: PathBuf::from(plume::bench::interpolation::CLOSEUP_FILE),
@@ -367,7 +372,8 @@ pub struct ReportArgs {
 pub fn run(command: BenchCommand, _matches: Option<&ArgMatches>) -> Result<()> {
     match command {
         BenchCommand::Methods(args) => {
-            let regimes = plume::bench::methods::parse_regimes(&args.regimes).map_err(|e| rename(e, "regimes", "--regimes"))?;
+            let regimes = plume::bench::methods::parse_regimes(&args.regimes)
+                .map_err(|e| rename(e, "regimes", "--regimes"))?;
             let regimes: Vec<(&str, f64)> = regimes.iter().map(|(n, v)| (n.as_str(), *v)).collect();
             let report = plume::bench::methods::run(
                 args.resolution,
@@ -391,31 +397,47 @@ pub fn run(command: BenchCommand, _matches: Option<&ArgMatches>) -> Result<()> {
         }
         BenchCommand::Compare(args) => compare(&args),
         BenchCommand::Extremes(args) => {
-            let report =
-                ExtremesOptions { box_voxels: args.box_voxels, explosion_resolution: args.explosion_resolution, size: args.size, spp: args.spp, json: args.json }
-                    .run()?;
+            let report = ExtremesOptions {
+                box_voxels: args.box_voxels,
+                explosion_resolution: args.explosion_resolution,
+                size: args.size,
+                spp: args.spp,
+                json: args.json,
+            }
+            .run()?;
             print!("{}", report.table());
             report.verdict()
         }
         BenchCommand::Interpolation(args) => {
             if !(args.time.is_finite() && args.time > 0.0) {
-                return Err(Error::invalid("--time", format!("{} must be a positive number of CPU seconds", args.time)));
+                return Err(Error::invalid(
+                    "--time",
+                    format!("{} must be a positive number of CPU seconds", args.time),
+                ));
             }
             if !(args.closeup_pixels_per_voxel.is_finite() && args.closeup_pixels_per_voxel > 0.0) {
-                return Err(Error::invalid("--closeup-pixels-per-voxel", format!("{} must be positive", args.closeup_pixels_per_voxel)));
+                return Err(Error::invalid(
+                    "--closeup-pixels-per-voxel",
+                    format!("{} must be positive", args.closeup_pixels_per_voxel),
+                ));
             }
-            let markdown = InterpolationOptions { config: args.config(), json: args.json.clone() }.run()?;
+            let markdown =
+                InterpolationOptions { config: args.config(), json: args.json.clone() }.run()?;
             print!("{markdown}");
             Ok(())
         }
         BenchCommand::Flare(args) => flare(&args),
         BenchCommand::Demo(args) => {
-            for (flag, v) in [("--target-seconds", args.target_seconds), ("--target-rel-rmse", args.target_rel_rmse)] {
+            for (flag, v) in [
+                ("--target-seconds", args.target_seconds),
+                ("--target-rel-rmse", args.target_rel_rmse),
+            ] {
                 if !(v.is_finite() && v > 0.0) {
                     return Err(Error::invalid(flag, format!("{v} must be a positive number")));
                 }
             }
-            let exe = std::env::current_exe().map_err(|e| Error::Scene(format!("cannot find the plume binary: {e}")))?;
+            let exe = std::env::current_exe()
+                .map_err(|e| Error::Scene(format!("cannot find the plume binary: {e}")))?;
             let config = plume::bench::demo::DemoConfig {
                 exe,
                 scene: args.scene,
@@ -450,15 +472,29 @@ pub fn run(command: BenchCommand, _matches: Option<&ArgMatches>) -> Result<()> {
 fn flare(args: &FlareArgs) -> Result<()> {
     let cache = args.work_dir.join(format!("flare{}.plume", args.resolution));
     if !cache.exists() {
-        std::fs::create_dir_all(&args.work_dir).map_err(|e| Error::invalid("--work-dir", format!("{}: {e}", args.work_dir.display())))?;
+        std::fs::create_dir_all(&args.work_dir).map_err(|e| {
+            Error::invalid("--work-dir", format!("{}: {e}", args.work_dir.display()))
+        })?;
         eprintln!("plume: making {} (once)", cache.display());
-        super::files::synth_flare_command(&super::files::SynthFlareArgs { resolution: args.resolution, output: cache.clone(), seed: 1 })?;
+        super::files::synth_flare_command(&super::files::SynthFlareArgs {
+            resolution: args.resolution,
+            output: cache.clone(),
+            seed: 1,
+        })?;
     }
-    let mut render_flags: Vec<String> =
-        ["--nee-table", "brick", "--albedo", &args.albedo.to_string(), "--width", &args.width.to_string(), "--height", &args.height.to_string()]
-            .iter()
-            .map(ToString::to_string)
-            .collect();
+    let mut render_flags: Vec<String> = [
+        "--nee-table",
+        "brick",
+        "--albedo",
+        &args.albedo.to_string(),
+        "--width",
+        &args.width.to_string(),
+        "--height",
+        &args.height.to_string(),
+    ]
+    .iter()
+    .map(ToString::to_string)
+    .collect();
     render_flags.extend(args.render_flags.iter().cloned());
     let compare = CompareArgs {
         scene: cache.display().to_string(),
@@ -519,19 +555,35 @@ fn rename(e: Error, key: &str, flag: &str) -> Error {
 /// the `plume render` conversion (the output is a placeholder, never written).
 fn compare_scene(args: &CompareArgs) -> Result<plume::bench::spec::BenchScene> {
     let placeholder = std::env::temp_dir().join("plume-bench-unused.exr");
-    let mut argv: Vec<String> = vec!["plume".into(), "render".into(), args.scene.clone(), "-o".into(), placeholder.display().to_string()];
+    let mut argv: Vec<String> = vec![
+        "plume".into(),
+        "render".into(),
+        args.scene.clone(),
+        "-o".into(),
+        placeholder.display().to_string(),
+    ];
     argv.extend(args.render_flags.iter().cloned());
     let bad = |e: clap::Error| {
         let msg = e.to_string();
-        Error::invalid("render flags", msg.lines().next().unwrap_or_default().trim_start_matches("error: ").to_string())
+        Error::invalid(
+            "render flags",
+            msg.lines().next().unwrap_or_default().trim_start_matches("error: ").to_string(),
+        )
     };
     let matches = Cli::command().try_get_matches_from(&argv).map_err(bad)?;
     let cli = Cli::from_arg_matches(&matches).map_err(bad)?;
-    let Command::Render(render) = cli.command else { unreachable!("invariant: parsed a render command") };
+    let Command::Render(render) = cli.command else {
+        unreachable!("invariant: parsed a render command")
+    };
     let sub = matches.subcommand().map(|(_, m)| m).expect("invariant: a render subcommand");
     let request = RenderRequest::try_from((&*render, sub))?;
     set_key_names(KeyNames::of(&request.origin));
-    plume::bench::spec::load(request.shot.clone().into_inner(), args.render_flags.clone(), &args.work_dir).map_err(|e| request.origin.explain(e))
+    plume::bench::spec::load(
+        request.shot.clone().into_inner(),
+        args.render_flags.clone(),
+        &args.work_dir,
+    )
+    .map_err(|e| request.origin.explain(e))
 }
 
 #[cfg(test)]
@@ -543,7 +595,9 @@ mod tests {
     #[test]
     fn render_flags_go_through_the_render_parser() {
         let args = |flags: &[&str]| -> CompareArgs {
-            let argv = ["plume", "bench", "compare", "x.vdb", "--make-reference", "--"].into_iter().chain(flags.iter().copied());
+            let argv = ["plume", "bench", "compare", "x.vdb", "--make-reference", "--"]
+                .into_iter()
+                .chain(flags.iter().copied());
             match Cli::try_parse_from(argv).unwrap().command {
                 Command::Bench(BenchCommand::Compare(a)) => *a,
                 _ => unreachable!(),

@@ -32,8 +32,13 @@ pub fn run(cli: Cli, matches: &ArgMatches, command_line: &str) -> Result<()> {
                 log::warn!("cannot handle SIGTERM/SIGINT ({e}); a signal will end plume without writing the image so far");
             }
             let terminal = Terminal::new(&request.shot.settings);
-            let context = plume::farm::observer::RunContext { command_line, working_dir: &working_dir, observer: &terminal };
-            let result = plume::farm::job::render_command(&request.shot, &context).map_err(|e| request.origin.explain(e));
+            let context = plume::farm::observer::RunContext {
+                command_line,
+                working_dir: &working_dir,
+                observer: &terminal,
+            };
+            let result = plume::farm::job::render_command(&request.shot, &context)
+                .map_err(|e| request.origin.explain(e));
             terminal.finish(&result);
             result
         }
@@ -53,7 +58,9 @@ pub fn run(cli: Cli, matches: &ArgMatches, command_line: &str) -> Result<()> {
             let sub = sub.and_then(|m| m.subcommand()).map(|(_, m)| m);
             super::bench::run(command, sub)
         }
-        Command::Synth(files::SynthCommand::Explosion(args)) => files::synth_explosion_command(&args),
+        Command::Synth(files::SynthCommand::Explosion(args)) => {
+            files::synth_explosion_command(&args)
+        }
         Command::Synth(files::SynthCommand::Flare(args)) => files::synth_flare_command(&args),
         Command::Synth(files::SynthCommand::Sky(args)) => files::synth_sky_command(&args),
     }

@@ -5,11 +5,11 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use clap::{Args, Subcommand};
-use plume_core::error::{Error, Result};
 use plume::farm::merge::MergeOptions;
+use plume::vdb;
+use plume_core::error::{Error, Result};
 use plume_engine::light::sky::{Sky, SkyParams};
 use plume_scene::ReadSettings;
-use plume::vdb;
 
 use super::render::GridArgs;
 
@@ -187,7 +187,10 @@ pub struct SynthFlareArgs {
 /// As [`plume::cache::convert::convert`]; an output not ending in `.plume`.
 pub fn prepare_command(args: &PrepareArgs) -> Result<()> {
     if !plume::cache::is_cache_path(&args.output) {
-        return Err(Error::invalid("--output", format!("{} must end in .{}", args.output.display(), plume::cache::EXTENSION)));
+        return Err(Error::invalid(
+            "--output",
+            format!("{} must end in .{}", args.output.display(), plume::cache::EXTENSION),
+        ));
     }
     // The grid flags set the same keys as for `plume render`
     let mut shot = plume_scene::Shot::new(&args.file, "");
@@ -195,8 +198,14 @@ pub fn prepare_command(args: &PrepareArgs) -> Result<()> {
     let (scene, reading) = (&shot.scene, &shot.settings.reading);
     let input_bytes = std::fs::metadata(&args.file).map(|m| m.len()).unwrap_or(0);
     let flags = super::request::Origin { scene_file: None, given: Vec::new() };
-    let what = plume::cache::convert::Conversion { volume: &scene.volume, emission: &scene.emission, reading, proxy_resolution: args.proxy_resolution };
-    let c = plume::cache::convert::convert(&args.file, &what, &args.output).map_err(|e| flags.explain(e))?;
+    let what = plume::cache::convert::Conversion {
+        volume: &scene.volume,
+        emission: &scene.emission,
+        reading,
+        proxy_resolution: args.proxy_resolution,
+    };
+    let c = plume::cache::convert::convert(&args.file, &what, &args.output)
+        .map_err(|e| flags.explain(e))?;
     if !args.quiet {
         eprintln!(
             "plume: wrote {} ({:.1} MiB) from {} ({:.1} MiB) in {:.2} s",
@@ -216,7 +225,11 @@ pub fn prepare_command(args: &PrepareArgs) -> Result<()> {
 /// The file cannot be written.
 pub fn synth_explosion_command(args: &SynthExplosionArgs) -> Result<()> {
     let t = Instant::now();
-    let params = plume_synth::ExplosionParams { resolution: args.resolution, seed: args.seed, ..Default::default() };
+    let params = plume_synth::ExplosionParams {
+        resolution: args.resolution,
+        seed: args.seed,
+        ..Default::default()
+    };
     let ex = plume_synth::explosion(&params);
     // Velocity for motion blur, a vector grid as Blender writes it (`--velocity-grid velocity`)
     let [vx, vy, vz] = plume_synth::velocity::explosion_velocity(&params, &ex.density);
@@ -239,13 +252,21 @@ const FLARE_VDB_LIMIT_BYTES: u64 = 8 << 30;
 /// `plume synth flare`: build in memory and write a .vdb, refusing flares too large for that.
 pub fn synth_flare_command(args: &SynthFlareArgs) -> Result<()> {
     let t = Instant::now();
-    let params = plume_synth::FlareParams { resolution: args.resolution, seed: args.seed, ..Default::default() };
+    let params = plume_synth::FlareParams {
+        resolution: args.resolution,
+        seed: args.seed,
+        ..Default::default()
+    };
     if plume::cache::is_cache_path(&args.output) {
         let flare = plume_synth::Flare::new(&params);
         let estimate = flare.estimated_bytes();
         let progress = |bytes: u64, done: i32, slabs: i32| {
             if done % 64 == 0 || done == slabs {
-                eprintln!("plume: {done}/{slabs} slabs, {:.2} GiB of {:.2} GiB estimated", bytes as f64 / GIB, estimate as f64 / GIB);
+                eprintln!(
+                    "plume: {done}/{slabs} slabs, {:.2} GiB of {:.2} GiB estimated",
+                    bytes as f64 / GIB,
+                    estimate as f64 / GIB
+                );
             }
         };
         let c = plume::cache::generate::write_flare(&flare, &args.output, None, &progress)?;
@@ -261,7 +282,10 @@ pub fn synth_flare_command(args: &SynthFlareArgs) -> Result<()> {
     }
     let is_vdb = args.output.extension().is_some_and(|e| e.eq_ignore_ascii_case("vdb"));
     if !is_vdb {
-        return Err(Error::invalid("--output", format!("{} must end in .vdb or .plume", args.output.display())));
+        return Err(Error::invalid(
+            "--output",
+            format!("{} must end in .vdb or .plume", args.output.display()),
+        ));
     }
     let flare = plume_synth::Flare::new(&params);
     let bytes = flare.estimated_bytes();
@@ -279,7 +303,13 @@ pub fn synth_flare_command(args: &SynthFlareArgs) -> Result<()> {
     }
     let (density, temperature) = flare.to_float_grids();
     vdb::write_float_grids(&args.output, &[&density, &temperature])?;
-    eprintln!("plume: wrote {} ({}³ flare, {} leaves) in {:.2} s", args.output.display(), args.resolution, density.leaf_count(), t.elapsed().as_secs_f64());
+    eprintln!(
+        "plume: wrote {} ({}³ flare, {} leaves) in {:.2} s",
+        args.output.display(),
+        args.resolution,
+        density.leaf_count(),
+        t.elapsed().as_secs_f64()
+    );
     Ok(())
 }
 
@@ -294,28 +324,52 @@ const SKY_MAX_SIZE: u32 = 16384;
 pub fn synth_sky_command(args: &SynthSkyArgs) -> Result<()> {
     let t = Instant::now();
     if !args.output.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr")) {
-        return Err(Error::invalid("--output", format!("{} must end in .exr", args.output.display())));
+        return Err(Error::invalid(
+            "--output",
+            format!("{} must end in .exr", args.output.display()),
+        ));
     }
     for (flag, size) in [("--width", args.width), ("--height", args.height)] {
         if !(1..=SKY_MAX_SIZE).contains(&size) {
-            return Err(Error::invalid(flag, format!("{size} pixels is outside 1..={SKY_MAX_SIZE}")));
+            return Err(Error::invalid(
+                flag,
+                format!("{size} pixels is outside 1..={SKY_MAX_SIZE}"),
+            ));
         }
     }
-    let params = SkyParams { elevation: args.elevation, azimuth: args.azimuth, turbidity: args.turbidity };
+    let params =
+        SkyParams { elevation: args.elevation, azimuth: args.azimuth, turbidity: args.turbidity };
     // The library names scene-file keys; here they were flags
     let sky = Sky::new(&params).map_err(|e| match e {
-        Error::InvalidArgument { flag, message } => Error::invalid(&flag.replace("lights.sky.", "--"), message),
+        Error::InvalidArgument { flag, message } => {
+            Error::invalid(&flag.replace("lights.sky.", "--"), message)
+        }
         other => other,
     })?;
-    let pixels: Vec<[f32; 4]> = sky.image(args.width, args.height, !args.no_sun).iter().map(|c| [c.0[0], c.0[1], c.0[2], 1.0]).collect();
-    let sun = if args.no_sun { "none".to_string() } else { format!("{:?} W m^-2 sr^-1 over 0.53 deg", sky.sun_radiance().0) };
+    let pixels: Vec<[f32; 4]> = sky
+        .image(args.width, args.height, !args.no_sun)
+        .iter()
+        .map(|c| [c.0[0], c.0[1], c.0[2], 1.0])
+        .collect();
+    let sun = if args.no_sun {
+        "none".to_string()
+    } else {
+        format!("{:?} W m^-2 sr^-1 over 0.53 deg", sky.sun_radiance().0)
+    };
     let metadata = [
         ("plume:version", env!("CARGO_PKG_VERSION").to_string()),
         ("plume:synth", "sky (Preetham et al. 1999)".to_string()),
         ("plume:sky", serde_json::to_string(&params).expect("invariant: SkyParams serialises")),
         ("plume:sky_sun", sun),
-        ("plume:units", "radiance, W m^-2 sr^-1 per linear Rec.709 channel; luminance = cd m^-2 / 683".to_string()),
-        ("plume:latlong", "+Z up; theta = pi v from +Z, phi = atan2(y, x) = pi (1 - 2u)".to_string()),
+        (
+            "plume:units",
+            "radiance, W m^-2 sr^-1 per linear Rec.709 channel; luminance = cd m^-2 / 683"
+                .to_string(),
+        ),
+        (
+            "plume:latlong",
+            "+Z up; theta = pi v from +Z, phi = atan2(y, x) = pi (1 - 2u)".to_string(),
+        ),
     ]
     .map(|(k, v)| (k.to_string(), v));
     plume::output::write_exr(&args.output, args.width, args.height, &pixels, &metadata)?;
@@ -328,7 +382,10 @@ pub fn synth_sky_command(args: &SynthSkyArgs) -> Result<()> {
         if args.no_sun {
             "left out".to_string()
         } else {
-            format!("{:.0} lx at normal incidence", sky.sun_radiance().luminance() as f64 * Sky::sun_solid_angle() * 683.0)
+            format!(
+                "{:.0} lx at normal incidence",
+                sky.sun_radiance().luminance() as f64 * Sky::sun_solid_angle() * 683.0
+            )
         },
         t.elapsed().as_secs_f64()
     );
@@ -339,7 +396,11 @@ pub fn info_command(args: &InfoArgs) -> Result<()> {
     if plume::cache::is_cache_path(&args.file) {
         return cache_info(args);
     }
-    let reading = ReadSettings { max_input_memory: None, read_timeout: args.read_timeout, no_isolation: args.no_isolation };
+    let reading = ReadSettings {
+        max_input_memory: None,
+        read_timeout: args.read_timeout,
+        no_isolation: args.no_isolation,
+    };
     let isolation = plume::load::bind::reader(&reading)?.isolation;
     let grids = isolation.list_grids(&args.file)?;
     if args.json {
@@ -374,12 +435,30 @@ fn cache_info(args: &InfoArgs) -> Result<()> {
     } else {
         let m = &cache.meta;
         let mut r = String::new();
-        let _ = writeln!(r, "{}: plume brick cache, {:.1} MiB, checksums ok", args.file.display(), cache.file_bytes as f64 / 1048576.0);
+        let _ = writeln!(
+            r,
+            "{}: plume brick cache, {:.1} MiB, checksums ok",
+            args.file.display(),
+            cache.file_bytes as f64 / 1048576.0
+        );
         let _ = writeln!(r, "  written by        {}", m.writer);
-        let _ = writeln!(r, "  grids             density {:?}, source {:?}, albedo {:?}", m.density_grid, m.source_grid, m.albedo_grid);
+        let _ = writeln!(
+            r,
+            "  grids             density {:?}, source {:?}, albedo {:?}",
+            m.density_grid, m.source_grid, m.albedo_grid
+        );
         let _ = writeln!(r, "  source            {} ({})", m.emission_kind, m.source_key);
-        let _ = writeln!(r, "  bricks            {bricks} ({dense} dense), table {:?} from brick {:?}", m.dims, m.brick_lo);
-        let _ = writeln!(r, "  value blocks      {} ({:.1} MiB)", m.value_blocks, (m.value_blocks * 2048) as f64 / 1048576.0);
+        let _ = writeln!(
+            r,
+            "  bricks            {bricks} ({dense} dense), table {:?} from brick {:?}",
+            m.dims, m.brick_lo
+        );
+        let _ = writeln!(
+            r,
+            "  value blocks      {} ({:.1} MiB)",
+            m.value_blocks,
+            (m.value_blocks * 2048) as f64 / 1048576.0
+        );
         let _ = match &m.proxy {
             Some(p) => writeln!(r, "  FNEE proxy        {}³ ({})", p.resolution, p.power_key),
             None => writeln!(r, "  FNEE proxy        none"),

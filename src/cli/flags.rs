@@ -7,8 +7,10 @@ use plume_scene::Choice;
 
 /// A value parser for a library [`Choice`]: its names as possible values, with help.
 pub fn choice<T: Choice + Clone + Send + Sync>() -> impl TypedValueParser<Value = T> {
-    PossibleValuesParser::new(T::CHOICES.iter().map(|&(name, _, help)| PossibleValue::new(name).help(help)))
-        .map(|s| T::from_name(&s).expect("invariant: clap checked the possible values"))
+    PossibleValuesParser::new(
+        T::CHOICES.iter().map(|&(name, _, help)| PossibleValue::new(name).help(help)),
+    )
+    .map(|s| T::from_name(&s).expect("invariant: clap checked the possible values"))
 }
 
 /// Parse `x,y,z`.
@@ -54,7 +56,13 @@ pub fn parse_environment_map(s: &str) -> Result<plume_scene::EnvironmentMapSetti
     if s.contains('=') {
         parse_keys(s)
     } else {
-        Ok(plume_scene::EnvironmentMapSettings { file: s.into(), intensity: 1.0, rotation: 0.0, visible: true, group: None })
+        Ok(plume_scene::EnvironmentMapSettings {
+            file: s.into(),
+            intensity: 1.0,
+            rotation: 0.0,
+            visible: true,
+            group: None,
+        })
     }
 }
 
@@ -65,7 +73,12 @@ pub fn parse_environment_map(s: &str) -> Result<plume_scene::EnvironmentMapSetti
 pub fn parse_pair(s: &str) -> Result<[f64; 2], String> {
     let parts: Vec<&str> = s.split(',').map(str::trim).collect();
     let [a, b] = parts.as_slice() else { return Err(format!("expected OPEN,CLOSE, got {s:?}")) };
-    let num = |p: &str| p.parse::<f64>().ok().filter(|v| v.is_finite()).ok_or_else(|| format!("{p:?} is not a finite number"));
+    let num = |p: &str| {
+        p.parse::<f64>()
+            .ok()
+            .filter(|v| v.is_finite())
+            .ok_or_else(|| format!("{p:?} is not a finite number"))
+    };
     Ok([num(a)?, num(b)?])
 }
 

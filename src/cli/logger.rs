@@ -141,15 +141,37 @@ mod tests {
     #[test]
     fn keys_become_the_flags_that_set_them() {
         let all = KeyNames::All;
-        assert_eq!(rename_keys("more than the budget (render.memory_budget); give a writable render.cache_dir.", &all), "more than the budget (--memory-budget); give a writable --cache-dir.");
+        assert_eq!(
+            rename_keys(
+                "more than the budget (render.memory_budget); give a writable render.cache_dir.",
+                &all
+            ),
+            "more than the budget (--memory-budget); give a writable --cache-dir."
+        );
         assert_eq!(rename_keys("use integrator.nee_table brick", &all), "use --nee-table brick");
-        assert_eq!(rename_keys("lights.sky.turbidity: 20 is outside [1.7, 10]", &all), "--sky turbidity: 20 is outside [1.7, 10]");
-        assert_eq!(rename_keys("emission.temperature_map/emission.convention: no", &all), "--temperature-map/--convention: no");
+        assert_eq!(
+            rename_keys("lights.sky.turbidity: 20 is outside [1.7, 10]", &all),
+            "--sky turbidity: 20 is outside [1.7, 10]"
+        );
+        assert_eq!(
+            rename_keys("emission.temperature_map/emission.convention: no", &all),
+            "--temperature-map/--convention: no"
+        );
         // Not keys: file names, words, paths
-        for text in ["/tmp/x.vdb: 3 voxels", "out.exr (64x64, 16 spp)", "render.exr", "the render. Then", "...", "v1.2.3"] {
+        for text in [
+            "/tmp/x.vdb: 3 voxels",
+            "out.exr (64x64, 16 spp)",
+            "render.exr",
+            "the render. Then",
+            "...",
+            "v1.2.3",
+        ] {
             assert_eq!(rename_keys(text, &all), text);
         }
         let typed = KeyNames::Typed(vec!["overwrite".into()]);
-        assert_eq!(rename_keys("skipped (farm.overwrite renders it again), render.sample_order", &typed), "skipped (--overwrite renders it again), render.sample_order");
+        assert_eq!(
+            rename_keys("skipped (farm.overwrite renders it again), render.sample_order", &typed),
+            "skipped (--overwrite renders it again), render.sample_order"
+        );
     }
 }

@@ -37,7 +37,12 @@ impl Terminal {
     /// What a run with `settings` shows.
     #[must_use]
     pub fn new(settings: &JobSettings) -> Terminal {
-        Terminal { quiet: settings.render.quiet, mode: settings.render.progress, bar: Mutex::new(None), progress: OnceLock::new() }
+        Terminal {
+            quiet: settings.render.quiet,
+            mode: settings.render.progress,
+            bar: Mutex::new(None),
+            progress: OnceLock::new(),
+        }
     }
 
     /// The run ended with `result` (its error as the user reads it): the progress
@@ -99,7 +104,12 @@ impl JobObserver for Terminal {
             return;
         }
         let pb = if target > 0 { ProgressBar::new(target) } else { ProgressBar::new_spinner() };
-        pb.set_style(ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} spp {msg}").unwrap_or_else(|_| ProgressStyle::default_bar()));
+        pb.set_style(
+            ProgressStyle::with_template(
+                "{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} spp {msg}",
+            )
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        );
         self.with_bar(|bar| *bar = Some(pb));
     }
 
@@ -110,7 +120,13 @@ impl JobObserver for Terminal {
             }
         });
         if let Some(p) = self.progress.get() {
-            p.pass(pass.index, pass.frame, pass.resumed + pass.done, pass.resumed + pass.target, pass.fraction);
+            p.pass(
+                pass.index,
+                pass.frame,
+                pass.resumed + pass.done,
+                pass.resumed + pass.target,
+                pass.fraction,
+            );
         }
     }
 
@@ -122,9 +138,20 @@ impl JobObserver for Terminal {
         });
     }
 
-    fn frame_done(&self, index: usize, frame: Option<i64>, status: Completion, record: &RenderStats) {
+    fn frame_done(
+        &self,
+        index: usize,
+        frame: Option<i64>,
+        status: Completion,
+        record: &RenderStats,
+    ) {
         if let Some(p) = self.progress.get() {
-            p.frame_done(index, frame, status.as_str(), serde_json::to_value(record).expect("invariant: stats serialize"));
+            p.frame_done(
+                index,
+                frame,
+                status.as_str(),
+                serde_json::to_value(record).expect("invariant: stats serialize"),
+            );
         }
     }
 

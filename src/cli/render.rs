@@ -10,9 +10,11 @@ use plume_engine::film::Crop;
 use plume_engine::integrator::{LightSampling, MisHeuristic};
 use plume_engine::medium::Convention;
 use plume_scene::{
-    ByteSize, CameraCollision, CameraSettings, DeferPaths, DistantSettings, EmissionSettings, EmissionSource, EnvironmentMapSettings, EstimatorKind,
-    IntegratorSettings, Interpolation, MediumSettings, Method, NeeTable, PointLookup, ProgressFormat, ReadSettings, RenderOptions, SampleOrderChoice,
-    SkySettings, SphereSettings, SplitBy, TileIndex, TrackingChoice, UpAxis, VolumeInput,
+    ByteSize, CameraCollision, CameraSettings, DeferPaths, DistantSettings, EmissionSettings,
+    EmissionSource, EnvironmentMapSettings, EstimatorKind, IntegratorSettings, Interpolation,
+    MediumSettings, Method, NeeTable, PointLookup, ProgressFormat, ReadSettings, RenderOptions,
+    SampleOrderChoice, SkySettings, SphereSettings, SplitBy, TileIndex, TrackingChoice, UpAxis,
+    VolumeInput,
 };
 
 use super::flags::{choice, parse_environment_map, parse_keys, parse_pair, parse_size, parse_vec3};
@@ -169,7 +171,13 @@ pub struct RenderArgs {
     #[arg(long, help_heading = "Motion")]
     pub velocity_grid: Option<String>,
     /// Multiplies the velocity.
-    #[arg(long, default_value_t = 1.0, allow_hyphen_values = true, help_heading = "Motion", hide_short_help = true)]
+    #[arg(
+        long,
+        default_value_t = 1.0,
+        allow_hyphen_values = true,
+        help_heading = "Motion",
+        hide_short_help = true
+    )]
     pub velocity_scale: f64,
     /// Shutter open,close in frames relative to the frame (default -0.25,0.25 with
     /// --velocity-grid).

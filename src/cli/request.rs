@@ -41,8 +41,10 @@ impl TryFrom<(&RenderArgs, &ArgMatches)> for RenderRequest {
     /// A bad scene file, a missing output, or a value [`Shot::validate`] refuses; errors
     /// name the flag or the file, line and key.
     fn try_from((args, matches): (&RenderArgs, &ArgMatches)) -> Result<RenderRequest> {
-        let typed = |id: &str| matches.value_source(id) == Some(clap::parser::ValueSource::CommandLine);
-        let given: Vec<String> = render_flags().map(|(id, _)| *id).filter(|id| typed(id)).map(String::from).collect();
+        let typed =
+            |id: &str| matches.value_source(id) == Some(clap::parser::ValueSource::CommandLine);
+        let given: Vec<String> =
+            render_flags().map(|(id, _)| *id).filter(|id| typed(id)).map(String::from).collect();
         let (mut shot, scene_file) = if is_scene_file(&args.file) {
             let (mut shot, file) = SceneFile::read(&args.file)?;
             // A flag overrides the keys it conflicts with, too
@@ -64,10 +66,12 @@ impl TryFrom<(&RenderArgs, &ArgMatches)> for RenderRequest {
             apply(&mut shot, args, &typed);
             (shot, Some(file))
         } else {
-            let output = args
-                .output
-                .clone()
-                .ok_or_else(|| Error::invalid("--output", "required (-o OUT.exr), unless FILE is a scene file that gives [output] image"))?;
+            let output = args.output.clone().ok_or_else(|| {
+                Error::invalid(
+                    "--output",
+                    "required (-o OUT.exr), unless FILE is a scene file that gives [output] image",
+                )
+            })?;
             let mut shot = Shot::new(&args.file, output);
             apply(&mut shot, args, &|_| true);
             (shot, None)

@@ -9,8 +9,9 @@ use sha2::{Digest, Sha256};
 
 use plume_core::error::{Error, Result};
 use plume_scene::{
-    CameraSettings, EmissionSettings, EnvironmentMapSettings, FarmOptions, IntegratorSettings, JobSettings, LightSettings, MediumSettings, OutputSettings,
-    ReadSettings, RenderOptions, SceneDescription, Shot, VolumeInput,
+    CameraSettings, EmissionSettings, EnvironmentMapSettings, FarmOptions, IntegratorSettings,
+    JobSettings, LightSettings, MediumSettings, OutputSettings, ReadSettings, RenderOptions,
+    SceneDescription, Shot, VolumeInput,
 };
 
 /// Hex SHA-256 of a file's bytes and its size.
@@ -56,8 +57,18 @@ pub fn file_sha256(path: &Path) -> Result<(String, u64)> {
 pub fn settings_hash(shot: &Shot, seed: u64) -> String {
     let Shot { scene, settings } = shot;
     let SceneDescription { volume, emission, medium, camera, lights, integrator } = scene;
-    let VolumeInput { file: _, density_grid, temperature_grid, emission_grid, albedo_grid, interpolation, velocity_grid, velocity_scale } = volume;
-    let EmissionSettings { source, convention, temperature_map, temperature_cutoff, scale, color } = emission;
+    let VolumeInput {
+        file: _,
+        density_grid,
+        temperature_grid,
+        emission_grid,
+        albedo_grid,
+        interpolation,
+        velocity_grid,
+        velocity_scale,
+    } = volume;
+    let EmissionSettings { source, convention, temperature_map, temperature_cutoff, scale, color } =
+        emission;
     let MediumSettings { density_scale, albedo, g } = medium;
     let CameraSettings { from, at, up, fov, width, height, up_axis, shutter, fps, keys } = camera;
     // Motion blur's keys, only when there is motion: still scenes hash as without them
@@ -100,15 +111,19 @@ pub fn settings_hash(shot: &Shot, seed: u64) -> String {
     let split_by = if split_by.is_uniform() { String::new() } else { format!(" by {split_by}") };
     // A brick table draws other voxels than a voxel table from the same numbers; the
     // default adds nothing, so hashes made without the key stay valid
-    let nee_table = if nee_table.is_voxel() { String::new() } else { format!(" nee-table {nee_table}") };
+    let nee_table =
+        if nee_table.is_voxel() { String::new() } else { format!(" nee-table {nee_table}") };
     // Picked point lookups draw other numbers than exact ones on a trilinear volume:
     // hashed there, so parts of different kinds do not merge; elsewhere (nearest, or exact
     // lookups) they add nothing, so hashes made without the key stay valid (the same
     // pixels)
     let point_lookup = match (point_lookup, interpolation) {
-        (_, plume_volume::Interpolation::Nearest) | (plume_engine::integrator::PointLookup::Exact, _) => "",
+        (_, plume_volume::Interpolation::Nearest)
+        | (plume_engine::integrator::PointLookup::Exact, _) => "",
         (plume_engine::integrator::PointLookup::Stochastic, _) => " point-lookup stochastic",
-        (plume_engine::integrator::PointLookup::StochasticEmission, _) => " point-lookup stochastic emission",
+        (plume_engine::integrator::PointLookup::StochasticEmission, _) => {
+            " point-lookup stochastic emission"
+        }
     };
     // Likewise the camera segment's own estimator
     let camera_estimator = camera_estimator.map_or(String::new(), |e| format!(" camera {e}"));
@@ -130,9 +145,11 @@ pub fn settings_hash(shot: &Shot, seed: u64) -> String {
         quiet: _,
         progress: _,
     } = render;
-    let FarmOptions { frames: _, overwrite: _, time_limit: _, crop: _, tile: _, sample_range: _ } = farm;
+    let FarmOptions { frames: _, overwrite: _, time_limit: _, crop: _, tile: _, sample_range: _ } =
+        farm;
     // AOV layers and half sums change what the file holds: parts and resumes must agree
-    let OutputSettings { image: _, preview: _, exposure: _, stats: _, sums: _, aovs, denoise } = output;
+    let OutputSettings { image: _, preview: _, exposure: _, stats: _, sums: _, aovs, denoise } =
+        output;
     let ReadSettings { max_input_memory: _, read_timeout: _, no_isolation: _ } = reading;
     // The split count is always hashed: its default (8) changed every scattering render's
     // pixels, so parts rendered before it existed must not merge with parts rendered after.

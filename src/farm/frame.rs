@@ -19,23 +19,26 @@
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-use plume_core::error::{Error, Result};
 use crate::farm::fingerprint::{file_sha256, settings_hash};
 use crate::farm::observer::{JobObserver, Pass, Replay, RunContext};
 use crate::farm::part::{assess, stats_metadata, Completion, Existing, Expected, PartInfo};
 use crate::farm::plan::Job;
 use crate::farm::signals;
-use plume_scene::split::format_range;
+use crate::load::{load_scene, LoadedScene};
+use crate::output::{write_exr_image, AovChannels, ExrImage};
+use plume_core::error::{Error, Result};
 use plume_engine::film::{Crop, Film, FIXED_POINT_BITS};
 use plume_engine::integrator::AovLayout;
 use plume_engine::integrator::LineTrace;
-use crate::load::{load_scene, LoadedScene};
 use plume_engine::medium::{EmissionKind, Estimator};
-use plume_volume::out_of_core::memory::{MemoryBound, MemoryLimits};
-use crate::output::{write_exr_image, AovChannels, ExrImage};
-use plume_engine::render::{read_ahead_window, render_with, RenderControl, RenderObserver, RenderResult, RenderSettings, SampleBudget, SampleOrder, StopReason};
-use plume_scene::{DeferPaths, EmissionSource, SampleOrderChoice};
+use plume_engine::render::{
+    read_ahead_window, render_with, RenderControl, RenderObserver, RenderResult, RenderSettings,
+    SampleBudget, SampleOrder, StopReason,
+};
 use plume_engine::stats::{cpu_seconds, peak_rss_since_reset_bytes, reset_peak_rss, RenderStats};
+use plume_scene::split::format_range;
+use plume_scene::{DeferPaths, EmissionSource, SampleOrderChoice};
+use plume_volume::out_of_core::memory::{MemoryBound, MemoryLimits};
 use plume_volume::Volume;
 
 /// What became of a frame.
@@ -91,7 +94,12 @@ type Resume = (PartInfo, Vec<[i128; 4]>, Option<Vec<i128>>);
 /// # Errors
 /// Input missing or unreadable (code 3), bad values found while loading (2), an output
 /// that cannot be written (4).
-pub fn render_frame(job: &Job<'_>, index: usize, frame: Option<i64>, context: &RunContext<'_>) -> Result<FrameOutcome> {
+pub fn render_frame(
+    job: &Job<'_>,
+    index: usize,
+    frame: Option<i64>,
+    context: &RunContext<'_>,
+) -> Result<FrameOutcome> {
     let observer = context.observer;
     let settings = &job.shot.settings;
     let start = Instant::now();
@@ -102,14 +110,20 @@ pub fn render_frame(job: &Job<'_>, index: usize, frame: Option<i64>, context: &R
     let seed = settings.render.seed.unwrap_or(frame.map_or(0, |f| f as u64));
     let hash = settings_hash(job.shot, seed);
 
-    let Some(mut resume) = decide(job, &paths, &hash, index, frame, observer)? else { return Ok(FrameOutcome::Skipped) };
+    let Some(mut resume) = decide(job, &paths, &hash, index, frame, observer)? else {
+        return Ok(FrameOutcome::Skipped);
+    };
     observer.frame_started(index, frame, &paths.output);
-    for path in std::iter::once(&paths.output).chain(paths.preview.iter()).chain(paths.stats.iter()) {
+    for path in std::iter::once(&paths.output).chain(paths.preview.iter()).chain(paths.stats.iter())
+    {
         plume_core::fs::check_writable(path)?;
     }
     let (input_sha256, input_bytes) = file_sha256(&paths.input)?;
     if resume.as_ref().is_some_and(|(info, ..)| info.input_sha256 != input_sha256) {
-        log::info!("{}: the input changed since it was started; rendering it again", paths.output.display());
+        log::info!(
+            "{}: the input changed since it was started; rendering it again",
+            paths.output.display()
+        );
         resume = None;
     }
 
@@ -130,17 +144,43 @@ pub fn render_frame(job: &Job<'_>, index: usize, frame: Option<i64>, context: &R
         return Ok(FrameOutcome::Replayed);
     }
     if let Some((info, ..)) = &resume {
-        log::info!("{}: continuing from samples {} ({})", paths.output.display(), format_range(&info.samples), info.status.as_str());
+        log::info!(
+            "{}: continuing from samples {} ({})",
+            paths.output.display(),
+            format_range(&info.samples),
+            info.status.as_str()
+        );
     }
     let render_start = Instant::now();
     let time_to_first_sample = start.elapsed().as_secs_f64();
-    let result = run_passes(job, &paths, &loaded, &render_settings, &plan, resume, start, observer, &|done: u64, total: u64| {
-        let fraction = match plan.budget {
-            SampleBudget::Spp(_) => (plan.resumed_spp + done) as f64 / (plan.resumed_spp + total).max(1) as f64,
-            SampleBudget::Time(t) | SampleBudget::CpuTime(t) => render_start.elapsed().as_secs_f64() / t,
-        };
-        observer.pass_done(&Pass { index, frame, done, target: total, resumed: plan.resumed_spp, fraction });
-    });
+    let result = run_passes(
+        job,
+        &paths,
+        &loaded,
+        &render_settings,
+        &plan,
+        resume,
+        start,
+        observer,
+        &|done: u64, total: u64| {
+            let fraction = match plan.budget {
+                SampleBudget::Spp(_) => {
+                    (plan.resumed_spp + done) as f64 / (plan.resumed_spp + total).max(1) as f64
+                }
+                SampleBudget::Time(t) | SampleBudget::CpuTime(t) => {
+                    render_start.elapsed().as_secs_f64() / t
+                }
+            };
+            observer.pass_done(&Pass {
+                index,
+                frame,
+                done,
+                target: total,
+                resumed: plan.resumed_spp,
+                fraction,
+            });
+        },
+    );
     let spp = plan.resumed_spp + result.spp;
     if spp == 0 {
         return Ok(FrameOutcome::NotStarted);
@@ -150,13 +190,22 @@ pub fn render_frame(job: &Job<'_>, index: usize, frame: Option<i64>, context: &R
         StopReason::Interrupted => Completion::Interrupted,
         StopReason::TimeLimit => Completion::TimeLimit,
     };
-    let timing = Timing { wall: start.elapsed().as_secs_f64(), cpu: cpu_seconds() - cpu_at_start, time_to_first_sample };
+    let timing = Timing {
+        wall: start.elapsed().as_secs_f64(),
+        cpu: cpu_seconds() - cpu_at_start,
+        time_to_first_sample,
+    };
     let input = InputId { sha256: input_sha256, bytes: input_bytes };
     let frame_id = FrameId { frame, seed, settings_hash: hash, command_line: context.command_line };
-    let record = stats_record(job, &paths, &loaded, &result, &frame_id, input, status, spp, &timing);
+    let record =
+        stats_record(job, &paths, &loaded, &result, &frame_id, input, status, spp, &timing);
     write_outputs(job, &paths, &loaded, &result, &record, status, context.working_dir)?;
     if !settings.render.quiet {
-        let state = if status == Completion::Complete { String::new() } else { format!(", {}", status.as_str()) };
+        let state = if status == Completion::Complete {
+            String::new()
+        } else {
+            format!(", {}", status.as_str())
+        };
         let crop = job.pixels();
         log::info!(
             "{} ({}x{}, {} spp{state}, {}) in {:.2} s ({:.2} s to first sample, {:.3} core-h)",
@@ -179,7 +228,14 @@ pub fn render_frame(job: &Job<'_>, index: usize, frame: Option<i64>, context: &R
 ///
 /// # Errors
 /// None; fallible for the outputs' checks.
-fn decide(job: &Job<'_>, paths: &FramePaths, hash: &str, index: usize, frame: Option<i64>, observer: &dyn JobObserver) -> Result<Option<Option<Resume>>> {
+fn decide(
+    job: &Job<'_>,
+    paths: &FramePaths,
+    hash: &str,
+    index: usize,
+    frame: Option<i64>,
+    observer: &dyn JobObserver,
+) -> Result<Option<Option<Resume>>> {
     let settings = &job.shot.settings;
     plume_core::fs::remove_stale_temporaries(&paths.output);
     if settings.farm.overwrite || settings.render.debug_pixel.is_some() {
@@ -188,7 +244,14 @@ fn decide(job: &Job<'_>, paths: &FramePaths, hash: &str, index: usize, frame: Op
     let (width, height) = (job.scene().camera.width, job.scene().camera.height);
     let crop = job.pixels();
     let aov_channels = layout_for(&settings.output, job).map(|l| l.channels());
-    let expected = Expected { settings_hash: hash.to_string(), width, height, crop, samples: job.samples.clone(), aov_channels };
+    let expected = Expected {
+        settings_hash: hash.to_string(),
+        width,
+        height,
+        crop,
+        samples: job.samples.clone(),
+        aov_channels,
+    };
     Ok(match assess(&paths.output, &expected) {
         Existing::Missing => Some(None),
         Existing::Complete(info) => {
@@ -216,24 +279,43 @@ fn warn_about(job: &Job<'_>, paths: &FramePaths, loaded: &LoadedScene) {
     let volume = loaded.scene.volume();
     let warn = |msg: String| log::warn!("{msg}");
     if volume.report.density_clamped > 0 {
-        warn(format!("{input}: {} density voxels were NaN, infinite or negative and were set to 0", volume.report.density_clamped));
+        warn(format!(
+            "{input}: {} density voxels were NaN, infinite or negative and were set to 0",
+            volume.report.density_clamped
+        ));
     }
     if volume.report.albedo_clamped > 0 {
-        warn(format!("{input}: {} albedo voxels were outside [0, 1] or NaN and were clamped", volume.report.albedo_clamped));
+        warn(format!(
+            "{input}: {} albedo voxels were outside [0, 1] or NaN and were clamped",
+            volume.report.albedo_clamped
+        ));
     }
     if volume.report.source_invalid > 0 {
-        warn(format!("{input}: {} emission-source voxels were NaN, infinite or negative and were set to 0", volume.report.source_invalid));
+        warn(format!(
+            "{input}: {} emission-source voxels were NaN, infinite or negative and were set to 0",
+            volume.report.source_invalid
+        ));
     }
     if volume.is_empty() {
-        warn(format!("{input}: grid {:?} is empty; the image will be transparent black", job.scene().volume.density_grid));
+        warn(format!(
+            "{input}: grid {:?} is empty; the image will be transparent black",
+            job.scene().volume.density_grid
+        ));
     }
-    if loaded.emission_kind == EmissionKind::None && job.scene().emission.source == EmissionSource::Auto {
+    if loaded.emission_kind == EmissionKind::None
+        && job.scene().emission.source == EmissionSource::Auto
+    {
         warn(format!("{input}: no temperature or emission grid found; rendering absorption only"));
     }
     let integrator = plume_engine::integrator::Integrator::for_scene(job.scene());
-    let point =
-        [(integrator.estimator, "integrator.estimator"), (integrator.camera_estimator(), "integrator.camera_estimator")].into_iter().find(|(e, _)| *e == Estimator::Point);
-    if let Some((_, key)) = point.filter(|_| loaded.scene.medium().emission.emits_without_density()) {
+    let point = [
+        (integrator.estimator, "integrator.estimator"),
+        (integrator.camera_estimator(), "integrator.camera_estimator"),
+    ]
+    .into_iter()
+    .find(|(e, _)| *e == Estimator::Point);
+    if let Some((_, key)) = point.filter(|_| loaded.scene.medium().emission.emits_without_density())
+    {
         warn(format!("{key} point scores only at collisions: emission where density is 0 (allowed by emission.convention cycles) is not rendered"));
     }
 }
@@ -251,10 +333,19 @@ impl SamplePlan {
             Some(r) => {
                 let from = resume.map_or(r.start, |(info, ..)| info.samples.end);
                 let n = u32::try_from(r.end - from).expect("invariant: checked by Shot::validate");
-                SamplePlan { budget: SampleBudget::Spp(n), first_sample: from, resumed_spp: from - r.start }
+                SamplePlan {
+                    budget: SampleBudget::Spp(n),
+                    first_sample: from,
+                    resumed_spp: from - r.start,
+                }
             }
             None => {
-                let t = job.shot.settings.render.time.expect("invariant: no sample range means a time budget");
+                let t = job
+                    .shot
+                    .settings
+                    .render
+                    .time
+                    .expect("invariant: no sample range means a time budget");
                 SamplePlan { budget: SampleBudget::Time(t), first_sample: 0, resumed_spp: 0 }
             }
         }
@@ -262,7 +353,11 @@ impl SamplePlan {
 }
 
 /// Replay one pixel sample: its path's trace and its value.
-fn replay(loaded: &LoadedScene, settings: &RenderSettings, dp: plume_engine::render::SampleId) -> Replay {
+fn replay(
+    loaded: &LoadedScene,
+    settings: &RenderSettings,
+    dp: plume_engine::render::SampleId,
+) -> Replay {
     let (x, y, s) = (dp.x, dp.y, dp.sample);
     let mut trace = LineTrace::default();
     let mut counters = plume_engine::integrator::Counters::default();
@@ -297,7 +392,12 @@ fn run_passes(
     };
     let aovs = aov_layout(job, loaded);
     let film = resume.map(|(_, sums, aov)| {
-        let mut film = Film::with_aovs(width, height, job.pixels(), aovs.as_ref().map_or(0, AovLayout::channels));
+        let mut film = Film::with_aovs(
+            width,
+            height,
+            job.pixels(),
+            aovs.as_ref().map_or(0, AovLayout::channels),
+        );
         film.set_sums(&sums);
         if let Some(aov) = aov {
             film.set_aov_sums(&aov);
@@ -380,7 +480,11 @@ fn stats_record(
     let crop = job.pixels();
     let range_start = job.samples.as_ref().map_or(0, |r| r.start);
     let sample_range = range_start..range_start + spp;
-    let threads = if settings.render.threads == 0 { rayon::current_num_threads() } else { settings.render.threads };
+    let threads = if settings.render.threads == 0 {
+        rayon::current_num_threads()
+    } else {
+        settings.render.threads
+    };
     let samples = result.counters.samples as f64;
     let volume = loaded.scene.volume();
     RenderStats {
@@ -441,16 +545,24 @@ fn write_outputs(
     let settings = &job.shot.settings;
     let warn = |msg: String| log::warn!("{msg}");
     if let Some(c) = result.counters.first_nonfinite {
-        warn(format!("{} non-finite samples dropped; first at render.debug_pixel {c}", result.counters.nonfinite_samples));
+        warn(format!(
+            "{} non-finite samples dropped; first at render.debug_pixel {c}",
+            result.counters.nonfinite_samples
+        ));
     }
     if record.saturated_samples > 0 {
-        warn(format!("{} sample values exceeded the fixed-point range (2^63) and were clamped", record.saturated_samples));
+        warn(format!(
+            "{} sample values exceeded the fixed-point range (2^63) and were clamped",
+            record.saturated_samples
+        ));
     }
     if let Some(check) = &loaded.cache {
         // Checksums, and the file at the path is still the one mapped
         check.verified()?;
         // ... and the one whose identity the record holds, hashed before it was opened
-        if crate::cache::is_cache_path(&paths.input) && file_sha256(&paths.input)?.0 != record.input_sha256 {
+        if crate::cache::is_cache_path(&paths.input)
+            && file_sha256(&paths.input)?.0 != record.input_sha256
+        {
             return Err(Error::InputFailed {
                 kind: "brick cache",
                 path: paths.input.clone(),
@@ -466,20 +578,33 @@ fn write_outputs(
     let mut metadata = stats_metadata(record);
     match plume_scene::file::to_toml(job.shot, working_dir) {
         Ok(text) => metadata.push(("plume:scene".into(), text)),
-        Err(e) => warn(format!("the scene description is not recorded in {}: {e}", paths.output.display())),
+        Err(e) => warn(format!(
+            "the scene description is not recorded in {}: {e}",
+            paths.output.display()
+        )),
     }
     let aov_sums = result.film.aov_sums();
     let layout = aov_layout(job, loaded);
     let names = layout.as_ref().map(AovLayout::channel_names).unwrap_or_default();
-    let Written { pixels, layers, denoised } = beauty_and_layers(layout.as_ref(), (&film_sums, &aov_sums), noisy, record.spp, crop);
+    let Written { pixels, layers, denoised } =
+        beauty_and_layers(layout.as_ref(), (&film_sums, &aov_sums), noisy, record.spp, crop);
     if settings.output.denoise && !denoised {
         let block = crate::farm::fingerprint::half_block(settings);
         warn(format!("{} spp: denoising needs samples in both half buffers (blocks of {block}: more than {block} spp); the image is not denoised", record.spp));
     }
-    let aovs = layout.as_ref().map(|_| AovChannels { layers: &layers, sums: sums.is_some().then_some((names.as_slice(), aov_sums.as_slice())) });
-    write_exr_image(&paths.output, &ExrImage { width, height, crop, pixels: &pixels, sums, aovs, metadata: &metadata })?;
+    let aovs = layout.as_ref().map(|_| AovChannels {
+        layers: &layers,
+        sums: sums.is_some().then_some((names.as_slice(), aov_sums.as_slice())),
+    });
+    write_exr_image(
+        &paths.output,
+        &ExrImage { width, height, crop, pixels: &pixels, sums, aovs, metadata: &metadata },
+    )?;
     if let Some(p) = &paths.preview {
-        let exposure = settings.output.exposure.map_or_else(|| crate::output::auto_exposure(&pixels), |ev| 2f32.powf(ev));
+        let exposure = settings
+            .output
+            .exposure
+            .map_or_else(|| crate::output::auto_exposure(&pixels), |ev| 2f32.powf(ev));
         crate::output::write_png(p, crop.width(), crop.height(), &pixels, exposure)?;
     }
     if let Some(p) = &paths.stats {
@@ -492,8 +617,13 @@ fn write_outputs(
 /// The AOV layout that `output` asks for (`--aovs`, `--denoise`): one layer per light
 /// group of the job's lights, and the half sums with `--denoise`.
 fn layout_for(output: &plume_scene::OutputSettings, job: &Job<'_>) -> Option<AovLayout> {
-    let filtered = plume_engine::denoise::Filtered::for_camera(plume_engine::integrator::Integrator::for_scene(&job.shot.scene).camera_estimator());
-    (output.aovs || output.denoise).then(|| AovLayout { groups: job.shot.scene.lights.groups(), halves: output.denoise.then_some(filtered) })
+    let filtered = plume_engine::denoise::Filtered::for_camera(
+        plume_engine::integrator::Integrator::for_scene(&job.shot.scene).camera_estimator(),
+    );
+    (output.aovs || output.denoise).then(|| AovLayout {
+        groups: job.shot.scene.lights.groups(),
+        halves: output.denoise.then_some(filtered),
+    })
 }
 
 /// The AOV layout of this frame ([`layout_for`]).
@@ -525,10 +655,24 @@ pub struct Written {
 /// noisy one becomes the layer `noisy`. Used by `plume render` and `plume merge`, so that
 /// a merged frame is the single render's.
 #[must_use]
-pub fn beauty_and_layers(layout: Option<&AovLayout>, sums: (&[[i128; 4]], &[i128]), noisy: Vec<[f32; 4]>, spp: u64, crop: Crop) -> Written {
-    let Some(layout) = layout else { return Written { pixels: noisy, layers: Vec::new(), denoised: false } };
+pub fn beauty_and_layers(
+    layout: Option<&AovLayout>,
+    sums: (&[[i128; 4]], &[i128]),
+    noisy: Vec<[f32; 4]>,
+    spp: u64,
+    crop: Crop,
+) -> Written {
+    let Some(layout) = layout else {
+        return Written { pixels: noisy, layers: Vec::new(), denoised: false };
+    };
     let mut layers = aov_layers(layout, sums.1, &noisy, spp);
-    match plume_engine::denoise::from_sums(layout, sums.0, sums.1, spp, (crop.width() as usize, crop.height() as usize)) {
+    match plume_engine::denoise::from_sums(
+        layout,
+        sums.0,
+        sums.1,
+        spp,
+        (crop.width() as usize, crop.height() as usize),
+    ) {
         Some(denoised) => {
             for (c, name) in ["R", "G", "B", "A"].iter().enumerate() {
                 layers.push((format!("noisy.{name}"), noisy.iter().map(|p| p[c]).collect()));
@@ -547,9 +691,14 @@ pub fn aov_layers(layout: &AovLayout, aov_sums: &[i128], beauty: &[[f32; 4]], sp
     let (n, n_layers) = (layout.channels(), layout.layer_channels());
     let names = layout.channel_names();
     // Every layer channel but depth's hit count, which `depth.Z` divides by
-    let mut layers: Layers = names[..n_layers - 1].iter().map(|c| (c.clone(), Vec::with_capacity(beauty.len()))).collect();
+    let mut layers: Layers = names[..n_layers - 1]
+        .iter()
+        .map(|c| (c.clone(), Vec::with_capacity(beauty.len())))
+        .collect();
     for sums in aov_sums.chunks_exact(n) {
-        for (layer, v) in layers.iter_mut().zip(layout.pixel(sums, spp, plume_engine::film::pixel_value)) {
+        for (layer, v) in
+            layers.iter_mut().zip(layout.pixel(sums, spp, plume_engine::film::pixel_value))
+        {
             layer.1.push(v);
         }
     }
@@ -568,13 +717,21 @@ fn larger_than_available(volume: &Volume, available: Option<MemoryBound>) -> boo
 /// the memory `available` now ([`larger_than_available`]), when the render has a fixed
 /// spp and no time limit (which tile-major order cannot honour without abandoning the
 /// frame).
-fn sample_order(job: &Job<'_>, volume: &Volume, fixed_spp: bool, available: Option<MemoryBound>) -> SampleOrder {
+fn sample_order(
+    job: &Job<'_>,
+    volume: &Volume,
+    fixed_spp: bool,
+    available: Option<MemoryBound>,
+) -> SampleOrder {
     let settings = &job.shot.settings;
     match settings.render.sample_order {
         SampleOrderChoice::Progressive => SampleOrder::Progressive,
         SampleOrderChoice::TileMajor => SampleOrder::TileMajor,
         SampleOrderChoice::Auto => {
-            if larger_than_available(volume, available) && fixed_spp && settings.farm.time_limit.is_none() {
+            if larger_than_available(volume, available)
+                && fixed_spp
+                && settings.farm.time_limit.is_none()
+            {
                 SampleOrder::TileMajor
             } else {
                 SampleOrder::Progressive

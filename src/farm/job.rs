@@ -10,12 +10,12 @@
 //! while in use ([`Error::InputFailed`], or a lost page of a mapped file, `mapfault`)
 //! ends any run at once with 4.
 
-use plume_core::error::{exit, Error, Result};
 use crate::farm::frame::{render_frame, FrameOutcome};
 use crate::farm::observer::RunContext;
 use crate::farm::part::Completion;
 use crate::farm::plan::Job;
 use crate::farm::signals;
+use plume_core::error::{exit, Error, Result};
 use plume_scene::ValidShot;
 
 /// Run `plume render`, telling `context.observer` how it goes. SIGTERM and SIGINT stop it
@@ -38,21 +38,35 @@ fn run_frames(job: &Job<'_>, context: &RunContext<'_>) -> Result<()> {
     let mut failed = Vec::new();
     for (index, &frame) in job.frames.iter().enumerate() {
         if let Some(signal) = signals::stop_requested() {
-            let what = format!("frames from {} on were not started", frame.map_or_else(String::new, |f| f.to_string()));
+            let what = format!(
+                "frames from {} on were not started",
+                frame.map_or_else(String::new, |f| f.to_string())
+            );
             return Err(Error::Interrupted { signal: signal.into(), what });
         }
         match render_frame(job, index, frame, context) {
-            Ok(FrameOutcome::Skipped | FrameOutcome::Replayed | FrameOutcome::Written { status: Completion::Complete, .. }) => {}
+            Ok(
+                FrameOutcome::Skipped
+                | FrameOutcome::Replayed
+                | FrameOutcome::Written { status: Completion::Complete, .. },
+            ) => {}
             Ok(FrameOutcome::Written { status: Completion::Interrupted, output, spp }) => {
                 let signal = signals::stop_requested().unwrap_or("a signal");
-                return Err(Error::Interrupted { signal: signal.into(), what: format!("wrote {} with {spp} spp", output.display()) });
+                return Err(Error::Interrupted {
+                    signal: signal.into(),
+                    what: format!("wrote {} with {spp} spp", output.display()),
+                });
             }
             Ok(FrameOutcome::NotStarted) => {
                 let signal = signals::stop_requested().unwrap_or("a signal");
-                return Err(Error::Interrupted { signal: signal.into(), what: "stopped before the first pass; nothing written".into() });
+                return Err(Error::Interrupted {
+                    signal: signal.into(),
+                    what: "stopped before the first pass; nothing written".into(),
+                });
             }
             Ok(FrameOutcome::Written { status: Completion::TimeLimit, output, spp }) => {
-                let e = Error::TimeLimit { what: format!("wrote {} with {spp} spp", output.display()) };
+                let e =
+                    Error::TimeLimit { what: format!("wrote {} with {spp} spp", output.display()) };
                 if single {
                     return Err(e);
                 }
@@ -64,7 +78,13 @@ fn run_frames(job: &Job<'_>, context: &RunContext<'_>) -> Result<()> {
             // was noticed: a lost page comes as SIGBUS, which `mapfault` can only end the
             // process for, so the checksum pass and the final check of the file do the
             // same, and one fault has one exit code
-            Err(e) if single || e.exit_code() == exit::BAD_ARGUMENTS || matches!(e, Error::InputFailed { .. }) => return Err(e),
+            Err(e)
+                if single
+                    || e.exit_code() == exit::BAD_ARGUMENTS
+                    || matches!(e, Error::InputFailed { .. }) =>
+            {
+                return Err(e)
+            }
             Err(e) => {
                 context.observer.frame_failed(index, frame, &e);
                 failed.push(frame.unwrap_or(0));

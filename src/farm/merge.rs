@@ -16,12 +16,12 @@ use std::ops::Range;
 use std::path::Path;
 use std::time::Instant;
 
-use plume_core::error::{Error, Result};
 use crate::farm::part::{read_part, Completion, PartInfo};
-use plume_scene::split::format_range;
+use crate::output::{write_exr_image, AovChannels, ExrImage};
+use plume_core::error::{Error, Result};
 use plume_engine::film::{pixel_value, Crop, FIXED_POINT_BITS};
 use plume_engine::integrator::AovLayout;
-use crate::output::{write_exr_image, AovChannels, ExrImage};
+use plume_scene::split::format_range;
 
 /// A merged frame.
 #[derive(Debug)]
@@ -60,29 +60,54 @@ pub fn check_parts(parts: &[PartInfo]) -> Result<Range<u64>> {
     for p in parts {
         let bad = |message: String| Error::InvalidPart { path: p.path.clone(), message };
         if p.fixed_point_bits != FIXED_POINT_BITS {
-            return Err(bad(format!("holds sums in units of 2^-{}; this plume uses 2^-{FIXED_POINT_BITS}", p.fixed_point_bits)));
+            return Err(bad(format!(
+                "holds sums in units of 2^-{}; this plume uses 2^-{FIXED_POINT_BITS}",
+                p.fixed_point_bits
+            )));
         }
         if p.status != Completion::Complete {
-            return Err(bad(format!("is {} with samples {}; run its command again to finish it", p.status.as_str(), format_range(&p.samples))));
+            return Err(bad(format!(
+                "is {} with samples {}; run its command again to finish it",
+                p.status.as_str(),
+                format_range(&p.samples)
+            )));
         }
-        let differs = |what: &str, mine: String, theirs: String| bad(format!("{what} is {mine}, but {} has {theirs}", first.path.display()));
+        let differs = |what: &str, mine: String, theirs: String| {
+            bad(format!("{what} is {mine}, but {} has {theirs}", first.path.display()))
+        };
         if p.version != first.version {
             return Err(differs("the plume version", p.version.clone(), first.version.clone()));
         }
         if p.frame != first.frame {
-            return Err(differs("the frame", format!("{:?}", p.frame), format!("{:?}", first.frame)));
+            return Err(differs(
+                "the frame",
+                format!("{:?}", p.frame),
+                format!("{:?}", first.frame),
+            ));
         }
         if (p.width, p.height) != (first.width, first.height) {
-            return Err(differs("the image size", format!("{}x{}", p.width, p.height), format!("{}x{}", first.width, first.height)));
+            return Err(differs(
+                "the image size",
+                format!("{}x{}", p.width, p.height),
+                format!("{}x{}", first.width, first.height),
+            ));
         }
         if p.seed != first.seed {
             return Err(differs("the seed", p.seed.to_string(), first.seed.to_string()));
         }
         if p.input_sha256 != first.input_sha256 {
-            return Err(differs("the input (SHA-256)", format!("{} ({})", p.input, p.input_sha256), format!("{} ({})", first.input, first.input_sha256)));
+            return Err(differs(
+                "the input (SHA-256)",
+                format!("{} ({})", p.input, p.input_sha256),
+                format!("{} ({})", first.input, first.input_sha256),
+            ));
         }
         if p.settings_hash != first.settings_hash {
-            return Err(differs("the settings hash", p.settings_hash.clone(), format!("{} (rendered with other flags)", first.settings_hash)));
+            return Err(differs(
+                "the settings hash",
+                p.settings_hash.clone(),
+                format!("{} (rendered with other flags)", first.settings_hash),
+            ));
         }
     }
     let (w, h) = (first.width, first.height);
@@ -98,9 +123,12 @@ pub fn check_parts(parts: &[PartInfo]) -> Result<Range<u64>> {
     for yj in ys.windows(2) {
         for xi in xs.windows(2) {
             let cell = Crop { x0: xi[0], y0: yj[0], x1: xi[1], y1: yj[1] };
-            let mut covering: Vec<&PartInfo> = parts.iter().filter(|p| p.crop.contains(&cell)).collect();
+            let mut covering: Vec<&PartInfo> =
+                parts.iter().filter(|p| p.crop.contains(&cell)).collect();
             if covering.is_empty() {
-                return Err(Error::Scene(format!("no part covers pixels {cell} of the {w}x{h} image")));
+                return Err(Error::Scene(format!(
+                    "no part covers pixels {cell} of the {w}x{h} image"
+                )));
             }
             covering.sort_by_key(|p| (p.samples.start, p.samples.end));
             for pair in covering.windows(2) {
@@ -117,14 +145,21 @@ pub fn check_parts(parts: &[PartInfo]) -> Result<Range<u64>> {
                     });
                 }
                 if a.samples.end < b.samples.start {
-                    return Err(Error::Scene(format!("no part holds samples {}..{} of pixels {cell}", a.samples.end, b.samples.start)));
+                    return Err(Error::Scene(format!(
+                        "no part holds samples {}..{} of pixels {cell}",
+                        a.samples.end, b.samples.start
+                    )));
                 }
             }
             let here = covering[0].samples.start..covering[covering.len() - 1].samples.end;
             match &union {
                 None => union = Some((here, cell)),
                 Some((u, at)) if *u != here => {
-                    return Err(Error::Scene(format!("pixels {cell} have samples {}, but pixels {at} have {}", format_range(&here), format_range(u))));
+                    return Err(Error::Scene(format!(
+                        "pixels {cell} have samples {}, but pixels {at} have {}",
+                        format_range(&here),
+                        format_range(u)
+                    )));
                 }
                 Some(_) => {}
             }
@@ -154,7 +189,10 @@ pub fn merge_parts(parts: &[(PartInfo, crate::output::ExrContents)]) -> Result<M
     let aov_names = parts[0].1.aov_sums.as_ref().map(|(n, _)| n.clone());
     for (p, c) in parts {
         if c.aov_sums.as_ref().map(|(n, _)| n) != aov_names.as_ref() {
-            return Err(Error::InvalidPart { path: p.path.clone(), message: format!("has other AOV sums than {}", parts[0].0.path.display()) });
+            return Err(Error::InvalidPart {
+                path: p.path.clone(),
+                message: format!("has other AOV sums than {}", parts[0].0.path.display()),
+            });
         }
     }
     let mut sums = vec![[0i128; 4]; w as usize * h as usize];
@@ -182,7 +220,10 @@ pub fn merge_parts(parts: &[(PartInfo, crate::output::ExrContents)]) -> Result<M
                     add(d, s);
                 }
                 if let Some((_, part_aov)) = &c.aov_sums {
-                    for (d, s) in aov[dst * k..(dst + 1) * k].iter_mut().zip(&part_aov[src * k..(src + 1) * k]) {
+                    for (d, s) in aov[dst * k..(dst + 1) * k]
+                        .iter_mut()
+                        .zip(&part_aov[src * k..(src + 1) * k])
+                    {
                         add(d, *s);
                     }
                 }
@@ -232,7 +273,10 @@ pub struct MergeOptions {
 pub fn merge_command(args: &MergeOptions, command_line: &str) -> Result<()> {
     let start = Instant::now();
     if !args.output.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr")) {
-        return Err(Error::invalid("--output", format!("{} must end in .exr", args.output.display())));
+        return Err(Error::invalid(
+            "--output",
+            format!("{} must end in .exr", args.output.display()),
+        ));
     }
     for path in std::iter::once(&args.output).chain(args.preview.iter()) {
         plume_core::fs::check_writable(path)?;
@@ -246,13 +290,17 @@ pub fn merge_command(args: &MergeOptions, command_line: &str) -> Result<()> {
     // Parts rendered with --denoise carry the half sums: the merged frame is denoised as
     // the single render would be
     let aov_sums = merged.aovs.as_ref().map_or(&[][..], |(_, sums)| sums.as_slice());
-    let crate::farm::frame::Written { pixels, layers, .. } =
-        crate::farm::frame::beauty_and_layers(layout.as_ref(), (&merged.sums, aov_sums), merged.pixels(), spp, full);
-    let aovs = merged
-        .aovs
-        .as_ref()
-        .filter(|_| layout.is_some())
-        .map(|(names, sums)| AovChannels { layers: &layers, sums: args.sums.then_some((names.as_slice(), sums.as_slice())) });
+    let crate::farm::frame::Written { pixels, layers, .. } = crate::farm::frame::beauty_and_layers(
+        layout.as_ref(),
+        (&merged.sums, aov_sums),
+        merged.pixels(),
+        spp,
+        full,
+    );
+    let aovs = merged.aovs.as_ref().filter(|_| layout.is_some()).map(|(names, sums)| AovChannels {
+        layers: &layers,
+        sums: args.sums.then_some((names.as_slice(), sums.as_slice())),
+    });
     let image = ExrImage {
         width: merged.width,
         height: merged.height,
@@ -264,7 +312,8 @@ pub fn merge_command(args: &MergeOptions, command_line: &str) -> Result<()> {
     };
     write_exr_image(&args.output, &image)?;
     if let Some(p) = &args.preview {
-        let exposure = args.exposure.map_or_else(|| crate::output::auto_exposure(&pixels), |ev| 2f32.powf(ev));
+        let exposure =
+            args.exposure.map_or_else(|| crate::output::auto_exposure(&pixels), |ev| 2f32.powf(ev));
         crate::output::write_png(p, merged.width, merged.height, &pixels, exposure)?;
     }
     if merged.saturated > 0 {
@@ -295,9 +344,23 @@ fn merged_metadata(
 ) -> Vec<(String, String)> {
     let mut m: BTreeMap<String, String> = parts[0].1.metadata.clone();
     // (The AOV sums' channel order is written with the sums, if they are kept)
-    m.retain(|k, _| k.starts_with("plume:") && !PER_PROCESS_KEYS.contains(&k.as_str()) && k != crate::output::AOV_CHANNELS_ATTRIBUTE);
-    let sum_f = |key: &str| parts.iter().filter_map(|(_, c)| c.metadata.get(key).and_then(|v| v.parse::<f64>().ok())).sum::<f64>();
-    let sum_u = |key: &str| parts.iter().filter_map(|(_, c)| c.metadata.get(key).and_then(|v| v.parse::<u64>().ok())).sum::<u64>();
+    m.retain(|k, _| {
+        k.starts_with("plume:")
+            && !PER_PROCESS_KEYS.contains(&k.as_str())
+            && k != crate::output::AOV_CHANNELS_ATTRIBUTE
+    });
+    let sum_f = |key: &str| {
+        parts
+            .iter()
+            .filter_map(|(_, c)| c.metadata.get(key).and_then(|v| v.parse::<f64>().ok()))
+            .sum::<f64>()
+    };
+    let sum_u = |key: &str| {
+        parts
+            .iter()
+            .filter_map(|(_, c)| c.metadata.get(key).and_then(|v| v.parse::<u64>().ok()))
+            .sum::<u64>()
+    };
     let spp = merged.samples.end - merged.samples.start;
     let cpu = sum_f("plume:cpuSeconds");
     let set: [(&str, String); 14] = [
@@ -313,14 +376,19 @@ fn merged_metadata(
         ("plume:cpuSeconds", format!("{cpu}")),
         ("plume:coreHours", format!("{}", cpu / 3600.0)),
         ("plume:allocatedCoreHours", format!("{}", sum_f("plume:allocatedCoreHours"))),
-        ("plume:saturatedSamples", (sum_u("plume:saturatedSamples") + merged.saturated).to_string()),
+        (
+            "plume:saturatedSamples",
+            (sum_u("plume:saturatedSamples") + merged.saturated).to_string(),
+        ),
         ("plume:underflowedSamples", sum_u("plume:underflowedSamples").to_string()),
     ];
     for (k, v) in set {
         m.insert(k.to_string(), v);
     }
     // The scene that made the parts, as the merged frame: the whole image, all samples
-    if let Some(scene) = m.get("plume:scene").and_then(|t| merged_scene(t, merged, output, working_dir)) {
+    if let Some(scene) =
+        m.get("plume:scene").and_then(|t| merged_scene(t, merged, output, working_dir))
+    {
         m.insert("plume:scene".into(), scene);
     }
     m.into_iter().collect()
@@ -329,13 +397,19 @@ fn merged_metadata(
 /// The first part's scene file (`plume:scene`) rewritten for the merged frame: no crop,
 /// tile or sample range, the merged sample count and output. `None` when it does not
 /// parse (an older plume's part); the part's text is kept then.
-fn merged_scene(part_scene: &str, merged: &Merged, output: &Path, working_dir: &Path) -> Option<String> {
+fn merged_scene(
+    part_scene: &str,
+    merged: &Merged,
+    output: &Path,
+    working_dir: &Path,
+) -> Option<String> {
     let mut shot: plume_scene::Shot = toml::from_str(part_scene).ok()?;
     let farm = &mut shot.settings.farm;
     (farm.crop, farm.tile) = (None, None);
     let first = merged.samples.start;
     farm.sample_range = (first != 0).then(|| merged.samples.clone());
-    shot.settings.render.spp = (first == 0).then(|| u32::try_from(merged.samples.end).ok()).flatten();
+    shot.settings.render.spp =
+        (first == 0).then(|| u32::try_from(merged.samples.end).ok()).flatten();
     shot.settings.render.time = None;
     shot.settings.output.image = output.to_path_buf();
     plume_scene::file::to_toml(&shot, working_dir).ok()
@@ -379,7 +453,8 @@ mod tests {
         let ok = [part("a", left, 0..5), part("b", left, 5..9), part("c", right, 0..9)];
         assert_eq!(check_parts(&ok).unwrap(), 0..9);
         // A full-image first range, then tiles for the rest
-        let mixed = [part("a", c(0, 0, 10, 8), 0..4), part("b", left, 4..9), part("c", right, 4..9)];
+        let mixed =
+            [part("a", c(0, 0, 10, 8), 0..4), part("b", left, 4..9), part("c", right, 4..9)];
         assert_eq!(check_parts(&mixed).unwrap(), 0..9);
     }
 
@@ -388,10 +463,16 @@ mod tests {
         let left = c(0, 0, 4, 8);
         let right = c(4, 0, 10, 8);
         let msg = |parts: &[PartInfo]| check_parts(parts).unwrap_err().to_string();
-        assert!(msg(&[part("a", left, 0..5), part("b", left, 4..9), part("c", right, 0..9)]).contains("overlap"));
-        assert!(msg(&[part("a", c(0, 0, 5, 8), 0..9), part("b", right, 0..9)]).contains("overlap"), "overlapping tiles");
-        assert!(msg(&[part("a", left, 0..4), part("b", left, 5..9), part("c", right, 0..9)]).contains("samples 4..5"));
-        assert!(msg(&[part("a", left, 0..9), part("c", c(4, 0, 10, 7), 0..9)]).contains("no part covers pixels 4,7,10,8"));
+        assert!(msg(&[part("a", left, 0..5), part("b", left, 4..9), part("c", right, 0..9)])
+            .contains("overlap"));
+        assert!(
+            msg(&[part("a", c(0, 0, 5, 8), 0..9), part("b", right, 0..9)]).contains("overlap"),
+            "overlapping tiles"
+        );
+        assert!(msg(&[part("a", left, 0..4), part("b", left, 5..9), part("c", right, 0..9)])
+            .contains("samples 4..5"));
+        assert!(msg(&[part("a", left, 0..9), part("c", c(4, 0, 10, 7), 0..9)])
+            .contains("no part covers pixels 4,7,10,8"));
         assert!(msg(&[part("a", left, 0..9), part("c", right, 0..8)]).contains("have samples"));
         let mut other = part("b", right, 0..9);
         other.settings_hash = "x".into();

@@ -69,7 +69,14 @@ pub trait JobObserver: Sync {
 
     /// The `index`-th frame was written, `status` being how far it got; `record` is its
     /// statistics record.
-    fn frame_done(&self, _index: usize, _frame: Option<i64>, _status: Completion, _record: &RenderStats) {}
+    fn frame_done(
+        &self,
+        _index: usize,
+        _frame: Option<i64>,
+        _status: Completion,
+        _record: &RenderStats,
+    ) {
+    }
 
     /// The `index`-th frame failed with `error`; the run goes on with the next frame.
     fn frame_failed(&self, _index: usize, _frame: Option<i64>, _error: &Error) {}

@@ -5,9 +5,9 @@
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 
+use crate::output::{read_exr_contents, ExrContents};
 use plume_core::error::{Error, Result};
 use plume_engine::film::Crop;
-use crate::output::{read_exr_contents, ExrContents};
 use plume_engine::stats::RenderStats;
 
 /// How far a frame (or part) got.
@@ -33,7 +33,9 @@ impl Completion {
     }
 
     fn parse(s: &str) -> Option<Completion> {
-        [Completion::Complete, Completion::Interrupted, Completion::TimeLimit].into_iter().find(|c| c.as_str() == s)
+        [Completion::Complete, Completion::Interrupted, Completion::TimeLimit]
+            .into_iter()
+            .find(|c| c.as_str() == s)
     }
 }
 
@@ -43,10 +45,16 @@ impl Completion {
 #[must_use]
 pub fn stats_metadata(stats: &RenderStats) -> Vec<(String, String)> {
     let value = serde_json::to_value(stats).expect("invariant: stats serialize");
-    let serde_json::Value::Object(map) = value else { unreachable!("invariant: stats is a struct") };
+    let serde_json::Value::Object(map) = value else {
+        unreachable!("invariant: stats is a struct")
+    };
     let mut out = Vec::with_capacity(map.len());
     for (k, v) in map {
-        let key = if k == "plume_version" { "plume:version".to_string() } else { format!("plume:{}", camel_case(&k)) };
+        let key = if k == "plume_version" {
+            "plume:version".to_string()
+        } else {
+            format!("plume:{}", camel_case(&k))
+        };
         match v {
             serde_json::Value::Null => {}
             serde_json::Value::String(s) => out.push((key, s)),
@@ -119,19 +127,33 @@ impl PartInfo {
     pub fn from_contents(path: &Path, c: &ExrContents) -> Result<PartInfo> {
         let m = &c.metadata;
         let bad = |message: String| Error::InvalidPart { path: path.to_path_buf(), message };
-        let get =
-            |k: &str| m.get(&format!("plume:{k}")).map(String::as_str).ok_or_else(|| bad(format!("no plume:{k} attribute (not rendered by this plume?)")));
-        let num = |k: &str| get(k).and_then(|v| v.parse::<u64>().map_err(|_| bad(format!("plume:{k} = {v:?} is not a number"))));
-        let real = |k: &str| m.get(&format!("plume:{k}")).and_then(|v| v.parse::<f64>().ok()).unwrap_or(0.0);
+        let get = |k: &str| {
+            m.get(&format!("plume:{k}"))
+                .map(String::as_str)
+                .ok_or_else(|| bad(format!("no plume:{k} attribute (not rendered by this plume?)")))
+        };
+        let num = |k: &str| {
+            get(k).and_then(|v| {
+                v.parse::<u64>().map_err(|_| bad(format!("plume:{k} = {v:?} is not a number")))
+            })
+        };
+        let real = |k: &str| {
+            m.get(&format!("plume:{k}")).and_then(|v| v.parse::<f64>().ok()).unwrap_or(0.0)
+        };
         let spp = num("spp")?;
         let samples = match m.get("plume:sampleRange") {
-            Some(r) => plume_scene::split::parse_sample_range(r).map_err(|e| bad(format!("plume:sampleRange: {e}")))?,
+            Some(r) => plume_scene::split::parse_sample_range(r)
+                .map_err(|e| bad(format!("plume:sampleRange: {e}")))?,
             None => 0..spp,
         };
         if samples.end - samples.start != spp {
-            return Err(bad(format!("plume:spp {spp} disagrees with plume:sampleRange {}", plume_scene::split::format_range(&samples))));
+            return Err(bad(format!(
+                "plume:spp {spp} disagrees with plume:sampleRange {}",
+                plume_scene::split::format_range(&samples)
+            )));
         }
-        let status = Completion::parse(get("status")?).ok_or_else(|| bad("plume:status is not complete, interrupted or time-limit".into()))?;
+        let status = Completion::parse(get("status")?)
+            .ok_or_else(|| bad("plume:status is not complete, interrupted or time-limit".into()))?;
         Ok(PartInfo {
             path: path.to_path_buf(),
             version: get("version")?.to_string(),
@@ -145,7 +167,8 @@ impl PartInfo {
             input_sha256: get("inputSha256")?.to_string(),
             input: m.get("plume:input").cloned().unwrap_or_default(),
             status,
-            fixed_point_bits: u32::try_from(num("fixedPointBits")?).map_err(|_| bad("plume:fixedPointBits out of range".into()))?,
+            fixed_point_bits: u32::try_from(num("fixedPointBits")?)
+                .map_err(|_| bad("plume:fixedPointBits out of range".into()))?,
             estimator: m.get("plume:estimator").cloned().unwrap_or_default(),
             cpu_seconds: real("cpuSeconds"),
             wall_seconds: real("wallSeconds"),
@@ -163,7 +186,8 @@ pub fn read_part(path: &Path) -> Result<(PartInfo, ExrContents)> {
     if let Err(source) = std::fs::metadata(path) {
         return Err(Error::Open { path: path.to_path_buf(), source });
     }
-    let contents = read_exr_contents(path).map_err(|e| Error::InvalidPart { path: path.to_path_buf(), message: e.to_string() })?;
+    let contents = read_exr_contents(path)
+        .map_err(|e| Error::InvalidPart { path: path.to_path_buf(), message: e.to_string() })?;
     let info = PartInfo::from_contents(path, &contents)?;
     Ok((info, contents))
 }
@@ -224,7 +248,10 @@ pub fn assess(path: &Path, expected: &Expected) -> Existing {
         // A --time budget: any complete image will do; a partial one cannot be continued
         return match info.status {
             Completion::Complete => Existing::Complete(info),
-            status => Existing::Stale(format!("{} and a render.time budget cannot be continued", status.as_str())),
+            status => Existing::Stale(format!(
+                "{} and a render.time budget cannot be continued",
+                status.as_str()
+            )),
         };
     };
     if info.status == Completion::Complete && info.samples == *r {
@@ -235,12 +262,26 @@ pub fn assess(path: &Path, expected: &Expected) -> Existing {
         // (With AOVs, their sums too: the settings hash says whether there are AOVs)
         match (contents.sums, contents.aov_sums, expected.aov_channels) {
             (Some(sums), _, None) => Existing::Resumable(info, sums, None),
-            (Some(sums), Some((names, aov)), Some(n)) if names.len() == n => Existing::Resumable(info, sums, Some(aov)),
-            (Some(_), _, Some(_)) => Existing::Stale(format!("holds samples {} without exact AOV sums", range(&info.samples))),
-            (None, ..) => Existing::Stale(format!("holds samples {} without exact sums (output.sums), not {}", range(&info.samples), range(r))),
+            (Some(sums), Some((names, aov)), Some(n)) if names.len() == n => {
+                Existing::Resumable(info, sums, Some(aov))
+            }
+            (Some(_), _, Some(_)) => Existing::Stale(format!(
+                "holds samples {} without exact AOV sums",
+                range(&info.samples)
+            )),
+            (None, ..) => Existing::Stale(format!(
+                "holds samples {} without exact sums (output.sums), not {}",
+                range(&info.samples),
+                range(r)
+            )),
         }
     } else {
-        Existing::Stale(format!("{} with samples {}, not {}", info.status.as_str(), range(&info.samples), range(r)))
+        Existing::Stale(format!(
+            "{} with samples {}, not {}",
+            info.status.as_str(),
+            range(&info.samples),
+            range(r)
+        ))
     }
 }
 

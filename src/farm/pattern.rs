@@ -49,7 +49,8 @@ impl FramePattern {
         };
         while i < chars.len() {
             let c = chars[i];
-            let digits_from = |j: usize| chars[j..].iter().take_while(|d| d.is_ascii_digit()).count();
+            let digits_from =
+                |j: usize| chars[j..].iter().take_while(|d| d.is_ascii_digit()).count();
             match c {
                 '#' => {
                     let n = chars[i..].iter().take_while(|&&d| d == '#').count();
@@ -67,7 +68,11 @@ impl FramePattern {
                     let end = i + 1 + usize::from(zero) + n;
                     let valid = chars.get(end) == Some(&'d') && (n == 0) != zero;
                     if valid {
-                        let width = if n == 0 { 1 } else { chars[i + 2..end].iter().collect::<String>().parse().unwrap_or(1) };
+                        let width = if n == 0 {
+                            1
+                        } else {
+                            chars[i + 2..end].iter().collect::<String>().parse().unwrap_or(1)
+                        };
                         frame(&mut literal, &mut pieces, width);
                         i = end + 1;
                     } else {
@@ -75,9 +80,15 @@ impl FramePattern {
                         i += 1;
                     }
                 }
-                '$' if chars.get(i + 1) == Some(&'F') && !chars.get(i + 2).is_some_and(|c| c.is_ascii_alphabetic() || *c == '_') => {
+                '$' if chars.get(i + 1) == Some(&'F')
+                    && !chars.get(i + 2).is_some_and(|c| c.is_ascii_alphabetic() || *c == '_') =>
+                {
                     let n = digits_from(i + 2);
-                    let width = if n == 0 { 1 } else { chars[i + 2..i + 2 + n].iter().collect::<String>().parse().unwrap_or(1) };
+                    let width = if n == 0 {
+                        1
+                    } else {
+                        chars[i + 2..i + 2 + n].iter().collect::<String>().parse().unwrap_or(1)
+                    };
                     frame(&mut literal, &mut pieces, width);
                     i += 2 + n;
                 }

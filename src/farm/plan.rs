@@ -4,9 +4,9 @@
 
 use std::ops::Range;
 
-use plume_core::error::{Error, Result};
 use crate::farm::pattern::FramePattern;
 use crate::farm::{frames, split};
+use plume_core::error::{Error, Result};
 use plume_engine::film::Crop;
 use plume_scene::{SceneDescription, ValidShot};
 
@@ -45,18 +45,29 @@ impl<'a> Job<'a> {
         let preview = settings.output.preview.as_deref().map(FramePattern::parse);
         let stats = settings.output.stats.as_deref().map(FramePattern::parse);
         let frames: Vec<Option<i64>> = match &settings.farm.frames {
-            Some(list) => frames::parse_frames(list).map_err(|m| Error::invalid("farm.frames", m))?.into_iter().map(Some).collect(),
+            Some(list) => frames::parse_frames(list)
+                .map_err(|m| Error::invalid("farm.frames", m))?
+                .into_iter()
+                .map(Some)
+                .collect(),
             None => {
                 for (key, p) in [("volume.file", &input), ("output.image", &output)] {
                     if p.has_frame() && !p.as_path().exists() {
-                        return Err(Error::invalid(key, format!("{} has a frame token; say which frames to render with farm.frames", p.as_path().display())));
+                        return Err(Error::invalid(
+                            key,
+                            format!(
+                                "{} has a frame token; say which frames to render with farm.frames",
+                                p.as_path().display()
+                            ),
+                        ));
                     }
                 }
                 vec![None]
             }
         };
         if frames.len() > 1 {
-            for (key, p) in [("output.image", Some(&output)), ("output.preview", preview.as_ref())] {
+            for (key, p) in [("output.image", Some(&output)), ("output.preview", preview.as_ref())]
+            {
                 if let Some(p) = p.filter(|p| !p.has_frame()) {
                     return Err(Error::invalid(
                         key,
@@ -69,7 +80,10 @@ impl<'a> Job<'a> {
         let farm = &settings.farm;
         let crop = match (farm.crop, farm.tile) {
             (Some(c), _) => Some(c),
-            (None, Some(t)) => Some(split::tile_crop(t.index, t.count, width, height).map_err(|m| Error::invalid("farm.tile", m))?),
+            (None, Some(t)) => Some(
+                split::tile_crop(t.index, t.count, width, height)
+                    .map_err(|m| Error::invalid("farm.tile", m))?,
+            ),
             (None, None) => None,
         };
         let samples = match (&farm.sample_range, settings.render.spp, settings.render.time) {

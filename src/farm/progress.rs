@@ -115,8 +115,17 @@ impl Progress {
     pub fn frame_failed(&self, index: usize, frame: Option<i64>, code: i32, error: &str) {
         match self.mode {
             ProgressFormat::None => {}
-            ProgressFormat::Openjd => self.emit(&[format!("openjd_status: {} ({}/{}): failed: {}", name(frame), index + 1, self.frames, one_line(error))]),
-            ProgressFormat::Json => self.emit(&[json!({"event": "frame_failed", "frame": frame, "exit_code": code, "error": error}).to_string()]),
+            ProgressFormat::Openjd => self.emit(&[format!(
+                "openjd_status: {} ({}/{}): failed: {}",
+                name(frame),
+                index + 1,
+                self.frames,
+                one_line(error)
+            )]),
+            ProgressFormat::Json => self.emit(&[
+                json!({"event": "frame_failed", "frame": frame, "exit_code": code, "error": error})
+                    .to_string(),
+            ]),
         }
     }
 
@@ -129,11 +138,15 @@ impl Progress {
                 if code == 0 {
                     lines.push("openjd_progress: 100.00".to_string());
                 } else {
-                    lines.push(format!("openjd_fail: exit code {code}: {}", one_line(message.unwrap_or("failed"))));
+                    lines.push(format!(
+                        "openjd_fail: exit code {code}: {}",
+                        one_line(message.unwrap_or("failed"))
+                    ));
                 }
                 self.emit(&lines);
             }
-            ProgressFormat::Json => self.emit(&[json!({"event": "done", "exit_code": code, "error": message}).to_string()]),
+            ProgressFormat::Json => self
+                .emit(&[json!({"event": "done", "exit_code": code, "error": message}).to_string()]),
         }
     }
 }

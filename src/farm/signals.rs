@@ -27,8 +27,12 @@ pub fn install() -> std::io::Result<()> {
         for (signal, flag) in [(SIGTERM, &flags.term), (SIGINT, &flags.int)] {
             // Registered first, so it sees the flag as the previous signal left it: the
             // second signal exits immediately
-            let registered = signal_hook::flag::register_conditional_shutdown(signal, plume_core::error::exit::INTERRUPTED, std::sync::Arc::clone(flag))
-                .and_then(|_| signal_hook::flag::register(signal, std::sync::Arc::clone(flag)));
+            let registered = signal_hook::flag::register_conditional_shutdown(
+                signal,
+                plume_core::error::exit::INTERRUPTED,
+                std::sync::Arc::clone(flag),
+            )
+            .and_then(|_| signal_hook::flag::register(signal, std::sync::Arc::clone(flag)));
             if let Err(e) = registered {
                 result = Err(e);
                 return;

@@ -5,13 +5,13 @@
 
 use std::time::Duration;
 
-use plume_scene::validate::selector;
-use plume_scene::{EmissionSettings, EmissionSource, JobSettings, ReadSettings, VolumeInput};
+use crate::vdb::{GridRequest, GridSelector, ReadIsolation, ReadLimits};
 use plume_core::color::Rgb;
 use plume_core::error::{Error, Result};
 use plume_engine::medium::{Emission, EmissionKind};
+use plume_scene::validate::selector;
+use plume_scene::{EmissionSettings, EmissionSource, JobSettings, ReadSettings, VolumeInput};
 use plume_volume::out_of_core::memory::MemoryLimits;
-use crate::vdb::{GridRequest, GridSelector, ReadIsolation, ReadLimits};
 
 /// Emission grid names tried, in order, by `emission.source = "auto"` and by `"grid"`
 /// without `volume.emission_grid`.
@@ -23,10 +23,16 @@ pub const EMISSION_GRID_CANDIDATES: [&str; 4] = ["emission", "flame", "heat", "f
 ///
 /// # Errors
 /// A selector that does not parse.
-pub(crate) fn grid_requests(volume: &VolumeInput, source: EmissionSource) -> Result<Vec<GridRequest>> {
-    let candidates = || -> Result<Vec<GridSelector>> { EMISSION_GRID_CANDIDATES.iter().map(|n| selector("volume.emission_grid", n)).collect() };
+pub(crate) fn grid_requests(
+    volume: &VolumeInput,
+    source: EmissionSource,
+) -> Result<Vec<GridRequest>> {
+    let candidates = || -> Result<Vec<GridSelector>> {
+        EMISSION_GRID_CANDIDATES.iter().map(|n| selector("volume.emission_grid", n)).collect()
+    };
     let temperature = selector("volume.temperature_grid", &volume.temperature_grid)?;
-    let mut requests = vec![GridRequest::required(selector("volume.density_grid", &volume.density_grid)?)];
+    let mut requests =
+        vec![GridRequest::required(selector("volume.density_grid", &volume.density_grid)?)];
     match source {
         EmissionSource::None => {}
         EmissionSource::Blackbody => requests.push(GridRequest::required(temperature)),
@@ -117,12 +123,24 @@ pub struct FileReader {
 /// A read timeout that is not a positive number of seconds.
 pub fn reader(reading: &ReadSettings) -> Result<FileReader> {
     // The default reads the memory limits (cgroup files): only when no limit is given
-    let limits = ReadLimits { max_bytes: reading.max_input_memory.map_or_else(|| ReadLimits::default().max_bytes, |b| b.0) };
+    let limits = ReadLimits {
+        max_bytes: reading
+            .max_input_memory
+            .map_or_else(|| ReadLimits::default().max_bytes, |b| b.0),
+    };
     let timeout = Duration::try_from_secs_f64(reading.read_timeout)
         .ok()
         .filter(|t| !t.is_zero())
-        .ok_or_else(|| Error::invalid("reading.read_timeout", format!("{} is not a positive number of seconds", reading.read_timeout)))?;
-    Ok(FileReader { limits, isolation: ReadIsolation::from_flags(reading.no_isolation, &limits, timeout) })
+        .ok_or_else(|| {
+        Error::invalid(
+            "reading.read_timeout",
+            format!("{} is not a positive number of seconds", reading.read_timeout),
+        )
+    })?;
+    Ok(FileReader {
+        limits,
+        isolation: ReadIsolation::from_flags(reading.no_isolation, &limits, timeout),
+    })
 }
 
 /// The memory budget: `render.memory_budget`, or half of physical memory or of this
@@ -147,9 +165,14 @@ mod tests {
 
     #[test]
     fn the_default_input_limit_is_the_default_budget() {
-        let FileReader { limits, .. } = reader(&ReadSettings::default()).expect("default reading settings");
+        let FileReader { limits, .. } =
+            reader(&ReadSettings::default()).expect("default reading settings");
         assert_eq!(limits.max_bytes, MemoryLimits::read().default_budget());
-        let FileReader { limits, .. } = reader(&ReadSettings { max_input_memory: Some(ByteSize(1 << 20)), ..ReadSettings::default() }).expect("valid");
+        let FileReader { limits, .. } = reader(&ReadSettings {
+            max_input_memory: Some(ByteSize(1 << 20)),
+            ..ReadSettings::default()
+        })
+        .expect("valid");
         assert_eq!(limits.max_bytes, 1 << 20);
     }
 }

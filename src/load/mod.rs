@@ -18,13 +18,15 @@ use std::path::Path;
 use glam::DVec3;
 
 use crate::cache::CacheCheck;
-use plume_engine::camera::{Camera, CameraMotion, LookAt};
+use crate::load::bind::{
+    emission_kind, emission_model, grid_requests, memory_budget, reader, split_found, FileReader,
+};
+use crate::vdb::{FloatGrid, GridRequest};
 use plume_core::error::{Error, Result};
+use plume_engine::camera::{Camera, CameraMotion, LookAt};
 use plume_engine::integrator::{AnyScene, LightSampling, Lights, Scene, Tracking};
 use plume_engine::medium::{Emission, EmissionKind, Medium};
-use crate::load::bind::{emission_kind, emission_model, grid_requests, memory_budget, reader, split_found, FileReader};
 use plume_scene::{JobSettings, SceneDescription, UpAxis};
-use crate::vdb::{FloatGrid, GridRequest};
 use plume_volume::majorant::MajorantGrid;
 use plume_volume::motion::Motion;
 use plume_volume::proxy::{CellPower, ProxyGrid};
@@ -55,7 +57,11 @@ struct LoadedVolume {
 }
 
 /// Read a .vdb's grids into memory and build the volume.
-fn load_vdb(scene: &SceneDescription, input: &Path, settings: &JobSettings) -> Result<LoadedVolume> {
+fn load_vdb(
+    scene: &SceneDescription,
+    input: &Path,
+    settings: &JobSettings,
+) -> Result<LoadedVolume> {
     let FileReader { limits, isolation } = reader(&settings.reading)?;
     let requests = grid_requests(&scene.volume, scene.emission.source)?;
     let found = isolation.read_grids(input, &requests, &limits)?;
@@ -64,18 +70,36 @@ fn load_vdb(scene: &SceneDescription, input: &Path, settings: &JobSettings) -> R
     let emission = emission_model(&scene.emission, kind)?;
     let source = grids.source.map(|f| f.grid);
     let albedo = grids.albedo.map(|f| f.grid);
-    let volume = Volume::build_with_albedo(&grids.density.grid, source.as_ref(), |v| emission.map_source(v), albedo.as_ref())?;
-    Ok(LoadedVolume { volume, emission, source_grid: source.map(|g| g.name), proxy_power: None, cache: None })
+    let volume = Volume::build_with_albedo(
+        &grids.density.grid,
+        source.as_ref(),
+        |v| emission.map_source(v),
+        albedo.as_ref(),
+    )?;
+    Ok(LoadedVolume {
+        volume,
+        emission,
+        source_grid: source.map(|g| g.name),
+        proxy_power: None,
+        cache: None,
+    })
 }
 
 /// Check a brick cache against the description and take its volume.
 fn load_cache(scene: &SceneDescription, cache: crate::cache::Cache) -> Result<LoadedVolume> {
-    let kind = crate::cache::convert::check_description(&cache, &scene.volume, scene.emission.source)?;
+    let kind =
+        crate::cache::convert::check_description(&cache, &scene.volume, scene.emission.source)?;
     let emission = emission_model(&scene.emission, kind)?;
     crate::cache::convert::check_source_key(&cache, &emission)?;
     crate::cache::convert::check_not_stale(&cache)?;
     let proxy_power = cache.proxy_power.zip(cache.meta.proxy.map(|p| p.power_key));
-    Ok(LoadedVolume { volume: cache.volume, emission, source_grid: cache.meta.source_grid, proxy_power, cache: Some(cache.check) })
+    Ok(LoadedVolume {
+        volume: cache.volume,
+        emission,
+        source_grid: cache.meta.source_grid,
+        proxy_power,
+        cache: Some(cache.check),
+    })
 }
 
 /// Load `input` (the description's volume file, its frame token resolved) as
@@ -87,7 +111,12 @@ fn load_cache(scene: &SceneDescription, cache: crate::cache::Cache) -> Result<Lo
 /// # Errors
 /// Missing or unreadable file or grid, invalid values, incompatible grids, a stale or
 /// damaged cache, or light-sampling tables beyond the memory budget.
-pub fn load_scene(scene: &SceneDescription, input: &Path, settings: &JobSettings, frame: Option<i64>) -> Result<LoadedScene> {
+pub fn load_scene(
+    scene: &SceneDescription,
+    input: &Path,
+    settings: &JobSettings,
+    frame: Option<i64>,
+) -> Result<LoadedScene> {
     // Mapping values are checked before any reading
     emission_model(&scene.emission, EmissionKind::None)?;
     let budget = memory_budget(settings);
@@ -100,33 +129,72 @@ pub fn load_scene(scene: &SceneDescription, input: &Path, settings: &JobSettings
     };
     let LoadedVolume { volume, emission, source_grid, proxy_power, cache } = loaded;
     let camera = camera(scene, input, &volume, frame)?;
-    let medium = Medium { sigma_t: scene.medium.density_scale, albedo: scene.albedo(), g: scene.medium.g, emission };
+    let medium = Medium {
+        sigma_t: scene.medium.density_scale,
+        albedo: scene.albedo(),
+        g: scene.medium.g,
+        emission,
+    };
     // Light-sampling structures, only for the technique in use and only when paths scatter
     let (_, light_sampling) = scene.integrator.parts();
     let mut lights = if scene.scatters() {
-        let proxy_resolution = ProxyGrid::resolution_for(&volume, scene.integrator.proxy_resolution);
-        crate::cache::convert::check_light_budget(&volume, light_sampling, scene.integrator.nee_table, budget)?;
+        let proxy_resolution =
+            ProxyGrid::resolution_for(&volume, scene.integrator.proxy_resolution);
+        crate::cache::convert::check_light_budget(
+            &volume,
+            light_sampling,
+            scene.integrator.nee_table,
+            budget,
+        )?;
         match proxy_power {
-            Some((power, key)) if light_sampling == LightSampling::Fnee && power.resolution == proxy_resolution && key == emission.light_key() => {
+            Some((power, key))
+                if light_sampling == LightSampling::Fnee
+                    && power.resolution == proxy_resolution
+                    && key == emission.light_key() =>
+            {
                 Lights { proxy: ProxyGrid::from_cell_power(&volume, &power)?, ..Lights::default() }
             }
-            _ => Lights::build_with(&volume, &emission, light_sampling, proxy_resolution, scene.integrator.nee_table)?,
+            _ => Lights::build_with(
+                &volume,
+                &emission,
+                light_sampling,
+                proxy_resolution,
+                scene.integrator.nee_table,
+            )?,
         }
     } else {
         Lights::default()
     };
     // Lights besides the volume: seen by camera rays even when nothing scatters
     if scene.lights.any() {
-        let Bounds3 { lo, hi } = if volume.is_empty() { Bounds3 { lo: DVec3::splat(-1.0), hi: DVec3::splat(1.0) } } else { volume.world_bounds() };
-        lights.external = plume_engine::light::external::settings::build(&scene.lights, up_axis(scene), 0.5 * (hi - lo).length())?;
+        let Bounds3 { lo, hi } = if volume.is_empty() {
+            Bounds3 { lo: DVec3::splat(-1.0), hi: DVec3::splat(1.0) }
+        } else {
+            volume.world_bounds()
+        };
+        lights.external = plume_engine::light::external::settings::build(
+            &scene.lights,
+            up_axis(scene),
+            0.5 * (hi - lo).length(),
+        )?;
     }
     let motion = match (&scene.volume.velocity_grid, scene.shutter_seconds()) {
-        (Some(name), Some(shutter)) => Some(Motion::new(&volume, Velocity::Grid(read_velocity(input, name, settings)?), scene.volume.velocity_scale, shutter)),
+        (Some(name), Some(shutter)) => Some(Motion::new(
+            &volume,
+            Velocity::Grid(read_velocity(input, name, settings)?),
+            scene.volume.velocity_scale,
+            shutter,
+        )),
         _ => None,
     };
     // Majorants for null collisions in a still volume (a moving one has its own)
-    let majorants = (motion.is_none() && plume_engine::integrator::Integrator::for_scene(scene).tracking != Tracking::Regular).then(|| MajorantGrid::new(&volume, 0.0));
-    let scene = AnyScene::new(Scene { field: volume, medium, camera, lights, motion, majorants }, scene.volume.interpolation);
+    let majorants = (motion.is_none()
+        && plume_engine::integrator::Integrator::for_scene(scene).tracking != Tracking::Regular)
+        .then(|| MajorantGrid::new(&volume, 0.0));
+    let scene = AnyScene::new(
+        Scene { field: volume, medium, camera, lights, motion, majorants },
+        scene.volume.interpolation,
+    );
     Ok(LoadedScene { scene, emission_kind: emission.kind, source_grid, cache })
 }
 
@@ -140,7 +208,13 @@ pub fn load_scene(scene: &SceneDescription, input: &Path, settings: &JobSettings
 /// as input (velocity is not stored in caches), non-finite velocities.
 fn read_velocity(input: &Path, name: &str, settings: &JobSettings) -> Result<VelocityGrid> {
     if crate::cache::is_cache_path(input) {
-        return Err(Error::invalid("volume.velocity_grid", format!("{}: brick caches hold no velocity; render the .vdb for motion blur", input.display())));
+        return Err(Error::invalid(
+            "volume.velocity_grid",
+            format!(
+                "{}: brick caches hold no velocity; render the .vdb for motion blur",
+                input.display()
+            ),
+        ));
     }
     let FileReader { limits, isolation } = reader(&settings.reading)?;
     let what = format!("{}: grid {name:?}", input.display());
@@ -153,13 +227,19 @@ fn read_velocity(input: &Path, name: &str, settings: &JobSettings) -> Result<Vel
     // No vector grid of that name: its components as float grids
     let requests: Vec<GridRequest> = ["x", "y", "z"]
         .iter()
-        .map(|c| plume_scene::validate::selector("volume.velocity_grid", &format!("{name}.{c}")).map(GridRequest::required))
+        .map(|c| {
+            plume_scene::validate::selector("volume.velocity_grid", &format!("{name}.{c}"))
+                .map(GridRequest::required)
+        })
         .collect::<Result<_>>()?;
     let found = isolation.read_grids(input, &requests, &limits).map_err(|e| match e {
         Error::GridNotFound { .. } => Error::Scene(format!("{what}: no vector grid {name:?} and no complete float triple {name}.x, {name}.y, {name}.z ({e})")),
         e => e,
     })?;
-    let grids: Vec<FloatGrid> = found.into_iter().map(|f| f.expect("invariant: required grids are found or an error").grid).collect();
+    let grids: Vec<FloatGrid> = found
+        .into_iter()
+        .map(|f| f.expect("invariant: required grids are found or an error").grid)
+        .collect();
     VelocityGrid::from_components([&grids[0], &grids[1], &grids[2]], &what)
 }
 
@@ -175,7 +255,12 @@ fn up_axis(scene: &SceneDescription) -> DVec3 {
 /// between keys, held before the first and after the last).
 fn keyed(scene: &SceneDescription, x: f64) -> LookAt {
     let c = &scene.camera;
-    let look = |k: &plume_scene::CameraKey| LookAt { from: k.from, at: k.at, up: k.up.or(c.up).unwrap_or(up_axis(scene)), fov: k.fov.unwrap_or(c.fov) };
+    let look = |k: &plume_scene::CameraKey| LookAt {
+        from: k.from,
+        at: k.at,
+        up: k.up.or(c.up).unwrap_or(up_axis(scene)),
+        fov: k.fov.unwrap_or(c.fov),
+    };
     let keys = &c.keys;
     let i = keys.iter().rposition(|k| k.frame <= x).unwrap_or(0);
     if i + 1 >= keys.len() || x <= keys[0].frame {
@@ -195,7 +280,12 @@ fn keyed_camera(scene: &SceneDescription, frame: Option<i64>) -> Result<Camera> 
     if let Some([open, close]) = scene.shutter_seconds() {
         let (o, e) = (f + open * c.fps, f + close * c.fps);
         let mut knots = vec![(open, keyed(scene, o))];
-        knots.extend(c.keys.iter().filter(|k| k.frame > o && k.frame < e).map(|k| ((k.frame - f) / c.fps, keyed(scene, k.frame))));
+        knots.extend(
+            c.keys
+                .iter()
+                .filter(|k| k.frame > o && k.frame < e)
+                .map(|k| ((k.frame - f) / c.fps, keyed(scene, k.frame))),
+        );
         knots.push((close, keyed(scene, e)));
         if close > open && knots.windows(2).any(|w| w[0].1 != w[1].1) {
             camera.motion = Some(CameraMotion::new(&knots, c.width, c.height)?);
@@ -205,15 +295,31 @@ fn keyed_camera(scene: &SceneDescription, frame: Option<i64>) -> Result<Camera> 
 }
 
 /// The camera: as given, animated by keys, or framing the volume automatically.
-fn camera(scene: &SceneDescription, input: &Path, volume: &Volume, frame: Option<i64>) -> Result<Camera> {
+fn camera(
+    scene: &SceneDescription,
+    input: &Path,
+    volume: &Volume,
+    frame: Option<i64>,
+) -> Result<Camera> {
     let c = &scene.camera;
     if !c.keys.is_empty() {
         return keyed_camera(scene, frame);
     }
     let up = c.up.unwrap_or(up_axis(scene));
-    let Bounds3 { lo, hi } = if volume.is_empty() { Bounds3 { lo: DVec3::splat(-1.0), hi: DVec3::splat(1.0) } } else { volume.world_bounds() };
+    let Bounds3 { lo, hi } = if volume.is_empty() {
+        Bounds3 { lo: DVec3::splat(-1.0), hi: DVec3::splat(1.0) }
+    } else {
+        volume.world_bounds()
+    };
     if let Some(from) = c.from {
-        return Camera::look_at(from, c.at.unwrap_or(0.5 * (lo + hi)), up, c.fov, c.width, c.height);
+        return Camera::look_at(
+            from,
+            c.at.unwrap_or(0.5 * (lo + hi)),
+            up,
+            c.fov,
+            c.width,
+            c.height,
+        );
     }
     // Automatic framing: a three-quarter view from the front, slightly above
     let view = match c.up_axis {

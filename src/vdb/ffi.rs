@@ -127,27 +127,49 @@ mod bridge {
         fn list_grids(path: &str) -> Result<Vec<GridSummary>>;
         /// Reads the `occurrence`-th grid named `name` (file order), unless its type or
         /// transform is unusable; the outcome is in `header().status`.
-        fn open_float_grid(path: &str, name: &str, occurrence: usize) -> Result<UniquePtr<FloatGridReader>>;
+        fn open_float_grid(
+            path: &str,
+            name: &str,
+            occurrence: usize,
+        ) -> Result<UniquePtr<FloatGridReader>>;
         /// Status, transform and output size of an opened grid.
         fn header(self: &FloatGridReader) -> Result<FloatGridHeader>;
         /// Copies every leaf, then every voxelized tile block: 3 origin components and
         /// 512 values per block. The slices must match the sizes in `header()`.
-        fn copy_leaves(self: &FloatGridReader, origins: &mut [i32], values: &mut [f32]) -> Result<()>;
+        fn copy_leaves(
+            self: &FloatGridReader,
+            origins: &mut [i32],
+            values: &mut [f32],
+        ) -> Result<()>;
 
         /// As [`open_float_grid`] for a `vec3s` or `vec3d` grid (another type is
         /// `ReadStatus::NotVec3`).
-        fn open_vec3_grid(path: &str, name: &str, occurrence: usize) -> Result<UniquePtr<Vec3GridReader>>;
+        fn open_vec3_grid(
+            path: &str,
+            name: &str,
+            occurrence: usize,
+        ) -> Result<UniquePtr<Vec3GridReader>>;
         /// Status, transform and output size of an opened vector grid.
         fn header(self: &Vec3GridReader) -> Result<Vec3GridHeader>;
         /// Copies every leaf, then every voxelized tile block, in [`FloatGridReader`]'s
         /// order: 3 origin components per block and 512 values per block into each of `x`,
         /// `y` and `z`. The slices must match the sizes in `header()`.
-        fn copy_leaves(self: &Vec3GridReader, origins: &mut [i32], x: &mut [f32], y: &mut [f32], z: &mut [f32]) -> Result<()>;
+        fn copy_leaves(
+            self: &Vec3GridReader,
+            origins: &mut [i32],
+            x: &mut [f32],
+            y: &mut [f32],
+            z: &mut [f32],
+        ) -> Result<()>;
 
         /// Opens the `occurrence`-th grid named `name` (file order) with delayed loading
         /// and reads its topology, unless its type or transform is unusable; the outcome
         /// is in `stream_header().status`.
-        fn open_leaf_stream(path: &str, name: &str, occurrence: usize) -> Result<UniquePtr<LeafStream>>;
+        fn open_leaf_stream(
+            path: &str,
+            name: &str,
+            occurrence: usize,
+        ) -> Result<UniquePtr<LeafStream>>;
         /// Status, transform, leaf count, bounds and memory of an opened stream.
         fn stream_header(self: &LeafStream) -> Result<LeafStreamHeader>;
         /// Active tiles above leaf level, in tree order.
@@ -155,15 +177,34 @@ mod bridge {
         /// Copies the next leaves in tree order into the slices (3 origin components and
         /// 512 values each, as many whole leaves as both hold), loading each from the file
         /// and freeing it once copied. Returns the number copied; 0 at the end.
-        fn next_leaves(self: Pin<&mut LeafStream>, origins: &mut [i32], values: &mut [f32]) -> Result<usize>;
+        fn next_leaves(
+            self: Pin<&mut LeafStream>,
+            origins: &mut [i32],
+            values: &mut [f32],
+        ) -> Result<usize>;
 
         /// An empty writer.
         fn new_grid_writer() -> Result<UniquePtr<GridWriter>>;
         /// Adds one fog-volume float grid; voxels that differ from `background` are active.
-        fn add_float_grid(self: Pin<&mut GridWriter>, name: &str, world_from_index: &[f64], background: f32, origins: &[i32], values: &[f32]) -> Result<()>;
+        fn add_float_grid(
+            self: Pin<&mut GridWriter>,
+            name: &str,
+            world_from_index: &[f64],
+            background: f32,
+            origins: &[i32],
+            values: &[f32],
+        ) -> Result<()>;
         /// Adds one vec3s grid (background 0) from the x, y, z value blocks of each leaf;
         /// voxels that are not the zero vector are active.
-        fn add_vec3_grid(self: Pin<&mut GridWriter>, name: &str, world_from_index: &[f64], origins: &[i32], x: &[f32], y: &[f32], z: &[f32]) -> Result<()>;
+        fn add_vec3_grid(
+            self: Pin<&mut GridWriter>,
+            name: &str,
+            world_from_index: &[f64],
+            origins: &[i32],
+            x: &[f32],
+            y: &[f32],
+            z: &[f32],
+        ) -> Result<()>;
         /// Writes all added grids to `path` (truncating it), blosc-compressed.
         fn write(self: &GridWriter, path: &str) -> Result<()>;
     }

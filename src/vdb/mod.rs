@@ -56,12 +56,20 @@ mod stream;
 pub mod wire;
 mod write;
 
-pub use isolate::{list_grids_isolated, read_float_grids_isolated, read_grids_isolated, read_vec3_grid_isolated, IsolationLimits, ReadIsolation};
-pub use read::{list_grids, read_float_grid, read_grids, read_vec3_grid, FoundGrid, GridRequest, ReadLimits};
+pub use isolate::{
+    list_grids_isolated, read_float_grids_isolated, read_grids_isolated, read_vec3_grid_isolated,
+    IsolationLimits, ReadIsolation,
+};
 pub use plume_scene::selector::GridSelector;
 pub use plume_volume::grid::{leaf_offset, FloatGrid, LEAF_DIM, LEAF_VOXELS};
+pub use read::{
+    list_grids, read_float_grid, read_grids, read_vec3_grid, FoundGrid, GridRequest, ReadLimits,
+};
 pub(crate) use stream::FileStamp;
-pub use stream::{stream_float_grid, stream_float_grid_isolated, HeaderVisitor, LeafData, LeafVisitor, StreamedGrid};
+pub use stream::{
+    stream_float_grid, stream_float_grid_isolated, HeaderVisitor, LeafData, LeafVisitor,
+    StreamedGrid,
+};
 pub use write::{write_float_grids, write_grids, VectorGrid};
 
 use serde::Serialize;

@@ -95,13 +95,25 @@ pub fn list_grids(path: &Path) -> Result<Vec<GridInfo>> {
 /// - [`Error::UnsupportedGrid`]: the grid is not `float`/`double`, or its transform is
 ///   not affine (e.g. a frustum).
 /// - [`Error::TooLarge`]: the voxelized grid would need more than `limits.max_bytes`.
-pub fn read_float_grid(path: &Path, selector: &GridSelector, limits: &ReadLimits) -> Result<FloatGrid> {
+pub fn read_float_grid(
+    path: &Path,
+    selector: &GridSelector,
+    limits: &ReadLimits,
+) -> Result<FloatGrid> {
     let path_str = check_file(path)?;
-    let reader = ffi::open_float_grid(path_str, &selector.name, selector.occurrence).map_err(|e| vdb_error(path, &e))?;
+    let reader = ffi::open_float_grid(path_str, &selector.name, selector.occurrence)
+        .map_err(|e| vdb_error(path, &e))?;
     let header = reader.header().map_err(|e| vdb_error(path, &e))?;
     check_status(path, path_str, selector, header.status, &header.value_type, &header.transform)?;
 
-    let output = Output::new(path, selector, header.leaf_count, header.tile_leaf_count, BYTES_PER_LEAF, limits)?;
+    let output = Output::new(
+        path,
+        selector,
+        header.leaf_count,
+        header.tile_leaf_count,
+        BYTES_PER_LEAF,
+        limits,
+    )?;
     let mut origins = output.buffer::<i32>(3)?;
     let mut values = output.buffer::<f32>(LEAF_VOXELS)?;
     reader.copy_leaves(&mut origins, &mut values).map_err(|e| vdb_error(path, &e))?;
@@ -137,14 +149,26 @@ pub fn read_float_grid(path: &Path, selector: &GridSelector, limits: &ReadLimits
 ///   type), or its transform is not affine.
 /// - [`Error::TooLarge`]: the three voxelized components would need more than
 ///   `limits.max_bytes`, that is 3 × what a float grid of the same leaves needs.
-pub fn read_vec3_grid(path: &Path, selector: &GridSelector, limits: &ReadLimits) -> Result<[FloatGrid; 3]> {
+pub fn read_vec3_grid(
+    path: &Path,
+    selector: &GridSelector,
+    limits: &ReadLimits,
+) -> Result<[FloatGrid; 3]> {
     let path_str = check_file(path)?;
-    let reader = ffi::open_vec3_grid(path_str, &selector.name, selector.occurrence).map_err(|e| vdb_error(path, &e))?;
+    let reader = ffi::open_vec3_grid(path_str, &selector.name, selector.occurrence)
+        .map_err(|e| vdb_error(path, &e))?;
     let header = reader.header().map_err(|e| vdb_error(path, &e))?;
     check_status(path, path_str, selector, header.status, &header.value_type, &header.transform)?;
 
     // Three FloatGrids, each with its own copy of the origins
-    let output = Output::new(path, selector, header.leaf_count, header.tile_leaf_count, VEC3_BYTES_PER_LEAF, limits)?;
+    let output = Output::new(
+        path,
+        selector,
+        header.leaf_count,
+        header.tile_leaf_count,
+        VEC3_BYTES_PER_LEAF,
+        limits,
+    )?;
     let mut origins = output.buffer::<i32>(3)?;
     let mut x = output.buffer::<f32>(LEAF_VOXELS)?;
     let mut y = output.buffer::<f32>(LEAF_VOXELS)?;
@@ -155,15 +179,20 @@ pub fn read_vec3_grid(path: &Path, selector: &GridSelector, limits: &ReadLimits)
     check_finite(path, selector, &[&x, &y, &z], &header.background)?;
     let origins: Vec<IVec3> = origins.chunks_exact(3).map(IVec3::from_slice).collect();
     let world_from_index = DAffine3::from_cols_array(&header.world_from_index);
-    let component = |axis: &str, values: Vec<f32>, background: f32, origins: Vec<IVec3>| FloatGrid {
-        name: format!("{}.{axis}", selector.name),
-        world_from_index,
-        background,
-        origins,
-        values,
-    };
+    let component =
+        |axis: &str, values: Vec<f32>, background: f32, origins: Vec<IVec3>| FloatGrid {
+            name: format!("{}.{axis}", selector.name),
+            world_from_index,
+            background,
+            origins,
+            values,
+        };
     let [bx, by, bz] = header.background;
-    Ok([component("x", x, bx, output.copy_of(&origins)?), component("y", y, by, output.copy_of(&origins)?), component("z", z, bz, origins)])
+    Ok([
+        component("x", x, bx, output.copy_of(&origins)?),
+        component("y", y, by, output.copy_of(&origins)?),
+        component("z", z, bz, origins),
+    ])
 }
 
 /// Output bytes per leaf of [`read_vec3_grid`]: three component grids, each with its
@@ -183,9 +212,22 @@ struct Output<'a> {
 
 impl<'a> Output<'a> {
     /// Sizes the output from the tree (leaves + tiles), never from header metadata.
-    fn new(path: &'a Path, selector: &'a GridSelector, leaf_count: u64, tile_leaf_count: u64, bytes_per_leaf: u64, limits: &ReadLimits) -> Result<Output<'a>> {
+    fn new(
+        path: &'a Path,
+        selector: &'a GridSelector,
+        leaf_count: u64,
+        tile_leaf_count: u64,
+        bytes_per_leaf: u64,
+        limits: &ReadLimits,
+    ) -> Result<Output<'a>> {
         let leaves = leaf_count.saturating_add(tile_leaf_count);
-        let mut output = Output { path, selector, leaves: 0, needed: leaves.saturating_mul(bytes_per_leaf), limit: limits.max_bytes };
+        let mut output = Output {
+            path,
+            selector,
+            leaves: 0,
+            needed: leaves.saturating_mul(bytes_per_leaf),
+            limit: limits.max_bytes,
+        };
         if output.needed > output.limit {
             return Err(output.too_large());
         }
@@ -194,7 +236,12 @@ impl<'a> Output<'a> {
     }
 
     fn too_large(&self) -> Error {
-        Error::TooLarge { path: self.path.to_path_buf(), grid: self.selector.to_string(), needed: self.needed, limit: self.limit }
+        Error::TooLarge {
+            path: self.path.to_path_buf(),
+            grid: self.selector.to_string(),
+            needed: self.needed,
+            limit: self.limit,
+        }
     }
 
     /// A zero-filled buffer of `per_leaf` items per output leaf.
@@ -217,8 +264,14 @@ impl<'a> Output<'a> {
 
 /// Refuses NaN or infinite values (or backgrounds) as corruption: OpenVDB reads damaged
 /// leaf data without complaint.
-fn check_finite(path: &Path, selector: &GridSelector, components: &[&[f32]], backgrounds: &[f32]) -> Result<()> {
-    let non_finite: usize = components.iter().map(|values| values.iter().filter(|v| !v.is_finite()).count()).sum();
+fn check_finite(
+    path: &Path,
+    selector: &GridSelector,
+    components: &[&[f32]],
+    backgrounds: &[f32],
+) -> Result<()> {
+    let non_finite: usize =
+        components.iter().map(|values| values.iter().filter(|v| !v.is_finite()).count()).sum();
     if non_finite == 0 && backgrounds.iter().all(|b| b.is_finite()) {
         return Ok(());
     }
@@ -233,8 +286,19 @@ fn check_finite(path: &Path, selector: &GridSelector, components: &[&[f32]], bac
 /// [`Error::GridNotFound`] (listing the selectors the file holds),
 /// [`Error::UnsupportedGrid`] for a type the read does not take (not scalar for
 /// [`read_float_grid`], not a vector for [`read_vec3_grid`]) or a non-affine transform.
-pub(crate) fn check_status(path: &Path, path_str: &str, selector: &GridSelector, status: ffi::ReadStatus, value_type: &str, transform: &str) -> Result<()> {
-    let unsupported = |message: String| Error::UnsupportedGrid { path: path.to_path_buf(), grid: selector.to_string(), message };
+pub(crate) fn check_status(
+    path: &Path,
+    path_str: &str,
+    selector: &GridSelector,
+    status: ffi::ReadStatus,
+    value_type: &str,
+    transform: &str,
+) -> Result<()> {
+    let unsupported = |message: String| Error::UnsupportedGrid {
+        path: path.to_path_buf(),
+        grid: selector.to_string(),
+        message,
+    };
     match status {
         ffi::ReadStatus::Ready => Ok(()),
         ffi::ReadStatus::NotFound => {
@@ -305,7 +369,11 @@ pub struct FoundGrid {
 /// # Errors
 /// As [`read_float_grid`]; [`Error::GridNotFound`] names a required request's first
 /// alternative.
-pub fn read_grids(path: &Path, requests: &[GridRequest], limits: &ReadLimits) -> Result<Vec<Option<FoundGrid>>> {
+pub fn read_grids(
+    path: &Path,
+    requests: &[GridRequest],
+    limits: &ReadLimits,
+) -> Result<Vec<Option<FoundGrid>>> {
     plan_requests(path, requests)?
         .into_iter()
         .zip(requests)
@@ -333,7 +401,10 @@ pub(crate) fn plan_requests(path: &Path, requests: &[GridRequest]) -> Result<Vec
     requests
         .iter()
         .map(|request| {
-            let first = request.alternatives.first().ok_or_else(|| Error::invalid("grid request", "no grid selector given"))?;
+            let first = request
+                .alternatives
+                .first()
+                .ok_or_else(|| Error::invalid("grid request", "no grid selector given"))?;
             let choice = request.alternatives.iter().position(|a| in_file.contains(a));
             if choice.is_none() && request.required {
                 return Err(Error::GridNotFound {
@@ -355,15 +426,28 @@ pub(crate) fn check_file(path: &Path) -> Result<&str> {
         return Err(open_error(io::Error::new(io::ErrorKind::InvalidInput, "not a regular file")));
     }
     let mut magic = Vec::with_capacity(OPENVDB_MAGIC.len());
-    fs::File::open(path).and_then(|file| file.take(OPENVDB_MAGIC.len() as u64).read_to_end(&mut magic)).map_err(open_error)?;
+    fs::File::open(path)
+        .and_then(|file| file.take(OPENVDB_MAGIC.len() as u64).read_to_end(&mut magic))
+        .map_err(open_error)?;
     if magic.starts_with(NANOVDB_MAGIC_PREFIX) {
-        return Err(vdb_message(path, format!("this is a NanoVDB file, not OpenVDB; convert it with `nanovdb_convert {} out.vdb`", path.display())));
+        return Err(vdb_message(
+            path,
+            format!(
+                "this is a NanoVDB file, not OpenVDB; convert it with `nanovdb_convert {} out.vdb`",
+                path.display()
+            ),
+        ));
     }
     if magic != OPENVDB_MAGIC {
         let hex: Vec<String> = magic.iter().map(|b| format!("{b:02x}")).collect();
-        return Err(vdb_message(path, format!("not an OpenVDB file (starts with bytes {})", hex.join(" "))));
+        return Err(vdb_message(
+            path,
+            format!("not an OpenVDB file (starts with bytes {})", hex.join(" ")),
+        ));
     }
-    path.to_str().ok_or_else(|| open_error(io::Error::new(io::ErrorKind::InvalidInput, "path is not valid UTF-8")))
+    path.to_str().ok_or_else(|| {
+        open_error(io::Error::new(io::ErrorKind::InvalidInput, "path is not valid UTF-8"))
+    })
 }
 
 pub(crate) fn vdb_error(path: &Path, error: &cxx::Exception) -> Error {

@@ -95,7 +95,9 @@ impl ReadIsolation {
     ) -> Result<StreamedGrid> {
         match self {
             ReadIsolation::InProcess => stream_float_grid(path, selector, limits, header, leaf),
-            ReadIsolation::Child { reader_exe, limits: isolation } => stream_float_grid_isolated(reader_exe, path, selector, limits, isolation, header, leaf),
+            ReadIsolation::Child { reader_exe, limits: isolation } => stream_float_grid_isolated(
+                reader_exe, path, selector, limits, isolation, header, leaf,
+            ),
         }
     }
 }
@@ -116,14 +118,21 @@ impl FileStamp {
     pub(crate) fn of(path: &Path) -> std::io::Result<FileStamp> {
         use std::os::unix::fs::MetadataExt;
         let m = std::fs::metadata(path)?;
-        Ok(FileStamp { dev: m.dev(), ino: m.ino(), bytes: m.len(), mtime: (m.mtime(), m.mtime_nsec()) })
+        Ok(FileStamp {
+            dev: m.dev(),
+            ino: m.ino(),
+            bytes: m.len(),
+            mtime: (m.mtime(), m.mtime_nsec()),
+        })
     }
 
     /// How the file now at `path` differs from this version, if it does.
     pub(crate) fn change(&self, path: &Path) -> Option<String> {
         let now = match FileStamp::of(path) {
             Ok(now) => now,
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Some("it was removed".into()),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+                return Some("it was removed".into())
+            }
             Err(e) => return Some(format!("it cannot be examined again ({e})")),
         };
         let sizes = format!("now {} bytes, {} when opened", now.bytes, self.bytes);
@@ -195,9 +204,13 @@ impl Tile {
         let (min, max) = (self.min.to_array(), self.max.to_array());
         let edge = i64::from(max[0]) - i64::from(min[0]) + 1;
         let cube = (0..3).all(|a| i64::from(max[a]) - i64::from(min[a]) + 1 == edge);
-        let aligned = matches!(edge, 8 | 128 | 4096) && (0..3).all(|a| i64::from(min[a]).rem_euclid(edge) == 0);
+        let aligned = matches!(edge, 8 | 128 | 4096)
+            && (0..3).all(|a| i64::from(min[a]).rem_euclid(edge) == 0);
         if !cube || !aligned {
-            return Err(format!("active tile {}..{} is not a node-aligned cube", self.min, self.max));
+            return Err(format!(
+                "active tile {}..{} is not a node-aligned cube",
+                self.min, self.max
+            ));
         }
         if !self.value.is_finite() {
             return Err(format!("active tile at {} holds a NaN or infinite value", self.min));
@@ -220,7 +233,9 @@ pub(crate) enum Refusal {
 fn tree_order(o: IVec3) -> (i32, i32, i32, u32) {
     let slot = |shift: i32, bits: i32| {
         let mask = (1 << bits) - 1;
-        (((o.x >> shift) & mask) << (2 * bits) | ((o.y >> shift) & mask) << bits | ((o.z >> shift) & mask)) as u32
+        (((o.x >> shift) & mask) << (2 * bits)
+            | ((o.y >> shift) & mask) << bits
+            | ((o.z >> shift) & mask)) as u32
     };
     (o.x >> 12, o.y >> 12, o.z >> 12, slot(7, 5) << 12 | slot(3, 4))
 }
@@ -247,7 +262,11 @@ impl<'v, 'f> Delivery<'v, 'f> {
     }
 
     /// Leaves in tree order: `values` holds [`LEAF_VOXELS`] per origin.
-    pub(crate) fn leaves(&mut self, origins: &[IVec3], values: &[f32]) -> std::result::Result<(), Refusal> {
+    pub(crate) fn leaves(
+        &mut self,
+        origins: &[IVec3],
+        values: &[f32],
+    ) -> std::result::Result<(), Refusal> {
         let corrupt = |m: String| Err(Refusal::Corrupt(m));
         if self.in_tiles {
             return corrupt("leaves after the tiles".into());
@@ -284,10 +303,16 @@ impl<'v, 'f> Delivery<'v, 'f> {
         self.in_tiles = true;
         let blocks = tile.blocks().map_err(Refusal::Corrupt)?;
         if !self.inside(tile.min, tile.max) {
-            return Err(Refusal::Corrupt(format!("tile {}..{} lies outside the announced bounds", tile.min, tile.max)));
+            return Err(Refusal::Corrupt(format!(
+                "tile {}..{} lies outside the announced bounds",
+                tile.min, tile.max
+            )));
         }
         if blocks > self.grid.tile_blocks - self.tile_blocks {
-            return Err(Refusal::Corrupt(format!("more than the {} tile blocks announced", self.grid.tile_blocks)));
+            return Err(Refusal::Corrupt(format!(
+                "more than the {} tile blocks announced",
+                self.grid.tile_blocks
+            )));
         }
         self.tile_blocks += blocks;
         // Bounds are checked and aligned, so every origin is an i32 and steps stay in range
@@ -295,7 +320,8 @@ impl<'v, 'f> Delivery<'v, 'f> {
         for x in axis(0) {
             for y in axis(1) {
                 for z in axis(2) {
-                    (self.visit)(IVec3::new(x, y, z), LeafData::Constant(tile.value)).map_err(Refusal::Visitor)?;
+                    (self.visit)(IVec3::new(x, y, z), LeafData::Constant(tile.value))
+                        .map_err(Refusal::Visitor)?;
                 }
             }
         }
@@ -338,13 +364,18 @@ pub(crate) struct LocalStream<'p> {
 impl<'p> LocalStream<'p> {
     /// Opens the grid and reads its topology, with every check of
     /// [`read_float_grid`](super::read_float_grid) that does not need the values.
-    pub(crate) fn open(path: &'p Path, selector: &'p GridSelector, limits: &ReadLimits) -> Result<LocalStream<'p>> {
+    pub(crate) fn open(
+        path: &'p Path,
+        selector: &'p GridSelector,
+        limits: &ReadLimits,
+    ) -> Result<LocalStream<'p>> {
         let path_str = check_file(path)?;
         let stamp = FileStamp::of(path);
         // OpenVDB maps the file and reads its topology from the mapping inside this call: a
         // truncation meanwhile faults before the mapping can be found and watched
         let opening = plume_volume::out_of_core::mapfault::Watch::any_address("VDB file", path);
-        let shim = ffi::open_leaf_stream(path_str, &selector.name, selector.occurrence).map_err(|e| vdb_error(path, &e))?;
+        let shim = ffi::open_leaf_stream(path_str, &selector.name, selector.occurrence)
+            .map_err(|e| vdb_error(path, &e))?;
         // Delayed loading has mapped the file (its topology was read from the mapping)
         let watches = plume_volume::out_of_core::mapfault::watch_mappings_of(path, "VDB file");
         drop(opening);
@@ -352,9 +383,15 @@ impl<'p> LocalStream<'p> {
         check_status(path, path_str, selector, h.status, &h.value_type, &h.transform)?;
         let needed = h.resident_bytes.saturating_add(BATCH_BYTES);
         if needed > limits.max_bytes {
-            return Err(Error::TooLarge { path: path.to_path_buf(), grid: selector.to_string(), needed, limit: limits.max_bytes });
+            return Err(Error::TooLarge {
+                path: path.to_path_buf(),
+                grid: selector.to_string(),
+                needed,
+                limit: limits.max_bytes,
+            });
         }
-        let corrupt = |m: String| vdb_message(path, format!("grid {selector}: {m}; the file is corrupt"));
+        let corrupt =
+            |m: String| vdb_message(path, format!("grid {selector}: {m}; the file is corrupt"));
         if !h.background.is_finite() {
             return Err(corrupt("the background is NaN or infinite".into()));
         }
@@ -362,7 +399,11 @@ impl<'p> LocalStream<'p> {
             .stream_tiles()
             .map_err(|e| vdb_error(path, &e))?
             .iter()
-            .map(|t| Tile { min: IVec3::from_array(t.min), max: IVec3::from_array(t.max), value: t.value })
+            .map(|t| Tile {
+                min: IVec3::from_array(t.min),
+                max: IVec3::from_array(t.max),
+                value: t.value,
+            })
             .collect();
         let mut tile_blocks = 0u64;
         for tile in &tiles {
@@ -374,7 +415,9 @@ impl<'p> LocalStream<'p> {
             background: h.background,
             leaf_count: h.leaf_count,
             tile_blocks,
-            index_bbox: h.has_bbox.then(|| (IVec3::from_array(h.bbox_min), IVec3::from_array(h.bbox_max))),
+            index_bbox: h
+                .has_bbox
+                .then(|| (IVec3::from_array(h.bbox_min), IVec3::from_array(h.bbox_max))),
         };
         Ok(LocalStream {
             path,
@@ -411,15 +454,27 @@ impl<'p> LocalStream<'p> {
         if let Some(change) = self.stamp.as_ref().ok().and_then(|s| s.change(self.path)) {
             return Err(FileStamp::failed(self.path, &change));
         }
-        let n = self.shim.pin_mut().next_leaves(&mut self.raw_origins, &mut self.values).map_err(|e| vdb_error(self.path, &e))?;
+        let n = self
+            .shim
+            .pin_mut()
+            .next_leaves(&mut self.raw_origins, &mut self.values)
+            .map_err(|e| vdb_error(self.path, &e))?;
         if n == 0 {
             return Ok(None);
         }
         self.origins.clear();
         self.origins.extend(self.raw_origins[..3 * n].chunks_exact(3).map(IVec3::from_slice));
         let values = &self.values[..LEAF_VOXELS * n];
-        if let Some(i) = values.chunks_exact(LEAF_VOXELS).position(|b| b.iter().any(|v| !v.is_finite())) {
-            return Err(vdb_message(self.path, format!("grid {}: leaf {} holds NaN or infinite values; the file is corrupt", self.selector, self.origins[i])));
+        if let Some(i) =
+            values.chunks_exact(LEAF_VOXELS).position(|b| b.iter().any(|v| !v.is_finite()))
+        {
+            return Err(vdb_message(
+                self.path,
+                format!(
+                    "grid {}: leaf {} holds NaN or infinite values; the file is corrupt",
+                    self.selector, self.origins[i]
+                ),
+            ));
         }
         Ok(Some((&self.origins, values)))
     }
@@ -443,14 +498,22 @@ mod tests {
 
     #[test]
     fn tiles_must_be_node_cubes() {
-        let tile = |min: [i32; 3], edge: i32| Tile { min: IVec3::from_array(min), max: IVec3::from_array(min) + (edge - 1), value: 1.0 };
+        let tile = |min: [i32; 3], edge: i32| Tile {
+            min: IVec3::from_array(min),
+            max: IVec3::from_array(min) + (edge - 1),
+            value: 1.0,
+        };
         assert_eq!(tile([8, -16, 0], 8).blocks(), Ok(1));
         assert_eq!(tile([-128, 0, 128], 128).blocks(), Ok(16 * 16 * 16));
         assert_eq!(tile([0, 0, -4096], 4096).blocks(), Ok(1 << 27));
         assert!(tile([8, 0, 0], 128).blocks().is_err(), "unaligned");
         assert!(tile([0, 0, 0], 16).blocks().is_err(), "not a node size");
         assert_eq!(tile([i32::MAX - 7, 0, 0], 8).blocks(), Ok(1), "the last block of i32");
-        let wrapped = Tile { min: IVec3::new(i32::MAX - 3, 0, 0), max: IVec3::new(i32::MIN + 4, 7, 7), value: 1.0 };
+        let wrapped = Tile {
+            min: IVec3::new(i32::MAX - 3, 0, 0),
+            max: IVec3::new(i32::MIN + 4, 7, 7),
+            value: 1.0,
+        };
         assert!(wrapped.blocks().is_err());
         let mut wide = tile([0, 0, 0], 8);
         wide.max.x += 8;

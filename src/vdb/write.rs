@@ -45,7 +45,8 @@ pub struct VectorGrid<'a> {
 /// As [`write_float_grids`]; components on different leaves or transforms.
 pub fn write_grids(path: &Path, grids: &[&FloatGrid], vectors: &[VectorGrid<'_>]) -> Result<()> {
     let write_error = |source: io::Error| Error::Write { path: path.to_path_buf(), source };
-    let invalid = |message: String| write_error(io::Error::new(io::ErrorKind::InvalidInput, message));
+    let invalid =
+        |message: String| write_error(io::Error::new(io::ErrorKind::InvalidInput, message));
 
     // Build every grid before touching the file system.
     let mut writer = ffi::new_grid_writer().map_err(|e| write_error(io::Error::other(e.what())))?;
@@ -54,7 +55,13 @@ pub fn write_grids(path: &Path, grids: &[&FloatGrid], vectors: &[VectorGrid<'_>]
         let origins: Vec<i32> = grid.origins.iter().flat_map(|o| o.to_array()).collect();
         writer
             .pin_mut()
-            .add_float_grid(&grid.name, &grid.world_from_index.to_cols_array(), grid.background, &origins, &grid.values)
+            .add_float_grid(
+                &grid.name,
+                &grid.world_from_index.to_cols_array(),
+                grid.background,
+                &origins,
+                &grid.values,
+            )
             .map_err(|e| write_error(io::Error::other(e.what())))?;
     }
     for v in vectors {
@@ -62,13 +69,27 @@ pub fn write_grids(path: &Path, grids: &[&FloatGrid], vectors: &[VectorGrid<'_>]
         for c in [x, y, z] {
             validate(c).map_err(|message| invalid(format!("grid {:?}: {message}", v.name)))?;
         }
-        if y.origins != x.origins || z.origins != x.origins || y.world_from_index != x.world_from_index || z.world_from_index != x.world_from_index {
-            return Err(invalid(format!("grid {:?}: its components have different leaves or transforms", v.name)));
+        if y.origins != x.origins
+            || z.origins != x.origins
+            || y.world_from_index != x.world_from_index
+            || z.world_from_index != x.world_from_index
+        {
+            return Err(invalid(format!(
+                "grid {:?}: its components have different leaves or transforms",
+                v.name
+            )));
         }
         let origins: Vec<i32> = x.origins.iter().flat_map(|o| o.to_array()).collect();
         writer
             .pin_mut()
-            .add_vec3_grid(v.name, &x.world_from_index.to_cols_array(), &origins, &x.values, &y.values, &z.values)
+            .add_vec3_grid(
+                v.name,
+                &x.world_from_index.to_cols_array(),
+                &origins,
+                &x.values,
+                &y.values,
+                &z.values,
+            )
             .map_err(|e| write_error(io::Error::other(e.what())))?;
     }
 
@@ -91,7 +112,12 @@ pub fn write_grids(path: &Path, grids: &[&FloatGrid], vectors: &[VectorGrid<'_>]
 /// Checks the [`FloatGrid`] invariants the shim relies on.
 fn validate(grid: &FloatGrid) -> std::result::Result<(), String> {
     if grid.values.len() != grid.origins.len() * LEAF_VOXELS {
-        return Err(format!("{} values for {} leaves (expected {} per leaf)", grid.values.len(), grid.origins.len(), LEAF_VOXELS));
+        return Err(format!(
+            "{} values for {} leaves (expected {} per leaf)",
+            grid.values.len(),
+            grid.origins.len(),
+            LEAF_VOXELS
+        ));
     }
     if let Some(origin) = grid.origins.iter().find(|o| (**o % LEAF_DIM) != glam::IVec3::ZERO) {
         return Err(format!("leaf origin {origin} is not a multiple of {LEAF_DIM}"));
@@ -106,7 +132,8 @@ fn validate(grid: &FloatGrid) -> std::result::Result<(), String> {
 /// `dir/.name.<pid>.<n>.tmp`, beside the target so that the rename stays on one file system.
 fn temp_path(path: &Path) -> std::result::Result<PathBuf, String> {
     static COUNTER: AtomicUsize = AtomicUsize::new(0);
-    let file_name = path.file_name().ok_or_else(|| "not a file path".to_string())?.to_string_lossy();
+    let file_name =
+        path.file_name().ok_or_else(|| "not a file path".to_string())?.to_string_lossy();
     let n = COUNTER.fetch_add(1, Ordering::Relaxed);
     let temp_name = format!(".{file_name}.{}.{n}.tmp", std::process::id());
     Ok(path.with_file_name(temp_name))

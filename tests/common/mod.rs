@@ -13,12 +13,12 @@ use std::process::Output;
 use std::time::Duration;
 
 use glam::{DAffine3, DVec3, IVec3};
+use plume::vdb::{leaf_offset, read_float_grid, FloatGrid, ReadLimits, LEAF_VOXELS};
 use plume_core::color::Rgb;
+use plume_core::sampling::{Sampler, SamplerKind};
 use plume_engine::integrator::{AnyScene, Integrator};
 use plume_engine::medium::{Convention, Emission, EmissionKind, TemperatureMap};
 use plume_engine::render::{render, RenderSettings, SampleBudget};
-use plume_core::sampling::{Sampler, SamplerKind};
-use plume::vdb::{leaf_offset, read_float_grid, FloatGrid, ReadLimits, LEAF_VOXELS};
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
 /// Fewest expected counts a cell may have before it is pooled with others.
@@ -48,7 +48,9 @@ pub fn sidak(alpha: f64, test_count: usize) -> f64 {
 
 /// Where failing histograms go: `$CARGO_TARGET_DIR/chi2` or `<crate>/target/chi2`.
 fn dump_dir() -> PathBuf {
-    std::env::var_os("CARGO_TARGET_DIR").map_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("target"), PathBuf::from).join("chi2")
+    std::env::var_os("CARGO_TARGET_DIR")
+        .map_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("target"), PathBuf::from)
+        .join("chi2")
 }
 
 fn dump(name: &str, observed: &[f64], expected: &[f64], why: &str) -> PathBuf {
@@ -73,7 +75,13 @@ fn dump(name: &str, observed: &[f64], expected: &[f64], why: &str) -> PathBuf {
 /// # Panics
 /// When the test fails, after printing a summary and dumping both histograms to
 /// `target/chi2/<name>.tsv`.
-pub fn chi2_test(name: &str, observed: &[f64], expected: &[f64], alpha: f64, test_count: usize) -> Chi2Outcome {
+pub fn chi2_test(
+    name: &str,
+    observed: &[f64],
+    expected: &[f64],
+    alpha: f64,
+    test_count: usize,
+) -> Chi2Outcome {
     assert_eq!(observed.len(), expected.len(), "{name}: histogram sizes differ");
     let significance = sidak(alpha, test_count);
     let mut order: Vec<usize> = (0..expected.len()).collect();
@@ -86,7 +94,10 @@ pub fn chi2_test(name: &str, observed: &[f64], expected: &[f64], alpha: f64, tes
         if e == 0.0 {
             if o > 0.0 {
                 let path = dump(name, observed, expected, "samples in a cell of zero probability");
-                panic!("{name}: {o} samples in cell {i} of zero expected count; histograms in {}", path.display());
+                panic!(
+                    "{name}: {o} samples in cell {i} of zero expected count; histograms in {}",
+                    path.display()
+                );
             }
         } else if e < MIN_EXPECTED {
             pool_o += o;
@@ -113,7 +124,10 @@ pub fn chi2_test(name: &str, observed: &[f64], expected: &[f64], alpha: f64, tes
     println!("chi2 {name}: statistic {statistic:.2}, dof {dof}, p = {p_value:.4} (reject below {significance:.2e})");
     if p_value.is_nan() || p_value < significance {
         let path = dump(name, observed, expected, &format!("{outcome:?}"));
-        panic!("{name}: chi-square rejected the sampler, {outcome:?}; histograms in {}", path.display());
+        panic!(
+            "{name}: chi-square rejected the sampler, {outcome:?}; histograms in {}",
+            path.display()
+        );
     }
     outcome
 }
@@ -132,7 +146,13 @@ pub fn grid(name: &str, xf: DAffine3, leaves: &[IVec3], f: impl Fn(IVec3) -> f32
         }
         values.extend(block);
     }
-    FloatGrid { name: name.into(), world_from_index: xf, background: 0.0, origins: leaves.to_vec(), values }
+    FloatGrid {
+        name: name.into(),
+        world_from_index: xf,
+        background: 0.0,
+        origins: leaves.to_vec(),
+        values,
+    }
 }
 
 /// A deterministic 32-bit hash of a voxel and a seed.
@@ -169,7 +189,14 @@ pub fn mean_stderr(values: &[f64]) -> (f64, f64) {
 /// Grid emission in `convention`: `L_e` = source (grey), unscaled, no cutoff.
 #[must_use]
 pub fn grid_emission(convention: Convention) -> Emission {
-    Emission { kind: EmissionKind::Grid, convention, scale: 1.0, color: Rgb::ONE, temperature_map: TemperatureMap::Kelvin, cutoff_kelvin: 0.0 }
+    Emission {
+        kind: EmissionKind::Grid,
+        convention,
+        scale: 1.0,
+        color: Rgb::ONE,
+        temperature_map: TemperatureMap::Kelvin,
+        cutoff_kelvin: 0.0,
+    }
 }
 
 // ---------------------------------------------------------------------------------------
@@ -197,7 +224,14 @@ pub fn frame(pole: DVec3) -> (DVec3, DVec3) {
 
 /// Bin of direction `w` in a (cos θ, φ) grid around `pole` covering `cos θ ∈ [c_min, 1]`,
 /// or `None` below `c_min`.
-pub fn direction_bin(w: DVec3, pole: DVec3, (t1, t2): (DVec3, DVec3), c_min: f64, nc: usize, nphi: usize) -> Option<usize> {
+pub fn direction_bin(
+    w: DVec3,
+    pole: DVec3,
+    (t1, t2): (DVec3, DVec3),
+    c_min: f64,
+    nc: usize,
+    nphi: usize,
+) -> Option<usize> {
     let c = w.dot(pole);
     if c < c_min {
         return None;
@@ -229,7 +263,12 @@ pub fn plume(args: &[&str]) -> Output {
 #[must_use]
 pub fn replayed_values(o: &Output) -> Vec<f64> {
     let printed = String::from_utf8_lossy(&o.stdout);
-    printed.trim().trim_matches(|c| c == '[' || c == ']').split(',').map(|v| v.trim().parse().unwrap()).collect()
+    printed
+        .trim()
+        .trim_matches(|c| c == '[' || c == ']')
+        .split(',')
+        .map(|v| v.trim().parse().unwrap())
+        .collect()
 }
 
 /// A run's stderr as text.
@@ -329,7 +368,14 @@ pub fn exr_pixels(p: &Path) -> Vec<[f32; 4]> {
 /// Every `f32` channel of an EXR by name.
 pub fn channels(path: &Path) -> std::collections::BTreeMap<String, Vec<f32>> {
     use exr::prelude::*;
-    let image = read().no_deep_data().largest_resolution_level().all_channels().first_valid_layer().all_attributes().from_file(path).unwrap();
+    let image = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .from_file(path)
+        .unwrap();
     image
         .layer_data
         .channel_data
@@ -341,7 +387,9 @@ pub fn channels(path: &Path) -> std::collections::BTreeMap<String, Vec<f32>> {
 }
 
 /// The bits of every value of every channel of [`channels`].
-pub fn bits(c: &std::collections::BTreeMap<String, Vec<f32>>) -> std::collections::BTreeMap<String, Vec<u32>> {
+pub fn bits(
+    c: &std::collections::BTreeMap<String, Vec<f32>>,
+) -> std::collections::BTreeMap<String, Vec<u32>> {
     c.iter().map(|(k, v)| (k.clone(), v.iter().map(|x| x.to_bits()).collect())).collect()
 }
 
@@ -352,7 +400,12 @@ pub fn pixel_bits(pixels: &[[f32; 4]]) -> Vec<u32> {
 
 /// Names of the entries of `dir` for which `keep` holds.
 pub fn names_in(dir: &Path, keep: impl Fn(&str) -> bool) -> Vec<String> {
-    std::fs::read_dir(dir).unwrap().filter_map(|e| e.ok()).map(|e| e.file_name().to_string_lossy().into_owned()).filter(|n| keep(n)).collect()
+    std::fs::read_dir(dir)
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| keep(n))
+        .collect()
 }
 
 // ---------------------------------------------------------------------------------------
@@ -373,10 +426,15 @@ pub fn shell_script(tier: &str, name: &str, body: &str) -> PathBuf {
 /// Runs `attempt`, which spawns `reader`, again while the spawn fails with ETXTBSY: another
 /// test thread's fork still holds the freshly written script open for writing. Up to 50
 /// tries, 20 ms apart.
-pub fn retry_while_busy<T>(reader: &Path, mut attempt: impl FnMut() -> plume::Result<T>) -> plume::Result<T> {
+pub fn retry_while_busy<T>(
+    reader: &Path,
+    mut attempt: impl FnMut() -> plume::Result<T>,
+) -> plume::Result<T> {
     for _ in 0..50 {
         match attempt() {
-            Err(plume::Error::ReaderSpawn { source, .. }) if source.raw_os_error() == Some(libc::ETXTBSY) => {
+            Err(plume::Error::ReaderSpawn { source, .. })
+                if source.raw_os_error() == Some(libc::ETXTBSY) =>
+            {
                 std::thread::sleep(Duration::from_millis(20));
             }
             other => return other,
@@ -400,7 +458,11 @@ pub fn explosion_emission() -> Emission {
 /// The generated explosion (32³, seed 5) with [`explosion_emission`]'s blackbody as its
 /// source: the path-integrator tiers' test volume.
 pub fn explosion_volume() -> plume_volume::Volume {
-    let ex = plume_synth::explosion(&plume_synth::ExplosionParams { resolution: 32, seed: 5, ..Default::default() });
+    let ex = plume_synth::explosion(&plume_synth::ExplosionParams {
+        resolution: 32,
+        seed: 5,
+        ..Default::default()
+    });
     let e = explosion_emission();
     plume_volume::Volume::build(&ex.density, Some(&ex.temperature), |v| e.map_source(v)).unwrap()
 }
@@ -418,15 +480,46 @@ pub fn explosion_scene(
     let e = explosion_emission();
     let lights = lights(&vol, &e);
     let majorants = majorants.then(|| plume_volume::majorant::MajorantGrid::new(&vol, 0.0));
-    let camera = plume_engine::camera::Camera::look_at(DVec3::new(0.0, 0.2, -6.5), DVec3::new(0.0, 0.2, 0.0), DVec3::Y, 40.0, 10, 8).unwrap();
+    let camera = plume_engine::camera::Camera::look_at(
+        DVec3::new(0.0, 0.2, -6.5),
+        DVec3::new(0.0, 0.2, 0.0),
+        DVec3::Y,
+        40.0,
+        10,
+        8,
+    )
+    .unwrap();
     let medium = plume_engine::medium::Medium { sigma_t, albedo: 0.8, g: 0.3, emission: e };
-    AnyScene::new(plume_engine::integrator::Scene { field: vol, medium, camera, lights, motion: None, majorants }, interpolation)
+    AnyScene::new(
+        plume_engine::integrator::Scene {
+            field: vol,
+            medium,
+            camera,
+            lights,
+            motion: None,
+            majorants,
+        },
+        interpolation,
+    )
 }
 
 /// Mean of `r + g + b` over the whole image and over its 4 quadrants (in that order) of
 /// one in-process render of `spp` samples per pixel under `seed`.
-pub fn regions(scene: &AnyScene, integrator: Integrator, sampler: SamplerKind, spp: u32, seed: u64) -> [f64; 5] {
-    let settings = RenderSettings { budget: SampleBudget::Spp(spp), seed, sampler, threads: 0, first_sample: 0, integrator };
+pub fn regions(
+    scene: &AnyScene,
+    integrator: Integrator,
+    sampler: SamplerKind,
+    spp: u32,
+    seed: u64,
+) -> [f64; 5] {
+    let settings = RenderSettings {
+        budget: SampleBudget::Spp(spp),
+        seed,
+        sampler,
+        threads: 0,
+        first_sample: 0,
+        integrator,
+    };
     let r = plume_engine::with_scene!(scene, s => render(s, &settings, &|_, _| {}));
     let px = r.film.average(r.spp);
     let (w, h) = (scene.camera().width as usize, scene.camera().height as usize);
@@ -450,8 +543,16 @@ pub fn regions(scene: &AnyScene, integrator: Integrator, sampler: SamplerKind, s
 /// Runs differ in seed, so with Sobol each run has its own per-pixel scrambles: run means
 /// are independent and unbiased (randomized quasi-Monte Carlo), and their spread is an
 /// honest standard error even though the samples within a run are not independent.
-pub fn region_means_with(sampler: SamplerKind, scene: &AnyScene, integrator: Integrator, spp: u32, runs: u64, seed0: u64) -> Vec<(f64, f64)> {
-    let per_run: Vec<[f64; 5]> = (0..runs).map(|run| regions(scene, integrator, sampler, spp, seed0 + run)).collect();
+pub fn region_means_with(
+    sampler: SamplerKind,
+    scene: &AnyScene,
+    integrator: Integrator,
+    spp: u32,
+    runs: u64,
+    seed0: u64,
+) -> Vec<(f64, f64)> {
+    let per_run: Vec<[f64; 5]> =
+        (0..runs).map(|run| regions(scene, integrator, sampler, spp, seed0 + run)).collect();
     (0..5).map(|k| mean_stderr(&per_run.iter().map(|r| r[k]).collect::<Vec<_>>())).collect()
 }
 
@@ -470,7 +571,12 @@ pub fn assert_same_means(label: &str, got: &[(f64, f64)], reference: &[(f64, f64
 ///
 /// # Panics
 /// If a render fails or its stats have no settings hash.
-pub fn settings_hashes(dir: &Path, base: &[&str], flag: &str, values: &[(&str, Option<&str>)]) -> Vec<String> {
+pub fn settings_hashes(
+    dir: &Path,
+    base: &[&str],
+    flag: &str,
+    values: &[(&str, Option<&str>)],
+) -> Vec<String> {
     values
         .iter()
         .map(|&(name, value)| {
@@ -482,7 +588,10 @@ pub fn settings_hashes(dir: &Path, base: &[&str], flag: &str, values: &[(&str, O
             }
             let o = plume(&args);
             assert!(o.status.success(), "{name}: {}", String::from_utf8_lossy(&o.stderr));
-            let json: serde_json::Value = serde_json::from_str(std::fs::read_to_string(&stats).unwrap().lines().last().unwrap()).unwrap();
+            let json: serde_json::Value = serde_json::from_str(
+                std::fs::read_to_string(&stats).unwrap().lines().last().unwrap(),
+            )
+            .unwrap();
             json["settings_hash"].as_str().expect("a settings hash").to_string()
         })
         .collect()
@@ -494,7 +603,12 @@ pub fn settings_hashes(dir: &Path, base: &[&str], flag: &str, values: &[(&str, O
 ///
 /// # Panics
 /// If the file cannot be written or the render fails.
-pub fn render_integrator_keys(dir: &Path, vdb: &Path, keys: &str, (width, height): (u32, u32)) -> Vec<[f32; 4]> {
+pub fn render_integrator_keys(
+    dir: &Path,
+    vdb: &Path,
+    keys: &str,
+    (width, height): (u32, u32),
+) -> Vec<[f32; 4]> {
     let scene_file = dir.join("scene.toml");
     let text = format!("[volume]\nfile = {:?}\n[integrator]\n{keys}\n[medium]\nalbedo = 0.8\n[camera]\nwidth = {width}\nheight = {height}\n", s(vdb));
     std::fs::write(&scene_file, text).unwrap();

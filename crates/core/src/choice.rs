@@ -61,4 +61,3 @@ choice!(crate::sampling::SamplerKind {
     "sobol" => crate::sampling::SamplerKind::Sobol, "Owen-scrambled Sobol points (Burley 2020), padded per path segment: lower error at equal spp";
     "random" => crate::sampling::SamplerKind::Random, "Independent hashed random numbers (SplitMix64), kept to reproduce the sampler comparison";
 });
-

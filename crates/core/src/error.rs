@@ -228,7 +228,10 @@ impl Error {
             | Error::Cache { .. }
             | Error::InvalidInput { .. }
             | Error::Scene(_) => 3,
-            Error::Write { .. } | Error::ReaderSpawn { .. } | Error::InputFailed { .. } | Error::CacheLocked { .. } => exit::RENDER_OR_OUTPUT,
+            Error::Write { .. }
+            | Error::ReaderSpawn { .. }
+            | Error::InputFailed { .. }
+            | Error::CacheLocked { .. } => exit::RENDER_OR_OUTPUT,
             Error::InvalidPart { .. } => exit::INPUT,
             Error::Interrupted { .. } => exit::INTERRUPTED,
             Error::TimeLimit { .. } => exit::TIME_LIMIT,

@@ -41,9 +41,15 @@ impl Drop for TemporaryFile {
 /// # Errors
 /// [`Error::Write`] naming `path` if the directory is not writable or writing fails (a
 /// full disk included); the temporary file is removed and `path` is left as it was.
-pub fn write_atomic(path: &Path, write: impl FnOnce(&mut BufWriter<File>) -> std::io::Result<()>) -> Result<()> {
+pub fn write_atomic(
+    path: &Path,
+    write: impl FnOnce(&mut BufWriter<File>) -> std::io::Result<()>,
+) -> Result<()> {
     if path.file_name().is_none() {
-        return Err(Error::Write { path: path.to_path_buf(), source: std::io::Error::new(std::io::ErrorKind::InvalidInput, "not a file name") });
+        return Err(Error::Write {
+            path: path.to_path_buf(),
+            source: std::io::Error::new(std::io::ErrorKind::InvalidInput, "not a file name"),
+        });
     }
     let tmp = temporary_path(path);
     let result = (|| {
@@ -86,7 +92,9 @@ pub fn append_line(path: &Path, line: &str) -> Result<()> {
     let open = |new: bool| std::fs::OpenOptions::new().append(true).create_new(new).open(path);
     let (mut f, created) = match open(true) {
         Ok(f) => (f, true),
-        Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => (open(false).map_err(fail)?, false),
+        Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
+            (open(false).map_err(fail)?, false)
+        }
         Err(e) => return Err(fail(e)),
     };
     let mut written = 0;
@@ -125,7 +133,9 @@ pub fn append_line(path: &Path, line: &str) -> Result<()> {
 /// [`Error::Write`] naming `path`.
 pub fn check_writable(path: &Path) -> Result<()> {
     let probe = temporary_path(path);
-    File::create(&probe).and_then(|_| std::fs::remove_file(&probe)).map_err(|source| Error::Write { path: path.to_path_buf(), source })
+    File::create(&probe)
+        .and_then(|_| std::fs::remove_file(&probe))
+        .map_err(|source| Error::Write { path: path.to_path_buf(), source })
 }
 
 /// Remove temporary files that an earlier, killed plume on this host left beside `path`
@@ -137,7 +147,9 @@ pub fn remove_stale_temporaries(path: &Path) {
     let Ok(entries) = std::fs::read_dir(&dir) else { return };
     for e in entries.flatten() {
         let file = e.file_name().to_string_lossy().into_owned();
-        let Some(pid) = file.strip_prefix(&prefix).and_then(|r| r.strip_suffix(".tmp")) else { continue };
+        let Some(pid) = file.strip_prefix(&prefix).and_then(|r| r.strip_suffix(".tmp")) else {
+            continue;
+        };
         let Ok(pid) = pid.parse::<i32>() else { continue };
         if pid != std::process::id() as i32 && !process_alive(pid) {
             let _ = std::fs::remove_file(e.path());

@@ -19,7 +19,10 @@ static FLAGS: OnceLock<StopFlags> = OnceLock::new();
 
 /// The process's stop flags (created on first use, all clear).
 pub fn flags() -> &'static StopFlags {
-    FLAGS.get_or_init(|| StopFlags { term: Arc::new(AtomicBool::new(false)), int: Arc::new(AtomicBool::new(false)) })
+    FLAGS.get_or_init(|| StopFlags {
+        term: Arc::new(AtomicBool::new(false)),
+        int: Arc::new(AtomicBool::new(false)),
+    })
 }
 
 /// The signal that asked plume to stop, if any: `Some("SIGTERM")` or `Some("SIGINT")`.

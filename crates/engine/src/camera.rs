@@ -45,7 +45,12 @@ impl LookAt {
     /// The placement a fraction `f` of the way from `self` to `o` (each part linearly).
     #[must_use]
     pub fn lerp(&self, o: &LookAt, f: f64) -> LookAt {
-        LookAt { from: self.from.lerp(o.from, f), at: self.at.lerp(o.at, f), up: self.up.lerp(o.up, f), fov: self.fov + f * (o.fov - self.fov) }
+        LookAt {
+            from: self.from.lerp(o.from, f),
+            at: self.at.lerp(o.at, f),
+            up: self.up.lerp(o.up, f),
+            fov: self.fov + f * (o.fov - self.fov),
+        }
     }
 }
 
@@ -69,7 +74,14 @@ impl CameraMotion {
     /// camera (as [`Camera::look_at`]).
     pub fn new(knots: &[(f64, LookAt)], width: u32, height: u32) -> Result<CameraMotion> {
         if knots.len() < 2 || knots.len() > MAX_CAMERA_KNOTS {
-            return Err(Error::invalid("camera.keys", format!("{} camera keys within one shutter; at most {}", knots.len(), MAX_CAMERA_KNOTS - 2)));
+            return Err(Error::invalid(
+                "camera.keys",
+                format!(
+                    "{} camera keys within one shutter; at most {}",
+                    knots.len(),
+                    MAX_CAMERA_KNOTS - 2
+                ),
+            ));
         }
         for w in knots.windows(2) {
             if w[0].0 >= w[1].0 || w[0].0.is_nan() || w[1].0.is_nan() {
@@ -108,21 +120,51 @@ impl Camera {
     /// # Errors
     /// Coincident `from`/`at`, `up` parallel to the view direction, a field of view
     /// outside (0, 180) degrees, or a zero image size.
-    pub fn look_at(from: DVec3, at: DVec3, up: DVec3, fov_degrees: f64, width: u32, height: u32) -> Result<Camera> {
+    pub fn look_at(
+        from: DVec3,
+        at: DVec3,
+        up: DVec3,
+        fov_degrees: f64,
+        width: u32,
+        height: u32,
+    ) -> Result<Camera> {
         if !(from.is_finite() && at.is_finite() && up.is_finite()) {
-            return Err(Error::invalid("camera.from/camera.at/camera.up", "components must be finite"));
+            return Err(Error::invalid(
+                "camera.from/camera.at/camera.up",
+                "components must be finite",
+            ));
         }
-        let forward = (at - from).try_normalize().ok_or_else(|| Error::invalid("camera.at", "must differ from camera.from"))?;
-        let right = forward.cross(up).try_normalize().ok_or_else(|| Error::invalid("camera.up", "must not be zero or parallel to the view direction"))?;
+        let forward = (at - from)
+            .try_normalize()
+            .ok_or_else(|| Error::invalid("camera.at", "must differ from camera.from"))?;
+        let right = forward.cross(up).try_normalize().ok_or_else(|| {
+            Error::invalid("camera.up", "must not be zero or parallel to the view direction")
+        })?;
         if !(fov_degrees > 0.0 && fov_degrees < 180.0) {
-            return Err(Error::invalid("camera.fov", format!("{fov_degrees} is not in (0, 180) degrees")));
+            return Err(Error::invalid(
+                "camera.fov",
+                format!("{fov_degrees} is not in (0, 180) degrees"),
+            ));
         }
         if width == 0 || height == 0 {
-            return Err(Error::invalid("camera.width/camera.height", "image size must be at least 1x1"));
+            return Err(Error::invalid(
+                "camera.width/camera.height",
+                "image size must be at least 1x1",
+            ));
         }
         let tan_half_x = (fov_degrees.to_radians() * 0.5).tan();
         let tan_half_y = tan_half_x * f64::from(height) / f64::from(width);
-        Ok(Camera { origin: from, forward, right, up: right.cross(forward), tan_half_x, tan_half_y, width, height, motion: None })
+        Ok(Camera {
+            origin: from,
+            forward,
+            right,
+            up: right.cross(forward),
+            tan_half_x,
+            tan_half_y,
+            width,
+            height,
+            motion: None,
+        })
     }
 
     /// Frame a world box: look at its centre from direction `view_dir` (towards the
@@ -130,14 +172,29 @@ impl Camera {
     ///
     /// # Errors
     /// As [`Camera::look_at`].
-    pub fn frame_bounds(lo: DVec3, hi: DVec3, view_dir: DVec3, up: DVec3, fov_degrees: f64, width: u32, height: u32) -> Result<Camera> {
+    pub fn frame_bounds(
+        lo: DVec3,
+        hi: DVec3,
+        view_dir: DVec3,
+        up: DVec3,
+        fov_degrees: f64,
+        width: u32,
+        height: u32,
+    ) -> Result<Camera> {
         let centre = 0.5 * (lo + hi);
         let radius = (0.5 * (hi - lo).length()).max(1e-12);
         let half_x = (fov_degrees.to_radians() * 0.5).min(1.5);
         let half_y = (half_x.tan() * f64::from(height) / f64::from(width.max(1))).atan();
         let half = half_x.min(half_y).max(1e-6);
         let distance = radius / half.sin() * 1.02;
-        Camera::look_at(centre + view_dir.normalize() * distance, centre, up, fov_degrees, width, height)
+        Camera::look_at(
+            centre + view_dir.normalize() * distance,
+            centre,
+            up,
+            fov_degrees,
+            width,
+            height,
+        )
     }
 
     /// The camera at time `t` (seconds relative to the frame): itself when still.
@@ -147,7 +204,8 @@ impl Camera {
         let k = m.at(t);
         // Every knot is a camera (checked); a point between two can coincide only where
         // `from` passes through `at`: keep the frame's camera there
-        Camera::look_at(k.from, k.at, k.up, k.fov, self.width, self.height).map_or(*self, |c| Camera { motion: self.motion, ..c })
+        Camera::look_at(k.from, k.at, k.up, k.fov, self.width, self.height)
+            .map_or(*self, |c| Camera { motion: self.motion, ..c })
     }
 
     /// The ray through image position `(x, y)` in pixels (continuous).

@@ -136,7 +136,10 @@ pub struct Rgba<'a> {
 #[must_use]
 pub fn denoise(a: Rgba<'_>, b: Rgba<'_>, b_share: Option<&[f32]>, nlm: &Nlm) -> Vec<[f32; 4]> {
     let (w, h) = (a.width, a.height);
-    assert!((b.width, b.height) == (w, h) && a.pixels.len() == w * h && b.pixels.len() == w * h, "invariant: halves of one image");
+    assert!(
+        (b.width, b.height) == (w, h) && a.pixels.len() == w * h && b.pixels.len() == w * h,
+        "invariant: halves of one image"
+    );
     assert!(b_share.is_none_or(|s| s.len() == w * h), "invariant: a share per pixel");
     let share = |i: usize| b_share.map_or(0.5, |s| s[i]);
     let var_b = half_variance(a, b, share);
@@ -144,7 +147,11 @@ pub fn denoise(a: Rgba<'_>, b: Rgba<'_>, b_share: Option<&[f32]>, nlm: &Nlm) -> 
     let fa = filter(b, &var_b, a, nlm);
     let fb = filter(a, &var_a, b, nlm);
     // Each filtered half weighted by its sample count, as the pixel weighs the halves
-    fa.iter().zip(&fb).enumerate().map(|(i, (x, y))| std::array::from_fn(|c| share(i) * x[c] + (1.0 - share(i)) * y[c])).collect()
+    fa.iter()
+        .zip(&fb)
+        .enumerate()
+        .map(|(i, (x, y))| std::array::from_fn(|c| share(i) * x[c] + (1.0 - share(i)) * y[c]))
+        .collect()
 }
 
 /// The smallest opacity the scattered light is divided by ([`denoise_per_opacity`]):
@@ -159,10 +166,18 @@ pub const OPACITY_FLOOR: f32 = 0.05;
 /// # Panics
 /// As [`denoise`], or if `opacity` does not hold one value per pixel.
 #[must_use]
-pub fn denoise_per_opacity(a: Rgba<'_>, b: Rgba<'_>, b_share: Option<&[f32]>, opacity: &[f32], nlm: &Nlm) -> Vec<[f32; 4]> {
+pub fn denoise_per_opacity(
+    a: Rgba<'_>,
+    b: Rgba<'_>,
+    b_share: Option<&[f32]>,
+    opacity: &[f32],
+    nlm: &Nlm,
+) -> Vec<[f32; 4]> {
     assert_eq!(opacity.len(), a.pixels.len(), "invariant: an opacity per pixel");
     let scale: Vec<f32> = opacity.iter().map(|&o| o.max(OPACITY_FLOOR)).collect();
-    let divide = |half: Rgba<'_>| -> Vec<[f32; 4]> { half.pixels.iter().zip(&scale).map(|(p, &s)| [p[0] / s, p[1] / s, p[2] / s, p[3]]).collect() };
+    let divide = |half: Rgba<'_>| -> Vec<[f32; 4]> {
+        half.pixels.iter().zip(&scale).map(|(p, &s)| [p[0] / s, p[1] / s, p[2] / s, p[3]]).collect()
+    };
     let (da, db) = (divide(a), divide(b));
     let mut out = denoise(Rgba { pixels: &da, ..a }, Rgba { pixels: &db, ..b }, b_share, nlm);
     for ((p, &s), &o) in out.iter_mut().zip(&scale).zip(opacity) {
@@ -191,7 +206,13 @@ pub fn denoise_per_opacity(a: Rgba<'_>, b: Rgba<'_>, b_share: Option<&[f32]>, op
 /// added back as rendered: the ray-march estimator makes it exact along each ray, so it
 /// has no noise to remove and keeps the fire's texture, which the filter would soften.
 #[must_use]
-pub fn from_sums(layout: &AovLayout, sums: &[[i128; 4]], aov_sums: &[i128], spp: u64, size: (usize, usize)) -> Option<Vec<[f32; 4]>> {
+pub fn from_sums(
+    layout: &AovLayout,
+    sums: &[[i128; 4]],
+    aov_sums: &[i128],
+    spp: u64,
+    size: (usize, usize),
+) -> Option<Vec<[f32; 4]>> {
     let at = layout.half_at()?;
     let rest = layout.halves == Some(Filtered::LessEmission);
     let n = layout.channels();
@@ -247,8 +268,13 @@ pub fn from_sums(layout: &AovLayout, sums: &[[i128; 4]], aov_sums: &[i128], spp:
 /// share)`, where `share(pixel)` is that half's part of the difference's variance (½ for
 /// equal halves; a half of `n` of `N` samples has the part `(N − n)/N`).
 fn half_variance(a: Rgba<'_>, b: Rgba<'_>, share: impl Fn(usize) -> f32) -> Vec<[f32; 3]> {
-    let raw: Vec<[f32; 3]> =
-        a.pixels.iter().zip(b.pixels).enumerate().map(|(i, (x, y))| std::array::from_fn(|c| (x[c] - y[c]) * (x[c] - y[c]) * share(i))).collect();
+    let raw: Vec<[f32; 3]> = a
+        .pixels
+        .iter()
+        .zip(b.pixels)
+        .enumerate()
+        .map(|(i, (x, y))| std::array::from_fn(|c| (x[c] - y[c]) * (x[c] - y[c]) * share(i)))
+        .collect();
     box_mean(&raw, a.width, a.height, 2)
 }
 
@@ -300,12 +326,21 @@ const STRIP: usize = 16;
 fn filter(guide: Rgba<'_>, var: &[[f32; 3]], target: Rgba<'_>, nlm: &Nlm) -> Vec<[f32; 4]> {
     let (w, h) = (guide.width, guide.height);
     let mut out = vec![[0f32; 4]; w * h];
-    out.par_chunks_mut(STRIP * w).enumerate().for_each(|(i, strip)| filter_strip(guide, var, target, nlm, i * STRIP, strip));
+    out.par_chunks_mut(STRIP * w)
+        .enumerate()
+        .for_each(|(i, strip)| filter_strip(guide, var, target, nlm, i * STRIP, strip));
     out
 }
 
 /// [`filter`] for the rows `y0..` that `out` holds.
-fn filter_strip(guide: Rgba<'_>, var: &[[f32; 3]], target: Rgba<'_>, nlm: &Nlm, y0: usize, out: &mut [[f32; 4]]) {
+fn filter_strip(
+    guide: Rgba<'_>,
+    var: &[[f32; 3]],
+    target: Rgba<'_>,
+    nlm: &Nlm,
+    y0: usize,
+    out: &mut [[f32; 4]],
+) {
     let (w, h) = (guide.width, guide.height);
     let rows = out.len() / w;
     let (r, f) = (nlm.radius as isize, nlm.patch as usize);
@@ -338,7 +373,9 @@ fn filter_strip(guide: Rgba<'_>, var: &[[f32; 3]], target: Rgba<'_>, nlm: &Nlm, 
                 }
                 let row = &dist[j * w..(j + 1) * w];
                 for x in 0..w {
-                    hsum[j * w + x] = (-(f as isize)..=f as isize).map(|o| row[clamp_index(x as isize + o, w)]).sum();
+                    hsum[j * w + x] = (-(f as isize)..=f as isize)
+                        .map(|o| row[clamp_index(x as isize + o, w)])
+                        .sum();
                 }
             }
             for j in 0..rows {
@@ -346,7 +383,8 @@ fn filter_strip(guide: Rgba<'_>, var: &[[f32; 3]], target: Rgba<'_>, nlm: &Nlm, 
                 let src = &target.pixels[qy * w..(qy + 1) * w];
                 for x in 0..w {
                     // The patch mean of d: the halo rows j .. j + 2f around output row j
-                    let patch: f32 = (0..=2 * f).map(|k| hsum[(j + k) * w + x]).sum::<f32>() * inv_patch;
+                    let patch: f32 =
+                        (0..=2 * f).map(|k| hsum[(j + k) * w + x]).sum::<f32>() * inv_patch;
                     let wt = f64::from((-patch.max(0.0)).exp());
                     let q = src[clamp_index(x as isize + dx, w)];
                     let a = &mut acc[j * w + x];
@@ -388,7 +426,10 @@ mod tests {
         (0..w * h)
             .map(|i| {
                 let (x, y) = ((i % w) as f32, (i / w) as f32);
-                let v = 0.5 + 0.5 * (x / w as f32) + 0.3 * (y / h as f32) + if x >= 40.0 { 1.0 } else { 0.0 };
+                let v = 0.5
+                    + 0.5 * (x / w as f32)
+                    + 0.3 * (y / h as f32)
+                    + if x >= 40.0 { 1.0 } else { 0.0 };
                 [v, 0.8 * v, 0.6 * v, 1.0]
             })
             .collect()
@@ -409,9 +450,16 @@ mod tests {
         let t = truth(w, h);
         let mut rng = Normal(7);
         // Each half: the truth plus noise of deviation 0.2 (a tenth of the step)
-        let mut half = || t.iter().map(|p| [p[0] + 0.2 * rng.next(), p[1] + 0.2 * rng.next(), p[2] + 0.2 * rng.next(), 1.0]).collect::<Vec<_>>();
+        let mut half = || {
+            t.iter()
+                .map(|p| {
+                    [p[0] + 0.2 * rng.next(), p[1] + 0.2 * rng.next(), p[2] + 0.2 * rng.next(), 1.0]
+                })
+                .collect::<Vec<_>>()
+        };
         let (a, b) = (half(), half());
-        let u: Vec<[f32; 4]> = a.iter().zip(&b).map(|(x, y)| std::array::from_fn(|c| 0.5 * (x[c] + y[c]))).collect();
+        let u: Vec<[f32; 4]> =
+            a.iter().zip(&b).map(|(x, y)| std::array::from_fn(|c| 0.5 * (x[c] + y[c]))).collect();
         let img = |p| Rgba { width: w, height: h, pixels: p };
         let d = denoise(img(&a), img(&b), None, &Nlm::default());
         let all = rms(&d, &t, |_| true);
@@ -449,7 +497,12 @@ mod tests {
         let (w, h) = (24, 16);
         let (a, b) = (vec![[1.0f32; 4]; w * h], vec![[2.0f32; 4]; w * h]);
         let share = vec![32.0f32 / 48.0; w * h];
-        let d = denoise(Rgba { width: w, height: h, pixels: &a }, Rgba { width: w, height: h, pixels: &b }, Some(&share), &Nlm::default());
+        let d = denoise(
+            Rgba { width: w, height: h, pixels: &a },
+            Rgba { width: w, height: h, pixels: &b },
+            Some(&share),
+            &Nlm::default(),
+        );
         assert!(d.iter().all(|p| p.iter().all(|v| (v - 4.0 / 3.0).abs() < 1e-6)), "{:?}", d[0]);
     }
 
@@ -461,28 +514,58 @@ mod tests {
     #[test]
     fn filtering_per_unit_of_opacity_keeps_the_opacity_texture() {
         let (w, h) = (80, 48);
-        let opacity: Vec<f32> = (0..w * h).map(|i| if (i % w / 2) % 2 == 0 { 0.15 } else { 0.9 }).collect();
-        let t: Vec<[f32; 4]> = truth(w, h).iter().zip(&opacity).map(|(p, &o)| [p[0] * o, p[1] * o, p[2] * o, o]).collect();
+        let opacity: Vec<f32> =
+            (0..w * h).map(|i| if (i % w / 2) % 2 == 0 { 0.15 } else { 0.9 }).collect();
+        let t: Vec<[f32; 4]> = truth(w, h)
+            .iter()
+            .zip(&opacity)
+            .map(|(p, &o)| [p[0] * o, p[1] * o, p[2] * o, o])
+            .collect();
         let mut rng = Normal(11);
-        let mut half =
-            || t.iter().map(|p| [p[0] * (1.0 + 0.3 * rng.next()), p[1] * (1.0 + 0.3 * rng.next()), p[2] * (1.0 + 0.3 * rng.next()), p[3]]).collect::<Vec<_>>();
+        let mut half = || {
+            t.iter()
+                .map(|p| {
+                    [
+                        p[0] * (1.0 + 0.3 * rng.next()),
+                        p[1] * (1.0 + 0.3 * rng.next()),
+                        p[2] * (1.0 + 0.3 * rng.next()),
+                        p[3],
+                    ]
+                })
+                .collect::<Vec<_>>()
+        };
         let (a, b) = (half(), half());
         let img = |p| Rgba { width: w, height: h, pixels: p };
         let plain = rms(&denoise(img(&a), img(&b), None, &Nlm::default()), &t, |_| true);
         let per_opacity = denoise_per_opacity(img(&a), img(&b), None, &opacity, &Nlm::default());
         let demodulated = rms(&per_opacity, &t, |_| true);
-        assert!(demodulated < 0.6 * plain, "per unit of opacity {demodulated} against {plain} filtered as it is");
+        assert!(
+            demodulated < 0.6 * plain,
+            "per unit of opacity {demodulated} against {plain} filtered as it is"
+        );
         // Alpha is the given opacity, not averaged across the stripes
         assert!(per_opacity.iter().zip(&opacity).all(|(p, &o)| p[3] == o));
         // A noise-free input comes back unchanged, also below the opacity floor
         let faint: Vec<f32> = opacity.iter().map(|o| o * 0.1).collect();
         let d = denoise_per_opacity(img(&t), img(&t), None, &faint, &Nlm::default());
-        assert!(d.iter().zip(&t).all(|(p, q)| (0..3).all(|c| (p[c] - q[c]).abs() <= 1e-5 * q[c].abs())));
+        assert!(d
+            .iter()
+            .zip(&t)
+            .all(|(p, q)| (0..3).all(|c| (p[c] - q[c]).abs() <= 1e-5 * q[c].abs())));
     }
 
     #[test]
     fn halves_are_two_aligned_blocks_at_powers_of_two() {
-        assert_eq!((half_block(Some(32)), half_block(Some(48)), half_block(Some(7)), half_block(Some(1)), half_block(None)), (16, 16, 2, 1, 16));
+        assert_eq!(
+            (
+                half_block(Some(32)),
+                half_block(Some(48)),
+                half_block(Some(7)),
+                half_block(Some(1)),
+                half_block(None)
+            ),
+            (16, 16, 2, 1, 16)
+        );
         for m in 1..12 {
             let n = 1u32 << m;
             let block = half_block(Some(n));

@@ -116,7 +116,12 @@ impl Tile {
     #[inline]
     pub fn add_aov(&mut self, index: usize, values: &[f64]) {
         let n = self.aov_channels;
-        add_fixed(&mut self.aov[index * n..(index + 1) * n], values, &mut self.saturated, &mut self.underflowed);
+        add_fixed(
+            &mut self.aov[index * n..(index + 1) * n],
+            values,
+            &mut self.saturated,
+            &mut self.underflowed,
+        );
     }
 }
 
@@ -246,7 +251,8 @@ impl Film {
             for ty in 0..t.height {
                 let row = (t.y0 - self.crop.y0 + ty) as usize * cw + (t.x0 - self.crop.x0) as usize;
                 let src = (ty * t.width) as usize;
-                out[row..row + t.width as usize].copy_from_slice(&t.sums[src..src + t.width as usize]);
+                out[row..row + t.width as usize]
+                    .copy_from_slice(&t.sums[src..src + t.width as usize]);
             }
         }
         out
@@ -264,7 +270,8 @@ impl Film {
             for ty in 0..t.height {
                 let row = (t.y0 - crop.y0 + ty) as usize * cw + (t.x0 - crop.x0) as usize;
                 let dst = (ty * t.width) as usize;
-                t.sums[dst..dst + t.width as usize].copy_from_slice(&sums[row..row + t.width as usize]);
+                t.sums[dst..dst + t.width as usize]
+                    .copy_from_slice(&sums[row..row + t.width as usize]);
             }
         }
     }
@@ -285,7 +292,8 @@ impl Film {
             for ty in 0..t.height {
                 let row = (t.y0 - self.crop.y0 + ty) as usize * cw + (t.x0 - self.crop.x0) as usize;
                 let src = (ty * t.width) as usize;
-                out[row * n..(row + t.width as usize) * n].copy_from_slice(&t.aov[src * n..(src + t.width as usize) * n]);
+                out[row * n..(row + t.width as usize) * n]
+                    .copy_from_slice(&t.aov[src * n..(src + t.width as usize) * n]);
             }
         }
         out
@@ -297,14 +305,19 @@ impl Film {
     /// If `sums` does not have `aov_channels` entries per pixel of `crop`.
     pub fn set_aov_sums(&mut self, sums: &[i128]) {
         let n = self.aov_channels();
-        assert_eq!(sums.len() as u64, self.crop.area() * n as u64, "aov_channels sums per pixel of the crop");
+        assert_eq!(
+            sums.len() as u64,
+            self.crop.area() * n as u64,
+            "aov_channels sums per pixel of the crop"
+        );
         let cw = self.crop.width() as usize;
         let crop = self.crop;
         for t in &mut self.tiles {
             for ty in 0..t.height {
                 let row = (t.y0 - crop.y0 + ty) as usize * cw + (t.x0 - crop.x0) as usize;
                 let dst = (ty * t.width) as usize;
-                t.aov[dst * n..(dst + t.width as usize) * n].copy_from_slice(&sums[row * n..(row + t.width as usize) * n]);
+                t.aov[dst * n..(dst + t.width as usize) * n]
+                    .copy_from_slice(&sums[row * n..(row + t.width as usize) * n]);
             }
         }
     }
@@ -348,7 +361,8 @@ mod tests {
 
     #[test]
     fn sums_are_independent_of_split_and_order() {
-        let values: Vec<f64> = (0..200).map(|i| ((i * 7919) % 1000) as f64 * 1.37e-3 + 1e-9 * f64::from(i)).collect();
+        let values: Vec<f64> =
+            (0..200).map(|i| ((i * 7919) % 1000) as f64 * 1.37e-3 + 1e-9 * f64::from(i)).collect();
         let sum_of = |vs: &[f64]| vs.iter().map(|&v| to_fixed(v).unwrap()).sum::<i128>();
         let whole = sum_of(&values);
         let (a, b) = values.split_at(77);
@@ -374,13 +388,17 @@ mod tests {
         let crop = Crop { x0: 3, y0: 5, x1: 40, y1: 23 };
         let mut f = Film::with_crop(50, 30, crop);
         assert_eq!(f.tiles.iter().map(|t| u64::from(t.width * t.height)).sum::<u64>(), crop.area());
-        let sums: Vec<[i128; 4]> = (0..crop.area() as i128).map(|i| [i, 2 * i, 3 * i, 4 * i]).collect();
+        let sums: Vec<[i128; 4]> =
+            (0..crop.area() as i128).map(|i| [i, 2 * i, 3 * i, 4 * i]).collect();
         f.set_sums(&sums);
         assert_eq!(f.sums(), sums);
         assert_eq!("3,5,40,23".parse::<Crop>().unwrap(), crop);
         assert_eq!(crop.to_string(), "3,5,40,23");
         assert!("3,5,3,23".parse::<Crop>().is_err());
-        assert_eq!(crop.intersection(&Crop { x0: 39, y0: 0, x1: 60, y1: 6 }), Some(Crop { x0: 39, y0: 5, x1: 40, y1: 6 }));
+        assert_eq!(
+            crop.intersection(&Crop { x0: 39, y0: 0, x1: 60, y1: 6 }),
+            Some(Crop { x0: 39, y0: 5, x1: 40, y1: 6 })
+        );
         assert_eq!(crop.intersection(&Crop { x0: 40, y0: 0, x1: 60, y1: 6 }), None);
     }
 }

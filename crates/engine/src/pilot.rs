@@ -12,14 +12,14 @@ use rayon::prelude::*;
 use plume_core::color::rec709_luminance;
 
 use crate::integrator::aov::{Aovs, Component};
-use crate::integrator::split_map::{PilotBlock, SplitMap, PILOT_SPP};
 use crate::integrator::counters::Counters;
 use crate::integrator::path::PathState;
 use crate::integrator::scene::Scene;
+use crate::integrator::split_map::{PilotBlock, SplitMap, PILOT_SPP};
 use crate::integrator::trace::NoTrace;
-use plume_scene::SplitBy;
 use crate::render::settings::RenderSettings;
 use crate::render::tile::{pixel_sample, PixelSample};
+use plume_scene::SplitBy;
 use plume_volume::field::Field;
 
 /// Mixed into the render's seed for the pilot's numbers.
@@ -57,7 +57,11 @@ impl Aovs for SeenDirectly {
 #[must_use]
 pub fn split_map<F: Field>(scene: &Scene<F>, settings: &RenderSettings) -> Option<SplitMap> {
     let integrator = settings.integrator;
-    if integrator.split_by != SplitBy::Brightness || integrator.split <= 1 || integrator.max_depth == 0 || scene.medium.albedo <= 0.0 {
+    if integrator.split_by != SplitBy::Brightness
+        || integrator.split <= 1
+        || integrator.max_depth == 0
+        || scene.medium.albedo <= 0.0
+    {
         return None;
     }
     let (width, height) = (scene.camera.width, scene.camera.height);
@@ -71,12 +75,25 @@ pub fn split_map<F: Field>(scene: &Scene<F>, settings: &RenderSettings) -> Optio
             let mut counters = Counters::default();
             let mut block = PilotBlock::default();
             for s in 0..u64::from(PILOT_SPP) {
-                let PixelSample { ray, mut sampler, time } = pixel_sample(scene, settings.sampler, seed, x, y, s);
+                let PixelSample { ray, mut sampler, time } =
+                    pixel_sample(scene, settings.sampler, seed, x, y, s);
                 seen.begin();
-                let l = integrator.li_aovs(scene, &ray, time, PathState { sampler: &mut sampler, counters: &mut counters, trace: &mut NoTrace, aovs: &mut seen });
+                let l = integrator.li_aovs(
+                    scene,
+                    &ray,
+                    time,
+                    PathState {
+                        sampler: &mut sampler,
+                        counters: &mut counters,
+                        trace: &mut NoTrace,
+                        aovs: &mut seen,
+                    },
+                );
                 // A non-finite sample is dropped, as the render drops it
                 if l.iter().all(|v| v.is_finite()) && seen.emission.iter().all(|v| v.is_finite()) {
-                    block.scattered += (rec709_luminance([l[0], l[1], l[2]]) - rec709_luminance(seen.emission)).max(0.0);
+                    block.scattered += (rec709_luminance([l[0], l[1], l[2]])
+                        - rec709_luminance(seen.emission))
+                    .max(0.0);
                     block.alpha += l[3];
                 }
             }

@@ -48,7 +48,11 @@ impl<T: Fn(u64, u64) + Sync> RenderObserver for T {
 ///
 /// # Panics
 /// If the rayon pool cannot be built (out of threads).
-pub fn render<F: Field>(scene: &Scene<F>, settings: &RenderSettings, observer: &dyn RenderObserver) -> RenderResult {
+pub fn render<F: Field>(
+    scene: &Scene<F>,
+    settings: &RenderSettings,
+    observer: &dyn RenderObserver,
+) -> RenderResult {
     render_with(scene, settings, RenderControl::default(), observer)
 }
 
@@ -58,7 +62,12 @@ pub fn render<F: Field>(scene: &Scene<F>, settings: &RenderSettings, observer: &
 ///
 /// # Panics
 /// If the rayon pool cannot be built, or `control.film` does not match the crop.
-pub fn render_with<F: Field>(scene: &Scene<F>, settings: &RenderSettings, mut control: RenderControl<'_>, observer: &dyn RenderObserver) -> RenderResult {
+pub fn render_with<F: Field>(
+    scene: &Scene<F>,
+    settings: &RenderSettings,
+    mut control: RenderControl<'_>,
+    observer: &dyn RenderObserver,
+) -> RenderResult {
     // Out of core, a worker waiting on a page fault leaves its core idle: by default one
     // worker more than cores keeps them busy. Scattered segments read ahead of themselves
     // (`integrator::tracker`) but still wait for their first pages: three workers per
@@ -66,7 +75,10 @@ pub fn render_with<F: Field>(scene: &Scene<F>, settings: &RenderSettings, mut co
     // (docs/BENCHMARKS.md, "Out of core with scattering: the solar flare")
     let out_of_core = control.order == SampleOrder::TileMajor && scene.field.is_mapped();
     let threads = worker_threads(scene, settings, out_of_core);
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("invariant: a rayon pool can be built");
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .expect("invariant: a rayon pool can be built");
     let resumed = control.film.take();
     let mut film = start_film(scene, &control, resumed);
     let mut counters = Counters::default();
@@ -87,11 +99,14 @@ pub fn render_with<F: Field>(scene: &Scene<F>, settings: &RenderSettings, mut co
         && match control.defer_paths {
             // One path per camera collision: with more, the paths' lookups outgrow what a
             // few fills serve (docs/BENCHMARKS.md, "Out of core with scattering: the solar flare")
-            DeferPaths::Auto => out_of_core && settings.integrator.split == 1 && split_map.is_none(),
+            DeferPaths::Auto => {
+                out_of_core && settings.integrator.split == 1 && split_map.is_none()
+            }
             DeferPaths::Always => true,
             DeferPaths::Never => false,
         };
-    let tile_major = control.order == SampleOrder::TileMajor && matches!(settings.budget, SampleBudget::Spp(_));
+    let tile_major =
+        control.order == SampleOrder::TileMajor && matches!(settings.budget, SampleBudget::Spp(_));
     let stopped = loop {
         if control.stop.is_some_and(|stop| stop()) && pacing.remaining() != 0 {
             break StopReason::Interrupted;
@@ -105,15 +120,39 @@ pub fn render_with<F: Field>(scene: &Scene<F>, settings: &RenderSettings, mut co
         let pass_start = Instant::now();
         let pass_cpu_start = crate::stats::cpu_seconds();
         let tile_counters: Vec<Counters> = if tile_major {
-            let abandon = || control.stop.is_some_and(|stop| stop()) || control.deadline.is_some_and(|d| Instant::now() >= d);
-            let pass = TileMajorPass { samples: &range, read_ahead_window: control.read_ahead_window, abandon: &abandon, defer };
-            match tile_major::tile_major_pass(scene, TileJob { settings, split_map }, &pool, &mut film, &pass, &mut tile_seconds) {
+            let abandon = || {
+                control.stop.is_some_and(|stop| stop())
+                    || control.deadline.is_some_and(|d| Instant::now() >= d)
+            };
+            let pass = TileMajorPass {
+                samples: &range,
+                read_ahead_window: control.read_ahead_window,
+                abandon: &abandon,
+                defer,
+            };
+            match tile_major::tile_major_pass(
+                scene,
+                TileJob { settings, split_map },
+                &pool,
+                &mut film,
+                &pass,
+                &mut tile_seconds,
+            ) {
                 Some(c) => c,
-                None if control.deadline.is_some_and(|d| Instant::now() >= d) => break StopReason::TimeLimit,
+                None if control.deadline.is_some_and(|d| Instant::now() >= d) => {
+                    break StopReason::TimeLimit
+                }
                 None => break StopReason::Interrupted,
             }
         } else {
-            progressive_pass(scene, TileJob { settings, split_map }, &pool, &mut film, &range, &mut tile_seconds)
+            progressive_pass(
+                scene,
+                TileJob { settings, split_map },
+                &pool,
+                &mut film,
+                &range,
+                &mut tile_seconds,
+            )
         };
         busy_seconds += tile_seconds.iter().sum::<f64>();
         for c in &tile_counters {
@@ -126,7 +165,14 @@ pub fn render_with<F: Field>(scene: &Scene<F>, settings: &RenderSettings, mut co
         observer.pass_done(pacing.done, pacing.total);
     };
     counters.first_nonfinite = first_nonfinite;
-    RenderResult { film, spp: pacing.done, counters, render_seconds: pacing.start.elapsed().as_secs_f64(), busy_seconds, stopped }
+    RenderResult {
+        film,
+        spp: pacing.done,
+        counters,
+        render_seconds: pacing.start.elapsed().as_secs_f64(),
+        busy_seconds,
+        stopped,
+    }
 }
 
 /// Rayon workers: as asked, or by default one more than cores out of core, where a
@@ -134,7 +180,11 @@ pub fn render_with<F: Field>(scene: &Scene<F>, settings: &RenderSettings, mut co
 /// scatter out of core, since scattered segments still wait for their first pages
 /// (docs/BENCHMARKS.md, "Out of core with scattering: the solar flare"). Without scattering, more workers only widen the
 /// working set.
-fn worker_threads<F: Field>(scene: &Scene<F>, settings: &RenderSettings, out_of_core: bool) -> usize {
+fn worker_threads<F: Field>(
+    scene: &Scene<F>,
+    settings: &RenderSettings,
+    out_of_core: bool,
+) -> usize {
     let cores = std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get);
     let scatters = settings.integrator.max_depth > 0 && scene.medium.albedo > 0.0;
     match settings.threads {
@@ -146,15 +196,31 @@ fn worker_threads<F: Field>(scene: &Scene<F>, settings: &RenderSettings, out_of_
 
 /// The film the render adds to: `resumed` (`control.film`, a resumed render) or a new one over the
 /// crop, with the AOV channels and half sums asked for.
-fn start_film<F: Field>(scene: &Scene<F>, control: &RenderControl<'_>, resumed: Option<Film>) -> Film {
+fn start_film<F: Field>(
+    scene: &Scene<F>,
+    control: &RenderControl<'_>,
+    resumed: Option<Film>,
+) -> Film {
     let (width, height) = (scene.camera.width, scene.camera.height);
     let crop = control.crop.unwrap_or(Crop::full(width, height));
     let aov_channels = control.aovs.as_ref().map_or(0, AovLayout::channels);
     let mut film = resumed.unwrap_or_else(|| Film::with_aovs(width, height, crop, aov_channels));
-    assert_eq!(film.aov_channels(), aov_channels, "invariant: resumed film has the AOV channels asked for");
+    assert_eq!(
+        film.aov_channels(),
+        aov_channels,
+        "invariant: resumed film has the AOV channels asked for"
+    );
     let block = control.half_block.unwrap_or_else(|| crate::denoise::half_block(None));
-    film.set_half(control.aovs.as_ref().and_then(|l| Some(HalfSums { at: l.half_at()?, block, filtered: l.halves? })));
-    assert!(film.crop == crop && film.width == width && film.height == height, "invariant: resumed film matches the crop");
+    film.set_half(
+        control
+            .aovs
+            .as_ref()
+            .and_then(|l| Some(HalfSums { at: l.half_at()?, block, filtered: l.halves? })),
+    );
+    assert!(
+        film.crop == crop && film.width == width && film.height == height,
+        "invariant: resumed film matches the crop"
+    );
     film
 }
 
@@ -181,7 +247,16 @@ impl Pacing {
             SampleBudget::Time(_) | SampleBudget::CpuTime(_) => 0,
         };
         let (start, cpu_start) = (Instant::now(), crate::stats::cpu_seconds());
-        Pacing { budget, total, done: 0, start, cpu_start, seconds_per_spp: None, cpu_per_spp: None, last_pass: 0 }
+        Pacing {
+            budget,
+            total,
+            done: 0,
+            start,
+            cpu_start,
+            seconds_per_spp: None,
+            cpu_per_spp: None,
+            last_pass: 0,
+        }
     }
 
     /// Samples per pixel left under a sample budget (`u64::MAX` under a time budget).
@@ -202,7 +277,8 @@ impl Pacing {
         // Size the pass from the measured time per spp: ≈ PASS_SECONDS, growing at most 4×
         let mut pass = match self.seconds_per_spp {
             None => 1,
-            Some(t) => ((PASS_SECONDS / t.max(1e-9)) as u64).clamp(1, self.last_pass.saturating_mul(4).max(1)),
+            Some(t) => ((PASS_SECONDS / t.max(1e-9)) as u64)
+                .clamp(1, self.last_pass.saturating_mul(4).max(1)),
         };
         if tile_major {
             pass = remaining;
@@ -267,14 +343,16 @@ fn progressive_pass<F: Field>(
     let mut order: Vec<usize> = (0..film.tiles.len()).collect();
     order.sort_by(|&a, &b| tile_seconds[b].total_cmp(&tile_seconds[a]));
     let tiles: Vec<Mutex<&mut Tile>> = film.tiles.iter_mut().map(Mutex::new).collect();
-    let results: Vec<Mutex<(Counters, f64)>> = tiles.iter().map(|_| Mutex::new((Counters::default(), 0.0))).collect();
+    let results: Vec<Mutex<(Counters, f64)>> =
+        tiles.iter().map(|_| Mutex::new((Counters::default(), 0.0))).collect();
     let next = AtomicUsize::new(0);
     pool.broadcast(|_| loop {
         let Some(&i) = order.get(next.fetch_add(1, Ordering::Relaxed)) else { return };
         let start = Instant::now();
         let mut tile = tiles[i].lock().unwrap_or_else(std::sync::PoisonError::into_inner);
         let c = render_tile(scene, job, samples.clone(), &mut tile, None);
-        *results[i].lock().unwrap_or_else(std::sync::PoisonError::into_inner) = (c, start.elapsed().as_secs_f64());
+        *results[i].lock().unwrap_or_else(std::sync::PoisonError::into_inner) =
+            (c, start.elapsed().as_secs_f64());
     });
     results
         .into_iter()
@@ -291,7 +369,10 @@ pub mod settings;
 pub mod tile;
 mod tile_major;
 
-pub use settings::{read_ahead_window, RenderControl, RenderResult, RenderSettings, SampleBudget, SampleOrder, StopReason, PASS_SECONDS};
+pub use settings::{
+    read_ahead_window, RenderControl, RenderResult, RenderSettings, SampleBudget, SampleOrder,
+    StopReason, PASS_SECONDS,
+};
 pub use tile::{pixel_sample, PixelSample};
 use tile::{render_tile, TileJob};
 use tile_major::TileMajorPass;

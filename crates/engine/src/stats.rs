@@ -41,9 +41,12 @@ pub fn reset_peak_rss() {
 /// process peak ([`peak_rss_bytes`]) where `/proc` is unavailable.
 #[must_use]
 pub fn peak_rss_since_reset_bytes() -> u64 {
-    let hwm = std::fs::read_to_string("/proc/self/status")
-        .ok()
-        .and_then(|s| s.lines().find_map(|l| l.strip_prefix("VmHWM:").and_then(|v| v.trim().trim_end_matches("kB").trim().parse::<u64>().ok())));
+    let hwm = std::fs::read_to_string("/proc/self/status").ok().and_then(|s| {
+        s.lines().find_map(|l| {
+            l.strip_prefix("VmHWM:")
+                .and_then(|v| v.trim().trim_end_matches("kB").trim().parse::<u64>().ok())
+        })
+    });
     hwm.map_or_else(peak_rss_bytes, |kib| kib * 1024)
 }
 

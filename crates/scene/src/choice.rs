@@ -6,12 +6,14 @@
 //! list of possible values with their help (the binary builds its value parsers from
 //! [`Choice::CHOICES`]), so a name is written once.
 
-pub use plume_core::choice::Choice;
 use plume_core::choice;
+pub use plume_core::choice::Choice;
 pub use plume_core::sampling::SamplerKind;
 
 pub use crate::sets::Interpolation;
-use crate::sets::{Collision, Convention, Estimator, LightSampling, MisHeuristic, PointLookup, SplitBy, Tracking};
+use crate::sets::{
+    Collision, Convention, Estimator, LightSampling, MisHeuristic, PointLookup, SplitBy, Tracking,
+};
 
 /// The paper's methods (its conclusion table) as presets of estimator + light sampling.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -297,7 +299,9 @@ choice!(ProgressFormat {
 mod tests {
     use super::*;
 
-    fn round_trips<T: Choice + std::fmt::Debug + std::str::FromStr<Err = String> + std::fmt::Display>() {
+    fn round_trips<
+        T: Choice + std::fmt::Debug + std::str::FromStr<Err = String> + std::fmt::Display,
+    >() {
         for &(name, v, help) in T::CHOICES {
             assert_eq!(v.name(), name);
             assert_eq!(name.parse::<T>().unwrap(), v);

@@ -33,18 +33,27 @@ impl SceneFile {
     /// [`Error::Open`] when it cannot be read; [`Error::SceneFile`] naming the line and
     /// key of a syntax error, unknown key or wrong type.
     pub fn read(path: &Path) -> Result<(Shot, SceneFile)> {
-        let text = std::fs::read_to_string(path).map_err(|source| Error::Open { path: path.to_path_buf(), source })?;
+        let text = std::fs::read_to_string(path)
+            .map_err(|source| Error::Open { path: path.to_path_buf(), source })?;
         let doc = ImDocument::parse(text.clone()).ok();
         let file = SceneFile { path: path.to_path_buf(), text, doc };
         let mut shot: Shot = toml::from_str(&file.text).map_err(|e| {
             let span = e.span();
-            let key = span.as_ref().and_then(|s| file.key_at(s.start).or_else(|| file.key_in_text(s.start)));
+            let key = span
+                .as_ref()
+                .and_then(|s| file.key_at(s.start).or_else(|| file.key_in_text(s.start)));
             // One line: the parser's message may continue with what it expected
             let message = e.message().trim().lines().map(str::trim).collect::<Vec<_>>().join("; ");
             file.error(span.map(|s| s.start), key, &message)
         })?;
         let base = plume_core::fs::parent_dir(path);
-        resolve_paths(&mut shot, |p| if p.is_relative() && !base.as_os_str().is_empty() && base != Path::new(".") { base.join(p) } else { p.to_path_buf() });
+        resolve_paths(&mut shot, |p| {
+            if p.is_relative() && !base.as_os_str().is_empty() && base != Path::new(".") {
+                base.join(p)
+            } else {
+                p.to_path_buf()
+            }
+        });
         Ok((shot, file))
     }
 
@@ -73,7 +82,8 @@ impl SceneFile {
 
     /// The 1-based line of byte `offset`.
     fn line_at(&self, offset: usize) -> usize {
-        self.text.as_bytes()[..offset.min(self.text.len())].iter().filter(|&&b| b == b'\n').count() + 1
+        self.text.as_bytes()[..offset.min(self.text.len())].iter().filter(|&&b| b == b'\n').count()
+            + 1
     }
 
     /// Byte offset of `key`'s definition.
@@ -118,14 +128,17 @@ impl SceneFile {
     fn key_at(&self, offset: usize) -> Option<String> {
         fn walk(table: &Table, offset: usize, prefix: &str) -> Option<String> {
             for (name, item) in table.iter() {
-                let path = if prefix.is_empty() { name.to_string() } else { format!("{prefix}.{name}") };
+                let path =
+                    if prefix.is_empty() { name.to_string() } else { format!("{prefix}.{name}") };
                 if let Some(sub) = item.as_table() {
                     if let Some(found) = walk(sub, offset, &path) {
                         return Some(found);
                     }
                 }
                 let key_span = table.key(name).and_then(toml_edit::Key::span);
-                let inside = |s: Option<Range<usize>>| s.is_some_and(|s| s.contains(&offset) || s.end == offset);
+                let inside = |s: Option<Range<usize>>| {
+                    s.is_some_and(|s| s.contains(&offset) || s.end == offset)
+                };
                 if inside(key_span) || (!matches!(item, Item::Table(_)) && inside(item.span())) {
                     return Some(path);
                 }
@@ -143,7 +156,9 @@ pub fn resolve_paths(shot: &mut Shot, f: impl Fn(&Path) -> PathBuf) {
     let s = &mut shot.settings;
     shot.scene.volume.file = f(&shot.scene.volume.file);
     s.output.image = f(&s.output.image);
-    for p in [&mut s.output.preview, &mut s.output.stats, &mut s.render.cache_dir].into_iter().flatten() {
+    for p in
+        [&mut s.output.preview, &mut s.output.stats, &mut s.render.cache_dir].into_iter().flatten()
+    {
         *p = f(p);
     }
     if let Some(m) = &mut shot.scene.lights.environment_map {
@@ -159,7 +174,10 @@ pub fn resolve_paths(shot: &mut Shot, f: impl Fn(&Path) -> PathBuf) {
 /// A value TOML cannot hold (a seed above 2^63 − 1).
 pub fn to_toml(shot: &Shot, working_dir: &Path) -> Result<String> {
     let mut shot = shot.clone();
-    resolve_paths(&mut shot, |p| if p.is_relative() { working_dir.join(p) } else { p.to_path_buf() });
+    resolve_paths(
+        &mut shot,
+        |p| if p.is_relative() { working_dir.join(p) } else { p.to_path_buf() },
+    );
     to_toml_as_is(&shot)
 }
 
@@ -168,8 +186,12 @@ pub fn to_toml(shot: &Shot, working_dir: &Path) -> Result<String> {
 /// # Errors
 /// A value TOML cannot hold (a seed above 2^63 − 1).
 pub fn to_toml_as_is(shot: &Shot) -> Result<String> {
-    let body = toml::to_string_pretty(shot).map_err(|e| Error::Scene(format!("cannot write the scene as TOML: {e}")))?;
-    Ok(format!("# plume {} scene file (plume render FILE.toml; docs/scene-file.md)\n{body}", env!("CARGO_PKG_VERSION")))
+    let body = toml::to_string_pretty(shot)
+        .map_err(|e| Error::Scene(format!("cannot write the scene as TOML: {e}")))?;
+    Ok(format!(
+        "# plume {} scene file (plume render FILE.toml; docs/scene-file.md)\n{body}",
+        env!("CARGO_PKG_VERSION")
+    ))
 }
 
 /// `shot` with the keys of a scene-file fragment set (`"[medium]\nalbedo = 0.8"`), for

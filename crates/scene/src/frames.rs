@@ -20,7 +20,9 @@ pub fn parse_frames(s: &str) -> Result<Vec<i64>, String> {
         if item.is_empty() {
             return Err(format!("empty item in frame list {s:?}"));
         }
-        let bad = |why: &str| format!("{item:?} in {s:?}: {why} (use N, A-B, A-BxS or A-B:S, comma-separated)");
+        let bad = |why: &str| {
+            format!("{item:?} in {s:?}: {why} (use N, A-B, A-BxS or A-B:S, comma-separated)")
+        };
         let (range, step) = match item.find(['x', ':']) {
             Some(k) => (&item[..k], Some(&item[k + 1..])),
             None => (item, None),
@@ -87,7 +89,11 @@ mod tests {
         assert_eq!(parse_frames("1-10:4").unwrap(), vec![1, 5, 9]);
         assert_eq!(parse_frames("1,5,10-12").unwrap(), vec![1, 5, 10, 11, 12]);
         assert_eq!(parse_frames(" 7 ").unwrap(), vec![7]);
-        assert_eq!(parse_frames("3,1,3,2-3").unwrap(), vec![3, 1, 2], "order kept, repeats dropped");
+        assert_eq!(
+            parse_frames("3,1,3,2-3").unwrap(),
+            vec![3, 1, 2],
+            "order kept, repeats dropped"
+        );
     }
 
     #[test]
@@ -101,9 +107,17 @@ mod tests {
 
     #[test]
     fn bad_lists_name_the_item() {
-        for bad in ["", "1-", "a-3", "5-1", "1-10x0", "1-10x-2", "1,,2", "3x2", "1-2-3", "0-2000000"] {
+        for bad in
+            ["", "1-", "a-3", "5-1", "1-10x0", "1-10x-2", "1,,2", "3x2", "1-2-3", "0-2000000"]
+        {
             let e = parse_frames(bad).unwrap_err();
-            assert!(e.contains("frame") || e.contains("step") || e.contains("range") || e.contains("empty"), "{bad}: {e}");
+            assert!(
+                e.contains("frame")
+                    || e.contains("step")
+                    || e.contains("range")
+                    || e.contains("empty"),
+                "{bad}: {e}"
+            );
         }
         assert!(parse_frames("5-1").unwrap_err().contains("\"5-1\""));
     }

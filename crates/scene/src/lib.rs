@@ -17,14 +17,14 @@
 
 pub mod choice;
 pub mod file;
-pub mod lights;
-mod settings;
-pub mod validate;
 pub mod frames;
+pub mod lights;
 pub mod pixels;
 pub mod selector;
 pub mod sets;
+mod settings;
 pub mod split;
+pub mod validate;
 mod values;
 
 use std::path::PathBuf;
@@ -33,16 +33,21 @@ use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
 pub use choice::{
-    CameraCollision, Choice, DeferPaths, EmissionSource, EstimatorKind, Interpolation, Method, NeeTable, ProgressFormat, SampleOrderChoice, SamplerKind,
-    TrackingChoice, UpAxis,
+    CameraCollision, Choice, DeferPaths, EmissionSource, EstimatorKind, Interpolation, Method,
+    NeeTable, ProgressFormat, SampleOrderChoice, SamplerKind, TrackingChoice, UpAxis,
 };
-pub use lights::{DistantSettings, EnvironmentMapSettings, LightSettings, SkySettings, SphereSettings};
+pub use lights::{
+    DistantSettings, EnvironmentMapSettings, LightSettings, SkySettings, SphereSettings,
+};
+pub use pixels::{Crop, SampleId};
 pub use settings::{FarmOptions, JobSettings, OutputSettings, ReadSettings, RenderOptions};
 pub use validate::ValidShot;
-pub use pixels::{Crop, SampleId};
 pub use values::{parse_bytes, ByteSize, TileIndex};
 
-pub use sets::{Collision, Convention, EmissionKind, Estimator, Filtered, LightSampling, MisHeuristic, PointLookup, SplitBy, TemperatureMap, Tracking};
+pub use sets::{
+    Collision, Convention, EmissionKind, Estimator, Filtered, LightSampling, MisHeuristic,
+    PointLookup, SplitBy, TemperatureMap, Tracking,
+};
 
 /// Everything a `plume render` command says: the scene and how the job runs.
 ///
@@ -86,16 +91,43 @@ struct ShotFile {
 
 impl From<ShotFile> for Shot {
     fn from(f: ShotFile) -> Shot {
-        let ShotFile { volume, emission, medium, camera, lights, integrator, render, farm, output, reading } = f;
-        Shot { scene: SceneDescription { volume, emission, medium, camera, lights, integrator }, settings: JobSettings { render, farm, output, reading } }
+        let ShotFile {
+            volume,
+            emission,
+            medium,
+            camera,
+            lights,
+            integrator,
+            render,
+            farm,
+            output,
+            reading,
+        } = f;
+        Shot {
+            scene: SceneDescription { volume, emission, medium, camera, lights, integrator },
+            settings: JobSettings { render, farm, output, reading },
+        }
     }
 }
 
 impl From<Shot> for ShotFile {
     fn from(s: Shot) -> ShotFile {
-        let Shot { scene: SceneDescription { volume, emission, medium, camera, lights, integrator }, settings: JobSettings { render, farm, output, reading } } =
-            s;
-        ShotFile { volume, emission, medium, camera, lights, integrator, render, farm, output, reading }
+        let Shot {
+            scene: SceneDescription { volume, emission, medium, camera, lights, integrator },
+            settings: JobSettings { render, farm, output, reading },
+        } = s;
+        ShotFile {
+            volume,
+            emission,
+            medium,
+            camera,
+            lights,
+            integrator,
+            render,
+            farm,
+            output,
+            reading,
+        }
     }
 }
 
@@ -314,7 +346,18 @@ pub struct CameraKey {
 
 impl Default for CameraSettings {
     fn default() -> Self {
-        CameraSettings { from: None, at: None, up: None, fov: 40.0, width: 640, height: 480, up_axis: UpAxis::Y, shutter: None, fps: 24.0, keys: Vec::new() }
+        CameraSettings {
+            from: None,
+            at: None,
+            up: None,
+            fov: 40.0,
+            width: 640,
+            height: 480,
+            up_axis: UpAxis::Y,
+            shutter: None,
+            fps: 24.0,
+            keys: Vec::new(),
+        }
     }
 }
 
@@ -386,7 +429,10 @@ impl IntegratorSettings {
     #[must_use]
     pub fn parts(&self) -> (Estimator, LightSampling) {
         let (estimator, light_sampling) = self.method.parts();
-        (self.estimator.unwrap_or(estimator).with_kappa(self.kappa), self.light_sampling.unwrap_or(light_sampling))
+        (
+            self.estimator.unwrap_or(estimator).with_kappa(self.kappa),
+            self.light_sampling.unwrap_or(light_sampling),
+        )
     }
 }
 

@@ -102,7 +102,15 @@ pub struct SkySettings {
 
 impl Default for SkySettings {
     fn default() -> Self {
-        SkySettings { elevation: 30.0, azimuth: 0.0, turbidity: 3.0, intensity: 1.0, sun: true, visible: true, group: None }
+        SkySettings {
+            elevation: 30.0,
+            azimuth: 0.0,
+            turbidity: 3.0,
+            intensity: 1.0,
+            sun: true,
+            visible: true,
+            group: None,
+        }
     }
 }
 
@@ -185,11 +193,15 @@ fn finite_nonneg(v: f64) -> bool {
 
 fn colour(key: &str, what: &str, color: Option<[f32; 3]>, kelvin: Option<f32>) -> Result<()> {
     if let Some(c) = color {
-        check(c.iter().all(|v| v.is_finite() && *v >= 0.0), key, || format!("{what}: color components must be finite and ≥ 0"))?;
+        check(c.iter().all(|v| v.is_finite() && *v >= 0.0), key, || {
+            format!("{what}: color components must be finite and ≥ 0")
+        })?;
         check(kelvin.is_none(), key, || format!("{what}: give color or kelvin, not both"))?;
     }
     if let Some(t) = kelvin {
-        check(t.is_finite() && (800.0..=1.0e6).contains(&t), key, || format!("{what}: kelvin {t} is not in [800, 1e6]"))?;
+        check(t.is_finite() && (800.0..=1.0e6).contains(&t), key, || {
+            format!("{what}: kelvin {t} is not in [800, 1e6]")
+        })?;
     }
     Ok(())
 }
@@ -198,10 +210,14 @@ fn colour(key: &str, what: &str, color: Option<[f32; 3]>, kelvin: Option<f32>) -
 /// not one of the fixed layers.
 fn group_name(key: &str, group: Option<&String>) -> Result<()> {
     let Some(g) = group else { return Ok(()) };
-    check(!g.is_empty() && g.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-'), key, || {
-        format!("group {g:?} must be letters, digits, '_' or '-' (it names an EXR layer)")
-    })?;
-    check(!RESERVED.contains(&g.as_str()), key, || format!("group {g:?} is the name of a fixed layer"))
+    check(
+        !g.is_empty() && g.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-'),
+        key,
+        || format!("group {g:?} must be letters, digits, '_' or '-' (it names an EXR layer)"),
+    )?;
+    check(!RESERVED.contains(&g.as_str()), key, || {
+        format!("group {g:?} is the name of a fixed layer")
+    })
 }
 
 impl DistantSettings {
@@ -224,13 +240,18 @@ impl LightSettings {
     /// Whether any light besides the volume is given.
     #[must_use]
     pub fn any(&self) -> bool {
-        self.environment.is_some() || self.environment_map.is_some() || self.sky.is_some() || !self.distant.is_empty() || !self.sphere.is_empty()
+        self.environment.is_some()
+            || self.environment_map.is_some()
+            || self.sky.is_some()
+            || !self.distant.is_empty()
+            || !self.sphere.is_empty()
     }
 
     /// The group of every light given, by where it is given (defaults: `environment`,
     /// `sky`, `sun`, `sphere`): the one place the defaults live.
     pub fn entry_groups(&self) -> EntryGroups {
-        let name = |g: &Option<String>, default: &str| g.clone().unwrap_or_else(|| default.to_string());
+        let name =
+            |g: &Option<String>, default: &str| g.clone().unwrap_or_else(|| default.to_string());
         EntryGroups {
             environment: self.environment.map(|_| "environment".to_string()),
             environment_map: self.environment_map.as_ref().map(|m| name(&m.group, "environment")),
@@ -245,7 +266,13 @@ impl LightSettings {
     #[must_use]
     pub fn groups(&self) -> Vec<String> {
         let e = self.entry_groups();
-        let all = e.environment.into_iter().chain(e.environment_map).chain(e.sky).chain(e.distant).chain(e.sphere);
+        let all = e
+            .environment
+            .into_iter()
+            .chain(e.environment_map)
+            .chain(e.sky)
+            .chain(e.distant)
+            .chain(e.sphere);
         let mut groups: Vec<String> = Vec::new();
         for g in all {
             if !groups.contains(&g) {
@@ -261,27 +288,43 @@ impl LightSettings {
     /// [`Error::InvalidArgument`] naming the key (`lights.distant`) and which light.
     pub fn validate(&self) -> Result<()> {
         if let Some(env) = self.environment {
-            check(env.is_finite() && env.min_element() >= 0.0, "lights.environment", || "components must be finite and ≥ 0".into())?;
+            check(env.is_finite() && env.min_element() >= 0.0, "lights.environment", || {
+                "components must be finite and ≥ 0".into()
+            })?;
         }
         if let Some(m) = &self.environment_map {
             let key = "lights.environment_map";
             check(!m.file.as_os_str().is_empty(), key, || "file: required".into())?;
-            check(finite_nonneg(m.intensity), key, || format!("intensity {} must be a finite number ≥ 0", m.intensity))?;
-            check(m.rotation.is_finite(), key, || format!("rotation {} must be finite", m.rotation))?;
+            check(finite_nonneg(m.intensity), key, || {
+                format!("intensity {} must be a finite number ≥ 0", m.intensity)
+            })?;
+            check(m.rotation.is_finite(), key, || {
+                format!("rotation {} must be finite", m.rotation)
+            })?;
             group_name(key, m.group.as_ref())?;
         }
         if let Some(s) = &self.sky {
-            check(finite_nonneg(s.intensity), "lights.sky", || format!("intensity {} must be a finite number ≥ 0", s.intensity))?;
+            check(finite_nonneg(s.intensity), "lights.sky", || {
+                format!("intensity {} must be a finite number ≥ 0", s.intensity)
+            })?;
             s.params().validate()?;
             group_name("lights.sky", s.group.as_ref())?;
         }
         for (i, d) in self.distant.iter().enumerate() {
             let key = "lights.distant";
             let what = format!("distant light {}", i + 1);
-            check(d.direction.is_finite() && d.direction.length() > 0.0, key, || format!("{what}: direction {} must be finite and not zero", d.direction))?;
-            check(d.irradiance.is_none() || d.illuminance.is_none(), key, || format!("{what}: give irradiance or illuminance, not both"))?;
-            check(finite_nonneg(d.irradiance()), key, || format!("{what}: irradiance {} must be a finite number ≥ 0", d.irradiance()))?;
-            check(d.angle.is_finite() && (0.0..180.0).contains(&d.angle), key, || format!("{what}: angle {} is not in [0, 180) degrees", d.angle))?;
+            check(d.direction.is_finite() && d.direction.length() > 0.0, key, || {
+                format!("{what}: direction {} must be finite and not zero", d.direction)
+            })?;
+            check(d.irradiance.is_none() || d.illuminance.is_none(), key, || {
+                format!("{what}: give irradiance or illuminance, not both")
+            })?;
+            check(finite_nonneg(d.irradiance()), key, || {
+                format!("{what}: irradiance {} must be a finite number ≥ 0", d.irradiance())
+            })?;
+            check(d.angle.is_finite() && (0.0..180.0).contains(&d.angle), key, || {
+                format!("{what}: angle {} is not in [0, 180) degrees", d.angle)
+            })?;
             colour(key, &what, d.color, d.kelvin)?;
             group_name(key, d.group.as_ref())?;
         }
@@ -289,15 +332,20 @@ impl LightSettings {
             let key = "lights.sphere";
             let what = format!("sphere light {}", i + 1);
             check(s.position.is_finite(), key, || format!("{what}: position must be finite"))?;
-            check(finite_nonneg(s.radius), key, || format!("{what}: radius {} must be a finite number ≥ 0", s.radius))?;
-            check(s.power.is_none() || s.intensity.is_none(), key, || format!("{what}: give power or intensity, not both"))?;
-            check(finite_nonneg(s.power()), key, || format!("{what}: power {} must be a finite number ≥ 0", s.power()))?;
+            check(finite_nonneg(s.radius), key, || {
+                format!("{what}: radius {} must be a finite number ≥ 0", s.radius)
+            })?;
+            check(s.power.is_none() || s.intensity.is_none(), key, || {
+                format!("{what}: give power or intensity, not both")
+            })?;
+            check(finite_nonneg(s.power()), key, || {
+                format!("{what}: power {} must be a finite number ≥ 0", s.power())
+            })?;
             colour(key, &what, s.color, s.kelvin)?;
             group_name(key, s.group.as_ref())?;
         }
         Ok(())
     }
-
 }
 
 impl SkySettings {
@@ -358,13 +406,25 @@ impl SkyParams {
     pub fn validate(&self) -> Result<()> {
         let (t_min, t_max) = TURBIDITY_RANGE;
         if !self.turbidity.is_finite() || !(t_min..=t_max).contains(&self.turbidity) {
-            return Err(Error::invalid("lights.sky.turbidity", format!("{} is outside [{t_min}, {t_max}], the range of Preetham's fit", self.turbidity)));
+            return Err(Error::invalid(
+                "lights.sky.turbidity",
+                format!(
+                    "{} is outside [{t_min}, {t_max}], the range of Preetham's fit",
+                    self.turbidity
+                ),
+            ));
         }
         if !self.elevation.is_finite() || !(-90.0..=90.0).contains(&self.elevation) {
-            return Err(Error::invalid("lights.sky.elevation", format!("{} degrees is outside [-90, 90]", self.elevation)));
+            return Err(Error::invalid(
+                "lights.sky.elevation",
+                format!("{} degrees is outside [-90, 90]", self.elevation),
+            ));
         }
         if !self.azimuth.is_finite() {
-            return Err(Error::invalid("lights.sky.azimuth", format!("{} is not a finite number of degrees", self.azimuth)));
+            return Err(Error::invalid(
+                "lights.sky.azimuth",
+                format!("{} is not a finite number of degrees", self.azimuth),
+            ));
         }
         Ok(())
     }

@@ -42,7 +42,11 @@ impl std::str::FromStr for SampleId {
         if p.len() != 3 {
             return Err(bad());
         }
-        Ok(SampleId { x: p[0].parse().map_err(|_| bad())?, y: p[1].parse().map_err(|_| bad())?, sample: p[2].parse().map_err(|_| bad())? })
+        Ok(SampleId {
+            x: p[0].parse().map_err(|_| bad())?,
+            y: p[1].parse().map_err(|_| bad())?,
+            sample: p[2].parse().map_err(|_| bad())?,
+        })
     }
 }
 
@@ -105,7 +109,12 @@ impl Crop {
     /// The common pixels of two rectangles, if any.
     #[must_use]
     pub fn intersection(&self, other: &Crop) -> Option<Crop> {
-        let c = Crop { x0: self.x0.max(other.x0), y0: self.y0.max(other.y0), x1: self.x1.min(other.x1), y1: self.y1.min(other.y1) };
+        let c = Crop {
+            x0: self.x0.max(other.x0),
+            y0: self.y0.max(other.y0),
+            x1: self.x1.min(other.x1),
+            y1: self.y1.min(other.y1),
+        };
         (c.x0 < c.x1 && c.y0 < c.y1).then_some(c)
     }
 }
@@ -127,7 +136,8 @@ impl FromStr for Crop {
         if v.len() != 4 {
             return Err(bad());
         }
-        let n: Vec<u32> = v.iter().map(|p| p.parse::<u32>()).collect::<Result<_, _>>().map_err(|_| bad())?;
+        let n: Vec<u32> =
+            v.iter().map(|p| p.parse::<u32>()).collect::<Result<_, _>>().map_err(|_| bad())?;
         let c = Crop { x0: n[0], y0: n[1], x1: n[2], y1: n[3] };
         if c.x1 <= c.x0 || c.y1 <= c.y0 {
             return Err(bad());

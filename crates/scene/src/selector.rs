@@ -118,7 +118,10 @@ mod tests {
             assert_eq!(parse(&text), selector, "{text:?}");
         }
         assert_eq!(GridSelector::first("density").to_string(), "density");
-        assert_eq!(GridSelector { name: "density".into(), occurrence: 1 }.to_string(), "density[1]");
+        assert_eq!(
+            GridSelector { name: "density".into(), occurrence: 1 }.to_string(),
+            "density[1]"
+        );
         assert_eq!(GridSelector::first("").to_string(), "[0]");
         assert_eq!(GridSelector::first("a[1]").to_string(), "a[1][0]");
     }

@@ -238,7 +238,12 @@ impl std::str::FromStr for TemperatureMap {
         if s == "kelvin" {
             return Ok(TemperatureMap::Kelvin);
         }
-        let bad = || Error::invalid("emission.temperature_map", format!("{s:?}: expected `kelvin` or `linear:OFFSET,SCALE`"));
+        let bad = || {
+            Error::invalid(
+                "emission.temperature_map",
+                format!("{s:?}: expected `kelvin` or `linear:OFFSET,SCALE`"),
+            )
+        };
         let rest = s.strip_prefix("linear:").ok_or_else(bad)?;
         let (a, b) = rest.split_once(',').ok_or_else(bad)?;
         let offset: f32 = a.trim().parse().map_err(|_| bad())?;

@@ -30,7 +30,12 @@ impl JobSettings {
     /// Defaults, writing the image to `image`.
     #[must_use]
     pub fn new(image: impl Into<PathBuf>) -> JobSettings {
-        JobSettings { render: RenderOptions::default(), farm: FarmOptions::default(), output: OutputSettings::new(image), reading: ReadSettings::default() }
+        JobSettings {
+            render: RenderOptions::default(),
+            farm: FarmOptions::default(),
+            output: OutputSettings::new(image),
+            reading: ReadSettings::default(),
+        }
     }
 }
 
@@ -144,7 +149,15 @@ impl OutputSettings {
     /// Only the EXR `image`.
     #[must_use]
     pub fn new(image: impl Into<PathBuf>) -> OutputSettings {
-        OutputSettings { image: image.into(), preview: None, exposure: None, stats: None, sums: false, aovs: false, denoise: false }
+        OutputSettings {
+            image: image.into(),
+            preview: None,
+            exposure: None,
+            stats: None,
+            sums: false,
+            aovs: false,
+            denoise: false,
+        }
     }
 }
 

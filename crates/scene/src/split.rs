@@ -14,7 +14,8 @@ use crate::pixels::Crop;
 pub fn parse_tile(s: &str) -> Result<(u32, u32), String> {
     let bad = || format!("expected i/n with 0 ≤ i < n (tiles are numbered from 0), got {s:?}");
     let (i, n) = s.split_once('/').ok_or_else(bad)?;
-    let (i, n): (u32, u32) = (i.trim().parse().map_err(|_| bad())?, n.trim().parse().map_err(|_| bad())?);
+    let (i, n): (u32, u32) =
+        (i.trim().parse().map_err(|_| bad())?, n.trim().parse().map_err(|_| bad())?);
     if n == 0 || i >= n {
         return Err(bad());
     }
@@ -29,14 +30,23 @@ pub fn parse_tile(s: &str) -> Result<(u32, u32), String> {
 /// # Errors
 /// A message when the grid has more columns or rows than the image has pixels.
 pub fn tile_crop(i: u32, n: u32, width: u32, height: u32) -> Result<Crop, String> {
-    let small = (1..=n).filter(|d| n % d == 0 && u64::from(*d) * u64::from(*d) <= u64::from(n)).max().unwrap_or(1);
+    let small = (1..=n)
+        .filter(|d| n % d == 0 && u64::from(*d) * u64::from(*d) <= u64::from(n))
+        .max()
+        .unwrap_or(1);
     let (cols, rows) = if width >= height { (n / small, small) } else { (small, n / small) };
     if cols > width || rows > height {
         return Err(format!("{n} tiles ({cols}x{rows}) do not fit a {width}x{height} image"));
     }
     let (c, r) = (i % cols, i / cols);
-    let edge = |k: u32, count: u32, size: u32| (u64::from(k) * u64::from(size) / u64::from(count)) as u32;
-    Ok(Crop { x0: edge(c, cols, width), x1: edge(c + 1, cols, width), y0: edge(r, rows, height), y1: edge(r + 1, rows, height) })
+    let edge =
+        |k: u32, count: u32, size: u32| (u64::from(k) * u64::from(size) / u64::from(count)) as u32;
+    Ok(Crop {
+        x0: edge(c, cols, width),
+        x1: edge(c + 1, cols, width),
+        y0: edge(r, rows, height),
+        y1: edge(r + 1, rows, height),
+    })
 }
 
 /// Parse `--sample-range a..b`: sample indices a to b − 1.
@@ -46,7 +56,8 @@ pub fn tile_crop(i: u32, n: u32, width: u32, height: u32) -> Result<Crop, String
 pub fn parse_sample_range(s: &str) -> Result<Range<u64>, String> {
     let bad = || format!("expected a..b (samples a to b−1, a < b), got {s:?}");
     let (a, b) = s.split_once("..").ok_or_else(bad)?;
-    let (a, b): (u64, u64) = (a.trim().parse().map_err(|_| bad())?, b.trim().parse().map_err(|_| bad())?);
+    let (a, b): (u64, u64) =
+        (a.trim().parse().map_err(|_| bad())?, b.trim().parse().map_err(|_| bad())?);
     if a >= b {
         return Err(bad());
     }

@@ -9,9 +9,9 @@
 use std::ops::Deref;
 
 use super::{CameraSettings, JobSettings, RenderOptions, SceneDescription, Shot, VolumeInput};
-use plume_core::error::{Error, Result};
-use crate::sets::TemperatureMap;
 use crate::selector::GridSelector;
+use crate::sets::TemperatureMap;
+use plume_core::error::{Error, Result};
 
 /// A [`Shot`] that passed [`Shot::validate`]; what renders take.
 #[derive(Clone, Debug, PartialEq)]
@@ -61,7 +61,8 @@ fn nonneg_components(key: &str, v: [f64; 3]) -> Result<()> {
 /// # Errors
 /// [`Error::InvalidArgument`] for `key` when it does not parse.
 pub fn selector(key: &str, name: &str) -> Result<GridSelector> {
-    name.parse::<GridSelector>().map_err(|_| Error::invalid(key, format!("{name:?} is not a grid name or name[N]")))
+    name.parse::<GridSelector>()
+        .map_err(|_| Error::invalid(key, format!("{name:?} is not a grid name or name[N]")))
 }
 
 impl Shot {
@@ -99,10 +100,16 @@ fn sample_budget(r: &RenderOptions) -> Result<()> {
 /// The image size and field of view.
 fn camera_frame(cam: &CameraSettings) -> Result<()> {
     if cam.width == 0 || cam.height == 0 || cam.width > 32768 || cam.height > 32768 {
-        return Err(Error::invalid("camera.width/camera.height", format!("{}x{} must be between 1x1 and 32768x32768", cam.width, cam.height)));
+        return Err(Error::invalid(
+            "camera.width/camera.height",
+            format!("{}x{} must be between 1x1 and 32768x32768", cam.width, cam.height),
+        ));
     }
     if !(cam.fov.is_finite() && cam.fov > 0.0 && cam.fov < 180.0) {
-        return Err(Error::invalid("camera.fov", format!("{} is not in (0, 180) degrees", cam.fov)));
+        return Err(Error::invalid(
+            "camera.fov",
+            format!("{} is not in (0, 180) degrees", cam.fov),
+        ));
     }
     Ok(())
 }
@@ -114,7 +121,13 @@ fn medium_and_method(scene: &SceneDescription) -> Result<()> {
     finite_nonneg("emission.scale", f64::from(scene.emission.scale))?;
     finite_nonneg("integrator.kappa", scene.integrator.kappa)?;
     if !(1..=256).contains(&scene.integrator.split) {
-        return Err(Error::invalid("integrator.split", format!("{} is not between 1 and 256 paths per camera collision", scene.integrator.split)));
+        return Err(Error::invalid(
+            "integrator.split",
+            format!(
+                "{} is not between 1 and 256 paths per camera collision",
+                scene.integrator.split
+            ),
+        ));
     }
     finite_nonneg("emission.temperature_cutoff", f64::from(scene.emission.temperature_cutoff))?;
     nonneg_components("emission.color", scene.emission.color.map(f64::from))?;
@@ -128,8 +141,10 @@ fn medium_and_method(scene: &SceneDescription) -> Result<()> {
     }
     scene.lights.validate()?;
     let (estimator, light_sampling) = scene.integrator.parts();
-    if matches!(scene.integrator.tracking, super::TrackingChoice::Mixed | super::TrackingChoice::Null)
-        && scene.scatters()
+    if matches!(
+        scene.integrator.tracking,
+        super::TrackingChoice::Mixed | super::TrackingChoice::Null
+    ) && scene.scatters()
         && !crate::sets::Tracking::applies(estimator, light_sampling)
     {
         return Err(Error::invalid(
@@ -143,7 +158,8 @@ fn medium_and_method(scene: &SceneDescription) -> Result<()> {
     }
     // The camera segment tracks by null collisions under `null` and with motion blur,
     // which blend (a per-voxel mix) cannot use
-    let camera_null = scene.integrator.tracking == super::TrackingChoice::Null || scene.volume.velocity_grid.is_some();
+    let camera_null = scene.integrator.tracking == super::TrackingChoice::Null
+        || scene.volume.velocity_grid.is_some();
     if camera_null && scene.integrator.camera_estimator == Some(super::EstimatorKind::Blend) {
         return Err(Error::invalid(
             "integrator.camera_estimator",
@@ -158,7 +174,10 @@ fn motion(scene: &SceneDescription) -> Result<()> {
     if let Some(name) = &scene.volume.velocity_grid {
         selector("volume.velocity_grid", name)?;
         if !scene.volume.velocity_scale.is_finite() {
-            return Err(Error::invalid("volume.velocity_scale", format!("{} must be finite", scene.volume.velocity_scale)));
+            return Err(Error::invalid(
+                "volume.velocity_scale",
+                format!("{} must be finite", scene.volume.velocity_scale),
+            ));
         }
         let (_, light_sampling) = scene.integrator.parts();
         if light_sampling == crate::sets::LightSampling::Nee && scene.scatters() {
@@ -181,29 +200,56 @@ fn motion(scene: &SceneDescription) -> Result<()> {
 fn camera_motion(cam: &CameraSettings) -> Result<()> {
     if let Some([open, close]) = cam.shutter {
         if !(open.is_finite() && close.is_finite() && open <= close) {
-            return Err(Error::invalid("camera.shutter", format!("{open},{close}: open must be at most close, both finite (frames)")));
+            return Err(Error::invalid(
+                "camera.shutter",
+                format!("{open},{close}: open must be at most close, both finite (frames)"),
+            ));
         }
     }
     if !cam.keys.is_empty() {
         if cam.from.is_some() || cam.at.is_some() {
-            return Err(Error::invalid("camera.keys", "give camera.keys or camera.from/camera.at, not both"));
+            return Err(Error::invalid(
+                "camera.keys",
+                "give camera.keys or camera.from/camera.at, not both",
+            ));
         }
         for (i, k) in cam.keys.iter().enumerate() {
-            if !(k.frame.is_finite() && k.from.is_finite() && k.at.is_finite() && k.up.is_none_or(|u| u.is_finite())) {
-                return Err(Error::invalid("camera.keys", format!("key {}: frame, from, at and up must be finite", i + 1)));
+            if !(k.frame.is_finite()
+                && k.from.is_finite()
+                && k.at.is_finite()
+                && k.up.is_none_or(|u| u.is_finite()))
+            {
+                return Err(Error::invalid(
+                    "camera.keys",
+                    format!("key {}: frame, from, at and up must be finite", i + 1),
+                ));
             }
             if let Some(f) = k.fov {
                 if !(f > 0.0 && f < 180.0) {
-                    return Err(Error::invalid("camera.keys", format!("key {}: fov {f} is not in (0, 180) degrees", i + 1)));
+                    return Err(Error::invalid(
+                        "camera.keys",
+                        format!("key {}: fov {f} is not in (0, 180) degrees", i + 1),
+                    ));
                 }
             }
             if i > 0 && cam.keys[i - 1].frame >= k.frame {
-                return Err(Error::invalid("camera.keys", format!("key {}: frames must increase ({} after {})", i + 1, k.frame, cam.keys[i - 1].frame)));
+                return Err(Error::invalid(
+                    "camera.keys",
+                    format!(
+                        "key {}: frames must increase ({} after {})",
+                        i + 1,
+                        k.frame,
+                        cam.keys[i - 1].frame
+                    ),
+                ));
             }
         }
     }
     if !(cam.fps.is_finite() && cam.fps > 0.0) {
-        return Err(Error::invalid("camera.fps", format!("{} must be a positive number of frames per second", cam.fps)));
+        return Err(Error::invalid(
+            "camera.fps",
+            format!("{} must be a positive number of frames per second", cam.fps),
+        ));
     }
     Ok(())
 }
@@ -212,7 +258,9 @@ fn camera_motion(cam: &CameraSettings) -> Result<()> {
 fn grids(v: &VolumeInput) -> Result<()> {
     selector("volume.density_grid", &v.density_grid)?;
     selector("volume.temperature_grid", &v.temperature_grid)?;
-    for (key, name) in [("volume.emission_grid", &v.emission_grid), ("volume.albedo_grid", &v.albedo_grid)] {
+    for (key, name) in
+        [("volume.emission_grid", &v.emission_grid), ("volume.albedo_grid", &v.albedo_grid)]
+    {
         if let Some(n) = name {
             selector(key, n)?;
         }
@@ -225,7 +273,13 @@ fn job_settings(job: &JobSettings, cam: &CameraSettings) -> Result<()> {
     let r = &job.render;
     if let Some(dp) = r.debug_pixel {
         if dp.x >= cam.width || dp.y >= cam.height {
-            return Err(Error::invalid("render.debug_pixel", format!("pixel {},{} is outside the {}x{} image", dp.x, dp.y, cam.width, cam.height)));
+            return Err(Error::invalid(
+                "render.debug_pixel",
+                format!(
+                    "pixel {},{} is outside the {}x{} image",
+                    dp.x, dp.y, cam.width, cam.height
+                ),
+            ));
         }
     }
     let out = &job.output;
@@ -235,15 +289,24 @@ fn job_settings(job: &JobSettings, cam: &CameraSettings) -> Result<()> {
         }
     }
     if out.image.as_os_str().is_empty() {
-        return Err(Error::invalid("output.image", "required: the EXR to write (`-o OUT.exr`, or `image` in `[output]`)"));
+        return Err(Error::invalid(
+            "output.image",
+            "required: the EXR to write (`-o OUT.exr`, or `image` in `[output]`)",
+        ));
     }
     if !out.image.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr")) {
-        return Err(Error::invalid("output.image", format!("{} must end in .exr", out.image.display())));
+        return Err(Error::invalid(
+            "output.image",
+            format!("{} must end in .exr", out.image.display()),
+        ));
     }
     positive_seconds("reading.read_timeout", job.reading.read_timeout)?;
     if let Some(t) = r.cache_lock_timeout {
         if !(t.is_finite() && t >= 0.0) {
-            return Err(Error::invalid("render.cache_lock_timeout", format!("{t} must be a number of seconds, 0 or more")));
+            return Err(Error::invalid(
+                "render.cache_lock_timeout",
+                format!("{t} must be a number of seconds, 0 or more"),
+            ));
         }
     }
     let farm = &job.farm;
@@ -258,18 +321,28 @@ fn job_settings(job: &JobSettings, cam: &CameraSettings) -> Result<()> {
     }
     if let Some(c) = farm.crop {
         if !c.fits(cam.width, cam.height) {
-            return Err(Error::invalid("farm.crop", format!("{c} is not inside the {}x{} image", cam.width, cam.height)));
+            return Err(Error::invalid(
+                "farm.crop",
+                format!("{c} is not inside the {}x{} image", cam.width, cam.height),
+            ));
         }
     }
     if let Some(t) = farm.tile {
-        crate::split::tile_crop(t.index, t.count, cam.width, cam.height).map_err(|m| Error::invalid("farm.tile", m))?;
+        crate::split::tile_crop(t.index, t.count, cam.width, cam.height)
+            .map_err(|m| Error::invalid("farm.tile", m))?;
     }
     if let Some(range) = &farm.sample_range {
         if r.spp.is_some() || r.time.is_some() {
-            return Err(Error::invalid("farm.sample_range", "give farm.sample_range or render.spp/render.time, not both"));
+            return Err(Error::invalid(
+                "farm.sample_range",
+                "give farm.sample_range or render.spp/render.time, not both",
+            ));
         }
         if range.end - range.start > u64::from(u32::MAX) {
-            return Err(Error::invalid("farm.sample_range", "at most 4294967295 samples per pixel in one run"));
+            return Err(Error::invalid(
+                "farm.sample_range",
+                "at most 4294967295 samples per pixel in one run",
+            ));
         }
     }
     Ok(())

@@ -30,7 +30,11 @@ pub fn parse_bytes(s: &str) -> Result<u64, String> {
         "gib" => 1024.0 * 1024.0 * 1024.0,
         "t" | "tb" => 1e12,
         "tib" => 1024.0f64.powi(4),
-        _ => return Err(format!("unknown unit in {s:?} (use B, KiB, MiB, GiB, TiB, KB, MB, GB, TB)")),
+        _ => {
+            return Err(format!(
+                "unknown unit in {s:?} (use B, KiB, MiB, GiB, TiB, KB, MB, GB, TB)"
+            ))
+        }
     };
     let v = n * mult;
     if !(v.is_finite() && v >= 1.0) {
@@ -98,14 +102,17 @@ pub(super) mod opt_text {
 
     use serde::{Deserialize, Deserializer, Serializer};
 
-    pub(in crate) fn serialize<T: Display, S: Serializer>(v: &Option<T>, s: S) -> Result<S::Ok, S::Error> {
+    pub(crate) fn serialize<T: Display, S: Serializer>(
+        v: &Option<T>,
+        s: S,
+    ) -> Result<S::Ok, S::Error> {
         match v {
             Some(v) => s.collect_str(v),
             None => s.serialize_none(),
         }
     }
 
-    pub(in crate) fn deserialize<'de, T, D>(d: D) -> Result<Option<T>, D::Error>
+    pub(crate) fn deserialize<'de, T, D>(d: D) -> Result<Option<T>, D::Error>
     where
         T: FromStr,
         T::Err: Display,
@@ -122,14 +129,19 @@ pub(super) mod sample_range_text {
 
     use serde::{Deserialize, Deserializer, Serializer};
 
-    pub(in crate) fn serialize<S: Serializer>(v: &Option<Range<u64>>, s: S) -> Result<S::Ok, S::Error> {
+    pub(crate) fn serialize<S: Serializer>(
+        v: &Option<Range<u64>>,
+        s: S,
+    ) -> Result<S::Ok, S::Error> {
         match v {
             Some(r) => s.serialize_str(&crate::split::format_range(r)),
             None => s.serialize_none(),
         }
     }
 
-    pub(in crate) fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Option<Range<u64>>, D::Error> {
+    pub(crate) fn deserialize<'de, D: Deserializer<'de>>(
+        d: D,
+    ) -> Result<Option<Range<u64>>, D::Error> {
         let s = String::deserialize(d)?;
         crate::split::parse_sample_range(&s).map(Some).map_err(serde::de::Error::custom)
     }

@@ -59,9 +59,9 @@ use std::sync::OnceLock;
 use glam::{DAffine3, DVec3, IVec3};
 use rayon::prelude::*;
 
-use plume_volume::grid::{FloatGrid, LEAF_DIM, LEAF_VOXELS};
 use layout::{LayoutCounts, LoopSpec};
 pub use layout::{FOOT_TEMPERATURE, PEAK_TEMPERATURE};
+use plume_volume::grid::{FloatGrid, LEAF_DIM, LEAF_VOXELS};
 pub use tube::MIN_TUBE_RADIUS;
 use tube::{Accumulator, Tube};
 
@@ -108,7 +108,13 @@ pub struct FlareParams {
 
 impl Default for FlareParams {
     fn default() -> Self {
-        FlareParams { resolution: 256, seed: 1, arcade_loops: 200, active_region_loops: 480, knot_fraction: 0.2 }
+        FlareParams {
+            resolution: 256,
+            seed: 1,
+            arcade_loops: 200,
+            active_region_loops: 480,
+            knot_fraction: 0.2,
+        }
     }
 }
 
@@ -142,11 +148,24 @@ impl Flare {
     /// in `[0, 1]`.
     #[must_use]
     pub fn new(params: &FlareParams) -> Flare {
-        assert!((1..=MAX_FLARE_RESOLUTION).contains(&params.resolution), "flare resolution {} outside 1..={MAX_FLARE_RESOLUTION}", params.resolution);
-        assert!((0.0..=1.0).contains(&params.knot_fraction), "knot fraction {} outside [0, 1]", params.knot_fraction);
-        let counts = LayoutCounts { arcade: params.arcade_loops, active_region: params.active_region_loops, knot_fraction: params.knot_fraction };
+        assert!(
+            (1..=MAX_FLARE_RESOLUTION).contains(&params.resolution),
+            "flare resolution {} outside 1..={MAX_FLARE_RESOLUTION}",
+            params.resolution
+        );
+        assert!(
+            (0.0..=1.0).contains(&params.knot_fraction),
+            "knot fraction {} outside [0, 1]",
+            params.knot_fraction
+        );
+        let counts = LayoutCounts {
+            arcade: params.arcade_loops,
+            active_region: params.active_region_loops,
+            knot_fraction: params.knot_fraction,
+        };
         let specs: Vec<LoopSpec> = layout::loops(params.seed, counts);
-        let tubes: Vec<Tube> = specs.iter().map(|spec| Tube::new(spec, f64::from(params.resolution))).collect();
+        let tubes: Vec<Tube> =
+            specs.iter().map(|spec| Tube::new(spec, f64::from(params.resolution))).collect();
         let resolution = params.resolution as i32;
         let brick_dims = IVec3::splat((resolution + LEAF_DIM - 1) / LEAF_DIM);
         let grid = LoopGrid::new(&tubes, resolution, brick_dims);
@@ -199,7 +218,11 @@ impl Flare {
             while bits != 0 {
                 let i = word_index * 64 + bits.trailing_zeros() as usize;
                 bits &= bits - 1;
-                bricks.push(IVec3::new((i % dims.x as usize) as i32, (i / dims.x as usize) as i32, bz));
+                bricks.push(IVec3::new(
+                    (i % dims.x as usize) as i32,
+                    (i / dims.x as usize) as i32,
+                    bz,
+                ));
             }
         }
         bricks
@@ -212,7 +235,8 @@ impl Flare {
         // Samples every `step` voxels of arc: every point within reach of the circle is
         // within `ball` of a sample
         let step = (0.5 * (reach + BRICK_RADIUS)).max(2.0);
-        let samples = (std::f64::consts::TAU * tube.circle_radius() / step).ceil().max(8.0) as usize;
+        let samples =
+            (std::f64::consts::TAU * tube.circle_radius() / step).ceil().max(8.0) as usize;
         let angle_step = std::f64::consts::TAU / samples as f64;
         let step = angle_step * tube.circle_radius();
         let ball = reach + 0.5 * step + MARGIN;
@@ -257,7 +281,12 @@ impl Flare {
     /// ([`leaf_offset`](plume_volume::grid::leaf_offset)); voxels outside `[0, resolution)³` are 0.
     /// Returns false, with both arrays all zero, when no voxel has density (always for `b`
     /// outside `[0, brick_dims)`). A pure function of the parameters and `b`.
-    pub fn fill_brick(&self, b: IVec3, density: &mut [f32; 512], temperature: &mut [f32; 512]) -> bool {
+    pub fn fill_brick(
+        &self,
+        b: IVec3,
+        density: &mut [f32; 512],
+        temperature: &mut [f32; 512],
+    ) -> bool {
         density.fill(0.0);
         temperature.fill(0.0);
         if b.cmplt(IVec3::ZERO).any() || b.cmpge(self.brick_dims).any() {
@@ -266,7 +295,8 @@ impl Flare {
         let origin = b * LEAF_DIM;
         let end = (IVec3::splat(self.resolution) - origin).min(IVec3::splat(LEAF_DIM));
         let centre = origin.as_dvec3() + 3.5;
-        let mut acc = Accumulator { density: [0.0; LEAF_VOXELS], weighted_temperature: [0.0; LEAF_VOXELS] };
+        let mut acc =
+            Accumulator { density: [0.0; LEAF_VOXELS], weighted_temperature: [0.0; LEAF_VOXELS] };
         let mut any = false;
         for &t in self.grid.tubes_near(b) {
             let tube = &self.tubes[t as usize];
@@ -283,7 +313,8 @@ impl Flare {
             let d = acc.density[i];
             if d > 0.0 {
                 density[i] = d;
-                temperature[i] = (acc.weighted_temperature[i] / d).clamp(FOOT_TEMPERATURE, PEAK_TEMPERATURE);
+                temperature[i] =
+                    (acc.weighted_temperature[i] / d).clamp(FOOT_TEMPERATURE, PEAK_TEMPERATURE);
                 occupied = true;
             }
         }
@@ -300,9 +331,15 @@ impl Flare {
     pub fn estimated_bytes(&self) -> u64 {
         let bricks = *self.estimated_bricks.get_or_init(|| {
             let slabs = self.brick_dims.z as u64;
-            let affordable = (64.0 * (4096.0 / f64::from(self.resolution)).powi(2)).clamp(8.0, 64.0) as u64;
+            let affordable =
+                (64.0 * (4096.0 / f64::from(self.resolution)).powi(2)).clamp(8.0, 64.0) as u64;
             let sampled = slabs.min(affordable);
-            let counted: u64 = (0..sampled).into_par_iter().map(|i| self.bricks_in_slab(((2 * i + 1) * slabs / (2 * sampled)) as i32).len() as u64).sum();
+            let counted: u64 = (0..sampled)
+                .into_par_iter()
+                .map(|i| {
+                    self.bricks_in_slab(((2 * i + 1) * slabs / (2 * sampled)) as i32).len() as u64
+                })
+                .sum();
             (counted * slabs + sampled / 2) / sampled
         });
         bricks * BYTES_PER_BRICK
@@ -321,7 +358,11 @@ impl Flare {
             .map(|bz| {
                 let mut filled = Vec::new();
                 for b in self.bricks_in_slab(bz) {
-                    let mut brick = FilledBrick { origin: b * LEAF_DIM, density: Box::new([0.0; 512]), temperature: Box::new([0.0; 512]) };
+                    let mut brick = FilledBrick {
+                        origin: b * LEAF_DIM,
+                        density: Box::new([0.0; 512]),
+                        temperature: Box::new([0.0; 512]),
+                    };
                     if self.fill_brick(b, &mut brick.density, &mut brick.temperature) {
                         filled.push(brick);
                     }
@@ -364,19 +405,37 @@ impl LoopGrid {
         let per_tube: Vec<Vec<u32>> = tubes
             .par_iter()
             .map(|tube| {
-                let to_cell = |v: f64| ((v / f64::from(cell_voxels)).floor() as i64).clamp(0, i64::from(cells.max_element() - 1)) as i32;
-                let lo = IVec3::new(to_cell(tube.lo.x - MARGIN), to_cell(tube.lo.y - MARGIN), to_cell(tube.lo.z - MARGIN));
-                let hi = IVec3::new(to_cell(tube.hi.x + MARGIN), to_cell(tube.hi.y + MARGIN), to_cell(tube.hi.z + MARGIN));
+                let to_cell = |v: f64| {
+                    ((v / f64::from(cell_voxels)).floor() as i64)
+                        .clamp(0, i64::from(cells.max_element() - 1)) as i32
+                };
+                let lo = IVec3::new(
+                    to_cell(tube.lo.x - MARGIN),
+                    to_cell(tube.lo.y - MARGIN),
+                    to_cell(tube.lo.z - MARGIN),
+                );
+                let hi = IVec3::new(
+                    to_cell(tube.hi.x + MARGIN),
+                    to_cell(tube.hi.y + MARGIN),
+                    to_cell(tube.hi.z + MARGIN),
+                );
                 let mut list = Vec::new();
                 for z in lo.z..=hi.z.min(cells.z - 1) {
                     for y in lo.y..=hi.y.min(cells.y - 1) {
                         for x in lo.x..=hi.x.min(cells.x - 1) {
                             // Bounding sphere of the cell's voxel centres
                             let first = IVec3::new(x, y, z) * cell_voxels;
-                            let last = ((IVec3::new(x, y, z) + 1) * cell_voxels).min(IVec3::splat(resolution)) - 1;
-                            let (first, last) = (first.as_dvec3(), last.max(IVec3::new(x, y, z) * cell_voxels).as_dvec3());
+                            let last = ((IVec3::new(x, y, z) + 1) * cell_voxels)
+                                .min(IVec3::splat(resolution))
+                                - 1;
+                            let (first, last) = (
+                                first.as_dvec3(),
+                                last.max(IVec3::new(x, y, z) * cell_voxels).as_dvec3(),
+                            );
                             let radius = 0.5 * (last - first).length();
-                            if tube.distance(0.5 * (first + last)) < f64::from(tube.reach) + radius + MARGIN {
+                            if tube.distance(0.5 * (first + last))
+                                < f64::from(tube.reach) + radius + MARGIN
+                            {
                                 list.push(((z * cells.y + y) * cells.x + x) as u32);
                             }
                         }

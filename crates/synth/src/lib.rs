@@ -50,10 +50,13 @@ pub mod velocity;
 use glam::{DAffine3, DVec3, IVec3, Vec3};
 use rayon::prelude::*;
 
-use plume_volume::grid::{leaf_offset, FloatGrid, LEAF_DIM, LEAF_VOXELS};
 use noise::{stream_seed, Fractal, FractalCache};
+use plume_volume::grid::{leaf_offset, FloatGrid, LEAF_DIM, LEAF_VOXELS};
 
-pub use flare::{Flare, FlareParams, BYTES_PER_BRICK, FLARE_SIZE, FOOT_TEMPERATURE, MAX_FLARE_RESOLUTION, MIN_TUBE_RADIUS, PEAK_TEMPERATURE};
+pub use flare::{
+    Flare, FlareParams, BYTES_PER_BRICK, FLARE_SIZE, FOOT_TEMPERATURE, MAX_FLARE_RESOLUTION,
+    MIN_TUBE_RADIUS, PEAK_TEMPERATURE,
+};
 
 /// Edge length of the world cube holding the explosion, in metres, at every resolution.
 pub const WORLD_SIZE: f64 = 4.0;
@@ -107,7 +110,8 @@ pub struct Explosion {
 pub fn world_from_index(resolution: u32) -> DAffine3 {
     assert!(resolution > 0, "explosion resolution must be positive");
     let voxel_size = WORLD_SIZE / f64::from(resolution);
-    DAffine3::from_scale(DVec3::splat(voxel_size)) * DAffine3::from_translation(DVec3::splat(0.5 - 0.5 * f64::from(resolution)))
+    DAffine3::from_scale(DVec3::splat(voxel_size))
+        * DAffine3::from_translation(DVec3::splat(0.5 - 0.5 * f64::from(resolution)))
 }
 
 /// Generates the explosion described by `params` (see the module docs for the model).
@@ -125,8 +129,16 @@ pub fn explosion(params: &ExplosionParams) -> Explosion {
 
 /// [`explosion`], with leaf culling optional so tests can check that it is conservative.
 fn generate(params: &ExplosionParams, cull_leaves: bool) -> Explosion {
-    assert!((1..=MAX_RESOLUTION).contains(&params.resolution), "explosion resolution {} outside 1..={MAX_RESOLUTION}", params.resolution);
-    assert!(params.turbulence.is_finite() && params.turbulence >= 0.0, "turbulence {} must be finite and non-negative", params.turbulence);
+    assert!(
+        (1..=MAX_RESOLUTION).contains(&params.resolution),
+        "explosion resolution {} outside 1..={MAX_RESOLUTION}",
+        params.resolution
+    );
+    assert!(
+        params.turbulence.is_finite() && params.turbulence >= 0.0,
+        "turbulence {} must be finite and non-negative",
+        params.turbulence
+    );
     assert!(
         params.core_temperature.is_finite() && params.core_temperature >= FIRE_EDGE_TEMPERATURE,
         "core temperature {} K must be finite and at least {FIRE_EDGE_TEMPERATURE} K",
@@ -145,14 +157,20 @@ fn generate(params: &ExplosionParams, cull_leaves: bool) -> Explosion {
     for leaf_x in 0..leaves_per_axis {
         // Origins of this slab's leaves that may hold smoke, in (y, z) order.
         let candidates: Vec<IVec3> = (0..leaves_per_axis)
-            .flat_map(|leaf_y| (0..leaves_per_axis).map(move |leaf_z| IVec3::new(leaf_x, leaf_y, leaf_z) * LEAF_DIM))
+            .flat_map(|leaf_y| {
+                (0..leaves_per_axis)
+                    .map(move |leaf_z| IVec3::new(leaf_x, leaf_y, leaf_z) * LEAF_DIM)
+            })
             .filter(|origin| {
                 let centre = world_from_index.transform_point3(origin.as_dvec3() + 3.5);
                 !cull_leaves || model.may_have_smoke(centre.as_vec3(), leaf_radius)
             })
             .collect();
         // Evaluate in parallel; `collect` keeps candidate order.
-        let leaves: Vec<Option<Leaf>> = candidates.par_iter().map(|&origin| evaluate_leaf(&model, &world_from_index, resolution, origin)).collect();
+        let leaves: Vec<Option<Leaf>> = candidates
+            .par_iter()
+            .map(|&origin| evaluate_leaf(&model, &world_from_index, resolution, origin))
+            .collect();
         for leaf in leaves.into_iter().flatten() {
             density.origins.push(leaf.origin);
             density.values.extend_from_slice(&leaf.density[..]);
@@ -166,7 +184,13 @@ fn generate(params: &ExplosionParams, cull_leaves: bool) -> Explosion {
 }
 
 fn empty_grid(name: &str, world_from_index: DAffine3) -> FloatGrid {
-    FloatGrid { name: name.to_owned(), world_from_index, background: 0.0, origins: Vec::new(), values: Vec::new() }
+    FloatGrid {
+        name: name.to_owned(),
+        world_from_index,
+        background: 0.0,
+        origins: Vec::new(),
+        values: Vec::new(),
+    }
 }
 
 /// One evaluated leaf; `temperature` is `None` when it has no fire.
@@ -178,7 +202,12 @@ struct Leaf {
 
 /// Evaluates the leaf at `origin`, zeroing voxels with an index component ≥ `resolution`.
 /// `None` when every density value is zero.
-fn evaluate_leaf(model: &Model, world_from_index: &DAffine3, resolution: i32, origin: IVec3) -> Option<Leaf> {
+fn evaluate_leaf(
+    model: &Model,
+    world_from_index: &DAffine3,
+    resolution: i32,
+    origin: IVec3,
+) -> Option<Leaf> {
     let mut density = Box::new([0.0f32; LEAF_VOXELS]);
     let mut temperature = Box::new([0.0f32; LEAF_VOXELS]);
     let mut cache = SampleCache::default();
@@ -312,15 +341,24 @@ impl Model {
         // remove most of that, at the price of C0 kinks in the warped noise.
         let q = p + WARP * self.warp.fbm_vec3(p, &mut cache.warp);
         // Pyroclastic displacement of the envelope
-        let bumps = (DISPLACEMENT_GAIN * self.displacement.turbulence(q, &mut cache.displacement)).min(1.0);
+        let bumps =
+            (DISPLACEMENT_GAIN * self.displacement.turbulence(q, &mut cache.displacement)).min(1.0);
         let depth = self.amplitude * bumps - e;
         if depth <= 0.0 {
             return Sample::default();
         }
         let heat = self.heat(p, q, &mut cache.heat);
-        let variation = (0.5 + SMOKE_CONTRAST * self.smoke.fbm(q, &mut cache.smoke)).clamp(0.0, 1.0);
-        let density = fade * smoothstep(depth / SURFACE_WIDTH) * lerp(variation, SMOKE_MIN, SMOKE_MAX) * (1.0 - FIRE_THINNING * heat);
-        let temperature = if heat > 0.0 && density > 0.0 { lerp(heat.sqrt(), FIRE_EDGE_TEMPERATURE, self.core_temperature) } else { 0.0 };
+        let variation =
+            (0.5 + SMOKE_CONTRAST * self.smoke.fbm(q, &mut cache.smoke)).clamp(0.0, 1.0);
+        let density = fade
+            * smoothstep(depth / SURFACE_WIDTH)
+            * lerp(variation, SMOKE_MIN, SMOKE_MAX)
+            * (1.0 - FIRE_THINNING * heat);
+        let temperature = if heat > 0.0 && density > 0.0 {
+            lerp(heat.sqrt(), FIRE_EDGE_TEMPERATURE, self.core_temperature)
+        } else {
+            0.0
+        };
         Sample { density, temperature }
     }
 
@@ -350,7 +388,8 @@ fn envelope(p: Vec3) -> f32 {
     let skirt = {
         // Exact distance to a disc (radius R − h, thickness 0) inflated by h: a
         // flat cylinder of radius R and half height h with a round rim.
-        let radial = (Vec3::new(p.x, 0.0, p.z).length() - (SKIRT_RADIUS - SKIRT_HALF_HEIGHT)).max(0.0);
+        let radial =
+            (Vec3::new(p.x, 0.0, p.z).length() - (SKIRT_RADIUS - SKIRT_HALF_HEIGHT)).max(0.0);
         (radial * radial + (p.y - SKIRT_Y) * (p.y - SKIRT_Y)).sqrt() - SKIRT_HALF_HEIGHT
     };
     smooth_min(smooth_min(smooth_min(cap, ring), stem), skirt)

@@ -44,7 +44,9 @@ fn fmix32(mut h: u32) -> u32 {
 /// streams from the user's 64-bit seed and a stream number.
 #[must_use]
 pub(crate) fn stream_seed(seed: u64, stream: u64) -> u32 {
-    let z = plume_core::sampling::mix64((seed ^ stream.wrapping_mul(0x9e37_79b9_7f4a_7c15)).wrapping_add(0x9e37_79b9_7f4a_7c15));
+    let z = plume_core::sampling::mix64(
+        (seed ^ stream.wrapping_mul(0x9e37_79b9_7f4a_7c15)).wrapping_add(0x9e37_79b9_7f4a_7c15),
+    );
     (z ^ (z >> 32)) as u32
 }
 
@@ -161,7 +163,11 @@ fn interpolate(hashes: &[u32; 8], [fx, fy, fz]: [f32; 3]) -> f32 {
     let n011 = grad(hashes[6], fx, gy, gz);
     let n111 = grad(hashes[7], gx, gy, gz);
     let (u, v, w) = (fade(fx), fade(fy), fade(fz));
-    lerp(w, lerp(v, lerp(u, n000, n100), lerp(u, n010, n110)), lerp(v, lerp(u, n001, n101), lerp(u, n011, n111)))
+    lerp(
+        w,
+        lerp(v, lerp(u, n000, n100), lerp(u, n010, n110)),
+        lerp(v, lerp(u, n001, n101), lerp(u, n011, n111)),
+    )
 }
 
 /// Seeded 3D gradient noise at `p` (lattice spacing 1), in about `[−1, 1]`.
@@ -179,7 +185,11 @@ pub(crate) fn gradient_noise(p: Vec3, seed: u32, cache: &mut CellCache) -> f32 {
 #[must_use]
 pub(crate) fn gradient_noise_vec3(p: Vec3, seed: u32, cache: &mut CellCache) -> Vec3 {
     let (hashes, fraction) = cache.lookup(p, seed);
-    Vec3::new(interpolate(&hashes, fraction), interpolate(&hashes.map(|h| h << 4), fraction), interpolate(&hashes.map(|h| h << 8), fraction))
+    Vec3::new(
+        interpolate(&hashes, fraction),
+        interpolate(&hashes.map(|h| h << 4), fraction),
+        interpolate(&hashes.map(|h| h << 8), fraction),
+    )
 }
 
 /// A fractal sum of [`gradient_noise`] octaves with fixed base frequency and seed.
@@ -334,7 +344,8 @@ mod tests {
         let (mut scalar, mut vector) = (FractalCache::default(), FractalCache::default());
         // A walk in small steps (mostly cache hits) with occasional jumps (misses).
         for (i, jump) in points(3_000).enumerate() {
-            let p = Vec3::new(0.013 * i as f32, 0.007 * i as f32, -0.011 * i as f32) + if i % 97 == 0 { jump } else { Vec3::ZERO };
+            let p = Vec3::new(0.013 * i as f32, 0.007 * i as f32, -0.011 * i as f32)
+                + if i % 97 == 0 { jump } else { Vec3::ZERO };
             let fresh = f.turbulence(p, &mut FractalCache::default());
             assert_eq!(f.turbulence(p, &mut scalar).to_bits(), fresh.to_bits());
             let fresh = f.fbm_vec3(p, &mut FractalCache::default());

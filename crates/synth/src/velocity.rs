@@ -40,12 +40,16 @@ pub fn explosion_velocity(params: &ExplosionParams, density: &FloatGrid) -> [Flo
                     let ijk = origin + glam::IVec3::new(x, y, z);
                     let p = xf.transform_point3(ijk.as_dvec3()).as_vec3();
                     let h = CURL_STEP;
-                    let d = |axis: Vec3, psi: &mut dyn FnMut(Vec3) -> Vec3| (psi(p + axis * h) - psi(p - axis * h)) / (2.0 * h);
-                    let (dx, dy, dz) = (d(Vec3::X, &mut psi), d(Vec3::Y, &mut psi), d(Vec3::Z, &mut psi));
+                    let d = |axis: Vec3, psi: &mut dyn FnMut(Vec3) -> Vec3| {
+                        (psi(p + axis * h) - psi(p - axis * h)) / (2.0 * h)
+                    };
+                    let (dx, dy, dz) =
+                        (d(Vec3::X, &mut psi), d(Vec3::Y, &mut psi), d(Vec3::Z, &mut psi));
                     // ∇×ψ = (∂yψz − ∂zψy, ∂zψx − ∂xψz, ∂xψy − ∂yψx)
                     let curl = Vec3::new(dy.z - dz.y, dz.x - dx.z, dx.y - dy.x);
                     // The curl of fBm of frequency f has magnitude ≈ f: scale to the amplitude
-                    let v = (p - CORE_CENTRE) * EXPANSION_RATE + curl * (CURL_AMPLITUDE / potential.frequency);
+                    let v = (p - CORE_CENTRE) * EXPANSION_RATE
+                        + curl * (CURL_AMPLITUDE / potential.frequency);
                     let i = leaf * plume_volume::grid::LEAF_VOXELS + leaf_offset(x, y, z);
                     for (axis, c) in out.iter_mut().enumerate() {
                         c[i] = v[axis];
@@ -54,7 +58,13 @@ pub fn explosion_velocity(params: &ExplosionParams, density: &FloatGrid) -> [Flo
             }
         }
     }
-    let grid = |name: &str, values: Vec<f32>| FloatGrid { name: name.into(), world_from_index: xf, background: 0.0, origins: density.origins.clone(), values };
+    let grid = |name: &str, values: Vec<f32>| FloatGrid {
+        name: name.into(),
+        world_from_index: xf,
+        background: 0.0,
+        origins: density.origins.clone(),
+        values,
+    };
     let [x, y, z] = out;
     [grid("velocity.x", x), grid("velocity.y", y), grid("velocity.z", z)]
 }

@@ -13,15 +13,20 @@
 
 use glam::{DAffine3, DVec3, IVec3};
 
-pub use crate::layout::{brick_local, brick_of, floor_div, brick_offset, Brick, BuildReport, PackedSlot, Slot, BRICK, MAX_TABLE_ENTRIES, NO_BRICK};
 use super::builder::slot_at;
-pub use super::builder::{check_same_transform, table_dims, BlockSink, BrickTableBuilder, BuiltTable, Channel};
-use crate::values::{Bounds3, VoxelValues};
+pub use super::builder::{
+    check_same_transform, table_dims, BlockSink, BrickTableBuilder, BuiltTable, Channel,
+};
 use super::pyramid::Pyramid;
+use crate::grid::FloatGrid;
+pub use crate::layout::{
+    brick_local, brick_of, brick_offset, floor_div, Brick, BuildReport, PackedSlot, Slot, BRICK,
+    MAX_TABLE_ENTRIES, NO_BRICK,
+};
 use crate::out_of_core::storage::Buffer;
 use crate::trilinear::window::{corner_offset, window_index, window_slot, CORNER_STEP};
+use crate::values::{Bounds3, VoxelValues};
 use plume_core::error::{Error, Result};
-use crate::grid::FloatGrid;
 
 /// A sparse brick volume in index space with its `world_from_index` transform.
 ///
@@ -65,7 +70,11 @@ impl Volume {
     /// # Errors
     /// Incompatible transforms, an empty volume, or a bounding box too large for the brick
     /// table ([`MAX_TABLE_ENTRIES`]).
-    pub fn build(density: &FloatGrid, source: Option<&FloatGrid>, source_map: impl Fn(f32) -> f32 + Sync) -> Result<Volume> {
+    pub fn build(
+        density: &FloatGrid,
+        source: Option<&FloatGrid>,
+        source_map: impl Fn(f32) -> f32 + Sync,
+    ) -> Result<Volume> {
         Volume::build_with_albedo(density, source, source_map, None)
     }
 
@@ -81,7 +90,10 @@ impl Volume {
         albedo: Option<&FloatGrid>,
     ) -> Result<Volume> {
         for s in source.iter().chain(albedo.iter()) {
-            check_same_transform((&density.name, density.world_from_index), (&s.name, s.world_from_index))?;
+            check_same_transform(
+                (&density.name, density.world_from_index),
+                (&s.name, s.world_from_index),
+            )?;
         }
         let index_from_world = density.world_from_index.inverse();
         if !index_from_world.is_finite() || density.world_from_index.matrix3.determinant() == 0.0 {
@@ -99,14 +111,22 @@ impl Volume {
         let dims = table_dims(lo, hi, &density.name)?;
         let mut builder = BrickTableBuilder::new(lo, dims, &density.name)?;
         let mut values: Vec<f32> = Vec::new();
-        for (channel, grid) in [(Channel::Density, Some(density)), (Channel::Source, source), (Channel::Albedo, albedo)] {
+        for (channel, grid) in [
+            (Channel::Density, Some(density)),
+            (Channel::Source, source),
+            (Channel::Albedo, albedo),
+        ] {
             let Some(grid) = grid else { continue };
             let map = |v: f32| if channel == Channel::Source { source_map(v) } else { v };
             for (i, &o) in grid.origins.iter().enumerate() {
                 builder.put(&mut values, brick_of(o), channel, grid.leaf_values(i), map)?;
             }
         }
-        let backgrounds = [Some(density.background), Some(source.map_or(0.0, |s| source_map(s.background))), albedo.map(|a| a.background)];
+        let backgrounds = [
+            Some(density.background),
+            Some(source.map_or(0.0, |s| source_map(s.background))),
+            albedo.map(|a| a.background),
+        ];
         let built = builder.finish(&mut values, backgrounds)?;
         Ok(Volume::from_table(density.world_from_index, built, Buffer::from_vec(values)))
     }
@@ -114,7 +134,11 @@ impl Volume {
     /// Assemble a volume from a finished brick table and its value blocks (heap or mapped),
     /// building the pyramid from the per-brick bounds.
     #[must_use]
-    pub fn from_table(world_from_index: DAffine3, built: BuiltTable, values: Buffer<f32>) -> Volume {
+    pub fn from_table(
+        world_from_index: DAffine3,
+        built: BuiltTable,
+        values: Buffer<f32>,
+    ) -> Volume {
         let pyramid = Pyramid::from_brick_bounds(built.dims, &built.table, &built.bounds);
         Volume {
             world_from_index,
@@ -211,19 +235,31 @@ impl Volume {
     /// Bricks stored with at least one dense channel.
     #[must_use]
     pub fn dense_brick_count(&self) -> usize {
-        self.bricks.iter().filter(|b| matches!(b.density.get(), Slot::Dense(_)) || matches!(b.source.get(), Slot::Dense(_))).count()
+        self.bricks
+            .iter()
+            .filter(|b| {
+                matches!(b.density.get(), Slot::Dense(_))
+                    || matches!(b.source.get(), Slot::Dense(_))
+            })
+            .count()
     }
 
     /// Bytes of bricks, table, values and pyramid, wherever they live (heap or mapped).
     #[must_use]
     pub fn memory_bytes(&self) -> usize {
-        self.table.byte_len() + self.bricks.byte_len() + self.values.byte_len() + self.pyramid.memory_bytes()
+        self.table.byte_len()
+            + self.bricks.byte_len()
+            + self.values.byte_len()
+            + self.pyramid.memory_bytes()
     }
 
     /// Heap bytes held (0 for the arrays of a mapped cache file).
     #[must_use]
     pub fn heap_bytes(&self) -> usize {
-        self.table.heap_bytes() + self.bricks.heap_bytes() + self.values.heap_bytes() + self.pyramid.heap_bytes()
+        self.table.heap_bytes()
+            + self.bricks.heap_bytes()
+            + self.values.heap_bytes()
+            + self.pyramid.heap_bytes()
     }
 
     /// True when the volume's arrays are mapped from a cache file.
@@ -239,7 +275,10 @@ impl Volume {
         if r.cmplt(IVec3::ZERO).any() || r.cmpge(self.dims).any() {
             return None;
         }
-        Some(r.x as usize + self.dims.x as usize * (r.y as usize + self.dims.y as usize * r.z as usize))
+        Some(
+            r.x as usize
+                + self.dims.x as usize * (r.y as usize + self.dims.y as usize * r.z as usize),
+        )
     }
 
     /// The brick at brick coordinate `b`, if any.
@@ -283,12 +322,16 @@ impl Volume {
 
     /// Density and source of voxel `ijk` (nearest-voxel lookup; 0 outside all bricks).
     pub fn voxel(&self, ijk: IVec3) -> VoxelValues {
-        let b = IVec3::new(floor_div(ijk.x, BRICK), floor_div(ijk.y, BRICK), floor_div(ijk.z, BRICK));
+        let b =
+            IVec3::new(floor_div(ijk.x, BRICK), floor_div(ijk.y, BRICK), floor_div(ijk.z, BRICK));
         match self.brick(b) {
             None => VoxelValues::ZERO,
             Some(br) => {
                 let l = ijk - b * BRICK;
-                VoxelValues { density: self.slot_value(br.density, l.x, l.y, l.z), source: self.slot_value(br.source, l.x, l.y, l.z) }
+                VoxelValues {
+                    density: self.slot_value(br.density, l.x, l.y, l.z),
+                    source: self.slot_value(br.source, l.x, l.y, l.z),
+                }
             }
         }
     }
@@ -302,11 +345,22 @@ impl Volume {
     /// from interleaving its coordinates' bits: one load instead of the bit arithmetic
     /// (measured in docs/BENCHMARKS.md, "Interpolation: trilinear vs nearest").
     pub fn voxel_block(&self, cell: IVec3) -> [VoxelValues; 8] {
-        let l = IVec3::new(cell.x.rem_euclid(BRICK), cell.y.rem_euclid(BRICK), cell.z.rem_euclid(BRICK));
-        let b = IVec3::new(floor_div(cell.x, BRICK), floor_div(cell.y, BRICK), floor_div(cell.z, BRICK));
+        let l = IVec3::new(
+            cell.x.rem_euclid(BRICK),
+            cell.y.rem_euclid(BRICK),
+            cell.z.rem_euclid(BRICK),
+        );
+        let b = IVec3::new(
+            floor_div(cell.x, BRICK),
+            floor_div(cell.y, BRICK),
+            floor_div(cell.z, BRICK),
+        );
         let base = window_index(l);
         let edge = l.cmpeq(IVec3::splat(BRICK - 1)).bitmask() as usize;
-        let read = |br: &Brick, o: usize| VoxelValues { density: slot_at(&self.values, br.density, o), source: slot_at(&self.values, br.source, o) };
+        let read = |br: &Brick, o: usize| VoxelValues {
+            density: slot_at(&self.values, br.density, o),
+            source: slot_at(&self.values, br.source, o),
+        };
         // Plain loops: as `array::from_fn` the per-corner closure may be left out of line,
         // depending on how unrelated code falls into codegen units
         if edge == 0 {
@@ -337,7 +391,8 @@ impl Volume {
     /// Albedo factor of voxel `ijk` (1 outside bricks or without an albedo grid).
     #[must_use]
     pub fn voxel_albedo(&self, ijk: IVec3) -> f32 {
-        let b = IVec3::new(floor_div(ijk.x, BRICK), floor_div(ijk.y, BRICK), floor_div(ijk.z, BRICK));
+        let b =
+            IVec3::new(floor_div(ijk.x, BRICK), floor_div(ijk.y, BRICK), floor_div(ijk.z, BRICK));
         self.brick(b).map_or(1.0, |br| {
             let l = ijk - b * BRICK;
             self.slot_value(br.albedo, l.x, l.y, l.z)
@@ -381,7 +436,10 @@ impl Volume {
     /// Density and source of local voxel `l` (each component in `0..8`) of `brick`.
     #[inline]
     pub fn brick_voxel(&self, brick: &Brick, l: IVec3) -> VoxelValues {
-        VoxelValues { density: self.slot_value(brick.density, l.x, l.y, l.z), source: self.slot_value(brick.source, l.x, l.y, l.z) }
+        VoxelValues {
+            density: self.slot_value(brick.density, l.x, l.y, l.z),
+            source: self.slot_value(brick.source, l.x, l.y, l.z),
+        }
     }
 
     /// The 512 values of a dense slot in brick order ([`brick_offset`]); `None` for a
@@ -390,7 +448,9 @@ impl Volume {
     pub fn slot_block(&self, slot: PackedSlot) -> Option<&[f32; 512]> {
         match slot.get() {
             Slot::Constant(_) => None,
-            Slot::Dense(block) => self.values.get(block as usize * 512..(block as usize + 1) * 512)?.try_into().ok(),
+            Slot::Dense(block) => {
+                self.values.get(block as usize * 512..(block as usize + 1) * 512)?.try_into().ok()
+            }
         }
     }
 

@@ -6,10 +6,12 @@
 
 use glam::{DAffine3, IVec3};
 
-use crate::layout::{brick_offset, Brick, BuildReport, PackedSlot, Slot, BRICK, MAX_TABLE_ENTRIES, NO_BRICK};
 use super::pyramid::NodeBounds;
-use plume_core::error::{Error, Result};
 use crate::grid::{leaf_offset, LEAF_VOXELS};
+use crate::layout::{
+    brick_offset, Brick, BuildReport, PackedSlot, Slot, BRICK, MAX_TABLE_ENTRIES, NO_BRICK,
+};
+use plume_core::error::{Error, Result};
 
 /// Brick-order offset ([`brick_offset`]) of each leaf-order offset ([`leaf_offset`]).
 pub static LEAF_TO_BRICK: [u16; LEAF_VOXELS] = {
@@ -40,7 +42,8 @@ pub trait BlockSink {
 
 impl BlockSink for Vec<f32> {
     fn append(&mut self, block: &[f32; LEAF_VOXELS]) -> Result<u32> {
-        let index = u32::try_from(self.len() / LEAF_VOXELS).map_err(|_| Error::Scene("the volume has more than 2³² dense bricks".into()))?;
+        let index = u32::try_from(self.len() / LEAF_VOXELS)
+            .map_err(|_| Error::Scene("the volume has more than 2³² dense bricks".into()))?;
         self.extend_from_slice(block);
         Ok(index)
     }
@@ -98,7 +101,14 @@ impl BrickTableBuilder {
     /// A table larger than [`MAX_TABLE_ENTRIES`] (`what` names the grid in the message).
     pub fn new(brick_lo: IVec3, dims: IVec3, what: &str) -> Result<BrickTableBuilder> {
         let entries = table_entries(dims.as_i64vec3(), what)?;
-        Ok(BrickTableBuilder { brick_lo, dims, table: vec![NO_BRICK; entries], bricks: Vec::new(), bounds: Vec::new(), report: BuildReport::default() })
+        Ok(BrickTableBuilder {
+            brick_lo,
+            dims,
+            table: vec![NO_BRICK; entries],
+            bricks: Vec::new(),
+            bounds: Vec::new(),
+            report: BuildReport::default(),
+        })
     }
 
     /// Store channel `channel` of brick `b` from 512 raw values in OpenVDB leaf order,
@@ -107,9 +117,18 @@ impl BrickTableBuilder {
     ///
     /// # Errors
     /// `b` outside the table, or the sink's error.
-    pub fn put(&mut self, sink: &mut impl BlockSink, b: IVec3, channel: Channel, raw: &[f32], map: impl Fn(f32) -> f32) -> Result<()> {
+    pub fn put(
+        &mut self,
+        sink: &mut impl BlockSink,
+        b: IVec3,
+        channel: Channel,
+        raw: &[f32],
+        map: impl Fn(f32) -> f32,
+    ) -> Result<()> {
         let mut block = [0.0f32; LEAF_VOXELS];
-        let raw: &[f32; LEAF_VOXELS] = raw.try_into().map_err(|_| Error::Scene(format!("a leaf of {} values, not 512", raw.len())))?;
+        let raw: &[f32; LEAF_VOXELS] = raw
+            .try_into()
+            .map_err(|_| Error::Scene(format!("a leaf of {} values, not 512", raw.len())))?;
         match channel {
             Channel::Density | Channel::Source => {
                 // Branch-free clean-up in leaf order (vectorizable), counted once per
@@ -164,13 +183,21 @@ impl BrickTableBuilder {
     }
 
     /// Store an already cleaned block in brick order.
-    fn put_block(&mut self, sink: &mut impl BlockSink, b: IVec3, channel: Channel, block: &[f32; LEAF_VOXELS]) -> Result<()> {
+    fn put_block(
+        &mut self,
+        sink: &mut impl BlockSink,
+        b: IVec3,
+        channel: Channel,
+        block: &[f32; LEAF_VOXELS],
+    ) -> Result<()> {
         let index = self.brick_index(b)?;
         let first = block[0];
         let (slot, bounds) = if block.iter().all(|v| v.to_bits() == first.to_bits()) {
             (PackedSlot::constant(first), (first, first))
         } else {
-            let lohi = block.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| (lo.min(v), hi.max(v)));
+            let lohi = block
+                .iter()
+                .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| (lo.min(v), hi.max(v)));
             (PackedSlot::dense(sink.append(block)?), lohi)
         };
         self.set(index, channel, slot, bounds);
@@ -197,12 +224,20 @@ impl BrickTableBuilder {
     fn brick_index(&mut self, b: IVec3) -> Result<usize> {
         let r = b - self.brick_lo;
         if r.cmplt(IVec3::ZERO).any() || r.cmpge(self.dims).any() {
-            return Err(Error::Scene(format!("leaf at voxel {} lies outside the grid's announced bounding box", b * BRICK)));
+            return Err(Error::Scene(format!(
+                "leaf at voxel {} lies outside the grid's announced bounding box",
+                b * BRICK
+            )));
         }
-        let cell = r.x as usize + self.dims.x as usize * (r.y as usize + self.dims.y as usize * r.z as usize);
+        let cell = r.x as usize
+            + self.dims.x as usize * (r.y as usize + self.dims.y as usize * r.z as usize);
         if self.table[cell] == NO_BRICK {
             self.table[cell] = self.bricks.len() as u32;
-            self.bricks.push(Brick { density: PackedSlot::UNSET, source: PackedSlot::UNSET, albedo: PackedSlot::UNSET });
+            self.bricks.push(Brick {
+                density: PackedSlot::UNSET,
+                source: PackedSlot::UNSET,
+                albedo: PackedSlot::UNSET,
+            });
             self.bounds.push(NodeBounds::ZERO);
         }
         Ok(self.table[cell] as usize)
@@ -213,7 +248,11 @@ impl BrickTableBuilder {
     ///
     /// # Errors
     /// The sink's error reading values back (only with dense albedo bricks).
-    pub fn finish(mut self, sink: &mut impl BlockSink, backgrounds: [Option<f32>; 3]) -> Result<BuiltTable> {
+    pub fn finish(
+        mut self,
+        sink: &mut impl BlockSink,
+        backgrounds: [Option<f32>; 3],
+    ) -> Result<BuiltTable> {
         let density_bg = clean(backgrounds[0].unwrap_or(0.0), &mut 0);
         let source_bg = clean(backgrounds[1].unwrap_or(0.0), &mut 0);
         let albedo_bg = backgrounds[2].map_or(1.0, |a| clean_albedo(a, &mut 0));
@@ -247,7 +286,14 @@ impl BrickTableBuilder {
             }
         }
         let (brick_lo, dims, table) = shrink_to_occupied(self.brick_lo, self.dims, self.table);
-        Ok(BuiltTable { brick_lo, dims, table, bricks: self.bricks, bounds: self.bounds, report: self.report })
+        Ok(BuiltTable {
+            brick_lo,
+            dims,
+            table,
+            bricks: self.bricks,
+            bounds: self.bounds,
+            report: self.report,
+        })
     }
 }
 
@@ -269,7 +315,8 @@ fn shrink_to_occupied(lo: IVec3, dims: IVec3, table: Vec<u32>) -> (IVec3, IVec3,
         return (lo, dims, table);
     }
     let new_dims = max - min + 1;
-    let mut out = Vec::with_capacity(new_dims.x as usize * new_dims.y as usize * new_dims.z as usize);
+    let mut out =
+        Vec::with_capacity(new_dims.x as usize * new_dims.y as usize * new_dims.z as usize);
     for z in min.z..=max.z {
         for y in min.y..=max.y {
             let row = (z as usize * ny + y as usize) * nx;
@@ -283,9 +330,13 @@ fn shrink_to_occupied(lo: IVec3, dims: IVec3, table: Vec<u32>) -> (IVec3, IVec3,
 ///
 /// # Errors
 /// [`Error::Scene`] naming both grids.
-pub fn check_same_transform((a_name, a): (&str, DAffine3), (b_name, b): (&str, DAffine3)) -> Result<()> {
+pub fn check_same_transform(
+    (a_name, a): (&str, DAffine3),
+    (b_name, b): (&str, DAffine3),
+) -> Result<()> {
     let scale = a.matrix3.abs().to_cols_array().iter().fold(0.0f64, |m, v| m.max(*v));
-    let close = a.matrix3.abs_diff_eq(b.matrix3, 1e-6 * scale.max(1e-30)) && a.translation.abs_diff_eq(b.translation, 1e-6 * scale.max(1e-30));
+    let close = a.matrix3.abs_diff_eq(b.matrix3, 1e-6 * scale.max(1e-30))
+        && a.translation.abs_diff_eq(b.translation, 1e-6 * scale.max(1e-30));
     if close {
         Ok(())
     } else {

@@ -102,7 +102,15 @@ pub trait Cells: Copy {
     /// The piece of `line` over `[t0, t1]` inside cell `ijk` of the dense brick whose
     /// first cell is `origin`. `dense` may remember what the previous cell read (the walk
     /// steps to a neighbour each time).
-    fn dense_piece(&self, dense: &mut Self::Dense, origin: IVec3, ijk: IVec3, t0: f64, t1: f64, line: &IndexLine) -> Self::Piece;
+    fn dense_piece(
+        &self,
+        dense: &mut Self::Dense,
+        origin: IVec3,
+        ijk: IVec3,
+        t0: f64,
+        t1: f64,
+        line: &IndexLine,
+    ) -> Self::Piece;
     /// True when local cell `l` of the dense brick is known to be [`Cells::empty`] without
     /// reading it (trilinear's empty blocks, `volume::trilinear::dual`). The walk then
     /// steps through the run of such cells without asking for their pieces, gives the
@@ -153,7 +161,14 @@ fn cell_of(p: f64, d: f64, shift: f64) -> i32 {
 /// updates those axes' `t_next` from the integer index, and returns the exit parameter of
 /// the cell it left.
 #[inline(always)]
-fn step_cell(ijk: &mut IVec3, t_next: &mut DVec3, step: IVec3, face: DVec3, o: DVec3, inv_d: DVec3) -> f64 {
+fn step_cell(
+    ijk: &mut IVec3,
+    t_next: &mut DVec3,
+    step: IVec3,
+    face: DVec3,
+    o: DVec3,
+    inv_d: DVec3,
+) -> f64 {
     let t_exit = t_next.x.min(t_next.y).min(t_next.z);
     for a in 0..3 {
         if t_next[a] == t_exit {
@@ -203,10 +218,21 @@ impl<C: Cells> CellWalk<C> {
         let volume = cells.volume();
         let o = volume.index_from_world.transform_point3(ray.origin);
         let d = volume.index_from_world.transform_vector3(ray.direction);
-        let inv_d = DVec3::new(if d.x != 0.0 { 1.0 / d.x } else { 0.0 }, if d.y != 0.0 { 1.0 / d.y } else { 0.0 }, if d.z != 0.0 { 1.0 / d.z } else { 0.0 });
-        let step = IVec3::new((d.x > 0.0) as i32 - (d.x < 0.0) as i32, (d.y > 0.0) as i32 - (d.y < 0.0) as i32, (d.z > 0.0) as i32 - (d.z < 0.0) as i32);
-        let face =
-            DVec3::select(step.cmpgt(IVec3::ZERO), DVec3::splat(1.0 - C::SHIFT), DVec3::select(step.cmplt(IVec3::ZERO), DVec3::splat(-C::SHIFT), DVec3::ZERO));
+        let inv_d = DVec3::new(
+            if d.x != 0.0 { 1.0 / d.x } else { 0.0 },
+            if d.y != 0.0 { 1.0 / d.y } else { 0.0 },
+            if d.z != 0.0 { 1.0 / d.z } else { 0.0 },
+        );
+        let step = IVec3::new(
+            (d.x > 0.0) as i32 - (d.x < 0.0) as i32,
+            (d.y > 0.0) as i32 - (d.y < 0.0) as i32,
+            (d.z > 0.0) as i32 - (d.z < 0.0) as i32,
+        );
+        let face = DVec3::select(
+            step.cmpgt(IVec3::ZERO),
+            DVec3::splat(1.0 - C::SHIFT),
+            DVec3::select(step.cmplt(IVec3::ZERO), DVec3::splat(-C::SHIFT), DVec3::ZERO),
+        );
         let empty = volume.is_empty();
         let mut it = CellWalk {
             cells,
@@ -229,12 +255,19 @@ impl<C: Cells> CellWalk<C> {
             return it;
         }
         let CellBox { lo, hi } = it.cells.cell_box();
-        if let Some((t0, t1)) = clip_to_box(o, d, lo.as_dvec3() - C::SHIFT, hi.as_dvec3() - C::SHIFT, t_min, t_max) {
+        if let Some((t0, t1)) =
+            clip_to_box(o, d, lo.as_dvec3() - C::SHIFT, hi.as_dvec3() - C::SHIFT, t_min, t_max)
+        {
             it.t = t0;
             it.t_end = t1;
             it.done = false;
             let p = o + d * t0;
-            it.ijk = IVec3::new(cell_of(p.x, d.x, C::SHIFT), cell_of(p.y, d.y, C::SHIFT), cell_of(p.z, d.z, C::SHIFT)).clamp(lo, hi - 1);
+            it.ijk = IVec3::new(
+                cell_of(p.x, d.x, C::SHIFT),
+                cell_of(p.y, d.y, C::SHIFT),
+                cell_of(p.z, d.z, C::SHIFT),
+            )
+            .clamp(lo, hi - 1);
         }
         it
     }
@@ -311,7 +344,11 @@ impl<C: Cells> CellWalk<C> {
             let nc = rel >> (k as i32);
             let node = level.get(nc);
             if node.is_uniform() {
-                return Some(UniformNode { lo: (table.brick_lo + (nc << (k as i32))) * BRICK, size: BRICK << k, bounds: *node });
+                return Some(UniformNode {
+                    lo: (table.brick_lo + (nc << (k as i32))) * BRICK,
+                    size: BRICK << k,
+                    bounds: *node,
+                });
             }
         }
         None
@@ -337,10 +374,25 @@ impl<C: Cells> CellWalk<C> {
                 // Step one cell of a dense brick; its piece is built from the brick's data
                 // before the walk may leave the brick
                 let ijk = self.ijk;
-                let t1 = step_cell(&mut self.ijk, &mut self.t_next, self.step, self.face, self.o, self.inv_d).min(self.t_end);
+                let t1 = step_cell(
+                    &mut self.ijk,
+                    &mut self.t_next,
+                    self.step,
+                    self.face,
+                    self.o,
+                    self.inv_d,
+                )
+                .min(self.t_end);
                 let leaves = outside_brick(self.ijk, origin);
                 if t1 > t0 {
-                    let piece = self.cells.dense_piece(dense, origin, ijk, t0, t1, &IndexLine { o: self.o, d: self.d });
+                    let piece = self.cells.dense_piece(
+                        dense,
+                        origin,
+                        ijk,
+                        t0,
+                        t1,
+                        &IndexLine { o: self.o, d: self.d },
+                    );
                     if leaves {
                         self.origin = None;
                     }
@@ -354,7 +406,11 @@ impl<C: Cells> CellWalk<C> {
                 continue;
             } else {
                 let table = self.cells.table();
-                let bc = IVec3::new(self.ijk.x.div_euclid(BRICK), self.ijk.y.div_euclid(BRICK), self.ijk.z.div_euclid(BRICK));
+                let bc = IVec3::new(
+                    self.ijk.x.div_euclid(BRICK),
+                    self.ijk.y.div_euclid(BRICK),
+                    self.ijk.z.div_euclid(BRICK),
+                );
                 let rel = bc - table.brick_lo;
                 if rel.cmplt(IVec3::ZERO).any() || rel.cmpge(table.dims).any() {
                     // Left the table (only by rounding before t_end): the rest is empty.
@@ -371,7 +427,11 @@ impl<C: Cells> CellWalk<C> {
                     None => {
                         if self.cells.dense(bc, self.dense.get_or_insert_with(C::Dense::default)) {
                             self.origin = Some(bc * BRICK);
-                            self.t_next = DVec3::new(self.face_crossing(0), self.face_crossing(1), self.face_crossing(2));
+                            self.t_next = DVec3::new(
+                                self.face_crossing(0),
+                                self.face_crossing(1),
+                                self.face_crossing(2),
+                            );
                             continue;
                         }
                         // A non-uniform node without a brick: only a damaged cache file says
@@ -399,7 +459,15 @@ impl<C: Cells> CellWalk<C> {
         let t0 = self.t;
         let mut last = self.ijk - origin;
         loop {
-            let t1 = step_cell(&mut self.ijk, &mut self.t_next, self.step, self.face, self.o, self.inv_d).min(self.t_end);
+            let t1 = step_cell(
+                &mut self.ijk,
+                &mut self.t_next,
+                self.step,
+                self.face,
+                self.o,
+                self.inv_d,
+            )
+            .min(self.t_end);
             if t1 > self.t {
                 self.t = t1;
                 self.raw_steps += 1;
@@ -501,11 +569,14 @@ pub fn world_box(world_from_index: &DAffine3, index: Bounds3) -> Bounds3 {
     let mut wlo = DVec3::splat(f64::INFINITY);
     let mut whi = DVec3::splat(f64::NEG_INFINITY);
     for i in 0..8 {
-        let c = DVec3::new(if i & 1 == 0 { lo.x } else { hi.x }, if i & 2 == 0 { lo.y } else { hi.y }, if i & 4 == 0 { lo.z } else { hi.z });
+        let c = DVec3::new(
+            if i & 1 == 0 { lo.x } else { hi.x },
+            if i & 2 == 0 { lo.y } else { hi.y },
+            if i & 4 == 0 { lo.z } else { hi.z },
+        );
         let w = world_from_index.transform_point3(c);
         wlo = wlo.min(w);
         whi = whi.max(w);
     }
     Bounds3 { lo: wlo, hi: whi }
 }
-

@@ -262,13 +262,25 @@ impl RayGrid {
     /// corner directions having been normalized (under 10⁻⁴ across a pixel).
     #[must_use]
     pub fn at(&self, u: f64, v: f64) -> Ray {
-        let (i, j) = ((u.floor() as usize).min(self.cells_x.saturating_sub(1)), (v.floor() as usize).min(self.cells_y.saturating_sub(1)));
+        let (i, j) = (
+            (u.floor() as usize).min(self.cells_x.saturating_sub(1)),
+            (v.floor() as usize).min(self.cells_y.saturating_sub(1)),
+        );
         let (fu, fv) = (u - i as f64, v - j as f64);
         let lerp = |a: DVec3, b: DVec3, f: f64| a + (b - a) * f;
-        let (r00, r10, r01, r11) = (self.corner(i, j), self.corner(i + 1, j), self.corner(i, j + 1), self.corner(i + 1, j + 1));
+        let (r00, r10, r01, r11) = (
+            self.corner(i, j),
+            self.corner(i + 1, j),
+            self.corner(i, j + 1),
+            self.corner(i + 1, j + 1),
+        );
         Ray {
             origin: lerp(lerp(r00.origin, r10.origin, fu), lerp(r01.origin, r11.origin, fu), fv),
-            direction: lerp(lerp(r00.direction, r10.direction, fu), lerp(r01.direction, r11.direction, fu), fv),
+            direction: lerp(
+                lerp(r00.direction, r10.direction, fu),
+                lerp(r01.direction, r11.direction, fu),
+                fv,
+            ),
         }
     }
 }
@@ -313,7 +325,11 @@ pub trait Field: Sync {
     /// emission density (see [`Piece`]).
     fn reconstruct(&self, p_world: DVec3, le: &impl Fn(f32, f32) -> Rgb) -> PointValues {
         let v = self.values_at(p_world);
-        PointValues { density: v.density, source: v.source, emission: le(v.density, v.source).to_f64() }
+        PointValues {
+            density: v.density,
+            source: v.source,
+            emission: le(v.density, v.source).to_f64(),
+        }
     }
 
     /// Optical depth `∫ σ_t ρ ds` along `ray` over `[0, t_max]`, stopped once it exceeds
@@ -365,7 +381,14 @@ fn inside(p: DVec3, lo: DVec3, hi: DVec3) -> bool {
 /// `[t_min, t_max]`, or `None` if empty. Robust to zero (and −0.0) direction components.
 /// `direction` need not be unit length: `t` is the ray parameter.
 #[must_use]
-pub fn clip_to_box(origin: DVec3, direction: DVec3, lo: DVec3, hi: DVec3, t_min: f64, t_max: f64) -> Option<(f64, f64)> {
+pub fn clip_to_box(
+    origin: DVec3,
+    direction: DVec3,
+    lo: DVec3,
+    hi: DVec3,
+    t_min: f64,
+    t_max: f64,
+) -> Option<(f64, f64)> {
     let mut t0 = t_min;
     let mut t1 = t_max;
     for a in 0..3 {
@@ -412,7 +435,13 @@ impl Field for Constant {
 
     fn segments(&self, ray: &Ray, t_min: f64, t_max: f64) -> Self::Segments<'_> {
         clip_to_box(ray.origin, ray.direction, self.lo, self.hi, t_min, t_max)
-            .map(|(t0, t1)| Segment { t0, t1, density: self.density, source: self.source, albedo: 1.0 })
+            .map(|(t0, t1)| Segment {
+                t0,
+                t1,
+                density: self.density,
+                source: self.source,
+                albedo: 1.0,
+            })
             .into_iter()
             .collect::<Vec<_>>()
             .into()
@@ -449,7 +478,8 @@ impl Field for Strip {
 
     fn segments(&self, ray: &Ray, t_min: f64, t_max: f64) -> Self::Segments<'_> {
         let mut out = Vec::new();
-        let Some((t0, t1)) = clip_to_box(ray.origin, ray.direction, self.lo, self.hi, t_min, t_max) else {
+        let Some((t0, t1)) = clip_to_box(ray.origin, ray.direction, self.lo, self.hi, t_min, t_max)
+        else {
             return out.into();
         };
         let n = self.cells.len();
@@ -469,7 +499,8 @@ impl Field for Strip {
         let mut a = t0;
         for b in cuts.into_iter().chain(std::iter::once(t1)) {
             let mid = ray.at(0.5 * (a + b)).x;
-            let cell = (((mid - self.lo.x) / width).floor() as isize).clamp(0, n as isize - 1) as usize;
+            let cell =
+                (((mid - self.lo.x) / width).floor() as isize).clamp(0, n as isize - 1) as usize;
             let (density, source) = self.cells[cell];
             out.push(Segment { t0: a, t1: b, density, source, albedo: 1.0 });
             a = b;
@@ -490,7 +521,11 @@ impl Field for Strip {
 
 /// `Σ σ_t ∫ ρ` over the pieces of `pieces`, stopped once past `od_stop`, and the walk's
 /// voxel steps ([`Field::optical_depth`]).
-pub fn optical_depth_along<I: SegmentIter<Item = P>, P: Piece>(mut pieces: I, sigma_t: f64, od_stop: f64) -> (f64, u64) {
+pub fn optical_depth_along<I: SegmentIter<Item = P>, P: Piece>(
+    mut pieces: I,
+    sigma_t: f64,
+    od_stop: f64,
+) -> (f64, u64) {
     let mut od = 0.0;
     let _ = pieces.visit(|piece| {
         od += match piece.constant() {
@@ -519,7 +554,10 @@ mod tests {
         let plane = |x: f64, y: f64| DVec3::new(0.3 * x - 1.0, 0.2 * y + 0.5, -1.0);
         let ray = |x: f64, y: f64| Ray { origin: eye, direction: plane(x, y).normalize() };
         let (cx, cy) = (4, 3);
-        let rays = (0..=cy).flat_map(|j| (0..=cx).map(move |i| (i, j))).map(|(i, j)| ray(f64::from(i), f64::from(j))).collect();
+        let rays = (0..=cy)
+            .flat_map(|j| (0..=cx).map(move |i| (i, j)))
+            .map(|(i, j)| ray(f64::from(i), f64::from(j)))
+            .collect();
         let grid = RayGrid { rays, cells_x: cx as usize, cells_y: cy as usize };
         for (u, v) in [(0.0, 0.0), (4.0, 3.0), (1.25, 2.5), (3.9, 0.1)] {
             let r = grid.at(u, v);

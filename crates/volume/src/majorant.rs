@@ -112,10 +112,16 @@ impl MajorantGrid {
     /// If `displacement` is negative or not finite.
     #[must_use]
     pub fn with_max_cells(volume: &Volume, displacement: f64, max_cells: i64) -> MajorantGrid {
-        assert!(displacement.is_finite() && displacement >= 0.0, "displacement {displacement} must be finite and ≥ 0");
+        assert!(
+            displacement.is_finite() && displacement >= 0.0,
+            "displacement {displacement} must be finite and ≥ 0"
+        );
         let levels = volume.pyramid_levels();
         let count = |d: IVec3| i64::from(d.x + 1) * i64::from(d.y + 1) * i64::from(d.z + 1);
-        let k = levels.iter().position(|l| count(l.dims) <= max_cells).unwrap_or(levels.len().saturating_sub(1));
+        let k = levels
+            .iter()
+            .position(|l| count(l.dims) <= max_cells)
+            .unwrap_or(levels.len().saturating_sub(1));
         let level = levels.get(k);
         let edge = BRICK << k;
         let r = (displacement / f64::from(edge)).ceil() as i32;
@@ -133,7 +139,8 @@ impl MajorantGrid {
                         let c = IVec3::new(x, y, z);
                         let n = dual_union(level, c);
                         let g = c + r;
-                        cells[(g.x + dims.x * (g.y + dims.y * g.z)) as usize] = CellBounds { density: n.density_max, source: n.source_max };
+                        cells[(g.x + dims.x * (g.y + dims.y * g.z)) as usize] =
+                            CellBounds { density: n.density_max, source: n.source_max };
                     }
                 }
             }
@@ -160,16 +167,26 @@ impl MajorantGrid {
 
     /// The stretches of `ray` within `[t_min, t_max]` with their bounds, in order and
     /// without gaps inside the grid; nothing outside it (where nothing can be read).
-    pub fn segments(&self, ray: &Ray, t_min: f64, t_max: f64) -> impl Iterator<Item = MajorantSegment> + '_ {
+    pub fn segments(
+        &self,
+        ray: &Ray,
+        t_min: f64,
+        t_max: f64,
+    ) -> impl Iterator<Item = MajorantSegment> + '_ {
         let o = self.index_from_world.transform_point3(ray.origin);
         let d = self.index_from_world.transform_vector3(ray.direction);
         let size = f64::from(self.edge);
         let hi = self.origin + self.dims.as_dvec3() * size;
-        let range = if self.cells.is_empty() { None } else { clip_to_box(o, d, self.origin, hi, t_min, t_max) };
+        let range = if self.cells.is_empty() {
+            None
+        } else {
+            clip_to_box(o, d, self.origin, hi, t_min, t_max)
+        };
         let mut state = range.map(|(t0, t1)| {
             // The cell at the entry point (nudged inside), then per-axis crossings
             let p = o + d * t0;
-            let cell = ((p - self.origin) / size).floor().as_ivec3().clamp(IVec3::ZERO, self.dims - 1);
+            let cell =
+                ((p - self.origin) / size).floor().as_ivec3().clamp(IVec3::ZERO, self.dims - 1);
             let step = IVec3::new(sign(d.x), sign(d.y), sign(d.z));
             let next_face = |axis: usize| {
                 let c = f64::from(cell[axis] + i32::from(step[axis] > 0));

@@ -36,7 +36,8 @@ impl Motion {
     pub fn new(volume: &Volume, velocity: Velocity, scale: f64, shutter: [f64; 2]) -> Motion {
         let world = velocity.max_speed() * scale.abs() * shutter[0].abs().max(shutter[1].abs());
         let m = volume.index_from_world().matrix3;
-        let row_norm = (0..3).map(|r| (0..3).map(|c| m.col(c)[r].abs()).sum::<f64>()).fold(0.0, f64::max);
+        let row_norm =
+            (0..3).map(|r| (0..3).map(|c| m.col(c)[r].abs()).sum::<f64>()).fold(0.0, f64::max);
         let majorants = MajorantGrid::new(volume, world * row_norm);
         Motion { velocity, scale, shutter, majorants }
     }

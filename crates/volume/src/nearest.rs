@@ -49,12 +49,19 @@ impl Cells for NearestVoxels<'_> {
 
     #[inline]
     fn table(&self) -> CellTable<'_> {
-        CellTable { brick_lo: self.volume.brick_lo, dims: self.volume.dims, levels: &self.volume.pyramid.levels }
+        CellTable {
+            brick_lo: self.volume.brick_lo,
+            dims: self.volume.dims,
+            levels: &self.volume.pyramid.levels,
+        }
     }
 
     #[inline]
     fn cell_box(&self) -> CellBox {
-        CellBox { lo: self.volume.brick_lo * BRICK, hi: (self.volume.brick_lo + self.volume.dims) * BRICK }
+        CellBox {
+            lo: self.volume.brick_lo * BRICK,
+            hi: (self.volume.brick_lo + self.volume.dims) * BRICK,
+        }
     }
 
     #[inline]
@@ -65,17 +72,30 @@ impl Cells for NearestVoxels<'_> {
     }
 
     #[inline]
-    fn dense_piece(&self, brick: &mut Brick, origin: IVec3, ijk: IVec3, t0: f64, t1: f64, _line: &IndexLine) -> Segment {
+    fn dense_piece(
+        &self,
+        brick: &mut Brick,
+        origin: IVec3,
+        ijk: IVec3,
+        t0: f64,
+        t1: f64,
+        _line: &IndexLine,
+    ) -> Segment {
         let l = ijk - origin;
         let density = self.volume.slot_value(brick.density, l.x, l.y, l.z);
         let source = self.volume.slot_value(brick.source, l.x, l.y, l.z);
-        let albedo = if density > 0.0 { self.volume.slot_value(brick.albedo, l.x, l.y, l.z) } else { 1.0 };
+        let albedo =
+            if density > 0.0 { self.volume.slot_value(brick.albedo, l.x, l.y, l.z) } else { 1.0 };
         Segment { t0, t1, density, source, albedo }
     }
 
     #[inline]
     fn uniform(node: &NodeBounds) -> VoxelCell {
-        VoxelCell { density: node.density_max, source: node.source_max, albedo: node.uniform_albedo() }
+        VoxelCell {
+            density: node.density_max,
+            source: node.source_max,
+            albedo: node.uniform_albedo(),
+        }
     }
 
     #[inline]
@@ -110,7 +130,9 @@ impl Field for Volume {
     type Segments<'a> = VolumeSegments<'a>;
 
     fn albedo_at(&self, p_world: DVec3) -> f32 {
-        self.voxel_albedo((self.index_from_world.transform_point3(p_world) + 0.5).floor().as_ivec3())
+        self.voxel_albedo(
+            (self.index_from_world.transform_point3(p_world) + 0.5).floor().as_ivec3(),
+        )
     }
 
     fn world_bounds(&self) -> Bounds3 {

@@ -101,8 +101,12 @@ impl ProxyGrid {
 fn validate_resolution(resolution: u32, longest_voxels: Option<i32>) -> Result<()> {
     let power_of_two = resolution.is_power_of_two() && resolution >= 8;
     match longest_voxels {
-        None if !power_of_two => Err(Error::invalid(RESOLUTION_KEY, format!("{resolution} is not a power of two ≥ 8"))),
-        Some(longest) if !power_of_two || resolution > (longest.max(8) as u32).next_power_of_two() => {
+        None if !power_of_two => {
+            Err(Error::invalid(RESOLUTION_KEY, format!("{resolution} is not a power of two ≥ 8")))
+        }
+        Some(longest)
+            if !power_of_two || resolution > (longest.max(8) as u32).next_power_of_two() =>
+        {
             let max = (longest.max(8) as u32).next_power_of_two();
             Err(Error::invalid(
                 RESOLUTION_KEY,
@@ -152,13 +156,19 @@ impl CellPower {
     ///
     /// # Errors
     /// As [`ProxyGrid::build`].
-    pub fn sum(volume: &Volume, resolution: u32, power: impl Fn(f32, f32) -> f64 + Sync) -> Result<Option<CellPower>> {
+    pub fn sum(
+        volume: &Volume,
+        resolution: u32,
+        power: impl Fn(f32, f32) -> f64 + Sync,
+    ) -> Result<Option<CellPower>> {
         let Some((edge, dims)) = cell_layout(volume, resolution)? else { return Ok(None) };
         let (brick_lo, brick_dims) = volume.brick_range();
         let extent = brick_dims * BRICK;
         let voxel_lo = brick_lo * BRICK;
-        let layers: Vec<(Vec<f64>, Option<BadPower>)> =
-            (0..dims.z).into_par_iter().map(|cz| layer_power(volume, &power, voxel_lo, extent, edge, dims, cz)).collect();
+        let layers: Vec<(Vec<f64>, Option<BadPower>)> = (0..dims.z)
+            .into_par_iter()
+            .map(|cz| layer_power(volume, &power, voxel_lo, extent, edge, dims, cz))
+            .collect();
         if let Some(bad) = layers.iter().find_map(|l| l.1) {
             return Err(Error::Scene(format!(
                 "emitted power {} at voxel {} (density {}, source {}) is negative or not finite",
@@ -192,7 +202,11 @@ impl ProxyGrid {
     /// of two from 8 up to the data resolution, or when the grid would need more than
     /// `u32::MAX` cells; [`Error::Scene`] when `power` returns a negative or non-finite value
     /// or the total power overflows.
-    pub fn build(volume: &Volume, resolution: u32, power: impl Fn(f32, f32) -> f64 + Sync) -> Result<Option<ProxyGrid>> {
+    pub fn build(
+        volume: &Volume,
+        resolution: u32,
+        power: impl Fn(f32, f32) -> f64 + Sync,
+    ) -> Result<Option<ProxyGrid>> {
         match CellPower::sum(volume, resolution, power)? {
             Some(cells) => ProxyGrid::from_cell_power(volume, &cells),
             None => Ok(None),
@@ -228,11 +242,17 @@ impl ProxyGrid {
         for (cz, layer) in power.sums.chunks(layer_len).enumerate() {
             for (k, &sum) in layer.iter().enumerate() {
                 if !(sum >= 0.0 && sum.is_finite()) {
-                    return Err(Error::Scene(format!("proxy cell power {sum} is negative or not finite")));
+                    return Err(Error::Scene(format!(
+                        "proxy cell power {sum} is negative or not finite"
+                    )));
                 }
                 if sum > 0.0 {
                     let cell = k + cz * layer.len();
-                    let c = IVec3::new((k % dims.x as usize) as i32, (k / dims.x as usize) as i32, cz as i32);
+                    let c = IVec3::new(
+                        (k % dims.x as usize) as i32,
+                        (k / dims.x as usize) as i32,
+                        cz as i32,
+                    );
                     occupied_lo = occupied_lo.min(c);
                     occupied_hi = occupied_hi.max(c + 1);
                     cells.push(cell as u32);
@@ -245,7 +265,9 @@ impl ProxyGrid {
         }
         let total_power: f64 = weights.iter().sum();
         let Some(alias) = AliasTable::new(&weights) else {
-            return Err(Error::Scene(format!("total emitted power {total_power} of the volume is not finite")));
+            return Err(Error::Scene(format!(
+                "total emitted power {total_power} of the volume is not finite"
+            )));
         };
         let mut cell_pmf = vec![0.0; power.sums.len()];
         for (i, &cell) in cells.iter().enumerate() {
@@ -254,8 +276,11 @@ impl ProxyGrid {
         let block_dims = (dims + (BLOCK - 1)) / BLOCK;
         let mut block_occupied = vec![false; (block_dims.x * block_dims.y * block_dims.z) as usize];
         for &cell in &cells {
-            let c = IVec3::new((cell % dims.x as u32) as i32, ((cell / dims.x as u32) % dims.y as u32) as i32, (cell / (dims.x as u32 * dims.y as u32)) as i32)
-                / BLOCK;
+            let c = IVec3::new(
+                (cell % dims.x as u32) as i32,
+                ((cell / dims.x as u32) % dims.y as u32) as i32,
+                (cell / (dims.x as u32 * dims.y as u32)) as i32,
+            ) / BLOCK;
             block_occupied[(c.x + block_dims.x * (c.y + block_dims.y * c.z)) as usize] = true;
         }
         let e = f64::from(edge);
@@ -347,7 +372,10 @@ impl ProxyGrid {
     /// Heap bytes: 8 per cell, 20 per emitting cell and 1 per block of 4³ cells.
     #[must_use]
     pub fn memory_bytes(&self) -> usize {
-        self.cell_pmf.len() * 8 + self.cells.len() * 4 + self.alias.memory_bytes() + self.block_occupied.len()
+        self.cell_pmf.len() * 8
+            + self.cells.len() * 4
+            + self.alias.memory_bytes()
+            + self.block_occupied.len()
     }
 }
 
@@ -402,7 +430,8 @@ fn layer_power(
                     // brick's voxels, in storage order, all go to one cell
                     let k = cell_of(origin.x, 0) + cell_of(origin.y, 1) * dims.x as usize;
                     let channel = |slot| (volume.slot_block(slot), slot_constant(slot));
-                    let ((dense_d, const_d), (dense_s, const_s)) = (channel(brick.density), channel(brick.source));
+                    let ((dense_d, const_d), (dense_s, const_s)) =
+                        (channel(brick.density), channel(brick.source));
                     let mut sum = 0.0;
                     for i in 0..BRICK_VOXELS {
                         let source = dense_s.map_or(const_s, |b| b[i]);
@@ -425,7 +454,8 @@ fn layer_power(
                         let k = cx + cell_of(origin.y + ly, 1) * dims.x as usize;
                         for lz in lz0..lz1 {
                             let l = IVec3::new(lx, ly, lz);
-                            let crate::VoxelValues { density, source } = volume.brick_voxel(brick, l);
+                            let crate::VoxelValues { density, source } =
+                                volume.brick_voxel(brick, l);
                             if source == 0.0 {
                                 continue;
                             }

@@ -33,14 +33,23 @@ pub struct NodeBounds {
 
 impl NodeBounds {
     /// Bounds of empty space (no brick): density and source 0, albedo 1.
-    pub const ZERO: NodeBounds = NodeBounds { density_min: 0.0, density_max: 0.0, source_min: 0.0, source_max: 0.0, albedo_min: 1.0, albedo_max: 1.0 };
+    pub const ZERO: NodeBounds = NodeBounds {
+        density_min: 0.0,
+        density_max: 0.0,
+        source_min: 0.0,
+        source_max: 0.0,
+        albedo_min: 1.0,
+        albedo_max: 1.0,
+    };
 
     /// True when the node is constant in every channel that matters: density, source,
     /// and albedo where there is density (no collision happens where density is 0).
     #[inline]
     #[must_use]
     pub fn is_uniform(&self) -> bool {
-        self.density_min == self.density_max && self.source_min == self.source_max && (self.albedo_min == self.albedo_max || self.density_max == 0.0)
+        self.density_min == self.density_max
+            && self.source_min == self.source_max
+            && (self.albedo_min == self.albedo_max || self.density_max == 0.0)
     }
 
     /// Albedo factor to report for a uniform node.
@@ -82,7 +91,8 @@ impl Level {
     #[inline]
     #[must_use]
     pub fn get(&self, c: IVec3) -> &NodeBounds {
-        &self.nodes[c.x as usize + self.dims.x as usize * (c.y as usize + self.dims.y as usize * c.z as usize)]
+        &self.nodes[c.x as usize
+            + self.dims.x as usize * (c.y as usize + self.dims.y as usize * c.z as usize)]
     }
 }
 
@@ -113,7 +123,10 @@ impl Pyramid {
     /// [`NodeBounds::ZERO`]).
     #[must_use]
     pub fn from_brick_bounds(dims: IVec3, table: &[u32], bounds: &[NodeBounds]) -> Pyramid {
-        let base: Vec<NodeBounds> = table.iter().map(|&bi| if bi == NO_BRICK { NodeBounds::ZERO } else { bounds[bi as usize] }).collect();
+        let base: Vec<NodeBounds> = table
+            .iter()
+            .map(|&bi| if bi == NO_BRICK { NodeBounds::ZERO } else { bounds[bi as usize] })
+            .collect();
         Pyramid::from_base(dims, base)
     }
 
@@ -129,7 +142,11 @@ impl Pyramid {
         if all.is_empty() {
             return Pyramid::default();
         }
-        assert_eq!(base.len(), (dims.x * dims.y * dims.z) as usize, "one level-0 node per table cell");
+        assert_eq!(
+            base.len(),
+            (dims.x * dims.y * dims.z) as usize,
+            "one level-0 node per table cell"
+        );
         let mut levels = vec![Level { dims, nodes: Buffer::from_vec(base) }];
         for &nd in &all[1..] {
             let prev = levels.last().expect("invariant: at least one level");
@@ -143,7 +160,11 @@ impl Pyramid {
                                 for dx in 0..2 {
                                     let c = IVec3::new(2 * x + dx, 2 * y + dy, 2 * z + dz);
                                     // Cells beyond the table are empty space: zero.
-                                    let v = if c.cmplt(prev.dims).all() { *prev.get(c) } else { NodeBounds::ZERO };
+                                    let v = if c.cmplt(prev.dims).all() {
+                                        *prev.get(c)
+                                    } else {
+                                        NodeBounds::ZERO
+                                    };
                                     acc = Some(acc.map_or(v, |a| a.union(v)));
                                 }
                             }

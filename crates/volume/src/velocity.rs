@@ -10,8 +10,8 @@ use std::collections::HashMap;
 
 use glam::{DAffine3, DVec3, IVec3};
 
-use plume_core::error::{Error, Result};
 use crate::grid::{leaf_offset, FloatGrid, LEAF_DIM, LEAF_VOXELS};
+use plume_core::error::{Error, Result};
 
 /// A velocity field.
 #[derive(Clone, Debug)]
@@ -65,7 +65,10 @@ impl VelocityGrid {
         let xf = components[0].world_from_index;
         for (axis, c) in components.iter().enumerate() {
             if c.world_from_index != xf {
-                return Err(Error::Scene(format!("{what}: velocity component {} has another transform than x", ["x", "y", "z"][axis])));
+                return Err(Error::Scene(format!(
+                    "{what}: velocity component {} has another transform than x",
+                    ["x", "y", "z"][axis]
+                )));
             }
         }
         let mut leaves: HashMap<IVec3, usize> = HashMap::new();
@@ -77,7 +80,9 @@ impl VelocityGrid {
                     values.resize(values.len() + LEAF_VOXELS, [0.0; 3]);
                     values.len() - LEAF_VOXELS
                 });
-                for (k, &v) in c.values[leaf * LEAF_VOXELS..(leaf + 1) * LEAF_VOXELS].iter().enumerate() {
+                for (k, &v) in
+                    c.values[leaf * LEAF_VOXELS..(leaf + 1) * LEAF_VOXELS].iter().enumerate()
+                {
                     if !v.is_finite() {
                         return Err(Error::Scene(format!("{what}: velocity component {} is not finite ({v}) in the leaf at {origin}", ["x", "y", "z"][axis])));
                     }
@@ -96,7 +101,11 @@ impl VelocityGrid {
     #[must_use]
     pub fn at(&self, p: DVec3) -> DVec3 {
         let ijk = (self.index_from_world.transform_point3(p) + 0.5).floor().as_ivec3();
-        let origin = IVec3::new(ijk.x.div_euclid(LEAF_DIM), ijk.y.div_euclid(LEAF_DIM), ijk.z.div_euclid(LEAF_DIM)) * LEAF_DIM;
+        let origin = IVec3::new(
+            ijk.x.div_euclid(LEAF_DIM),
+            ijk.y.div_euclid(LEAF_DIM),
+            ijk.z.div_euclid(LEAF_DIM),
+        ) * LEAF_DIM;
         self.leaves.get(&origin).map_or(DVec3::ZERO, |&base| {
             let l = ijk - origin;
             let v = self.values[base + leaf_offset(l.x, l.y, l.z)];

@@ -23,8 +23,8 @@ use serde::Serialize;
 use super::Switch;
 use crate::bench::progressive::{accumulate, average};
 use crate::bench::spec::{bench_shot, load_file};
-use plume_engine::camera::Camera;
 use plume_core::error::{Error, Result};
+use plume_engine::camera::Camera;
 use plume_engine::integrator::{AnyScene, Integrator};
 use plume_engine::medium::{Estimator, Medium};
 use plume_engine::render::{render, RenderSettings, SampleBudget};
@@ -116,7 +116,9 @@ fn half_emission(field: &Trilinear, medium: &Medium, ray: &Ray) -> Option<(f64, 
         let c = field.interpolate_world(ray.at(t0 + (i as f64 + 0.5) * h));
         let mu_t = medium.sigma_t * c.density();
         let e = c.emission(&le);
-        total += (-(optical_depth + 0.5 * mu_t * h)).exp() * h * (0.2126 * e[0] + 0.7152 * e[1] + 0.0722 * e[2]);
+        total += (-(optical_depth + 0.5 * mu_t * h)).exp()
+            * h
+            * (0.2126 * e[0] + 0.7152 * e[1] + 0.0722 * e[2]);
         optical_depth += mu_t * h;
         cumulative.push(total);
     }
@@ -129,7 +131,9 @@ fn half_emission(field: &Trilinear, medium: &Medium, ray: &Ray) -> Option<(f64, 
 /// against the background crosses the close-up; there, the point of half emission.
 fn focus(field: &Trilinear, medium: &Medium, camera: &Camera) -> Option<DVec3> {
     let y = 0.5 * f64::from(camera.height);
-    let row: Vec<Option<(f64, DVec3)>> = (0..camera.width).map(|x| half_emission(field, medium, &camera.ray(f64::from(x) + 0.5, y))).collect();
+    let row: Vec<Option<(f64, DVec3)>> = (0..camera.width)
+        .map(|x| half_emission(field, medium, &camera.ray(f64::from(x) + 0.5, y)))
+        .collect();
     let brightest = row.iter().flatten().map(|p| p.0).fold(0.0, f64::max);
     row.into_iter().flatten().find(|p| p.0 >= 0.25 * brightest && brightest > 0.0).map(|p| p.1)
 }
@@ -139,13 +143,19 @@ fn focus(field: &Trilinear, medium: &Medium, camera: &Camera) -> Option<DVec3> {
 /// # Errors
 /// A missing or unreadable file, a ray that misses the fire, an unwritable PNG.
 pub fn run(data: &Path, cfg: &CloseupConfig, log: &dyn Fn(&str)) -> Result<CloseupReport> {
-    let keys = format!("[emission]\nconvention = \"physical\"\n[camera]\nup_axis = \"z\"\nwidth = {}\nheight = {}", cfg.width, cfg.height);
+    let keys = format!(
+        "[emission]\nconvention = \"physical\"\n[camera]\nup_axis = \"z\"\nwidth = {}\nheight = {}",
+        cfg.width, cfg.height
+    );
     let shot = with_keys(&bench_shot(&data.join(&cfg.file).display().to_string()), &keys)?;
     let mut scene = load_file(shot, vec![])?.loaded.scene;
     let AnyScene::Linear(s) = &scene else { unreachable!("invariant: linear is the default") };
-    let at = focus(&s.field, &s.medium, &s.camera).ok_or_else(|| Error::Scene(format!("{}: the middle row meets no emission", cfg.file.display())))?;
+    let at = focus(&s.field, &s.medium, &s.camera).ok_or_else(|| {
+        Error::Scene(format!("{}: the middle row meets no emission", cfg.file.display()))
+    })?;
     let voxel = s.field.volume().world_from_index().matrix3.x_axis.length();
-    let distance = voxel * f64::from(cfg.width) / (2.0 * (0.5 * FOV_DEGREES.to_radians()).tan() * cfg.pixels_per_voxel);
+    let distance = voxel * f64::from(cfg.width)
+        / (2.0 * (0.5 * FOV_DEGREES.to_radians()).tan() * cfg.pixels_per_voxel);
     let from = at + VIEW.normalize() * distance;
     let camera = Camera::look_at(from, at, DVec3::Z, FOV_DEGREES, cfg.width, cfg.height)?;
     plume_engine::with_scene!(&mut scene, s => s.camera = camera);
@@ -170,11 +180,20 @@ pub fn run(data: &Path, cfg: &CloseupConfig, log: &dyn Fn(&str)) -> Result<Close
     }
     let exposure = crate::output::auto_exposure(&images[1]);
     if let Some(dir) = cfg.path.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).map_err(|source| Error::Write { path: dir.to_path_buf(), source })?;
+        std::fs::create_dir_all(dir)
+            .map_err(|source| Error::Write { path: dir.to_path_buf(), source })?;
     }
-    let panels = [("nearest".to_string(), images[0].as_slice()), ("linear (trilinear)".to_string(), images[1].as_slice())];
+    let panels = [
+        ("nearest".to_string(), images[0].as_slice()),
+        ("linear (trilinear)".to_string(), images[1].as_slice()),
+    ];
     crate::bench::plot::side_by_side(&cfg.path, cfg.width, cfg.height, &panels, exposure)?;
-    log(&format!("wrote {} (voxel {:.4} world units, camera {:.2} from the focus)", cfg.path.display(), voxel, distance));
+    log(&format!(
+        "wrote {} (voxel {:.4} world units, camera {:.2} from the focus)",
+        cfg.path.display(),
+        voxel,
+        distance
+    ));
     Ok(CloseupReport {
         file: cfg.file.display().to_string(),
         path: cfg.path.display().to_string(),

@@ -111,9 +111,19 @@ struct RayPair {
 }
 
 /// March `ray` through `field` (module docs).
-fn march(field: &Trilinear, medium: &Medium, bounds: &Bounds3, ray: &Ray, step_voxels: f64) -> RayPair {
+fn march(
+    field: &Trilinear,
+    medium: &Medium,
+    bounds: &Bounds3,
+    ray: &Ray,
+    step_voxels: f64,
+) -> RayPair {
     let mut out = RayPair { plume: [0.0; 3], cycles: [0.0; 3], steps: 0 };
-    let Some((t0, t1)) = clip_to_box(ray.origin, ray.direction, bounds.lo, bounds.hi, 0.0, f64::INFINITY) else { return out };
+    let Some((t0, t1)) =
+        clip_to_box(ray.origin, ray.direction, bounds.lo, bounds.hi, 0.0, f64::INFINITY)
+    else {
+        return out;
+    };
     // Index-space length of one world unit along the ray
     let index_per_world = (field.volume().index_from_world().matrix3 * ray.direction).length();
     let n = ((t1 - t0) * index_per_world / step_voxels).ceil().max(1.0);
@@ -142,11 +152,28 @@ fn march(field: &Trilinear, medium: &Medium, bounds: &Bounds3, ray: &Ray, step_v
 }
 
 /// Both images of a loaded linear scene (rows in parallel, each pixel on its own).
-fn images(field: &Trilinear, medium: &Medium, camera: &plume_engine::camera::Camera, step_voxels: f64) -> (Vec<[f32; 4]>, Vec<[f32; 4]>, u64) {
+fn images(
+    field: &Trilinear,
+    medium: &Medium,
+    camera: &plume_engine::camera::Camera,
+    step_voxels: f64,
+) -> (Vec<[f32; 4]>, Vec<[f32; 4]>, u64) {
     let bounds = field.world_bounds();
     let rows: Vec<Vec<RayPair>> = (0..camera.height)
         .into_par_iter()
-        .map(|y| (0..camera.width).map(|x| march(field, medium, &bounds, &camera.ray(f64::from(x) + 0.5, f64::from(y) + 0.5), step_voxels)).collect())
+        .map(|y| {
+            (0..camera.width)
+                .map(|x| {
+                    march(
+                        field,
+                        medium,
+                        &bounds,
+                        &camera.ray(f64::from(x) + 0.5, f64::from(y) + 0.5),
+                        step_voxels,
+                    )
+                })
+                .collect()
+        })
         .collect();
     let px = |v: [f64; 3]| [v[0] as f32, v[1] as f32, v[2] as f32, 1.0];
     let pairs = rows.iter().flatten();
@@ -158,7 +185,8 @@ fn images(field: &Trilinear, medium: &Medium, camera: &plume_engine::camera::Cam
 /// Every `explosion/mantaflow_explosion_kelvin_*.vdb` under `data`, sorted.
 fn kelvin_frames(data: &Path) -> Result<Vec<PathBuf>> {
     let dir = data.join("explosion");
-    let entries = std::fs::read_dir(&dir).map_err(|source| Error::Open { path: dir.clone(), source })?;
+    let entries =
+        std::fs::read_dir(&dir).map_err(|source| Error::Open { path: dir.clone(), source })?;
     let mut out: Vec<PathBuf> = entries
         .filter_map(|e| e.ok().map(|e| e.file_name().to_string_lossy().into_owned()))
         .filter(|n| n.starts_with("mantaflow_explosion_kelvin_") && n.ends_with(".vdb"))
@@ -175,10 +203,16 @@ fn kelvin_frames(data: &Path) -> Result<Vec<PathBuf>> {
 pub fn run(data: &Path, cfg: &RuleConfig, log: &dyn Fn(&str)) -> Result<RuleReport> {
     let files = if cfg.files.is_empty() { kelvin_frames(data)? } else { cfg.files.clone() };
     if files.is_empty() {
-        return Err(Error::invalid("--rule-files", format!("no explosion/mantaflow_explosion_kelvin_*.vdb under {}", data.display())));
+        return Err(Error::invalid(
+            "--rule-files",
+            format!("no explosion/mantaflow_explosion_kelvin_*.vdb under {}", data.display()),
+        ));
     }
     if !(cfg.step_voxels > 0.0 && cfg.step_voxels <= 1.0) {
-        return Err(Error::invalid("--rule-step", format!("{} is not in (0, 1] voxels", cfg.step_voxels)));
+        return Err(Error::invalid(
+            "--rule-step",
+            format!("{} is not in (0, 1] voxels", cfg.step_voxels),
+        ));
     }
     let mut rows = Vec::new();
     for file in &files {
@@ -190,7 +224,9 @@ pub fn run(data: &Path, cfg: &RuleConfig, log: &dyn Fn(&str)) -> Result<RuleRepo
             );
             let shot = with_keys(&bench_shot(&data.join(file).display().to_string()), &keys)?;
             let scene = load_file(shot, vec![])?.loaded.scene;
-            let AnyScene::Linear(s) = &scene else { unreachable!("invariant: loaded with linear interpolation") };
+            let AnyScene::Linear(s) = &scene else {
+                unreachable!("invariant: loaded with linear interpolation")
+            };
             let (plume, cycles, steps) = images(&s.field, &s.medium, &s.camera, cfg.step_voxels);
             let (pm, cm) = (mean_rgb(&plume), mean_rgb(&cycles));
             let row = RuleRow {
@@ -212,7 +248,13 @@ pub fn run(data: &Path, cfg: &RuleConfig, log: &dyn Fn(&str)) -> Result<RuleRepo
             rows.push(row);
         }
     }
-    Ok(RuleReport { width: cfg.width, height: cfg.height, step_voxels: cfg.step_voxels, epsilon: RELMSE_EPSILON, rows })
+    Ok(RuleReport {
+        width: cfg.width,
+        height: cfg.height,
+        step_voxels: cfg.step_voxels,
+        epsilon: RELMSE_EPSILON,
+        rows,
+    })
 }
 
 impl RuleReport {
@@ -247,20 +289,36 @@ mod tests {
 
     use super::*;
     use crate::bench::extremes::box_grid;
-    use plume_engine::camera::Camera;
     use plume_core::color::Rgb;
+    use plume_engine::camera::Camera;
     use plume_engine::medium::{Convention, Emission, EmissionKind, TemperatureMap};
     use plume_volume::Volume;
 
     /// A 16³ box of varying density and source (1500 … 2500, zero on one face), seen
     /// head-on by a 12×12 camera.
     fn scene(kind: EmissionKind, convention: Convention) -> (Trilinear, Medium, Camera) {
-        let density = box_grid("density", 16, 0.1, |p| 0.2 + 0.05 * ((p.x * 7 + p.y * 3 + p.z) % 11) as f32);
-        let source = box_grid("temperature", 16, 0.1, |p| if p.x == 0 { 0.0 } else { 1500.0 + 60.0 * ((p.x * 5 + p.y * 11 + p.z * 3) % 17) as f32 });
+        let density =
+            box_grid("density", 16, 0.1, |p| 0.2 + 0.05 * ((p.x * 7 + p.y * 3 + p.z) % 11) as f32);
+        let source = box_grid("temperature", 16, 0.1, |p| {
+            if p.x == 0 {
+                0.0
+            } else {
+                1500.0 + 60.0 * ((p.x * 5 + p.y * 11 + p.z * 3) % 17) as f32
+            }
+        });
         let volume = Volume::build(&density, Some(&source), |v| v).unwrap();
-        let emission = Emission { kind, convention, scale: 1e-3, color: Rgb::ONE, temperature_map: TemperatureMap::Kelvin, cutoff_kelvin: 0.0 };
+        let emission = Emission {
+            kind,
+            convention,
+            scale: 1e-3,
+            color: Rgb::ONE,
+            temperature_map: TemperatureMap::Kelvin,
+            cutoff_kelvin: 0.0,
+        };
         let medium = Medium { sigma_t: 2.0, albedo: 0.0, g: 0.0, emission };
-        let camera = Camera::look_at(DVec3::new(0.3, 0.2, 5.0), DVec3::ZERO, DVec3::Y, 30.0, 12, 12).unwrap();
+        let camera =
+            Camera::look_at(DVec3::new(0.3, 0.2, 5.0), DVec3::ZERO, DVec3::Y, 30.0, 12, 12)
+                .unwrap();
         (Trilinear::new(volume), medium, camera)
     }
 

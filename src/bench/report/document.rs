@@ -89,7 +89,11 @@ pub(super) fn header(args: &ReportOptions, skipped: &[String], seconds: f64) -> 
             b.resolution
         )
     } else {
-        format!("This is the full form: CPU-time budgets × {}, the generated explosion at {}³", arg(b.time_scale), b.resolution)
+        format!(
+            "This is the full form: CPU-time budgets × {}, the generated explosion at {}³",
+            arg(b.time_scale),
+            b.resolution
+        )
     };
     if b.time_scale != defaults.time_scale || b.resolution != defaults.resolution {
         form.push_str(" (budgets set on the command line)");
@@ -102,7 +106,11 @@ pub(super) fn header(args: &ReportOptions, skipped: &[String], seconds: f64) -> 
         md,
         "{form} Neither form runs the out-of-core flare and memory-limit renders or the Cycles comparison; their sections give the commands.\n"
     );
-    let memory = if machine.memory_bytes > 0 { format!(", {:.1} GiB memory", machine.memory_bytes as f64 / f64::from(1u32 << 30)) } else { String::new() };
+    let memory = if machine.memory_bytes > 0 {
+        format!(", {:.1} GiB memory", machine.memory_bytes as f64 / f64::from(1u32 << 30))
+    } else {
+        String::new()
+    };
     let _ = writeln!(
         md,
         "**Machine:** {}, {} logical CPUs{memory}. Budgets are **CPU seconds** (user + system of all threads): other work on the machine slows a run down more than it changes the figures, though it competes for caches and memory bandwidth. This run took {} of wall time.\n",
@@ -130,8 +138,30 @@ pub(super) fn duration(seconds: f64) -> String {
 /// when there is none.
 #[must_use]
 pub fn history(md: &str) -> Vec<String> {
-    const WORDS: [&str; 8] = ["today", "yesterday", "this morning", "this afternoon", "last week", "this session", "next session", "last session"];
-    const MONTHS: [&str; 12] = ["January", "February", "March", "April", "May", "June", "July", "August", "September", "October", "November", "December"];
+    const WORDS: [&str; 8] = [
+        "today",
+        "yesterday",
+        "this morning",
+        "this afternoon",
+        "last week",
+        "this session",
+        "next session",
+        "last session",
+    ];
+    const MONTHS: [&str; 12] = [
+        "January",
+        "February",
+        "March",
+        "April",
+        "May",
+        "June",
+        "July",
+        "August",
+        "September",
+        "October",
+        "November",
+        "December",
+    ];
     let mut found = Vec::new();
     for (n, line) in md.lines().enumerate() {
         let n = n + 1;
@@ -142,7 +172,8 @@ pub fn history(md: &str) -> Vec<String> {
             let hex = word.bytes().all(|c| c.is_ascii_digit() || (b'a'..=b'f').contains(&c));
             let letters = word.bytes().filter(u8::is_ascii_lowercase).count();
             let digits = word.bytes().filter(u8::is_ascii_digit).count();
-            let e_notation = letters == 1 && word.split_once('e').is_some_and(|(a, b)| !a.is_empty() && !b.is_empty());
+            let e_notation = letters == 1
+                && word.split_once('e').is_some_and(|(a, b)| !a.is_empty() && !b.is_empty());
             if (7..=40).contains(&word.len()) && hex && letters > 0 && digits > 0 && !e_notation {
                 found.push(format!("line {n}: commit hash? `{word}`"));
             }
@@ -150,14 +181,29 @@ pub fn history(md: &str) -> Vec<String> {
         // Dates: 2024-05-17, or a month name next to a number
         for i in 0..bytes.len().saturating_sub(9) {
             let d = |k: usize| bytes[i + k].is_ascii_digit();
-            if d(0) && d(1) && d(2) && d(3) && bytes[i + 4] == b'-' && d(5) && d(6) && bytes[i + 7] == b'-' && d(8) && d(9) {
+            if d(0)
+                && d(1)
+                && d(2)
+                && d(3)
+                && bytes[i + 4] == b'-'
+                && d(5)
+                && d(6)
+                && bytes[i + 7] == b'-'
+                && d(8)
+                && d(9)
+            {
                 found.push(format!("line {n}: date `{}`", &line[i..i + 10]));
             }
         }
         for month in MONTHS {
             for (i, _) in line.match_indices(month) {
-                let after = line[i + month.len()..].trim_start().chars().next().is_some_and(|c| c.is_ascii_digit());
-                let before = line[..i].trim_end().chars().last().is_some_and(|c| c.is_ascii_digit());
+                let after = line[i + month.len()..]
+                    .trim_start()
+                    .chars()
+                    .next()
+                    .is_some_and(|c| c.is_ascii_digit());
+                let before =
+                    line[..i].trim_end().chars().last().is_some_and(|c| c.is_ascii_digit());
                 if after || before {
                     found.push(format!("line {n}: date with `{month}`"));
                 }
@@ -200,7 +246,8 @@ pub fn check_document(md: &str) -> Vec<String> {
         problems.push(format!("{machine_lines} lines name the machine, not 1"));
     }
     // The regenerating commands, each on a line of its own (a comment may follow)
-    let commands: Vec<&str> = md.lines().map(|l| l.split('#').next().unwrap_or_default().trim()).collect();
+    let commands: Vec<&str> =
+        md.lines().map(|l| l.split('#').next().unwrap_or_default().trim()).collect();
     for c in ["plume bench report", "plume bench report --quick"] {
         if !commands.iter().any(|l| l.ends_with(c)) {
             problems.push(format!("no `{c}` command"));
@@ -285,10 +332,19 @@ mod tests {
 
     #[test]
     fn a_table_without_its_command_is_found() {
-        let args =
-            ReportOptions { out: "docs".into(), budgets: Budgets::QUICK, data: "d".into(), work_dir: "w".into(), working_dir: ".".into(), exe: None };
+        let args = ReportOptions {
+            out: "docs".into(),
+            budgets: Budgets::QUICK,
+            data: "d".into(),
+            work_dir: "w".into(),
+            working_dir: ".".into(),
+            exe: None,
+        };
         let head = header(&args, &[], 60.0);
-        let with = format!("{head}## A\n\n| a |\n|---|\n| 1 |\n\n```sh\nplume bench core\n```\n{}", ideas_section());
+        let with = format!(
+            "{head}## A\n\n| a |\n|---|\n| 1 |\n\n```sh\nplume bench core\n```\n{}",
+            ideas_section()
+        );
         assert_eq!(check_document(&with), Vec::<String>::new());
         let without = format!("{head}## A\n\n| a |\n|---|\n| 1 |\n\n{}", ideas_section());
         assert_eq!(check_document(&without).len(), 1, "{:?}", check_document(&without));

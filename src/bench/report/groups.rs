@@ -151,17 +151,29 @@ pub(super) fn group_section(suite: &mut Suite<'_>, group: &Group) -> Result<()> 
     (suite.log)(&format!("== {}", group.title));
     let (spec, base_keys) = group.base.spec(&suite.args.data);
     if group.base == Base::Kelvin40 && !spec.exists() {
-        let _ = writeln!(suite.md, "{title}\n\n{}\n\nNot measured: {} was not found.\n", group.intro, spec.display());
+        let _ = writeln!(
+            suite.md,
+            "{title}\n\n{}\n\nNot measured: {} was not found.\n",
+            group.intro,
+            spec.display()
+        );
         suite.skipped.push(format!("the {} section (data file missing)", group.name));
         return Ok(());
     }
     let spec = spec.display().to_string();
-    let reference_seconds = suite.seconds(REFERENCE_SECONDS) / if group.shared_reference { 1.0 } else { 2.0 };
+    let reference_seconds =
+        suite.seconds(REFERENCE_SECONDS) / if group.shared_reference { 1.0 } else { 2.0 };
     let saved = suite.args.work_dir.join(format!("{}-reference.exr", group.base.name()));
     let mut commands = Vec::new();
     let shared = if group.shared_reference {
         let (_, file, _) = suite.write_scene(group.base.name(), &spec, &[base_keys])?;
-        commands.push(suite.compare_command(&file, group.method, 1, &RefArg::MakeAndSave(reference_seconds, &saved), None));
+        commands.push(suite.compare_command(
+            &file,
+            group.method,
+            1,
+            &RefArg::MakeAndSave(reference_seconds, &saved),
+            None,
+        ));
         Some(base_reference(suite, group.base, (&spec, base_keys), reference_seconds, &saved)?)
     } else {
         None
@@ -173,9 +185,17 @@ pub(super) fn group_section(suite: &mut Suite<'_>, group: &Group) -> Result<()> 
         let (_, file, text) = suite.write_scene(&stem, &spec, &[base_keys, keys])?;
         commands.push(match &shared {
             Some(_) => suite.compare_command(&file, group.method, 1, &RefArg::Given(&saved), None),
-            None => suite.compare_command(&file, group.method, 1, &RefArg::Make(reference_seconds), None),
+            None => suite.compare_command(
+                &file,
+                group.method,
+                1,
+                &RefArg::Make(reference_seconds),
+                None,
+            ),
         });
-        if let Some((_, r)) = suite.measured.iter().find(|(t, _)| *t == text).filter(|_| shared.is_some()) {
+        if let Some((_, r)) =
+            suite.measured.iter().find(|(t, _)| *t == text).filter(|_| shared.is_some())
+        {
             rows.push((label, flags, r.clone()));
             continue;
         }
@@ -250,15 +270,28 @@ pub(super) fn cost(r: &CompareReport) -> f64 {
 
 /// The reference of a base scene (`spec` with `keys`), computed once per report and saved
 /// to `saved`, which the commands read.
-pub(super) fn base_reference(suite: &mut Suite<'_>, base: Base, (spec, keys): (&str, &str), seconds: f64, saved: &Path) -> Result<Reference> {
+pub(super) fn base_reference(
+    suite: &mut Suite<'_>,
+    base: Base,
+    (spec, keys): (&str, &str),
+    seconds: f64,
+    saved: &Path,
+) -> Result<Reference> {
     if let Some((_, r)) = suite.references.iter().find(|(b, _)| *b == base) {
         return Ok(r.clone());
     }
     (suite.log)(&format!("== reference of {}", base.name()));
     let (mut scene, _) = suite.scene(base.name(), spec, &[keys])?;
     let r = make_reference(&mut scene, seconds, suite.log)?;
-    std::fs::create_dir_all(&suite.args.work_dir).map_err(|source| Error::Write { path: suite.args.work_dir.clone(), source })?;
-    crate::output::write_exr(saved, r.width, r.height, &r.pixels, &[("plume:reference".to_string(), r.description.clone())])?;
+    std::fs::create_dir_all(&suite.args.work_dir)
+        .map_err(|source| Error::Write { path: suite.args.work_dir.clone(), source })?;
+    crate::output::write_exr(
+        saved,
+        r.width,
+        r.height,
+        &r.pixels,
+        &[("plume:reference".to_string(), r.description.clone())],
+    )?;
     suite.references.push((base, r.clone()));
     Ok(r)
 }

@@ -11,7 +11,10 @@ pub(super) fn interpolation_section(suite: &mut Suite<'_>) -> Result<()> {
     (suite.log)("== interpolation");
     let out = &suite.args.out;
     let picture = out.join("img").join("interpolation-closeup.png");
-    let mut cfg = crate::bench::interpolation::InterpolationConfig::standard(suite.args.data.clone(), Some(picture));
+    let mut cfg = crate::bench::interpolation::InterpolationConfig::standard(
+        suite.args.data.clone(),
+        Some(picture),
+    );
     cfg.cpu_seconds = suite.seconds(cfg.cpu_seconds);
     let title = "## Interpolation: trilinear vs nearest";
     let missing = cfg.missing_files();
@@ -36,7 +39,12 @@ pub(super) fn interpolation_section(suite: &mut Suite<'_>) -> Result<()> {
 /// The numerical-extremes sweep, its JSON in `DIR/bench`.
 pub(super) fn extremes_section(suite: &mut Suite<'_>) -> Result<()> {
     (suite.log)("== extremes");
-    let cfg = crate::bench::extremes::ExtremesConfig { box_voxels: 32, explosion_resolution: 64, size: 48, spp: 16 };
+    let cfg = crate::bench::extremes::ExtremesConfig {
+        box_voxels: 32,
+        explosion_resolution: 64,
+        size: 48,
+        spp: 16,
+    };
     let ex = crate::bench::extremes::run(&cfg)?;
     let json = suite.bench_dir().join("extremes.json");
     crate::bench::write_json(&Some(json.clone()), &ex)?;
@@ -81,7 +89,9 @@ pub(super) fn demo_section(suite: &mut Suite<'_>) -> Result<()> {
     );
     let title = "## README demo";
     let scene = suite.args.working_dir.join(DEMO_SCENE);
-    let not_run = |why: &str| format!("{title}\n\n{DEMO_INTRO}\n\n{why} Measure it with (after `scripts/demo.sh`, which makes its volume):\n\n```sh\n{command}\n```\n");
+    let not_run = |why: &str| {
+        format!("{title}\n\n{DEMO_INTRO}\n\n{why} Measure it with (after `scripts/demo.sh`, which makes its volume):\n\n```sh\n{command}\n```\n")
+    };
     let exe = match (&suite.args.exe, suite.args.budgets.demo) {
         (_, false) => {
             let _ = writeln!(
@@ -93,14 +103,25 @@ pub(super) fn demo_section(suite: &mut Suite<'_>) -> Result<()> {
             return Ok(());
         }
         (None, true) => {
-            let _ = writeln!(suite.md, "{}", not_run("Not measured: no `plume` binary was given to render it."));
+            let _ = writeln!(
+                suite.md,
+                "{}",
+                not_run("Not measured: no `plume` binary was given to render it.")
+            );
             suite.skipped.push("the README demo (no binary to render it)".into());
             return Ok(());
         }
         (Some(exe), true) => exe.clone(),
     };
     if !scene.exists() {
-        let _ = writeln!(suite.md, "{}", not_run(&format!("Not measured: {} was not found (run the report from the repository root).", scene.display())));
+        let _ = writeln!(
+            suite.md,
+            "{}",
+            not_run(&format!(
+                "Not measured: {} was not found (run the report from the repository root).",
+                scene.display()
+            ))
+        );
         suite.skipped.push("the README demo (scene file missing)".into());
         return Ok(());
     }
@@ -111,9 +132,11 @@ pub(super) fn demo_section(suite: &mut Suite<'_>) -> Result<()> {
     if !volume.exists() {
         let generated = crate::bench::spec::scene_file("explosion:128:1", &suite.args.work_dir)?;
         if let Some(dir) = volume.parent().filter(|d| !d.as_os_str().is_empty()) {
-            std::fs::create_dir_all(dir).map_err(|source| Error::Write { path: dir.to_path_buf(), source })?;
+            std::fs::create_dir_all(dir)
+                .map_err(|source| Error::Write { path: dir.to_path_buf(), source })?;
         }
-        std::fs::copy(&generated, volume).map_err(|source| Error::Write { path: volume.clone(), source })?;
+        std::fs::copy(&generated, volume)
+            .map_err(|source| Error::Write { path: volume.clone(), source })?;
     }
     let config = crate::bench::demo::DemoConfig {
         exe,
@@ -143,7 +166,14 @@ pub(super) fn demo_section(suite: &mut Suite<'_>) -> Result<()> {
         let _ = writeln!(
             md,
             "| {} | {:.1} | {:.1} | {:.4} | {:.4} | {:.1}× ({}, {}) |",
-            r.seed, r.wall_seconds, r.cpu_seconds, e.rel_rmse, e.mean_ratio, e.speck.ratio, e.speck.x, e.speck.y
+            r.seed,
+            r.wall_seconds,
+            r.cpu_seconds,
+            e.rel_rmse,
+            e.mean_ratio,
+            e.speck.ratio,
+            e.speck.x,
+            e.speck.y
         );
     }
     let yes = |b: bool| if b { "yes" } else { "no" };

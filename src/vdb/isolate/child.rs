@@ -10,11 +10,13 @@ use std::os::fd::AsFd;
 use std::path::{Path, PathBuf};
 
 use super::READER_SUBCOMMAND;
-use plume_core::error::Error;
 use crate::vdb::read::plan_requests;
 use crate::vdb::stream::serve_stream;
 use crate::vdb::wire::{ChildError, Encoder};
-use crate::vdb::{list_grids, read_float_grid, read_vec3_grid, GridRequest, GridSelector, ReadLimits};
+use crate::vdb::{
+    list_grids, read_float_grid, read_vec3_grid, GridRequest, GridSelector, ReadLimits,
+};
+use plume_core::error::Error;
 
 /// Why the reader subcommand failed; a reply that reports a clean failure (a missing
 /// grid, a corrupt file) is not one.
@@ -84,7 +86,10 @@ impl ReaderCommand {
             )
         };
         let mut it = args.iter();
-        fn text(arg: Option<&OsString>, usage: impl Fn() -> String) -> std::result::Result<&str, String> {
+        fn text(
+            arg: Option<&OsString>,
+            usage: impl Fn() -> String,
+        ) -> std::result::Result<&str, String> {
             arg.and_then(|a| a.to_str()).ok_or_else(usage)
         }
         let mode = text(it.next(), usage)?;
@@ -105,7 +110,11 @@ impl ReaderCommand {
                         return Err(usage());
                     }
                     let alternatives = (0..count)
-                        .map(|_| text(it.next(), usage)?.parse::<GridSelector>().map_err(|e| e.to_string()))
+                        .map(|_| {
+                            text(it.next(), usage)?
+                                .parse::<GridSelector>()
+                                .map_err(|e| e.to_string())
+                        })
                         .collect::<std::result::Result<Vec<_>, _>>()?;
                     requests.push(GridRequest { alternatives, required });
                 }
@@ -115,7 +124,11 @@ impl ReaderCommand {
                 let max_bytes = text(it.next(), usage)?.parse().map_err(|_| usage())?;
                 let selector = text(it.next(), usage)?.parse().map_err(|e: Error| e.to_string())?;
                 let limits = ReadLimits { max_bytes };
-                Ok(if mode == "stream" { ReaderCommand::Stream { path, limits, selector } } else { ReaderCommand::Vec3 { path, limits, selector } })
+                Ok(if mode == "stream" {
+                    ReaderCommand::Stream { path, limits, selector }
+                } else {
+                    ReaderCommand::Vec3 { path, limits, selector }
+                })
             }
             _ => Err(usage()),
         }
@@ -150,7 +163,12 @@ fn serve(command: &ReaderCommand) -> io::Result<()> {
     Ok(())
 }
 
-fn serve_read<W: Write>(out: &mut Encoder<W>, path: &Path, limits: &ReadLimits, requests: &[GridRequest]) -> io::Result<()> {
+fn serve_read<W: Write>(
+    out: &mut Encoder<W>,
+    path: &Path,
+    limits: &ReadLimits,
+    requests: &[GridRequest],
+) -> io::Result<()> {
     let plan = match plan_requests(path, requests) {
         Ok(plan) => plan,
         Err(e) => return out.failed(&ChildError::from_error(&e)),
@@ -172,7 +190,12 @@ fn serve_read<W: Write>(out: &mut Encoder<W>, path: &Path, limits: &ReadLimits, 
 }
 
 /// One vector grid as three GRID records (x, y, z) for request 0, alternative 0.
-fn serve_vec3<W: Write>(out: &mut Encoder<W>, path: &Path, limits: &ReadLimits, selector: &GridSelector) -> io::Result<()> {
+fn serve_vec3<W: Write>(
+    out: &mut Encoder<W>,
+    path: &Path,
+    limits: &ReadLimits,
+    selector: &GridSelector,
+) -> io::Result<()> {
     out.begin(0, 0)?;
     match read_vec3_grid(path, selector, limits) {
         Ok(components) => components.iter().try_for_each(|grid| out.grid(0, 0, grid)),

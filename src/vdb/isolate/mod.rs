@@ -59,7 +59,10 @@ use super::ReadLimits;
 
 pub use child::{reader_main, ReaderFailure};
 pub(in crate::vdb) use parent::{child_error, malformed_reply, unexpected};
-pub use parent::{list_grids_isolated, read_float_grids_isolated, read_grids_isolated, read_vec3_grid_isolated, reader_exe, set_reader_exe, ReadIsolation};
+pub use parent::{
+    list_grids_isolated, read_float_grids_isolated, read_grids_isolated, read_vec3_grid_isolated,
+    reader_exe, set_reader_exe, ReadIsolation,
+};
 pub(in crate::vdb) use process::{ChildPipes, Parsed, ReaderRun};
 
 /// The hidden subcommand (`argv[1]`) that runs the reader; `main.rs` dispatches on it

@@ -10,11 +10,13 @@ use std::sync::OnceLock;
 use std::time::Duration;
 
 use super::{IsolationLimits, ReaderRun};
-use plume_core::error::{Error, Result};
 use crate::vdb::read::check_file;
 use crate::vdb::wire::{ChildError, Decoder, Record, WireError};
-use crate::vdb::{list_grids, read_grids, read_vec3_grid, FloatGrid, FoundGrid, GridInfo, GridRequest};
+use crate::vdb::{
+    list_grids, read_grids, read_vec3_grid, FloatGrid, FoundGrid, GridInfo, GridRequest,
+};
 use crate::vdb::{GridSelector, ReadLimits};
+use plume_core::error::{Error, Result};
 
 /// The executable registered by [`set_reader_exe`].
 static READER_EXE: OnceLock<PathBuf> = OnceLock::new();
@@ -50,9 +52,16 @@ impl ReadIsolation {
     /// Without a registered executable (a library caller that has not called
     /// [`set_reader_exe`]) reading stays in-process.
     #[must_use]
-    pub fn from_flags(no_isolation: bool, read_limits: &ReadLimits, timeout: Duration) -> ReadIsolation {
+    pub fn from_flags(
+        no_isolation: bool,
+        read_limits: &ReadLimits,
+        timeout: Duration,
+    ) -> ReadIsolation {
         match reader_exe() {
-            Some(exe) if !no_isolation => ReadIsolation::Child { reader_exe: exe.to_path_buf(), limits: IsolationLimits::new(read_limits, timeout) },
+            Some(exe) if !no_isolation => ReadIsolation::Child {
+                reader_exe: exe.to_path_buf(),
+                limits: IsolationLimits::new(read_limits, timeout),
+            },
             _ => ReadIsolation::InProcess,
         }
     }
@@ -64,7 +73,9 @@ impl ReadIsolation {
     pub fn list_grids(&self, path: &Path) -> Result<Vec<GridInfo>> {
         match self {
             ReadIsolation::InProcess => list_grids(path),
-            ReadIsolation::Child { reader_exe, limits } => list_grids_isolated(reader_exe, path, limits),
+            ReadIsolation::Child { reader_exe, limits } => {
+                list_grids_isolated(reader_exe, path, limits)
+            }
         }
     }
 
@@ -72,10 +83,17 @@ impl ReadIsolation {
     ///
     /// # Errors
     /// As [`crate::vdb::read_grids`], plus [`Error::ReaderFailed`] and [`Error::ReaderSpawn`].
-    pub fn read_grids(&self, path: &Path, requests: &[GridRequest], read_limits: &ReadLimits) -> Result<Vec<Option<FoundGrid>>> {
+    pub fn read_grids(
+        &self,
+        path: &Path,
+        requests: &[GridRequest],
+        read_limits: &ReadLimits,
+    ) -> Result<Vec<Option<FoundGrid>>> {
         match self {
             ReadIsolation::InProcess => read_grids(path, requests, read_limits),
-            ReadIsolation::Child { reader_exe, limits } => read_grids_isolated(reader_exe, path, requests, read_limits, limits),
+            ReadIsolation::Child { reader_exe, limits } => {
+                read_grids_isolated(reader_exe, path, requests, read_limits, limits)
+            }
         }
     }
 
@@ -84,10 +102,17 @@ impl ReadIsolation {
     ///
     /// # Errors
     /// As [`crate::vdb::read_vec3_grid`], plus [`Error::ReaderFailed`] and [`Error::ReaderSpawn`].
-    pub fn read_vec3_grid(&self, path: &Path, selector: &GridSelector, read_limits: &ReadLimits) -> Result<[FloatGrid; 3]> {
+    pub fn read_vec3_grid(
+        &self,
+        path: &Path,
+        selector: &GridSelector,
+        read_limits: &ReadLimits,
+    ) -> Result<[FloatGrid; 3]> {
         match self {
             ReadIsolation::InProcess => read_vec3_grid(path, selector, read_limits),
-            ReadIsolation::Child { reader_exe, limits } => read_vec3_grid_isolated(reader_exe, path, selector, read_limits, limits),
+            ReadIsolation::Child { reader_exe, limits } => {
+                read_vec3_grid_isolated(reader_exe, path, selector, read_limits, limits)
+            }
         }
     }
 }
@@ -107,7 +132,12 @@ pub fn read_float_grids_isolated(
 ) -> Result<Vec<FloatGrid>> {
     let requests: Vec<GridRequest> = selectors.iter().cloned().map(GridRequest::required).collect();
     let found = read_grids_isolated(reader_exe, path, &requests, read_limits, limits)?;
-    Ok(found.into_iter().map(|f| f.expect("invariant: the reply parser accepts ABSENT only for optional requests").grid).collect())
+    Ok(found
+        .into_iter()
+        .map(|f| {
+            f.expect("invariant: the reply parser accepts ABSENT only for optional requests").grid
+        })
+        .collect())
 }
 
 /// [`crate::vdb::read_grids`] in one child process of `reader_exe`.
@@ -123,7 +153,8 @@ pub fn read_grids_isolated(
 ) -> Result<Vec<Option<FoundGrid>>> {
     // Missing files, directories, NanoVDB and non-VDB files are refused here, by Rust code
     check_file(path)?;
-    let mut args: Vec<OsString> = vec!["read".into(), path.into(), read_limits.max_bytes.to_string().into()];
+    let mut args: Vec<OsString> =
+        vec!["read".into(), path.into(), read_limits.max_bytes.to_string().into()];
     for request in requests {
         if request.alternatives.is_empty() {
             return Err(Error::invalid("grid request", "no grid selector given"));
@@ -134,7 +165,8 @@ pub fn read_grids_isolated(
     }
     let mut run = ReaderRun::spawn(reader_exe, &args, limits)?;
     let mut grid: Option<String> = None;
-    let outcome = run.parse(read_limits.max_bytes, |decoder| parse_read_reply(decoder, requests, &mut grid));
+    let outcome =
+        run.parse(read_limits.max_bytes, |decoder| parse_read_reply(decoder, requests, &mut grid));
     run.finish(path, outcome, grid.clone(), limits)?.map_err(|e| child_error(path, e, grid, limits))
 }
 
@@ -158,11 +190,17 @@ pub fn read_vec3_grid_isolated(
     limits: &IsolationLimits,
 ) -> Result<[FloatGrid; 3]> {
     check_file(path)?;
-    let args: Vec<OsString> = vec!["vec3".into(), path.into(), read_limits.max_bytes.to_string().into(), selector.to_string().into()];
+    let args: Vec<OsString> = vec![
+        "vec3".into(),
+        path.into(),
+        read_limits.max_bytes.to_string().into(),
+        selector.to_string().into(),
+    ];
     let mut run = ReaderRun::spawn(reader_exe, &args, limits)?;
     let mut grid: Option<String> = None;
     // leaves × BYTES_PER_LEAF ≤ ⌊max / 3⌋ exactly when 3 × leaves × BYTES_PER_LEAF ≤ max
-    let outcome = run.parse(read_limits.max_bytes / 3, |decoder| parse_vec3_reply(decoder, selector, &mut grid));
+    let outcome = run
+        .parse(read_limits.max_bytes / 3, |decoder| parse_vec3_reply(decoder, selector, &mut grid));
     run.finish(path, outcome, grid.clone(), limits)?.map_err(|e| child_error(path, e, grid, limits))
 }
 
@@ -182,12 +220,19 @@ fn parse_vec3_reply<R: Read>(
                 begun = true;
                 *grid = Some(selector.to_string());
             }
-            Record::Grid { request: 0, alternative: 0, grid: g } if begun && components.len() < 3 => {
+            Record::Grid { request: 0, alternative: 0, grid: g }
+                if begun && components.len() < 3 =>
+            {
                 let axis = ["x", "y", "z"][components.len()];
                 if g.name != format!("{}.{axis}", selector.name) {
-                    return Err(malformed_reply(&format!("GRID {:?} is not component {axis} of the grid begun", g.name)));
+                    return Err(malformed_reply(&format!(
+                        "GRID {:?} is not component {axis} of the grid begun",
+                        g.name
+                    )));
                 }
-                if components.first().is_some_and(|x| x.origins != g.origins || x.world_from_index != g.world_from_index) {
+                if components.first().is_some_and(|x| {
+                    x.origins != g.origins || x.world_from_index != g.world_from_index
+                }) {
                     return Err(malformed_reply("vector components differ in leaves or transform"));
                 }
                 components.push(g);
@@ -202,7 +247,9 @@ fn parse_vec3_reply<R: Read>(
                 };
             }
             Record::End if components.len() == 3 => {
-                return Ok(Ok(components.try_into().expect("invariant: three components were checked")));
+                return Ok(Ok(components
+                    .try_into()
+                    .expect("invariant: three components were checked")));
             }
             other => return Err(unexpected(&other)),
         }
@@ -213,7 +260,11 @@ fn parse_vec3_reply<R: Read>(
 ///
 /// # Errors
 /// As [`read_float_grids_isolated`].
-pub fn list_grids_isolated(reader_exe: &Path, path: &Path, limits: &IsolationLimits) -> Result<Vec<GridInfo>> {
+pub fn list_grids_isolated(
+    reader_exe: &Path,
+    path: &Path,
+    limits: &IsolationLimits,
+) -> Result<Vec<GridInfo>> {
     check_file(path)?;
     let args: Vec<OsString> = vec!["list".into(), path.into()];
     let mut run = ReaderRun::spawn(reader_exe, &args, limits)?;
@@ -257,7 +308,9 @@ fn parse_read_reply<R: Read>(
             }
             Record::Grid { request, alternative, grid: g } => {
                 let (request, alternative) = (request as usize, alternative as usize);
-                if begun != Some((request, alternative)) || next.is_none_or(|r| r.alternatives[alternative].name != g.name) {
+                if begun != Some((request, alternative))
+                    || next.is_none_or(|r| r.alternatives[alternative].name != g.name)
+                {
                     return Err(malformed_reply("GRID does not answer the grid begun"));
                 }
                 found.push(Some(FoundGrid { alternative, grid: g }));
@@ -302,15 +355,28 @@ pub(in crate::vdb) fn unexpected(record: &Record) -> WireError {
 }
 
 /// The error the child reported cleanly, as the in-process reader would have returned it.
-pub(in crate::vdb) fn child_error(path: &Path, error: ChildError, grid: Option<String>, limits: &IsolationLimits) -> Error {
+pub(in crate::vdb) fn child_error(
+    path: &Path,
+    error: ChildError,
+    grid: Option<String>,
+    limits: &IsolationLimits,
+) -> Error {
     let path = path.to_path_buf();
     match error {
         ChildError::Open { message } => Error::Open { path, source: io::Error::other(message) },
         ChildError::Vdb { message } => Error::Vdb { path, message },
-        ChildError::GridNotFound { name, available } => Error::GridNotFound { path, name, available },
+        ChildError::GridNotFound { name, available } => {
+            Error::GridNotFound { path, name, available }
+        }
         ChildError::Unsupported { grid, message } => Error::UnsupportedGrid { path, grid, message },
-        ChildError::TooLarge { grid, needed, limit } => Error::TooLarge { path, grid, needed, limit },
-        ChildError::OutOfMemory => Error::ReaderFailed { path, grid, what: format!("reader ran out of memory at its limit of {} bytes", limits.memory_bytes) },
+        ChildError::TooLarge { grid, needed, limit } => {
+            Error::TooLarge { path, grid, needed, limit }
+        }
+        ChildError::OutOfMemory => Error::ReaderFailed {
+            path,
+            grid,
+            what: format!("reader ran out of memory at its limit of {} bytes", limits.memory_bytes),
+        },
     }
 }
 
@@ -352,7 +418,10 @@ mod tests {
         bytes
     }
 
-    fn parse(bytes: &[u8], max_grid_bytes: u64) -> std::result::Result<std::result::Result<[FloatGrid; 3], ChildError>, WireError> {
+    fn parse(
+        bytes: &[u8],
+        max_grid_bytes: u64,
+    ) -> std::result::Result<std::result::Result<[FloatGrid; 3], ChildError>, WireError> {
         let mut decoder = Decoder::new(bytes, max_grid_bytes)?;
         let mut grid = None;
         parse_vec3_reply(&mut decoder, &GridSelector::first("vel"), &mut grid)
@@ -361,7 +430,9 @@ mod tests {
     #[track_caller]
     fn assert_malformed(bytes: &[u8], needle: &str) {
         match parse(bytes, u64::MAX) {
-            Err(WireError::Malformed(message)) => assert!(message.contains(needle), "{message:?} lacks {needle:?}"),
+            Err(WireError::Malformed(message)) => {
+                assert!(message.contains(needle), "{message:?} lacks {needle:?}")
+            }
             other => panic!("expected a malformed reply, got {other:?}"),
         }
     }
@@ -372,7 +443,10 @@ mod tests {
         assert_eq!(grids.each_ref().map(|g| g.name.as_str()), ["vel.x", "vel.y", "vel.z"]);
         // Each component within a third of the limit: 2 leaves each
         assert!(parse(&reply(true, &components()), 2 * BYTES_PER_LEAF).unwrap().is_ok());
-        assert!(matches!(parse(&reply(true, &components()), 2 * BYTES_PER_LEAF - 1), Err(WireError::Malformed(_))));
+        assert!(matches!(
+            parse(&reply(true, &components()), 2 * BYTES_PER_LEAF - 1),
+            Err(WireError::Malformed(_))
+        ));
         // A clean failure, with or without BEGIN
         for begin in [false, true] {
             let mut bytes = Vec::new();
@@ -380,7 +454,8 @@ mod tests {
             if begin {
                 e.begin(0, 0).unwrap();
             }
-            e.failed(&ChildError::Unsupported { grid: "vel".into(), message: "float".into() }).unwrap();
+            e.failed(&ChildError::Unsupported { grid: "vel".into(), message: "float".into() })
+                .unwrap();
             e.end().unwrap();
             assert!(matches!(parse(&bytes, u64::MAX), Ok(Err(ChildError::Unsupported { .. }))));
         }
@@ -393,17 +468,29 @@ mod tests {
         assert_malformed(&reply(false, &good), "unexpected GRID");
         assert_malformed(&reply(true, &[x.clone(), z.clone(), y.clone()]), "is not component y");
         assert_malformed(&reply(true, &[x.clone(), y.clone()]), "unexpected END");
-        assert_malformed(&reply(true, &[x.clone(), y.clone(), z.clone(), x.clone()]), "unexpected GRID");
+        assert_malformed(
+            &reply(true, &[x.clone(), y.clone(), z.clone(), x.clone()]),
+            "unexpected GRID",
+        );
         let mut moved = y.clone();
         moved.origins[1] = IVec3::new(16, 0, 0);
-        assert_malformed(&reply(true, &[x.clone(), moved, z.clone()]), "differ in leaves or transform");
+        assert_malformed(
+            &reply(true, &[x.clone(), moved, z.clone()]),
+            "differ in leaves or transform",
+        );
         let mut shorter = z.clone();
         shorter.origins.pop();
         shorter.values.truncate(LEAF_VOXELS);
-        assert_malformed(&reply(true, &[x.clone(), y.clone(), shorter]), "differ in leaves or transform");
+        assert_malformed(
+            &reply(true, &[x.clone(), y.clone(), shorter]),
+            "differ in leaves or transform",
+        );
         let mut shifted = y.clone();
         shifted.world_from_index.translation.x = 1.0;
-        assert_malformed(&reply(true, &[x.clone(), shifted, z.clone()]), "differ in leaves or transform");
+        assert_malformed(
+            &reply(true, &[x.clone(), shifted, z.clone()]),
+            "differ in leaves or transform",
+        );
         let mut renamed = x.clone();
         renamed.name = "density.x".into();
         assert_malformed(&reply(true, &[renamed, y.clone(), z.clone()]), "is not component x");

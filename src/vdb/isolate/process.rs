@@ -11,8 +11,8 @@ use std::process::{Child, ChildStderr, ChildStdout, Command, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
 
 use super::{malformed_reply, IsolationLimits, READER_SUBCOMMAND};
-use plume_core::error::{Error, Result};
 use crate::vdb::wire::{ChildError, Decoder, WireError};
+use plume_core::error::{Error, Result};
 
 /// Bytes of the child's stderr kept for error messages.
 const STDERR_TAIL_BYTES: usize = 8 * 1024;
@@ -26,13 +26,23 @@ pub(in crate::vdb) struct ReaderRun {
 }
 
 /// A reply parsed to the end (or a clean failure), or why it could not be.
-pub(in crate::vdb) type Parsed<T> = std::result::Result<std::result::Result<T, ChildError>, WireError>;
+pub(in crate::vdb) type Parsed<T> =
+    std::result::Result<std::result::Result<T, ChildError>, WireError>;
 
 impl ReaderRun {
-    pub(in crate::vdb) fn spawn(exe: &Path, args: &[OsString], limits: &IsolationLimits) -> Result<ReaderRun> {
+    pub(in crate::vdb) fn spawn(
+        exe: &Path,
+        args: &[OsString],
+        limits: &IsolationLimits,
+    ) -> Result<ReaderRun> {
         let deadline = Instant::now() + limits.timeout;
         let mut command = Command::new(exe);
-        command.arg(READER_SUBCOMMAND).args(args).stdin(Stdio::null()).stdout(Stdio::piped()).stderr(Stdio::piped());
+        command
+            .arg(READER_SUBCOMMAND)
+            .args(args)
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped());
         let (memory, cpu) = (limits.memory_bytes, limits.cpu_seconds);
         // SAFETY: the closure runs in the forked child before exec. It makes only
         // async-signal-safe system calls (setrlimit, prctl) on values copied into it; it
@@ -41,13 +51,18 @@ impl ReaderRun {
         unsafe {
             command.pre_exec(move || limit_this_process(memory, cpu));
         }
-        let mut child = command.spawn().map_err(|source| Error::ReaderSpawn { exe: exe.to_path_buf(), source })?;
+        let mut child = command
+            .spawn()
+            .map_err(|source| Error::ReaderSpawn { exe: exe.to_path_buf(), source })?;
         let (stdout, stderr) = match (child.stdout.take(), child.stderr.take()) {
             (Some(stdout), Some(stderr)) => (stdout, stderr),
             _ => {
                 let _ = child.kill();
                 let _ = child.wait();
-                return Err(Error::ReaderSpawn { exe: exe.to_path_buf(), source: io::Error::other("no pipes to the child") });
+                return Err(Error::ReaderSpawn {
+                    exe: exe.to_path_buf(),
+                    source: io::Error::other("no pipes to the child"),
+                });
             }
         };
         // A larger pipe lets the child decode the next batch while the parent consumes
@@ -61,7 +76,11 @@ impl ReaderRun {
     }
 
     /// Runs `body` on the reply.
-    pub(in crate::vdb) fn parse<T>(&mut self, max_grid_bytes: u64, body: impl FnOnce(&mut Decoder<&mut BufReader<ChildPipes>>) -> Parsed<T>) -> Parsed<T> {
+    pub(in crate::vdb) fn parse<T>(
+        &mut self,
+        max_grid_bytes: u64,
+        body: impl FnOnce(&mut Decoder<&mut BufReader<ChildPipes>>) -> Parsed<T>,
+    ) -> Parsed<T> {
         let mut decoder = Decoder::new(&mut self.pipes, max_grid_bytes)?;
         let parsed = body(&mut decoder)?;
         // Nothing may follow END
@@ -100,9 +119,16 @@ impl ReaderRun {
         }
         let status = self.wait();
         let stderr = self.pipes.get_ref().stderr_excerpt();
-        let failed = |what: String| Error::ReaderFailed { path: path.to_path_buf(), grid: grid.clone(), what: with_stderr(what, &stderr) };
+        let failed = |what: String| Error::ReaderFailed {
+            path: path.to_path_buf(),
+            grid: grid.clone(),
+            what: with_stderr(what, &stderr),
+        };
         if self.timed_out {
-            return Err(failed(format!("reader did not finish within {} s (reading.read_timeout); killed", limits.timeout.as_secs_f64())));
+            return Err(failed(format!(
+                "reader did not finish within {} s (reading.read_timeout); killed",
+                limits.timeout.as_secs_f64()
+            )));
         }
         if let Some(what) = killed_for {
             return Err(failed(format!("{what}; killed")));
@@ -110,16 +136,22 @@ impl ReaderRun {
         let status = status.map_err(|e| failed(format!("cannot wait for the reader: {e}")))?;
         // Rust's allocation failure message, C++'s uncaught std::bad_alloc
         let out_of_memory = stderr.contains("memory allocation of") || stderr.contains("bad_alloc");
-        let out_of_memory_message = || format!("reader ran out of memory at its limit of {} bytes", limits.memory_bytes);
+        let out_of_memory_message =
+            || format!("reader ran out of memory at its limit of {} bytes", limits.memory_bytes);
         if let Some(signal) = status.signal() {
             let what = match signal {
                 libc::SIGXCPU => {
-                    format!("reader exceeded its CPU time limit of {} s; killed", limits.cpu_seconds)
+                    format!(
+                        "reader exceeded its CPU time limit of {} s; killed",
+                        limits.cpu_seconds
+                    )
                 }
                 _ if out_of_memory => {
                     format!("{} ({})", out_of_memory_message(), signal_name(signal))
                 }
-                libc::SIGKILL => "reader was killed with SIGKILL (by the system's out-of-memory killer?)".into(),
+                libc::SIGKILL => {
+                    "reader was killed with SIGKILL (by the system's out-of-memory killer?)".into()
+                }
                 _ => format!("reader crashed with {}", signal_name(signal)),
             };
             return Err(failed(what));
@@ -194,7 +226,10 @@ impl ChildPipes {
     fn poll_once(&mut self, want_stdout: bool, timeout_ms: i32) -> io::Result<bool> {
         let stderr_fd = self.stderr.as_ref().map_or(-1, AsRawFd::as_raw_fd);
         let stdout_fd = if want_stdout { self.stdout.as_raw_fd() } else { -1 };
-        let mut fds = [libc::pollfd { fd: stdout_fd, events: libc::POLLIN, revents: 0 }, libc::pollfd { fd: stderr_fd, events: libc::POLLIN, revents: 0 }];
+        let mut fds = [
+            libc::pollfd { fd: stdout_fd, events: libc::POLLIN, revents: 0 },
+            libc::pollfd { fd: stderr_fd, events: libc::POLLIN, revents: 0 },
+        ];
         // SAFETY: `fds` is a valid array of two pollfd structs for the duration of the
         // call; poll ignores entries with a negative fd.
         let ready = unsafe { libc::poll(fds.as_mut_ptr(), 2, timeout_ms) };
@@ -300,7 +335,8 @@ fn limit_this_process(memory_bytes: u64, cpu_seconds: u64) -> io::Result<()> {
     set(libc::RLIMIT_CORE, 0, 0)?;
     // SAFETY: prctl with PR_SET_PDEATHSIG takes a signal number and changes only this
     // process: it is killed when the thread that spawned it exits.
-    if unsafe { libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGKILL as libc::c_ulong, 0, 0, 0) } != 0 {
+    if unsafe { libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGKILL as libc::c_ulong, 0, 0, 0) } != 0
+    {
         return Err(io::Error::last_os_error());
     }
     // First in line for the kernel's OOM killer, should the machine run short before the

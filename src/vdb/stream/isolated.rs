@@ -21,11 +21,13 @@ use std::time::Instant;
 
 use super::STREAM_BATCH;
 use super::{Delivery, HeaderVisitor, LeafVisitor, LocalStream, Refusal, StreamedGrid};
-use plume_core::error::{Error, Result};
-use crate::vdb::isolate::{child_error, malformed_reply, unexpected, ChildPipes, IsolationLimits, Parsed, ReaderRun};
+use crate::vdb::isolate::{
+    child_error, malformed_reply, unexpected, ChildPipes, IsolationLimits, Parsed, ReaderRun,
+};
 use crate::vdb::read::check_file;
 use crate::vdb::wire::{ChildError, Decoder, Encoder, Record, WireError};
 use crate::vdb::{GridSelector, ReadLimits};
+use plume_core::error::{Error, Result};
 
 /// [`super::stream_float_grid`] in a child process of `reader_exe` (the `plume` binary).
 ///
@@ -43,12 +45,19 @@ pub fn stream_float_grid_isolated(
     leaf: &mut LeafVisitor<'_>,
 ) -> Result<StreamedGrid> {
     check_file(path)?;
-    let args: Vec<OsString> = vec!["stream".into(), path.into(), read_limits.max_bytes.to_string().into(), selector.to_string().into()];
+    let args: Vec<OsString> = vec![
+        "stream".into(),
+        path.into(),
+        read_limits.max_bytes.to_string().into(),
+        selector.to_string().into(),
+    ];
     let mut run = ReaderRun::spawn(reader_exe, &args, limits)?;
     let mut grid: Option<String> = None;
     let mut visitor_error: Option<Error> = None;
     // No GRID record belongs in a stream reply: 0 bytes of whole-grid data allowed
-    let outcome = run.parse(0, |decoder| parse_stream_reply(decoder, selector, header, leaf, &mut grid, &mut visitor_error));
+    let outcome = run.parse(0, |decoder| {
+        parse_stream_reply(decoder, selector, header, leaf, &mut grid, &mut visitor_error)
+    });
     let finished = run.finish(path, outcome, grid.clone(), limits);
     if let Some(error) = visitor_error {
         return Err(error);
@@ -64,7 +73,10 @@ fn aborted(visitor_error: &mut Option<Error>, error: Error) -> WireError {
 }
 
 /// FAILED must be followed by END.
-fn failed_then_end(decoder: &mut Decoder<&mut BufReader<ChildPipes>>, error: ChildError) -> Parsed<StreamedGrid> {
+fn failed_then_end(
+    decoder: &mut Decoder<&mut BufReader<ChildPipes>>,
+    error: ChildError,
+) -> Parsed<StreamedGrid> {
     match decoder.next()? {
         Record::End => Ok(Err(error)),
         other => Err(unexpected(&other)),
@@ -128,7 +140,12 @@ fn parse_stream_reply(
 
 /// The child's side: streams the grid, or reports why it cannot. BEGIN goes out (flushed)
 /// before OpenVDB touches the file, so that a crash names the grid.
-pub(crate) fn serve_stream<W: Write>(out: &mut Encoder<W>, path: &Path, limits: &ReadLimits, selector: &GridSelector) -> io::Result<()> {
+pub(crate) fn serve_stream<W: Write>(
+    out: &mut Encoder<W>,
+    path: &Path,
+    limits: &ReadLimits,
+    selector: &GridSelector,
+) -> io::Result<()> {
     out.begin(0, 0)?;
     let mut stream = match LocalStream::open(path, selector, limits) {
         Ok(stream) => stream,

@@ -41,9 +41,17 @@ impl<R: Read> Decoder<R> {
         input.read_exact(&mut version)?;
         let version = u32::from_le_bytes(version);
         if version != VERSION {
-            return malformed(format!("format version {version}, expected {VERSION} (was plume replaced while running?)"));
+            return malformed(format!(
+                "format version {version}, expected {VERSION} (was plume replaced while running?)"
+            ));
         }
-        Ok(Decoder { input, max_grid_bytes, metadata_budget: MAX_METADATA_BYTES, scratch: Vec::new(), batch: Batch::default() })
+        Ok(Decoder {
+            input,
+            max_grid_bytes,
+            metadata_budget: MAX_METADATA_BYTES,
+            scratch: Vec::new(),
+            batch: Batch::default(),
+        })
     }
 
     /// The underlying reader, e.g. to check that nothing follows END.
@@ -107,12 +115,19 @@ impl<R: Read> Decoder<R> {
         let bytes = leaf_count.checked_mul(BYTES_PER_LEAF);
         let leaves = match (bytes, usize::try_from(leaf_count)) {
             (Some(bytes), Ok(leaves)) if bytes <= self.max_grid_bytes => leaves,
-            _ => return malformed(format!("grid {name:?}: {leaf_count} leaves exceed the input memory limit of {} bytes", self.max_grid_bytes)),
+            _ => {
+                return malformed(format!(
+                    "grid {name:?}: {leaf_count} leaves exceed the input memory limit of {} bytes",
+                    self.max_grid_bytes
+                ))
+            }
         };
         // Capacity is reserved, not touched: pages are committed only as data arrives.
         let mut origins: Vec<IVec3> = Vec::new();
         let mut values: Vec<f32> = Vec::new();
-        if origins.try_reserve_exact(leaves).is_err() || values.try_reserve_exact(leaves * LEAF_VOXELS).is_err() {
+        if origins.try_reserve_exact(leaves).is_err()
+            || values.try_reserve_exact(leaves * LEAF_VOXELS).is_err()
+        {
             return malformed(format!("grid {name:?}: cannot allocate {leaf_count} leaves"));
         }
         let mut remaining = leaves;
@@ -132,7 +147,9 @@ impl<R: Read> Decoder<R> {
         while remaining > 0 {
             let n = remaining.min(BULK_CHUNK);
             self.fill_scratch(n * 4)?;
-            values.extend(self.scratch.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])));
+            values.extend(
+                self.scratch.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])),
+            );
             remaining -= n;
         }
         if values.iter().any(|v| !v.is_finite()) {
@@ -143,7 +160,8 @@ impl<R: Read> Decoder<R> {
 
     fn info(&mut self) -> Result<GridInfo, WireError> {
         let name = self.str()?;
-        let file_index = usize::try_from(self.u64()?).or_else(|_| malformed("grid info: file index out of range"))?;
+        let file_index = usize::try_from(self.u64()?)
+            .or_else(|_| malformed("grid info: file index out of range"))?;
         let selector = self.str()?;
         let value_type = self.str()?;
         let class = self.str()?;
@@ -201,7 +219,9 @@ impl<R: Read> Decoder<R> {
                 ChildError::GridNotFound { name, available }
             }
             4 => ChildError::Unsupported { grid: self.str()?, message: self.str()? },
-            5 => ChildError::TooLarge { grid: self.str()?, needed: self.u64()?, limit: self.u64()? },
+            5 => {
+                ChildError::TooLarge { grid: self.str()?, needed: self.u64()?, limit: self.u64()? }
+            }
             6 => ChildError::OutOfMemory,
             kind => return malformed(format!("unknown error kind {kind}")),
         })
@@ -221,7 +241,9 @@ impl<R: Read> Decoder<R> {
                 self.metadata_budget = left;
                 Ok(())
             }
-            None => malformed(format!("{what}: reply exceeds {MAX_METADATA_BYTES} bytes of metadata")),
+            None => {
+                malformed(format!("{what}: reply exceeds {MAX_METADATA_BYTES} bytes of metadata"))
+            }
         }
     }
 

@@ -30,7 +30,12 @@ impl<W: Write> Encoder<W> {
         self.out.flush()
     }
 
-    pub(crate) fn grid(&mut self, request: u32, alternative: u32, grid: &FloatGrid) -> io::Result<()> {
+    pub(crate) fn grid(
+        &mut self,
+        request: u32,
+        alternative: u32,
+        grid: &FloatGrid,
+    ) -> io::Result<()> {
         self.out.write_all(&[TAG_GRID])?;
         self.u32(request)?;
         self.u32(alternative)?;

@@ -98,9 +98,15 @@ impl ChildError {
             Error::Open { source, .. } => ChildError::Open { message: source.to_string() },
             Error::Vdb { message, .. } if message == "out of memory" => ChildError::OutOfMemory,
             Error::Vdb { message, .. } => ChildError::Vdb { message: message.clone() },
-            Error::GridNotFound { name, available, .. } => ChildError::GridNotFound { name: name.clone(), available: available.clone() },
-            Error::UnsupportedGrid { grid, message, .. } => ChildError::Unsupported { grid: grid.clone(), message: message.clone() },
-            Error::TooLarge { grid, needed, limit, .. } => ChildError::TooLarge { grid: grid.clone(), needed: *needed, limit: *limit },
+            Error::GridNotFound { name, available, .. } => {
+                ChildError::GridNotFound { name: name.clone(), available: available.clone() }
+            }
+            Error::UnsupportedGrid { grid, message, .. } => {
+                ChildError::Unsupported { grid: grid.clone(), message: message.clone() }
+            }
+            Error::TooLarge { grid, needed, limit, .. } => {
+                ChildError::TooLarge { grid: grid.clone(), needed: *needed, limit: *limit }
+            }
             other => ChildError::Vdb { message: other.to_string() },
         }
     }
@@ -203,7 +209,10 @@ mod tests {
         let errors = [
             ChildError::Open { message: "No such file".into() },
             ChildError::Vdb { message: "bad".into() },
-            ChildError::GridNotFound { name: "d".into(), available: vec!["a".into(), "b[1]".into()] },
+            ChildError::GridNotFound {
+                name: "d".into(),
+                available: vec!["a".into(), "b[1]".into()],
+            },
             ChildError::Unsupported { grid: "v".into(), message: "vec3s".into() },
             ChildError::TooLarge { grid: "g".into(), needed: 10, limit: 5 },
             ChildError::OutOfMemory,
@@ -252,7 +261,8 @@ mod tests {
             e.begin(0, 0).unwrap();
             e.grid(0, 0, &grid(2)).unwrap();
             e.infos(&[info()]).unwrap();
-            e.failed(&ChildError::GridNotFound { name: "x".into(), available: vec!["y".into()] }).unwrap();
+            e.failed(&ChildError::GridNotFound { name: "x".into(), available: vec!["y".into()] })
+                .unwrap();
         });
         for len in 0..bytes.len() {
             match decode_all(&bytes[..len], u64::MAX) {

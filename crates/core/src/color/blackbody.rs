@@ -70,7 +70,8 @@ pub const C2: f64 = 1.43878e-2;
 pub const STEFAN_BOLTZMANN: f64 = 5.670373e-8;
 
 /// XYZ → linear Rec.709 (D65) matrix, row major (METHOD §2).
-pub const XYZ_TO_REC709: [[f64; 3]; 3] = [[3.2410, -1.5374, -0.4986], [-0.9692, 1.8760, 0.0416], [0.0556, -0.2040, 1.0570]];
+pub const XYZ_TO_REC709: [[f64; 3]; 3] =
+    [[3.2410, -1.5374, -0.4986], [-0.9692, 1.8760, 0.0416], [0.0556, -0.2040, 1.0570]];
 
 /// Suggested blackbody cutoff temperature T_cut in kelvin: emission is 0 below it.
 ///
@@ -237,7 +238,8 @@ pub struct BlackbodyTable {
 /// segment is fine (0.05 K) and the second coarser (0.6 K); a node step changes C by at
 /// most ≈ 0.5 % above 500 K, so linear interpolation is within ≈ 3e-6 of the ln-T table
 /// (tested), far inside its 1e-3 agreement with the exact integral.
-const UNIFORM_SEGMENTS: [(f64, f64, usize); 2] = [(100.0, 2000.0, 38_001), (2000.0, 20000.0, 30_001)];
+const UNIFORM_SEGMENTS: [(f64, f64, usize); 2] =
+    [(100.0, 2000.0, 38_001), (2000.0, 20000.0, 30_001)];
 
 /// One interpolated table lookup.
 struct TableSample {
@@ -268,12 +270,16 @@ impl BlackbodyTable {
         // slower, is spread evenly). Nodes are independent and each is summed in a fixed
         // order, so the table is bit-identical for any thread count.
         let spectrum = PlanckCmf::new();
-        let strided = |first: usize| -> Vec<[f64; 3]> { (first..TABLE_NODES).step_by(threads).map(|k| spectrum.xyz(node_kelvin(k))).collect() };
+        let strided = |first: usize| -> Vec<[f64; 3]> {
+            (first..TABLE_NODES).step_by(threads).map(|k| spectrum.xyz(node_kelvin(k))).collect()
+        };
         let per_thread: Vec<Vec<[f64; 3]>> = std::thread::scope(|scope| {
-            let handles: Vec<_> = (1..threads).map(|first| scope.spawn(move || strided(first))).collect();
+            let handles: Vec<_> =
+                (1..threads).map(|first| scope.spawn(move || strided(first))).collect();
             let mut per_thread = vec![strided(0)];
             for handle in handles {
-                per_thread.push(handle.join().unwrap_or_else(|panic| std::panic::resume_unwind(panic)));
+                per_thread
+                    .push(handle.join().unwrap_or_else(|panic| std::panic::resume_unwind(panic)));
             }
             per_thread
         });
@@ -283,15 +289,30 @@ impl BlackbodyTable {
         let mut rgb_over_y = Vec::with_capacity(TABLE_NODES);
         for (k, xyz) in xyz.enumerate() {
             // Y(100 K) ≈ 1e-76 is still a normal f64 (> 2e-308), so ln Y is finite.
-            debug_assert!(xyz[1] > 0.0 && xyz[1].is_finite(), "Y({} K) = {}", node_kelvin(k), xyz[1]);
+            debug_assert!(
+                xyz[1] > 0.0 && xyz[1].is_finite(),
+                "Y({} K) = {}",
+                node_kelvin(k),
+                xyz[1]
+            );
             ln_y.push(xyz[1].ln() as f32);
             rgb_over_y.push(xyz_to_rec709(xyz).map(|c| (c / xyz[1]) as f32));
         }
-        let mut table = BlackbodyTable { ln_t_min, nodes_per_ln_t, ln_y, rgb_over_y, chromaticity_floor: Rgb::ZERO, uniform: Vec::new() };
+        let mut table = BlackbodyTable {
+            ln_t_min,
+            nodes_per_ln_t,
+            ln_y,
+            rgb_over_y,
+            chromaticity_floor: Rgb::ZERO,
+            uniform: Vec::new(),
+        };
         table.chromaticity_floor = table.normalized_chromaticity(CHROMATICITY_FLOOR_KELVIN);
         let mut uniform = Vec::with_capacity(UNIFORM_SEGMENTS.iter().map(|s| s.2).sum());
         for (lo, hi, n) in UNIFORM_SEGMENTS {
-            uniform.extend((0..n).map(|k| table.rgb_ln_t((lo + (hi - lo) * k as f64 / (n - 1) as f64) as f32).0));
+            uniform
+                .extend((0..n).map(|k| {
+                    table.rgb_ln_t((lo + (hi - lo) * k as f64 / (n - 1) as f64) as f32).0
+                }));
         }
         table.uniform = uniform;
         table
@@ -312,12 +333,16 @@ impl BlackbodyTable {
         let f = u - i as f64;
         let lerp = |a: f32, b: f32| f64::from(a) + f * (f64::from(b) - f64::from(a));
         let (c0, c1) = (self.rgb_over_y[i], self.rgb_over_y[i + 1]);
-        Some(TableSample { ln_y: lerp(self.ln_y[i], self.ln_y[i + 1]), rgb_over_y: [lerp(c0[0], c1[0]), lerp(c0[1], c1[1]), lerp(c0[2], c1[2])] })
+        Some(TableSample {
+            ln_y: lerp(self.ln_y[i], self.ln_y[i + 1]),
+            rgb_over_y: [lerp(c0[0], c1[0]), lerp(c0[1], c1[1]), lerp(c0[2], c1[2])],
+        })
     }
 
     /// Clamped C/Y renormalised to Rec.709 luminance 1, for `t ≥ 800 K`.
     fn normalized_chromaticity(&self, t_kelvin: f32) -> Rgb {
-        let sample = self.sample(t_kelvin).expect("invariant: called only for T >= 800 K, inside the table");
+        let sample =
+            self.sample(t_kelvin).expect("invariant: called only for T >= 800 K, inside the table");
         let clamped = sample.rgb_over_y.map(|c| c.max(0.0));
         // Red dominates below the white point and never clamps, so the luminance is > 0.
         let luminance = rec709_luminance(clamped);
@@ -344,7 +369,9 @@ impl BlackbodyTable {
                 let i = (u as usize).min(n - 2);
                 let f = u - i as f64;
                 let (a, b) = (self.uniform[base + i], self.uniform[base + i + 1]);
-                return Rgb(std::array::from_fn(|c| (f64::from(a[c]) + f * (f64::from(b[c]) - f64::from(a[c]))) as f32));
+                return Rgb(std::array::from_fn(|c| {
+                    (f64::from(a[c]) + f * (f64::from(b[c]) - f64::from(a[c]))) as f32
+                }));
             }
             base += n;
         }
@@ -383,7 +410,11 @@ impl BlackbodyTable {
     /// exactly as Cycles' `svm_math_blackbody_color_rec709` does.
     #[must_use]
     pub fn cycles_chromaticity(&self, t_kelvin: f32) -> Rgb {
-        let t = if t_kelvin.is_nan() { 0.0 } else { t_kelvin.clamp(CHROMATICITY_FLOOR_KELVIN, CYCLES_CHROMATICITY_CEILING_KELVIN) };
+        let t = if t_kelvin.is_nan() {
+            0.0
+        } else {
+            t_kelvin.clamp(CHROMATICITY_FLOOR_KELVIN, CYCLES_CHROMATICITY_CEILING_KELVIN)
+        };
         let s = self.sample(t).expect("invariant: 800 K ..= 12000 K lies inside the table");
         Rgb(s.rgb_over_y.map(|c| c as f32))
     }
@@ -426,17 +457,21 @@ struct CyclesChromaticityTable {
 
 impl CyclesChromaticityTable {
     fn build() -> CyclesChromaticityTable {
-        let (lo, hi) = (f64::from(CHROMATICITY_FLOOR_KELVIN), f64::from(CYCLES_CHROMATICITY_CEILING_KELVIN));
+        let (lo, hi) =
+            (f64::from(CHROMATICITY_FLOOR_KELVIN), f64::from(CYCLES_CHROMATICITY_CEILING_KELVIN));
         let step = (hi - lo) / (CYCLES_NODES - 1) as f64;
         let table = blackbody_table();
-        let rgb = (0..CYCLES_NODES).map(|k| table.cycles_chromaticity((lo + k as f64 * step) as f32).0).collect();
+        let rgb = (0..CYCLES_NODES)
+            .map(|k| table.cycles_chromaticity((lo + k as f64 * step) as f32).0)
+            .collect();
         CyclesChromaticityTable { nodes_per_kelvin: 1.0 / step, rgb }
     }
 
     /// The chromaticity at `t` (clamped to 800 … 12000 K, as Cycles holds it).
     #[inline]
     fn at(&self, t: f64) -> [f64; 3] {
-        let u = ((t - f64::from(CHROMATICITY_FLOOR_KELVIN)) * self.nodes_per_kelvin).clamp(0.0, (CYCLES_NODES - 1) as f64);
+        let u = ((t - f64::from(CHROMATICITY_FLOOR_KELVIN)) * self.nodes_per_kelvin)
+            .clamp(0.0, (CYCLES_NODES - 1) as f64);
         let i = (u as usize).min(CYCLES_NODES - 2);
         let f = u - i as f64;
         let (a, b) = (self.rgb[i], self.rgb[i + 1]);

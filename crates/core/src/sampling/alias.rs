@@ -94,7 +94,11 @@ impl AliasTable {
             }
         }
         // The largest weight: a safe alias target for leftovers of zero weight.
-        let heaviest = weights.iter().enumerate().fold(0usize, |m, (i, &w)| if w > weights[m] { i } else { m }) as u32;
+        let heaviest = weights
+            .iter()
+            .enumerate()
+            .fold(0usize, |m, (i, &w)| if w > weights[m] { i } else { m })
+            as u32;
         // A popped small slot's p is final: it becomes that slot's threshold in place
         let mut alias: Vec<u32> = (0..n as u32).collect();
         while let (Some(&s), Some(&l)) = (small.last(), large.last()) {
@@ -265,7 +269,10 @@ mod tests {
             assert!((f64::from(total) - expected).abs() <= 3.0, "index {i}: {total} vs {expected}");
             for &count in row {
                 // Each index takes at most two slot shares, each spread evenly over the bins
-                assert!((f64::from(count) - f64::from(total) / 10.0).abs() <= 4.0, "index {i}: bins {row:?}");
+                assert!(
+                    (f64::from(count) - f64::from(total) / 10.0).abs() <= 4.0,
+                    "index {i}: bins {row:?}"
+                );
             }
         }
     }
@@ -295,14 +302,20 @@ mod tests {
 
     #[test]
     fn pmf_matches_weights_and_sums_to_one() {
-        let w: Vec<f64> = (0..1000).map(|i| if i % 7 == 0 { 0.0 } else { f64::from((i * 37) % 101) + 0.5 }).collect();
+        let w: Vec<f64> = (0..1000)
+            .map(|i| if i % 7 == 0 { 0.0 } else { f64::from((i * 37) % 101) + 0.5 })
+            .collect();
         let t = AliasTable::new(&w).unwrap();
         let total: f64 = w.iter().sum();
         let mut sum = 0.0;
         for (i, &wi) in w.iter().enumerate() {
             let expected = wi / total;
             // The documented bound: (1 + m_i) 2⁻³²/n ≤ about 2⁻³² absolute
-            assert!((t.pmf(i) - expected).abs() <= 1e-12 * expected + 2f64.powi(-32), "{i}: {} vs {expected}", t.pmf(i));
+            assert!(
+                (t.pmf(i) - expected).abs() <= 1e-12 * expected + 2f64.powi(-32),
+                "{i}: {} vs {expected}",
+                t.pmf(i)
+            );
             if wi == 0.0 {
                 assert_eq!(t.pmf(i), 0.0);
             }

@@ -220,14 +220,21 @@ impl Distribution2D {
     /// overflows). Callers that need a reason validate first.
     #[must_use]
     pub fn new(weights: &[f64], width: usize, height: usize) -> Option<Distribution2D> {
-        if width == 0 || height == 0 || width.checked_mul(height) != Some(weights.len()) || !valid_weights(weights) {
+        if width == 0
+            || height == 0
+            || width.checked_mul(height) != Some(weights.len())
+            || !valid_weights(weights)
+        {
             return None;
         }
-        let conditional: Vec<Distribution1D> = weights.chunks_exact(width).map(|row| Distribution1D::build(row.to_vec())).collect();
+        let conditional: Vec<Distribution1D> =
+            weights.chunks_exact(width).map(|row| Distribution1D::build(row.to_vec())).collect();
         if conditional.iter().any(|c| !c.integral.is_finite()) {
             return None;
         }
-        let marginal = Distribution1D::new(&conditional.iter().map(Distribution1D::integral).collect::<Vec<_>>())?;
+        let marginal = Distribution1D::new(
+            &conditional.iter().map(Distribution1D::integral).collect::<Vec<_>>(),
+        )?;
         Some(Distribution2D { width, height, conditional, marginal })
     }
 
@@ -394,7 +401,8 @@ mod tests {
         let (w, width, height) = grid();
         let d = Distribution2D::new(&w, width, height).unwrap();
         assert!((d.integral() - 12.5 / 20.0).abs() < 1e-15);
-        let cells: f64 = (0..height).flat_map(|j| (0..width).map(move |i| [i, j])).map(|c| d.cell_pdf(c)).sum();
+        let cells: f64 =
+            (0..height).flat_map(|j| (0..width).map(move |i| [i, j])).map(|c| d.cell_pdf(c)).sum();
         assert!((cells / (width * height) as f64 - 1.0).abs() < 1e-14);
         // midpoint rule on a grid not aligned with the cells
         let n = 997;
@@ -416,7 +424,9 @@ mod tests {
         let u1 = uniforms(4, 20_000);
         let mut us: Vec<[f64; 2]> = u0.into_iter().zip(u1).map(|(a, b)| [a, b]).collect();
         // cdf edges in both dimensions, against each other
-        for a in edge_uniforms(&d.conditional[1]).into_iter().chain(edge_uniforms(&d.conditional[2])) {
+        for a in
+            edge_uniforms(&d.conditional[1]).into_iter().chain(edge_uniforms(&d.conditional[2]))
+        {
             for b in edge_uniforms(&d.marginal) {
                 us.push([a, b]);
             }

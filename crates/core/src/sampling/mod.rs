@@ -112,7 +112,9 @@ struct SobolState {
 impl SobolState {
     fn set(&mut self, set: usize) -> &[u32; 4] {
         if self.filled & (1 << set) == 0 {
-            let seed = mix64(self.key ^ (self.block * SETS as u64 + set as u64 + 1).wrapping_mul(GOLDEN)) >> 32;
+            let seed =
+                mix64(self.key ^ (self.block * SETS as u64 + set as u64 + 1).wrapping_mul(GOLDEN))
+                    >> 32;
             self.sets[set] = sobol::sobol_4d(self.index, seed as u32);
             self.filled |= 1 << set;
         }
@@ -145,8 +147,11 @@ impl Sampler {
             SamplerKind::Random => None,
             SamplerKind::Sobol => {
                 let run = sample / sobol::SEQUENCE_LENGTH;
-                let key = mix64(mix64(mix64(seed ^ 0x2545_f491_4f6c_dd1d) ^ pixel) ^ run.wrapping_mul(GOLDEN));
-                let index = u32::try_from(sample % sobol::SEQUENCE_LENGTH).expect("invariant: below 2^16");
+                let key = mix64(
+                    mix64(mix64(seed ^ 0x2545_f491_4f6c_dd1d) ^ pixel) ^ run.wrapping_mul(GOLDEN),
+                );
+                let index =
+                    u32::try_from(sample % sobol::SEQUENCE_LENGTH).expect("invariant: below 2^16");
                 Some(SobolState { key, index, block: 0, sets: [[0; 4]; SETS], filled: 0 })
             }
         };
@@ -185,11 +190,16 @@ impl Sampler {
         if n <= 1 {
             return self.clone();
         }
-        let state = mix64(self.state ^ 0x6a09_e667_f3bc_c909 ^ u64::from(k + 1).wrapping_mul(GOLDEN));
+        let state =
+            mix64(self.state ^ 0x6a09_e667_f3bc_c909 ^ u64::from(k + 1).wrapping_mul(GOLDEN));
         let sobol = self.sobol.as_ref().map(|s| {
             let j = u64::from(s.index) * u64::from(n) + u64::from(k);
             let run = j / sobol::SEQUENCE_LENGTH;
-            let key = if run == 0 { s.key } else { mix64(s.key ^ run.wrapping_mul(GOLDEN) ^ 0xbb67_ae85_84ca_a73b) };
+            let key = if run == 0 {
+                s.key
+            } else {
+                mix64(s.key ^ run.wrapping_mul(GOLDEN) ^ 0xbb67_ae85_84ca_a73b)
+            };
             let index = u32::try_from(j % sobol::SEQUENCE_LENGTH).expect("invariant: below 2^16");
             SobolState { key, index, block: s.block, sets: [[0; 4]; SETS], filled: 0 }
         });

@@ -64,7 +64,11 @@ pub fn hg_pdf(g: f64, cos_theta: f64) -> f64 {
     }
     let c = cos_theta.clamp(-1.0, 1.0);
     // 1 + g² − 2gc as a sum of two non-negative terms (no cancellation near the peak).
-    let denom = if g >= 0.0 { (1.0 - g) * (1.0 - g) + 2.0 * g * (1.0 - c) } else { (1.0 + g) * (1.0 + g) - 2.0 * g * (1.0 + c) };
+    let denom = if g >= 0.0 {
+        (1.0 - g) * (1.0 - g) + 2.0 * g * (1.0 - c)
+    } else {
+        (1.0 + g) * (1.0 + g) - 2.0 * g * (1.0 + c)
+    };
     INV_FOUR_PI * (1.0 - g * g) / (denom * denom.sqrt())
 }
 
@@ -84,11 +88,14 @@ pub fn sample_hg(g: f64, direction: DVec3, u: [f64; 2]) -> PhaseSample {
     // Invert the cosine CDF (1/g divided out, see module docs)
     let xi = u[0];
     let a = 1.0 - g + 2.0 * g * xi;
-    let cos_theta = ((2.0 * xi * (1.0 + g * g) * (1.0 - g + g * xi) - (1.0 - g) * (1.0 - g)) / (a * a)).clamp(-1.0, 1.0);
+    let cos_theta = ((2.0 * xi * (1.0 + g * g) * (1.0 - g + g * xi) - (1.0 - g) * (1.0 - g))
+        / (a * a))
+        .clamp(-1.0, 1.0);
     let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
     let phi = 2.0 * PI * u[1];
     let (t1, t2) = orthonormal_basis(direction);
-    let new = (t1 * (sin_theta * phi.cos()) + t2 * (sin_theta * phi.sin()) + direction * cos_theta).normalize();
+    let new = (t1 * (sin_theta * phi.cos()) + t2 * (sin_theta * phi.sin()) + direction * cos_theta)
+        .normalize();
     PhaseSample { direction: new, pdf: hg_pdf(g, cos_theta), weight: 1.0 }
 }
 
@@ -113,7 +120,10 @@ pub fn orthonormal_basis(n: DVec3) -> (DVec3, DVec3) {
     let sign = 1.0f64.copysign(n.z);
     let a = -1.0 / (sign + n.z);
     let b = n.x * n.y * a;
-    (DVec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x), DVec3::new(b, sign + n.y * n.y * a, -n.y))
+    (
+        DVec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
+        DVec3::new(b, sign + n.y * n.y * a, -n.y),
+    )
 }
 
 #[cfg(test)]
@@ -124,11 +134,22 @@ mod tests {
 
     #[test]
     fn basis_is_orthonormal_for_axes_and_signed_zeros() {
-        for n in [DVec3::X, DVec3::Y, DVec3::Z, -DVec3::Z, DVec3::new(0.0, 0.0, -0.0), DVec3::new(0.6, 0.0, -0.8), DVec3::new(0.0, 1.0, -0.0)] {
+        for n in [
+            DVec3::X,
+            DVec3::Y,
+            DVec3::Z,
+            -DVec3::Z,
+            DVec3::new(0.0, 0.0, -0.0),
+            DVec3::new(0.6, 0.0, -0.8),
+            DVec3::new(0.0, 1.0, -0.0),
+        ] {
             let n = if n.length() == 0.0 { DVec3::Z } else { n };
             let (t1, t2) = orthonormal_basis(n);
             assert!((t1.length() - 1.0).abs() < 1e-15 && (t2.length() - 1.0).abs() < 1e-15, "{n}");
-            assert!(t1.dot(t2).abs() < 1e-15 && t1.dot(n).abs() < 1e-15 && t2.dot(n).abs() < 1e-15, "{n}");
+            assert!(
+                t1.dot(t2).abs() < 1e-15 && t1.dot(n).abs() < 1e-15 && t2.dot(n).abs() < 1e-15,
+                "{n}"
+            );
             assert!((t1.cross(t2) - n).length() < 1e-15, "right-handed for {n}");
         }
     }
@@ -140,12 +161,19 @@ mod tests {
             for u0 in [0.0, 1e-300, 0.5, ONE_MINUS_EPS, 1.0] {
                 for u1 in [0.0, ONE_MINUS_EPS] {
                     let s = sample_hg(g, dir, [u0, u1]);
-                    assert!(s.direction.is_finite() && (s.direction.length() - 1.0).abs() < 1e-12, "g={g} u0={u0}: {s:?}");
+                    assert!(
+                        s.direction.is_finite() && (s.direction.length() - 1.0).abs() < 1e-12,
+                        "g={g} u0={u0}: {s:?}"
+                    );
                     assert!(!s.pdf.is_nan() && s.pdf > 0.0, "g={g} u0={u0}: {s:?}");
                     assert_eq!(s.weight, 1.0);
                     if g.abs() < 1.0 {
                         let again = hg_pdf(g, s.direction.dot(dir));
-                        assert!((s.pdf - again).abs() <= 1e-6 * s.pdf, "g={g} u0={u0}: {} vs {again}", s.pdf);
+                        assert!(
+                            (s.pdf - again).abs() <= 1e-6 * s.pdf,
+                            "g={g} u0={u0}: {} vs {again}",
+                            s.pdf
+                        );
                     }
                 }
             }

@@ -13,7 +13,9 @@
 //! sequences of 2^16 points; plume gives each further run of 2^16 samples its own
 //! scramble (a fresh, independent Owen-scrambled net per run).
 
-use sobol_burley::parts::{hash, hash_int4, owen_scramble_int4_rev, owen_scramble_rev, sobol_int4_rev, Int4};
+use sobol_burley::parts::{
+    hash, hash_int4, owen_scramble_int4_rev, owen_scramble_rev, sobol_int4_rev, Int4,
+};
 
 /// Points of one scrambled sequence (`sobol_burley`'s limit).
 pub const SEQUENCE_LENGTH: u64 = 1 << 16;
@@ -28,7 +30,8 @@ pub fn sobol_4d(index: u32, seed: u32) -> [u32; 4] {
     let shuffled_rev_index = owen_scramble_rev(index.reverse_bits(), hash(seed ^ 0x79c6_8e4a));
     let sobol = sobol_int4_rev(shuffled_rev_index, 0);
     // One Owen scramble per dimension (dimension set 0: no set term)
-    let scramble: Int4 = Int4::from([seed.wrapping_mul(0x9c8f_2d3b); 4]) ^ Int4::from([0x912f_69ba, 0x174f_18ab, 0x691e_72ca, 0xb40c_c1b8]);
+    let scramble: Int4 = Int4::from([seed.wrapping_mul(0x9c8f_2d3b); 4])
+        ^ Int4::from([0x912f_69ba, 0x174f_18ab, 0x691e_72ca, 0xb40c_c1b8]);
     let scrambled_rev = owen_scramble_int4_rev(sobol, hash_int4(scramble));
     scrambled_rev.reverse_bits().into()
 }
@@ -49,8 +52,13 @@ mod tests {
     fn matches_sample_4d() {
         for seed in [0u32, 1, 0xdead_beef] {
             for index in (0..4096).chain([65_535]) {
-                let ours = sobol_4d(index, seed).map(|n| f32::from_bits((n >> 9) | 0x3f80_0000) - 1.0);
-                assert_eq!(ours, sobol_burley::sample_4d(index, 0, seed), "index {index} seed {seed}");
+                let ours =
+                    sobol_4d(index, seed).map(|n| f32::from_bits((n >> 9) | 0x3f80_0000) - 1.0);
+                assert_eq!(
+                    ours,
+                    sobol_burley::sample_4d(index, 0, seed),
+                    "index {index} seed {seed}"
+                );
             }
         }
     }

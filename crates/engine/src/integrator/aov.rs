@@ -88,11 +88,13 @@ pub const FIXED_LAYERS: [&str; 2] = ["emission", "scattered"];
 pub use plume_scene::lights::RESERVED;
 
 /// Names of the half sums' channels (`--denoise`), after the layers' channels.
-pub const HALF_CHANNELS: [&str; crate::film::HALF_CHANNEL_COUNT] = ["half.R", "half.G", "half.B", "half.A", "half.n"];
+pub const HALF_CHANNELS: [&str; crate::film::HALF_CHANNEL_COUNT] =
+    ["half.R", "half.G", "half.B", "half.A", "half.n"];
 
 /// Names of the half sums' channels when the camera emission is not filtered
 /// ([`Filtered::LessEmission`]): the colour is the beauty less that emission.
-pub const REST_HALF_CHANNELS: [&str; crate::film::HALF_CHANNEL_COUNT] = ["half.rest.R", "half.rest.G", "half.rest.B", "half.A", "half.n"];
+pub const REST_HALF_CHANNELS: [&str; crate::film::HALF_CHANNEL_COUNT] =
+    ["half.rest.R", "half.rest.G", "half.rest.B", "half.A", "half.n"];
 
 /// The AOV channels of a render: the fixed colour layers, one colour layer per light
 /// group, depth's two sums, and with `--denoise` the half sums.
@@ -138,7 +140,9 @@ impl AovLayout {
         names.push("depth.hits".into());
         match self.halves {
             Some(Filtered::Beauty) => names.extend(HALF_CHANNELS.iter().map(|c| (*c).to_string())),
-            Some(Filtered::LessEmission) => names.extend(REST_HALF_CHANNELS.iter().map(|c| (*c).to_string())),
+            Some(Filtered::LessEmission) => {
+                names.extend(REST_HALF_CHANNELS.iter().map(|c| (*c).to_string()))
+            }
             None => {}
         }
         names
@@ -150,11 +154,15 @@ impl AovLayout {
         let has_halves = names.last().is_some_and(|c| c == HALF_CHANNELS[HALF_CHANNELS.len() - 1]);
         let n = names.len() - if has_halves { HALF_CHANNELS.len().min(names.len()) } else { 0 };
         let rest = names.get(n).is_some_and(|c| c == REST_HALF_CHANNELS[0]);
-        let halves = has_halves.then_some(if rest { Filtered::LessEmission } else { Filtered::Beauty });
+        let halves =
+            has_halves.then_some(if rest { Filtered::LessEmission } else { Filtered::Beauty });
         if n < 8 || (n - 2) % 3 != 0 {
             return None;
         }
-        let groups: Vec<String> = names[6..n - 2].chunks(3).map(|c| c[0].strip_suffix(".R").unwrap_or("").to_string()).collect();
+        let groups: Vec<String> = names[6..n - 2]
+            .chunks(3)
+            .map(|c| c[0].strip_suffix(".R").unwrap_or("").to_string())
+            .collect();
         let layout = AovLayout { groups, halves };
         (layout.channel_names() == names).then_some(layout)
     }
@@ -198,7 +206,11 @@ impl AovSample {
     #[must_use]
     pub fn new(channels: usize, half: Option<(usize, Filtered)>) -> AovSample {
         let depth_at = half.map_or(channels, |(at, _)| at) - 2;
-        AovSample { values: vec![0.0; channels], depth_at, rest: half.is_some_and(|(_, f)| f == Filtered::LessEmission) }
+        AovSample {
+            values: vec![0.0; channels],
+            depth_at,
+            rest: half.is_some_and(|(_, f)| f == Filtered::LessEmission),
+        }
     }
 }
 
@@ -251,7 +263,11 @@ mod tests {
             let layout = AovLayout { groups: vec!["sun".into()], halves };
             let names = layout.channel_names();
             assert_eq!(AovLayout::from_channel_names(&names), Some(layout.clone()), "{names:?}");
-            assert_eq!(names.iter().any(|n| n == "half.rest.R"), halves == Some(Filtered::LessEmission), "{names:?}");
+            assert_eq!(
+                names.iter().any(|n| n == "half.rest.R"),
+                halves == Some(Filtered::LessEmission),
+                "{names:?}"
+            );
         }
     }
 
@@ -260,7 +276,10 @@ mod tests {
     /// beauty.
     #[test]
     fn rest_half_sums_leave_out_the_samples_emission() {
-        for (filtered, want) in [(Filtered::Beauty, [3.0, 5.0, 7.0, 0.5, 1.0]), (Filtered::LessEmission, [2.0, 3.0, 4.0, 0.5, 1.0])] {
+        for (filtered, want) in [
+            (Filtered::Beauty, [3.0, 5.0, 7.0, 0.5, 1.0]),
+            (Filtered::LessEmission, [2.0, 3.0, 4.0, 0.5, 1.0]),
+        ] {
             let layout = AovLayout { groups: vec![], halves: Some(filtered) };
             let at = layout.half_at().unwrap();
             let mut a = AovSample::new(layout.channels(), Some((at, filtered)));

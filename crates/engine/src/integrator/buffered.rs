@@ -48,8 +48,14 @@ impl Request {
     /// hundred keys: two of them agree with probability about 2⁻¹²⁰).
     pub(super) fn key(&self) -> u128 {
         let (bits, _) = self.bits();
-        let lane = |seed: u64, k: u64| mix64(bits.iter().fold(seed ^ self.ask as u64, |h, &b| (h ^ b).wrapping_mul(k).rotate_left(29)));
-        (u128::from(lane(0x243f_6a88_85a3_08d3, 0x9e37_79b9_7f4a_7c15)) << 64) | u128::from(lane(0x1319_8a2e_0370_7344, 0xc2b2_ae3d_27d4_eb4f))
+        let lane = |seed: u64, k: u64| {
+            mix64(
+                bits.iter()
+                    .fold(seed ^ self.ask as u64, |h, &b| (h ^ b).wrapping_mul(k).rotate_left(29)),
+            )
+        };
+        (u128::from(lane(0x243f_6a88_85a3_08d3, 0x9e37_79b9_7f4a_7c15)) << 64)
+            | u128::from(lane(0x1319_8a2e_0370_7344, 0xc2b2_ae3d_27d4_eb4f))
     }
 }
 
@@ -157,7 +163,11 @@ impl PointField for BufferedPoints<'_> {
     }
     fn albedo(&self, p: DVec3) -> f32 {
         match self.last.get() {
-            Some((q, albedo)) if q.to_array().map(f64::to_bits) == p.to_array().map(f64::to_bits) => albedo,
+            Some((q, albedo))
+                if q.to_array().map(f64::to_bits) == p.to_array().map(f64::to_bits) =>
+            {
+                albedo
+            }
             _ => self.answer(Request { p, ask: Ask::Albedo, u: 0.0 })[0] as f32,
         }
     }

@@ -16,10 +16,15 @@ impl Integrator {
     /// The integrator this description asks for, with another estimator and light
     /// sampling (benchmarks compare them on one scene); the tracking is resolved for them.
     #[must_use]
-    pub fn for_scene_with(scene: &SceneDescription, estimator: Estimator, light_sampling: LightSampling) -> Integrator {
+    pub fn for_scene_with(
+        scene: &SceneDescription,
+        estimator: Estimator,
+        light_sampling: LightSampling,
+    ) -> Integrator {
         // Where paths scatter the camera segment is ray-marched unless asked otherwise: its
         // emission is then exact along each ray, and its collision can be forced
-        let camera_estimator = scene.integrator.camera_estimator.map(|k| k.with_kappa(scene.integrator.kappa));
+        let camera_estimator =
+            scene.integrator.camera_estimator.map(|k| k.with_kappa(scene.integrator.kappa));
         Integrator {
             estimator,
             camera_estimator: camera_estimator.or(scene.scatters().then_some(Estimator::RayMarch)),

@@ -49,21 +49,20 @@
 
 use std::cell::{Cell, RefCell};
 
-
 use rayon::prelude::*;
 
-use super::buffered::{Answer, Answers, Ask, BufferedPoints, Request};
-use super::tracker::{PointLookup, Points};
 use super::aov::NoAovs;
-use super::path::{Bounces, PathState, Vertex};
-use super::trace::NoTrace;
+use super::buffered::{Answer, Answers, Ask, BufferedPoints, Request};
 use super::counters::Counters;
+use super::path::{Bounces, PathState, Vertex};
 use super::scene::Scene;
+use super::trace::NoTrace;
+use super::tracker::{PointLookup, Points};
 use super::volpath::Integrator;
 use crate::film::Film;
 use crate::medium::null_tracking::PointField;
-use plume_scene::SampleId;
 use plume_core::sampling::Sampler;
+use plume_scene::SampleId;
 use plume_volume::field::Field;
 
 /// Rounds of record, fill and rerun before the samples left are traced directly.
@@ -161,12 +160,36 @@ pub(crate) struct PendingSample {
 
 impl PendingSample {
     /// A sample whose camera segment gave `l` (radiance and alpha) and left `paths`.
-    pub(crate) fn new(tile: usize, index: usize, id: SampleId, integrator: Integrator, l: [f64; 4], paths: Vec<(Vertex, Sampler)>) -> Self {
+    pub(crate) fn new(
+        tile: usize,
+        index: usize,
+        id: SampleId,
+        integrator: Integrator,
+        l: [f64; 4],
+        paths: Vec<(Vertex, Sampler)>,
+    ) -> Self {
         let paths = paths
             .into_iter()
-            .map(|(vertex, sampler)| PendingPath { vertex, sampler, partial: None, answers: Answers::default(), missing: Vec::new() })
+            .map(|(vertex, sampler)| PendingPath {
+                vertex,
+                sampler,
+                partial: None,
+                answers: Answers::default(),
+                missing: Vec::new(),
+            })
             .collect();
-        PendingSample { tile, index, id, integrator, l: [l[0], l[1], l[2]], alpha: l[3], paths, next: 0, stale: true, direct: false }
+        PendingSample {
+            tile,
+            index,
+            id,
+            integrator,
+            l: [l[0], l[1], l[2]],
+            alpha: l[3],
+            paths,
+            next: 0,
+            stale: true,
+            direct: false,
+        }
     }
 
     fn done(&self) -> bool {
@@ -196,7 +219,19 @@ impl PendingSample {
             // Only the first path not committed can have run from a later collision
             let (mut l, mut c) = path.partial.unwrap_or((self.l, Counters::default()));
             let mut resume = Resume { points: &buffered, enabled: in_order, last: None };
-            self.integrator.deferred_path(scene, &buffered, path.vertex, PathState { sampler: &mut sampler, counters: &mut c, trace: &mut NoTrace, aovs: &mut NoAovs }, &mut resume, &mut l);
+            self.integrator.deferred_path(
+                scene,
+                &buffered,
+                path.vertex,
+                PathState {
+                    sampler: &mut sampler,
+                    counters: &mut c,
+                    trace: &mut NoTrace,
+                    aovs: &mut NoAovs,
+                },
+                &mut resume,
+                &mut l,
+            );
             let resume = resume.last;
             if buffered.gave_up.get() {
                 // Traced directly at the end: nothing of it is asked for or kept
@@ -213,7 +248,8 @@ impl PendingSample {
                 path.answers = Answers::default();
                 path.missing = Vec::new();
             } else {
-                let (used, mut missing) = (buffered.used.into_inner(), buffered.missing.into_inner());
+                let (used, mut missing) =
+                    (buffered.used.into_inner(), buffered.missing.into_inner());
                 if let Some((vertex, sampler, l, c)) = resume {
                     // The next run starts at the last collision this one walked to, with
                     // the values read after it
@@ -241,7 +277,17 @@ impl PendingSample {
                 self.l = l;
                 counters.merge(&c);
             }
-            self.integrator.direct_path(scene, path.vertex, PathState { sampler: &mut sampler, counters: &mut counters, trace: &mut NoTrace, aovs: &mut NoAovs }, &mut self.l);
+            self.integrator.direct_path(
+                scene,
+                path.vertex,
+                PathState {
+                    sampler: &mut sampler,
+                    counters: &mut counters,
+                    trace: &mut NoTrace,
+                    aovs: &mut NoAovs,
+                },
+                &mut self.l,
+            );
         }
         self.next = self.paths.len();
         counters
@@ -290,7 +336,9 @@ pub(crate) fn finish<F: Field>(
     abandon: &(dyn Fn() -> bool + Sync),
 ) -> Option<Counters> {
     let mut counters = Counters { deferred_samples: pending.len() as u64, ..Counters::default() };
-    let most = memory.map_or(usize::MAX, |m| usize::try_from(m / BYTES_PER_LOOKUP).unwrap_or(usize::MAX).max(1 << 16));
+    let most = memory.map_or(usize::MAX, |m| {
+        usize::try_from(m / BYTES_PER_LOOKUP).unwrap_or(usize::MAX).max(1 << 16)
+    });
     let mut buffers = fill::FillBuffers::default();
     for round in 0..MAX_ROUNDS {
         if abandon() {
@@ -317,7 +365,10 @@ pub(crate) fn finish<F: Field>(
             start = end;
         }
         counters.deferred_rounds += 1;
-        if round == 0 && start > 0 && recorded.saturating_mul(pending.len()) / start > MAX_PASSES.saturating_mul(most) {
+        if round == 0
+            && start > 0
+            && recorded.saturating_mul(pending.len()) / start > MAX_PASSES.saturating_mul(most)
+        {
             // The first segments alone would take more fills than random reads cost:
             // every path is traced directly
             break;
@@ -336,7 +387,8 @@ pub(crate) fn finish<F: Field>(
         counters.deferred_lookups += n;
     }
     counters.deferred_direct = pending.len() as u64;
-    let direct: Vec<Counters> = pool.install(|| pending.par_iter_mut().map(|s| s.trace_direct(scene)).collect());
+    let direct: Vec<Counters> =
+        pool.install(|| pending.par_iter_mut().map(|s| s.trace_direct(scene)).collect());
     direct.iter().for_each(|c| counters.merge(c));
     for s in &pending {
         s.add_to(film, &mut counters);

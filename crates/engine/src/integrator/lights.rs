@@ -5,9 +5,9 @@
 //! The estimators that use them are in `integrator::volpath` (its module docs give the
 //! weights).
 
-pub use plume_scene::sets::{LightSampling, MisHeuristic};
 use crate::light::external::ExternalLights;
 use crate::light::nee::EmitterDistribution;
+pub use plume_scene::sets::{LightSampling, MisHeuristic};
 use plume_scene::NeeTable;
 use plume_volume::proxy::ProxyGrid;
 
@@ -51,10 +51,18 @@ impl Lights {
     ) -> plume_core::error::Result<Lights> {
         Ok(match light_sampling {
             LightSampling::None => Lights::default(),
-            LightSampling::Nee => {
-                Lights { nee: EmitterDistribution::build_as(volume, crate::light::power::LightPower::new(emission), nee_table)?, ..Lights::default() }
-            }
-            LightSampling::Fnee => Lights { proxy: ProxyGrid::build(volume, proxy_resolution, light_power(emission))?, ..Lights::default() },
+            LightSampling::Nee => Lights {
+                nee: EmitterDistribution::build_as(
+                    volume,
+                    crate::light::power::LightPower::new(emission),
+                    nee_table,
+                )?,
+                ..Lights::default()
+            },
+            LightSampling::Fnee => Lights {
+                proxy: ProxyGrid::build(volume, proxy_resolution, light_power(emission))?,
+                ..Lights::default()
+            },
         })
     }
 }

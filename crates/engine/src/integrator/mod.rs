@@ -19,14 +19,13 @@ pub mod trace;
 pub mod tracker;
 pub mod volpath;
 
-
 pub use aov::{AovLayout, AovSample, Aovs, Component, NoAovs};
-pub use lights::{light_power, LightSampling, Lights, MisHeuristic};
-pub use split_map::{SplitBy, SplitMap};
-pub use tracker::{PointLookup, Tracking};
-pub use volpath::Integrator;
 pub use buffered::BufferedPoints;
 pub use counters::Counters;
+pub use lights::{light_power, LightSampling, Lights, MisHeuristic};
 pub use path::PathState;
 pub use scene::{AnyScene, Scene};
+pub use split_map::{SplitBy, SplitMap};
 pub use trace::{LineTrace, NoTrace, Trace};
+pub use tracker::{PointLookup, Tracking};
+pub use volpath::Integrator;

@@ -27,7 +27,12 @@ pub struct PathState<'a, T: Trace, A: Aovs> {
 impl<'a, T: Trace, A: Aovs> PathState<'a, T, A> {
     /// The same sinks with another sampler (a split path's).
     pub fn with_sampler<'b>(&'b mut self, sampler: &'b mut Sampler) -> PathState<'b, T, A> {
-        PathState { sampler, counters: &mut *self.counters, trace: &mut *self.trace, aovs: &mut *self.aovs }
+        PathState {
+            sampler,
+            counters: &mut *self.counters,
+            trace: &mut *self.trace,
+            aovs: &mut *self.aovs,
+        }
     }
 }
 
@@ -79,7 +84,13 @@ impl Bounces for NoBounces {
 
 /// Add `w · e` to the radiance and to its AOV component.
 #[inline]
-pub(super) fn contribute<A: Aovs>(l: &mut [f64; 3], aovs: &mut A, component: Component, w: f64, e: [f64; 3]) {
+pub(super) fn contribute<A: Aovs>(
+    l: &mut [f64; 3],
+    aovs: &mut A,
+    component: Component,
+    w: f64,
+    e: [f64; 3],
+) {
     if w != 0.0 {
         for (a, v) in l.iter_mut().zip(e) {
             *a += w * v;

@@ -44,10 +44,16 @@ impl Integrator {
     ) {
         let m = &scene.medium;
         let external = scene.lights.external.as_ref();
-        let point_nee = self.light_sampling == LightSampling::Nee && self.estimator == Estimator::Point;
+        let point_nee =
+            self.light_sampling == LightSampling::Nee && self.estimator == Estimator::Point;
         let Vertex { incoming: mut ray, mut t, mut albedo, mut beta, scale, mut depth } = vertex;
         loop {
-            bounces.at(Vertex { incoming: ray, t, albedo, beta, scale, depth }, state.sampler, l, state.counters);
+            bounces.at(
+                Vertex { incoming: ray, t, albedo, beta, scale, depth },
+                state.sampler,
+                l,
+                state.counters,
+            );
             state.counters.collisions += 1;
             depth += 1;
             // Scattering albedo of the collision's own segment (METHOD §10.3)
@@ -123,7 +129,9 @@ impl Integrator {
             ForwardWeight::One => 1.0,
             ForwardWeight::Zero => 0.0,
             ForwardWeight::Fnee { p_phase } if has_emission => {
-                lights.proxy.as_ref().map_or(1.0, |p| self.mis.weight(p_phase, p.direction_pdf(ray.origin, ray.direction)))
+                lights.proxy.as_ref().map_or(1.0, |p| {
+                    self.mis.weight(p_phase, p.direction_pdf(ray.origin, ray.direction))
+                })
             }
             ForwardWeight::Fnee { .. } => 0.0,
         };
@@ -146,7 +154,9 @@ impl Integrator {
             let weight = beta * r.transmittance;
             e.arriving(&ray, hit.map(|(_, i)| i), Some(p_phase), self.mis, |i, w, radiance| {
                 contribute(l, state.aovs, Component::Light(e.group(i)), weight * w, radiance);
-                state.trace.event(|| format!("  reaches light {i}: L {radiance:?}, w {w}, tau {}", r.transmittance));
+                state.trace.event(|| {
+                    format!("  reaches light {i}: L {radiance:?}, w {w}, tau {}", r.transmittance)
+                });
             });
         }
         match r.event {
@@ -178,7 +188,15 @@ impl Integrator {
                 let Some(wi) = proxy.sample_direction_only(x, u_cell, u_pos) else { return };
                 c.fnee_samples += 1;
                 let u2 = sampler.get_1d(Dim::FreePath);
-                let rl = tracker.track(m, &Ray { origin: x, direction: wi }, f64::INFINITY, self.estimator, Collision::Skip, u2, sampler);
+                let rl = tracker.track(
+                    m,
+                    &Ray { origin: x, direction: wi },
+                    f64::INFINITY,
+                    self.estimator,
+                    Collision::Skip,
+                    u2,
+                    sampler,
+                );
                 c.segments += u64::from(rl.segments);
                 c.voxel_steps += rl.voxel_steps;
                 // p_σ only when the free path collected emission
@@ -187,8 +205,19 @@ impl Integrator {
                     if p_sigma > 0.0 {
                         let f = hg_pdf(m.g, incoming.dot(wi));
                         let w_l = self.mis.weight(p_sigma, f);
-                        contribute(l, state.aovs, Component::Scattered, beta * f * w_l / p_sigma, rl.emission);
-                        state.trace.event(|| format!("  fnee: dir {wi:?} p_sigma {p_sigma} f {f} w {w_l} F {:?}", rl.emission));
+                        contribute(
+                            l,
+                            state.aovs,
+                            Component::Scattered,
+                            beta * f * w_l / p_sigma,
+                            rl.emission,
+                        );
+                        state.trace.event(|| {
+                            format!(
+                                "  fnee: dir {wi:?} p_sigma {p_sigma} f {f} w {w_l} F {:?}",
+                                rl.emission
+                            )
+                        });
                     }
                 }
             }
@@ -205,16 +234,33 @@ impl Integrator {
                     let dist = r2.sqrt();
                     let wi = d / dist;
                     // (Classic NEE is refused with motion blur: its table is the frame's)
-                    let (tau, n) = tracker.transmittance(m, &Ray { origin: x, direction: wi }, dist, sampler);
+                    let (tau, n) =
+                        tracker.transmittance(m, &Ray { origin: x, direction: wi }, dist, sampler);
                     c.voxel_steps += n;
                     if tau > 0.0 {
                         // L_e and ρ at y as the field reconstructs them (the table's
                         // pdf follows the same reconstruction: light/nee.rs)
-                        let PointValues { density: dy, emission: le, .. } = emission_at_point(&scene.field, m, vs.p_world);
+                        let PointValues { density: dy, emission: le, .. } =
+                            emission_at_point(&scene.field, m, vs.p_world);
                         let f = hg_pdf(m.g, incoming.dot(wi));
-                        let w_l = if point_nee { self.mis.weight(vs.pdf, f * m.mu_t(dy) * tau / r2) } else { 1.0 };
-                        contribute(l, state.aovs, Component::Scattered, beta * f * tau * w_l / (vs.pdf * r2), le);
-                        state.trace.event(|| format!("  nee: y {:?} p_V {} tau {tau} f {f} w {w_l} L_e {le:?}", vs.p_world, vs.pdf));
+                        let w_l = if point_nee {
+                            self.mis.weight(vs.pdf, f * m.mu_t(dy) * tau / r2)
+                        } else {
+                            1.0
+                        };
+                        contribute(
+                            l,
+                            state.aovs,
+                            Component::Scattered,
+                            beta * f * tau * w_l / (vs.pdf * r2),
+                            le,
+                        );
+                        state.trace.event(|| {
+                            format!(
+                                "  nee: y {:?} p_V {} tau {tau} f {f} w {w_l} L_e {le:?}",
+                                vs.p_world, vs.pdf
+                            )
+                        });
                     }
                 }
             }
@@ -237,14 +283,27 @@ impl Integrator {
         let ScatterPoint { x, incoming, beta } = at;
         let u_choice = state.sampler.get_1d(Dim::ExternalLightChoice);
         let u = state.sampler.get_2d(Dim::ExternalLightDirection);
-        let Some(ChosenLight { index, pmf, sample: s }) = lights.sample(x, u_choice, u) else { return };
+        let Some(ChosenLight { index, pmf, sample: s }) = lights.sample(x, u_choice, u) else {
+            return;
+        };
         state.counters.external_light_samples += 1;
         let f = hg_pdf(m.g, incoming.dot(s.direction));
-        let (tau, n) = tracker.transmittance(m, &Ray { origin: x, direction: s.direction }, s.distance, state.sampler);
+        let (tau, n) = tracker.transmittance(
+            m,
+            &Ray { origin: x, direction: s.direction },
+            s.distance,
+            state.sampler,
+        );
         state.counters.voxel_steps += n;
         if tau > 0.0 {
             let w = if s.pdf > 0.0 { self.mis.weight(pmf * s.pdf, f) } else { 1.0 };
-            contribute(l, state.aovs, Component::Light(lights.group(index)), beta * f * tau * w / pmf, s.value);
+            contribute(
+                l,
+                state.aovs,
+                Component::Light(lights.group(index)),
+                beta * f * tau * w / pmf,
+                s.value,
+            );
             state.trace.event(|| {
                 format!("  light {index}: dir {:?} dist {} pmf {pmf} pdf {} tau {tau} f {f} w {w} L/p {:?}", s.direction, s.distance, s.pdf, s.value)
             });

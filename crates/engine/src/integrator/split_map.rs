@@ -46,8 +46,8 @@
 //! This module is the map's data and rule; the pilot render itself is
 //! [`crate::pilot::split_map`].
 
-pub use plume_scene::sets::SplitBy;
 use super::volpath::Integrator;
+pub use plume_scene::sets::SplitBy;
 
 /// Pixels per block side: the pilot renders one pixel per `BLOCK × BLOCK` block.
 pub const BLOCK: u32 = 8;
@@ -91,7 +91,10 @@ impl SplitMap {
     /// The pixel the pilot renders for block `(bx, by)`: the block's centre, inside the image.
     #[must_use]
     pub fn pilot_pixel(bx: u32, by: u32, width: u32, height: u32) -> (u32, u32) {
-        ((bx * BLOCK + BLOCK / 2).min(width.saturating_sub(1)), (by * BLOCK + BLOCK / 2).min(height.saturating_sub(1)))
+        (
+            (bx * BLOCK + BLOCK / 2).min(width.saturating_sub(1)),
+            (by * BLOCK + BLOCK / 2).min(height.saturating_sub(1)),
+        )
     }
 
     /// The map from the pilot's blocks (`cols` per row, row-major) for a mean count of
@@ -103,7 +106,10 @@ impl SplitMap {
     #[must_use]
     pub fn from_pilot(cols: u32, pilot: &[PilotBlock], split: u32) -> Option<SplitMap> {
         let w = cols as usize;
-        assert!(w > 0 && !pilot.is_empty() && pilot.len() % w == 0, "invariant: whole rows of pilot blocks");
+        assert!(
+            w > 0 && !pilot.is_empty() && pilot.len() % w == 0,
+            "invariant: whole rows of pilot blocks"
+        );
         if split <= 1 {
             return None;
         }
@@ -115,14 +121,22 @@ impl SplitMap {
                 let mut sum = 0.0;
                 for dy in -1..=1 {
                     for dx in -1..=1 {
-                        let (nx, ny) = ((x + dx).clamp(0, w as isize - 1) as usize, (y + dy).clamp(0, h as isize - 1) as usize);
+                        let (nx, ny) = (
+                            (x + dx).clamp(0, w as isize - 1) as usize,
+                            (y + dy).clamp(0, h as isize - 1) as usize,
+                        );
                         sum += pilot[ny * w + nx].scattered.max(0.0);
                     }
                 }
                 (sum / 9.0).sqrt()
             })
             .collect();
-        let covered: Vec<f64> = root.iter().zip(pilot).filter(|(_, b)| b.alpha > COVERED_ALPHA).map(|(r, _)| *r).collect();
+        let covered: Vec<f64> = root
+            .iter()
+            .zip(pilot)
+            .filter(|(_, b)| b.alpha > COVERED_ALPHA)
+            .map(|(r, _)| *r)
+            .collect();
         let mean = covered.iter().sum::<f64>() / covered.len().max(1) as f64;
         if covered.is_empty() || !(mean > 0.0 && mean.is_finite()) {
             return None;
@@ -151,7 +165,12 @@ impl SplitMap {
 /// when splitting by brightness ([`crate::pilot::split_map`]), else `integrator` itself.
 #[must_use]
 #[inline]
-pub fn pixel_integrator(integrator: &Integrator, split_map: Option<&SplitMap>, x: u32, y: u32) -> Integrator {
+pub fn pixel_integrator(
+    integrator: &Integrator,
+    split_map: Option<&SplitMap>,
+    x: u32,
+    y: u32,
+) -> Integrator {
     split_map.map_or(*integrator, |m| Integrator { split: m.paths(x, y), ..*integrator })
 }
 
@@ -168,8 +187,11 @@ mod tests {
         // A 6×4 pilot, all covered: scattered light 1 on the left half, 16 on the right,
         // so the 3×3 means differ from the blocks' own values only at the seam
         let (w, h) = (6usize, 4usize);
-        let pilot: Vec<PilotBlock> = (0..w * h).map(|i| if i % w < 3 { block(1.0, 0.9) } else { block(16.0, 0.9) }).collect();
-        let map = SplitMap::from_pilot(w as u32, &pilot, 8).expect("a covered, lit pilot gives a map");
+        let pilot: Vec<PilotBlock> = (0..w * h)
+            .map(|i| if i % w < 3 { block(1.0, 0.9) } else { block(16.0, 0.9) })
+            .collect();
+        let map =
+            SplitMap::from_pilot(w as u32, &pilot, 8).expect("a covered, lit pilot gives a map");
         let counts = map.counts();
         // Far from the seam: √1 = 1 and √16 = 4 against a mean of √ over all blocks
         let roots: Vec<f64> = (0..w * h)

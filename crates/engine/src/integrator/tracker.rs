@@ -17,7 +17,6 @@
 //! they only sum optical depth, and an exact `τ` adds no noise to the light it carries.
 //! A moving volume is tracked by null collisions everywhere (no closed form exists).
 
-pub use plume_scene::sets::{PointLookup, Tracking};
 use super::buffered::{Ask, BufferedPoints, Request};
 use crate::medium::emission::EmissionMemo;
 use crate::medium::forced::SplitFirsts;
@@ -25,6 +24,7 @@ use crate::medium::null_tracking::{null_track, ratio_transmittance, PointField, 
 use crate::medium::tracking::{optical_depth, track_split, OpticalDepth};
 use crate::medium::{track, Collision, Estimator, Medium, TrackResult};
 use plume_core::sampling::Sampler;
+pub use plume_scene::sets::{PointLookup, Tracking};
 use plume_volume::field::{Field, Ray};
 use plume_volume::majorant::MajorantGrid;
 use plume_volume::motion::Motion;
@@ -88,9 +88,15 @@ pub(super) struct Points<'a, F: Field> {
 }
 
 impl<'a, F: Field> Points<'a, F> {
-    pub(super) fn new(field: &'a F, medium: &'a Medium, motion: Option<(&'a Motion, f64)>, lookup: PointLookup) -> Self {
+    pub(super) fn new(
+        field: &'a F,
+        medium: &'a Medium,
+        motion: Option<(&'a Motion, f64)>,
+        lookup: PointLookup,
+    ) -> Self {
         let fewer = field.picks_fewer();
-        let (picks, picks_emission) = (fewer && lookup.picks_density(), fewer && lookup.picks_emission());
+        let (picks, picks_emission) =
+            (fewer && lookup.picks_density(), fewer && lookup.picks_emission());
         Points { field, motion, memo: EmissionMemo::new(&medium.emission), picks, picks_emission }
     }
 
@@ -301,7 +307,9 @@ impl<F: Field> Tracker<'_, F> {
         split: SplitFirsts<'_>,
     ) -> TrackResult {
         match *self {
-            Tracker::Regular(field) => track_split(field, medium, ray, t_max, estimator, collision, u, sampler, split),
+            Tracker::Regular(field) => {
+                track_split(field, medium, ray, t_max, estimator, collision, u, sampler, split)
+            }
             _ => self.track(medium, ray, t_max, estimator, collision, u, sampler),
         }
     }
@@ -311,22 +319,64 @@ impl<F: Field> Tracker<'_, F> {
     // Each argument is a distinct input of the walk (randomness stays an argument: STYLE §3)
     #[allow(clippy::too_many_arguments)]
     #[inline]
-    pub fn track(&self, medium: &Medium, ray: &Ray, t_max: f64, estimator: Estimator, collision: Collision, u: f64, sampler: &mut Sampler) -> TrackResult {
+    pub fn track(
+        &self,
+        medium: &Medium,
+        ray: &Ray,
+        t_max: f64,
+        estimator: Estimator,
+        collision: Collision,
+        u: f64,
+        sampler: &mut Sampler,
+    ) -> TrackResult {
         // Null collisions draw every collision as the analog one (`medium::forced`)
         let need_collision = collision.needed();
         match *self {
-            Tracker::Regular(field) => track(field, medium, ray, t_max, estimator, collision, u, sampler),
+            Tracker::Regular(field) => {
+                track(field, medium, ray, t_max, estimator, collision, u, sampler)
+            }
             Tracker::Null { field, majorants, lookup } => {
                 let points = Points::new(field, medium, None, lookup);
                 if let Some(volume) = field.voxels().filter(|v| v.reading_ahead()) {
                     let recorder = Recorder::mirroring(&points, MAX_READ_AHEAD_POINTS);
-                    null_track(majorants, &recorder, medium, ray, t_max, estimator, need_collision, u, &mut sampler.clone());
-                    let points: Vec<glam::DVec3> = recorder.into_requests().iter().map(|r| r.p).collect();
+                    null_track(
+                        majorants,
+                        &recorder,
+                        medium,
+                        ray,
+                        t_max,
+                        estimator,
+                        need_collision,
+                        u,
+                        &mut sampler.clone(),
+                    );
+                    let points: Vec<glam::DVec3> =
+                        recorder.into_requests().iter().map(|r| r.p).collect();
                     volume.read_ahead_points(&points);
                 }
-                null_track(majorants, &points, medium, ray, t_max, estimator, need_collision, u, sampler)
+                null_track(
+                    majorants,
+                    &points,
+                    medium,
+                    ray,
+                    t_max,
+                    estimator,
+                    need_collision,
+                    u,
+                    sampler,
+                )
             }
-            Tracker::Deferred { majorants, points } => track_deferred(majorants, points, medium, ray, t_max, estimator, need_collision, u, sampler),
+            Tracker::Deferred { majorants, points } => track_deferred(
+                majorants,
+                points,
+                medium,
+                ray,
+                t_max,
+                estimator,
+                need_collision,
+                u,
+                sampler,
+            ),
             Tracker::Moving { field, motion, time, lookup } => null_track(
                 &motion.majorants,
                 &Points::new(field, medium, Some((motion, time)), lookup),
@@ -345,7 +395,13 @@ impl<F: Field> Tracker<'_, F> {
     /// still volume (regular tracking, stopped once the optical depth passes 745, where
     /// `e^{−OD}` is 0), ratio tracking's unbiased estimate in a moving one.
     #[inline]
-    pub fn transmittance(&self, medium: &Medium, ray: &Ray, t_max: f64, sampler: &mut Sampler) -> (f64, u64) {
+    pub fn transmittance(
+        &self,
+        medium: &Medium,
+        ray: &Ray,
+        t_max: f64,
+        sampler: &mut Sampler,
+    ) -> (f64, u64) {
         match *self {
             // A still volume's shadow rays stay exact under null collisions too: they only
             // sum optical depth (no emission cubics), and an exact τ adds no noise to the
@@ -354,7 +410,8 @@ impl<F: Field> Tracker<'_, F> {
                 if let Some(volume) = field.voxels().filter(|v| v.reading_ahead()) {
                     volume.read_ahead_ray(ray, t_max);
                 }
-                let OpticalDepth { optical_depth: od, voxel_steps } = optical_depth(field, medium, ray, t_max, 745.0);
+                let OpticalDepth { optical_depth: od, voxel_steps } =
+                    optical_depth(field, medium, ray, t_max, 745.0);
                 ((-od).exp(), voxel_steps)
             }
             Tracker::Deferred { points, .. } => {
@@ -363,9 +420,17 @@ impl<F: Field> Tracker<'_, F> {
                 points.give_up();
                 (0.0, 0)
             }
-            Tracker::Moving { field, motion, time, lookup } => {
-                (ratio_transmittance(&motion.majorants, &Points::new(field, medium, Some((motion, time)), lookup), medium, ray, t_max, sampler), 0)
-            }
+            Tracker::Moving { field, motion, time, lookup } => (
+                ratio_transmittance(
+                    &motion.majorants,
+                    &Points::new(field, medium, Some((motion, time)), lookup),
+                    medium,
+                    ray,
+                    t_max,
+                    sampler,
+                ),
+                0,
+            ),
         }
     }
 }

@@ -67,13 +67,13 @@
 
 use super::aov::{Aovs, Component, NoAovs};
 use super::buffered::BufferedPoints;
-use plume_scene::{LightSampling, MisHeuristic};
-use plume_scene::SplitBy;
 use super::tracker::Tracker;
-use plume_scene::{PointLookup, Tracking};
 use crate::medium::forced::SplitFirsts;
 use crate::medium::{Collision, DistanceSample, Estimator};
 use plume_core::sampling::{Dim, Sampler};
+use plume_scene::SplitBy;
+use plume_scene::{LightSampling, MisHeuristic};
+use plume_scene::{PointLookup, Tracking};
 use plume_volume::field::{Field, Ray};
 
 use super::counters::Counters;
@@ -161,14 +161,32 @@ impl Integrator {
     }
 
     /// Radiance `[r, g, b]` and alpha along a camera ray.
-    pub fn li<F: Field, T: Trace>(&self, scene: &Scene<F>, camera_ray: &Ray, sampler: &mut Sampler, c: &mut Counters, trace: &mut T) -> [f64; 4] {
-        self.li_aovs(scene, camera_ray, None, PathState { sampler, counters: c, trace, aovs: &mut NoAovs })
+    pub fn li<F: Field, T: Trace>(
+        &self,
+        scene: &Scene<F>,
+        camera_ray: &Ray,
+        sampler: &mut Sampler,
+        c: &mut Counters,
+        trace: &mut T,
+    ) -> [f64; 4] {
+        self.li_aovs(
+            scene,
+            camera_ray,
+            None,
+            PathState { sampler, counters: c, trace, aovs: &mut NoAovs },
+        )
     }
 
     /// [`Integrator::li`] at shutter time `time` (seconds; drawn here when the scene moves
     /// and it is `None`), also handing every contribution to `aovs` by its component
     /// (`integrator::aov`). With `None` and [`NoAovs`] this is `li`.
-    pub fn li_aovs<F: Field, T: Trace, A: Aovs>(&self, scene: &Scene<F>, camera_ray: &Ray, time: Option<f64>, state: PathState<'_, T, A>) -> [f64; 4] {
+    pub fn li_aovs<F: Field, T: Trace, A: Aovs>(
+        &self,
+        scene: &Scene<F>,
+        camera_ray: &Ray,
+        time: Option<f64>,
+        state: PathState<'_, T, A>,
+    ) -> [f64; 4] {
         self.li_camera(scene, camera_ray, time, state, None)
     }
 
@@ -194,7 +212,10 @@ impl Integrator {
     #[must_use]
     pub(crate) fn defers<F: Field>(&self, scene: &Scene<F>) -> bool {
         let scatters = scene.medium.albedo > 0.0 && self.max_depth > 0;
-        let null_after = matches!(self.still_tracker(scene, self.tracking.null_after_scattering(), self.point_lookup), Tracker::Null { .. });
+        let null_after = matches!(
+            self.still_tracker(scene, self.tracking.null_after_scattering(), self.point_lookup),
+            Tracker::Null { .. }
+        );
         scatters
             && null_after
             && scene.motion.is_none()
@@ -224,9 +245,16 @@ impl Integrator {
     }
 
     /// A deferred path traced directly, reading the volume as [`Integrator::li`] would.
-    pub(crate) fn direct_path<F: Field>(&self, scene: &Scene<F>, vertex: Vertex, mut state: PathState<'_, NoTrace, NoAovs>, l: &mut [f64; 3]) {
+    pub(crate) fn direct_path<F: Field>(
+        &self,
+        scene: &Scene<F>,
+        vertex: Vertex,
+        mut state: PathState<'_, NoTrace, NoAovs>,
+        l: &mut [f64; 3],
+    ) {
         // Deferred paths are of a still volume (`defers`)
-        let tracker = self.still_tracker(scene, self.tracking.null_after_scattering(), self.point_lookup);
+        let tracker =
+            self.still_tracker(scene, self.tracking.null_after_scattering(), self.point_lookup);
         self.scattered_path(scene, &tracker, vertex, &mut state, &mut NoBounces, l);
     }
 
@@ -263,7 +291,16 @@ impl Integrator {
         let paths = if scatters { self.split.max(1) } else { 1 };
         let mut firsts = Vec::new();
         let r = if paths > 1 {
-            camera.track_split(m, camera_ray, t_max, self.camera_estimator(), collision, u, state.sampler, SplitFirsts { paths, firsts: &mut firsts })
+            camera.track_split(
+                m,
+                camera_ray,
+                t_max,
+                self.camera_estimator(),
+                collision,
+                u,
+                state.sampler,
+                SplitFirsts { paths, firsts: &mut firsts },
+            )
         } else {
             camera.track(m, camera_ray, t_max, self.camera_estimator(), collision, u, state.sampler)
         };
@@ -283,8 +320,16 @@ impl Integrator {
         if let Some(e) = external.filter(|e| r.transmittance != 0.0 && e.reachable()) {
             // The lights this segment reaches (no light sampling partner on camera rays)
             e.arriving(camera_ray, hit.map(|(_, i)| i), None, self.mis, |i, w, radiance| {
-                contribute(&mut l, state.aovs, Component::Light(e.group(i)), r.transmittance * w, radiance);
-                state.trace.event(|| format!("  reaches light {i}: L {radiance:?}, w {w}, tau {}", r.transmittance));
+                contribute(
+                    &mut l,
+                    state.aovs,
+                    Component::Light(e.group(i)),
+                    r.transmittance * w,
+                    radiance,
+                );
+                state.trace.event(|| {
+                    format!("  reaches light {i}: L {radiance:?}, w {w}, tau {}", r.transmittance)
+                });
             });
         }
         if let (true, DistanceSample::Collided { t, albedo, .. }) = (scatters, r.event) {
@@ -295,7 +340,14 @@ impl Integrator {
             let scale = 1.0 / f64::from(n);
             // A forced collision carries its weight W/q (`medium::forced`); roulette still
             // compares β with `scale`, so a light one is played for at its first vertex
-            let vertex = Vertex { incoming: *camera_ray, t, albedo, beta: scale * r.collision_weight, scale, depth: 0 };
+            let vertex = Vertex {
+                incoming: *camera_ray,
+                t,
+                albedo,
+                beta: scale * r.collision_weight,
+                scale,
+                depth: 0,
+            };
             for k in 0..n {
                 if n > 1 {
                     state.trace.event(|| format!("split path {} of {n}", k + 1));
@@ -313,7 +365,14 @@ impl Integrator {
                     paths.push((vertex, path_sampler));
                     continue;
                 }
-                self.scattered_path(scene, &tracker, vertex, &mut state.with_sampler(&mut path_sampler), &mut NoBounces, &mut l);
+                self.scattered_path(
+                    scene,
+                    &tracker,
+                    vertex,
+                    &mut state.with_sampler(&mut path_sampler),
+                    &mut NoBounces,
+                    &mut l,
+                );
             }
         }
         state.trace.event(|| format!("result L {l:?} alpha {alpha}"));
@@ -324,7 +383,12 @@ impl Integrator {
     /// a scattering event (`integrator::tracker`). Null collisions need the scene's
     /// majorants and an estimator they serve ([`Tracking::applies`]); without either,
     /// segments track regularly.
-    fn trackers<'s, F: Field>(&self, scene: &'s Scene<F>, time: Option<f64>, sampler: &mut Sampler) -> (Tracker<'s, F>, Tracker<'s, F>) {
+    fn trackers<'s, F: Field>(
+        &self,
+        scene: &'s Scene<F>,
+        time: Option<f64>,
+        sampler: &mut Sampler,
+    ) -> (Tracker<'s, F>, Tracker<'s, F>) {
         if let Some(motion) = &scene.motion {
             // Null collisions at this sample's shutter time
             let time = time.unwrap_or_else(|| motion.time(sampler.get_1d(Dim::Time)));
@@ -332,7 +396,8 @@ impl Integrator {
             return (t(self.point_lookup.on_camera()), t(self.point_lookup));
         }
         // The camera segment's own estimator must be one null collisions serve, too
-        let camera_null = self.tracking.null_on_camera() && Tracking::applies(self.camera_estimator(), self.light_sampling);
+        let camera_null = self.tracking.null_on_camera()
+            && Tracking::applies(self.camera_estimator(), self.light_sampling);
         (
             self.still_tracker(scene, camera_null, self.point_lookup.on_camera()),
             self.still_tracker(scene, self.tracking.null_after_scattering(), self.point_lookup),
@@ -342,9 +407,18 @@ impl Integrator {
     /// The tracker of a still volume's segments: null collisions where `use_null`, the
     /// estimator and light sampling let them serve and the scene has majorants; regular
     /// tracking otherwise.
-    fn still_tracker<'s, F: Field>(&self, scene: &'s Scene<F>, use_null: bool, lookup: PointLookup) -> Tracker<'s, F> {
+    fn still_tracker<'s, F: Field>(
+        &self,
+        scene: &'s Scene<F>,
+        use_null: bool,
+        lookup: PointLookup,
+    ) -> Tracker<'s, F> {
         match &scene.majorants {
-            Some(majorants) if use_null && Tracking::applies(self.estimator, self.light_sampling) => Tracker::Null { field: &scene.field, majorants, lookup },
+            Some(majorants)
+                if use_null && Tracking::applies(self.estimator, self.light_sampling) =>
+            {
+                Tracker::Null { field: &scene.field, majorants, lookup }
+            }
             _ => Tracker::Regular(&scene.field),
         }
     }

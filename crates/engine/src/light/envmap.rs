@@ -131,7 +131,8 @@ impl EnvironmentMap {
         use exr::prelude::*;
         // the prelude's glob brings exr's own `Error`; this one wins over it
         use plume_core::error::Error;
-        let file = std::fs::File::open(path).map_err(|source| Error::Open { path: path.to_path_buf(), source })?;
+        let file = std::fs::File::open(path)
+            .map_err(|source| Error::Open { path: path.to_path_buf(), source })?;
         let what = format!("environment map {}", path.display());
         let bad = |message: String| Error::InvalidInput { what: what.clone(), message };
         let image = read()
@@ -148,12 +149,20 @@ impl EnvironmentMap {
         let count = width * height;
         let mut rgb = Vec::with_capacity(3);
         for name in ["R", "G", "B"] {
-            let Some(channel) = layer.channel_data.list.iter().find(|c| c.name.to_string() == name) else {
-                let names: Vec<String> = layer.channel_data.list.iter().map(|c| c.name.to_string()).collect();
-                return Err(bad(format!("no {name} channel (needs R, G and B; has {})", names.join(", "))));
+            let Some(channel) = layer.channel_data.list.iter().find(|c| c.name.to_string() == name)
+            else {
+                let names: Vec<String> =
+                    layer.channel_data.list.iter().map(|c| c.name.to_string()).collect();
+                return Err(bad(format!(
+                    "no {name} channel (needs R, G and B; has {})",
+                    names.join(", ")
+                )));
             };
             if channel.sample_data.len() != count {
-                return Err(bad(format!("channel {name} is sub-sampled ({} samples for {width}x{height} pixels)", channel.sample_data.len())));
+                return Err(bad(format!(
+                    "channel {name} is sub-sampled ({} samples for {width}x{height} pixels)",
+                    channel.sample_data.len()
+                )));
             }
             rgb.push(channel.sample_data.values_as_f32().collect::<Vec<f32>>());
         }
@@ -171,7 +180,12 @@ impl EnvironmentMap {
     /// [`Error::InvalidInput`] when the map is empty or not lat-long (`width ≠ 2 · height`),
     /// when `pixels` has the wrong length, or when a pixel has a negative, NaN or infinite
     /// component (the first such pixel, by column and row from the top).
-    pub fn from_pixels(width: u32, height: u32, pixels: Vec<Rgb>, what: &str) -> Result<EnvironmentMap> {
+    pub fn from_pixels(
+        width: u32,
+        height: u32,
+        pixels: Vec<Rgb>,
+        what: &str,
+    ) -> Result<EnvironmentMap> {
         let bad = |message: String| Error::InvalidInput { what: what.to_string(), message };
         if height == 0 || u64::from(width) != 2 * u64::from(height) {
             return Err(bad(format!("{width}x{height} pixels is not a lat-long map (the width must be twice the height)")));
@@ -180,10 +194,15 @@ impl EnvironmentMap {
         if pixels.len() != w * h {
             return Err(bad(format!("{} pixels for a {width}x{height} map", pixels.len())));
         }
-        if let Some(k) = pixels.iter().position(|p| !p.0.iter().all(|c| c.is_finite() && *c >= 0.0)) {
+        if let Some(k) = pixels.iter().position(|p| !p.0.iter().all(|c| c.is_finite() && *c >= 0.0))
+        {
             let [r, g, b] = pixels[k].0;
             let why = if pixels[k].is_finite() { "negative" } else { "NaN or infinite" };
-            return Err(bad(format!("pixel ({}, {}) (column, row from the top) is {why}: R G B = {r} {g} {b}", k % w, k / w)));
+            return Err(bad(format!(
+                "pixel ({}, {}) (column, row from the top) is {why}: R G B = {r} {g} {b}",
+                k % w,
+                k / w
+            )));
         }
         let mut weights = Vec::with_capacity(w * h);
         let mut luminance_integral = 0.0;
@@ -302,15 +321,21 @@ mod tests {
 
     #[test]
     fn validation_names_the_source_and_pixel() {
-        let err = |w, h, pixels: Vec<Rgb>| EnvironmentMap::from_pixels(w, h, pixels, "map m").unwrap_err().to_string();
+        let err = |w, h, pixels: Vec<Rgb>| {
+            EnvironmentMap::from_pixels(w, h, pixels, "map m").unwrap_err().to_string()
+        };
         assert!(err(3, 3, vec![Rgb::ONE; 9]).starts_with("map m: 3x3 pixels is not a lat-long map"));
         assert!(err(0, 0, vec![]).contains("not a lat-long map"));
         assert!(err(4, 2, vec![Rgb::ONE; 7]).contains("7 pixels for a 4x2 map"));
         let mut pixels = vec![Rgb::ONE; 8];
         pixels[6] = Rgb([1.0, -0.5, 0.0]);
-        assert_eq!(err(4, 2, pixels.clone()), "map m: pixel (2, 1) (column, row from the top) is negative: R G B = 1 -0.5 0");
+        assert_eq!(
+            err(4, 2, pixels.clone()),
+            "map m: pixel (2, 1) (column, row from the top) is negative: R G B = 1 -0.5 0"
+        );
         pixels[5] = Rgb([f32::INFINITY, 0.0, 0.0]);
-        assert!(err(4, 2, pixels).contains("pixel (1, 1) (column, row from the top) is NaN or infinite"));
+        assert!(err(4, 2, pixels)
+            .contains("pixel (1, 1) (column, row from the top) is NaN or infinite"));
         let e = EnvironmentMap::from_pixels(2, 2, vec![Rgb::ONE; 4], "m").unwrap_err();
         assert_eq!(e.exit_code(), plume_core::error::exit::INPUT);
     }
@@ -329,7 +354,11 @@ mod tests {
         let l = Rgb([0.5, 1.0, 2.0]);
         let map = EnvironmentMap::from_pixels(64, 32, vec![l; 64 * 32], "grey").unwrap();
         let expected = 4.0 * PI * luminance(l);
-        assert!((map.luminance_integral() / expected - 1.0).abs() < 1e-13, "{} vs {expected}", map.luminance_integral());
+        assert!(
+            (map.luminance_integral() / expected - 1.0).abs() < 1e-13,
+            "{} vs {expected}",
+            map.luminance_integral()
+        );
     }
 
     #[test]

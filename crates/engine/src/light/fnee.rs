@@ -80,7 +80,12 @@ pub trait ProxySampling {
     /// `None` when `y == x` or the pdf rounds to 0 (a grazing ray along a cell face); both
     /// are events of probability zero, so dropping them keeps the estimator unbiased.
     #[must_use]
-    fn sample_direction(&self, x_world: DVec3, u_cell: f64, u_pos: [f64; 3]) -> Option<DirectionSample>;
+    fn sample_direction(
+        &self,
+        x_world: DVec3,
+        u_cell: f64,
+        u_pos: [f64; 3],
+    ) -> Option<DirectionSample>;
 
     /// The direction of [`ProxyGrid::sample_direction`] without its pdf, for callers that
     /// need `p_σ` only when the sample turns out to contribute (the pdf is then
@@ -101,11 +106,17 @@ impl ProxySampling for ProxyGrid {
     fn sample_point(&self, u_cell: f64, u_pos: [f64; 3]) -> ProxyPoint {
         let s = self.alias.sample(u_cell);
         let cell = self.cells[s.index] as usize;
-        let p_index = self.origin + (self.cell_coords(cell).as_dvec3() + DVec3::from(u_pos)) * f64::from(self.edge);
+        let p_index = self.origin
+            + (self.cell_coords(cell).as_dvec3() + DVec3::from(u_pos)) * f64::from(self.edge);
         ProxyPoint { p_world: self.world_from_index.transform_point3(p_index), cell, pmf: s.pmf }
     }
 
-    fn sample_direction(&self, x_world: DVec3, u_cell: f64, u_pos: [f64; 3]) -> Option<DirectionSample> {
+    fn sample_direction(
+        &self,
+        x_world: DVec3,
+        u_cell: f64,
+        u_pos: [f64; 3],
+    ) -> Option<DirectionSample> {
         let direction = self.sample_direction_only(x_world, u_cell, u_pos)?;
         let pdf = self.direction_pdf(x_world, direction);
         (pdf > 0.0).then_some(DirectionSample { direction, pdf })
@@ -119,7 +130,10 @@ impl ProxySampling for ProxyGrid {
     }
 
     fn direction_pdf(&self, x_world: DVec3, w_world: DVec3) -> f64 {
-        debug_assert!((w_world.length() - 1.0).abs() < 1e-6, "direction_pdf needs a unit direction, got {w_world}");
+        debug_assert!(
+            (w_world.length() - 1.0).abs() < 1e-6,
+            "direction_pdf needs a unit direction, got {w_world}"
+        );
         let o = self.index_from_world.transform_point3(x_world);
         let d = self.index_from_world.transform_vector3(w_world);
         if !o.is_finite() || !d.is_finite() || d == DVec3::ZERO {
@@ -127,13 +141,25 @@ impl ProxySampling for ProxyGrid {
         }
         let e = f64::from(self.edge);
         let boundary = |a: usize, k: i32| self.origin[a] + f64::from(k) * e;
-        let lo = DVec3::new(boundary(0, self.occupied_lo.x), boundary(1, self.occupied_lo.y), boundary(2, self.occupied_lo.z));
-        let hi = DVec3::new(boundary(0, self.occupied_hi.x), boundary(1, self.occupied_hi.y), boundary(2, self.occupied_hi.z));
+        let lo = DVec3::new(
+            boundary(0, self.occupied_lo.x),
+            boundary(1, self.occupied_lo.y),
+            boundary(2, self.occupied_lo.z),
+        );
+        let hi = DVec3::new(
+            boundary(0, self.occupied_hi.x),
+            boundary(1, self.occupied_hi.y),
+            boundary(2, self.occupied_hi.z),
+        );
         let Some((t_start, t_end)) = clip_to_box(o, d, lo, hi, 0.0, f64::INFINITY) else {
             return 0.0;
         };
         // Same reciprocal as clip_to_box, so the last crossing equals t_end bit for bit
-        let inv_d = DVec3::new(if d.x != 0.0 { 1.0 / d.x } else { 0.0 }, if d.y != 0.0 { 1.0 / d.y } else { 0.0 }, if d.z != 0.0 { 1.0 / d.z } else { 0.0 });
+        let inv_d = DVec3::new(
+            if d.x != 0.0 { 1.0 / d.x } else { 0.0 },
+            if d.y != 0.0 { 1.0 / d.y } else { 0.0 },
+            if d.z != 0.0 { 1.0 / d.z } else { 0.0 },
+        );
         // The cell along axis `a` at parameter `t`, from the position, then made consistent
         // with the crossing times of its own faces: a point within rounding of a face whose
         // crossing lies ahead is in the cell before it. On a face: the cell being entered.
@@ -166,7 +192,9 @@ impl ProxySampling for ProxyGrid {
                 f64::INFINITY
             }
         };
-        let exits = |lo: IVec3, hi: IVec3| -> [f64; 3] { std::array::from_fn(|a| face_ahead(a, lo[a], hi[a])) };
+        let exits = |lo: IVec3, hi: IVec3| -> [f64; 3] {
+            std::array::from_fn(|a| face_ahead(a, lo[a], hi[a]))
+        };
         let (occupied_lo, occupied_hi) = (self.occupied_lo, self.occupied_hi);
         let inside = |c: IVec3| c.cmpge(occupied_lo).all() && c.cmplt(occupied_hi).all();
         let mut c = IVec3::ZERO;

@@ -56,8 +56,8 @@ use super::weigh::{cell_coords, weigh_brick};
 use plume_core::error::{Error, Result};
 use plume_core::sampling::alias::AliasTable;
 use plume_scene::NeeTable;
-use plume_volume::grid::{leaf_offset, LEAF_VOXELS};
 use plume_volume::brick::{Volume, BRICK};
+use plume_volume::grid::{leaf_offset, LEAF_VOXELS};
 use plume_volume::Interpolation;
 
 /// Marker for "no emitting brick here".
@@ -161,7 +161,10 @@ impl EmitterDistribution {
     /// # Errors
     /// [`Error::Scene`] when `power` returns a negative or non-finite value, when the total
     /// power overflows, or when more than `u32::MAX − 1` voxels emit.
-    pub fn build(volume: &Volume, power: impl Fn(f32, f32) -> f64 + Sync) -> Result<Option<EmitterDistribution>> {
+    pub fn build(
+        volume: &Volume,
+        power: impl Fn(f32, f32) -> f64 + Sync,
+    ) -> Result<Option<EmitterDistribution>> {
         let (brick_lo, dims) = volume.brick_range();
         let table_len = dims.x.max(0) as usize * dims.y.max(0) as usize * dims.z.max(0) as usize;
         // Power of every emitting voxel, brick by brick (order kept by collect)
@@ -199,10 +202,16 @@ impl EmitterDistribution {
         for item in per_brick {
             let bp = item?;
             if weights.len() + bp.weights.len() >= u32::MAX as usize {
-                return Err(Error::Scene("more than 2^32 - 1 emitting voxels; plume's NEE table cannot hold them".into()));
+                return Err(Error::Scene(
+                    "more than 2^32 - 1 emitting voxels; plume's NEE table cannot hold them".into(),
+                ));
             }
             table[bp.table_cell] = bricks.len() as u32;
-            bricks.push(EmitterBrick { mask: bp.mask, first: weights.len() as u32, origin: bp.origin });
+            bricks.push(EmitterBrick {
+                mask: bp.mask,
+                first: weights.len() as u32,
+                origin: bp.origin,
+            });
             weights.extend_from_slice(&bp.weights);
         }
         if weights.is_empty() {
@@ -211,7 +220,9 @@ impl EmitterDistribution {
         let voxel_volume = volume.voxel_volume();
         let total_power = voxel_volume * weights.iter().sum::<f64>();
         let Some(alias) = AliasTable::new(&weights) else {
-            return Err(Error::Scene(format!("total emitted power {total_power} of the volume is not finite")));
+            return Err(Error::Scene(format!(
+                "total emitted power {total_power} of the volume is not finite"
+            )));
         };
         Ok(Some(EmitterDistribution {
             world_from_index: volume.world_from_index(),
@@ -229,8 +240,13 @@ impl EmitterDistribution {
     ///
     /// # Errors
     /// As [`EmitterDistribution::build`].
-    pub fn build_bricks(volume: &Volume, power: impl Fn(f32, f32) -> f64 + Send + Sync + 'static) -> Result<Option<EmitterDistribution>> {
-        let Some(bricks) = BrickEmitters::build(volume, std::sync::Arc::new(power))? else { return Ok(None) };
+    pub fn build_bricks(
+        volume: &Volume,
+        power: impl Fn(f32, f32) -> f64 + Send + Sync + 'static,
+    ) -> Result<Option<EmitterDistribution>> {
+        let Some(bricks) = BrickEmitters::build(volume, std::sync::Arc::new(power))? else {
+            return Ok(None);
+        };
         let voxel_volume = volume.voxel_volume();
         Ok(Some(EmitterDistribution {
             world_from_index: volume.world_from_index(),
@@ -246,10 +262,16 @@ impl EmitterDistribution {
     ///
     /// # Errors
     /// As [`EmitterDistribution::build`].
-    pub fn build_as(volume: &Volume, power: LightPower, table: NeeTable) -> Result<Option<EmitterDistribution>> {
+    pub fn build_as(
+        volume: &Volume,
+        power: LightPower,
+        table: NeeTable,
+    ) -> Result<Option<EmitterDistribution>> {
         match table {
             NeeTable::Voxel => EmitterDistribution::build(volume, move |d, s| power.power(d, s)),
-            NeeTable::Brick => EmitterDistribution::build_bricks(volume, move |d, s| power.power(d, s)),
+            NeeTable::Brick => {
+                EmitterDistribution::build_bricks(volume, move |d, s| power.power(d, s))
+            }
         }
     }
 
@@ -282,7 +304,11 @@ impl EmitterDistribution {
         match self.interpolation {
             Interpolation::Nearest => {
                 let p_index = (voxel.as_dvec3() - 0.5) + DVec3::from(u_pos);
-                VoxelSample { p_world: self.world_from_index.transform_point3(p_index), pdf: pmf / self.voxel_volume, voxel }
+                VoxelSample {
+                    p_world: self.world_from_index.transform_point3(p_index),
+                    pdf: pmf / self.voxel_volume,
+                    voxel,
+                }
             }
             Interpolation::Linear => {
                 let p_index = voxel.as_dvec3() + DVec3::from(u_pos.map(sample_tent));
@@ -356,7 +382,11 @@ impl EmitterDistribution {
     #[must_use]
     pub fn memory_bytes(&self) -> usize {
         match &self.entries {
-            Entries::Voxels(t) => t.alias.memory_bytes() + t.bricks.len() * std::mem::size_of::<EmitterBrick>() + t.table.len() * 4,
+            Entries::Voxels(t) => {
+                t.alias.memory_bytes()
+                    + t.bricks.len() * std::mem::size_of::<EmitterBrick>()
+                    + t.table.len() * 4
+            }
             Entries::Bricks(b) => b.memory_bytes(),
         }
     }
@@ -370,7 +400,8 @@ impl VoxelTable {
         if r.cmplt(IVec3::ZERO).any() || r.cmpge(self.dims).any() {
             return 0.0;
         }
-        let cell = r.x as usize + self.dims.x as usize * (r.y as usize + self.dims.y as usize * r.z as usize);
+        let cell = r.x as usize
+            + self.dims.x as usize * (r.y as usize + self.dims.y as usize * r.z as usize);
         let ordinal = self.table[cell];
         if ordinal == NONE {
             return 0.0;
@@ -382,7 +413,8 @@ impl VoxelTable {
         if brick.mask[word] >> bit & 1 == 0 {
             return 0.0;
         }
-        let below: u32 = brick.mask[..word].iter().map(|w| w.count_ones()).sum::<u32>() + (brick.mask[word] & ((1u64 << bit) - 1)).count_ones();
+        let below: u32 = brick.mask[..word].iter().map(|w| w.count_ones()).sum::<u32>()
+            + (brick.mask[word] & ((1u64 << bit) - 1)).count_ones();
         self.alias.pmf(brick.first as usize + below as usize)
     }
 }
@@ -404,7 +436,13 @@ mod tests {
     /// The tent's inverse CDF: quantiles land where `∫_{−1}^x (1 − |s|) ds = u`.
     #[test]
     fn tent_inverts_its_cdf() {
-        let cdf = |x: f64| if x < 0.0 { 0.5 * (1.0 + x) * (1.0 + x) } else { 1.0 - 0.5 * (1.0 - x) * (1.0 - x) };
+        let cdf = |x: f64| {
+            if x < 0.0 {
+                0.5 * (1.0 + x) * (1.0 + x)
+            } else {
+                1.0 - 0.5 * (1.0 - x) * (1.0 - x)
+            }
+        };
         for k in 0..=100 {
             let u = f64::from(k) / 100.0 * 0.999_999;
             let x = sample_tent(u);

@@ -34,8 +34,8 @@ use rayon::prelude::*;
 use super::weigh::{cell_coords, weigh_brick};
 use plume_core::error::{Error, Result};
 use plume_core::sampling::alias::AliasTable;
-use plume_volume::grid::LEAF_VOXELS;
 use plume_volume::brick::{brick_local, Volume, BRICK};
+use plume_volume::grid::LEAF_VOXELS;
 
 /// `Φ_i` of a voxel from its density and source (`integrator::light_power`).
 pub(crate) type Weigh = Arc<dyn Fn(f32, f32) -> f64 + Send + Sync>;
@@ -57,7 +57,10 @@ pub(crate) struct BrickEmitters {
 
 impl std::fmt::Debug for BrickEmitters {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("BrickEmitters").field("bricks", &self.cells.len()).field("total_power", &self.total_power()).finish_non_exhaustive()
+        f.debug_struct("BrickEmitters")
+            .field("bricks", &self.cells.len())
+            .field("total_power", &self.total_power())
+            .finish_non_exhaustive()
     }
 }
 
@@ -141,10 +144,15 @@ impl BrickEmitters {
         let (chosen, residual) = self.alias.sample_with_residual(u);
         let b = self.brick_lo + cell_coords(self.cells[chosen.index] as usize, self.dims);
         let origin = b * BRICK;
-        let Some(brick) = volume.brick(b) else { unreachable!("invariant: an emitting brick of the table is a brick of its volume") };
+        let Some(brick) = volume.brick(b) else {
+            unreachable!("invariant: an emitting brick of the table is a brick of its volume")
+        };
         if Volume::brick_constant(brick).is_some() {
             let off = ((residual * LEAF_VOXELS as f64) as usize).min(LEAF_VOXELS - 1);
-            return BrickVoxel { voxel: origin + brick_local(off), pmf: self.pmf_in(chosen.index, 0.0, true) };
+            return BrickVoxel {
+                voxel: origin + brick_local(off),
+                pmf: self.pmf_in(chosen.index, 0.0, true),
+            };
         }
         // Walk the running sum of Φ_i to u′ Φ_b; the last emitting voxel takes what rounding
         // leaves over
@@ -156,7 +164,9 @@ impl BrickEmitters {
             sum <= target
         });
         debug_assert!(walked.is_ok(), "the build weighed these voxels");
-        let Some((off, p)) = last else { unreachable!("invariant: an emitting brick has a voxel of positive power") };
+        let Some((off, p)) = last else {
+            unreachable!("invariant: an emitting brick has a voxel of positive power")
+        };
         BrickVoxel { voxel: origin + brick_local(off), pmf: self.pmf_in(chosen.index, p, false) }
     }
 

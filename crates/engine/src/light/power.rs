@@ -26,8 +26,8 @@
 //! noise, never the expected image, and every technique and the cache use this same
 //! function.
 
-use plume_core::color::blackbody::{TABLE_MAX_KELVIN, TABLE_MIN_KELVIN};
 use crate::medium::{Convention, Emission, EmissionKind};
+use plume_core::color::blackbody::{TABLE_MAX_KELVIN, TABLE_MIN_KELVIN};
 
 /// Mantissa bits of `T` that select a node: `2^FRACTION_BITS` nodes per octave.
 const FRACTION_BITS: u32 = 8;
@@ -69,7 +69,8 @@ impl LightPower {
             let first = TABLE_MIN_KELVIN.to_bits() >> SHIFT;
             // The last node at or below the table's top: above it `exact` clamps T
             let last = TABLE_MAX_KELVIN.to_bits() >> SHIFT;
-            let g: Vec<f64> = (first..=last).map(|k| exact(&unit, 1.0, f32::from_bits(k << SHIFT))).collect();
+            let g: Vec<f64> =
+                (first..=last).map(|k| exact(&unit, 1.0, f32::from_bits(k << SHIFT))).collect();
             let ln_g: Vec<f64> = g.iter().map(|v| v.ln()).collect();
             let linear = ln_g.windows(2).map(|w| (w[1] - w[0]).abs() <= LINEAR_STEP).collect();
             Table { first, g, ln_g, linear, times_density: unit.convention == Convention::Physical }
@@ -86,7 +87,9 @@ impl LightPower {
         }
         let Some(t) = &self.table else { return exact(&self.unit, density, source) };
         let bits = source.to_bits();
-        if !(TABLE_MIN_KELVIN..=f32::MAX).contains(&source) || (bits >> SHIFT) - t.first + 1 >= t.g.len() as u32 {
+        if !(TABLE_MIN_KELVIN..=f32::MAX).contains(&source)
+            || (bits >> SHIFT) - t.first + 1 >= t.g.len() as u32
+        {
             return exact(&self.unit, density, source);
         }
         let k = ((bits >> SHIFT) - t.first) as usize;
@@ -117,11 +120,18 @@ fn exact(unit: &Emission, density: f32, source: f32) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use plume_core::color::Rgb;
     use crate::medium::TemperatureMap;
+    use plume_core::color::Rgb;
 
     fn emission(kind: EmissionKind, convention: Convention) -> Emission {
-        Emission { kind, convention, scale: 3.0, color: Rgb([1.0, 0.5, 0.25]), temperature_map: TemperatureMap::Kelvin, cutoff_kelvin: 0.0 }
+        Emission {
+            kind,
+            convention,
+            scale: 3.0,
+            color: Rgb([1.0, 0.5, 0.25]),
+            temperature_map: TemperatureMap::Kelvin,
+            cutoff_kelvin: 0.0,
+        }
     }
 
     #[test]
@@ -160,7 +170,13 @@ mod tests {
         let grid = emission(EmissionKind::Grid, Convention::Physical);
         let p = LightPower::new(&grid);
         assert_eq!(p.power(2.0, 3.0), exact(&p.unit, 2.0, 3.0));
-        assert_eq!(p.power(2.0, 3.0), LightPower::new(&Emission { scale: 9.0, color: Rgb::ONE, ..grid }).power(2.0, 3.0));
-        assert_eq!(LightPower::new(&emission(EmissionKind::None, Convention::Physical)).power(1.0, 5000.0), 0.0);
+        assert_eq!(
+            p.power(2.0, 3.0),
+            LightPower::new(&Emission { scale: 9.0, color: Rgb::ONE, ..grid }).power(2.0, 3.0)
+        );
+        assert_eq!(
+            LightPower::new(&emission(EmissionKind::None, Convention::Physical)).power(1.0, 5000.0),
+            0.0
+        );
     }
 }

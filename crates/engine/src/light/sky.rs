@@ -142,9 +142,27 @@ pub fn perez_coefficients(t: f64) -> SkyCoefficients {
         Perez { a, b, c, d, e }
     };
     SkyCoefficients {
-        luminance: linear([(0.1787, -1.4630), (-0.3554, 0.4275), (-0.0227, 5.3251), (0.1206, -2.5771), (-0.0670, 0.3703)]),
-        x: linear([(-0.0193, -0.2592), (-0.0665, 0.0008), (-0.0004, 0.2125), (-0.0641, -0.8989), (-0.0033, 0.0452)]),
-        y: linear([(-0.0167, -0.2608), (-0.0950, 0.0092), (-0.0079, 0.2102), (-0.0441, -1.6537), (-0.0109, 0.0529)]),
+        luminance: linear([
+            (0.1787, -1.4630),
+            (-0.3554, 0.4275),
+            (-0.0227, 5.3251),
+            (0.1206, -2.5771),
+            (-0.0670, 0.3703),
+        ]),
+        x: linear([
+            (-0.0193, -0.2592),
+            (-0.0665, 0.0008),
+            (-0.0004, 0.2125),
+            (-0.0641, -0.8989),
+            (-0.0033, 0.0452),
+        ]),
+        y: linear([
+            (-0.0167, -0.2608),
+            (-0.0950, 0.0092),
+            (-0.0079, 0.2102),
+            (-0.0441, -1.6537),
+            (-0.0109, 0.0529),
+        ]),
     }
 }
 
@@ -160,10 +178,18 @@ pub struct Zenith {
 }
 
 /// Zenith chromaticity matrix M_x (rows T², T, 1; columns θs³, θs², θs, 1).
-const ZENITH_X: [[f64; 4]; 3] = [[0.00166, -0.00375, 0.00209, 0.0], [-0.02903, 0.06377, -0.03202, 0.00394], [0.11693, -0.21196, 0.06052, 0.25886]];
+const ZENITH_X: [[f64; 4]; 3] = [
+    [0.00166, -0.00375, 0.00209, 0.0],
+    [-0.02903, 0.06377, -0.03202, 0.00394],
+    [0.11693, -0.21196, 0.06052, 0.25886],
+];
 
 /// Zenith chromaticity matrix M_y.
-const ZENITH_Y: [[f64; 4]; 3] = [[0.00275, -0.00610, 0.00317, 0.0], [-0.04214, 0.08970, -0.04153, 0.00516], [0.15346, -0.26756, 0.06670, 0.26688]];
+const ZENITH_Y: [[f64; 4]; 3] = [
+    [0.00275, -0.00610, 0.00317, 0.0],
+    [-0.04214, 0.08970, -0.04153, 0.00516],
+    [0.15346, -0.26756, 0.06670, 0.26688],
+];
 
 /// Zenith luminance and chromaticity at turbidity `t`, sun `theta_s` radians from the
 /// zenith (paper, appendix A.2).
@@ -174,7 +200,17 @@ pub fn zenith(t: f64, theta_s: f64) -> Zenith {
     let turbidity_powers = [t * t, t, 1.0];
     let angle_powers = [theta_s.powi(3), theta_s * theta_s, theta_s, 1.0];
     let bilinear = |m: &[[f64; 4]; 3]| -> f64 {
-        m.iter().zip(turbidity_powers).map(|(row, t_power)| t_power * row.iter().zip(angle_powers).map(|(c, angle_power)| c * angle_power).sum::<f64>()).sum()
+        m.iter()
+            .zip(turbidity_powers)
+            .map(|(row, t_power)| {
+                t_power
+                    * row
+                        .iter()
+                        .zip(angle_powers)
+                        .map(|(c, angle_power)| c * angle_power)
+                        .sum::<f64>()
+            })
+            .sum()
     };
     Zenith { luminance, x: bilinear(&ZENITH_X), y: bilinear(&ZENITH_Y) }
 }

@@ -236,7 +236,10 @@ impl<'e> EmissionMemo<'e> {
                 let tag = table.last_tag.get().wrapping_add(1);
                 if tag == 0 {
                     // Tags wrapped: no entry may keep an old tag that could come back
-                    table.entries.iter().for_each(|e| e.set(MemoEntry { key: 0, value: Rgb::ZERO }));
+                    table
+                        .entries
+                        .iter()
+                        .for_each(|e| e.set(MemoEntry { key: 0, value: Rgb::ZERO }));
                 }
                 let tag = tag.max(1);
                 table.last_tag.set(tag);
@@ -283,12 +286,22 @@ impl<'e> EmissionMemo<'e> {
     #[inline]
     pub(crate) fn run<T: LeTask>(&self, task: T) -> T::Out {
         match (self.emission.kind, self.emission.convention) {
-            (EmissionKind::Blackbody, Convention::Cycles) => {
-                task.run(&|_: f32, source: f32| if source == 0.0 { Rgb::ZERO } else { self.of_temperature(source) })
-            }
+            (EmissionKind::Blackbody, Convention::Cycles) => task.run(&|_: f32, source: f32| {
+                if source == 0.0 {
+                    Rgb::ZERO
+                } else {
+                    self.of_temperature(source)
+                }
+            }),
             (EmissionKind::Blackbody, Convention::Physical) => {
                 let scale = self.emission.scale;
-                task.run(&|density: f32, source: f32| if source == 0.0 { Rgb::ZERO } else { self.of_temperature(source) * (scale * density) })
+                task.run(&|density: f32, source: f32| {
+                    if source == 0.0 {
+                        Rgb::ZERO
+                    } else {
+                        self.of_temperature(source) * (scale * density)
+                    }
+                })
             }
             _ => task.run(&|density: f32, source: f32| self.emission.le(density, source)),
         }
@@ -317,17 +330,34 @@ mod tests {
     /// temperatures share an emission.
     #[test]
     fn the_memo_returns_exactly_what_le_returns() {
-        for (kind, convention) in
-            [(EmissionKind::Blackbody, Convention::Cycles), (EmissionKind::Blackbody, Convention::Physical), (EmissionKind::Grid, Convention::Physical)]
-        {
-            let emission = Emission { kind, convention, scale: 1.5, color: Rgb([1.0, 0.8, 0.6]), temperature_map: TemperatureMap::Kelvin, cutoff_kelvin: 0.0 };
+        for (kind, convention) in [
+            (EmissionKind::Blackbody, Convention::Cycles),
+            (EmissionKind::Blackbody, Convention::Physical),
+            (EmissionKind::Grid, Convention::Physical),
+        ] {
+            let emission = Emission {
+                kind,
+                convention,
+                scale: 1.5,
+                color: Rgb([1.0, 0.8, 0.6]),
+                temperature_map: TemperatureMap::Kelvin,
+                cutoff_kelvin: 0.0,
+            };
             let mut rng = Sampler::new(3, 0, 0);
-            let temperatures: Vec<f32> = (0..3 * MEMO_SLOTS).map(|i| 900.0 + 0.37 * i as f32).collect();
+            let temperatures: Vec<f32> =
+                (0..3 * MEMO_SLOTS).map(|i| 900.0 + 0.37 * i as f32).collect();
             let memo = EmissionMemo::new(&emission);
             for _ in 0..200_000 {
-                let (d, s) = (0.1 + rng.next_f32(), temperatures[(rng.next_u64() % temperatures.len() as u64) as usize]);
+                let (d, s) = (
+                    0.1 + rng.next_f32(),
+                    temperatures[(rng.next_u64() % temperatures.len() as u64) as usize],
+                );
                 let (a, b) = (memo.le(d, s), emission.le(d, s));
-                assert_eq!(a.0.map(f32::to_bits), b.0.map(f32::to_bits), "{kind:?} {convention:?}: density {d}, source {s}");
+                assert_eq!(
+                    a.0.map(f32::to_bits),
+                    b.0.map(f32::to_bits),
+                    "{kind:?} {convention:?}: density {d}, source {s}"
+                );
             }
             assert_eq!(memo.le(0.5, 0.0).0, [0.0; 3]);
         }
@@ -346,16 +376,33 @@ mod tests {
             }
         }
         let mut rng = Sampler::new(4, 0, 0);
-        let voxels: Vec<(f32, f32)> = (0..5000).map(|i| (0.1 + 3.0 * rng.next_f32(), if i % 7 == 0 { 0.0 } else { 500.0 + 9000.0 * rng.next_f32() })).collect();
+        let voxels: Vec<(f32, f32)> = (0..5000)
+            .map(|i| {
+                (
+                    0.1 + 3.0 * rng.next_f32(),
+                    if i % 7 == 0 { 0.0 } else { 500.0 + 9000.0 * rng.next_f32() },
+                )
+            })
+            .collect();
         for kind in [EmissionKind::Blackbody, EmissionKind::Grid, EmissionKind::None] {
             for convention in [Convention::Cycles, Convention::Physical] {
-                let emission =
-                    Emission { kind, convention, scale: 1.7, color: Rgb([1.0, 0.8, 0.6]), temperature_map: TemperatureMap::Kelvin, cutoff_kelvin: 0.0 };
+                let emission = Emission {
+                    kind,
+                    convention,
+                    scale: 1.7,
+                    color: Rgb([1.0, 0.8, 0.6]),
+                    temperature_map: TemperatureMap::Kelvin,
+                    cutoff_kelvin: 0.0,
+                };
                 let memo = EmissionMemo::new(&emission);
                 // Twice: the first pass fills the memo, the second reads it
                 for _ in 0..2 {
                     for (&(d, s), got) in voxels.iter().zip(memo.run(Each(&voxels))) {
-                        assert_eq!(got.0.map(f32::to_bits), emission.le(d, s).0.map(f32::to_bits), "{kind:?} {convention:?}: density {d}, source {s}");
+                        assert_eq!(
+                            got.0.map(f32::to_bits),
+                            emission.le(d, s).0.map(f32::to_bits),
+                            "{kind:?} {convention:?}: density {d}, source {s}"
+                        );
                     }
                 }
             }
@@ -376,14 +423,23 @@ mod tests {
             temperature_map: TemperatureMap::Kelvin,
             cutoff_kelvin: 0.0,
         };
-        let models = [model(Convention::Cycles, 1.0), model(Convention::Physical, 1.0), model(Convention::Physical, 2.0)];
+        let models = [
+            model(Convention::Cycles, 1.0),
+            model(Convention::Physical, 1.0),
+            model(Convention::Physical, 2.0),
+        ];
         assert!(models[0].same_as(&models[0]) && !models[1].same_as(&models[2]));
-        let voxels: Vec<(f32, f32)> = (0..64).map(|i| (0.25 + 0.01 * i as f32, 1000.0 + 37.0 * i as f32)).collect();
+        let voxels: Vec<(f32, f32)> =
+            (0..64).map(|i| (0.25 + 0.01 * i as f32, 1000.0 + 37.0 * i as f32)).collect();
         for round in 0..3 {
             for model in &models {
                 let memo = EmissionMemo::new(model);
                 for &(d, s) in &voxels {
-                    assert_eq!(memo.le(d, s).0.map(f32::to_bits), model.le(d, s).0.map(f32::to_bits), "round {round}, {model:?}, voxel ({d}, {s})");
+                    assert_eq!(
+                        memo.le(d, s).0.map(f32::to_bits),
+                        model.le(d, s).0.map(f32::to_bits),
+                        "round {round}, {model:?}, voxel ({d}, {s})"
+                    );
                 }
             }
         }

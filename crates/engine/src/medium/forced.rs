@@ -44,9 +44,9 @@
 //! (docs/BENCHMARKS.md, "Forced camera collisions").
 //! With one path (`n = 1`) its vertex is the walk's own collision, bit for bit.
 
-pub use plume_scene::sets::Collision;
 use super::coefficients::Medium;
 use super::free_path::{analog_collision, DistanceSample};
+pub use plume_scene::sets::Collision;
 use plume_volume::field::Piece;
 
 /// `K`: a forced walk collides with probability `min(1, K W)`. On the three Mantaflow
@@ -133,7 +133,11 @@ impl<P: Piece> ForcedCollision<P> {
         // Uniform in [0, 1) within the piece's mass (rounding can put target a hair outside)
         let v = ((target - before) / (through - before)).clamp(0.0, 1.0 - f64::EPSILON / 2.0);
         let y = -(v * (-x).exp_m1()).ln_1p();
-        Forced { event: analog_collision(&piece, medium, y), optical_depth: od + y, weight: self.total / q }
+        Forced {
+            event: analog_collision(&piece, medium, y),
+            optical_depth: od + y,
+            weight: self.total / q,
+        }
     }
 }
 
@@ -156,11 +160,28 @@ mod tests {
     }
 
     /// `n` first vertices of a forced walk with number `u`, and the walk's own result.
-    fn split<F: Field>(field: &F, medium: &Medium, ray: &Ray, n: u32, seed: u64, i: u64) -> (Vec<Forced>, crate::medium::TrackResult) {
+    fn split<F: Field>(
+        field: &F,
+        medium: &Medium,
+        ray: &Ray,
+        n: u32,
+        seed: u64,
+        i: u64,
+    ) -> (Vec<Forced>, crate::medium::TrackResult) {
         let mut firsts = Vec::new();
         let mut sampler = Sampler::new(seed, 0, i);
         let u = sampler.next_f64();
-        let r = track_split(field, medium, ray, f64::INFINITY, Estimator::RayMarch, Collision::Forced, u, &mut sampler, SplitFirsts { paths: n, firsts: &mut firsts });
+        let r = track_split(
+            field,
+            medium,
+            ray,
+            f64::INFINITY,
+            Estimator::RayMarch,
+            Collision::Forced,
+            u,
+            &mut sampler,
+            SplitFirsts { paths: n, firsts: &mut firsts },
+        );
         (firsts, r)
     }
 
@@ -172,21 +193,42 @@ mod tests {
         let m = medium(20.0);
         let vol = Volume::build(&ex.density, None, |v| v).unwrap();
         let field = Trilinear::new(vol);
-        let ray = Ray { origin: DVec3::new(-3.0, 0.1, 0.05), direction: DVec3::new(1.0, 0.02, -0.03).normalize() };
+        let ray = Ray {
+            origin: DVec3::new(-3.0, 0.1, 0.05),
+            direction: DVec3::new(1.0, 0.02, -0.03).normalize(),
+        };
         let mut collided = 0;
         for i in 0..2000 {
             let (firsts, r) = split(&field, &m, &ray, 1, 9, i);
             let mut sampler = Sampler::new(9, 0, i);
             let u = sampler.next_f64();
-            let own = track(&field, &m, &ray, f64::INFINITY, Estimator::RayMarch, Collision::Forced, u, &mut sampler);
-            assert_eq!(format!("{:?}", (r.event, r.emission, r.collision_weight)), format!("{:?}", (own.event, own.emission, own.collision_weight)));
+            let own = track(
+                &field,
+                &m,
+                &ray,
+                f64::INFINITY,
+                Estimator::RayMarch,
+                Collision::Forced,
+                u,
+                &mut sampler,
+            );
+            assert_eq!(
+                format!("{:?}", (r.event, r.emission, r.collision_weight)),
+                format!("{:?}", (own.event, own.emission, own.collision_weight))
+            );
             match own.event {
                 DistanceSample::Collided { .. } => {
                     collided += 1;
                     assert_eq!(firsts.len(), 1);
-                    assert_eq!(format!("{:?}", (firsts[0].event, firsts[0].weight)), format!("{:?}", (own.event, own.collision_weight)), "walk {i}");
+                    assert_eq!(
+                        format!("{:?}", (firsts[0].event, firsts[0].weight)),
+                        format!("{:?}", (own.event, own.collision_weight)),
+                        "walk {i}"
+                    );
                 }
-                DistanceSample::Escaped => assert!(firsts.is_empty(), "walk {i}: a first vertex without a collision"),
+                DistanceSample::Escaped => {
+                    assert!(firsts.is_empty(), "walk {i}: a first vertex without a collision")
+                }
             }
         }
         assert!(collided > 200, "only {collided} of 2000 walks collided");
@@ -199,7 +241,8 @@ mod tests {
         // = τ(a) − τ(b)` in each of 24 bins (the walk's draws are correlated, so each
         // walk's sum is one observation); |z| < 3.9 (Šidák at α = 0.01 over 24). And path
         // k lies in stratum k of the collision law: `(1 − τ(t_k))/(1 − τ(d)) ∈ [k/3, (k+1)/3]`
-        let field = Constant { lo: DVec3::ZERO, hi: DVec3::new(2.0, 1.0, 1.0), density: 1.5, source: 1.0 };
+        let field =
+            Constant { lo: DVec3::ZERO, hi: DVec3::new(2.0, 1.0, 1.0), density: 1.5, source: 1.0 };
         let m = medium(1.0);
         let ray = Ray { origin: DVec3::new(-1.0, 0.5, 0.5), direction: DVec3::X };
         let (n, walks, bins) = (3u32, 40_000u64, 24usize);
@@ -210,12 +253,18 @@ mod tests {
             assert_eq!(firsts.len(), n as usize, "walk {i}: every walk collides here");
             let mut own = vec![0.0f64; bins];
             for (k, first) in firsts.iter().enumerate() {
-                let DistanceSample::Collided { t, .. } = first.event else { panic!("walk {i}: path {k} escaped") };
+                let DistanceSample::Collided { t, .. } = first.event else {
+                    panic!("walk {i}: path {k} escaped")
+                };
                 assert_eq!(first.weight, r.collision_weight, "every path keeps the walk's weight");
                 let place = (1.0 - tau(t)) / (1.0 - tau(3.0));
                 let (lo, hi) = (k as f64 / f64::from(n), (k + 1) as f64 / f64::from(n));
-                assert!(place >= lo - 1e-9 && place <= hi + 1e-9, "walk {i}: path {k} at {place}, outside [{lo}, {hi}]");
-                own[((t - 1.0) / 2.0 * bins as f64).clamp(0.0, bins as f64 - 1.0) as usize] += first.weight / f64::from(n);
+                assert!(
+                    place >= lo - 1e-9 && place <= hi + 1e-9,
+                    "walk {i}: path {k} at {place}, outside [{lo}, {hi}]"
+                );
+                own[((t - 1.0) / 2.0 * bins as f64).clamp(0.0, bins as f64 - 1.0) as usize] +=
+                    first.weight / f64::from(n);
             }
             for (b, w) in own.into_iter().enumerate() {
                 sum[b] += w;
@@ -224,11 +273,15 @@ mod tests {
         }
         let nf = walks as f64;
         for b in 0..bins {
-            let expected = tau(1.0 + 2.0 * b as f64 / bins as f64) - tau(1.0 + 2.0 * (b + 1) as f64 / bins as f64);
+            let expected = tau(1.0 + 2.0 * b as f64 / bins as f64)
+                - tau(1.0 + 2.0 * (b + 1) as f64 / bins as f64);
             let mean = sum[b] / nf;
             let se = ((sum_sq[b] / nf - mean * mean).max(0.0) / nf).sqrt();
             let z = (mean - expected) / se.max(1e-15);
-            assert!(z.abs() < 3.9, "bin {b}: weighted mass {mean} ± {se} vs exact {expected} (z = {z:.2})");
+            assert!(
+                z.abs() < 3.9,
+                "bin {b}: weighted mass {mean} ± {se} vs exact {expected} (z = {z:.2})"
+            );
         }
     }
 }

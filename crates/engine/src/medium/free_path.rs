@@ -95,12 +95,22 @@ pub fn analog_collision<P: Piece>(piece: &P, medium: &Medium, od_left: f64) -> D
     match piece.constant() {
         Some(seg) => {
             let t = (seg.t0 + od_left / medium.mu_t(seg.density)).clamp(seg.t0, seg.t1);
-            DistanceSample::Collided { t, density: seg.density, source: seg.source, albedo: seg.albedo }
+            DistanceSample::Collided {
+                t,
+                density: seg.density,
+                source: seg.source,
+                albedo: seg.albedo,
+            }
         }
         None => {
             let u = piece.free_path(medium.sigma_t, od_left);
             let t = (piece.t0() + u).clamp(piece.t0(), piece.t1());
-            DistanceSample::Collided { t, density: piece.density_at(u), source: piece.source_at(u), albedo: piece.albedo_at(u) }
+            DistanceSample::Collided {
+                t,
+                density: piece.density_at(u),
+                source: piece.source_at(u),
+                albedo: piece.albedo_at(u),
+            }
         }
     }
 }

@@ -13,7 +13,7 @@ pub mod free_path;
 pub mod null_tracking;
 pub mod tracking;
 
+pub use coefficients::Medium;
 pub use emission::{Convention, Emission, EmissionKind, TemperatureMap};
 pub use forced::Collision;
 pub use tracking::{track, DistanceSample, Estimator, TrackResult};
-pub use coefficients::Medium;

@@ -42,9 +42,11 @@
 //! of its key.
 
 use super::coefficients::Medium;
-use super::free_path::{sample_exponential, DistanceSample, TrackResult, RAY_MARCH_ROULETTE_THRESHOLD};
-use plume_scene::Estimator;
+use super::free_path::{
+    sample_exponential, DistanceSample, TrackResult, RAY_MARCH_ROULETTE_THRESHOLD,
+};
 use plume_core::sampling::Sampler;
+use plume_scene::Estimator;
 use plume_volume::field::Ray;
 use plume_volume::majorant::MajorantGrid;
 
@@ -170,9 +172,18 @@ pub fn null_track(
             // The next tentative point, or the stretch's end
             let next = if mu_bar > 0.0 { s + e / mu_bar } else { f64::INFINITY };
             let end = next.min(seg.t1);
-            if integrates && emits && end > s && (event == DistanceSample::Escaped || expected) && weight > 0.0 {
+            if integrates
+                && emits
+                && end > s
+                && (event == DistanceSample::Escaped || expected)
+                && weight > 0.0
+            {
                 let x = s + sampler.next_f64() * (end - s);
-                let e = if picks_emission { field.emission_picked(ray.at(x), sampler.next_f64()) } else { field.emission(ray.at(x)) };
+                let e = if picks_emission {
+                    field.emission_picked(ray.at(x), sampler.next_f64())
+                } else {
+                    field.emission(ray.at(x))
+                };
                 add(&mut f, e, (end - s) * weight);
             }
             if next >= seg.t1 {
@@ -187,7 +198,10 @@ pub fn null_track(
             s = next;
             let density = density_of(field, picks, ray.at(next), sampler);
             let ratio = (medium.mu_t(density) / mu_bar).clamp(0.0, 1.0);
-            if event == DistanceSample::Escaped && (need_collision || !expected) && sampler.next_f64() < ratio {
+            if event == DistanceSample::Escaped
+                && (need_collision || !expected)
+                && sampler.next_f64() < ratio
+            {
                 // The exact values (a picked density served the acceptance only): the
                 // collision's law is the exact field's, and so must its record and score
                 // be. Only the point estimator scores here; the others need only the
@@ -196,9 +210,19 @@ pub fn null_track(
                 event = if estimator == Estimator::Point {
                     let p = field.sample(x, true);
                     add(&mut f, p.emission, 1.0 / medium.mu_t(p.density));
-                    DistanceSample::Collided { t: next, density: p.density, source: p.source, albedo: p.albedo }
+                    DistanceSample::Collided {
+                        t: next,
+                        density: p.density,
+                        source: p.source,
+                        albedo: p.albedo,
+                    }
                 } else {
-                    DistanceSample::Collided { t: next, density: f32::NAN, source: f32::NAN, albedo: field.albedo(x) }
+                    DistanceSample::Collided {
+                        t: next,
+                        density: f32::NAN,
+                        source: f32::NAN,
+                        albedo: field.albedo(x),
+                    }
                 };
                 od_to_collision = f64::NAN; // not tracked by null collisions
                 if !expected {
@@ -233,12 +257,27 @@ pub fn null_track(
     } else {
         0.0
     };
-    TrackResult { event, emission: f, transmittance, optical_depth: od_to_collision, segments, voxel_steps: u64::from(segments), collision_weight: 1.0 }
+    TrackResult {
+        event,
+        emission: f,
+        transmittance,
+        optical_depth: od_to_collision,
+        segments,
+        voxel_steps: u64::from(segments),
+        collision_weight: 1.0,
+    }
 }
 
 /// Ratio-tracking estimate of `τ(0, t_max)` along `ray` (module docs); stops early once
 /// it is 0.
-pub fn ratio_transmittance(majorants: &MajorantGrid, field: &impl PointField, medium: &Medium, ray: &Ray, t_max: f64, sampler: &mut Sampler) -> f64 {
+pub fn ratio_transmittance(
+    majorants: &MajorantGrid,
+    field: &impl PointField,
+    medium: &Medium,
+    ray: &Ray,
+    t_max: f64,
+    sampler: &mut Sampler,
+) -> f64 {
     let picks = field.picks();
     let mut weight = 1.0f64;
     for seg in majorants.segments(ray, 0.0, t_max) {
@@ -252,7 +291,9 @@ pub fn ratio_transmittance(majorants: &MajorantGrid, field: &impl PointField, me
             if s >= seg.t1 {
                 break;
             }
-            weight *= 1.0 - (medium.mu_t(density_of(field, picks, ray.at(s), sampler)) / mu_bar).clamp(0.0, 1.0);
+            weight *= 1.0
+                - (medium.mu_t(density_of(field, picks, ray.at(s), sampler)) / mu_bar)
+                    .clamp(0.0, 1.0);
             if weight < RAY_MARCH_ROULETTE_THRESHOLD {
                 let q = weight / RAY_MARCH_ROULETTE_THRESHOLD;
                 if sampler.next_f64() >= q {

@@ -19,11 +19,14 @@
 pub use plume_scene::sets::Estimator;
 use std::ops::ControlFlow;
 
-use plume_core::color::Rgb;
+use super::coefficients::Medium;
+pub use super::free_path::{
+    analog_collision, phi, sample_exponential, DistanceSample, TrackResult,
+    RAY_MARCH_ROULETTE_THRESHOLD,
+};
 use crate::medium::emission::{EmissionMemo, LeTask};
 use crate::medium::forced::{Collision, ForcedCollision, SplitFirsts};
-use super::coefficients::Medium;
-pub use super::free_path::{analog_collision, phi, sample_exponential, DistanceSample, TrackResult, RAY_MARCH_ROULETTE_THRESHOLD};
+use plume_core::color::Rgb;
 use plume_core::sampling::Sampler;
 use plume_volume::field::{Field, Piece, PieceIntegrals, PointValues, Ray, SegmentIter};
 
@@ -55,8 +58,12 @@ pub fn track<F: Field>(
     match estimator {
         // A forced walk is its own instance, so that walks without one run the code they ran
         // before forcing existed, with no branch or buffer of it
-        Estimator::RayMarch if collision == Collision::Forced => track_expected::<F, true>(field, medium, ray, t_max, collision, u, sampler, None),
-        Estimator::RayMarch => track_expected::<F, false>(field, medium, ray, t_max, collision, u, sampler, None),
+        Estimator::RayMarch if collision == Collision::Forced => {
+            track_expected::<F, true>(field, medium, ray, t_max, collision, u, sampler, None)
+        }
+        Estimator::RayMarch => {
+            track_expected::<F, false>(field, medium, ray, t_max, collision, u, sampler, None)
+        }
         _ => track_free_path(field, medium, ray, t_max, estimator, u),
     }
 }
@@ -85,7 +92,14 @@ pub(crate) fn track_split<F: Field>(
     }
 }
 
-fn track_free_path<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, estimator: Estimator, u: f64) -> TrackResult {
+fn track_free_path<F: Field>(
+    field: &F,
+    medium: &Medium,
+    ray: &Ray,
+    t_max: f64,
+    estimator: Estimator,
+    u: f64,
+) -> TrackResult {
     let memo = EmissionMemo::new(&medium.emission);
     let e = sample_exponential(u);
     let mut od = 0.0f64;
@@ -117,7 +131,12 @@ fn track_free_path<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, 
                 }
                 Estimator::RayMarch => unreachable!("ray-march is tracked by track_expected"),
             }
-            return ControlFlow::Break(DistanceSample::Collided { t, density: seg.density, source: seg.source, albedo: seg.albedo });
+            return ControlFlow::Break(DistanceSample::Collided {
+                t,
+                density: seg.density,
+                source: seg.source,
+                albedo: seg.albedo,
+            });
         }
         od += x;
         // Add emission along the whole segment
@@ -129,9 +148,15 @@ fn track_free_path<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, 
         ControlFlow::Continue(())
     });
     match collision {
-        ControlFlow::Break(event) => {
-            TrackResult { event, emission: f, transmittance: 0.0, optical_depth: e, segments, voxel_steps: it.voxel_steps(), collision_weight: 1.0 }
-        }
+        ControlFlow::Break(event) => TrackResult {
+            event,
+            emission: f,
+            transmittance: 0.0,
+            optical_depth: e,
+            segments,
+            voxel_steps: it.voxel_steps(),
+            collision_weight: 1.0,
+        },
         ControlFlow::Continue(()) => TrackResult {
             event: DistanceSample::Escaped,
             emission: f,
@@ -170,7 +195,11 @@ fn emission_at<P: Piece>(piece: &P, le: &EmissionMemo<'_>, u: f64) -> [f64; 3] {
 /// Density and `L_e` at a world point (a next-event sample), by the same rule as
 /// `emission_at` along pieces: the field's reconstruction of each voxel's emission.
 #[must_use]
-pub fn emission_at_point<F: Field>(field: &F, medium: &Medium, p_world: glam::DVec3) -> PointValues {
+pub fn emission_at_point<F: Field>(
+    field: &F,
+    medium: &Medium,
+    p_world: glam::DVec3,
+) -> PointValues {
     field.reconstruct(p_world, &|d, s| medium.emission.le(d, s))
 }
 
@@ -233,7 +262,9 @@ fn free_path_polynomial<P: Piece>(
             let whole = integrals(piece, medium.sigma_t, le, len);
             (whole.optical_depth, whole.emission)
         }
-        Estimator::Point | Estimator::RayMarch => (piece.optical_depth(medium.sigma_t, len), [0.0; 3]),
+        Estimator::Point | Estimator::RayMarch => {
+            (piece.optical_depth(medium.sigma_t, len), [0.0; 3])
+        }
     };
     let alpha = match estimator {
         Estimator::Blend { kappa } => 1.0 / (1.0 + kappa * x),
@@ -251,7 +282,12 @@ fn free_path_polynomial<P: Piece>(
             add_scaled(f, emission_at(piece, le, u), (1.0 - alpha) / mu);
         }
         let t = (piece.t0() + u).clamp(piece.t0(), piece.t1());
-        return Some(DistanceSample::Collided { t, density, source: piece.source_at(u), albedo: piece.albedo_at(u) });
+        return Some(DistanceSample::Collided {
+            t,
+            density,
+            source: piece.source_at(u),
+            albedo: piece.albedo_at(u),
+        });
     }
     *od += x;
     if alpha > 0.0 {
@@ -322,7 +358,8 @@ fn track_expected<F: Field, const FORCED: bool>(
         let x = match constant {
             Some(seg) => medium.mu_t(seg.density) * len,
             None if marching && emits => {
-                let xi = *xi.get_or_insert_with(|| sampler.get_1d(plume_core::sampling::Dim::OnePoint));
+                let xi =
+                    *xi.get_or_insert_with(|| sampler.get_1d(plume_core::sampling::Dim::OnePoint));
                 let u = xi * len;
                 let [x, x_u] = piece.optical_depths(medium.sigma_t, [len, u]);
                 x_at_point = Some((u, x_u));
@@ -335,7 +372,12 @@ fn track_expected<F: Field, const FORCED: bool>(
         }
         if marching {
             if let Some(forced) = forced.as_mut() {
-                forced.push(piece, x, od, tau.expect("invariant: a forced walk forms τ at every marched piece"));
+                forced.push(
+                    piece,
+                    x,
+                    od,
+                    tau.expect("invariant: a forced walk forms τ at every marched piece"),
+                );
             }
             match constant {
                 // A piece without a source adds nothing (`le` is 0 there): no φ, and for a
@@ -351,7 +393,8 @@ fn track_expected<F: Field, const FORCED: bool>(
                     // in the piece is unbiased for ∫ τ L_e over it. One ξ serves every
                     // piece of the ray (systematic sampling: each piece's point is still
                     // uniform in it). The point and its optical depth were found above.
-                    let (u, x_u) = x_at_point.expect("invariant: a marched emitting polynomial piece has its point");
+                    let (u, x_u) = x_at_point
+                        .expect("invariant: a marched emitting polynomial piece has its point");
                     // Where the roulette did not need `τ`, it is `e^{−od} · weight`: one `exp`
                     let tau_u = match tau {
                         Some(tau) => tau * (-x_u).exp(),
@@ -380,7 +423,15 @@ fn track_expected<F: Field, const FORCED: bool>(
             collision_weight = drawn.weight;
         }
     }
-    TrackResult { event, emission: f, transmittance, optical_depth, segments, voxel_steps: it.voxel_steps(), collision_weight }
+    TrackResult {
+        event,
+        emission: f,
+        transmittance,
+        optical_depth,
+        segments,
+        voxel_steps: it.voxel_steps(),
+        collision_weight,
+    }
 }
 
 /// An optical depth below which [`march_roulette`] cannot fire at roulette weight
@@ -423,7 +474,13 @@ pub struct OpticalDepth {
 
 /// Exact optical depth along `ray` over `[0, t_max]` (for shadow rays: `τ = e^{−OD}`).
 /// Stops early once OD exceeds `od_stop` (then `τ` is negligible anyway).
-pub fn optical_depth<F: Field>(field: &F, medium: &Medium, ray: &Ray, t_max: f64, od_stop: f64) -> OpticalDepth {
+pub fn optical_depth<F: Field>(
+    field: &F,
+    medium: &Medium,
+    ray: &Ray,
+    t_max: f64,
+    od_stop: f64,
+) -> OpticalDepth {
     let (optical_depth, voxel_steps) = field.optical_depth(medium.sigma_t, ray, t_max, od_stop);
     OpticalDepth { optical_depth, voxel_steps }
 }

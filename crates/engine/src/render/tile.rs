@@ -30,13 +30,21 @@ pub struct PixelSample {
 
 /// The camera ray and sampler state of one pixel sample, as the render loop makes them
 /// (used by `--debug-pixel` to replay a sample exactly).
-pub fn pixel_sample<F: Field>(scene: &Scene<F>, kind: SamplerKind, seed: u64, x: u32, y: u32, s: u64) -> PixelSample {
+pub fn pixel_sample<F: Field>(
+    scene: &Scene<F>,
+    kind: SamplerKind,
+    seed: u64,
+    x: u32,
+    y: u32,
+    s: u64,
+) -> PixelSample {
     let pixel = u64::from(y) * u64::from(scene.camera.width) + u64::from(x);
     let mut sampler = Sampler::with_kind(kind, seed, pixel, s);
     sampler.start_vertex(0);
     let [jx, jy] = sampler.get_2d(Dim::Direction);
     // With motion, the sample's shutter time places the camera (and the volume, in `li`)
-    let shutter = scene.motion.as_ref().map(|m| m.shutter).or(scene.camera.motion.map(|m| m.shutter()));
+    let shutter =
+        scene.motion.as_ref().map(|m| m.shutter).or(scene.camera.motion.map(|m| m.shutter()));
     let time = shutter.map(|[open, close]| open + sampler.get_1d(Dim::Time) * (close - open));
     let camera = time.map_or(scene.camera, |t| scene.camera.at_time(t));
     PixelSample { ray: camera.ray(f64::from(x) + jx, f64::from(y) + jy), sampler, time }
@@ -86,27 +94,52 @@ fn render_tile_with<F: Field, A: Aovs>(
             let index = (ty * tile.width + tx) as usize;
             let integrator = pixel_integrator(&settings.integrator, split_map, x, y);
             for s in samples.clone() {
-                let PixelSample { ray, mut sampler, time } = pixel_sample(scene, settings.sampler, settings.seed, x, y, s);
+                let PixelSample { ray, mut sampler, time } =
+                    pixel_sample(scene, settings.sampler, settings.seed, x, y, s);
                 aovs.begin();
                 let l = if let Some((tile_index, pending)) = defer.as_mut() {
                     let mut paths = Vec::new();
-                    let state = PathState { sampler: &mut sampler, counters: &mut counters, trace: &mut NoTrace, aovs: &mut NoAovs };
+                    let state = PathState {
+                        sampler: &mut sampler,
+                        counters: &mut counters,
+                        trace: &mut NoTrace,
+                        aovs: &mut NoAovs,
+                    };
                     let l = integrator.li_deferring(scene, &ray, time, state, &mut paths);
                     if !paths.is_empty() {
                         // Added to the film when its paths are done
                         counters.samples += 1;
-                        pending.push(PendingSample::new(*tile_index, index, SampleId { x, y, sample: s }, integrator, l, paths));
+                        pending.push(PendingSample::new(
+                            *tile_index,
+                            index,
+                            SampleId { x, y, sample: s },
+                            integrator,
+                            l,
+                            paths,
+                        ));
                         continue;
                     }
                     l
                 } else {
-                    integrator.li_aovs(scene, &ray, time, PathState { sampler: &mut sampler, counters: &mut counters, trace: &mut NoTrace, aovs })
+                    integrator.li_aovs(
+                        scene,
+                        &ray,
+                        time,
+                        PathState {
+                            sampler: &mut sampler,
+                            counters: &mut counters,
+                            trace: &mut NoTrace,
+                            aovs,
+                        },
+                    )
                 };
                 if tile.half.is_some_and(|h| A::ON && crate::denoise::half_of(s, h.block)) {
                     aovs.half(l);
                 }
                 counters.samples += 1;
-                if l.iter().all(|v| v.is_finite()) && (!A::ON || aovs.values().iter().all(|v| v.is_finite())) {
+                if l.iter().all(|v| v.is_finite())
+                    && (!A::ON || aovs.values().iter().all(|v| v.is_finite()))
+                {
                     tile.add_sample(index, l);
                     if A::ON {
                         tile.add_aov(index, aovs.values());

@@ -57,19 +57,30 @@ pub(super) fn tile_major_pass<F: Field>(
 ) -> Option<Vec<Counters>> {
     let TileMajorPass { samples, read_ahead_window, abandon, defer } = *pass;
     let before = film.clone();
-    let rects: Vec<(u32, u32, u32, u32)> = film.tiles.iter().map(|t| (t.x0, t.y0, t.width, t.height)).collect();
+    let rects: Vec<(u32, u32, u32, u32)> =
+        film.tiles.iter().map(|t| (t.x0, t.y0, t.width, t.height)).collect();
     let taken = AtomicUsize::new(0);
     let finished = AtomicBool::new(false);
     let abandoned = AtomicBool::new(false);
     let queue = Mutex::new(film.tiles.iter_mut().enumerate());
     let results: Mutex<Vec<(usize, Counters, f64)>> = Mutex::new(Vec::with_capacity(rects.len()));
     let done: Vec<AtomicBool> = rects.iter().map(|_| AtomicBool::new(false)).collect();
-    let window = ReadAheadWindow { ahead: pool.current_num_threads() + PREFETCH_AHEAD, bytes: read_ahead_window.unwrap_or(u64::MAX) };
+    let window = ReadAheadWindow {
+        ahead: pool.current_num_threads() + PREFETCH_AHEAD,
+        bytes: read_ahead_window.unwrap_or(u64::MAX),
+    };
     let pending: Mutex<Vec<PendingSample>> = Mutex::new(Vec::new());
     std::thread::scope(|s| {
         if scene.field.is_mapped() {
             scene.field.expect_prefetch();
-            s.spawn(|| prefetch_tiles(scene, &rects, TileProgress { taken: &taken, done: &done, finished: &finished }, window));
+            s.spawn(|| {
+                prefetch_tiles(
+                    scene,
+                    &rects,
+                    TileProgress { taken: &taken, done: &done, finished: &finished },
+                    window,
+                )
+            });
         }
         pool.broadcast(|_| loop {
             if abandoned.load(Ordering::Relaxed) {
@@ -84,12 +95,20 @@ pub(super) fn tile_major_pass<F: Field>(
             taken.fetch_max(i + 1, Ordering::Relaxed);
             let start = Instant::now();
             let mut deferred = Vec::new();
-            let c = render_tile(scene, job, samples.clone(), tile, defer.then_some((i, &mut deferred)));
+            let c =
+                render_tile(scene, job, samples.clone(), tile, defer.then_some((i, &mut deferred)));
             if !deferred.is_empty() {
-                pending.lock().unwrap_or_else(std::sync::PoisonError::into_inner).append(&mut deferred);
+                pending
+                    .lock()
+                    .unwrap_or_else(std::sync::PoisonError::into_inner)
+                    .append(&mut deferred);
             }
             done[i].store(true, Ordering::Relaxed);
-            results.lock().unwrap_or_else(std::sync::PoisonError::into_inner).push((i, c, start.elapsed().as_secs_f64()));
+            results.lock().unwrap_or_else(std::sync::PoisonError::into_inner).push((
+                i,
+                c,
+                start.elapsed().as_secs_f64(),
+            ));
         });
         finished.store(true, Ordering::Relaxed);
     });
@@ -115,7 +134,9 @@ pub(super) fn tile_major_pass<F: Field>(
         // (docs/BENCHMARKS.md, "Out of core with scattering: the solar flare")
         let lookup = job.settings.integrator.point_lookup;
         let memory = read_ahead_window.map(|w| w.saturating_add(w / 2));
-        match crate::integrator::deferred::finish(scene, pool, memory, film, pending, lookup, abandon) {
+        match crate::integrator::deferred::finish(
+            scene, pool, memory, film, pending, lookup, abandon,
+        ) {
             Some(c) => counters.push(c),
             None => {
                 *film = before;
@@ -161,7 +182,8 @@ fn prefetch_tiles<F: Field>(
             while oldest < i && done[oldest].load(Ordering::Relaxed) {
                 oldest += 1;
             }
-            let in_flight = (oldest..i).filter(|&j| !done[j].load(Ordering::Relaxed)).map(|j| asked[j]).sum();
+            let in_flight =
+                (oldest..i).filter(|&j| !done[j].load(Ordering::Relaxed)).map(|j| asked[j]).sum();
             if window.allows(i, taken.load(Ordering::Relaxed), in_flight) {
                 break;
             }

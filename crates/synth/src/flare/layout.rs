@@ -118,9 +118,13 @@ impl SplitMix64 {
 /// All loops for `seed`: the arcade first, then the active-region loops.
 pub fn loops(seed: u64, counts: LayoutCounts) -> Vec<LoopSpec> {
     let pil = Pil::new(&mut SplitMix64::new(seed, 0, 0));
-    let arcade = (0..counts.arcade).map(|i| arcade_loop(&pil, &mut SplitMix64::new(seed, 1, u64::from(i)), counts.knot_fraction));
+    let arcade = (0..counts.arcade).map(|i| {
+        arcade_loop(&pil, &mut SplitMix64::new(seed, 1, u64::from(i)), counts.knot_fraction)
+    });
     let spots = Spots::new(&pil, &mut SplitMix64::new(seed, 0, 1));
-    let mut active: Vec<LoopSpec> = (0..counts.active_region).map(|i| active_region_loop(&spots, &mut SplitMix64::new(seed, 2, u64::from(i)))).collect();
+    let mut active: Vec<LoopSpec> = (0..counts.active_region)
+        .map(|i| active_region_loop(&spots, &mut SplitMix64::new(seed, 2, u64::from(i))))
+        .collect();
     // Normalise Σ arc·(radius + D)², the active-region loops' volume dilated by about
     // the reach of a brick at 4096³ (D = 5/4096), which sets the data size: seeds would
     // otherwise differ by ±25 % with the patches' spacing. Solve for one common radius
@@ -130,7 +134,8 @@ pub fn loops(seed: u64, counts: LayoutCounts) -> Vec<LoopSpec> {
     for spec in &active {
         let circle = spec.circle();
         let arc = 2.0 * circle.half_angle * circle.radius;
-        (a, b, c) = (a + arc * spec.radius * spec.radius, b + arc * spec.radius * D, c + arc * D * D);
+        (a, b, c) =
+            (a + arc * spec.radius * spec.radius, b + arc * spec.radius * D, c + arc * D * D);
     }
     let target = ACTIVE_REGION_VOLUME_PER_LOOP * active.len() as f64;
     if a > 0.0 && target > c {
@@ -160,8 +165,14 @@ impl Pil {
         // arcade obliquely (a row of arcs), not end-on or as a picket fence.
         let angle = rng.uniform(0.3, 0.5);
         let half = 0.33 * DVec2::new(angle.cos(), angle.sin());
-        let centre = DVec2::new(0.5, 0.5) + DVec2::new(rng.uniform(-0.04, 0.04), rng.uniform(-0.04, 0.04));
-        Pil { start: centre - half, end: centre + half, bend: rng.uniform(0.03, 0.06), phase: rng.uniform(0.0, TAU) }
+        let centre =
+            DVec2::new(0.5, 0.5) + DVec2::new(rng.uniform(-0.04, 0.04), rng.uniform(-0.04, 0.04));
+        Pil {
+            start: centre - half,
+            end: centre + half,
+            bend: rng.uniform(0.03, 0.06),
+            phase: rng.uniform(0.0, TAU),
+        }
     }
 
     fn axis_normal(&self) -> DVec2 {
@@ -170,12 +181,15 @@ impl Pil {
     }
 
     fn point(&self, t: f64) -> DVec2 {
-        self.start + t * (self.end - self.start) + self.bend * (TAU * t + self.phase).sin() * self.axis_normal()
+        self.start
+            + t * (self.end - self.start)
+            + self.bend * (TAU * t + self.phase).sin() * self.axis_normal()
     }
 
     /// Unit tangent at `t`.
     fn tangent(&self, t: f64) -> DVec2 {
-        let derivative = (self.end - self.start) + self.bend * TAU * (TAU * t + self.phase).cos() * self.axis_normal();
+        let derivative = (self.end - self.start)
+            + self.bend * TAU * (TAU * t + self.phase).cos() * self.axis_normal();
         derivative.normalize()
     }
 }
@@ -193,7 +207,10 @@ fn arcade_loop(pil: &Pil, rng: &mut SplitMix64, knot_fraction: f32) -> LoopSpec 
     let half_separation = height * rng.uniform(0.8, 1.15);
     // Sheared arcade: feet displaced along the PIL in opposite directions
     let shear = half_separation * rng.uniform(0.15, 0.35);
-    let feet = [centre - half_separation * normal - shear * tangent, centre + half_separation * normal + shear * tangent];
+    let feet = [
+        centre - half_separation * normal - shear * tangent,
+        centre + half_separation * normal + shear * tangent,
+    ];
     // Higher (later, in the standard flare model) loops are hotter
     let hotness = (0.6 * relative + 0.4 * rng.unit()).clamp(0.0, 1.0);
     let top_temperature = 10f64.powf(6.5 + 0.75 * hotness) as f32;
@@ -234,7 +251,8 @@ impl Spots {
         let (normal, along) = (pil.axis_normal(), (pil.end - pil.start).normalize());
         let middle = pil.point(0.5);
         let mut patch = |side: f64, i: usize| {
-            let offset = along * (0.45 * ((i as f64 + rng.uniform(0.2, 0.8)) / SPOTS as f64 - 0.5) * 2.0);
+            let offset =
+                along * (0.45 * ((i as f64 + rng.uniform(0.2, 0.8)) / SPOTS as f64 - 0.5) * 2.0);
             let centre = middle + offset + side * rng.uniform(0.16, 0.3) * normal;
             (clamp_inside(centre), rng.uniform(0.05, 0.1))
         };
@@ -250,7 +268,8 @@ fn active_region_loop(spots: &Spots, rng: &mut SplitMix64) -> LoopSpec {
     let (mut i, mut j) = (pick(rng), pick(rng));
     for _ in 0..2 {
         let (a, b) = (pick(rng), pick(rng));
-        let distance = |i: usize, j: usize| (spots.patches[0][i].0 - spots.patches[1][j].0).length();
+        let distance =
+            |i: usize, j: usize| (spots.patches[0][i].0 - spots.patches[1][j].0).length();
         if distance(a, b) < distance(i, j) {
             (i, j) = (a, b);
         }
@@ -321,6 +340,13 @@ impl LoopSpec {
         let h = self.height.max(1e-6);
         let c = (h * h - half_separation * half_separation) / (2.0 * h);
         let radius = (h * h + half_separation * half_separation) / (2.0 * h);
-        Circle { centre: middle + c * e2, e1, e2, normal: e1.cross(e2), radius, half_angle: 0.5 * PI + (c / radius).clamp(-1.0, 1.0).asin() }
+        Circle {
+            centre: middle + c * e2,
+            e1,
+            e2,
+            normal: e1.cross(e2),
+            radius,
+            half_angle: 0.5 * PI + (c / radius).clamp(-1.0, 1.0).asin(),
+        }
     }
 }

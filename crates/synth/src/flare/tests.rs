@@ -14,7 +14,8 @@ fn flare(resolution: u32, seed: u64) -> Flare {
 /// Every brick in `[0, brick_dims)³`, z slowest.
 fn all_bricks(f: &Flare) -> impl Iterator<Item = IVec3> {
     let d = f.brick_dims();
-    (0..d.z).flat_map(move |z| (0..d.y).flat_map(move |y| (0..d.x).map(move |x| IVec3::new(x, y, z))))
+    (0..d.z)
+        .flat_map(move |z| (0..d.y).flat_map(move |y| (0..d.x).map(move |x| IVec3::new(x, y, z))))
 }
 
 /// `fill_brick` into fresh arrays.
@@ -40,17 +41,25 @@ fn synth_flare_listing_never_misses_an_occupied_brick() {
     // 100 is not a multiple of 8: the last bricks are partial
     for (resolution, seed) in [(64, 1), (128, 1), (100, 7)] {
         let f = flare(resolution, seed);
-        let listed: HashSet<IVec3> = (0..f.brick_dims().z).flat_map(|bz| f.bricks_in_slab(bz)).collect();
+        let listed: HashSet<IVec3> =
+            (0..f.brick_dims().z).flat_map(|bz| f.bricks_in_slab(bz)).collect();
         let mut occupied = 0;
         for b in all_bricks(&f) {
             if fill(&f, b).0 {
                 occupied += 1;
-                assert!(listed.contains(&b), "{resolution}³ seed {seed}: occupied brick {b} not listed");
+                assert!(
+                    listed.contains(&b),
+                    "{resolution}³ seed {seed}: occupied brick {b} not listed"
+                );
             }
         }
         assert!(occupied > 20, "{resolution}³: only {occupied} occupied bricks");
         // Conservative, but not grossly so
-        assert!(listed.len() < 2 * occupied, "{resolution}³: {} listed, {occupied} occupied", listed.len());
+        assert!(
+            listed.len() < 2 * occupied,
+            "{resolution}³: {} listed, {occupied} occupied",
+            listed.len()
+        );
     }
 }
 
@@ -62,7 +71,10 @@ fn synth_flare_listing_is_sorted_unique_and_in_range() {
     for bz in 0..dims.z {
         let bricks = f.bricks_in_slab(bz);
         let key = |b: &IVec3| (b.y, b.x);
-        assert!(bricks.windows(2).all(|w| key(&w[0]) < key(&w[1])), "slab {bz} not sorted by (y, x)");
+        assert!(
+            bricks.windows(2).all(|w| key(&w[0]) < key(&w[1])),
+            "slab {bz} not sorted by (y, x)"
+        );
         for b in bricks {
             assert_eq!(b.z, bz);
             assert!(b.cmpge(IVec3::ZERO).all() && b.cmplt(dims).all(), "{b} outside {dims}");
@@ -84,7 +96,10 @@ fn synth_flare_values_are_finite_and_in_range() {
             let (d, t) = (density[o], temperature[o]);
             let p = b * 8 + IVec3::new(o as i32 >> 6, (o as i32 >> 3) & 7, o as i32 & 7);
             assert_eq!(leaf_offset(p.x, p.y, p.z), o);
-            assert!(d.is_finite() && d >= 0.0 && t.is_finite(), "{p}: density {d}, temperature {t}");
+            assert!(
+                d.is_finite() && d >= 0.0 && t.is_finite(),
+                "{p}: density {d}, temperature {t}"
+            );
             if p.max_element() >= resolution as i32 {
                 assert!(d == 0.0 && t == 0.0, "{p} beyond the resolution has {d}, {t}");
             }
@@ -151,14 +166,19 @@ fn synth_flare_occupied_fraction_is_in_band() {
     let total = f.brick_dims().as_dvec3().element_product();
     let fraction = occupied as f64 / total;
     assert!((0.11..=0.16).contains(&fraction), "occupied fraction {fraction}");
-    assert!(listed.len() as f64 <= 1.3 * occupied as f64, "{} listed, {occupied} occupied", listed.len());
+    assert!(
+        listed.len() as f64 <= 1.3 * occupied as f64,
+        "{} listed, {occupied} occupied",
+        listed.len()
+    );
     assert_eq!(f.estimated_bytes(), listed.len() as u64 * BYTES_PER_BRICK, "exact below 64 slabs");
 }
 
 #[test]
 fn synth_flare_estimate_from_sampled_slabs_is_close() {
     let f = flare(1024, 1);
-    let listed: usize = (0..f.brick_dims().z).into_par_iter().map(|bz| f.bricks_in_slab(bz).len()).sum();
+    let listed: usize =
+        (0..f.brick_dims().z).into_par_iter().map(|bz| f.bricks_in_slab(bz).len()).sum();
     let exact = listed as f64 * BYTES_PER_BRICK as f64;
     let estimate = f.estimated_bytes() as f64;
     assert!((estimate / exact - 1.0).abs() < 0.05, "estimate {estimate}, exact {exact}");
@@ -187,7 +207,10 @@ fn synth_flare_is_a_flare() {
     }
     assert!(on_floor > 100, "only {on_floor} voxels at the photosphere");
     assert_eq!(high, 0, "the top of the box should be empty");
-    assert!(hot_count > 100 && hot_height / (hot_count as f64) < 0.3, "hot plasma: {hot_count} voxels");
+    assert!(
+        hot_count > 100 && hot_height / (hot_count as f64) < 0.3,
+        "hot plasma: {hot_count} voxels"
+    );
     // Index −½ is the photosphere corner, resolution − ½ the opposite corner
     let m = f.world_from_index();
     let lo = m.transform_point3(DVec3::splat(-0.5));
@@ -222,7 +245,8 @@ fn synth_flare_report() {
     let gb = |bricks: usize| bricks as f64 * BYTES_PER_BRICK as f64 / 1e9;
     for resolution in [256u32, 512, 1024] {
         let f = flare(resolution, 1);
-        let listed: Vec<IVec3> = (0..f.brick_dims().z).into_par_iter().flat_map(|bz| f.bricks_in_slab(bz)).collect();
+        let listed: Vec<IVec3> =
+            (0..f.brick_dims().z).into_par_iter().flat_map(|bz| f.bricks_in_slab(bz)).collect();
         let occupied = listed.par_iter().filter(|&&b| fill(&f, b).0).count();
         let total = f.brick_dims().as_dvec3().element_product();
         println!(
@@ -249,7 +273,8 @@ fn synth_flare_report() {
     let f = flare(4096, 1);
     let built = t.elapsed().as_secs_f64();
     let t = Instant::now();
-    let listed: usize = (0..f.brick_dims().z).into_par_iter().map(|bz| f.bricks_in_slab(bz).len()).sum();
+    let listed: usize =
+        (0..f.brick_dims().z).into_par_iter().map(|bz| f.bricks_in_slab(bz).len()).sum();
     let listing = t.elapsed().as_secs_f64();
     let total = f.brick_dims().as_dvec3().element_product();
     println!(
@@ -298,8 +323,11 @@ fn synth_flare_listing_is_conservative_on_sampled_high_resolution_slabs() {
         let dims = f.brick_dims();
         for bz in slabs {
             let listed: HashSet<IVec3> = f.bricks_in_slab(bz).into_iter().collect();
-            let occupied: Vec<IVec3> =
-                (0..dims.y).into_par_iter().flat_map_iter(|y| (0..dims.x).map(move |x| IVec3::new(x, y, bz))).filter(|&b| fill(&f, b).0).collect();
+            let occupied: Vec<IVec3> = (0..dims.y)
+                .into_par_iter()
+                .flat_map_iter(|y| (0..dims.x).map(move |x| IVec3::new(x, y, bz)))
+                .filter(|&b| fill(&f, b).0)
+                .collect();
             assert!(occupied.len() > 50, "{resolution}³ slab {bz}: {} occupied", occupied.len());
             for b in occupied {
                 assert!(listed.contains(&b), "{resolution}³: occupied brick {b} not listed");
@@ -320,7 +348,11 @@ fn synth_flare_huge_resolution_costs() {
     let n = f.bricks_in_slab(2000).len();
     println!("one slab: {n} bricks in {:.2} s", t.elapsed().as_secs_f64());
     let t = Instant::now();
-    println!("estimate {:.1} TB in {:.2} s", f.estimated_bytes() as f64 / 1e12, t.elapsed().as_secs_f64());
+    println!(
+        "estimate {:.1} TB in {:.2} s",
+        f.estimated_bytes() as f64 / 1e12,
+        t.elapsed().as_secs_f64()
+    );
 }
 
 /// The whole 4096³ dataset, filled and dropped, in parallel over slabs like a writer:
@@ -337,7 +369,8 @@ fn synth_flare_full_4096() {
             let start = thread_cpu_seconds();
             let bricks = f.bricks_in_slab(bz);
             let (mut density, mut temperature) = ([0.0; 512], [0.0; 512]);
-            let occupied = bricks.iter().filter(|&&b| f.fill_brick(b, &mut density, &mut temperature)).count();
+            let occupied =
+                bricks.iter().filter(|&&b| f.fill_brick(b, &mut density, &mut temperature)).count();
             (bricks.len(), occupied, thread_cpu_seconds() - start)
         })
         .reduce(|| (0, 0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1, a.2 + b.2));
@@ -361,9 +394,17 @@ fn synth_flare_full_4096() {
 fn synth_flare_seed_spread() {
     for seed in 1..=5 {
         let f = flare(4096, seed);
-        let listed: usize = (0..f.brick_dims().z).into_par_iter().map(|bz| f.bricks_in_slab(bz).len()).sum();
+        let listed: usize =
+            (0..f.brick_dims().z).into_par_iter().map(|bz| f.bricks_in_slab(bz).len()).sum();
         let small = flare(256, seed);
-        let occupied = (0..small.brick_dims().z).flat_map(|bz| small.bricks_in_slab(bz)).filter(|&b| fill(&small, b).0).count();
-        println!("seed {seed}: 4096³ {:.2} % listed, 256³ {:.2} % occupied", 100.0 * listed as f64 / 512f64.powi(3), 100.0 * occupied as f64 / 32f64.powi(3));
+        let occupied = (0..small.brick_dims().z)
+            .flat_map(|bz| small.bricks_in_slab(bz))
+            .filter(|&b| fill(&small, b).0)
+            .count();
+        println!(
+            "seed {seed}: 4096³ {:.2} % listed, 256³ {:.2} % occupied",
+            100.0 * listed as f64 / 512f64.powi(3),
+            100.0 * occupied as f64 / 32f64.powi(3)
+        );
     }
 }

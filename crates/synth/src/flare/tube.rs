@@ -85,7 +85,9 @@ impl Tube {
             .collect();
         let reach = profile.iter().map(|p| p.radius).fold(0.0, f32::max);
         // Extent of a circle along axis k: R·√(1 − n_k²)
-        let extent = (DVec3::ONE - circle.normal * circle.normal).max(DVec3::ZERO).map(f64::sqrt) * radius + f64::from(reach);
+        let extent = (DVec3::ONE - circle.normal * circle.normal).max(DVec3::ZERO).map(f64::sqrt)
+            * radius
+            + f64::from(reach);
         Tube {
             centre,
             e1: circle.e1.as_vec3(),
@@ -133,7 +135,8 @@ impl Tube {
         for x in 0..end.x {
             for y in 0..end.y {
                 let (fx, fy) = (x as f32, y as f32);
-                let row = q0 + Vec3::new(fx * e1.x + fy * e1.y, fx * e2.x + fy * e2.y, fx * n.x + fy * n.y);
+                let row = q0
+                    + Vec3::new(fx * e1.x + fy * e1.y, fx * e2.x + fy * e2.y, fx * n.x + fy * n.y);
                 // In-plane (a, b) and out-of-plane h components of p − centre along the
                 // row, and squared distances to the circle (8 lanes, vectorisable)
                 let a: [f32; 8] = std::array::from_fn(|z| row.x + steps[z] * e1.z);
@@ -186,7 +189,8 @@ impl Tube {
         if phi.abs() + spread >= PI {
             return self.reach;
         }
-        let to_position = |phi: f32| ((phi * self.inverse_half_angle).clamp(-1.0, 1.0) + 1.0) * self.table_scale;
+        let to_position =
+            |phi: f32| ((phi * self.inverse_half_angle).clamp(-1.0, 1.0) + 1.0) * self.table_scale;
         let last = self.profile.len() - 1;
         let lo = (to_position(phi - spread).floor().max(0.0) as usize).min(last);
         let hi = (to_position(phi + spread).ceil() as usize + 1).min(last);
@@ -225,7 +229,8 @@ fn profile_at(spec: &LoopSpec, tube_radius: f32, density: f32, s: f32) -> Profil
     let [ba, k1, p1, k2, p2] = spec.beading;
     let mut density = density * (1.0 + ba * (k1 * s + p1).sin() * (k2 * s + p2).sin());
     // Legs cool towards the footpoints
-    let mut temperature = FOOT_TEMPERATURE + (spec.top_temperature - FOOT_TEMPERATURE) * smoothstep((1.0 - s.abs()) / LEG);
+    let mut temperature = FOOT_TEMPERATURE
+        + (spec.top_temperature - FOOT_TEMPERATURE) * smoothstep((1.0 - s.abs()) / LEG);
     if let Some(knot) = spec.knot {
         let u = (s - knot.centre) / knot.half_width;
         if u.abs() < 1.0 {
@@ -256,7 +261,11 @@ pub fn fast_atan2(y: f32, x: f32) -> f32 {
     }
     let z = small / large;
     let z2 = z * z;
-    let mut r = z * (0.999_977_26 + z2 * (-0.332_623_47 + z2 * (0.193_543_46 + z2 * (-0.116_432_87 + z2 * (0.052_653_32 - 0.011_721_2 * z2)))));
+    let mut r = z
+        * (0.999_977_26
+            + z2 * (-0.332_623_47
+                + z2 * (0.193_543_46
+                    + z2 * (-0.116_432_87 + z2 * (0.052_653_32 - 0.011_721_2 * z2)))));
     if ay > ax {
         r = FRAC_PI_2 - r;
     }

@@ -61,8 +61,15 @@ pub enum SectionKind {
 
 impl SectionKind {
     /// All kinds, in file order.
-    pub const ALL: [SectionKind; 7] =
-        [SectionKind::Values, SectionKind::Table, SectionKind::Bricks, SectionKind::Pyramid, SectionKind::Proxy, SectionKind::Meta, SectionKind::Chunks];
+    pub const ALL: [SectionKind; 7] = [
+        SectionKind::Values,
+        SectionKind::Table,
+        SectionKind::Bricks,
+        SectionKind::Pyramid,
+        SectionKind::Proxy,
+        SectionKind::Meta,
+        SectionKind::Chunks,
+    ];
 
     /// Name used in messages.
     #[must_use]
@@ -135,7 +142,9 @@ impl Header {
     /// The entry of `kind`, if present.
     #[must_use]
     pub fn section(&self, kind: SectionKind) -> Option<&SectionEntry> {
-        self.sections[..(self.section_count as usize).min(MAX_SECTIONS)].iter().find(|s| s.kind == kind as u32)
+        self.sections[..(self.section_count as usize).min(MAX_SECTIONS)]
+            .iter()
+            .find(|s| s.kind == kind as u32)
     }
 }
 

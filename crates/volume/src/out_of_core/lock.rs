@@ -55,7 +55,8 @@ pub enum Acquired {
 /// The lock file of the cache `cache`: `.NAME.lock` beside it.
 #[must_use]
 pub fn lock_path(cache: &Path) -> PathBuf {
-    let name = cache.file_name().map_or_else(|| "cache".into(), |n| n.to_string_lossy().into_owned());
+    let name =
+        cache.file_name().map_or_else(|| "cache".into(), |n| n.to_string_lossy().into_owned());
     plume_core::fs::parent_dir(cache).join(format!(".{name}.lock"))
 }
 
@@ -75,10 +76,19 @@ impl CacheLock {
     pub fn acquire(cache: &Path, timeout: Duration, waiting: Option<&str>) -> Result<Acquired> {
         let lock_path = lock_path(cache);
         let unlocked = |e: std::io::Error| {
-            log::warn!("cannot lock {} ({e}); going on without waiting for other processes", lock_path.display());
+            log::warn!(
+                "cannot lock {} ({e}); going on without waiting for other processes",
+                lock_path.display()
+            );
             Ok(Acquired::Locked(CacheLock { file: None }))
         };
-        let file = match File::options().read(true).write(true).create(true).truncate(false).open(&lock_path) {
+        let file = match File::options()
+            .read(true)
+            .write(true)
+            .create(true)
+            .truncate(false)
+            .open(&lock_path)
+        {
             Ok(f) => f,
             Err(e) => return unlocked(e),
         };
@@ -130,18 +140,27 @@ mod tests {
     fn a_held_lock_times_out_and_a_dropped_one_is_free() {
         let dir = scratch("timeout");
         let cache = dir.join("x.plume");
-        let Acquired::Locked(first) = CacheLock::acquire(&cache, Duration::ZERO, None).unwrap() else { panic!("a free lock is taken at once") };
+        let Acquired::Locked(first) = CacheLock::acquire(&cache, Duration::ZERO, None).unwrap()
+        else {
+            panic!("a free lock is taken at once")
+        };
         assert!(first.is_held() && lock_path(&cache).exists());
         let start = Instant::now();
         match CacheLock::acquire(&cache, Duration::from_millis(300), None).unwrap() {
             Acquired::TimedOut { lock, waited } => {
                 assert_eq!(lock, dir.join(".x.plume.lock"));
-                assert!(waited >= Duration::from_millis(300) && start.elapsed() < Duration::from_secs(5), "{waited:?}");
+                assert!(
+                    waited >= Duration::from_millis(300)
+                        && start.elapsed() < Duration::from_secs(5),
+                    "{waited:?}"
+                );
             }
             Acquired::Locked(_) => panic!("a held lock was taken twice"),
         }
         drop(first);
-        assert!(matches!(CacheLock::acquire(&cache, Duration::ZERO, None).unwrap(), Acquired::Locked(l) if l.is_held()));
+        assert!(
+            matches!(CacheLock::acquire(&cache, Duration::ZERO, None).unwrap(), Acquired::Locked(l) if l.is_held())
+        );
         let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -66,7 +66,8 @@ const MAPPED: &[u8] = b" of the mapped file";
 /// Instead of the byte offset and [`MAPPED`], for a [`Watch::any_address`].
 const UNKNOWN: &[u8] = b": the mapped file";
 /// The end of every message.
-const TAIL: &[u8] = b" could not be read (SIGBUS: the file was truncated by another process while in use, \
+const TAIL: &[u8] =
+    b" could not be read (SIGBUS: the file was truncated by another process while in use, \
 or its storage returned an I/O error); stopped at once, nothing more was written";
 /// The stored offset of a [`Watch::any_address`]: no byte offset is known.
 const ANY_ADDRESS: u64 = u64::MAX;
@@ -156,7 +157,9 @@ impl Watch {
         if range.is_empty() {
             return Watch { slot: None };
         }
-        let slot = REGISTRY.iter().position(|s| s.claimed.compare_exchange(false, true, Ordering::AcqRel, Ordering::Relaxed).is_ok());
+        let slot = REGISTRY.iter().position(|s| {
+            s.claimed.compare_exchange(false, true, Ordering::AcqRel, Ordering::Relaxed).is_ok()
+        });
         if let Some(i) = slot {
             REGISTRY[i].update(range, offset, &message_text(kind, path));
         }
@@ -170,7 +173,9 @@ impl Watch {
     /// around such a call: meanwhile any unclaimed fault is blamed on `path`.
     #[must_use]
     pub fn any_address(kind: &str, path: &Path) -> Watch {
-        let slot = REGISTRY.iter().position(|s| s.claimed.compare_exchange(false, true, Ordering::AcqRel, Ordering::Relaxed).is_ok());
+        let slot = REGISTRY.iter().position(|s| {
+            s.claimed.compare_exchange(false, true, Ordering::AcqRel, Ordering::Relaxed).is_ok()
+        });
         if let Some(i) = slot {
             REGISTRY[i].update(1..usize::MAX, ANY_ADDRESS, &message_text(kind, path));
         }
@@ -197,7 +202,8 @@ impl Drop for Watch {
 /// the file name, behind `…`). Control characters become `?`, so that the line is one
 /// line and the JSON event needs no `\u` escapes.
 fn message_text(kind: &str, path: &Path) -> Vec<u8> {
-    let path: String = path.display().to_string().chars().map(|c| if c.is_control() { '?' } else { c }).collect();
+    let path: String =
+        path.display().to_string().chars().map(|c| if c.is_control() { '?' } else { c }).collect();
     let mut text = format!("{kind} {path}");
     if text.len() > TEXT {
         let keep = TEXT - kind.len() - " …".len() - 1;
@@ -213,7 +219,9 @@ fn message_text(kind: &str, path: &Path) -> Vec<u8> {
 /// The registered range holding `addr`: its file offset, message in `text` and length. A
 /// range of a known mapping wins over a [`Watch::any_address`].
 fn find(addr: usize, text: &mut [u8; TEXT]) -> Option<(u64, usize)> {
-    let known = REGISTRY.iter().find_map(|s| s.lookup(addr, text).filter(|&(offset, _)| offset != ANY_ADDRESS));
+    let known = REGISTRY
+        .iter()
+        .find_map(|s| s.lookup(addr, text).filter(|&(offset, _)| offset != ANY_ADDRESS));
     known.or_else(|| REGISTRY.iter().find_map(|s| s.lookup(addr, text)))
 }
 
@@ -296,7 +304,11 @@ static REPORTING: AtomicBool = AtomicBool::new(false);
 static PREVIOUS: OnceLock<libc::sigaction> = OnceLock::new();
 
 /// The SIGBUS handler. See the module docs.
-extern "C" fn on_sigbus(signal: libc::c_int, info: *mut libc::siginfo_t, _context: *mut libc::c_void) {
+extern "C" fn on_sigbus(
+    signal: libc::c_int,
+    info: *mut libc::siginfo_t,
+    _context: *mut libc::c_void,
+) {
     // SAFETY: the kernel passes a valid `siginfo_t` to an `SA_SIGINFO` handler.
     let info = unsafe { &*info };
     // Only a fault the kernel raised carries the faulting address (`si_code > 0`); in a
@@ -397,7 +409,8 @@ pub fn install() -> io::Result<()> {
     // (write, _exit, pause, sigaction, raise).
     unsafe {
         let mut action: libc::sigaction = std::mem::zeroed();
-        let handler: extern "C" fn(libc::c_int, *mut libc::siginfo_t, *mut libc::c_void) = on_sigbus;
+        let handler: extern "C" fn(libc::c_int, *mut libc::siginfo_t, *mut libc::c_void) =
+            on_sigbus;
         action.sa_sigaction = handler as usize;
         // Not SA_ONSTACK: the handler runs on the faulting thread's own stack (its buffers
         // would not fit std's small alternate stack); stack overflows are std's SIGSEGV
@@ -461,19 +474,29 @@ impl Deref for Mapping {
 #[must_use]
 pub fn watch_mappings_of(path: &Path, kind: &str) -> Vec<Watch> {
     use std::os::unix::fs::MetadataExt;
-    let (Ok(meta), Ok(maps)) = (std::fs::metadata(path), std::fs::read_to_string("/proc/self/maps")) else { return Vec::new() };
+    let (Ok(meta), Ok(maps)) =
+        (std::fs::metadata(path), std::fs::read_to_string("/proc/self/maps"))
+    else {
+        return Vec::new();
+    };
     let dev = meta.dev();
     // glibc's and the kernel's encoding of a device number
-    let (major, minor) = (((dev >> 8) & 0xfff) | ((dev >> 32) & !0xfff), (dev & 0xff) | ((dev >> 12) & !0xff));
+    let (major, minor) =
+        (((dev >> 8) & 0xfff) | ((dev >> 32) & !0xfff), (dev & 0xff) | ((dev >> 12) & !0xff));
     maps.lines()
         .filter_map(|line| {
             let mut fields = line.split_whitespace();
-            let (range, _perms, offset, device, inode) = (fields.next()?, fields.next()?, fields.next()?, fields.next()?, fields.next()?);
+            let (range, _perms, offset, device, inode) =
+                (fields.next()?, fields.next()?, fields.next()?, fields.next()?, fields.next()?);
             let (lo, hi) = range.split_once('-')?;
             let (maj, min) = device.split_once(':')?;
-            let ours = inode.parse::<u64>().ok()? == meta.ino() && u64::from_str_radix(maj, 16).ok()? == major && u64::from_str_radix(min, 16).ok()? == minor;
+            let ours = inode.parse::<u64>().ok()? == meta.ino()
+                && u64::from_str_radix(maj, 16).ok()? == major
+                && u64::from_str_radix(min, 16).ok()? == minor;
             let range = usize::from_str_radix(lo, 16).ok()?..usize::from_str_radix(hi, 16).ok()?;
-            ours.then(|| Watch::new(range, u64::from_str_radix(offset, 16).unwrap_or(0), kind, path))
+            ours.then(|| {
+                Watch::new(range, u64::from_str_radix(offset, 16).unwrap_or(0), kind, path)
+            })
         })
         .collect()
 }
@@ -504,10 +527,16 @@ mod tests {
         assert!(a.is_active() && b.is_active());
         let line = line_for(base + 100).unwrap();
         assert!(line.starts_with("plume: error: brick cache /farm/a.plume: byte 100 of the mapped file could not be read (SIGBUS"), "{line}");
-        assert!(line.ends_with("nothing more was written\n") && line.matches('\n').count() == 1, "{line}");
+        assert!(
+            line.ends_with("nothing more was written\n") && line.matches('\n').count() == 1,
+            "{line}"
+        );
         assert!(line_for(base + 8192 + 5).unwrap().contains("VDB file /farm/b.vdb: byte 4101 of"));
         assert_eq!(line_for(base + 12288), None, "ranges are half-open");
-        assert!(Watch::new(base..base, 0, "x", Path::new("y")).slot.is_none(), "an empty range is not registered");
+        assert!(
+            Watch::new(base..base, 0, "x", Path::new("y")).slot.is_none(),
+            "an empty range is not registered"
+        );
         drop(a);
         assert_eq!(line_for(base + 100), None);
         let c = Watch::new(base..base + 4096, 0, "brick cache", Path::new("/farm/c.plume"));
@@ -522,16 +551,28 @@ mod tests {
         let text = message_text("brick cache", Path::new(&long));
         assert!(text.len() <= TEXT);
         let text = String::from_utf8(text).unwrap();
-        assert!(text.starts_with("brick cache …") && text.ends_with("/é/frame.0001.plume"), "{text}");
-        assert_eq!(String::from_utf8(message_text("k", Path::new("a\nb\tc"))).unwrap(), "k a?b?c", "one line");
+        assert!(
+            text.starts_with("brick cache …") && text.ends_with("/é/frame.0001.plume"),
+            "{text}"
+        );
+        assert_eq!(
+            String::from_utf8(message_text("k", Path::new("a\nb\tc"))).unwrap(),
+            "k a?b?c",
+            "one line"
+        );
         let mut message = [0u8; MESSAGE];
         let n = format_message(long.as_bytes().get(..TEXT).unwrap(), u64::MAX - 1, &mut message);
-        assert!(String::from_utf8_lossy(&message[..n]).contains(&format!(": byte {} of", u64::MAX - 1)));
+        assert!(
+            String::from_utf8_lossy(&message[..n]).contains(&format!(": byte {} of", u64::MAX - 1))
+        );
         // A fault caught by `Watch::any_address` has no byte offset. (Not registered here:
         // it would claim other tests' addresses.)
         let n = format_message(b"VDB file /farm/b.vdb", ANY_ADDRESS, &mut message);
         let m = String::from_utf8_lossy(&message[..n]);
-        assert!(m.starts_with("VDB file /farm/b.vdb: the mapped file could not be read (SIGBUS"), "{m}");
+        assert!(
+            m.starts_with("VDB file /farm/b.vdb: the mapped file could not be read (SIGBUS"),
+            "{m}"
+        );
     }
 
     /// The JSON event parses, with the message as its error, whatever quotes and
@@ -570,7 +611,10 @@ mod tests {
         let slot = &REGISTRY[watches[0].slot.unwrap()];
         let mut text = [0u8; TEXT];
         let (offset, len) = slot.lookup(at, &mut text).unwrap();
-        assert_eq!((offset, &text[..len]), (4099, format!("VDB file {}", path.display()).as_bytes()));
+        assert_eq!(
+            (offset, &text[..len]),
+            (4099, format!("VDB file {}", path.display()).as_bytes())
+        );
         drop(map);
         drop(watches);
         assert_eq!(slot.lookup(at, &mut text), None);

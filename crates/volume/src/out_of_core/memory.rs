@@ -120,7 +120,9 @@ impl fmt::Display for MemoryBound {
         match self.source {
             MemorySource::Physical => write!(f, "{gb:.2} GB of physical memory"),
             MemorySource::MemAvailable => write!(f, "{gb:.2} GB, MemAvailable"),
-            MemorySource::Cgroup(version) => write!(f, "{gb:.2} GB under this process's {version} memory limit"),
+            MemorySource::Cgroup(version) => {
+                write!(f, "{gb:.2} GB under this process's {version} memory limit")
+            }
         }
     }
 }
@@ -154,14 +156,24 @@ impl MemoryLimits {
     /// tests). Physical memory is `MemTotal` only.
     #[must_use]
     pub fn read_from(root: &Path) -> MemoryLimits {
-        let meminfo = read_text(&root.join("proc/meminfo")).map_or_else(Meminfo::default, |t| parse_meminfo(&t));
-        let paths = read_text(&root.join("proc/self/cgroup")).map_or_else(CgroupPaths::default, |t| parse_proc_cgroup(&t));
+        let meminfo = read_text(&root.join("proc/meminfo"))
+            .map_or_else(Meminfo::default, |t| parse_meminfo(&t));
+        let paths = read_text(&root.join("proc/self/cgroup"))
+            .map_or_else(CgroupPaths::default, |t| parse_proc_cgroup(&t));
         let mut cgroup_levels = Vec::new();
         if let Some(path) = &paths.v2 {
-            cgroup_levels.extend(limited_levels(&root.join("sys/fs/cgroup"), path, CgroupVersion::V2));
+            cgroup_levels.extend(limited_levels(
+                &root.join("sys/fs/cgroup"),
+                path,
+                CgroupVersion::V2,
+            ));
         }
         if let Some(path) = &paths.v1_memory {
-            cgroup_levels.extend(limited_levels(&root.join("sys/fs/cgroup/memory"), path, CgroupVersion::V1));
+            cgroup_levels.extend(limited_levels(
+                &root.join("sys/fs/cgroup/memory"),
+                path,
+                CgroupVersion::V1,
+            ));
         }
         MemoryLimits { physical: meminfo.total, mem_available: meminfo.available, cgroup_levels }
     }
@@ -182,8 +194,11 @@ impl MemoryLimits {
     /// whichever is smaller (physical memory on a tie).
     #[must_use]
     pub fn limit(&self) -> Option<MemoryBound> {
-        let physical = self.physical.map(|bytes| MemoryBound { bytes, source: MemorySource::Physical });
-        let cgroup = self.cgroup_limit().map(|l| MemoryBound { bytes: l.limit, source: MemorySource::Cgroup(l.version) });
+        let physical =
+            self.physical.map(|bytes| MemoryBound { bytes, source: MemorySource::Physical });
+        let cgroup = self
+            .cgroup_limit()
+            .map(|l| MemoryBound { bytes: l.limit, source: MemorySource::Cgroup(l.version) });
         tighter(physical, cgroup)
     }
 
@@ -191,8 +206,12 @@ impl MemoryLimits {
     /// under a cgroup limit, whichever is smaller (`MemAvailable` on a tie).
     #[must_use]
     pub fn available(&self) -> Option<MemoryBound> {
-        let machine = self.mem_available.map(|bytes| MemoryBound { bytes, source: MemorySource::MemAvailable });
-        let cgroup = self.cgroup_available().map(|l| MemoryBound { bytes: l.available(), source: MemorySource::Cgroup(l.version) });
+        let machine = self
+            .mem_available
+            .map(|bytes| MemoryBound { bytes, source: MemorySource::MemAvailable });
+        let cgroup = self
+            .cgroup_available()
+            .map(|l| MemoryBound { bytes: l.available(), source: MemorySource::Cgroup(l.version) });
         tighter(machine, cgroup)
     }
 
@@ -216,7 +235,15 @@ fn tighter(a: Option<MemoryBound>, b: Option<MemoryBound>) -> Option<MemoryBound
 /// `mount`, innermost first, up to and including the mount root.
 fn limited_levels(mount: &Path, path: &str, version: CgroupVersion) -> Vec<CgroupLevel> {
     let Some(components) = cgroup_components(path) else { return Vec::new() };
-    (0..=components.len()).rev().filter_map(|depth| read_level(&components[..depth].iter().fold(mount.to_path_buf(), |d, c| d.join(c)), version)).collect()
+    (0..=components.len())
+        .rev()
+        .filter_map(|depth| {
+            read_level(
+                &components[..depth].iter().fold(mount.to_path_buf(), |d, c| d.join(c)),
+                version,
+            )
+        })
+        .collect()
 }
 
 /// The level at `dir`, if it has a memory limit.
@@ -224,7 +251,10 @@ fn read_level(dir: &Path, version: CgroupVersion) -> Option<CgroupLevel> {
     let file = |name: &str| read_text(&dir.join(name));
     let (limit, usage, stat_keys): (Option<u64>, _, &[[&str; 2]]) = match version {
         CgroupVersion::V2 => (
-            ["memory.max", "memory.high"].into_iter().filter_map(|n| file(n).and_then(|t| parse_limit(&t))).min(),
+            ["memory.max", "memory.high"]
+                .into_iter()
+                .filter_map(|n| file(n).and_then(|t| parse_limit(&t)))
+                .min(),
             "memory.current",
             &[["active_file", "inactive_file"]],
         ),
@@ -236,7 +266,13 @@ fn read_level(dir: &Path, version: CgroupVersion) -> Option<CgroupLevel> {
     };
     let stat = file("memory.stat");
     let file_pages = stat.and_then(|s| stat_keys.iter().find_map(|keys| parse_stat_sum(&s, keys)));
-    Some(CgroupLevel { version, dir: dir.to_path_buf(), limit: limit?, usage: file(usage).and_then(|t| parse_bytes(&t)), file_pages })
+    Some(CgroupLevel {
+        version,
+        dir: dir.to_path_buf(),
+        limit: limit?,
+        usage: file(usage).and_then(|t| parse_bytes(&t)),
+        file_pages,
+    })
 }
 
 /// A small text file, or `None`.
@@ -248,7 +284,8 @@ fn read_text(path: &Path) -> Option<String> {
 fn sysconf_physical_bytes() -> Option<u64> {
     // SAFETY: sysconf only reads system configuration; it has no preconditions and
     // returns -1 for an unknown name.
-    let (pages, page_size) = unsafe { (libc::sysconf(libc::_SC_PHYS_PAGES), libc::sysconf(libc::_SC_PAGESIZE)) };
+    let (pages, page_size) =
+        unsafe { (libc::sysconf(libc::_SC_PHYS_PAGES), libc::sysconf(libc::_SC_PAGESIZE)) };
     if pages <= 0 || page_size <= 0 {
         return None;
     }
@@ -289,7 +326,11 @@ fn parse_proc_cgroup(text: &str) -> CgroupPaths {
     let mut paths = CgroupPaths::default();
     for line in text.lines() {
         let mut fields = line.splitn(3, ':');
-        let (Some(id), Some(controllers), Some(path)) = (fields.next(), fields.next(), fields.next()) else { continue };
+        let (Some(id), Some(controllers), Some(path)) =
+            (fields.next(), fields.next(), fields.next())
+        else {
+            continue;
+        };
         if !path.starts_with('/') {
             continue;
         }
@@ -324,7 +365,9 @@ fn parse_bytes(text: &str) -> Option<u64> {
 /// unless every key is there with a number.
 fn parse_stat_sum(text: &str, keys: &[&str]) -> Option<u64> {
     keys.iter().try_fold(0u64, |sum, key| {
-        let value = text.lines().find_map(|l| l.strip_prefix(key)?.strip_prefix(' ')?.trim().parse::<u64>().ok())?;
+        let value = text
+            .lines()
+            .find_map(|l| l.strip_prefix(key)?.strip_prefix(' ')?.trim().parse::<u64>().ok())?;
         sum.checked_add(value)
     })
 }

@@ -45,14 +45,24 @@ const MERGE_GAP_BLOCKS: usize = 16;
 
 /// Cells of a brick table (`dims` cells from brick `brick_lo`, x fastest) crossed by
 /// `ray` within `[t_min, t_max]`, in order along the ray.
-pub fn cells_along(index_from_world: &DAffine3, brick_lo: IVec3, dims: IVec3, ray: &Ray, t_min: f64, t_max: f64, mut visit: impl FnMut(usize)) {
+pub fn cells_along(
+    index_from_world: &DAffine3,
+    brick_lo: IVec3,
+    dims: IVec3,
+    ray: &Ray,
+    t_min: f64,
+    t_max: f64,
+    mut visit: impl FnMut(usize),
+) {
     if dims.cmple(IVec3::ZERO).any() {
         return;
     }
     let scale = 1.0 / f64::from(BRICK);
     let o = (index_from_world.transform_point3(ray.origin) + 0.5) * scale - brick_lo.as_dvec3();
     let d = index_from_world.transform_vector3(ray.direction) * scale;
-    let Some((t0, t1)) = clip_to_box(o, d, DVec3::ZERO, dims.as_dvec3(), t_min, t_max) else { return };
+    let Some((t0, t1)) = clip_to_box(o, d, DVec3::ZERO, dims.as_dvec3(), t_min, t_max) else {
+        return;
+    };
     let p = o + d * t0;
     let mut cell = p.floor().as_ivec3().clamp(IVec3::ZERO, dims - 1);
     let mut t_next = DVec3::INFINITY;
@@ -72,7 +82,10 @@ pub fn cells_along(index_from_world: &DAffine3, brick_lo: IVec3, dims: IVec3, ra
     // A ray crosses at most one cell per boundary plane it passes
     let max_cells = (dims.x + dims.y + dims.z) as usize + 3;
     for _ in 0..max_cells {
-        visit(cell.x as usize + dims.x as usize * (cell.y as usize + dims.y as usize * cell.z as usize));
+        visit(
+            cell.x as usize
+                + dims.x as usize * (cell.y as usize + dims.y as usize * cell.z as usize),
+        );
         let a = if t_next.x <= t_next.y && t_next.x <= t_next.z {
             0
         } else if t_next.y <= t_next.z {
@@ -118,15 +131,24 @@ impl Volume {
         let occupied = self.occupied();
         let mut blocks: Vec<usize> = Vec::new();
         // Neighbouring sub-rays cross the same bricks: take each brick once
-        let mut seen: std::collections::HashSet<usize, std::hash::BuildHasherDefault<CellHasher>> = std::collections::HashSet::default();
+        let mut seen: std::collections::HashSet<usize, std::hash::BuildHasherDefault<CellHasher>> =
+            std::collections::HashSet::default();
         for j in 0..=grid.cells_y * n {
             for i in 0..=grid.cells_x * n {
                 let ray = grid.at(i as f64 / n as f64, j as f64 / n as f64);
-                cells_along(&self.index_from_world, self.brick_lo, self.dims, &ray, 0.0, f64::INFINITY, |cell| {
-                    if is_set(occupied, cell) && seen.insert(cell) {
-                        self.push_blocks(self.brick_at_cell(cell), &mut blocks);
-                    }
-                });
+                cells_along(
+                    &self.index_from_world,
+                    self.brick_lo,
+                    self.dims,
+                    &ray,
+                    0.0,
+                    f64::INFINITY,
+                    |cell| {
+                        if is_set(occupied, cell) && seen.insert(cell) {
+                            self.push_blocks(self.brick_at_cell(cell), &mut blocks);
+                        }
+                    },
+                );
             }
         }
         self.will_need_blocks(blocks)
@@ -196,7 +218,13 @@ impl Volume {
         for (i, j) in [(0, 0), (grid.cells_x - 1, grid.cells_y - 1)] {
             let r = grid.corner(i, j);
             let far = (0..8)
-                .map(|k| DVec3::new(if k & 1 == 0 { lo.x } else { hi.x }, if k & 2 == 0 { lo.y } else { hi.y }, if k & 4 == 0 { lo.z } else { hi.z }))
+                .map(|k| {
+                    DVec3::new(
+                        if k & 1 == 0 { lo.x } else { hi.x },
+                        if k & 2 == 0 { lo.y } else { hi.y },
+                        if k & 4 == 0 { lo.z } else { hi.z },
+                    )
+                })
                 .map(|c| (c - r.origin).length())
                 .fold(0.0, f64::max);
             let t_far = far / r.direction.length().max(f64::MIN_POSITIVE);
@@ -226,7 +254,8 @@ impl Volume {
         let mut blocks: Vec<usize> = Vec::with_capacity(points.len() * 3);
         for p in points {
             let Some(q) = self.voxel_below(*p) else { continue };
-            let (lo, hi) = (q.div_euclid(IVec3::splat(BRICK)), (q + 1).div_euclid(IVec3::splat(BRICK)));
+            let (lo, hi) =
+                (q.div_euclid(IVec3::splat(BRICK)), (q + 1).div_euclid(IVec3::splat(BRICK)));
             for z in lo.z..=hi.z {
                 for y in lo.y..=hi.y {
                     for x in lo.x..=hi.x {
@@ -265,7 +294,8 @@ impl Volume {
     /// the file). Nothing for an in-core volume.
     pub fn read_ahead_blocks(&self, blocks: std::ops::Range<usize>) {
         if self.is_mapped() {
-            self.values.will_need(std::iter::once(blocks.start * BRICK_VALUES..blocks.end * BRICK_VALUES));
+            self.values
+                .will_need(std::iter::once(blocks.start * BRICK_VALUES..blocks.end * BRICK_VALUES));
         }
     }
 
@@ -334,7 +364,10 @@ mod tests {
         let transforms = [
             DAffine3::IDENTITY,
             DAffine3::from_scale(DVec3::new(0.5, 2.0, 1.25)),
-            DAffine3::from_mat3_translation(glam::DMat3::from_cols_array(&[1.0, 0.2, 0.0, 0.0, 1.0, 0.3, 0.1, 0.0, 0.9]), DVec3::new(3.0, -2.0, 1.0)),
+            DAffine3::from_mat3_translation(
+                glam::DMat3::from_cols_array(&[1.0, 0.2, 0.0, 0.0, 1.0, 0.3, 0.1, 0.0, 0.9]),
+                DVec3::new(3.0, -2.0, 1.0),
+            ),
         ];
         let mut rng = 0x1234_5678_u64;
         let mut next = || {
@@ -345,14 +378,17 @@ mod tests {
         };
         for w in transforms {
             let (brick_lo, index_from_world) = (IVec3::new(-1, 0, 2), w.inverse());
-            let (lo, hi) = ((brick_lo * BRICK).as_dvec3() - 0.5, ((brick_lo + dims) * BRICK).as_dvec3() - 0.5);
+            let (lo, hi) =
+                ((brick_lo * BRICK).as_dvec3() - 0.5, ((brick_lo + dims) * BRICK).as_dvec3() - 0.5);
             for _ in 0..300 {
                 let a = lo + (hi - lo) * DVec3::new(next(), next(), next()) * 1.6 - (hi - lo) * 0.3;
                 let b = lo + (hi - lo) * DVec3::new(next(), next(), next());
                 let (ia, ib) = (w.transform_point3(a), w.transform_point3(b));
                 let ray = Ray { origin: ia, direction: ib - ia };
                 let mut walked = Vec::new();
-                cells_along(&index_from_world, brick_lo, dims, &ray, 0.0, f64::INFINITY, |c| walked.push(c));
+                cells_along(&index_from_world, brick_lo, dims, &ray, 0.0, f64::INFINITY, |c| {
+                    walked.push(c)
+                });
                 let mut unique = walked.clone();
                 unique.dedup();
                 assert_eq!(unique, walked, "no cell twice in a row");
@@ -363,7 +399,8 @@ mod tests {
                     let p = o + d * t;
                     let q = ((p + 0.5) / f64::from(BRICK)).floor().as_ivec3() - brick_lo;
                     if q.cmpge(IVec3::ZERO).all() && q.cmplt(dims).all() {
-                        let cell = q.x as usize + dims.x as usize * (q.y as usize + dims.y as usize * q.z as usize);
+                        let cell = q.x as usize
+                            + dims.x as usize * (q.y as usize + dims.y as usize * q.z as usize);
                         assert!(walked.contains(&cell), "cell {q} at t={t} missed by the walk");
                     }
                 }

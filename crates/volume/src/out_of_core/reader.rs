@@ -25,17 +25,19 @@ use std::sync::Arc;
 use glam::{DAffine3, DMat3, DVec3, IVec3};
 use rayon::prelude::*;
 
-use super::format::{Header, Meta, SectionEntry, SectionKind, BYTE_ORDER, CHUNK, MAGIC, PAGE, VERSION};
+use super::format::{
+    Header, Meta, SectionEntry, SectionKind, BYTE_ORDER, CHUNK, MAGIC, PAGE, VERSION,
+};
 use super::lock::{Acquired, CacheLock};
 use super::verify::{section_sums, Failure, Verification};
-use plume_core::error::{Error, Result};
-use crate::out_of_core::mapfault::Mapping;
-use crate::grid::LEAF_VOXELS;
 use crate::brick::Brick;
+use crate::grid::LEAF_VOXELS;
+use crate::out_of_core::mapfault::Mapping;
+use crate::out_of_core::storage::Buffer;
 use crate::proxy::CellPower;
 use crate::pyramid::{level_dims, Level, NodeBounds, Pyramid};
-use crate::out_of_core::storage::Buffer;
 use crate::Volume;
+use plume_core::error::{Error, Result};
 
 /// Sections up to this size are verified before [`Cache::open`] returns.
 pub const EAGER_BYTES: u64 = 64 << 20;
@@ -96,15 +98,21 @@ impl Identity {
         let now = match File::open(path).and_then(|mut f| {
             let meta = f.metadata()?;
             let mut header = vec![0u8; self.header.len()];
-            f.read_exact(&mut header).map(|()| header).or_else(|_| Ok(Vec::new())).map(|h| Identity::of(&meta, h))
+            f.read_exact(&mut header)
+                .map(|()| header)
+                .or_else(|_| Ok(Vec::new()))
+                .map(|h| Identity::of(&meta, h))
         }) {
             Ok(now) => now,
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Some("it was removed while in use".into()),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+                return Some("it was removed while in use".into())
+            }
             Err(e) => return Some(format!("it cannot be opened again ({e})")),
         };
         let sizes = format!("{} bytes, {} when opened", now.bytes, self.bytes);
         if (now.dev, now.ino) != (self.dev, self.ino) {
-            (now.bytes != self.bytes || now.header != self.header).then(|| format!("it was replaced by another file while in use (now {sizes})"))
+            (now.bytes != self.bytes || now.header != self.header)
+                .then(|| format!("it was replaced by another file while in use (now {sizes})"))
         } else if now.bytes < self.bytes {
             Some(format!("it was truncated while in use (now {sizes})"))
         } else if now.bytes != self.bytes || now.header != self.header {
@@ -127,10 +135,12 @@ impl CacheCheck {
     /// replaced it meanwhile: see `remove_damaged`).
     pub fn verified(&self) -> Result<()> {
         let outcome = self.verification.wait();
-        let failed = |what: String| Error::InputFailed {
+        let failed = |what: String| {
+            Error::InputFailed {
             kind: KIND,
             path: self.path.clone(),
             what: format!("{what}; nothing computed from it was written (run the command again once the file is as it should be)"),
+        }
         };
         // A file changed under the render explains any checksum failure, and is not
         // deleted: it may be another process's new file
@@ -140,7 +150,9 @@ impl CacheCheck {
         match outcome {
             Ok(()) => Ok(()),
             Err(Failure::Unreadable(what)) => Err(failed(what)),
-            Err(Failure::Damaged(what)) if self.remove_on_failure => Err(corrupt(&self.path, format!("{what}; {}", self.remove_damaged()))),
+            Err(Failure::Damaged(what)) if self.remove_on_failure => {
+                Err(corrupt(&self.path, format!("{what}; {}", self.remove_damaged())))
+            }
             Err(Failure::Damaged(what)) => Err(corrupt(&self.path, what)),
         }
     }
@@ -159,7 +171,10 @@ impl CacheCheck {
         let _lock = match CacheLock::acquire(&self.path, REMOVE_LOCK_WAIT, None) {
             Ok(Acquired::Locked(lock)) => lock,
             Ok(Acquired::TimedOut { lock, .. }) => {
-                return format!("left in place: another process holds its lock {} and is making a new one", lock.display());
+                return format!(
+                    "left in place: another process holds its lock {} and is making a new one",
+                    lock.display()
+                );
             }
             Err(e) => return format!("left in place ({e})"),
         };
@@ -183,11 +198,20 @@ impl CacheCheck {
 }
 
 fn corrupt(path: &Path, what: impl std::fmt::Display) -> Error {
-    Error::Cache { path: path.to_path_buf(), what: format!("{what}; the file is damaged or not a plume cache (run `plume prepare` again)") }
+    Error::Cache {
+        path: path.to_path_buf(),
+        what: format!(
+            "{what}; the file is damaged or not a plume cache (run `plume prepare` again)"
+        ),
+    }
 }
 
 /// Check the chunk sums of `entry` over `map`, chunks in parallel (at open).
-fn check_section(map: &[u8], entry: &SectionEntry, sums: &[u64]) -> std::result::Result<(), String> {
+fn check_section(
+    map: &[u8],
+    entry: &SectionEntry,
+    sums: &[u64],
+) -> std::result::Result<(), String> {
     let (kind, expected) = section_sums(entry, sums)?;
     let check = |i: usize| -> std::result::Result<(), String> {
         let start = entry.offset + i as u64 * CHUNK;
@@ -209,13 +233,18 @@ impl Cache {
     /// [`Error::Open`] when it cannot be opened; [`Error::Cache`] when it is not a cache,
     /// has another version, or fails a check.
     pub fn open(path: &Path) -> Result<Cache> {
-        let mut file = File::open(path).map_err(|e| Error::Open { path: path.to_path_buf(), source: e })?;
-        let file_meta = file.metadata().map_err(|e| Error::Open { path: path.to_path_buf(), source: e })?;
+        let mut file =
+            File::open(path).map_err(|e| Error::Open { path: path.to_path_buf(), source: e })?;
+        let file_meta =
+            file.metadata().map_err(|e| Error::Open { path: path.to_path_buf(), source: e })?;
         let file_bytes = file_meta.len();
         let mut page = vec![0u8; PAGE as usize];
         let header_len = std::mem::size_of::<Header>();
         if file_bytes < PAGE || file.read_exact(&mut page).is_err() {
-            return Err(corrupt(path, format!("{file_bytes} bytes is too short for a cache header")));
+            return Err(corrupt(
+                path,
+                format!("{file_bytes} bytes is too short for a cache header"),
+            ));
         }
         let header: Header = bytemuck::pod_read_unaligned(&page[..header_len]);
         if header.magic != MAGIC {
@@ -235,10 +264,19 @@ impl Cache {
         }
         let mut entries = Vec::new();
         for kind in SectionKind::ALL {
-            let e = *header.section(kind).ok_or_else(|| corrupt(path, format!("no {} section", kind.name())))?;
+            let e = *header
+                .section(kind)
+                .ok_or_else(|| corrupt(path, format!("no {} section", kind.name())))?;
             let end = e.offset.checked_add(e.len);
             if e.offset % PAGE != 0 || e.offset < PAGE || end.is_none_or(|end| end > file_bytes) {
-                return Err(corrupt(path, format!("the {} section lies outside the file ({} bytes)", kind.name(), file_bytes)));
+                return Err(corrupt(
+                    path,
+                    format!(
+                        "the {} section lies outside the file ({} bytes)",
+                        kind.name(),
+                        file_bytes
+                    ),
+                ));
             }
             entries.push(e);
         }
@@ -247,11 +285,16 @@ impl Cache {
         if sorted.windows(2).any(|w| w[0].offset + w[0].len > w[1].offset) {
             return Err(corrupt(path, "sections overlap"));
         }
-        let section = |k: SectionKind| entries[SectionKind::ALL.iter().position(|x| *x == k).expect("invariant: all kinds")];
+        let section = |k: SectionKind| {
+            entries[SectionKind::ALL.iter().position(|x| *x == k).expect("invariant: all kinds")]
+        };
         // Watched: if another process truncates the file while it is mapped, or its
         // storage fails, touching a lost page ends plume with a line naming the file
         // (`mapfault`), here or during the render
-        let map = Arc::new(Mapping::map(&file, path, KIND).map_err(|e| Error::Open { path: path.to_path_buf(), source: e })?);
+        let map = Arc::new(
+            Mapping::map(&file, path, KIND)
+                .map_err(|e| Error::Open { path: path.to_path_buf(), source: e })?,
+        );
         let chunks = section(SectionKind::Chunks);
         let chunk_bytes = &map[chunks.offset as usize..(chunks.offset + chunks.len) as usize];
         if xxhash_rust::xxh3::xxh3_64(chunk_bytes) != chunks.checksum || chunks.len % 8 != 0 {
@@ -268,34 +311,48 @@ impl Cache {
             }
         }
         let meta_entry = section(SectionKind::Meta);
-        let meta: Meta = serde_json::from_slice(&map[meta_entry.offset as usize..(meta_entry.offset + meta_entry.len) as usize])
-            .map_err(|e| corrupt(path, format!("unreadable metadata ({e})")))?;
+        let meta: Meta = serde_json::from_slice(
+            &map[meta_entry.offset as usize..(meta_entry.offset + meta_entry.len) as usize],
+        )
+        .map_err(|e| corrupt(path, format!("unreadable metadata ({e})")))?;
         let (volume, proxy_power) = Self::assemble(path, &map, &meta, &section)?;
         let verification = if deferred.is_empty() {
             Verification::done()
         } else {
-            Verification::start(file, Arc::clone(&map), &deferred, &sums).map_err(|e| Error::Open { path: path.to_path_buf(), source: e })?
+            Verification::start(file, Arc::clone(&map), &deferred, &sums)
+                .map_err(|e| Error::Open { path: path.to_path_buf(), source: e })?
         };
         let opened = Identity::of(&file_meta, page);
-        let check = CacheCheck { path: path.to_path_buf(), verification, remove_on_failure: false, opened };
+        let check =
+            CacheCheck { path: path.to_path_buf(), verification, remove_on_failure: false, opened };
         Ok(Cache { path: path.to_path_buf(), meta, volume, proxy_power, file_bytes, check })
     }
 
     /// Build the mapped volume after checking the metadata against the section sizes.
-    fn assemble(path: &Path, map: &Arc<Mapping>, meta: &Meta, section: &dyn Fn(SectionKind) -> SectionEntry) -> Result<(Volume, Option<CellPower>)> {
+    fn assemble(
+        path: &Path,
+        map: &Arc<Mapping>,
+        meta: &Meta,
+        section: &dyn Fn(SectionKind) -> SectionEntry,
+    ) -> Result<(Volume, Option<CellPower>)> {
         let w = meta.world_from_index;
-        let world_from_index =
-            DAffine3::from_mat3_translation(DMat3::from_cols_array(&[w[0], w[1], w[2], w[3], w[4], w[5], w[6], w[7], w[8]]), DVec3::new(w[9], w[10], w[11]));
+        let world_from_index = DAffine3::from_mat3_translation(
+            DMat3::from_cols_array(&[w[0], w[1], w[2], w[3], w[4], w[5], w[6], w[7], w[8]]),
+            DVec3::new(w[9], w[10], w[11]),
+        );
         if !world_from_index.is_finite() || world_from_index.matrix3.determinant() == 0.0 {
             return Err(corrupt(path, "its transform is singular or not finite"));
         }
         let dims = IVec3::from_array(meta.dims);
         let brick_lo = IVec3::from_array(meta.brick_lo);
-        if dims.cmplt(IVec3::ZERO).any() || (brick_lo.as_i64vec3() + dims.as_i64vec3()).max_element() > i64::from(i32::MAX / 8) {
+        if dims.cmplt(IVec3::ZERO).any()
+            || (brick_lo.as_i64vec3() + dims.as_i64vec3()).max_element() > i64::from(i32::MAX / 8)
+        {
             return Err(corrupt(path, format!("its brick table {dims} at {brick_lo} is invalid")));
         }
         let cells = dims.x as u64 * dims.y as u64 * dims.z as u64;
-        let nodes: u64 = level_dims(dims).iter().map(|d| d.x as u64 * d.y as u64 * d.z as u64).sum();
+        let nodes: u64 =
+            level_dims(dims).iter().map(|d| d.x as u64 * d.y as u64 * d.z as u64).sum();
         let expect = [
             (SectionKind::Table, cells * 4),
             (SectionKind::Bricks, meta.brick_count * std::mem::size_of::<Brick>() as u64),
@@ -304,11 +361,19 @@ impl Cache {
         ];
         for (kind, bytes) in expect {
             if section(kind).len != bytes {
-                return Err(corrupt(path, format!("the {} section holds {} bytes, its metadata says {bytes}", kind.name(), section(kind).len)));
+                return Err(corrupt(
+                    path,
+                    format!(
+                        "the {} section holds {} bytes, its metadata says {bytes}",
+                        kind.name(),
+                        section(kind).len
+                    ),
+                ));
             }
         }
         let view = |kind: SectionKind| (section(kind).offset as usize, section(kind).len as usize);
-        let bad = |kind: SectionKind| corrupt(path, format!("the {} section is misaligned", kind.name()));
+        let bad =
+            |kind: SectionKind| corrupt(path, format!("the {} section is misaligned", kind.name()));
         let (o, n) = view(SectionKind::Table);
         let table = Buffer::<u32>::mapped(map, o, n).ok_or_else(|| bad(SectionKind::Table))?;
         let (o, n) = view(SectionKind::Bricks);
@@ -319,17 +384,30 @@ impl Cache {
         let mut levels = Vec::new();
         for d in level_dims(dims) {
             let n = d.x as usize * d.y as usize * d.z as usize * std::mem::size_of::<NodeBounds>();
-            let nodes = Buffer::<NodeBounds>::mapped(map, o, n).ok_or_else(|| bad(SectionKind::Pyramid))?;
+            let nodes =
+                Buffer::<NodeBounds>::mapped(map, o, n).ok_or_else(|| bad(SectionKind::Pyramid))?;
             levels.push(Level { dims: d, nodes });
             o += n;
         }
         let (o, n) = view(SectionKind::Proxy);
         let proxy_power = match &meta.proxy {
-            Some(p) if n % 8 == 0 => Some(CellPower { resolution: p.resolution, sums: bytemuck::pod_collect_to_vec(&map[o..o + n]) }),
+            Some(p) if n % 8 == 0 => Some(CellPower {
+                resolution: p.resolution,
+                sums: bytemuck::pod_collect_to_vec(&map[o..o + n]),
+            }),
             Some(_) => return Err(corrupt(path, "the proxy section is not whole f64s")),
             None => None,
         };
-        let volume = Volume::from_parts(world_from_index, brick_lo, dims, table, bricks, values, Pyramid { levels }, meta.report);
+        let volume = Volume::from_parts(
+            world_from_index,
+            brick_lo,
+            dims,
+            table,
+            bricks,
+            values,
+            Pyramid { levels },
+            meta.report,
+        );
         Ok((volume, proxy_power))
     }
 }

@@ -90,7 +90,11 @@ impl<T: Pod> Buffer<T> {
         for r in ranges {
             let (start, end) = (r.start.min(self.len), r.end.min(self.len));
             if start < end {
-                let _ = map.advise_range(memmap2::Advice::WillNeed, base + start * size, (end - start) * size);
+                let _ = map.advise_range(
+                    memmap2::Advice::WillNeed,
+                    base + start * size,
+                    (end - start) * size,
+                );
             }
         }
     }
@@ -145,7 +149,13 @@ mod tests {
         assert!(!heap.is_mapped());
 
         let path = std::env::temp_dir().join(format!("plume-storage-test-{}", std::process::id()));
-        let mut file = std::fs::File::options().read(true).write(true).create(true).truncate(true).open(&path).unwrap();
+        let mut file = std::fs::File::options()
+            .read(true)
+            .write(true)
+            .create(true)
+            .truncate(true)
+            .open(&path)
+            .unwrap();
         std::fs::remove_file(&path).unwrap();
         file.write_all(&[0u8; 4096]).unwrap();
         file.write_all(bytemuck::cast_slice(&values)).unwrap();

@@ -72,12 +72,18 @@ struct Chunk {
 
 impl Chunk {
     fn failed(&self) -> Failure {
-        Failure::Damaged(format!("the {} section fails its checksum at bytes {}..{}", self.kind, self.start, self.end))
+        Failure::Damaged(format!(
+            "the {} section fails its checksum at bytes {}..{}",
+            self.kind, self.start, self.end
+        ))
     }
 
     fn unreadable(&self, e: &std::io::Error) -> Failure {
         Failure::Unreadable(if e.kind() == std::io::ErrorKind::UnexpectedEof {
-            format!("the file ends before byte {} (the {} section): it was truncated while in use", self.end, self.kind)
+            format!(
+                "the file ends before byte {} (the {} section): it was truncated while in use",
+                self.end, self.kind
+            )
         } else {
             format!("byte {} (the {} section) cannot be read: {e}", self.start, self.kind)
         })
@@ -85,8 +91,12 @@ impl Chunk {
 }
 
 /// The name of `entry`'s section and its expected chunk sums.
-pub(super) fn section_sums<'s>(entry: &SectionEntry, sums: &'s [u64]) -> std::result::Result<(&'static str, &'s [u64]), String> {
-    let kind = SectionKind::ALL.iter().find(|k| **k as u32 == entry.kind).map_or("unknown", |k| k.name());
+pub(super) fn section_sums<'s>(
+    entry: &SectionEntry,
+    sums: &'s [u64],
+) -> std::result::Result<(&'static str, &'s [u64]), String> {
+    let kind =
+        SectionKind::ALL.iter().find(|k| **k as u32 == entry.kind).map_or("unknown", |k| k.name());
     let first = entry.first_chunk as usize;
     match sums.get(first..first + entry.chunk_count() as usize) {
         Some(expected) => Ok((kind, expected)),
@@ -101,33 +111,50 @@ impl Verification {
     }
 
     fn finished(outcome: Outcome) -> Verification {
-        Verification { thread: Mutex::new(None), finish: Arc::new(AtomicBool::new(true)), outcome: OnceLock::from(outcome) }
+        Verification {
+            thread: Mutex::new(None),
+            finish: Arc::new(AtomicBool::new(true)),
+            outcome: OnceLock::from(outcome),
+        }
     }
 
     /// Start checking `sections` of the file behind `map` against `sums`.
     ///
     /// # Errors
     /// The thread cannot be started.
-    pub(super) fn start(file: File, map: Arc<Mapping>, sections: &[SectionEntry], sums: &[u64]) -> std::io::Result<Verification> {
+    pub(super) fn start(
+        file: File,
+        map: Arc<Mapping>,
+        sections: &[SectionEntry],
+        sums: &[u64],
+    ) -> std::io::Result<Verification> {
         let mut chunks = Vec::new();
         for entry in sections {
             match section_sums(entry, sums) {
-                Ok((kind, expected)) => chunks.extend(expected.iter().enumerate().map(|(i, &sum)| {
-                    let start = entry.offset + i as u64 * CHUNK;
-                    Chunk { start, end: (start + CHUNK).min(entry.offset + entry.len), sum, kind }
-                })),
+                Ok((kind, expected)) => {
+                    chunks.extend(expected.iter().enumerate().map(|(i, &sum)| {
+                        let start = entry.offset + i as u64 * CHUNK;
+                        Chunk {
+                            start,
+                            end: (start + CHUNK).min(entry.offset + entry.len),
+                            sum,
+                            kind,
+                        }
+                    }))
+                }
                 Err(what) => return Ok(Verification::finished(Err(Failure::Damaged(what)))),
             }
         }
         let finish = Arc::new(AtomicBool::new(false));
         let flag = Arc::clone(&finish);
-        let handle = std::thread::Builder::new().name("plume-cache-verify".into()).spawn(move || {
-            // SAFETY: setpriority on this thread's own id only lowers its CPU priority.
-            unsafe {
-                libc::setpriority(libc::PRIO_PROCESS, libc::gettid() as libc::id_t, NICENESS);
-            }
-            check(&file, &map, chunks, &flag)
-        })?;
+        let handle =
+            std::thread::Builder::new().name("plume-cache-verify".into()).spawn(move || {
+                // SAFETY: setpriority on this thread's own id only lowers its CPU priority.
+                unsafe {
+                    libc::setpriority(libc::PRIO_PROCESS, libc::gettid() as libc::id_t, NICENESS);
+                }
+                check(&file, &map, chunks, &flag)
+            })?;
         Ok(Verification { thread: Mutex::new(Some(handle)), finish, outcome: OnceLock::new() })
     }
 
@@ -144,7 +171,9 @@ impl Verification {
                 match handle {
                     Some(h) => {
                         h.thread().unpark();
-                        h.join().unwrap_or_else(|_| Err(Failure::Damaged("the verifier thread panicked".into())))
+                        h.join().unwrap_or_else(|_| {
+                            Err(Failure::Damaged("the verifier thread panicked".into()))
+                        })
                     }
                     None => Ok(()),
                 }
@@ -210,7 +239,11 @@ impl Progress {
             // SAFETY: the range lies inside the mapping and starts on a page boundary; the
             // advice only moves clean file pages on the kernel's reclaim lists.
             unsafe {
-                libc::madvise(map.as_ptr().add(from) as *mut libc::c_void, resident, libc::MADV_COLD);
+                libc::madvise(
+                    map.as_ptr().add(from) as *mut libc::c_void,
+                    resident,
+                    libc::MADV_COLD,
+                );
             }
         }
         outcome
@@ -228,7 +261,12 @@ impl Progress {
         let outcome = self.feed(bytes).expect("invariant: the rest of the chunk completes it");
         // SAFETY: posix_fadvise only advises the kernel about this open descriptor's pages.
         unsafe {
-            libc::posix_fadvise(file.as_raw_fd(), from as libc::off_t, bytes.len() as libc::off_t, libc::POSIX_FADV_DONTNEED);
+            libc::posix_fadvise(
+                file.as_raw_fd(),
+                from as libc::off_t,
+                bytes.len() as libc::off_t,
+                libc::POSIX_FADV_DONTNEED,
+            );
         }
         outcome
     }
@@ -276,7 +314,9 @@ fn resident_prefix(map: &Mmap, start: usize, len: usize, scratch: &mut Vec<u8>) 
     // mincore writes one byte per page into `scratch`, which has room for all of them.
     let asked = unsafe {
         let at = map.as_ptr().add(start) as *mut libc::c_void;
-        libc::mincore(at, len.min(PAGE), scratch.as_mut_ptr()) == 0 && scratch[0] & 1 == 1 && libc::mincore(at, len, scratch.as_mut_ptr()) == 0
+        libc::mincore(at, len.min(PAGE), scratch.as_mut_ptr()) == 0
+            && scratch[0] & 1 == 1
+            && libc::mincore(at, len, scratch.as_mut_ptr()) == 0
     };
     if !asked {
         return 0;
@@ -296,10 +336,16 @@ mod tests {
         let mut f = File::create(&path).unwrap();
         let mut chunks = Vec::new();
         for i in 0..n {
-            let bytes: Vec<u8> = (0..CHUNK).map(|b| (b as u8).wrapping_mul(31).wrapping_add(i as u8)).collect();
+            let bytes: Vec<u8> =
+                (0..CHUNK).map(|b| (b as u8).wrapping_mul(31).wrapping_add(i as u8)).collect();
             f.write_all(&bytes).unwrap();
             let start = i * CHUNK;
-            chunks.push(Chunk { start, end: start + CHUNK, sum: xxhash_rust::xxh3::xxh3_64(&bytes), kind: "values" });
+            chunks.push(Chunk {
+                start,
+                end: start + CHUNK,
+                sum: xxhash_rust::xxh3::xxh3_64(&bytes),
+                kind: "values",
+            });
         }
         f.sync_all().unwrap();
         (path, chunks)
@@ -314,7 +360,12 @@ mod tests {
         let file = File::open(&path).unwrap();
         let map = Mapping::map(&file, &path, "test file").unwrap();
         assert!(
-            chunks.iter().all(|c| resident_prefix(&map, c.start as usize, CHUNK as usize, &mut Vec::new()) == CHUNK as usize),
+            chunks.iter().all(|c| resident_prefix(
+                &map,
+                c.start as usize,
+                CHUNK as usize,
+                &mut Vec::new()
+            ) == CHUNK as usize),
             "a file just written is resident"
         );
         for finish_at_once in [false, true] {
@@ -328,8 +379,16 @@ mod tests {
         // Through the thread: a damaged sum is reported by wait()
         chunks[2].sum ^= 1;
         let entry_sums: Vec<u64> = chunks.iter().map(|c| c.sum).collect();
-        let entry = SectionEntry { kind: SectionKind::Values as u32, offset: 0, len: 6 * CHUNK, first_chunk: 0, checksum: 0 };
-        let v = Verification::start(File::open(&path).unwrap(), Arc::new(map), &[entry], &entry_sums).unwrap();
+        let entry = SectionEntry {
+            kind: SectionKind::Values as u32,
+            offset: 0,
+            len: 6 * CHUNK,
+            first_chunk: 0,
+            checksum: 0,
+        };
+        let v =
+            Verification::start(File::open(&path).unwrap(), Arc::new(map), &[entry], &entry_sums)
+                .unwrap();
         let err = damaged(v.wait());
         assert!(err.contains(&format!("{}..{}", 2 * CHUNK, 3 * CHUNK)), "{err}");
         assert_eq!(damaged(v.wait()), err, "the outcome is kept");
@@ -341,7 +400,8 @@ mod tests {
     /// or a changed byte is reported whatever the pieces.
     #[test]
     fn a_chunk_hashed_in_pieces_gets_the_one_shot_sum() {
-        let bytes: Vec<u8> = (0..CHUNK).map(|b| (b as u8).wrapping_mul(29) ^ (b >> 12) as u8).collect();
+        let bytes: Vec<u8> =
+            (0..CHUNK).map(|b| (b as u8).wrapping_mul(29) ^ (b >> 12) as u8).collect();
         let chunk = Chunk { start: 0, end: CHUNK, sum: xxh3_64(&bytes), kind: "values" };
         for pieces in [vec![256], vec![1, 255], vec![3, 100, 153], vec![255, 1]] {
             let mut p = Progress::new(chunk);
@@ -373,7 +433,11 @@ mod tests {
         let original = std::fs::read(&path).unwrap();
         let file = File::open(&path).unwrap();
         let map = Mapping::map(&file, &path, "test file").unwrap();
-        assert_eq!(resident_prefix(&map, 0, CHUNK as usize, &mut Vec::new()), CHUNK as usize, "a file just written is resident");
+        assert_eq!(
+            resident_prefix(&map, 0, CHUNK as usize, &mut Vec::new()),
+            CHUNK as usize,
+            "a file just written is resident"
+        );
         let mut buf = vec![0u8; CHUNK as usize];
         let mut p = Progress::new(chunks[1]);
         let from = chunks[1].start as usize;
@@ -383,7 +447,12 @@ mod tests {
         let mut p = Progress::new(chunks[1]);
         assert_eq!(p.feed(&original[from..from + 100 * PAGE]), None);
         let at = chunks[1].start + 200 * PAGE as u64;
-        std::os::unix::fs::FileExt::write_all_at(&File::options().write(true).open(&path).unwrap(), &[!original[at as usize]], at).unwrap();
+        std::os::unix::fs::FileExt::write_all_at(
+            &File::options().write(true).open(&path).unwrap(),
+            &[!original[at as usize]],
+            at,
+        )
+        .unwrap();
         let err = damaged(p.finish_by_reading(&file, &mut buf));
         assert!(err.contains(&format!("{}..{}", CHUNK, 2 * CHUNK)), "{err}");
         let _ = std::fs::remove_file(&path);
@@ -405,7 +474,11 @@ mod tests {
         let map = Mapping::map(&file, &path, "test file").unwrap();
         File::options().write(true).open(&path).unwrap().set_len(2 * CHUNK + 100).unwrap();
         match check(&file, &map, chunks, &AtomicBool::new(true)) {
-            Err(Failure::Unreadable(what)) => assert!(what.contains(&format!("ends before byte {}", 3 * CHUNK)) && what.contains("truncated"), "{what}"),
+            Err(Failure::Unreadable(what)) => assert!(
+                what.contains(&format!("ends before byte {}", 3 * CHUNK))
+                    && what.contains("truncated"),
+                "{what}"
+            ),
             other => panic!("{other:?}"),
         }
         let _ = std::fs::remove_file(&path);

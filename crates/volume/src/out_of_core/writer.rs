@@ -17,14 +17,17 @@ use std::sync::Arc;
 use glam::{DAffine3, IVec3};
 use xxhash_rust::xxh3::Xxh3;
 
-use super::format::{Header, Meta, ProxyMeta, SectionEntry, SectionKind, BYTE_ORDER, CHUNK, MAGIC, MAX_SECTIONS, PAGE, VERSION};
-use plume_core::error::{Error, Result};
-use crate::out_of_core::mapfault::Mapping;
-use crate::grid::LEAF_VOXELS;
+use super::format::{
+    Header, Meta, ProxyMeta, SectionEntry, SectionKind, BYTE_ORDER, CHUNK, MAGIC, MAX_SECTIONS,
+    PAGE, VERSION,
+};
 use crate::brick::{BlockSink, BrickTableBuilder, Channel};
-use crate::proxy::CellPower;
+use crate::grid::LEAF_VOXELS;
+use crate::out_of_core::mapfault::Mapping;
 use crate::out_of_core::storage::Buffer;
+use crate::proxy::CellPower;
 use crate::Volume;
+use plume_core::error::{Error, Result};
 
 /// What a fault in the temporary file's mapping calls it (`mapfault`).
 const WRITING: &str = "brick cache being written";
@@ -95,7 +98,13 @@ impl Out {
         let pad = self.pos.next_multiple_of(PAGE) - self.pos;
         self.file.write_all(&vec![0u8; pad as usize]).map_err(|e| self.io(e))?;
         self.pos += pad;
-        self.open = Some(SectionEntry { kind: kind as u32, first_chunk: self.chunks.sums.len() as u32, offset: self.pos, len: 0, checksum: 0 });
+        self.open = Some(SectionEntry {
+            kind: kind as u32,
+            first_chunk: self.chunks.sums.len() as u32,
+            offset: self.pos,
+            len: 0,
+            checksum: 0,
+        });
         Ok(())
     }
 
@@ -116,7 +125,8 @@ impl Out {
 
 impl BlockSink for Out {
     fn append(&mut self, block: &[f32; LEAF_VOXELS]) -> Result<u32> {
-        let index = u32::try_from(self.blocks).map_err(|_| Error::Scene("the volume has more than 2³² dense bricks".into()))?;
+        let index = u32::try_from(self.blocks)
+            .map_err(|_| Error::Scene("the volume has more than 2³² dense bricks".into()))?;
         self.write(bytemuck::cast_slice(block))?;
         self.blocks += 1;
         Ok(index)
@@ -179,14 +189,26 @@ impl CacheWriter {
     ///
     /// # Errors
     /// A table too large, or the file cannot be created.
-    pub fn create(path: &Path, world_from_index: DAffine3, brick_lo: IVec3, dims: IVec3, what: &str) -> Result<CacheWriter> {
+    pub fn create(
+        path: &Path,
+        world_from_index: DAffine3,
+        brick_lo: IVec3,
+        dims: IVec3,
+        what: &str,
+    ) -> Result<CacheWriter> {
         let builder = BrickTableBuilder::new(brick_lo, dims, what)?;
         // A killed conversion leaves its temporary (tens of GB at scale): remove those of
         // dead processes, as renders do for their outputs
         plume_core::fs::remove_stale_temporaries(path);
         let tmp = plume_core::fs::temporary_path(path);
         // Read access too: `finish` maps the values written so far
-        let file = File::options().read(true).write(true).create(true).truncate(true).open(&tmp).map_err(|e| Error::Write { path: path.into(), source: e })?;
+        let file = File::options()
+            .read(true)
+            .write(true)
+            .create(true)
+            .truncate(true)
+            .open(&tmp)
+            .map_err(|e| Error::Write { path: path.into(), source: e })?;
         let mut out = Out {
             temporary: plume_core::fs::TemporaryFile::new(tmp.clone()),
             path: tmp,
@@ -203,7 +225,13 @@ impl CacheWriter {
         out.file.write_all(&[0u8; PAGE as usize]).map_err(|e| out.io(e))?;
         out.pos = PAGE;
         out.begin(SectionKind::Values)?;
-        Ok(CacheWriter { final_path: path.to_path_buf(), out, builder, world_from_index, report_base: Default::default() })
+        Ok(CacheWriter {
+            final_path: path.to_path_buf(),
+            out,
+            builder,
+            world_from_index,
+            report_base: Default::default(),
+        })
     }
 
     /// Store channel `channel` of brick `b` from 512 values in OpenVDB leaf order, each
@@ -212,7 +240,13 @@ impl CacheWriter {
     ///
     /// # Errors
     /// `b` outside the announced box, or a write error.
-    pub fn put(&mut self, b: IVec3, channel: Channel, leaf_values: &[f32], map: impl Fn(f32) -> f32) -> Result<()> {
+    pub fn put(
+        &mut self,
+        b: IVec3,
+        channel: Channel,
+        leaf_values: &[f32],
+        map: impl Fn(f32) -> f32,
+    ) -> Result<()> {
         self.builder.put(&mut self.out, b, channel, leaf_values, map)
     }
 
@@ -255,9 +289,11 @@ impl CacheWriter {
         // The volume over the values as written, to compute what an in-core render would
         let values_entry = out.sections[0];
         // As in `appended`; the values are complete and no longer written
-        let map = Arc::new(Mapping::map(out.file.get_ref(), &out.path, WRITING).map_err(|e| out.io(e))?);
-        let values = Buffer::<f32>::mapped(&map, values_entry.offset as usize, values_entry.len as usize)
-            .expect("invariant: the values section is page-aligned and whole blocks");
+        let map =
+            Arc::new(Mapping::map(out.file.get_ref(), &out.path, WRITING).map_err(|e| out.io(e))?);
+        let values =
+            Buffer::<f32>::mapped(&map, values_entry.offset as usize, values_entry.len as usize)
+                .expect("invariant: the values section is page-aligned and whole blocks");
         let report = built.report;
         let brick_count = built.bricks.len() as u64;
         let volume = Volume::from_table(world_from_index, built, values);
@@ -275,7 +311,10 @@ impl CacheWriter {
             out.write(bytemuck::cast_slice(&level.nodes))?;
         }
         out.end();
-        out.section(SectionKind::Proxy, proxy_power.as_ref().map_or(&[][..], |p| bytemuck::cast_slice(&p.sums)))?;
+        out.section(
+            SectionKind::Proxy,
+            proxy_power.as_ref().map_or(&[][..], |p| bytemuck::cast_slice(&p.sums)),
+        )?;
         let m = world_from_index.matrix3.to_cols_array();
         let t = world_from_index.translation;
         let meta = Meta {
@@ -292,7 +331,10 @@ impl CacheWriter {
             source_key: info.source_key.clone(),
             emission_kind: info.emission_kind.clone(),
             input: info.input.clone(),
-            proxy: proxy_power.as_ref().zip(proxy.as_ref()).map(|(p, spec)| ProxyMeta { resolution: p.resolution, power_key: spec.power_key.clone() }),
+            proxy: proxy_power.as_ref().zip(proxy.as_ref()).map(|(p, spec)| ProxyMeta {
+                resolution: p.resolution,
+                power_key: spec.power_key.clone(),
+            }),
             report,
         };
         drop(volume);
@@ -323,7 +365,10 @@ impl CacheWriter {
         header.sections[..out.sections.len()].copy_from_slice(&out.sections);
         header.checksum = header.compute_checksum();
         let tmp = out.path.clone();
-        let mut file = out.file.into_inner().map_err(|e| Error::Write { path: final_path.clone(), source: e.into_error() })?;
+        let mut file = out
+            .file
+            .into_inner()
+            .map_err(|e| Error::Write { path: final_path.clone(), source: e.into_error() })?;
         let io = |e| Error::Write { path: final_path.clone(), source: e };
         file.seek(SeekFrom::Start(0)).map_err(io)?;
         file.write_all(bytemuck::bytes_of(&header)).map_err(io)?;
@@ -331,7 +376,8 @@ impl CacheWriter {
         // crash before that fails its checksums when opened and is rebuilt or refused,
         // never trusted, so waiting here for gigabytes to reach the disk buys nothing.
         drop(file);
-        std::fs::rename(&tmp, &final_path).map_err(|e| Error::Write { path: final_path.clone(), source: e })?;
+        std::fs::rename(&tmp, &final_path)
+            .map_err(|e| Error::Write { path: final_path.clone(), source: e })?;
         out.temporary.keep();
         Ok(final_path)
     }
@@ -342,10 +388,21 @@ impl CacheWriter {
 ///
 /// # Errors
 /// As [`CacheWriter::finish`].
-pub fn write_volume(path: &Path, volume: &Volume, info: &CacheInfo, proxy: Option<ProxySpec<'_>>) -> Result<PathBuf> {
+pub fn write_volume(
+    path: &Path,
+    volume: &Volume,
+    info: &CacheInfo,
+    proxy: Option<ProxySpec<'_>>,
+) -> Result<PathBuf> {
     use crate::brick::Slot;
     use crate::builder::{slot_at, LEAF_TO_BRICK};
-    let mut w = CacheWriter::create(path, volume.world_from_index(), volume.brick_lo, volume.dims, &info.density_grid)?;
+    let mut w = CacheWriter::create(
+        path,
+        volume.world_from_index(),
+        volume.brick_lo,
+        volume.dims,
+        &info.density_grid,
+    )?;
     let mut leaf = [0.0f32; LEAF_VOXELS];
     let (lo, dims) = (volume.brick_lo, volume.dims);
     for z in 0..dims.z {
@@ -353,7 +410,11 @@ pub fn write_volume(path: &Path, volume: &Volume, info: &CacheInfo, proxy: Optio
             for x in 0..dims.x {
                 let b = lo + IVec3::new(x, y, z);
                 let Some(brick) = volume.brick(b) else { continue };
-                for (channel, slot) in [(Channel::Density, brick.density), (Channel::Source, brick.source), (Channel::Albedo, brick.albedo)] {
+                for (channel, slot) in [
+                    (Channel::Density, brick.density),
+                    (Channel::Source, brick.source),
+                    (Channel::Albedo, brick.albedo),
+                ] {
                     match slot.get() {
                         Slot::Constant(v) => w.put_constant(b, channel, v)?,
                         Slot::Dense(_) => {

@@ -18,13 +18,13 @@
 use glam::{DVec3, IVec3};
 
 use super::dual::{cell_local, step_corners, Channel, CornerRecord, DualCell, DualCells, NO_CELL};
-use super::window::{window_slot, CORNER_STEP};
 use super::poly;
-use plume_core::color::Rgb;
+use super::window::{window_slot, CORNER_STEP};
 use crate::brick::Volume;
 use crate::dda::{CellBox, CellTable, Cells, IndexLine};
 use crate::field::{Piece, Segment};
 use crate::pyramid::NodeBounds;
+use plume_core::color::Rgb;
 
 /// A piece of a ray inside one dual cell, with its corners' densities only.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -66,7 +66,13 @@ impl Piece for DensityPiece {
 
     #[inline]
     fn constant(&self) -> Option<Segment> {
-        self.constant.then_some(Segment { t0: self.t0, t1: self.t1, density: self.density[0], source: 0.0, albedo: 1.0 })
+        self.constant.then_some(Segment {
+            t0: self.t0,
+            t1: self.t1,
+            density: self.density[0],
+            source: 0.0,
+            albedo: 1.0,
+        })
     }
 
     /// `σ_t Σ_c ρ_c W_c(u)`, as [`super::CubicSegment`] computes it.
@@ -74,7 +80,13 @@ impl Piece for DensityPiece {
     fn optical_depth(&self, sigma_t: f64, u: f64) -> f64 {
         match self.constant() {
             Some(seg) => seg.optical_depth(sigma_t, u),
-            None => sigma_t * poly::dot(&self.density.map(f64::from), &poly::integrated_weights(self.f0, self.d, u)),
+            None => {
+                sigma_t
+                    * poly::dot(
+                        &self.density.map(f64::from),
+                        &poly::integrated_weights(self.f0, self.d, u),
+                    )
+            }
         }
     }
 
@@ -205,7 +217,15 @@ impl<'a> Cells for DensityCells<'a> {
 
     /// Reads the 8 corner densities, or the 4 new ones after a step across one face.
     #[inline]
-    fn dense_piece(&self, dense: &mut DensityBricks<'a>, origin: IVec3, i: IVec3, t0: f64, t1: f64, line: &IndexLine) -> DensityPiece {
+    fn dense_piece(
+        &self,
+        dense: &mut DensityBricks<'a>,
+        origin: IVec3,
+        i: IVec3,
+        t0: f64,
+        t1: f64,
+        line: &IndexLine,
+    ) -> DensityPiece {
         step_corners(dense, i - origin);
         let f0 = cell_local(line, t0, i);
         let first = dense.density[0].to_bits();
@@ -225,7 +245,14 @@ impl<'a> Cells for DensityCells<'a> {
 
     #[inline]
     fn piece(&self, cell: DualCell, t0: f64, t1: f64, _line: &IndexLine) -> DensityPiece {
-        DensityPiece { t0, t1, f0: DVec3::ZERO, d: DVec3::ZERO, density: [cell.density(); 8], constant: true }
+        DensityPiece {
+            t0,
+            t1,
+            f0: DVec3::ZERO,
+            d: DVec3::ZERO,
+            density: [cell.density(); 8],
+            constant: true,
+        }
     }
 
     #[inline]
@@ -235,7 +262,9 @@ impl<'a> Cells for DensityCells<'a> {
 
     #[inline]
     fn merge(into: &mut DensityPiece, next: &DensityPiece) -> bool {
-        let same = into.constant && next.constant && into.density[0].to_bits() == next.density[0].to_bits();
+        let same = into.constant
+            && next.constant
+            && into.density[0].to_bits() == next.density[0].to_bits();
         if same {
             into.t1 = next.t1;
         }
@@ -254,10 +283,21 @@ mod tests {
         use crate::field::VoxelValues;
         let density = [0.3f32, 1.2, 0.0, 2.5, 0.7, 0.1, 1.9, 0.4];
         let (f0, d) = (DVec3::new(0.1, 0.8, 0.35), DVec3::new(0.6, -0.5, 0.3));
-        let full = super::super::CubicSegment::cell(2.0, 3.1, f0, d, density.map(|density| VoxelValues { density, source: 0.0 }), [1.0; 8]);
+        let full = super::super::CubicSegment::cell(
+            2.0,
+            3.1,
+            f0,
+            d,
+            density.map(|density| VoxelValues { density, source: 0.0 }),
+            [1.0; 8],
+        );
         let lean = DensityPiece { t0: 2.0, t1: 3.1, f0, d, density, constant: false };
         for u in [0.0, 0.3, 0.77, 1.1] {
-            assert_eq!(lean.optical_depth(1.7, u).to_bits(), full.optical_depth(1.7, u).to_bits(), "u {u}");
+            assert_eq!(
+                lean.optical_depth(1.7, u).to_bits(),
+                full.optical_depth(1.7, u).to_bits(),
+                "u {u}"
+            );
             assert_eq!(lean.density_at(u).to_bits(), full.density_at(u).to_bits(), "u {u}");
         }
         let od = 0.6 * full.optical_depth(1.7, 1.1);

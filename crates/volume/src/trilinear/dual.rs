@@ -39,13 +39,13 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use glam::{DVec3, IVec3};
 use rayon::prelude::*;
 
-use super::CubicSegment;
-use crate::grid::LEAF_VOXELS;
 use super::window::{corner_offset, window_index, window_slot, CORNER_STEP};
+use super::CubicSegment;
 use crate::brick::Volume;
-use crate::layout::{brick_local, Brick, PackedSlot, Slot, BRICK};
 use crate::dda::{CellBox, CellTable, Cells, IndexLine};
 use crate::field::VoxelValues;
+use crate::grid::LEAF_VOXELS;
+use crate::layout::{brick_local, Brick, PackedSlot, Slot, BRICK};
 use crate::pyramid::{Level, NodeBounds, Pyramid};
 
 /// One channel of one voxel brick, decoded once when the walk enters a dual brick: its
@@ -63,7 +63,8 @@ impl<'a> Channel<'a> {
             Slot::Constant(v) => Channel { block: None, constant: v },
             Slot::Dense(block) => {
                 let start = block as usize * LEAF_VOXELS;
-                let block = volume.values.get(start..start + LEAF_VOXELS).and_then(|v| v.try_into().ok());
+                let block =
+                    volume.values.get(start..start + LEAF_VOXELS).and_then(|v| v.try_into().ok());
                 Channel { block, constant: 0.0 }
             }
         }
@@ -92,13 +93,18 @@ struct BrickChannels<'a> {
 }
 
 /// What a missing voxel brick reads as: empty space.
-const EMPTY_BRICK: BrickChannels<'static> = BrickChannels { density: Channel::constant(0.0), source: Channel::constant(0.0), albedo: Channel::constant(1.0) };
+const EMPTY_BRICK: BrickChannels<'static> = BrickChannels {
+    density: Channel::constant(0.0),
+    source: Channel::constant(0.0),
+    albedo: Channel::constant(1.0),
+};
 
 /// `FACE[a][s]`: the corners on the low (`s = 0`) or high (`s = 1`) face along axis `a`.
 /// Stepping forward along `a`, the new cell reads its high face and its low face is the
 /// old high face (corner `c` of the new cell is corner `c ^ (1 << a)` of the old one);
 /// stepping back, the other way round.
-const FACE: [[[usize; 4]; 2]; 3] = [[[0, 2, 4, 6], [1, 3, 5, 7]], [[0, 1, 4, 5], [2, 3, 6, 7]], [[0, 1, 2, 3], [4, 5, 6, 7]]];
+const FACE: [[[usize; 4]; 2]; 3] =
+    [[[0, 2, 4, 6], [1, 3, 5, 7]], [[0, 1, 4, 5], [2, 3, 6, 7]], [[0, 1, 2, 3], [4, 5, 6, 7]]];
 
 /// Per voxel brick of a volume, which of its 64 blocks of 2×2×2 voxels hold a voxel whose
 /// density or source is not `+0.0` (bit `x + 4y + 16z` for the block of voxels `2x … 2x+1`,
@@ -152,7 +158,8 @@ impl BlockMasks {
 #[cold]
 #[inline(never)]
 fn voxel_block_mask(volume: &Volume, brick: &Brick) -> u64 {
-    let (density, source) = (Channel::new(volume, brick.density), Channel::new(volume, brick.source));
+    let (density, source) =
+        (Channel::new(volume, brick.density), Channel::new(volume, brick.source));
     let mut mask = 0u64;
     // Brick order is Morton order with a block's 3 bits lowest: offsets 8m … 8m+7 are
     // the voxels of block m, whose first voxel is at local `brick_local(8m)`
@@ -186,7 +193,10 @@ impl<'a> DualCells<'a> {
     /// ([`Volume::brick_block`]).
     #[inline]
     fn block_mask(&self, bricks: &[Option<(u32, &Brick)>; 8]) -> u64 {
-        dual_block_mask(bricks.map(|b| b.map_or(0, |(index, brick)| self.blocks.get(self.volume, index, brick))))
+        dual_block_mask(
+            bricks
+                .map(|b| b.map_or(0, |(index, brick)| self.blocks.get(self.volume, index, brick))),
+        )
     }
 
     /// The volume whose voxels the cells' corners are.
@@ -217,14 +227,12 @@ pub struct DualBricks<'a> {
 /// [`DualBricks::last`] before any cell of the brick was read: no cell is its neighbour.
 pub(super) const NO_CELL: IVec3 = IVec3::splat(-1000);
 
-
 /// Voxel brick and offset of local voxel `v` of a dual brick ([`DUAL_SLOTS`]). The walk
 /// reads corners by window index ([`CORNER_STEP`]); the tests check the table with this.
 #[cfg(test)]
 pub(super) fn dual_slot(v: IVec3) -> (usize, usize) {
     window_slot(window_index(v))
 }
-
 
 /// What a walk keeps of the last dual cell's corners ([`DualBricks`], and
 /// `density::DensityBricks`): a cell's corners are read into it, or moved across from
@@ -285,7 +293,14 @@ pub(super) fn cell_local(line: &IndexLine, t: f64, i: IVec3) -> DVec3 {
 impl Default for DualBricks<'_> {
     /// Empty space's records, no cell read.
     fn default() -> Self {
-        DualBricks { bricks: [EMPTY_BRICK; 8], last: NO_CELL, corners: [VoxelValues::ZERO; 8], albedo: [1.0; 8], albedo_one: true, blocks: 0 }
+        DualBricks {
+            bricks: [EMPTY_BRICK; 8],
+            last: NO_CELL,
+            corners: [VoxelValues::ZERO; 8],
+            albedo: [1.0; 8],
+            albedo_one: true,
+            blocks: 0,
+        }
     }
 }
 
@@ -309,7 +324,12 @@ const Z0: u64 = 0xffff;
 fn dual_block_mask(voxel: [u64; 8]) -> u64 {
     let along_x = |lo: u64, hi: u64| lo | ((lo >> 1) & !(X0 << 3)) | ((hi & X0) << 3);
     let along_y = |lo: u64, hi: u64| lo | ((lo >> 4) & !(Y0 << 12)) | ((hi & Y0) << 12);
-    let x = [along_x(voxel[0], voxel[1]), along_x(voxel[2], voxel[3]), along_x(voxel[4], voxel[5]), along_x(voxel[6], voxel[7])];
+    let x = [
+        along_x(voxel[0], voxel[1]),
+        along_x(voxel[2], voxel[3]),
+        along_x(voxel[4], voxel[5]),
+        along_x(voxel[6], voxel[7]),
+    ];
     let (near, far) = (along_y(x[0], x[1]), along_y(x[2], x[3]));
     near | (near >> 16) | ((far & Z0) << 48)
 }
@@ -413,12 +433,19 @@ impl<'a> Cells for DualCells<'a> {
 
     #[inline]
     fn table(&self) -> CellTable<'_> {
-        CellTable { brick_lo: self.volume.brick_lo - 1, dims: self.volume.dims + 1, levels: &self.pyramid.levels }
+        CellTable {
+            brick_lo: self.volume.brick_lo - 1,
+            dims: self.volume.dims + 1,
+            levels: &self.pyramid.levels,
+        }
     }
 
     #[inline]
     fn cell_box(&self) -> CellBox {
-        CellBox { lo: self.volume.brick_lo * BRICK - 1, hi: (self.volume.brick_lo + self.volume.dims) * BRICK }
+        CellBox {
+            lo: self.volume.brick_lo * BRICK - 1,
+            hi: (self.volume.brick_lo + self.volume.dims) * BRICK,
+        }
     }
 
     fn dense(&self, b: IVec3, dense: &mut DualBricks<'a>) -> bool {
@@ -440,7 +467,11 @@ impl<'a> Cells for DualCells<'a> {
                     BrickChannels {
                         density: Channel::new(volume, brick.density),
                         source: Channel::new(volume, brick.source),
-                        albedo: if albedo_one { Channel::constant(1.0) } else { Channel::new(volume, brick.albedo) },
+                        albedo: if albedo_one {
+                            Channel::constant(1.0)
+                        } else {
+                            Channel::new(volume, brick.albedo)
+                        },
                     }
                 }
                 None => EMPTY_BRICK,
@@ -458,7 +489,15 @@ impl<'a> Cells for DualCells<'a> {
     /// Reads the 8 corners, or only the 4 new ones when the walk stepped across one face
     /// (the other 4 are the previous cell's: 12 value reads instead of 24).
     #[inline]
-    fn dense_piece(&self, dense: &mut DualBricks<'a>, origin: IVec3, i: IVec3, t0: f64, t1: f64, line: &IndexLine) -> CubicSegment {
+    fn dense_piece(
+        &self,
+        dense: &mut DualBricks<'a>,
+        origin: IVec3,
+        i: IVec3,
+        t0: f64,
+        t1: f64,
+        line: &IndexLine,
+    ) -> CubicSegment {
         // Cells in empty blocks never come here ([`Cells::known_empty`])
         if dense.albedo_one {
             step_corners(&mut ValuesOnly(dense), i - origin);
@@ -486,7 +525,10 @@ impl<'a> Cells for DualCells<'a> {
 
     #[inline]
     fn uniform(node: &NodeBounds) -> DualCell {
-        DualCell { values: VoxelValues { density: node.density_max, source: node.source_max }, albedo: node.uniform_albedo() }
+        DualCell {
+            values: VoxelValues { density: node.density_max, source: node.source_max },
+            albedo: node.uniform_albedo(),
+        }
     }
 
     #[inline]
@@ -524,7 +566,13 @@ impl<'a> Cells for DualCells<'a> {
 /// (`volume::majorant`).
 #[must_use]
 pub fn dual_union(level: &Level, c: IVec3) -> NodeBounds {
-    let at = |n: IVec3| if n.cmpge(IVec3::ZERO).all() && n.cmplt(level.dims).all() { *level.get(n) } else { NodeBounds::ZERO };
+    let at = |n: IVec3| {
+        if n.cmpge(IVec3::ZERO).all() && n.cmplt(level.dims).all() {
+            *level.get(n)
+        } else {
+            NodeBounds::ZERO
+        }
+    };
     let r = c - 1;
     (1..8).fold(at(r), |acc, i| acc.union(at(r + corner_offset(i))))
 }
@@ -534,7 +582,8 @@ pub fn dual_union(level: &Level, c: IVec3) -> NodeBounds {
 #[must_use]
 pub fn dual_pyramid(volume: &Volume) -> Pyramid {
     let dims = volume.dims;
-    let Some(level0) = volume.pyramid.levels.first().filter(|_| dims.cmpgt(IVec3::ZERO).all()) else {
+    let Some(level0) = volume.pyramid.levels.first().filter(|_| dims.cmpgt(IVec3::ZERO).all())
+    else {
         return Pyramid::default();
     };
     let nd = dims + 1;
@@ -543,7 +592,10 @@ pub fn dual_pyramid(volume: &Volume) -> Pyramid {
     base.par_chunks_mut(slab).enumerate().for_each(|(z, nodes)| {
         for (k, node) in nodes.iter_mut().enumerate() {
             // Dual table entry c reads volume table entries c − 1 + {0,1}³
-            *node = dual_union(level0, IVec3::new((k % nd.x as usize) as i32, (k / nd.x as usize) as i32, z as i32));
+            *node = dual_union(
+                level0,
+                IVec3::new((k % nd.x as usize) as i32, (k / nd.x as usize) as i32, z as i32),
+            );
         }
     });
     Pyramid::from_base(nd, base)
@@ -562,10 +614,13 @@ mod tests {
         let mut s = plume_core::sampling::Sampler::new(0xb10c, 0, 0);
         for case in 0..400 {
             let keep = [0.02, 0.1, 0.5, 0.95][case % 4];
-            let voxel: [u64; 8] = std::array::from_fn(|_| (0..64).filter(|_| s.next_f64() < keep).fold(0u64, |m, b| m | 1 << b));
+            let voxel: [u64; 8] = std::array::from_fn(|_| {
+                (0..64).filter(|_| s.next_f64() < keep).fold(0u64, |m, b| m | 1 << b)
+            });
             // Voxel block `w` (each coordinate 0..=4) of the 9³ the dual brick reads
             let occupied = |w: IVec3| {
-                let k = usize::from(w.x >= 4) | usize::from(w.y >= 4) << 1 | usize::from(w.z >= 4) << 2;
+                let k =
+                    usize::from(w.x >= 4) | usize::from(w.y >= 4) << 1 | usize::from(w.z >= 4) << 2;
                 let l = w & 3;
                 voxel[k] >> (l.x + 4 * l.y + 16 * l.z) & 1 == 1
             };
@@ -573,7 +628,11 @@ mod tests {
             for b in 0..64 {
                 let s = IVec3::new(b & 3, (b >> 2) & 3, b >> 4);
                 let want = (0..8).any(|c| occupied(s + corner_offset(c)));
-                assert_eq!(got >> b & 1 == 1, want, "case {case}, dual block {s}: {got:#x} from {voxel:x?}");
+                assert_eq!(
+                    got >> b & 1 == 1,
+                    want,
+                    "case {case}, dual block {s}: {got:#x} from {voxel:x?}"
+                );
             }
         }
     }
@@ -586,7 +645,8 @@ mod tests {
             for y in 0..9 {
                 for x in 0..9 {
                     let v = IVec3::new(x, y, z);
-                    let k = usize::from(x >= 8) | usize::from(y >= 8) << 1 | usize::from(z >= 8) << 2;
+                    let k =
+                        usize::from(x >= 8) | usize::from(y >= 8) << 1 | usize::from(z >= 8) << 2;
                     assert_eq!(dual_slot(v), (k, brick_offset(x & 7, y & 7, z & 7)), "voxel {v}");
                 }
             }

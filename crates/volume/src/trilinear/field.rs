@@ -15,11 +15,11 @@ use super::density::DensityCells;
 use super::dual::{dual_pyramid, BlockMasks, DualCells};
 use super::poly;
 use super::CubicSegment;
-use plume_core::color::Rgb;
 use crate::dda::{world_box, CellWalk};
 use crate::field::{optical_depth_along, Bounds3, Field, PointValues, Ray, RayGrid, VoxelValues};
 use crate::pyramid::{Level, Pyramid};
 use crate::Volume;
+use plume_core::color::Rgb;
 
 /// A volume with trilinear reconstruction: the volume and its dual pyramid
 /// (`volume::trilinear::dual`). The voxels are the volume's; nothing is copied.
@@ -201,7 +201,11 @@ impl Field for Trilinear {
     #[inline(always)]
     fn reconstruct(&self, p_world: DVec3, le: &impl Fn(f32, f32) -> Rgb) -> PointValues {
         let it = self.interpolate_world(p_world);
-        PointValues { density: it.density() as f32, source: it.source() as f32, emission: it.emission(le) }
+        PointValues {
+            density: it.density() as f32,
+            source: it.source() as f32,
+            emission: it.emission(le),
+        }
     }
 
     fn prefetch(&self, grid: &RayGrid) -> u64 {

@@ -4,8 +4,8 @@
 use glam::DVec3;
 
 use super::poly;
-use plume_core::color::Rgb;
 use crate::field::{Piece, PieceIntegrals, Segment, VoxelValues};
+use plume_core::color::Rgb;
 
 /// A piece of a ray inside one dual cell (or a constant run of them).
 ///
@@ -35,7 +35,15 @@ impl CubicSegment {
     /// pyramid, or empty space).
     #[must_use]
     pub fn constant_piece(t0: f64, t1: f64, values: VoxelValues, albedo: f32) -> CubicSegment {
-        CubicSegment { t0, t1, f0: DVec3::ZERO, d: DVec3::ZERO, corners: [values; 8], albedo: [albedo; 8], constant: true }
+        CubicSegment {
+            t0,
+            t1,
+            f0: DVec3::ZERO,
+            d: DVec3::ZERO,
+            corners: [values; 8],
+            albedo: [albedo; 8],
+            constant: true,
+        }
     }
 
     /// The piece of a ray crossing one dual cell: cell-local coordinates `f0 + d u` over
@@ -44,12 +52,20 @@ impl CubicSegment {
     /// [`CubicSegment::constant_piece`].
     #[inline]
     #[must_use]
-    pub fn cell(t0: f64, t1: f64, f0: DVec3, d: DVec3, corners: [VoxelValues; 8], albedo: [f32; 8]) -> CubicSegment {
+    pub fn cell(
+        t0: f64,
+        t1: f64,
+        f0: DVec3,
+        d: DVec3,
+        corners: [VoxelValues; 8],
+        albedo: [f32; 8],
+    ) -> CubicSegment {
         let (c0, a0) = (corners[0], albedo[0]);
-        let agree = corners
-            .iter()
-            .zip(&albedo)
-            .all(|(c, a)| c.density.to_bits() == c0.density.to_bits() && c.source.to_bits() == c0.source.to_bits() && a.to_bits() == a0.to_bits());
+        let agree = corners.iter().zip(&albedo).all(|(c, a)| {
+            c.density.to_bits() == c0.density.to_bits()
+                && c.source.to_bits() == c0.source.to_bits()
+                && a.to_bits() == a0.to_bits()
+        });
         if agree {
             return CubicSegment::constant_piece(t0, t1, c0, a0);
         }
@@ -118,7 +134,13 @@ impl Piece for CubicSegment {
     #[inline]
     fn constant(&self) -> Option<Segment> {
         let c = self.corners[0];
-        self.constant.then_some(Segment { t0: self.t0, t1: self.t1, density: c.density, source: c.source, albedo: self.albedo[0] })
+        self.constant.then_some(Segment {
+            t0: self.t0,
+            t1: self.t1,
+            density: c.density,
+            source: c.source,
+            albedo: self.albedo[0],
+        })
     }
 
     /// `σ_t ∫₀ᵘ ρ = σ_t Σ_c ρ_c W_c(u)` ([`poly::integrated_weights`]); a constant piece
@@ -127,7 +149,10 @@ impl Piece for CubicSegment {
     fn optical_depth(&self, sigma_t: f64, u: f64) -> f64 {
         match self.constant() {
             Some(seg) => seg.optical_depth(sigma_t, u),
-            None => sigma_t * poly::dot(&self.densities(), &poly::integrated_weights(self.f0, self.d, u)),
+            None => {
+                sigma_t
+                    * poly::dot(&self.densities(), &poly::integrated_weights(self.f0, self.d, u))
+            }
         }
     }
 
@@ -190,7 +215,8 @@ impl Piece for CubicSegment {
         // σ_s and σ_t are interpolated, so the albedo is their ratio: the corner albedos
         // weighted by trilinear weight × density (1, like empty space, where ρ is 0).
         let f = self.local(u);
-        let weighted: [f64; 8] = std::array::from_fn(|c| f64::from(self.albedo[c]) * f64::from(self.corners[c].density));
+        let weighted: [f64; 8] =
+            std::array::from_fn(|c| f64::from(self.albedo[c]) * f64::from(self.corners[c].density));
         let density = poly::trilinear(&self.corners.map(|v| f64::from(v.density)), f);
         if density > 0.0 {
             (poly::trilinear(&weighted, f) / density).clamp(0.0, 1.0) as f32
@@ -217,8 +243,8 @@ impl Piece for CubicSegment {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use plume_core::sampling::Sampler;
     use crate::trilinear::poly::tests::{random_corners, random_ray, CellRay};
+    use plume_core::sampling::Sampler;
 
     /// An emission density with `le(ρ, 0) = 0`, like the medium's, mixing both arguments.
     fn le(d: f32, s: f32) -> Rgb {
@@ -233,7 +259,8 @@ mod tests {
     /// `ray`, starting at `t0 = 10`.
     fn random_cell(s: &mut Sampler, ray: &CellRay) -> CubicSegment {
         let (rho, src) = (random_corners(s, 0.0, 2.0), random_corners(s, 0.0, 2.0));
-        let corners = std::array::from_fn(|c| VoxelValues { density: rho[c] as f32, source: src[c] as f32 });
+        let corners =
+            std::array::from_fn(|c| VoxelValues { density: rho[c] as f32, source: src[c] as f32 });
         let albedo = random_corners(s, 0.2, 1.0).map(|a| a as f32);
         CubicSegment::cell(10.0, 10.0 + ray.len, ray.f0, ray.d, corners, albedo)
     }
@@ -257,7 +284,10 @@ mod tests {
     #[test]
     fn linear_ramp_closed_form() {
         let (a, b, sigma) = (0.3f32, 1.7f32, 2.5);
-        let corners = std::array::from_fn(|c| VoxelValues { density: if c & 1 == 0 { a } else { a + b }, source: 0.0 });
+        let corners = std::array::from_fn(|c| VoxelValues {
+            density: if c & 1 == 0 { a } else { a + b },
+            source: 0.0,
+        });
         let (a, b) = (f64::from(a), f64::from(a + b) - f64::from(a));
         let rays = [
             CellRay { f0: DVec3::new(0.0, 0.37, 0.81), d: DVec3::X, len: 1.0 },
@@ -272,7 +302,9 @@ mod tests {
                 let l = ray.len * f64::from(i) / 20.0;
                 let exact = sigma * ((a + b * ray.f0.x) * l + b * ray.d.x * l * l / 2.0);
                 let od = piece.optical_depth(sigma, l);
-                worst = worst.max(((od - exact) / exact).abs()).max(((-od).exp() / (-exact).exp() - 1.0).abs());
+                worst = worst
+                    .max(((od - exact) / exact).abs())
+                    .max(((-od).exp() / (-exact).exp() - 1.0).abs());
             }
         }
         println!("linear ramp: max relative error of OD and τ {worst:.2e}");
@@ -294,11 +326,18 @@ mod tests {
             let mut observed = [0u64; BINS + 1];
             for _ in 0..SAMPLES {
                 let e = -(-s.next_f64()).ln_1p();
-                let bin = if e < total { ((piece.free_path(sigma, e) / ray.len * BINS as f64) as usize).min(BINS - 1) } else { BINS };
+                let bin = if e < total {
+                    ((piece.free_path(sigma, e) / ray.len * BINS as f64) as usize).min(BINS - 1)
+                } else {
+                    BINS
+                };
                 observed[bin] += 1;
             }
-            let tau = |k: usize| (-piece.optical_depth(sigma, ray.len * k as f64 / BINS as f64)).exp();
-            let expected: Vec<f64> = (0..=BINS).map(|k| SAMPLES as f64 * if k < BINS { tau(k) - tau(k + 1) } else { tau(BINS) }).collect();
+            let tau =
+                |k: usize| (-piece.optical_depth(sigma, ray.len * k as f64 / BINS as f64)).exp();
+            let expected: Vec<f64> = (0..=BINS)
+                .map(|k| SAMPLES as f64 * if k < BINS { tau(k) - tau(k + 1) } else { tau(BINS) })
+                .collect();
             // Pool neighbouring bins until each expects at least 5
             let mut pools: Vec<Pool> = Vec::new();
             let mut open = Pool::default();
@@ -309,9 +348,13 @@ mod tests {
                 }
             }
             if let Some(last) = pools.last_mut() {
-                *last = Pool { observed: last.observed + open.observed, expected: last.expected + open.expected };
+                *last = Pool {
+                    observed: last.observed + open.observed,
+                    expected: last.expected + open.expected,
+                };
             }
-            let chi2: f64 = pools.iter().map(|p| (p.observed - p.expected).powi(2) / p.expected).sum();
+            let chi2: f64 =
+                pools.iter().map(|p| (p.observed - p.expected).powi(2) / p.expected).sum();
             let critical = chi_square_critical(pools.len() - 1);
             println!("cell {cell}: OD {total:.3}, χ² = {chi2:.2} with {} dof, critical (p = 0.001) {critical:.2}", pools.len() - 1);
             assert!(chi2 < critical, "cell {cell}: χ² {chi2} ≥ {critical}");
@@ -339,7 +382,8 @@ mod tests {
                     *e += poly::trilinear(&corner_le.map(|v| v[ch]), f) * h;
                 }
             }
-            worst_density = worst_density.max((piece.optical_depth(1.0, ray.len) / density - 1.0).abs());
+            worst_density =
+                worst_density.max((piece.optical_depth(1.0, ray.len) / density - 1.0).abs());
             for (closed, marched) in piece.emission_integral(&le, ray.len).iter().zip(emission) {
                 worst_emission = worst_emission.max((closed / marched - 1.0).abs());
             }
@@ -353,7 +397,10 @@ mod tests {
             }
         }
         println!("midpoint march: max relative error ∫ρ {worst_density:.2e}, ∫L_e {worst_emission:.2e}; free path OD {worst_od:.2e}");
-        assert!(worst_density <= 1e-6 && worst_emission <= 1e-6, "{worst_density} {worst_emission}");
+        assert!(
+            worst_density <= 1e-6 && worst_emission <= 1e-6,
+            "{worst_density} {worst_emission}"
+        );
         assert!(worst_od <= 1e-10, "{worst_od}");
     }
 
@@ -368,12 +415,26 @@ mod tests {
             let u = ray.len * f64::from(i) / 10.0;
             let f = (ray.f0 + ray.d * u).clamp(DVec3::ZERO, DVec3::ONE);
             let near = |a: f64, b: f64| (a - b).abs() <= 1e-6 * b.abs().max(1e-3);
-            assert!(near(f64::from(piece.density_at(u)), poly::trilinear(&piece.corners.map(|c| f64::from(c.density)), f)));
-            assert!(near(f64::from(piece.source_at(u)), poly::trilinear(&piece.corners.map(|c| f64::from(c.source)), f)));
+            assert!(near(
+                f64::from(piece.density_at(u)),
+                poly::trilinear(&piece.corners.map(|c| f64::from(c.density)), f)
+            ));
+            assert!(near(
+                f64::from(piece.source_at(u)),
+                poly::trilinear(&piece.corners.map(|c| f64::from(c.source)), f)
+            ));
             // Albedo is σ_s/σ_t, both interpolated: density-weighted corner albedos
             let rho = poly::trilinear(&piece.corners.map(|c| f64::from(c.density)), f);
-            let sigma_s = poly::trilinear(&std::array::from_fn(|c| f64::from(piece.albedo[c]) * f64::from(piece.corners[c].density)), f);
-            assert!(near(f64::from(piece.albedo_at(u)), if rho > 0.0 { sigma_s / rho } else { 1.0 }));
+            let sigma_s = poly::trilinear(
+                &std::array::from_fn(|c| {
+                    f64::from(piece.albedo[c]) * f64::from(piece.corners[c].density)
+                }),
+                f,
+            );
+            assert!(near(
+                f64::from(piece.albedo_at(u)),
+                if rho > 0.0 { sigma_s / rho } else { 1.0 }
+            ));
             for (ch, e) in piece.emission_at(&le, u).into_iter().enumerate() {
                 assert!(near(e, poly::trilinear(&corner_le.map(|v| v[ch]), f)));
             }
@@ -401,7 +462,9 @@ mod tests {
             let sigma = 2.5;
             let u = [piece.length(), piece.length() * s.next_f64(), 0.0];
             let pair = piece.optical_depths(sigma, u);
-            let scale = sigma * piece.corners.iter().map(|c| f64::from(c.density)).fold(0.0, f64::max) * piece.length();
+            let scale = sigma
+                * piece.corners.iter().map(|c| f64::from(c.density)).fold(0.0, f64::max)
+                * piece.length();
             for (&ui, &od) in u.iter().zip(&pair) {
                 let exact = piece.optical_depth(sigma, ui);
                 if k % 2 == 0 {
@@ -425,13 +488,22 @@ mod tests {
         let seg = Segment { t0: 2.0, t1: 2.5, density: 0.7, source: 1500.0, albedo: 0.8 };
         let f0 = DVec3::new(0.0, 0.2, 0.9);
         let d = DVec3::new(2.0, 0.1, -0.5);
-        for piece in [CubicSegment::constant_piece(2.0, 2.5, values, 0.8), CubicSegment::cell(2.0, 2.5, f0, d, [values; 8], [0.8; 8])] {
+        for piece in [
+            CubicSegment::constant_piece(2.0, 2.5, values, 0.8),
+            CubicSegment::cell(2.0, 2.5, f0, d, [values; 8], [0.8; 8]),
+        ] {
             assert_eq!(piece.constant(), Some(seg));
             for u in [0.0, 0.1, 0.5] {
                 assert_eq!(piece.optical_depth(3.0, u), seg.optical_depth(3.0, u));
-                assert_eq!(piece.optical_depths(3.0, [u, 0.5]), [seg.optical_depth(3.0, u), seg.optical_depth(3.0, 0.5)]);
+                assert_eq!(
+                    piece.optical_depths(3.0, [u, 0.5]),
+                    [seg.optical_depth(3.0, u), seg.optical_depth(3.0, 0.5)]
+                );
                 assert_eq!(piece.free_path(3.0, u), seg.free_path(3.0, u));
-                assert_eq!((piece.density_at(u), piece.source_at(u), piece.albedo_at(u)), (0.7, 1500.0, 0.8));
+                assert_eq!(
+                    (piece.density_at(u), piece.source_at(u), piece.albedo_at(u)),
+                    (0.7, 1500.0, 0.8)
+                );
                 assert_eq!(piece.emission_at(&le, u), seg.emission_at(&le, u));
                 assert_eq!(piece.emission_integral(&le, u), seg.emission_integral(&le, u));
             }
@@ -443,6 +515,9 @@ mod tests {
         let mut dark_albedo = [0.8; 8];
         dark_albedo[0] = 0.5;
         let piece = CubicSegment::cell(2.0, 2.5, f0, d, dark, dark_albedo);
-        assert_eq!((piece.emission_at(&le, 0.3), piece.emission_integral(&le, 0.5)), ([0.0; 3], [0.0; 3]));
+        assert_eq!(
+            (piece.emission_at(&le, 0.3), piece.emission_integral(&le, 0.5)),
+            ([0.0; 3], [0.0; 3])
+        );
     }
 }

@@ -227,7 +227,11 @@ pub(crate) mod tests {
     /// point inside the cell or (half the time) on the face it enters through.
     pub fn random_ray(s: &mut Sampler) -> CellRay {
         let dir = sample_uniform_sphere([s.next_f64(), s.next_f64()]);
-        let voxel = DVec3::new(0.3 + 2.7 * s.next_f64(), 0.3 + 2.7 * s.next_f64(), 0.3 + 2.7 * s.next_f64());
+        let voxel = DVec3::new(
+            0.3 + 2.7 * s.next_f64(),
+            0.3 + 2.7 * s.next_f64(),
+            0.3 + 2.7 * s.next_f64(),
+        );
         let d = dir / voxel;
         let mut f0 = DVec3::new(s.next_f64(), s.next_f64(), s.next_f64());
         if s.next_f64() < 0.5 {
@@ -274,7 +278,11 @@ pub(crate) mod tests {
         for k in 0..500 {
             let mut s = Sampler::new(0x7e1, k, 0);
             let v = random_corners(&mut s, -1.0, 2.0);
-            let ray = if k == 0 { CellRay { f0: DVec3::ZERO, d: DVec3::ONE / 3f64.sqrt(), len: 3f64.sqrt() } } else { random_ray(&mut s) };
+            let ray = if k == 0 {
+                CellRay { f0: DVec3::ZERO, d: DVec3::ONE / 3f64.sqrt(), len: 3f64.sqrt() }
+            } else {
+                random_ray(&mut s)
+            };
             let a = cubic_along(v, ray.f0, ray.d);
             let scale = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
             assert_eq!(a[0].to_bits(), trilinear(&v, ray.f0).to_bits());
@@ -304,13 +312,34 @@ pub(crate) mod tests {
         let mut s = Sampler::new(0x7e2, 0, 0);
         let rest: [f64; 8] = random_corners(&mut s, 0.5, 2.0);
         let zero_low_x: [f64; 8] = std::array::from_fn(|c| if c & 1 == 0 { 0.0 } else { rest[c] });
-        let only = |corner: usize| -> [f64; 8] { std::array::from_fn(|c| if c == corner { 1.0 } else { 0.0 }) };
+        let only = |corner: usize| -> [f64; 8] {
+            std::array::from_fn(|c| if c == corner { 1.0 } else { 0.0 })
+        };
         let diagonal = DVec3::ONE / 3f64.sqrt();
-        let cell = |name: &'static str, v: [f64; 8], f0: DVec3, d: DVec3| Case { name, a: cubic_along(v, f0, d), len: exit_length(f0, d).min(2.0) };
+        let cell = |name: &'static str, v: [f64; 8], f0: DVec3, d: DVec3| Case {
+            name,
+            a: cubic_along(v, f0, d),
+            len: exit_length(f0, d).min(2.0),
+        };
         let cases = [
-            cell("zero face at the entry", zero_low_x, DVec3::new(0.0, 0.3, 0.6), DVec3::new(0.8, 0.1, -0.3)),
-            cell("zero face at the exit", zero_low_x, DVec3::new(1.0, 0.4, 0.2), DVec3::new(-0.9, 0.2, 0.3)),
-            cell("along a zero face", zero_low_x, DVec3::new(0.0, 0.0, 0.5), DVec3::new(0.0, 1.0, 0.2)),
+            cell(
+                "zero face at the entry",
+                zero_low_x,
+                DVec3::new(0.0, 0.3, 0.6),
+                DVec3::new(0.8, 0.1, -0.3),
+            ),
+            cell(
+                "zero face at the exit",
+                zero_low_x,
+                DVec3::new(1.0, 0.4, 0.2),
+                DVec3::new(-0.9, 0.2, 0.3),
+            ),
+            cell(
+                "along a zero face",
+                zero_low_x,
+                DVec3::new(0.0, 0.0, 0.5),
+                DVec3::new(0.0, 1.0, 0.2),
+            ),
             cell("u³ from an entry corner", only(7), DVec3::ZERO, diagonal),
             cell("(1 − u)³ to an exit corner", only(0), DVec3::ZERO, diagonal),
             cell("random corners", rest, DVec3::new(0.2, 0.0, 0.7), DVec3::new(0.3, 0.9, -0.2)),
@@ -321,20 +350,43 @@ pub(crate) mod tests {
             for scale in [1e-30, 1.0, 1e30] {
                 let a = a.map(|x| x * scale);
                 let total = integral(&a, len);
-                let below_total = if total > 0.0 { f64::from_bits(total.to_bits() - 1) } else { 0.0 };
-                let targets = [0.0, 1e-300, total * 1e-15, total * 1e-9, total * 1e-3, total * 0.5, total * (1.0 - 1e-9), total * (1.0 - 1e-15), below_total];
+                let below_total =
+                    if total > 0.0 { f64::from_bits(total.to_bits() - 1) } else { 0.0 };
+                let targets = [
+                    0.0,
+                    1e-300,
+                    total * 1e-15,
+                    total * 1e-9,
+                    total * 1e-3,
+                    total * 0.5,
+                    total * (1.0 - 1e-9),
+                    total * (1.0 - 1e-15),
+                    below_total,
+                ];
                 for target in targets {
                     let Root { u, iterations } = solve(&a, len, target);
-                    assert!((0.0..=len).contains(&u), "{name} ×{scale:e}, target {target:e}: u = {u} outside [0, {len}]");
+                    assert!(
+                        (0.0..=len).contains(&u),
+                        "{name} ×{scale:e}, target {target:e}: u = {u} outside [0, {len}]"
+                    );
                     most_iterations = most_iterations.max(iterations);
-                    assert!(iterations <= 50, "{name} ×{scale:e}, target {target:e}: {iterations} iterations");
+                    assert!(
+                        iterations <= 50,
+                        "{name} ×{scale:e}, target {target:e}: {iterations} iterations"
+                    );
                     if target / total == 0.0 {
-                        assert_eq!(u, 0.0, "{name} ×{scale:e}, target {target:e}: underflowing ratio");
+                        assert_eq!(
+                            u, 0.0,
+                            "{name} ×{scale:e}, target {target:e}: underflowing ratio"
+                        );
                     } else if target > 0.0 && target < total {
                         // Plus the rounding floor of I at u: 10⁻¹⁴ of Σ |a_j| u^{j+1}/(j+1)
                         let floor = 1e-14 * integral(&a.map(f64::abs), u);
                         let residual = (integral(&a, u) - target).abs();
-                        assert!(residual <= 1e-9 * target + floor, "{name} ×{scale:e}, target {target:e}: residual {residual:e}");
+                        assert!(
+                            residual <= 1e-9 * target + floor,
+                            "{name} ×{scale:e}, target {target:e}: residual {residual:e}"
+                        );
                         if floor < 1e-9 * target {
                             worst = worst.max(residual / target);
                         }
@@ -357,7 +409,8 @@ pub(crate) mod tests {
             for _ in 0..20 {
                 let target = integral(&a, ray.len) * s.next_f64();
                 let root = solve(&a, ray.len, target);
-                (sum, most, count) = (sum + u64::from(root.iterations), most.max(root.iterations), count + 1);
+                (sum, most, count) =
+                    (sum + u64::from(root.iterations), most.max(root.iterations), count + 1);
             }
         }
         let mean = sum as f64 / count as f64;

@@ -40,11 +40,19 @@ impl<R: Read> Decoder<R> {
         for c in &mut bbox {
             *c = self.u32()? as i32;
         }
-        let (lo, hi) = (IVec3::new(bbox[0], bbox[1], bbox[2]), IVec3::new(bbox[3], bbox[4], bbox[5]));
+        let (lo, hi) =
+            (IVec3::new(bbox[0], bbox[1], bbox[2]), IVec3::new(bbox[3], bbox[4], bbox[5]));
         if has_bbox && !lo.cmple(hi).all() {
             return malformed(format!("grid {name:?}: inverted bounds {lo}..{hi}"));
         }
-        Ok(StreamedGrid { name, world_from_index, background, leaf_count, tile_blocks, index_bbox: has_bbox.then_some((lo, hi)) })
+        Ok(StreamedGrid {
+            name,
+            world_from_index,
+            background,
+            leaf_count,
+            tile_blocks,
+            index_bbox: has_bbox.then_some((lo, hi)),
+        })
     }
 
     /// A batch count, refused before anything is read if it is 0 or above [`STREAM_BATCH`].
@@ -71,7 +79,9 @@ impl<R: Read> Decoder<R> {
         self.fill_scratch(count * LEAF_VOXELS * 4)?;
         let values = &mut self.batch.values;
         values.clear();
-        values.extend(self.scratch.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])));
+        values.extend(
+            self.scratch.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])),
+        );
         if values.iter().any(|v| !v.is_finite()) {
             return malformed("non-finite leaf values");
         }
@@ -86,7 +96,11 @@ impl<R: Read> Decoder<R> {
         for b in self.scratch.chunks_exact(TILE_BYTES) {
             let word = |k: usize| [b[4 * k], b[4 * k + 1], b[4 * k + 2], b[4 * k + 3]];
             let int = |k: usize| i32::from_le_bytes(word(k));
-            tiles.push(Tile { min: IVec3::new(int(0), int(1), int(2)), max: IVec3::new(int(3), int(4), int(5)), value: f32::from_le_bytes(word(6)) });
+            tiles.push(Tile {
+                min: IVec3::new(int(0), int(1), int(2)),
+                max: IVec3::new(int(3), int(4), int(5)),
+                value: f32::from_le_bytes(word(6)),
+            });
         }
         // Shape and value are checked by Tile::blocks before a tile is visited
         Ok(())

@@ -9,7 +9,8 @@ fn assert_rel(actual: f64, expected: f64, tolerance: f64, what: &str) {
 }
 
 /// Temperatures that must never produce NaN or ∞ (NaN is treated as 0 K).
-const EDGE_TEMPERATURES: [f32; 12] = [0.0, 1e-3, 1.0, 100.0, 499.0, 500.0, 1e4, 1e7, 1e8, f32::MAX, f32::INFINITY, f32::NAN];
+const EDGE_TEMPERATURES: [f32; 12] =
+    [0.0, 1e-3, 1.0, 100.0, 499.0, 500.0, 1e4, 1e7, 1e8, f32::MAX, f32::INFINITY, f32::NAN];
 
 #[test]
 fn planck_matches_method_range() {
@@ -75,7 +76,9 @@ fn planck_integrates_to_stefan_boltzmann() {
 #[test]
 fn cmf_table_integrals() {
     assert_eq!(CIE1931_2DEG.len() as u32, CIE1931_LAMBDA_MAX_NM - CIE1931_LAMBDA_MIN_NM + 1);
-    let sums = CIE1931_2DEG.iter().fold([0.0f64; 3], |acc, row| [acc[0] + row[0], acc[1] + row[1], acc[2] + row[2]]);
+    let sums = CIE1931_2DEG
+        .iter()
+        .fold([0.0f64; 3], |acc, row| [acc[0] + row[0], acc[1] + row[1], acc[2] + row[2]]);
     assert!((sums[1] - 106.86).abs() < 0.05, "∫ȳ dλ = {} nm", sums[1]);
     // Equal-energy white: the three integrals agree to 0.04 %.
     assert!((sums[0] - sums[1]).abs() < 0.05 && (sums[2] - sums[1]).abs() < 0.05);
@@ -165,7 +168,8 @@ fn table_matches_exact() {
             let luminance_error = (table.luminance(t) / xyz[1] - 1.0).abs();
             let approx = table.rgb(t).to_f64();
             let largest = exact.iter().fold(0.0f64, |m, &c| m.max(c));
-            let rgb_error = (0..3).map(|c| (approx[c] - exact[c]).abs()).fold(0.0, f64::max) / largest;
+            let rgb_error =
+                (0..3).map(|c| (approx[c] - exact[c]).abs()).fold(0.0, f64::max) / largest;
             if luminance_error > max_luminance_error {
                 (max_luminance_error, worst_luminance_t) = (luminance_error, t);
             }
@@ -232,15 +236,23 @@ fn cycles_blackbody_convention() {
     let largest = chromaticity.0.iter().map(|v| v.abs()).fold(0.0, f32::max);
     for c in 0..3 {
         let expected = expected_scale * f64::from(chromaticity.0[c]);
-        assert!((f64::from(actual.0[c]) - expected).abs() <= 1e-6 * expected_scale * f64::from(largest), "{actual:?}");
+        assert!(
+            (f64::from(actual.0[c]) - expected).abs() <= 1e-6 * expected_scale * f64::from(largest),
+            "{actual:?}"
+        );
     }
     // Unclamped, like Cycles' own fit (values from Cycles' svm_math_blackbody_color_rec709),
     // and constant outside 800 K … 12000 K.
     let table = blackbody_table();
-    for (t, cycles) in [(800.0f32, [5.413f64, -0.203, -0.082]), (12000.0, [0.82659, 0.99452, 1.56659])] {
+    for (t, cycles) in
+        [(800.0f32, [5.413f64, -0.203, -0.082]), (12000.0, [0.82659, 0.99452, 1.56659])]
+    {
         let c = table.cycles_chromaticity(t);
         for k in 0..3 {
-            assert!((f64::from(c.0[k]) - cycles[k]).abs() < 0.01 * cycles[k].abs().max(0.5), "{t} K: {c:?} vs {cycles:?}");
+            assert!(
+                (f64::from(c.0[k]) - cycles[k]).abs() < 0.01 * cycles[k].abs().max(0.5),
+                "{t} K: {c:?} vs {cycles:?}"
+            );
         }
     }
     assert_eq!(table.cycles_chromaticity(500.0), table.cycles_chromaticity(800.0));
@@ -266,10 +278,15 @@ fn cycles_uniform_table_agrees_with_the_ln_t_table() {
         let got = cycles_blackbody(t32).to_f64();
         for c in 0..3 {
             let e = exact[c] * scale;
-            worst = worst.max((got[c] - e).abs() / (exact.iter().map(|v| v.abs()).fold(0.0, f64::max) * scale));
+            worst = worst.max(
+                (got[c] - e).abs() / (exact.iter().map(|v| v.abs()).fold(0.0, f64::max) * scale),
+            );
         }
     }
-    assert!(worst < 2e-6, "uniform-T table deviates by {worst:e} (relative to the largest channel)");
+    assert!(
+        worst < 2e-6,
+        "uniform-T table deviates by {worst:e} (relative to the largest channel)"
+    );
 }
 
 #[test]
@@ -334,7 +351,8 @@ fn print_reference_colours() {
 
 #[test]
 fn table_build_is_independent_of_thread_count() {
-    let (one, three) = (BlackbodyTable::build_with_threads(1), BlackbodyTable::build_with_threads(3));
+    let (one, three) =
+        (BlackbodyTable::build_with_threads(1), BlackbodyTable::build_with_threads(3));
     let bits = |table: &BlackbodyTable| {
         let ln_y: Vec<u32> = table.ln_y.iter().map(|v| v.to_bits()).collect();
         let rgb: Vec<[u32; 3]> = table.rgb_over_y.iter().map(|c| c.map(f32::to_bits)).collect();

@@ -7,9 +7,9 @@ use std::sync::Mutex;
 use rayon::prelude::*;
 
 use super::{Answer, PendingSample};
+use crate::integrator::scene::Scene;
 use crate::integrator::tracker::Points;
 use plume_scene::PointLookup;
-use crate::integrator::scene::Scene;
 use plume_volume::field::Field;
 
 /// Lookups answered per piece of work of the fill.
@@ -42,7 +42,13 @@ struct Entry {
 
 /// Answer every missing request, bucket by bucket of the cache file in order, and add
 /// the values to their paths' [`Answers`]. Returns how many were answered.
-pub(super) fn fill<F: Field>(scene: &Scene<F>, pool: &rayon::ThreadPool, lookup: PointLookup, pending: &mut [PendingSample], buffers: &mut FillBuffers) -> u64 {
+pub(super) fn fill<F: Field>(
+    scene: &Scene<F>,
+    pool: &rayon::ThreadPool,
+    lookup: PointLookup,
+    pending: &mut [PendingSample],
+    buffers: &mut FillBuffers,
+) -> u64 {
     let volume = scene.field.voxels();
     // Each request's value blocks, by channel; its bucket is its first dense block's
     let blocks: Vec<Vec<[u32; 3]>> = pool.install(|| {
@@ -57,7 +63,9 @@ pub(super) fn fill<F: Field>(scene: &Scene<F>, pool: &rayon::ThreadPool, lookup:
             .collect()
     });
     // Bucket 0: lookups that read no block
-    let bucket = |b: &[u32; 3]| b.iter().find(|&&b| b != u32::MAX).map_or(0, |&b| (b >> BUCKET_SHIFT) as usize + 1);
+    let bucket = |b: &[u32; 3]| {
+        b.iter().find(|&&b| b != u32::MAX).map_or(0, |&b| (b >> BUCKET_SHIFT) as usize + 1)
+    };
     let n_buckets = blocks.iter().flatten().map(bucket).max().map_or(0, |b| b + 1);
     // Per bucket and channel, the range of blocks its lookups read (their bricks')
     let mut ranges = vec![[(u32::MAX, 0u32); 3]; n_buckets];
@@ -93,11 +101,13 @@ pub(super) fn fill<F: Field>(scene: &Scene<F>, pool: &rayon::ThreadPool, lookup:
     let order = &buffers.order;
     buffers.out.clear();
     buffers.out.resize(order.len(), (0, [0.0; 3]));
-    let work: Vec<Mutex<&mut [Answer]>> = buffers.out.chunks_mut(FILL_CHUNK).map(Mutex::new).collect();
+    let work: Vec<Mutex<&mut [Answer]>> =
+        buffers.out.chunks_mut(FILL_CHUNK).map(Mutex::new).collect();
     let next = AtomicUsize::new(0);
     let asked = AtomicUsize::new(0);
     let shared: &[PendingSample] = pending;
-    let request = |e: &Entry| shared[e.sample as usize].paths[e.path as usize].missing[e.request as usize];
+    let request =
+        |e: &Entry| shared[e.sample as usize].paths[e.path as usize].missing[e.request as usize];
     let mapped = volume.filter(|v| v.is_mapped());
     pool.broadcast(|_| {
         let points = Points::new(&scene.field, &scene.medium, None, lookup);
@@ -109,7 +119,13 @@ pub(super) fn fill<F: Field>(scene: &Scene<F>, pool: &rayon::ThreadPool, lookup:
                 let here = bucket_at(c * FILL_CHUNK + entries.len() - 1);
                 let upto = (here + FILL_AHEAD_BUCKETS).min(n_buckets);
                 let from = asked.fetch_max(upto, Ordering::Relaxed);
-                for range in ranges.get(from..upto).unwrap_or_default().iter().flatten().filter(|r| r.0 <= r.1) {
+                for range in ranges
+                    .get(from..upto)
+                    .unwrap_or_default()
+                    .iter()
+                    .flatten()
+                    .filter(|r| r.0 <= r.1)
+                {
                     v.read_ahead_blocks(range.0 as usize..range.1 as usize + 1);
                 }
             }

@@ -47,7 +47,10 @@ fn buffered_points_serve_what_was_answered_and_note_the_rest() {
     assert_eq!(b.emission(q), [1.0, 2.0, 3.0]);
     assert!(b.complete.get() && b.missing.borrow().is_empty());
     // The answers read, by index (the albedo came with the density: not read again)
-    let (at_p, at_q) = (answers.get(Request { p, ask: Ask::Density, u: 0.0 }.key()), answers.get(Request { p: q, ask: Ask::Emission, u: 0.0 }.key()));
+    let (at_p, at_q) = (
+        answers.get(Request { p, ask: Ask::Density, u: 0.0 }.key()),
+        answers.get(Request { p: q, ask: Ask::Emission, u: 0.0 }.key()),
+    );
     assert_eq!(*b.used.borrow(), [at_p.unwrap().0 as u32, at_q.unwrap().0 as u32]);
     // Another ask at an answered point, a picked read, an albedo elsewhere: missing
     assert_eq!(b.emission(p), [0.0; 3]);
@@ -59,9 +62,15 @@ fn buffered_points_serve_what_was_answered_and_note_the_rest() {
     assert!(!b.gave_up.get());
     // A recorded segment: answered only if every request is
     let b = buffered(&answers);
-    assert!(b.has_all(&[Request { p, ask: Ask::Density, u: 0.0 }, Request { p: q, ask: Ask::Emission, u: 0.0 }]));
+    assert!(b.has_all(&[
+        Request { p, ask: Ask::Density, u: 0.0 },
+        Request { p: q, ask: Ask::Emission, u: 0.0 }
+    ]));
     assert!(b.complete.get());
-    assert!(!b.has_all(&[Request { p, ask: Ask::Density, u: 0.0 }, Request { p: q, ask: Ask::Density, u: 0.0 }]));
+    assert!(!b.has_all(&[
+        Request { p, ask: Ask::Density, u: 0.0 },
+        Request { p: q, ask: Ask::Density, u: 0.0 }
+    ]));
     assert!(!b.complete.get() && b.missing.borrow().len() == 1);
     // The point estimator's whole record is never served: the path goes direct
     let b = buffered(&answers);

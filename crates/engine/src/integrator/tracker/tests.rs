@@ -10,7 +10,11 @@ use plume_volume::Volume;
 
 /// A generated 24³ explosion and a blackbody emission for it.
 fn hot_explosion() -> (plume_synth::Explosion, Emission) {
-    let ex = plume_synth::explosion(&plume_synth::ExplosionParams { resolution: 24, seed: 2, ..Default::default() });
+    let ex = plume_synth::explosion(&plume_synth::ExplosionParams {
+        resolution: 24,
+        seed: 2,
+        ..Default::default()
+    });
     let emission = Emission {
         kind: EmissionKind::Blackbody,
         convention: Convention::Physical,
@@ -26,7 +30,8 @@ fn hot_explosion() -> (plume_synth::Explosion, Emission) {
 /// blackbody.
 fn hot_fields() -> (Volume, Trilinear, Medium) {
     let (ex, emission) = hot_explosion();
-    let volume = || Volume::build(&ex.density, Some(&ex.temperature), |v| emission.map_source(v)).unwrap();
+    let volume =
+        || Volume::build(&ex.density, Some(&ex.temperature), |v| emission.map_source(v)).unwrap();
     (volume(), Trilinear::new(volume()), Medium { sigma_t: 2.0, albedo: 0.8, g: 0.0, emission })
 }
 
@@ -37,32 +42,65 @@ fn hot_fields() -> (Volume, Trilinear, Medium) {
 #[test]
 fn points_read_what_the_field_reconstructs() {
     let (nearest, linear, medium) = hot_fields();
-    let motion = Motion::new(&nearest, plume_volume::velocity::Velocity::Uniform(glam::DVec3::ZERO), 1.0, [0.0, 0.0]);
+    let motion = Motion::new(
+        &nearest,
+        plume_volume::velocity::Velocity::Uniform(glam::DVec3::ZERO),
+        1.0,
+        [0.0, 0.0],
+    );
     let b = nearest.world_bounds();
     let mut rng = Sampler::new(5, 0, 0);
     let mut emitting = 0;
     for _ in 0..8000 {
         let u = glam::DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64());
-        let p = b.lo + (b.hi - b.lo) * (u * 1.2 - 0.1) + 1e-3 * sample_uniform_sphere([rng.next_f64(), rng.next_f64()]);
+        let p = b.lo
+            + (b.hi - b.lo) * (u * 1.2 - 0.1)
+            + 1e-3 * sample_uniform_sphere([rng.next_f64(), rng.next_f64()]);
         for (still, moving) in [
             (
                 Points::new(&nearest, &medium, None, PointLookup::Exact).sample(p, true),
-                Points::new(&nearest, &medium, Some((&motion, 0.0)), PointLookup::Exact).sample(p, true),
+                Points::new(&nearest, &medium, Some((&motion, 0.0)), PointLookup::Exact)
+                    .sample(p, true),
             ),
             (
                 Points::new(&linear, &medium, None, PointLookup::Exact).sample(p, true),
-                Points::new(&linear, &medium, Some((&motion, 0.0)), PointLookup::Exact).sample(p, true),
+                Points::new(&linear, &medium, Some((&motion, 0.0)), PointLookup::Exact)
+                    .sample(p, true),
             ),
         ] {
             assert_eq!(still, moving, "at {p}");
         }
-        let check = |field: &dyn Fn(glam::DVec3) -> (plume_volume::field::PointValues, plume_volume::field::VoxelValues, f32), points: &dyn PointField| {
+        let check = |field: &dyn Fn(
+            glam::DVec3,
+        ) -> (
+            plume_volume::field::PointValues,
+            plume_volume::field::VoxelValues,
+            f32,
+        ),
+                     points: &dyn PointField| {
             let (v, values, albedo) = field(p);
             let s = points.sample(p, true);
-            assert_eq!(points.sample(p, false), PointSample { emission: [0.0; 3], ..s }, "sample without emission at {p}");
+            assert_eq!(
+                points.sample(p, false),
+                PointSample { emission: [0.0; 3], ..s },
+                "sample without emission at {p}"
+            );
             assert_eq!(points.density(p).to_bits(), v.density.to_bits(), "density at {p}");
-            assert_eq!(points.emission(p).map(f64::to_bits), v.emission.map(f64::to_bits), "emission at {p}");
-            assert_eq!(s, PointSample { density: v.density, source: values.source, emission: v.emission, albedo }, "sample at {p}");
+            assert_eq!(
+                points.emission(p).map(f64::to_bits),
+                v.emission.map(f64::to_bits),
+                "emission at {p}"
+            );
+            assert_eq!(
+                s,
+                PointSample {
+                    density: v.density,
+                    source: values.source,
+                    emission: v.emission,
+                    albedo
+                },
+                "sample at {p}"
+            );
             v.emission.iter().any(|&e| e > 0.0)
         };
         let le = |d: f32, s: f32| medium.emission.le(d, s);
@@ -102,11 +140,18 @@ fn picked_emission_points_average_to_the_interpolated_emission() {
         let u = glam::DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64());
         let p = b.lo + (b.hi - b.lo) * (u * 1.1 - 0.05);
         let exact = points.emission(p);
-        let corners = linear.interpolate_world(p).corners.map(|v| medium.emission.le(v.density, v.source).to_f64());
+        let corners = linear
+            .interpolate_world(p)
+            .corners
+            .map(|v| medium.emission.le(v.density, v.source).to_f64());
         if corners.iter().all(|e| *e == [0.0; 3]) {
             // No corner emits: every pick reads 0
             if dark < 200 {
-                assert!((0..8).all(|i| points.emission_picked(p, (f64::from(i) + 0.5) / 8.0) == [0.0; 3]), "at {p}");
+                assert!(
+                    (0..8)
+                        .all(|i| points.emission_picked(p, (f64::from(i) + 0.5) / 8.0) == [0.0; 3]),
+                    "at {p}"
+                );
                 dark += 1;
             }
             continue;
@@ -120,23 +165,37 @@ fn picked_emission_points_average_to_the_interpolated_emission() {
         for c in 0..3 {
             let largest = corners.iter().map(|e| e[c]).fold(0.0, f64::max);
             let mean = sum[c] / f64::from(n);
-            assert!((mean - exact[c]).abs() <= 8.0 / f64::from(n) * largest + 1e-12 * largest, "at {p}, channel {c}: picked mean {mean} against {}", exact[c]);
+            assert!(
+                (mean - exact[c]).abs() <= 8.0 / f64::from(n) * largest + 1e-12 * largest,
+                "at {p}, channel {c}: picked mean {mean} against {}",
+                exact[c]
+            );
         }
         emitting += 1;
-        let (lo, hi) = corners.iter().map(|e| e[0]).fold((f64::MAX, 0.0f64), |(lo, hi), e| (lo.min(e), hi.max(e)));
+        let (lo, hi) = corners
+            .iter()
+            .map(|e| e[0])
+            .fold((f64::MAX, 0.0f64), |(lo, hi), e| (lo.min(e), hi.max(e)));
         spread += usize::from(hi > 10.0 * lo);
         if emitting == 300 {
             break;
         }
     }
-    assert!(dark == 200 && emitting == 300 && spread > 30, "{dark} dark points, {emitting} emitting, {spread} with corners 10× apart");
+    assert!(
+        dark == 200 && emitting == 300 && spread > 30,
+        "{dark} dark points, {emitting} emitting, {spread} with corners 10× apart"
+    );
 }
 
 /// Shadow rays of a still volume are exact under null collisions: the same τ and steps
 /// as regular tracking, bit for bit, and no random number drawn.
 #[test]
 fn still_shadow_rays_are_exact_under_null_collisions() {
-    let ex = plume_synth::explosion(&plume_synth::ExplosionParams { resolution: 24, seed: 2, ..Default::default() });
+    let ex = plume_synth::explosion(&plume_synth::ExplosionParams {
+        resolution: 24,
+        seed: 2,
+        ..Default::default()
+    });
     let volume = Volume::build(&ex.density, None, |v| v).unwrap();
     let majorants = MajorantGrid::new(&volume, 0.0);
     let medium = Medium { sigma_t: 3.0, albedo: 0.8, g: 0.0, emission: Emission::none() };
@@ -144,12 +203,19 @@ fn still_shadow_rays_are_exact_under_null_collisions() {
     let mut rng = Sampler::new(9, 0, 0);
     for _ in 0..500 {
         let u = glam::DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64());
-        let ray = Ray { origin: b.lo + (b.hi - b.lo) * u, direction: sample_uniform_sphere([rng.next_f64(), rng.next_f64()]) };
+        let ray = Ray {
+            origin: b.lo + (b.hi - b.lo) * u,
+            direction: sample_uniform_sphere([rng.next_f64(), rng.next_f64()]),
+        };
         let t_max = 4.0 * rng.next_f64();
         let (mut a, mut b2) = (Sampler::new(1, 2, 3), Sampler::new(1, 2, 3));
         let exact = Tracker::Regular(&volume).transmittance(&medium, &ray, t_max, &mut a);
-        let null =
-            Tracker::Null { field: &volume, majorants: &majorants, lookup: PointLookup::StochasticEmission }.transmittance(&medium, &ray, t_max, &mut b2);
+        let null = Tracker::Null {
+            field: &volume,
+            majorants: &majorants,
+            lookup: PointLookup::StochasticEmission,
+        }
+        .transmittance(&medium, &ray, t_max, &mut b2);
         assert_eq!((exact.0.to_bits(), exact.1), (null.0.to_bits(), null.1));
         assert_eq!(a.next_u64(), b2.next_u64(), "null shadow ray drew random numbers");
     }
@@ -205,14 +271,39 @@ fn read_ahead_records_the_real_walks_lookups_first() {
             let medium = Medium { sigma_t, albedo: 0.8, g: 0.0, emission };
             for k in 0..400u64 {
                 let u = glam::DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64());
-                let ray = Ray { origin: b.lo + (b.hi - b.lo) * u, direction: sample_uniform_sphere([rng.next_f64(), rng.next_f64()]) };
-                let (estimator, need_collision) = [(Estimator::Line, true), (Estimator::Line, false), (Estimator::Point, true)][(k % 3) as usize];
+                let ray = Ray {
+                    origin: b.lo + (b.hi - b.lo) * u,
+                    direction: sample_uniform_sphere([rng.next_f64(), rng.next_f64()]),
+                };
+                let (estimator, need_collision) =
+                    [(Estimator::Line, true), (Estimator::Line, false), (Estimator::Point, true)]
+                        [(k % 3) as usize];
                 let u = rng.next_f64();
                 let points = Points::new(field, &medium, None, lookup);
                 let tap = Tap { inner: &points, points: std::cell::RefCell::new(Vec::new()) };
-                let real = null_track(&majorants, &tap, &medium, &ray, f64::INFINITY, estimator, need_collision, u, &mut Sampler::new(3, k, 0));
+                let real = null_track(
+                    &majorants,
+                    &tap,
+                    &medium,
+                    &ray,
+                    f64::INFINITY,
+                    estimator,
+                    need_collision,
+                    u,
+                    &mut Sampler::new(3, k, 0),
+                );
                 let recorder = Recorder::mirroring(&points, usize::MAX);
-                null_track(&majorants, &recorder, &medium, &ray, f64::INFINITY, estimator, need_collision, u, &mut Sampler::new(3, k, 0));
+                null_track(
+                    &majorants,
+                    &recorder,
+                    &medium,
+                    &ray,
+                    f64::INFINITY,
+                    estimator,
+                    need_collision,
+                    u,
+                    &mut Sampler::new(3, k, 0),
+                );
                 let (real_points, recorded) = (tap.points.into_inner(), recorder.into_requests());
                 let n = real_points.len();
                 let bits = |r: &Request| (r.p.to_array().map(f64::to_bits), r.ask, r.u.to_bits());
@@ -221,22 +312,37 @@ fn read_ahead_records_the_real_walks_lookups_first() {
                     real_points.iter().map(bits).eq(recorded[..n].iter().map(bits)),
                     "ray {k}, σ_t {sigma_t}, {lookup:?}: recorded lookups differ from the real walk's"
                 );
-                collided += usize::from(matches!(real.event, crate::medium::DistanceSample::Collided { .. }));
+                collided += usize::from(matches!(
+                    real.event,
+                    crate::medium::DistanceSample::Collided { .. }
+                ));
                 compared += n;
             }
         }
         (collided, compared)
     }
     let (ex, emission) = hot_explosion();
-    let volume = || Volume::build(&ex.density, Some(&ex.temperature), |v| emission.map_source(v)).unwrap();
+    let volume =
+        || Volume::build(&ex.density, Some(&ex.temperature), |v| emission.map_source(v)).unwrap();
     let linear = Trilinear::new(volume());
-    assert!(Points::new(&linear, &Medium { sigma_t: 1.0, albedo: 0.8, g: 0.0, emission }, None, PointLookup::Stochastic).picks);
+    assert!(
+        Points::new(
+            &linear,
+            &Medium { sigma_t: 1.0, albedo: 0.8, g: 0.0, emission },
+            None,
+            PointLookup::Stochastic
+        )
+        .picks
+    );
     for (collided, compared) in [
         compare(&volume(), emission, PointLookup::Exact),
         compare(&linear, emission, PointLookup::Exact),
         compare(&linear, emission, PointLookup::Stochastic),
         compare(&linear, emission, PointLookup::StochasticEmission),
     ] {
-        assert!(collided > 100 && compared > 2000, "{collided} collisions, {compared} lookups compared");
+        assert!(
+            collided > 100 && compared > 2000,
+            "{collided} collisions, {compared} lookups compared"
+        );
     }
 }

@@ -63,14 +63,20 @@ impl Distant {
     #[must_use]
     pub fn sample(&self, u: [f64; 2]) -> LightSample {
         if self.is_delta() {
-            return LightSample { direction: self.to_light, distance: f64::INFINITY, value: self.value, pdf: 0.0 };
+            return LightSample {
+                direction: self.to_light,
+                distance: f64::INFINITY,
+                value: self.value,
+                pdf: 0.0,
+            };
         }
         let one_minus_cos = u[0] * self.h;
         let cos_t = 1.0 - one_minus_cos;
         let sin_t = (one_minus_cos * (2.0 - one_minus_cos)).max(0.0).sqrt();
         let phi = std::f64::consts::TAU * u[1];
         let (t, b) = frame(self.to_light);
-        let direction = (t * (sin_t * phi.cos()) + b * (sin_t * phi.sin()) + self.to_light * cos_t).normalize();
+        let direction =
+            (t * (sin_t * phi.cos()) + b * (sin_t * phi.sin()) + self.to_light * cos_t).normalize();
         let pdf = self.pdf_in_cone();
         LightSample { direction, distance: f64::INFINITY, value: self.value.map(|c| c / pdf), pdf }
     }

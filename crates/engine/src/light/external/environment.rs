@@ -14,8 +14,8 @@
 use glam::{DMat3, DVec3};
 
 use super::sample::LightSample;
-use plume_core::color::Rgb;
 use crate::light::envmap::EnvironmentMap;
+use plume_core::color::Rgb;
 
 /// The rotation from world directions to a map's frame (+Z its zenith): the axis change
 /// taking unit `up` to +Z, then a turn by `rotation` radians about it (module docs).
@@ -66,7 +66,13 @@ impl Environment {
     /// An environment of `radiance` times `intensity`, its zenith `up` (unit, world), turned
     /// by `rotation` radians about it, seen by camera rays when `visible`.
     #[must_use]
-    pub fn new(radiance: Radiance, intensity: f64, up: DVec3, rotation: f64, visible: bool) -> Environment {
+    pub fn new(
+        radiance: Radiance,
+        intensity: f64,
+        up: DVec3,
+        rotation: f64,
+        visible: bool,
+    ) -> Environment {
         let to_local = world_to_map(up, rotation);
         Environment { radiance, intensity, to_local, to_world: to_local.transpose(), visible }
     }
@@ -107,7 +113,12 @@ impl Environment {
                 let phi = std::f64::consts::TAU * u[1];
                 let direction = DVec3::new(r * phi.cos(), r * phi.sin(), z);
                 let inv_pdf = 4.0 * std::f64::consts::PI;
-                Some(LightSample { direction, distance: f64::INFINITY, value: c.to_f64().map(|v| v * self.intensity * inv_pdf), pdf: 1.0 / inv_pdf })
+                Some(LightSample {
+                    direction,
+                    distance: f64::INFINITY,
+                    value: c.to_f64().map(|v| v * self.intensity * inv_pdf),
+                    pdf: 1.0 / inv_pdf,
+                })
             }
             Radiance::Map(m) => {
                 let s = m.sample(u)?;
@@ -115,7 +126,12 @@ impl Environment {
                     return None;
                 }
                 let value = s.radiance.to_f64().map(|v| v * self.intensity / s.pdf);
-                Some(LightSample { direction: self.to_world * s.direction, distance: f64::INFINITY, value, pdf: s.pdf })
+                Some(LightSample {
+                    direction: self.to_world * s.direction,
+                    distance: f64::INFINITY,
+                    value,
+                    pdf: s.pdf,
+                })
             }
         }
     }

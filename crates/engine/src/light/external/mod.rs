@@ -28,9 +28,9 @@
 //! Everything here is pure: randomness enters as `u` arguments.
 
 pub mod distant;
+pub mod environment;
 pub mod sample;
 pub mod settings;
-pub mod environment;
 pub mod sphere;
 
 use glam::DVec3;
@@ -41,8 +41,8 @@ pub use sample::{frame, LightSample};
 pub use sphere::Sphere;
 
 use plume_core::color::Rgb;
-use plume_scene::MisHeuristic;
 use plume_core::sampling::alias::AliasTable;
+use plume_scene::MisHeuristic;
 use plume_volume::field::Ray;
 
 /// One external light.
@@ -135,9 +135,18 @@ impl ExternalLights {
                 Light::Sphere(_) => false,
             })
             .collect();
-        let spheres = (0..lights.len()).filter(|&i| matches!(&lights[i], Light::Sphere(s) if !s.is_point())).collect();
+        let spheres = (0..lights.len())
+            .filter(|&i| matches!(&lights[i], Light::Sphere(s) if !s.is_point()))
+            .collect();
         let names: Vec<String> = lights.iter().map(|l| l.kind().to_string()).collect();
-        let mut set = ExternalLights { lights, choice, at_infinity, spheres, group_of: Vec::new(), groups: Vec::new() };
+        let mut set = ExternalLights {
+            lights,
+            choice,
+            at_infinity,
+            spheres,
+            group_of: Vec::new(),
+            groups: Vec::new(),
+        };
         set.set_groups(&names);
         Some(set)
     }
@@ -228,9 +237,17 @@ impl ExternalLights {
     /// light it hit (then nothing at infinity is seen), `phase_pdf` the pdf by which the
     /// phase function chose the direction (`None` for a camera ray: weight 1, and only
     /// what camera rays see).
-    pub fn arriving(&self, ray: &Ray, hit: Option<usize>, phase_pdf: Option<f64>, mis: MisHeuristic, mut each: impl FnMut(usize, f64, [f64; 3])) {
+    pub fn arriving(
+        &self,
+        ray: &Ray,
+        hit: Option<usize>,
+        phase_pdf: Option<f64>,
+        mis: MisHeuristic,
+        mut each: impl FnMut(usize, f64, [f64; 3]),
+    ) {
         let mut add = |i: usize, radiance: [f64; 3]| {
-            let w = phase_pdf.map_or(1.0, |p| mis.weight(p, self.pdf(i, ray.origin, ray.direction)));
+            let w =
+                phase_pdf.map_or(1.0, |p| mis.weight(p, self.pdf(i, ray.origin, ray.direction)));
             each(i, w, radiance);
         };
         if let Some(i) = hit {
@@ -246,7 +263,9 @@ impl ExternalLights {
                         add(i, r);
                     }
                 }
-                Light::Environment(e) if phase_pdf.is_some() || e.visible() => add(i, e.radiance(ray.direction)),
+                Light::Environment(e) if phase_pdf.is_some() || e.visible() => {
+                    add(i, e.radiance(ray.direction))
+                }
                 _ => {}
             }
         }

@@ -3,7 +3,6 @@
 
 use glam::DVec3;
 
-
 /// A sampled direction towards a light.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LightSample {
@@ -23,5 +22,8 @@ pub fn frame(n: DVec3) -> (DVec3, DVec3) {
     let sign = 1.0f64.copysign(n.z);
     let a = -1.0 / (sign + n.z);
     let b = n.x * n.y * a;
-    (DVec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x), DVec3::new(b, sign + n.y * n.y * a, -n.y))
+    (
+        DVec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
+        DVec3::new(b, sign + n.y * n.y * a, -n.y),
+    )
 }

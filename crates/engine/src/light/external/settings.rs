@@ -28,19 +28,42 @@ pub fn build(settings: &LightSettings, up: DVec3, radius: f64) -> Result<Option<
     let entry = settings.entry_groups();
     if let Some(env) = settings.environment {
         let c = Rgb([env.x as f32, env.y as f32, env.z as f32]);
-        lights.push(Light::Environment(Environment::new(Radiance::Constant(c), 1.0, up, 0.0, true)));
+        lights.push(Light::Environment(Environment::new(
+            Radiance::Constant(c),
+            1.0,
+            up,
+            0.0,
+            true,
+        )));
         groups.extend(entry.environment.clone());
     }
     if let Some(m) = &settings.environment_map {
         let map = crate::light::envmap::EnvironmentMap::load(&m.file)?;
-        lights.push(Light::Environment(Environment::new(Radiance::Map(Box::new(map)), m.intensity, up, m.rotation.to_radians(), m.visible)));
+        lights.push(Light::Environment(Environment::new(
+            Radiance::Map(Box::new(map)),
+            m.intensity,
+            up,
+            m.rotation.to_radians(),
+            m.visible,
+        )));
         groups.extend(entry.environment_map.clone());
     }
     if let Some(s) = &settings.sky {
         let sky = crate::light::sky::Sky::new(&s.params())?;
         let (w, h) = SKY_MAP_SIZE;
-        let map = crate::light::envmap::EnvironmentMap::from_pixels(w, h, sky.image(w, h, false), "the sky")?;
-        lights.push(Light::Environment(Environment::new(Radiance::Map(Box::new(map)), s.intensity, up, 0.0, s.visible)));
+        let map = crate::light::envmap::EnvironmentMap::from_pixels(
+            w,
+            h,
+            sky.image(w, h, false),
+            "the sky",
+        )?;
+        lights.push(Light::Environment(Environment::new(
+            Radiance::Map(Box::new(map)),
+            s.intensity,
+            up,
+            0.0,
+            s.visible,
+        )));
         groups.extend(entry.sky.clone());
         if s.sun {
             let sun = sky.sun_radiance();
@@ -56,11 +79,19 @@ pub fn build(settings: &LightSettings, up: DVec3, radius: f64) -> Result<Option<
         }
     }
     for d in &settings.distant {
-        lights.push(Light::Distant(Distant::new(d.direction.normalize(), tinted(d.color, d.kelvin, d.irradiance()), d.angle.to_radians())));
+        lights.push(Light::Distant(Distant::new(
+            d.direction.normalize(),
+            tinted(d.color, d.kelvin, d.irradiance()),
+            d.angle.to_radians(),
+        )));
     }
     groups.extend(entry.distant);
     for s in &settings.sphere {
-        lights.push(Light::Sphere(Sphere::new(s.position, s.radius, tinted(s.color, s.kelvin, s.power()))));
+        lights.push(Light::Sphere(Sphere::new(
+            s.position,
+            s.radius,
+            tinted(s.color, s.kelvin, s.power()),
+        )));
     }
     groups.extend(entry.sphere);
     let mut set = ExternalLights::new(lights, radius);

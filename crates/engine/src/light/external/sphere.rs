@@ -35,7 +35,11 @@ impl Sphere {
     pub fn new(centre: DVec3, radius: f64, power: Rgb) -> Sphere {
         let pi = std::f64::consts::PI;
         let p = power.to_f64();
-        let value = if radius > 0.0 { p.map(|c| c / (4.0 * pi * pi * radius * radius)) } else { p.map(|c| c / (4.0 * pi)) };
+        let value = if radius > 0.0 {
+            p.map(|c| c / (4.0 * pi * pi * radius * radius))
+        } else {
+            p.map(|c| c / (4.0 * pi))
+        };
         Sphere { centre, radius, value, power }
     }
 
@@ -70,7 +74,12 @@ impl Sphere {
         let d = d2.sqrt();
         let w = to_c / d;
         if self.is_point() {
-            return Some(LightSample { direction: w, distance: d, value: self.value.map(|c| c / d2), pdf: 0.0 });
+            return Some(LightSample {
+                direction: w,
+                distance: d,
+                value: self.value.map(|c| c / d2),
+                pdf: 0.0,
+            });
         }
         let (_, h) = self.cone(d2);
         let one_minus_cos = u[0] * h;

@@ -212,7 +212,8 @@ pub fn disc_xyz(m: f64, turbidity: f64, diameter_degrees: f64) -> [f64; 3] {
     for (lambda_nm, cmf) in (CIE1931_LAMBDA_MIN_NM..=CIE1931_LAMBDA_MAX_NM).zip(&CIE1931_2DEG) {
         let lambda_nm = f64::from(lambda_nm);
         // Δλ = 1 nm.
-        let l = extraterrestrial_radiance(lambda_nm, diameter_degrees) * transmittance(lambda_nm, m, turbidity);
+        let l = extraterrestrial_radiance(lambda_nm, diameter_degrees)
+            * transmittance(lambda_nm, m, turbidity);
         for (sum, weight) in xyz.iter_mut().zip(cmf) {
             *sum += l * weight;
         }
@@ -259,7 +260,8 @@ mod tests {
     fn extraterrestrial_disc_gives_the_solar_constant() {
         // Integrate far beyond the CIE range, where the whole blackbody lies.
         let d = 0.53;
-        let total: f64 = (1..200_000).map(|i| extraterrestrial_radiance(f64::from(i) * 0.5, d) * 0.5).sum();
+        let total: f64 =
+            (1..200_000).map(|i| extraterrestrial_radiance(f64::from(i) * 0.5, d) * 0.5).sum();
         assert!((total * disc_solid_angle(d) / SOLAR_CONSTANT - 1.0).abs() < 1e-4, "{total}");
         // Above the atmosphere: 125 klux (quoted: 127.5–133.8 klux).
         let lux = 683.0 * disc_xyz(0.0, 2.0, d)[1] * disc_solid_angle(d);

@@ -6,8 +6,8 @@
 use glam::{DMat3, DVec3};
 
 use super::*;
-use plume_core::error::Error;
 use plume_core::color::blackbody::XYZ_TO_REC709;
+use plume_core::error::Error;
 
 fn sky(elevation: f64, azimuth: f64, turbidity: f64) -> Sky {
     Sky::new(&SkyParams { elevation, azimuth, turbidity }).expect("valid parameters")
@@ -61,7 +61,10 @@ fn zenith_luminance_matches_the_published_formula() {
             let chi = (4.0 / 9.0 - t / 120.0) * (PI - 2.0 * theta_s);
             let expected = (4.0453 * t - 4.9710) * chi.tan() - 0.2155 * t + 2.4192;
             let got = zenith(t, theta_s).luminance;
-            assert!((got - expected).abs() <= 1e-12 * expected.abs(), "T {t} θs {theta_s_degrees}: {got} vs {expected}");
+            assert!(
+                (got - expected).abs() <= 1e-12 * expected.abs(),
+                "T {t} θs {theta_s_degrees}: {got} vs {expected}"
+            );
         }
     }
     // Worked by hand: T = 2, θs = 30°: χ = 0.44607, tan χ = 0.47885 → 5.88674 kcd/m².
@@ -74,10 +77,17 @@ fn zenith_luminance_matches_the_published_formula() {
 #[test]
 fn zenith_chromaticity_matches_values_worked_from_the_matrices() {
     // [T² T 1] M [θs³ θs² θs 1]ᵀ, evaluated by hand (to 6 decimals) from the paper's M_x, M_y.
-    let cases = [(2.0, 30.0, 0.251421, 0.255924), (3.0, 45.0, 0.245678, 0.251476), (10.0, 60.0, 0.292367, 0.314814)];
+    let cases = [
+        (2.0, 30.0, 0.251421, 0.255924),
+        (3.0, 45.0, 0.245678, 0.251476),
+        (10.0, 60.0, 0.292367, 0.314814),
+    ];
     for (t, theta_s_degrees, x, y) in cases {
         let z = zenith(t, f64::to_radians(theta_s_degrees));
-        assert!((z.x - x).abs() < 1e-6 && (z.y - y).abs() < 1e-6, "T {t} θs {theta_s_degrees}: {z:?}");
+        assert!(
+            (z.x - x).abs() < 1e-6 && (z.y - y).abs() < 1e-6,
+            "T {t} θs {theta_s_degrees}: {z:?}"
+        );
     }
 }
 
@@ -107,10 +117,17 @@ fn radiance_at_the_zenith_is_the_zenith_value() {
         let z = zenith(t, (90.0 - e).to_radians());
         let c = s.radiance(DVec3::Z);
         let expected_candela = z.luminance * 1000.0;
-        assert!((candela(c) / expected_candela - 1.0).abs() < 1e-3, "e {e} T {t}: {} vs {expected_candela}", candela(c));
+        assert!(
+            (candela(c) / expected_candela - 1.0).abs() < 1e-3,
+            "e {e} T {t}: {} vs {expected_candela}",
+            candela(c)
+        );
         let xyz = rec709_to_xyz * DVec3::from_array(c.to_f64());
         let sum = xyz.x + xyz.y + xyz.z;
-        assert!((xyz.x / sum - z.x).abs() < 1e-5 && (xyz.y / sum - z.y).abs() < 1e-5, "e {e} T {t}: {xyz:?} vs {z:?}");
+        assert!(
+            (xyz.x / sum - z.x).abs() < 1e-5 && (xyz.y / sum - z.y).abs() < 1e-5,
+            "e {e} T {t}: {xyz:?} vs {z:?}"
+        );
         assert!((xyz.y * LUMENS_PER_WATT / expected_candela - 1.0).abs() < 1e-5);
         // A blue sky: B > R at the zenith.
         assert!(c.0[2] > c.0[0], "{c:?}");
@@ -148,7 +165,10 @@ fn horizon_is_brighter_than_higher_up_at_the_same_angle_from_the_sun() {
 #[test]
 fn higher_turbidity_is_more_luminous_near_the_sun() {
     let near_sun = dir(35.0, 0.0);
-    let values: Vec<f64> = [2.0, 4.0, 6.0, 10.0].iter().map(|&t| candela(sky(30.0, 0.0, t).radiance(near_sun))).collect();
+    let values: Vec<f64> = [2.0, 4.0, 6.0, 10.0]
+        .iter()
+        .map(|&t| candela(sky(30.0, 0.0, t).radiance(near_sun)))
+        .collect();
     assert!(values.windows(2).all(|w| w[1] > w[0]), "{values:?}");
 }
 
@@ -161,7 +181,8 @@ fn sun_reddens_as_it_sets() {
     }
     // R/B while blue is in gamut; below ≈ 5° the colour leaves the gamut through its B = 0
     // edge and is mapped onto it, so from there on only R's share can keep growing.
-    let ratios: Vec<f64> = colours.iter().filter(|c| c.0[2] > 0.0).map(|c| f64::from(c.0[0] / c.0[2])).collect();
+    let ratios: Vec<f64> =
+        colours.iter().filter(|c| c.0[2] > 0.0).map(|c| f64::from(c.0[0] / c.0[2])).collect();
     assert!(ratios.len() >= 5 && ratios.windows(2).all(|w| w[1] > w[0]), "R/B {ratios:?}");
     assert!(ratios[0] < 2.0 && ratios[ratios.len() - 1] > 5.0, "R/B {ratios:?}");
     let red_share: Vec<f32> = colours.iter().map(|c| c.0[0] / (c.0[0] + c.0[1] + c.0[2])).collect();
@@ -176,10 +197,14 @@ fn noon_sun_gives_about_100_klux() {
     for t in [2.0, 2.5, 3.0] {
         for e in [60.0, 75.0, 90.0] {
             let s = sky(e, 0.0, t);
-            let irradiance_luminance = f64::from(s.sun_radiance().luminance()) * Sky::sun_solid_angle();
+            let irradiance_luminance =
+                f64::from(s.sun_radiance().luminance()) * Sky::sun_solid_angle();
             let lux = irradiance_luminance * LUMENS_PER_WATT;
             assert!((80e3..=110e3).contains(&lux), "T {t} e {e}: {lux} lx");
-            assert!((117.0..=161.0).contains(&irradiance_luminance), "T {t} e {e}: {irradiance_luminance}");
+            assert!(
+                (117.0..=161.0).contains(&irradiance_luminance),
+                "T {t} e {e}: {irradiance_luminance}"
+            );
         }
     }
     // The figure in the report: T = 2.5, sun at the zenith.
@@ -205,21 +230,29 @@ fn clear_sky_illuminance_on_a_horizontal_plane_is_tens_of_klux() {
 
 #[test]
 fn sun_image_preserves_energy() {
-    for (e, a, width, height) in [(30.0, 0.0, 256, 128), (47.3, 123.4, 200, 101), (0.0, -60.0, 64, 32), (88.0, 10.0, 96, 48)] {
+    for (e, a, width, height) in
+        [(30.0, 0.0, 256, 128), (47.3, 123.4, 200, 101), (0.0, -60.0, 64, 32), (88.0, 10.0, 96, 48)]
+    {
         let s = sky(e, a, 3.0);
         let with_sun = s.image(width, height, true);
         let without = s.image(width, height, false);
         // Only the sun's pixel differs, and it contains the sun direction.
         let p = s.sun_pixel(width, height);
-        let changed: Vec<usize> = (0..with_sun.len()).filter(|&k| with_sun[k] != without[k]).collect();
+        let changed: Vec<usize> =
+            (0..with_sun.len()).filter(|&k| with_sun[k] != without[k]).collect();
         assert_eq!(changed, vec![p.row as usize * width as usize + p.column as usize]);
         let expected_sun = s.sun_radiance().to_f64().map(|c| c * Sky::sun_solid_angle());
-        let (sky_sum, all) = (image_integral(&without, width, height), image_integral(&with_sun, width, height));
+        let (sky_sum, all) =
+            (image_integral(&without, width, height), image_integral(&with_sun, width, height));
         let largest = expected_sun.iter().copied().fold(0.0, f64::max);
         assert!(largest > 0.0, "e {e}");
         for c in 0..3 {
             let sun_part = all[c] - sky_sum[c];
-            assert!((sun_part - expected_sun[c]).abs() < 1e-5 * largest, "e {e} channel {c}: {sun_part} vs {}", expected_sun[c]);
+            assert!(
+                (sun_part - expected_sun[c]).abs() < 1e-5 * largest,
+                "e {e} channel {c}: {sun_part} vs {}",
+                expected_sun[c]
+            );
         }
         if e > 0.0 {
             assert_eq!(latlong_pixel(s.sun_direction(), width, height), p);
@@ -240,7 +273,10 @@ fn sky_image_integral_matches_the_sky() {
         .enumerate()
         .map(|(k, c)| {
             let (i, j) = (k as u32 % width, k as u32 / width);
-            let d = latlong_direction((f64::from(i) + 0.5) / f64::from(width), (f64::from(j) + 0.5) / f64::from(height));
+            let d = latlong_direction(
+                (f64::from(i) + 0.5) / f64::from(width),
+                (f64::from(j) + 0.5) / f64::from(height),
+            );
             candela(*c) * d.z.max(0.0) * latlong_pixel_solid_angle(width, height, j)
         })
         .sum();
@@ -278,7 +314,10 @@ fn out_of_range_parameters_name_their_key() {
     for a in [f64::NAN, f64::INFINITY] {
         assert_eq!(key_of(SkyParams { azimuth: a, ..ok }), "lights.sky.azimuth");
     }
-    for p in [SkyParams { turbidity: 1.7, elevation: 90.0, azimuth: -720.0 }, SkyParams { turbidity: 10.0, elevation: -90.0, azimuth: 0.0 }] {
+    for p in [
+        SkyParams { turbidity: 1.7, elevation: 90.0, azimuth: -720.0 },
+        SkyParams { turbidity: 10.0, elevation: -90.0, azimuth: 0.0 },
+    ] {
         assert!(Sky::new(&p).is_ok(), "{p:?}");
     }
 }

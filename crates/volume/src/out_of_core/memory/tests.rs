@@ -29,7 +29,11 @@ impl FakeRoot {
 
     /// `/proc/meminfo` with `MemTotal` and `MemAvailable` in GiB.
     fn meminfo(&self, total_gib: u64, available_gib: u64) -> &FakeRoot {
-        let text = format!("MemTotal:       {} kB\nMemFree:          1000 kB\nMemAvailable:   {} kB\n", total_gib << 20, available_gib << 20);
+        let text = format!(
+            "MemTotal:       {} kB\nMemFree:          1000 kB\nMemAvailable:   {} kB\n",
+            total_gib << 20,
+            available_gib << 20
+        );
         self.file("proc/meminfo", text)
     }
 
@@ -44,7 +48,12 @@ impl Drop for FakeRoot {
     }
 }
 
-fn level(version: CgroupVersion, limit: u64, usage: Option<u64>, file_pages: Option<u64>) -> CgroupLevel {
+fn level(
+    version: CgroupVersion,
+    limit: u64,
+    usage: Option<u64>,
+    file_pages: Option<u64>,
+) -> CgroupLevel {
     CgroupLevel { version, dir: PathBuf::from("/x"), limit, usage, file_pages }
 }
 
@@ -61,11 +70,18 @@ fn v2_stat(active_file: u64, inactive_file: u64) -> String {
 
 #[test]
 fn meminfo_reads_total_and_available_in_kib() {
-    let m = parse_meminfo("MemTotal:       24684084 kB\nMemFree:  3 kB\nMemAvailable:   23499992 kB\n");
+    let m =
+        parse_meminfo("MemTotal:       24684084 kB\nMemFree:  3 kB\nMemAvailable:   23499992 kB\n");
     assert_eq!(m, Meminfo { total: Some(24_684_084 * 1024), available: Some(23_499_992 * 1024) });
     // Old kernels have no MemAvailable; garbage and overflow are ignored
-    assert_eq!(parse_meminfo("MemTotal: 1024 kB\n"), Meminfo { total: Some(1 << 20), available: None });
-    assert_eq!(parse_meminfo("MemTotal: lots kB\nMemAvailable: 18446744073709551615 kB\n"), Meminfo::default());
+    assert_eq!(
+        parse_meminfo("MemTotal: 1024 kB\n"),
+        Meminfo { total: Some(1 << 20), available: None }
+    );
+    assert_eq!(
+        parse_meminfo("MemTotal: lots kB\nMemAvailable: 18446744073709551615 kB\n"),
+        Meminfo::default()
+    );
     assert_eq!(parse_meminfo(""), Meminfo::default());
     // A key that only starts like ours is not ours
     assert_eq!(parse_meminfo("MemTotalX: 5 kB\n").total, None);
@@ -73,10 +89,16 @@ fn meminfo_reads_total_and_available_in_kib() {
 
 #[test]
 fn proc_cgroup_finds_the_v2_and_v1_memory_paths() {
-    assert_eq!(parse_proc_cgroup("0::/user.slice/session-1.scope\n"), CgroupPaths { v2: Some("/user.slice/session-1.scope".into()), v1_memory: None });
+    assert_eq!(
+        parse_proc_cgroup("0::/user.slice/session-1.scope\n"),
+        CgroupPaths { v2: Some("/user.slice/session-1.scope".into()), v1_memory: None }
+    );
     // A hybrid system (this one's layout): v1 controllers and an empty v2 line
     let hybrid = "9:name=systemd:/\n5:devices:/\n4:memory:/process_api/ee46\n3:cpuset:/\n0::/\n";
-    assert_eq!(parse_proc_cgroup(hybrid), CgroupPaths { v2: Some("/".into()), v1_memory: Some("/process_api/ee46".into()) });
+    assert_eq!(
+        parse_proc_cgroup(hybrid),
+        CgroupPaths { v2: Some("/".into()), v1_memory: Some("/process_api/ee46".into()) }
+    );
     // Co-mounted controllers; a path with colons keeps them
     assert_eq!(parse_proc_cgroup("3:cpu,memory:/job:7\n").v1_memory.as_deref(), Some("/job:7"));
     // `memory` must be a whole controller name
@@ -85,7 +107,8 @@ fn proc_cgroup_finds_the_v2_and_v1_memory_paths() {
 
 #[test]
 fn proc_cgroup_ignores_garbage() {
-    for text in ["", "garbage\n", "0:/no-third-field\n", "0::relative\n", "\u{0}\u{1}:::\n", "::\n"] {
+    for text in ["", "garbage\n", "0:/no-third-field\n", "0::relative\n", "\u{0}\u{1}:::\n", "::\n"]
+    {
         assert_eq!(parse_proc_cgroup(text), CgroupPaths::default(), "{text:?}");
     }
 }
@@ -115,8 +138,18 @@ fn stat_sums_need_every_key() {
     let stat = v2_stat(3, 4);
     assert_eq!(parse_stat_sum(&stat, &["active_file", "inactive_file"]), Some(7));
     assert_eq!(parse_stat_sum(&stat, &["total_active_file", "total_inactive_file"]), None);
-    assert_eq!(parse_stat_sum("active_file x\ninactive_file 4\n", &["active_file", "inactive_file"]), None);
-    assert_eq!(parse_stat_sum("active_file 18446744073709551615\ninactive_file 4\n", &["active_file", "inactive_file"]), None, "overflow");
+    assert_eq!(
+        parse_stat_sum("active_file x\ninactive_file 4\n", &["active_file", "inactive_file"]),
+        None
+    );
+    assert_eq!(
+        parse_stat_sum(
+            "active_file 18446744073709551615\ninactive_file 4\n",
+            &["active_file", "inactive_file"]
+        ),
+        None,
+        "overflow"
+    );
 }
 
 #[test]
@@ -124,7 +157,11 @@ fn available_under_a_limit_counts_file_pages_as_reclaimable() {
     let v = CgroupVersion::V2;
     assert_eq!(level(v, GIB, Some(600 * MIB), Some(100 * MIB)).available(), 524 * MIB);
     assert_eq!(level(v, GIB, None, None).available(), GIB, "usage unknown: the limit");
-    assert_eq!(level(v, GIB, Some(600 * MIB), None).available(), 424 * MIB, "no memory.stat: usage counts in full");
+    assert_eq!(
+        level(v, GIB, Some(600 * MIB), None).available(),
+        424 * MIB,
+        "no memory.stat: usage counts in full"
+    );
     assert_eq!(level(v, GIB, Some(2 * GIB), Some(0)).available(), 0, "over the limit");
     assert_eq!(level(v, GIB, Some(GIB), Some(2 * GIB)).available(), GIB, "never above the limit");
 }
@@ -137,22 +174,37 @@ fn the_tightest_figure_wins_and_ties_keep_the_machine_figure() {
         cgroup_levels: vec![level(CgroupVersion::V1, limit, usage, None)],
     };
     let tight = cgroup(2 * GIB, Some(GIB));
-    assert_eq!(tight.limit(), Some(MemoryBound { bytes: 2 * GIB, source: MemorySource::Cgroup(CgroupVersion::V1) }));
-    assert_eq!(tight.available(), Some(MemoryBound { bytes: GIB, source: MemorySource::Cgroup(CgroupVersion::V1) }));
+    assert_eq!(
+        tight.limit(),
+        Some(MemoryBound { bytes: 2 * GIB, source: MemorySource::Cgroup(CgroupVersion::V1) })
+    );
+    assert_eq!(
+        tight.available(),
+        Some(MemoryBound { bytes: GIB, source: MemorySource::Cgroup(CgroupVersion::V1) })
+    );
     assert_eq!(tight.default_budget(), GIB);
     let loose = cgroup(8 * GIB, Some(GIB));
     assert_eq!(loose.limit(), Some(MemoryBound { bytes: 8 * GIB, source: MemorySource::Physical }));
-    assert_eq!(loose.available(), Some(MemoryBound { bytes: 6 * GIB, source: MemorySource::MemAvailable }));
+    assert_eq!(
+        loose.available(),
+        Some(MemoryBound { bytes: 6 * GIB, source: MemorySource::MemAvailable })
+    );
     assert_eq!(MemoryLimits::default().limit(), None);
     assert_eq!(MemoryLimits::default().default_budget(), 4 * GIB);
-    let cgroup_only = MemoryLimits { cgroup_levels: vec![level(CgroupVersion::V2, GIB, None, None)], ..MemoryLimits::default() };
+    let cgroup_only = MemoryLimits {
+        cgroup_levels: vec![level(CgroupVersion::V2, GIB, None, None)],
+        ..MemoryLimits::default()
+    };
     assert_eq!(cgroup_only.limit().map(|l| l.bytes), Some(GIB));
 }
 
 #[test]
 fn bounds_say_where_they_came_from() {
     let b = |bytes, source| MemoryBound { bytes, source }.to_string();
-    assert_eq!(b(1_500_000_000, MemorySource::Cgroup(CgroupVersion::V2)), "1.50 GB under this process's cgroup v2 memory limit");
+    assert_eq!(
+        b(1_500_000_000, MemorySource::Cgroup(CgroupVersion::V2)),
+        "1.50 GB under this process's cgroup v2 memory limit"
+    );
     assert_eq!(b(2_000_000_000, MemorySource::MemAvailable), "2.00 GB, MemAvailable");
     assert_eq!(b(8_000_000_000, MemorySource::Physical), "8.00 GB of physical memory");
 }
@@ -165,9 +217,19 @@ fn no_cgroup_gives_the_machine_figures() {
     let root = FakeRoot::new("none");
     root.meminfo(24, 20).file("proc/self/cgroup", "0::/\n");
     let m = root.read();
-    assert_eq!(m, MemoryLimits { physical: Some(24 * GIB), mem_available: Some(20 * GIB), cgroup_levels: vec![] });
+    assert_eq!(
+        m,
+        MemoryLimits {
+            physical: Some(24 * GIB),
+            mem_available: Some(20 * GIB),
+            cgroup_levels: vec![]
+        }
+    );
     assert_eq!(m.limit(), Some(MemoryBound { bytes: 24 * GIB, source: MemorySource::Physical }));
-    assert_eq!(m.available(), Some(MemoryBound { bytes: 20 * GIB, source: MemorySource::MemAvailable }));
+    assert_eq!(
+        m.available(),
+        Some(MemoryBound { bytes: 20 * GIB, source: MemorySource::MemAvailable })
+    );
     assert_eq!(m.default_budget(), 12 * GIB);
 }
 
@@ -197,19 +259,34 @@ fn v2_nested_levels_take_the_smallest_limit() {
     let m = root.read();
     assert_eq!(m.cgroup_levels.len(), 2, "{m:?}");
     let tight = m.cgroup_limit().expect("a limit");
-    assert_eq!((tight.version, tight.limit, tight.usage, tight.file_pages), (CgroupVersion::V2, 1536 * MIB, Some(1400 * MIB), Some(1000 * MIB)));
+    assert_eq!(
+        (tight.version, tight.limit, tight.usage, tight.file_pages),
+        (CgroupVersion::V2, 1536 * MIB, Some(1400 * MIB), Some(1000 * MIB))
+    );
     assert_eq!(tight.dir, root.dir.join(job));
-    assert_eq!(m.limit(), Some(MemoryBound { bytes: 1536 * MIB, source: MemorySource::Cgroup(CgroupVersion::V2) }));
+    assert_eq!(
+        m.limit(),
+        Some(MemoryBound { bytes: 1536 * MIB, source: MemorySource::Cgroup(CgroupVersion::V2) })
+    );
     // 1.5 GiB − (1400 − 1000) MiB: the page cache is reclaimable
-    assert_eq!(m.available(), Some(MemoryBound { bytes: 1136 * MIB, source: MemorySource::Cgroup(CgroupVersion::V2) }));
+    assert_eq!(
+        m.available(),
+        Some(MemoryBound { bytes: 1136 * MIB, source: MemorySource::Cgroup(CgroupVersion::V2) })
+    );
     assert_eq!(m.default_budget(), 768 * MIB);
 }
 
 #[test]
 fn v2_memory_high_counts_as_a_limit() {
     let root = FakeRoot::new("v2-high");
-    root.meminfo(24, 20).file("proc/self/cgroup", "0::/a\n").file("sys/fs/cgroup/a/memory.max", "max\n").file("sys/fs/cgroup/a/memory.high", "1073741824\n");
-    assert_eq!(root.read().limit(), Some(MemoryBound { bytes: GIB, source: MemorySource::Cgroup(CgroupVersion::V2) }));
+    root.meminfo(24, 20)
+        .file("proc/self/cgroup", "0::/a\n")
+        .file("sys/fs/cgroup/a/memory.max", "max\n")
+        .file("sys/fs/cgroup/a/memory.high", "1073741824\n");
+    assert_eq!(
+        root.read().limit(),
+        Some(MemoryBound { bytes: GIB, source: MemorySource::Cgroup(CgroupVersion::V2) })
+    );
 }
 
 #[test]
@@ -226,7 +303,10 @@ fn a_parent_with_less_left_decides_what_is_available() {
     let m = root.read();
     assert_eq!(m.limit().map(|l| l.bytes), Some(2 * GIB));
     assert_eq!(m.available().map(|l| l.bytes), Some(100 * MIB));
-    assert_eq!(m.cgroup_available().map(|l| l.dir.clone()), Some(root.dir.join("sys/fs/cgroup/farm")));
+    assert_eq!(
+        m.cgroup_available().map(|l| l.dir.clone()),
+        Some(root.dir.join("sys/fs/cgroup/farm"))
+    );
 }
 
 #[test]
@@ -238,11 +318,24 @@ fn v1_limit_usage_and_hierarchical_stat() {
         .file("sys/fs/cgroup/memory/memory.limit_in_bytes", "9223372036854771712\n")
         .file(&format!("{dir}/memory.limit_in_bytes"), format!("{}\n", 512 * MIB))
         .file(&format!("{dir}/memory.usage_in_bytes"), format!("{}\n", 500 * MIB))
-        .file(&format!("{dir}/memory.stat"), format!("active_file 1\ninactive_file 2\ntotal_active_file {}\ntotal_inactive_file {}\n", 50 * MIB, 50 * MIB));
+        .file(
+            &format!("{dir}/memory.stat"),
+            format!(
+                "active_file 1\ninactive_file 2\ntotal_active_file {}\ntotal_inactive_file {}\n",
+                50 * MIB,
+                50 * MIB
+            ),
+        );
     let m = root.read();
     assert_eq!(m.cgroup_levels.len(), 1, "the root's 'no limit' is none: {m:?}");
-    assert_eq!(m.limit(), Some(MemoryBound { bytes: 512 * MIB, source: MemorySource::Cgroup(CgroupVersion::V1) }));
-    assert_eq!(m.available(), Some(MemoryBound { bytes: 112 * MIB, source: MemorySource::Cgroup(CgroupVersion::V1) }));
+    assert_eq!(
+        m.limit(),
+        Some(MemoryBound { bytes: 512 * MIB, source: MemorySource::Cgroup(CgroupVersion::V1) })
+    );
+    assert_eq!(
+        m.available(),
+        Some(MemoryBound { bytes: 112 * MIB, source: MemorySource::Cgroup(CgroupVersion::V1) })
+    );
     assert_eq!(m.default_budget(), 256 * MIB);
 }
 
@@ -253,9 +346,15 @@ fn v1_without_total_stat_keys_uses_the_plain_ones() {
     root.file("proc/self/cgroup", "4:memory:/job\n")
         .file(&format!("{dir}/memory.limit_in_bytes"), (GIB).to_string())
         .file(&format!("{dir}/memory.usage_in_bytes"), (GIB).to_string())
-        .file(&format!("{dir}/memory.stat"), format!("active_file {}\ninactive_file {}\n", 100 * MIB, 200 * MIB));
+        .file(
+            &format!("{dir}/memory.stat"),
+            format!("active_file {}\ninactive_file {}\n", 100 * MIB, 200 * MIB),
+        );
     let m = root.read();
-    assert_eq!(m.available(), Some(MemoryBound { bytes: 300 * MIB, source: MemorySource::Cgroup(CgroupVersion::V1) }));
+    assert_eq!(
+        m.available(),
+        Some(MemoryBound { bytes: 300 * MIB, source: MemorySource::Cgroup(CgroupVersion::V1) })
+    );
     assert_eq!(m.physical, None);
 }
 
@@ -268,7 +367,10 @@ fn a_container_without_a_cgroup_namespace_finds_its_limit_at_the_mount_root() {
         .file("sys/fs/cgroup/memory/memory.limit_in_bytes", format!("{}\n", 3 * GIB))
         .file("sys/fs/cgroup/memory/memory.usage_in_bytes", format!("{}\n", GIB));
     let m = root.read();
-    assert_eq!(m.limit(), Some(MemoryBound { bytes: 3 * GIB, source: MemorySource::Cgroup(CgroupVersion::V1) }));
+    assert_eq!(
+        m.limit(),
+        Some(MemoryBound { bytes: 3 * GIB, source: MemorySource::Cgroup(CgroupVersion::V1) })
+    );
     assert_eq!(m.available().map(|a| a.bytes), Some(2 * GIB));
 }
 
@@ -280,17 +382,25 @@ fn hybrid_systems_read_both_hierarchies() {
         .file("sys/fs/cgroup/slurm/job/memory.max", (3 * GIB).to_string())
         .file("sys/fs/cgroup/memory/slurm/job/memory.limit_in_bytes", (2 * GIB).to_string());
     let m = root.read();
-    assert_eq!(m.cgroup_levels.iter().map(|l| (l.version, l.limit)).collect::<Vec<_>>(), [(CgroupVersion::V2, 3 * GIB), (CgroupVersion::V1, 2 * GIB)]);
+    assert_eq!(
+        m.cgroup_levels.iter().map(|l| (l.version, l.limit)).collect::<Vec<_>>(),
+        [(CgroupVersion::V2, 3 * GIB), (CgroupVersion::V1, 2 * GIB)]
+    );
     assert_eq!(m.limit().map(|l| l.source), Some(MemorySource::Cgroup(CgroupVersion::V1)));
 }
 
 #[test]
 fn a_cgroup_limit_above_physical_memory_does_not_decide() {
     let root = FakeRoot::new("loose");
-    root.meminfo(8, 6).file("proc/self/cgroup", "0::/big\n").file("sys/fs/cgroup/big/memory.max", (64 * GIB).to_string());
+    root.meminfo(8, 6)
+        .file("proc/self/cgroup", "0::/big\n")
+        .file("sys/fs/cgroup/big/memory.max", (64 * GIB).to_string());
     let m = root.read();
     assert_eq!(m.limit(), Some(MemoryBound { bytes: 8 * GIB, source: MemorySource::Physical }));
-    assert_eq!(m.available(), Some(MemoryBound { bytes: 6 * GIB, source: MemorySource::MemAvailable }));
+    assert_eq!(
+        m.available(),
+        Some(MemoryBound { bytes: 6 * GIB, source: MemorySource::MemAvailable })
+    );
 }
 
 #[test]
@@ -305,9 +415,20 @@ fn garbage_and_missing_files_set_no_limit() {
         .file("sys/fs/cgroup/memory/memory.limit_in_bytes", "0\n");
     assert_eq!(root.read(), MemoryLimits::default());
     // A limit with garbled usage and stat still limits; available is then the limit
-    root.file("sys/fs/cgroup/a/memory.max", "1073741824\n").file("sys/fs/cgroup/a/memory.current", "x\n").file("sys/fs/cgroup/a/memory.stat", "active_file\n");
+    root.file("sys/fs/cgroup/a/memory.max", "1073741824\n")
+        .file("sys/fs/cgroup/a/memory.current", "x\n")
+        .file("sys/fs/cgroup/a/memory.stat", "active_file\n");
     let m = root.read();
-    assert_eq!(m.cgroup_levels, [CgroupLevel { version: CgroupVersion::V2, dir: root.dir.join("sys/fs/cgroup/a"), limit: GIB, usage: None, file_pages: None }]);
+    assert_eq!(
+        m.cgroup_levels,
+        [CgroupLevel {
+            version: CgroupVersion::V2,
+            dir: root.dir.join("sys/fs/cgroup/a"),
+            limit: GIB,
+            usage: None,
+            file_pages: None
+        }]
+    );
     assert_eq!(m.available().map(|a| a.bytes), Some(GIB));
 }
 
@@ -322,7 +443,9 @@ fn a_directory_where_a_file_should_be_is_ignored() {
 #[test]
 fn a_path_outside_the_cgroup_namespace_reads_no_cgroup() {
     let root = FakeRoot::new("outside");
-    root.meminfo(24, 20).file("proc/self/cgroup", "0::/../../other\n").file("sys/fs/cgroup/memory.max", (GIB).to_string());
+    root.meminfo(24, 20)
+        .file("proc/self/cgroup", "0::/../../other\n")
+        .file("sys/fs/cgroup/memory.max", (GIB).to_string());
     assert_eq!(root.read().cgroup_levels, []);
 }
 

@@ -68,7 +68,7 @@
 use super::aov::{Aovs, Component, NoAovs};
 use super::buffered::BufferedPoints;
 use super::tracker::Tracker;
-use crate::medium::forced::SplitFirsts;
+use crate::medium::forced::{Forced, SplitFirsts};
 use crate::medium::{Collision, DistanceSample, Estimator};
 use plume_core::sampling::{Dim, Sampler};
 use plume_scene::SplitBy;
@@ -90,6 +90,15 @@ use super::trace::{NoTrace, Trace};
 /// threshold below 1 is more efficient (1/(relMSE · CPU s)) than `t = 1` on dense and thin
 /// smoke, split or not, and no roulette at all is slower for the same noise.
 pub const ROULETTE_THRESHOLD: f64 = 0.3;
+
+/// Where the split paths of one camera sample start: the collision's vertex, how many
+/// paths leave it, and, from a forced collision, each path's own first vertex.
+#[derive(Clone, Copy)]
+struct SplitStart<'f> {
+    vertex: Vertex,
+    paths: u32,
+    firsts: &'f [Forced],
+}
 
 /// The path integrator and its settings.
 #[derive(Clone, Copy, Debug)]
@@ -267,7 +276,7 @@ impl Integrator {
         camera_ray: &Ray,
         time: Option<f64>,
         mut state: PathState<'_, T, A>,
-        mut defer: Option<&mut Vec<(Vertex, Sampler)>>,
+        defer: Option<&mut Vec<(Vertex, Sampler)>>,
     ) -> [f64; 4] {
         let m = &scene.medium;
         let mut l = [0.0f64; 3];
@@ -348,35 +357,52 @@ impl Integrator {
                 scale,
                 depth: 0,
             };
-            for k in 0..n {
-                if n > 1 {
-                    state.trace.event(|| format!("split path {} of {n}", k + 1));
-                }
-                let vertex = match firsts.get(k as usize).map(|first| first.event) {
-                    Some(DistanceSample::Collided { t, albedo, .. }) => {
-                        state.trace.event(|| format!("  first vertex at t {t}"));
-                        Vertex { t, albedo, ..vertex }
-                    }
-                    _ => vertex,
-                };
-                // One path (n = 1) draws the sample's own numbers: `split` is then a copy
-                let mut path_sampler = state.sampler.split(k, n);
-                if let Some(paths) = defer.as_deref_mut() {
-                    paths.push((vertex, path_sampler));
-                    continue;
-                }
-                self.scattered_path(
-                    scene,
-                    &tracker,
-                    vertex,
-                    &mut state.with_sampler(&mut path_sampler),
-                    &mut NoBounces,
-                    &mut l,
-                );
-            }
+            let start = SplitStart { vertex, paths: n, firsts: &firsts };
+            self.split_paths(scene, &tracker, start, &mut state, defer, &mut l);
         }
         state.trace.event(|| format!("result L {l:?} alpha {alpha}"));
         [l[0], l[1], l[2], alpha]
+    }
+
+    /// The paths that leave the camera segment's collision: `start.paths` of them, each
+    /// with numbers of its own (`Sampler::split`) and, from a forced collision, its own
+    /// first vertex; traced, or with `defer` handed out for `integrator::deferred`.
+    fn split_paths<F: Field, T: Trace, A: Aovs>(
+        &self,
+        scene: &Scene<F>,
+        tracker: &Tracker<'_, F>,
+        start: SplitStart<'_>,
+        state: &mut PathState<'_, T, A>,
+        mut defer: Option<&mut Vec<(Vertex, Sampler)>>,
+        l: &mut [f64; 3],
+    ) {
+        let SplitStart { vertex, paths: n, firsts } = start;
+        for k in 0..n {
+            if n > 1 {
+                state.trace.event(|| format!("split path {} of {n}", k + 1));
+            }
+            let vertex = match firsts.get(k as usize).map(|first| first.event) {
+                Some(DistanceSample::Collided { t, albedo, .. }) => {
+                    state.trace.event(|| format!("  first vertex at t {t}"));
+                    Vertex { t, albedo, ..vertex }
+                }
+                _ => vertex,
+            };
+            // One path (n = 1) draws the sample's own numbers: `split` is then a copy
+            let mut path_sampler = state.sampler.split(k, n);
+            if let Some(paths) = defer.as_deref_mut() {
+                paths.push((vertex, path_sampler));
+                continue;
+            }
+            self.scattered_path(
+                scene,
+                tracker,
+                vertex,
+                &mut state.with_sampler(&mut path_sampler),
+                &mut NoBounces,
+                l,
+            );
+        }
     }
 
     /// The trackers of one sample: for the camera segment, and for every segment after

@@ -58,6 +58,80 @@ pub struct DirectionSample {
     pub pdf: f64,
 }
 
+/// A ray in the proxy's index space, as [`ProxySampling::direction_pdf`] walks its cells:
+/// the cell a parameter `t` lies in and the crossings of cell faces, every crossing from
+/// the exact face (`(boundary − o)/d`), so the walk never drifts.
+struct ProxyLine {
+    o: DVec3,
+    d: DVec3,
+    /// The same reciprocal as `clip_to_box`, so the last crossing equals its `t_end` bit
+    /// for bit.
+    inv_d: DVec3,
+    origin: DVec3,
+    edge: f64,
+}
+
+impl ProxyLine {
+    fn new(proxy: &ProxyGrid, o: DVec3, d: DVec3) -> ProxyLine {
+        let inv_d = DVec3::new(
+            if d.x != 0.0 { 1.0 / d.x } else { 0.0 },
+            if d.y != 0.0 { 1.0 / d.y } else { 0.0 },
+            if d.z != 0.0 { 1.0 / d.z } else { 0.0 },
+        );
+        ProxyLine { o, d, inv_d, origin: proxy.origin, edge: f64::from(proxy.edge) }
+    }
+
+    /// Index-space coordinate of cell boundary `k` along axis `a`.
+    #[inline]
+    fn boundary(&self, a: usize, k: i32) -> f64 {
+        self.origin[a] + f64::from(k) * self.edge
+    }
+
+    /// The cell along axis `a` at parameter `t`, from the position, then made consistent
+    /// with the crossing times of its own faces: a point within rounding of a face whose
+    /// crossing lies ahead is in the cell before it. On a face: the cell being entered.
+    #[inline]
+    fn cell_at(&self, a: usize, t: f64) -> i32 {
+        let (o, d) = (self.o, self.d);
+        let g = (o[a] + d[a] * t - self.origin[a]) / self.edge;
+        let k = (if d[a] < 0.0 { g.ceil() - 1.0 } else { g.floor() }) as i32;
+        let crossing = |k: i32| (self.boundary(a, k) - o[a]) * self.inv_d[a];
+        if d[a] > 0.0 {
+            if crossing(k) > t {
+                return k - 1;
+            } else if crossing(k + 1) <= t {
+                return k + 1;
+            }
+        } else if d[a] < 0.0 {
+            if crossing(k + 1) > t {
+                return k + 1;
+            } else if crossing(k) <= t {
+                return k - 1;
+            }
+        }
+        k
+    }
+
+    /// Crossing of the face ahead along axis `a` of a box whose cells run `lo..hi` on it.
+    #[inline]
+    fn face_ahead(&self, a: usize, lo: i32, hi: i32) -> f64 {
+        let (o, d) = (self.o, self.d);
+        if d[a] > 0.0 {
+            (self.boundary(a, hi) - o[a]) * self.inv_d[a]
+        } else if d[a] < 0.0 {
+            (self.boundary(a, lo) - o[a]) * self.inv_d[a]
+        } else {
+            f64::INFINITY
+        }
+    }
+
+    /// The crossings of the faces ahead of the box of cells `lo..hi`, per axis.
+    #[inline]
+    fn exits(&self, lo: IVec3, hi: IVec3) -> [f64; 3] {
+        std::array::from_fn(|a| self.face_ahead(a, lo[a], hi[a]))
+    }
+}
+
 /// `(t₁³ − t₀³)/3` in the form that keeps its relative accuracy for `t₁ ≈ t₀`.
 #[inline]
 fn shell(t0: f64, t1: f64) -> f64 {
@@ -139,62 +213,17 @@ impl ProxySampling for ProxyGrid {
         if !o.is_finite() || !d.is_finite() || d == DVec3::ZERO {
             return 0.0;
         }
-        let e = f64::from(self.edge);
-        let boundary = |a: usize, k: i32| self.origin[a] + f64::from(k) * e;
-        let lo = DVec3::new(
-            boundary(0, self.occupied_lo.x),
-            boundary(1, self.occupied_lo.y),
-            boundary(2, self.occupied_lo.z),
-        );
-        let hi = DVec3::new(
-            boundary(0, self.occupied_hi.x),
-            boundary(1, self.occupied_hi.y),
-            boundary(2, self.occupied_hi.z),
-        );
+        let line = ProxyLine::new(self, o, d);
+        let lo = DVec3::from_array(std::array::from_fn(|a| line.boundary(a, self.occupied_lo[a])));
+        let hi = DVec3::from_array(std::array::from_fn(|a| line.boundary(a, self.occupied_hi[a])));
         let Some((t_start, t_end)) = clip_to_box(o, d, lo, hi, 0.0, f64::INFINITY) else {
             return 0.0;
         };
-        // Same reciprocal as clip_to_box, so the last crossing equals t_end bit for bit
-        let inv_d = DVec3::new(
-            if d.x != 0.0 { 1.0 / d.x } else { 0.0 },
-            if d.y != 0.0 { 1.0 / d.y } else { 0.0 },
-            if d.z != 0.0 { 1.0 / d.z } else { 0.0 },
+        let (cell_at, face_ahead, exits) = (
+            |a, t| line.cell_at(a, t),
+            |a, lo, hi| line.face_ahead(a, lo, hi),
+            |lo, hi| line.exits(lo, hi),
         );
-        // The cell along axis `a` at parameter `t`, from the position, then made consistent
-        // with the crossing times of its own faces: a point within rounding of a face whose
-        // crossing lies ahead is in the cell before it. On a face: the cell being entered.
-        let cell_at = |a: usize, t: f64| -> i32 {
-            let g = (o[a] + d[a] * t - self.origin[a]) / e;
-            let k = (if d[a] < 0.0 { g.ceil() - 1.0 } else { g.floor() }) as i32;
-            let crossing = |k: i32| (boundary(a, k) - o[a]) * inv_d[a];
-            if d[a] > 0.0 {
-                if crossing(k) > t {
-                    return k - 1;
-                } else if crossing(k + 1) <= t {
-                    return k + 1;
-                }
-            } else if d[a] < 0.0 {
-                if crossing(k + 1) > t {
-                    return k + 1;
-                } else if crossing(k) <= t {
-                    return k - 1;
-                }
-            }
-            k
-        };
-        // Crossing of the face ahead along axis `a` of a box whose cells run lo..hi on it
-        let face_ahead = |a: usize, lo: i32, hi: i32| -> f64 {
-            if d[a] > 0.0 {
-                (boundary(a, hi) - o[a]) * inv_d[a]
-            } else if d[a] < 0.0 {
-                (boundary(a, lo) - o[a]) * inv_d[a]
-            } else {
-                f64::INFINITY
-            }
-        };
-        let exits = |lo: IVec3, hi: IVec3| -> [f64; 3] {
-            std::array::from_fn(|a| face_ahead(a, lo[a], hi[a]))
-        };
         let (occupied_lo, occupied_hi) = (self.occupied_lo, self.occupied_hi);
         let inside = |c: IVec3| c.cmpge(occupied_lo).all() && c.cmplt(occupied_hi).all();
         let mut c = IVec3::ZERO;

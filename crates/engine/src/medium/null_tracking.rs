@@ -206,24 +206,7 @@ pub fn null_track(
                 // collision's law is the exact field's, and so must its record and score
                 // be. Only the point estimator scores here; the others need only the
                 // albedo factor, to carry the path on
-                let x = ray.at(next);
-                event = if estimator == Estimator::Point {
-                    let p = field.sample(x, true);
-                    add(&mut f, p.emission, 1.0 / medium.mu_t(p.density));
-                    DistanceSample::Collided {
-                        t: next,
-                        density: p.density,
-                        source: p.source,
-                        albedo: p.albedo,
-                    }
-                } else {
-                    DistanceSample::Collided {
-                        t: next,
-                        density: f32::NAN,
-                        source: f32::NAN,
-                        albedo: field.albedo(x),
-                    }
-                };
+                event = real_collision(field, medium, estimator, ray, next, &mut f);
                 od_to_collision = f64::NAN; // not tracked by null collisions
                 if !expected {
                     done = true;
@@ -231,15 +214,7 @@ pub fn null_track(
                 }
             }
             if expected {
-                weight *= 1.0 - ratio;
-                if weight < RAY_MARCH_ROULETTE_THRESHOLD {
-                    let q = weight / RAY_MARCH_ROULETTE_THRESHOLD;
-                    if sampler.next_f64() >= q {
-                        weight = 0.0;
-                    } else {
-                        weight = RAY_MARCH_ROULETTE_THRESHOLD;
-                    }
-                }
+                weight = ratio_weight(weight, ratio, sampler);
                 if weight == 0.0 && (event != DistanceSample::Escaped || !need_collision) {
                     done = true;
                     break;
@@ -266,6 +241,44 @@ pub fn null_track(
         voxel_steps: u64::from(segments),
         collision_weight: 1.0,
     }
+}
+
+/// The record of a real collision at `ray.at(t)`, read from the exact field (a picked
+/// density served the acceptance only: the collision's law is the exact field's, and so
+/// must its record and score be). Only the point estimator scores here, adding to `f`;
+/// the others need only the albedo factor, to carry the path on.
+#[inline]
+fn real_collision(
+    field: &impl PointField,
+    medium: &Medium,
+    estimator: Estimator,
+    ray: &Ray,
+    t: f64,
+    f: &mut [f64; 3],
+) -> DistanceSample {
+    let x = ray.at(t);
+    if estimator == Estimator::Point {
+        let p = field.sample(x, true);
+        add(f, p.emission, 1.0 / medium.mu_t(p.density));
+        DistanceSample::Collided { t, density: p.density, source: p.source, albedo: p.albedo }
+    } else {
+        DistanceSample::Collided { t, density: f32::NAN, source: f32::NAN, albedo: field.albedo(x) }
+    }
+}
+
+/// Ratio tracking's weight after a tentative point of acceptance `ratio`, with Russian
+/// roulette below [`RAY_MARCH_ROULETTE_THRESHOLD`] (survivors carry the threshold).
+#[inline]
+fn ratio_weight(weight: f64, ratio: f64, sampler: &mut Sampler) -> f64 {
+    let weight = weight * (1.0 - ratio);
+    if weight < RAY_MARCH_ROULETTE_THRESHOLD {
+        let q = weight / RAY_MARCH_ROULETTE_THRESHOLD;
+        if sampler.next_f64() >= q {
+            return 0.0;
+        }
+        return RAY_MARCH_ROULETTE_THRESHOLD;
+    }
+    weight
 }
 
 /// Ratio-tracking estimate of `τ(0, t_max)` along `ray` (module docs); stops early once

@@ -25,10 +25,10 @@ pub use super::free_path::{
     RAY_MARCH_ROULETTE_THRESHOLD,
 };
 use crate::medium::emission::{EmissionMemo, LeTask};
-use crate::medium::forced::{Collision, ForcedCollision, SplitFirsts};
+use crate::medium::forced::{Collision, Forced, ForcedCollision, SplitFirsts};
 use plume_core::color::Rgb;
 use plume_core::sampling::Sampler;
-use plume_volume::field::{Field, Piece, PieceIntegrals, PointValues, Ray, SegmentIter};
+use plume_volume::field::{Field, Piece, PieceIntegrals, PointValues, Ray, Segment, SegmentIter};
 
 #[inline]
 fn add(acc: &mut [f64; 3], le: Rgb, w: f64) {
@@ -296,6 +296,92 @@ fn free_path_polynomial<P: Piece>(
     None
 }
 
+/// A marched piece as its emission reads it: its length and optical depth `x`, the
+/// optical depth `od` and roulette `weight` before it, `τ` before it where the roulette
+/// formed it, and the one-point rule's point `(u, x(u))` on a polynomial piece.
+#[derive(Clone, Copy)]
+struct MarchedPiece {
+    len: f64,
+    x: f64,
+    od: f64,
+    weight: f64,
+    tau: Option<f64>,
+    x_at_point: Option<(f64, f64)>,
+}
+
+/// The optical depth of `piece`, and where a marched emitting polynomial piece needs it,
+/// the one-point rule's point and the optical depth to it, both from one density cubic.
+/// Its `ξ` (`xi`, `Some` where the point is needed) is drawn at the first such piece,
+/// after the roulette, so the random sampler's stream keeps its order.
+#[inline(always)]
+fn piece_depths<P: Piece>(
+    piece: &P,
+    constant: Option<Segment>,
+    medium: &Medium,
+    xi: Option<&mut Option<f64>>,
+    sampler: &mut Sampler,
+) -> (f64, Option<(f64, f64)>) {
+    let len = piece.length();
+    match (constant, xi) {
+        (Some(seg), _) => (medium.mu_t(seg.density) * len, None),
+        (None, Some(xi)) => {
+            let xi = *xi.get_or_insert_with(|| sampler.get_1d(plume_core::sampling::Dim::OnePoint));
+            let u = xi * len;
+            let [x, x_u] = piece.optical_depths(medium.sigma_t, [len, u]);
+            (x, Some((u, x_u)))
+        }
+        (None, None) => (piece.optical_depth(medium.sigma_t, len), None),
+    }
+}
+
+/// The expected-value estimator's emission on a marched emitting piece, added to `f`:
+/// `τ Δ φ(x) L_e` on a constant piece, and on a polynomial one the one-point rule
+/// (METHOD.md §12): `Δ τ(u_ξ) L_e(u_ξ)` with `u_ξ` uniform in the piece is unbiased for
+/// `∫ τ L_e` over it. One `ξ` serves every piece of the ray (systematic sampling: each
+/// piece's point is still uniform in it).
+#[inline(always)]
+fn add_marched_emission<P: Piece>(
+    f: &mut [f64; 3],
+    piece: &P,
+    constant: Option<Segment>,
+    memo: &EmissionMemo<'_>,
+    medium: &Medium,
+    at: MarchedPiece,
+) {
+    let MarchedPiece { len, x, od, weight, tau, x_at_point } = at;
+    match constant {
+        Some(seg) => {
+            let le = medium.emission.le(seg.density, seg.source);
+            let tau = tau.expect("invariant: a marched constant emitting piece forms τ");
+            add(f, le, tau * len * phi(x));
+        }
+        None => {
+            let (u, x_u) =
+                x_at_point.expect("invariant: a marched emitting polynomial piece has its point");
+            // Where the roulette did not need `τ`, it is `e^{−od} · weight`: one `exp`
+            let tau_u = match tau {
+                Some(tau) => tau * (-x_u).exp(),
+                None => (-(od + x_u)).exp() * weight,
+            };
+            add_scaled(f, emission_at(piece, memo, u), tau_u * len);
+        }
+    }
+}
+
+/// A forced walk's collision, once the walk is done ([`ForcedCollision::draw`]); with
+/// `split`, the split paths' first vertices are drawn first.
+fn draw_forced<P: Piece>(
+    forced: &ForcedCollision<P>,
+    split: Option<SplitFirsts<'_>>,
+    medium: &Medium,
+    u: f64,
+) -> Option<Forced> {
+    if let Some(SplitFirsts { paths, firsts }) = split {
+        forced.draw_split(medium, u, paths, firsts);
+    }
+    forced.draw(medium, u)
+}
+
 // Each argument is a distinct input of the walk (randomness stays an argument: STYLE §3)
 #[allow(clippy::too_many_arguments)]
 fn track_expected<F: Field, const FORCED: bool>(
@@ -354,19 +440,8 @@ fn track_expected<F: Field, const FORCED: bool>(
         // rule's point too: both from one density cubic. Its point is drawn where it always
         // was (after the roulette, at the first such piece), so the random sampler's stream
         // keeps its order.
-        let mut x_at_point = None;
-        let x = match constant {
-            Some(seg) => medium.mu_t(seg.density) * len,
-            None if marching && emits => {
-                let xi =
-                    *xi.get_or_insert_with(|| sampler.get_1d(plume_core::sampling::Dim::OnePoint));
-                let u = xi * len;
-                let [x, x_u] = piece.optical_depths(medium.sigma_t, [len, u]);
-                x_at_point = Some((u, x_u));
-                x
-            }
-            None => piece.optical_depth(medium.sigma_t, len),
-        };
+        let (x, x_at_point) =
+            piece_depths(piece, constant, medium, (marching && emits).then_some(&mut xi), sampler);
         if need_collision && event == DistanceSample::Escaped && od + x > e {
             event = analog_collision(piece, medium, e - od);
         }
@@ -379,29 +454,9 @@ fn track_expected<F: Field, const FORCED: bool>(
                     tau.expect("invariant: a forced walk forms τ at every marched piece"),
                 );
             }
-            match constant {
-                // A piece without a source adds nothing (`le` is 0 there): no φ, and for a
-                // polynomial piece no point and no transmittance to it
-                _ if !emits => {}
-                Some(seg) => {
-                    let le = medium.emission.le(seg.density, seg.source);
-                    let tau = tau.expect("invariant: a marched constant emitting piece forms τ");
-                    add(&mut f, le, tau * len * phi(x));
-                }
-                None => {
-                    // One-point rule (METHOD.md §12): Δ τ(u_ξ) L_e(u_ξ) with u_ξ uniform
-                    // in the piece is unbiased for ∫ τ L_e over it. One ξ serves every
-                    // piece of the ray (systematic sampling: each piece's point is still
-                    // uniform in it). The point and its optical depth were found above.
-                    let (u, x_u) = x_at_point
-                        .expect("invariant: a marched emitting polynomial piece has its point");
-                    // Where the roulette did not need `τ`, it is `e^{−od} · weight`: one `exp`
-                    let tau_u = match tau {
-                        Some(tau) => tau * (-x_u).exp(),
-                        None => (-(od + x_u)).exp() * weight,
-                    };
-                    add_scaled(&mut f, emission_at(piece, &memo, u), tau_u * len);
-                }
+            if emits {
+                let at = MarchedPiece { len, x, od, weight, tau, x_at_point };
+                add_marched_emission(&mut f, piece, constant, &memo, medium, at);
             }
         }
         od += x;
@@ -413,15 +468,8 @@ fn track_expected<F: Field, const FORCED: bool>(
     let transmittance = if marching { (-od).exp() * weight } else { 0.0 };
     let mut optical_depth = if matches!(event, DistanceSample::Collided { .. }) { e } else { od };
     let mut collision_weight = 1.0;
-    if let Some(forced) = forced {
-        if let Some(SplitFirsts { paths, firsts }) = split {
-            forced.draw_split(medium, u, paths, firsts);
-        }
-        if let Some(drawn) = forced.draw(medium, u) {
-            event = drawn.event;
-            optical_depth = drawn.optical_depth;
-            collision_weight = drawn.weight;
-        }
+    if let Some(drawn) = forced.and_then(|forced| draw_forced(&forced, split, medium, u)) {
+        (event, optical_depth, collision_weight) = (drawn.event, drawn.optical_depth, drawn.weight);
     }
     TrackResult {
         event,

@@ -49,14 +49,39 @@ pub fn file_sha256(path: &Path) -> Result<(String, u64)> {
 /// Hash (32 hex digits) of the plume version, the seed and every value of the shot that
 /// can change pixels.
 ///
-/// Fail-safe by construction: the shot is taken apart field by field with exhaustive
-/// patterns (no `..`), so a field added to the description does not compile until it is
-/// either hashed here or listed as one that cannot change pixels (paths, threads, sample
-/// budget and range, crop, progress, logging, limits).
+/// Fail-safe by construction: each part of the shot is taken apart field by field with
+/// exhaustive patterns (no `..`), one function per part, so a field added to the
+/// description does not compile until it is either hashed there or listed as one that
+/// cannot change pixels (paths, threads, sample budget and range, crop, progress,
+/// logging, limits). A field hashed with another part's line is listed as `_` with a
+/// comment naming where it is hashed.
 #[must_use]
 pub fn settings_hash(shot: &Shot, seed: u64) -> String {
     let Shot { scene, settings } = shot;
     let SceneDescription { volume, emission, medium, camera, lights, integrator } = scene;
+    let (sampler, output) = job_text(settings);
+    // The split count is always hashed: its default (8) changed every scattering render's
+    // pixels, so parts rendered before it existed must not merge with parts rendered after.
+    // So is the camera collision, whose default (forced, with a ray-marched camera segment)
+    // did the same
+    let text = format!(
+        "plume {}\nseed {seed}\nsampler {sampler}\nfixed point {}\n{}\n{}\n{}\n{}\nlights {}\n{}{output}{}",
+        env!("CARGO_PKG_VERSION"),
+        plume_engine::film::FIXED_POINT_BITS,
+        volume_text(volume),
+        emission_text(emission),
+        medium_text(medium),
+        camera_text(camera),
+        lights_text(lights),
+        integrator_text(integrator, &volume.interpolation),
+        motion_text(volume, camera),
+    );
+    hex(&Sha256::digest(text.as_bytes())[..16])
+}
+
+/// The volume's line: its grids and interpolation (not the file, whose path differs
+/// between farm nodes: the input is identified by its SHA-256).
+fn volume_text(volume: &VolumeInput) -> String {
     let VolumeInput {
         file: _,
         density_grid,
@@ -64,19 +89,61 @@ pub fn settings_hash(shot: &Shot, seed: u64) -> String {
         emission_grid,
         albedo_grid,
         interpolation,
-        velocity_grid,
-        velocity_scale,
+        // In `motion_text`
+        velocity_grid: _,
+        velocity_scale: _,
     } = volume;
+    format!(
+        "volume {density_grid:?} {temperature_grid:?} {emission_grid:?} {albedo_grid:?} {interpolation}"
+    )
+}
+
+/// The emission's line.
+fn emission_text(emission: &EmissionSettings) -> String {
     let EmissionSettings { source, convention, temperature_map, temperature_cutoff, scale, color } =
         emission;
+    format!(
+        "emission {source} {convention} {temperature_map:?} {temperature_cutoff:?} {scale:?} {color:?}"
+    )
+}
+
+/// The medium's line.
+fn medium_text(medium: &MediumSettings) -> String {
     let MediumSettings { density_scale, albedo, g } = medium;
-    let CameraSettings { from, at, up, fov, width, height, up_axis, shutter, fps, keys } = camera;
-    // Motion blur's keys, only when there is motion: still scenes hash as without them
-    let motion = if velocity_grid.is_some() || !keys.is_empty() {
+    format!("medium {density_scale:?} {albedo:?} {g:?}")
+}
+
+/// The camera's line (its motion keys are in [`motion_text`]).
+fn camera_text(camera: &CameraSettings) -> String {
+    let CameraSettings {
+        from,
+        at,
+        up,
+        fov,
+        width,
+        height,
+        up_axis,
+        // In `motion_text`
+        shutter: _,
+        fps: _,
+        keys: _,
+    } = camera;
+    format!("camera {from:?} {at:?} {up:?} {fov:?} {width} {height} {up_axis}")
+}
+
+/// Motion blur's keys, only when there is motion: still scenes hash as without them.
+fn motion_text(volume: &VolumeInput, camera: &CameraSettings) -> String {
+    let (velocity_grid, velocity_scale) = (&volume.velocity_grid, &volume.velocity_scale);
+    let (shutter, fps, keys) = (&camera.shutter, &camera.fps, &camera.keys);
+    if velocity_grid.is_some() || !keys.is_empty() {
         format!("\nmotion {velocity_grid:?} {velocity_scale:?} {shutter:?} {fps:?} {keys:?}")
     } else {
         String::new()
-    };
+    }
+}
+
+/// The lights' line, after `lights `.
+fn lights_text(lights: &LightSettings) -> String {
     let LightSettings { environment, environment_map, sky, distant, sphere } = lights;
     // The map's file by name only (paths differ between farm nodes); scenes without an
     // environment map, sky, distant or sphere light keep the hash they had without these
@@ -85,11 +152,19 @@ pub fn settings_hash(shot: &Shot, seed: u64) -> String {
         let EnvironmentMapSettings { file, intensity, rotation, visible, group } = m;
         format!("{:?} {intensity:?} {rotation:?} {visible} {group:?}", file.file_name())
     });
-    let lights = if map.is_none() && sky.is_none() && distant.is_empty() && sphere.is_empty() {
+    if map.is_none() && sky.is_none() && distant.is_empty() && sphere.is_empty() {
         format!("{environment:?}")
     } else {
         format!("{environment:?} {map:?} {sky:?} {distant:?} {sphere:?}")
-    };
+    }
+}
+
+/// The integrator's line, with the volume's `interpolation` (which decides whether point
+/// lookups change pixels).
+fn integrator_text(
+    integrator: &IntegratorSettings,
+    interpolation: &plume_volume::Interpolation,
+) -> String {
     let IntegratorSettings {
         method,
         estimator,
@@ -127,7 +202,15 @@ pub fn settings_hash(shot: &Shot, seed: u64) -> String {
     };
     // Likewise the camera segment's own estimator
     let camera_estimator = camera_estimator.map_or(String::new(), |e| format!(" camera {e}"));
-    // Of the job's settings only the seed (an argument) and the sampler change pixels
+    format!(
+        "integrator {method} {estimator:?} {light_sampling:?} {mis} {proxy_resolution:?} {max_depth} {kappa:?} {tracking}{nee_table}{point_lookup}{camera_estimator} split {split}{split_by} camera-collision {camera_collision}"
+    )
+}
+
+/// Of the job's settings only the seed (an argument of [`settings_hash`]) and the sampler
+/// change pixels; AOV layers and half sums change what the file holds, so parts and
+/// resumes must agree on them: `(sampler, the lines of the AOVs and denoising)`.
+fn job_text(settings: &JobSettings) -> (String, String) {
     let JobSettings { render, farm, output, reading } = settings;
     let RenderOptions {
         spp: _,
@@ -147,28 +230,13 @@ pub fn settings_hash(shot: &Shot, seed: u64) -> String {
     } = render;
     let FarmOptions { frames: _, overwrite: _, time_limit: _, crop: _, tile: _, sample_range: _ } =
         farm;
-    // AOV layers and half sums change what the file holds: parts and resumes must agree
     let OutputSettings { image: _, preview: _, exposure: _, stats: _, sums: _, aovs, denoise } =
         output;
     let ReadSettings { max_input_memory: _, read_timeout: _, no_isolation: _ } = reading;
-    // The split count is always hashed: its default (8) changed every scattering render's
-    // pixels, so parts rendered before it existed must not merge with parts rendered after.
-    // So is the camera collision, whose default (forced, with a ray-marched camera segment)
-    // did the same
-    let text = format!(
-        "plume {}\nseed {seed}\nsampler {sampler}\nfixed point {}\n\
-         volume {density_grid:?} {temperature_grid:?} {emission_grid:?} {albedo_grid:?} {interpolation}\n\
-         emission {source} {convention} {temperature_map:?} {temperature_cutoff:?} {scale:?} {color:?}\n\
-         medium {density_scale:?} {albedo:?} {g:?}\n\
-         camera {from:?} {at:?} {up:?} {fov:?} {width} {height} {up_axis}\n\
-         lights {lights}\n\
-         integrator {method} {estimator:?} {light_sampling:?} {mis} {proxy_resolution:?} {max_depth} {kappa:?} {tracking}{nee_table}{point_lookup}{camera_estimator} split {split}{split_by} camera-collision {camera_collision}{}{}{motion}",
-        env!("CARGO_PKG_VERSION"),
-        plume_engine::film::FIXED_POINT_BITS,
-        if *aovs { "\naovs" } else { "" },
-        if *denoise { format!("\ndenoise {}", half_block(settings)) } else { String::new() }
-    );
-    hex(&Sha256::digest(text.as_bytes())[..16])
+    let aovs = if *aovs { "\naovs" } else { "" };
+    let denoise =
+        if *denoise { format!("\ndenoise {}", half_block(settings)) } else { String::new() };
+    (sampler.to_string(), format!("{aovs}{denoise}"))
 }
 
 /// The half block of a frame rendered with `--denoise` ([`plume_engine::denoise::half_block`] of

@@ -12,22 +12,27 @@
 //! Outputs are written atomically, so SIGKILL at any moment leaves either the previous
 //! file or the new one, and stale temporaries are removed by the next run.
 //!
-//! [`render_frame`] runs the steps in order: [`FramePaths::resolve`], `decide`, loading
-//! ([`crate::load::load_scene`]) and `warn_about`, `SamplePlan::new`, `replay` (debug
-//! pixel) or `run_passes`, `stats_record`, `write_outputs`.
+//! This file owns the frame's steps and the render itself (passes, sample order, debug
+//! pixel replay, warnings about the loaded data). [`render_frame`] runs the steps in
+//! order: [`FramePaths::resolve`], `decide` (`farm::resume`), loading
+//! ([`crate::load::load_scene`]) and `warn_about`, `SamplePlan::new` (`farm::resume`),
+//! `replay` (debug pixel) or `run_passes`, `stats_record` and `write_outputs`
+//! (`farm::outputs`, with the image's layers from `farm::layers`).
 
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use crate::farm::fingerprint::{file_sha256, settings_hash};
+use crate::farm::layers::aov_layout;
 use crate::farm::observer::{JobObserver, Pass, Replay, RunContext};
-use crate::farm::part::{assess, stats_metadata, Completion, Existing, Expected, PartInfo};
+use crate::farm::outputs::{stats_record, write_outputs, FrameId, FramePaths, InputId, Timing};
+use crate::farm::part::Completion;
 use crate::farm::plan::Job;
+use crate::farm::resume::{decide, log_continuing, unless_input_changed, Resume, SamplePlan};
 use crate::farm::signals;
 use crate::load::{load_scene, LoadedScene};
-use crate::output::{write_exr_image, AovChannels, ExrImage};
-use plume_core::error::{Error, Result};
-use plume_engine::film::{Crop, Film, FIXED_POINT_BITS};
+use plume_core::error::Result;
+use plume_engine::film::Film;
 use plume_engine::integrator::AovLayout;
 use plume_engine::integrator::LineTrace;
 use plume_engine::medium::{EmissionKind, Estimator};
@@ -35,8 +40,7 @@ use plume_engine::render::{
     read_ahead_window, render_with, RenderControl, RenderObserver, RenderResult, RenderSettings,
     SampleBudget, SampleOrder, StopReason,
 };
-use plume_engine::stats::{cpu_seconds, peak_rss_since_reset_bytes, reset_peak_rss, RenderStats};
-use plume_scene::split::format_range;
+use plume_engine::stats::{cpu_seconds, reset_peak_rss, RenderStats};
 use plume_scene::{DeferPaths, EmissionSource, SampleOrderChoice};
 use plume_volume::out_of_core::memory::{MemoryBound, MemoryLimits};
 use plume_volume::Volume;
@@ -61,34 +65,6 @@ pub enum FrameOutcome {
     },
 }
 
-/// The files of one frame, frame tokens resolved.
-pub struct FramePaths {
-    /// The volume file.
-    pub input: PathBuf,
-    /// The EXR.
-    pub output: PathBuf,
-    /// The PNG preview.
-    pub preview: Option<PathBuf>,
-    /// The statistics file.
-    pub stats: Option<PathBuf>,
-}
-
-impl FramePaths {
-    /// The paths of `frame`.
-    #[must_use]
-    pub fn resolve(job: &Job<'_>, frame: Option<i64>) -> FramePaths {
-        FramePaths {
-            input: job.input.resolve(frame),
-            output: job.output.resolve(frame),
-            preview: job.preview.as_ref().map(|p| p.resolve(frame)),
-            stats: job.stats.as_ref().map(|p| p.resolve(frame)),
-        }
-    }
-}
-
-/// An output to continue: what it holds and its exact sums (and AOV sums).
-type Resume = (PartInfo, Vec<[i128; 4]>, Option<Vec<i128>>);
-
 /// Render frame `frame` (the `index`-th of the run), telling `context.observer`.
 ///
 /// # Errors
@@ -110,22 +86,11 @@ pub fn render_frame(
     let seed = settings.render.seed.unwrap_or(frame.map_or(0, |f| f as u64));
     let hash = settings_hash(job.shot, seed);
 
-    let Some(mut resume) = decide(job, &paths, &hash, index, frame, observer)? else {
+    let Some(resume) = decide(job, &paths, &hash, index, frame, observer)? else {
         return Ok(FrameOutcome::Skipped);
     };
     observer.frame_started(index, frame, &paths.output);
-    for path in std::iter::once(&paths.output).chain(paths.preview.iter()).chain(paths.stats.iter())
-    {
-        plume_core::fs::check_writable(path)?;
-    }
-    let (input_sha256, input_bytes) = file_sha256(&paths.input)?;
-    if resume.as_ref().is_some_and(|(info, ..)| info.input_sha256 != input_sha256) {
-        log::info!(
-            "{}: the input changed since it was started; rendering it again",
-            paths.output.display()
-        );
-        resume = None;
-    }
+    let (input, resume) = check_files(&paths, resume)?;
 
     // Load the frame's grids once and build the scene
     let loaded = load_scene(job.scene(), &paths.input, settings, frame)?;
@@ -143,16 +108,10 @@ pub fn render_frame(
         observer.replayed(&replay(&loaded, &render_settings, dp));
         return Ok(FrameOutcome::Replayed);
     }
-    if let Some((info, ..)) = &resume {
-        log::info!(
-            "{}: continuing from samples {} ({})",
-            paths.output.display(),
-            format_range(&info.samples),
-            info.status.as_str()
-        );
-    }
+    log_continuing(&paths.output, resume.as_ref());
     let render_start = Instant::now();
     let time_to_first_sample = start.elapsed().as_secs_f64();
+    let on_pass = pass_reporter(&plan, index, frame, observer, render_start);
     let result = run_passes(
         job,
         &paths,
@@ -162,114 +121,108 @@ pub fn render_frame(
         resume,
         start,
         observer,
-        &|done: u64, total: u64| {
-            let fraction = match plan.budget {
-                SampleBudget::Spp(_) => {
-                    (plan.resumed_spp + done) as f64 / (plan.resumed_spp + total).max(1) as f64
-                }
-                SampleBudget::Time(t) | SampleBudget::CpuTime(t) => {
-                    render_start.elapsed().as_secs_f64() / t
-                }
-            };
-            observer.pass_done(&Pass {
-                index,
-                frame,
-                done,
-                target: total,
-                resumed: plan.resumed_spp,
-                fraction,
-            });
-        },
+        &on_pass,
     );
     let spp = plan.resumed_spp + result.spp;
     if spp == 0 {
         return Ok(FrameOutcome::NotStarted);
     }
-    let status = match result.stopped {
-        StopReason::Finished => Completion::Complete,
-        StopReason::Interrupted => Completion::Interrupted,
-        StopReason::TimeLimit => Completion::TimeLimit,
-    };
+    let status = completion(result.stopped);
     let timing = Timing {
         wall: start.elapsed().as_secs_f64(),
         cpu: cpu_seconds() - cpu_at_start,
         time_to_first_sample,
     };
-    let input = InputId { sha256: input_sha256, bytes: input_bytes };
     let frame_id = FrameId { frame, seed, settings_hash: hash, command_line: context.command_line };
     let record =
         stats_record(job, &paths, &loaded, &result, &frame_id, input, status, spp, &timing);
     write_outputs(job, &paths, &loaded, &result, &record, status, context.working_dir)?;
     if !settings.render.quiet {
-        let state = if status == Completion::Complete {
-            String::new()
-        } else {
-            format!(", {}", status.as_str())
-        };
-        let crop = job.pixels();
-        log::info!(
-            "{} ({}x{}, {} spp{state}, {}) in {:.2} s ({:.2} s to first sample, {:.3} core-h)",
-            paths.output.display(),
-            crop.width(),
-            crop.height(),
-            spp,
-            record.estimator,
-            timing.wall,
-            time_to_first_sample,
-            timing.cpu / 3600.0
-        );
+        log_written(job, &paths, &record, status, &timing);
     }
     observer.frame_done(index, frame, status, &record);
     Ok(FrameOutcome::Written { status, output: paths.output, spp })
 }
 
-/// Skip, continue or render anew: `None` when the output is complete (skip), else the
-/// output to continue, if any.
+/// Check that the frame's outputs can be written and identify its input (SHA-256 and
+/// size); `resume` is dropped if the input changed since it was started.
 ///
 /// # Errors
-/// None; fallible for the outputs' checks.
-fn decide(
-    job: &Job<'_>,
-    paths: &FramePaths,
-    hash: &str,
+/// An output that cannot be written (code 4), an input that cannot be read (3).
+fn check_files(paths: &FramePaths, resume: Option<Resume>) -> Result<(InputId, Option<Resume>)> {
+    for path in std::iter::once(&paths.output).chain(paths.preview.iter()).chain(paths.stats.iter())
+    {
+        plume_core::fs::check_writable(path)?;
+    }
+    let (sha256, bytes) = file_sha256(&paths.input)?;
+    let resume = unless_input_changed(resume, &paths.output, &sha256);
+    Ok((InputId { sha256, bytes }, resume))
+}
+
+/// Tells `observer` of each pass of the frame (the `index`-th, `frame`) rendering `plan`
+/// from `render_start`: the samples done and the fraction of the frame done.
+fn pass_reporter<'a>(
+    plan: &'a SamplePlan,
     index: usize,
     frame: Option<i64>,
-    observer: &dyn JobObserver,
-) -> Result<Option<Option<Resume>>> {
-    let settings = &job.shot.settings;
-    plume_core::fs::remove_stale_temporaries(&paths.output);
-    if settings.farm.overwrite || settings.render.debug_pixel.is_some() {
-        return Ok(Some(None));
+    observer: &'a dyn JobObserver,
+    render_start: Instant,
+) -> impl Fn(u64, u64) + Sync + 'a {
+    move |done: u64, total: u64| {
+        let fraction = match plan.budget {
+            SampleBudget::Spp(_) => {
+                (plan.resumed_spp + done) as f64 / (plan.resumed_spp + total).max(1) as f64
+            }
+            SampleBudget::Time(t) | SampleBudget::CpuTime(t) => {
+                render_start.elapsed().as_secs_f64() / t
+            }
+        };
+        observer.pass_done(&Pass {
+            index,
+            frame,
+            done,
+            target: total,
+            resumed: plan.resumed_spp,
+            fraction,
+        });
     }
-    let (width, height) = (job.scene().camera.width, job.scene().camera.height);
-    let crop = job.pixels();
-    let aov_channels = layout_for(&settings.output, job).map(|l| l.channels());
-    let expected = Expected {
-        settings_hash: hash.to_string(),
-        width,
-        height,
-        crop,
-        samples: job.samples.clone(),
-        aov_channels,
+}
+
+/// How far a render that stopped for `stopped` got.
+fn completion(stopped: StopReason) -> Completion {
+    match stopped {
+        StopReason::Finished => Completion::Complete,
+        StopReason::Interrupted => Completion::Interrupted,
+        StopReason::TimeLimit => Completion::TimeLimit,
+    }
+}
+
+/// The line saying that the frame was written: where, its size, samples, state and
+/// estimator, and what it cost.
+fn log_written(
+    job: &Job<'_>,
+    paths: &FramePaths,
+    record: &RenderStats,
+    status: Completion,
+    timing: &Timing,
+) {
+    let state = if status == Completion::Complete {
+        String::new()
+    } else {
+        format!(", {}", status.as_str())
     };
-    Ok(match assess(&paths.output, &expected) {
-        Existing::Missing => Some(None),
-        Existing::Complete(info) => {
-            // Decisions about existing outputs are always logged, also with --quiet
-            log::info!(
-                "{}: already complete ({} spp), skipped (farm.overwrite renders it again)",
-                paths.output.display(),
-                info.samples.end - info.samples.start
-            );
-            observer.frame_skipped(index, frame, &paths.output);
-            None
-        }
-        Existing::Resumable(info, sums, aov) => Some(Some((info, sums, aov))),
-        Existing::Stale(reason) => {
-            log::info!("{}: {reason}; rendering it again", paths.output.display());
-            Some(None)
-        }
-    })
+    let crop = job.pixels();
+    log::info!(
+        "{} ({}x{}, {} spp{state}, {}) in {:.2} s ({:.2} s to first sample, {:.3} core-h)",
+        paths.output.display(),
+        crop.width(),
+        crop.height(),
+        record.spp,
+        record.estimator,
+        timing.wall,
+        timing.time_to_first_sample,
+        timing.cpu / 3600.0
+    );
 }
 
 /// Warnings about the loaded data: clamped voxels, an empty volume, no emission, an
@@ -320,38 +273,6 @@ fn warn_about(job: &Job<'_>, paths: &FramePaths, loaded: &LoadedScene) {
     }
 }
 
-/// The samples this run renders: the asked range, minus what a resumed image holds.
-struct SamplePlan {
-    budget: SampleBudget,
-    first_sample: u64,
-    resumed_spp: u64,
-}
-
-impl SamplePlan {
-    fn new(job: &Job<'_>, resume: Option<&Resume>) -> SamplePlan {
-        match &job.samples {
-            Some(r) => {
-                let from = resume.map_or(r.start, |(info, ..)| info.samples.end);
-                let n = u32::try_from(r.end - from).expect("invariant: checked by Shot::validate");
-                SamplePlan {
-                    budget: SampleBudget::Spp(n),
-                    first_sample: from,
-                    resumed_spp: from - r.start,
-                }
-            }
-            None => {
-                let t = job
-                    .shot
-                    .settings
-                    .render
-                    .time
-                    .expect("invariant: no sample range means a time budget");
-                SamplePlan { budget: SampleBudget::Time(t), first_sample: 0, resumed_spp: 0 }
-            }
-        }
-    }
-}
-
 /// Replay one pixel sample: its path's trace and its value.
 fn replay(
     loaded: &LoadedScene,
@@ -372,7 +293,7 @@ fn replay(
 
 /// Render the frame's passes, continuing `resume`, telling `observer` (the passes' start
 /// and end) and `on_pass` (each pass).
-#[allow(clippy::too_many_arguments)]
+#[allow(clippy::too_many_arguments)] // the frame's job, files, scene and plan, and the two observers
 fn run_passes(
     job: &Job<'_>,
     paths: &FramePaths,
@@ -439,271 +360,6 @@ fn run_passes(
     let result = plume_engine::with_scene!(&loaded.scene, scene => render_with(scene, settings, control, on_pass));
     observer.render_finished();
     result
-}
-
-/// Seconds a frame took.
-struct Timing {
-    wall: f64,
-    cpu: f64,
-    time_to_first_sample: f64,
-}
-
-/// The input file's identity.
-struct InputId {
-    sha256: String,
-    bytes: u64,
-}
-
-/// What identifies the frame's pixels and how it was asked for.
-struct FrameId<'a> {
-    frame: Option<i64>,
-    seed: u64,
-    settings_hash: String,
-    command_line: &'a str,
-}
-
-/// The frame's record: EXR header and stats line.
-#[allow(clippy::too_many_arguments)]
-fn stats_record(
-    job: &Job<'_>,
-    paths: &FramePaths,
-    loaded: &LoadedScene,
-    result: &RenderResult,
-    id: &FrameId<'_>,
-    input: InputId,
-    status: Completion,
-    spp: u64,
-    timing: &Timing,
-) -> RenderStats {
-    let settings = &job.shot.settings;
-    let (width, height) = (job.scene().camera.width, job.scene().camera.height);
-    let crop = job.pixels();
-    let range_start = job.samples.as_ref().map_or(0, |r| r.start);
-    let sample_range = range_start..range_start + spp;
-    let threads = if settings.render.threads == 0 {
-        rayon::current_num_threads()
-    } else {
-        settings.render.threads
-    };
-    let samples = result.counters.samples as f64;
-    let volume = loaded.scene.volume();
-    RenderStats {
-        plume_version: env!("CARGO_PKG_VERSION").into(),
-        command_line: id.command_line.into(),
-        host: plume_core::fs::host_name(),
-        frame: id.frame,
-        input: paths.input.display().to_string(),
-        input_bytes: input.bytes,
-        input_sha256: input.sha256,
-        output: paths.output.display().to_string(),
-        status: status.as_str().into(),
-        spp,
-        sample_range: format_range(&sample_range),
-        resumed_from_spp: spp - result.spp,
-        seed: id.seed,
-        settings_hash: id.settings_hash.clone(),
-        width,
-        height,
-        crop: crop.to_string(),
-        fixed_point_bits: FIXED_POINT_BITS,
-        wall_seconds: timing.wall,
-        render_seconds: result.render_seconds,
-        workers_busy: result.busy_seconds / result.render_seconds.max(1e-9),
-        time_to_first_sample_seconds: timing.time_to_first_sample,
-        cpu_seconds: timing.cpu,
-        core_hours: timing.cpu / 3600.0,
-        allocated_core_hours: timing.wall * threads as f64 / 3600.0,
-        samples_per_second: samples / result.render_seconds.max(1e-9),
-        samples_per_cpu_second: samples / timing.cpu.max(1e-9),
-        peak_rss_bytes: peak_rss_since_reset_bytes(),
-        threads,
-        estimator: plume_engine::integrator::Integrator::for_scene(job.scene()).estimator_name(),
-        volume_bytes: volume.memory_bytes() as u64,
-        counters: result.counters,
-        saturated_samples: result.film.saturated(),
-        underflowed_samples: result.film.underflowed(),
-        density_voxels_clamped: volume.report.density_clamped,
-        source_voxels_clamped: volume.report.source_invalid,
-    }
-}
-
-/// Write the EXR (with exact sums for parts and partial images, so they can be merged or
-/// continued, and the resolved scene description), the preview and the stats line.
-/// Nothing computed from a brick cache is saved before its checksums have all passed.
-///
-/// # Errors
-/// A failed cache check; an output that cannot be written.
-fn write_outputs(
-    job: &Job<'_>,
-    paths: &FramePaths,
-    loaded: &LoadedScene,
-    result: &RenderResult,
-    record: &RenderStats,
-    status: Completion,
-    working_dir: &std::path::Path,
-) -> Result<()> {
-    let settings = &job.shot.settings;
-    let warn = |msg: String| log::warn!("{msg}");
-    if let Some(c) = result.counters.first_nonfinite {
-        warn(format!(
-            "{} non-finite samples dropped; first at render.debug_pixel {c}",
-            result.counters.nonfinite_samples
-        ));
-    }
-    if record.saturated_samples > 0 {
-        warn(format!(
-            "{} sample values exceeded the fixed-point range (2^63) and were clamped",
-            record.saturated_samples
-        ));
-    }
-    if let Some(check) = &loaded.cache {
-        // Checksums, and the file at the path is still the one mapped
-        check.verified()?;
-        // ... and the one whose identity the record holds, hashed before it was opened
-        if crate::cache::is_cache_path(&paths.input)
-            && file_sha256(&paths.input)?.0 != record.input_sha256
-        {
-            return Err(Error::InputFailed {
-                kind: "brick cache",
-                path: paths.input.clone(),
-                what: "it was replaced between hashing and opening it; nothing computed from it was written (run the command again)".into(),
-            });
-        }
-    }
-    let (width, height) = (record.width, record.height);
-    let crop = job.pixels();
-    let noisy = result.film.average(record.spp);
-    let film_sums = result.film.sums();
-    let sums = (job.write_sums || status != Completion::Complete).then_some(film_sums.as_slice());
-    let mut metadata = stats_metadata(record);
-    match plume_scene::file::to_toml(job.shot, working_dir) {
-        Ok(text) => metadata.push(("plume:scene".into(), text)),
-        Err(e) => warn(format!(
-            "the scene description is not recorded in {}: {e}",
-            paths.output.display()
-        )),
-    }
-    let aov_sums = result.film.aov_sums();
-    let layout = aov_layout(job, loaded);
-    let names = layout.as_ref().map(AovLayout::channel_names).unwrap_or_default();
-    let Written { pixels, layers, denoised } =
-        beauty_and_layers(layout.as_ref(), (&film_sums, &aov_sums), noisy, record.spp, crop);
-    if settings.output.denoise && !denoised {
-        let block = crate::farm::fingerprint::half_block(settings);
-        warn(format!("{} spp: denoising needs samples in both half buffers (blocks of {block}: more than {block} spp); the image is not denoised", record.spp));
-    }
-    let aovs = layout.as_ref().map(|_| AovChannels {
-        layers: &layers,
-        sums: sums.is_some().then_some((names.as_slice(), aov_sums.as_slice())),
-    });
-    write_exr_image(
-        &paths.output,
-        &ExrImage { width, height, crop, pixels: &pixels, sums, aovs, metadata: &metadata },
-    )?;
-    if let Some(p) = &paths.preview {
-        let exposure = settings
-            .output
-            .exposure
-            .map_or_else(|| crate::output::auto_exposure(&pixels), |ev| 2f32.powf(ev));
-        crate::output::write_png(p, crop.width(), crop.height(), &pixels, exposure)?;
-    }
-    if let Some(p) = &paths.stats {
-        let json = serde_json::to_value(record).expect("invariant: stats serialize");
-        plume_core::fs::append_line(p, &json.to_string())?;
-    }
-    Ok(())
-}
-
-/// The AOV layout that `output` asks for (`--aovs`, `--denoise`): one layer per light
-/// group of the job's lights, and the half sums with `--denoise`.
-fn layout_for(output: &plume_scene::OutputSettings, job: &Job<'_>) -> Option<AovLayout> {
-    let filtered = plume_engine::denoise::Filtered::for_camera(
-        plume_engine::integrator::Integrator::for_scene(&job.shot.scene).camera_estimator(),
-    );
-    (output.aovs || output.denoise).then(|| AovLayout {
-        groups: job.shot.scene.lights.groups(),
-        halves: output.denoise.then_some(filtered),
-    })
-}
-
-/// The AOV layout of this frame ([`layout_for`]).
-fn aov_layout(job: &Job<'_>, loaded: &LoadedScene) -> Option<AovLayout> {
-    let layout = layout_for(&job.shot.settings.output, job);
-    if let (Some(l), Some(e)) = (&layout, &loaded.scene.lights().external) {
-        debug_assert_eq!(l.groups, e.groups(), "the description's groups are the built lights'");
-    }
-    layout
-}
-
-/// Named `f32` channels (`emission.R`, …), each row-major over the image.
-pub type Layers = Vec<(String, Vec<f32>)>;
-
-/// What is written of an image: its beauty and its AOV layers.
-#[derive(Debug)]
-pub struct Written {
-    /// The beauty, row-major over the image.
-    pub pixels: Vec<[f32; 4]>,
-    /// The AOV layers (with `noisy` when denoised).
-    pub layers: Layers,
-    /// Whether the beauty was denoised.
-    pub denoised: bool,
-}
-
-/// The beauty and the AOV layers of an image (`crop`) from its exact sums `(RGBA, AOV
-/// channels)` over `spp` samples and its noisy beauty: with half sums in the layout (and
-/// samples in both halves) the beauty is denoised ([`plume_engine::denoise::from_sums`]) and the
-/// noisy one becomes the layer `noisy`. Used by `plume render` and `plume merge`, so that
-/// a merged frame is the single render's.
-#[must_use]
-pub fn beauty_and_layers(
-    layout: Option<&AovLayout>,
-    sums: (&[[i128; 4]], &[i128]),
-    noisy: Vec<[f32; 4]>,
-    spp: u64,
-    crop: Crop,
-) -> Written {
-    let Some(layout) = layout else {
-        return Written { pixels: noisy, layers: Vec::new(), denoised: false };
-    };
-    let mut layers = aov_layers(layout, sums.1, &noisy, spp);
-    match plume_engine::denoise::from_sums(
-        layout,
-        sums.0,
-        sums.1,
-        spp,
-        (crop.width() as usize, crop.height() as usize),
-    ) {
-        Some(denoised) => {
-            for (c, name) in ["R", "G", "B", "A"].iter().enumerate() {
-                layers.push((format!("noisy.{name}"), noisy.iter().map(|p| p[c]).collect()));
-            }
-            Written { pixels: denoised, layers, denoised: true }
-        }
-        None => Written { pixels: noisy, layers, denoised: false },
-    }
-}
-
-/// The AOV layers' pixel values from their exact sums (`aov_sums`, `layout.channels()`
-/// per pixel) over `spp` samples, with `alpha` from the beauty: `(name, values)` per
-/// channel.
-#[must_use]
-pub fn aov_layers(layout: &AovLayout, aov_sums: &[i128], beauty: &[[f32; 4]], spp: u64) -> Layers {
-    let (n, n_layers) = (layout.channels(), layout.layer_channels());
-    let names = layout.channel_names();
-    // Every layer channel but depth's hit count, which `depth.Z` divides by
-    let mut layers: Layers = names[..n_layers - 1]
-        .iter()
-        .map(|c| (c.clone(), Vec::with_capacity(beauty.len())))
-        .collect();
-    for sums in aov_sums.chunks_exact(n) {
-        for (layer, v) in
-            layers.iter_mut().zip(layout.pixel(sums, spp, plume_engine::film::pixel_value))
-        {
-            layer.1.push(v);
-        }
-    }
-    layers.push(("alpha.A".into(), beauty.iter().map(|p| p[3]).collect()));
-    layers
 }
 
 /// Whether `volume` is paged from a cache file larger than the memory `available` (its

@@ -16,6 +16,7 @@ use std::ops::Range;
 use std::path::Path;
 use std::time::Instant;
 
+use crate::farm::layers::{beauty_and_layers, Written};
 use crate::farm::part::{read_part, Completion, PartInfo};
 use crate::output::{write_exr_image, AovChannels, ExrImage};
 use plume_core::error::{Error, Result};
@@ -58,100 +59,16 @@ impl Merged {
 pub fn check_parts(parts: &[PartInfo]) -> Result<Range<u64>> {
     let first = parts.first().ok_or_else(|| Error::invalid("PARTS", "no parts given"))?;
     for p in parts {
-        let bad = |message: String| Error::InvalidPart { path: p.path.clone(), message };
-        if p.fixed_point_bits != FIXED_POINT_BITS {
-            return Err(bad(format!(
-                "holds sums in units of 2^-{}; this plume uses 2^-{FIXED_POINT_BITS}",
-                p.fixed_point_bits
-            )));
-        }
-        if p.status != Completion::Complete {
-            return Err(bad(format!(
-                "is {} with samples {}; run its command again to finish it",
-                p.status.as_str(),
-                format_range(&p.samples)
-            )));
-        }
-        let differs = |what: &str, mine: String, theirs: String| {
-            bad(format!("{what} is {mine}, but {} has {theirs}", first.path.display()))
-        };
-        if p.version != first.version {
-            return Err(differs("the plume version", p.version.clone(), first.version.clone()));
-        }
-        if p.frame != first.frame {
-            return Err(differs(
-                "the frame",
-                format!("{:?}", p.frame),
-                format!("{:?}", first.frame),
-            ));
-        }
-        if (p.width, p.height) != (first.width, first.height) {
-            return Err(differs(
-                "the image size",
-                format!("{}x{}", p.width, p.height),
-                format!("{}x{}", first.width, first.height),
-            ));
-        }
-        if p.seed != first.seed {
-            return Err(differs("the seed", p.seed.to_string(), first.seed.to_string()));
-        }
-        if p.input_sha256 != first.input_sha256 {
-            return Err(differs(
-                "the input (SHA-256)",
-                format!("{} ({})", p.input, p.input_sha256),
-                format!("{} ({})", first.input, first.input_sha256),
-            ));
-        }
-        if p.settings_hash != first.settings_hash {
-            return Err(differs(
-                "the settings hash",
-                p.settings_hash.clone(),
-                format!("{} (rendered with other flags)", first.settings_hash),
-            ));
-        }
+        check_same_frame(p, first)?;
     }
     let (w, h) = (first.width, first.height);
-    let edges = |a: &dyn Fn(&Crop) -> [u32; 2], size: u32| {
-        let mut v: Vec<u32> = parts.iter().flat_map(|p| a(&p.crop)).chain([0, size]).collect();
-        v.sort_unstable();
-        v.dedup();
-        v
-    };
-    let xs = edges(&|c| [c.x0, c.x1], w);
-    let ys = edges(&|c| [c.y0, c.y1], h);
+    let xs = cell_edges(parts, &|c| [c.x0, c.x1], w);
+    let ys = cell_edges(parts, &|c| [c.y0, c.y1], h);
     let mut union: Option<(Range<u64>, Crop)> = None;
     for yj in ys.windows(2) {
         for xi in xs.windows(2) {
             let cell = Crop { x0: xi[0], y0: yj[0], x1: xi[1], y1: yj[1] };
-            let mut covering: Vec<&PartInfo> =
-                parts.iter().filter(|p| p.crop.contains(&cell)).collect();
-            if covering.is_empty() {
-                return Err(Error::Scene(format!(
-                    "no part covers pixels {cell} of the {w}x{h} image"
-                )));
-            }
-            covering.sort_by_key(|p| (p.samples.start, p.samples.end));
-            for pair in covering.windows(2) {
-                let (a, b) = (pair[0], pair[1]);
-                if a.samples.end > b.samples.start {
-                    return Err(Error::InvalidPart {
-                        path: b.path.clone(),
-                        message: format!(
-                            "samples {} of pixels {cell} overlap samples {} of {}",
-                            format_range(&b.samples),
-                            format_range(&a.samples),
-                            a.path.display()
-                        ),
-                    });
-                }
-                if a.samples.end < b.samples.start {
-                    return Err(Error::Scene(format!(
-                        "no part holds samples {}..{} of pixels {cell}",
-                        a.samples.end, b.samples.start
-                    )));
-                }
-            }
-            let here = covering[0].samples.start..covering[covering.len() - 1].samples.end;
+            let here = cell_samples(parts, cell, (w, h))?;
             match &union {
                 None => union = Some((here, cell)),
                 Some((u, at)) if *u != here => {
@@ -166,6 +83,108 @@ pub fn check_parts(parts: &[PartInfo]) -> Result<Range<u64>> {
         }
     }
     Ok(union.expect("invariant: the image has at least one cell").0)
+}
+
+/// Check that part `p` is complete, in this plume's fixed point, and of the same frame as
+/// `first`: plume version, frame, image size, seed, input and settings hash.
+///
+/// # Errors
+/// [`Error::InvalidPart`] naming `p` (and `first`, for a difference).
+fn check_same_frame(p: &PartInfo, first: &PartInfo) -> Result<()> {
+    let bad = |message: String| Error::InvalidPart { path: p.path.clone(), message };
+    if p.fixed_point_bits != FIXED_POINT_BITS {
+        return Err(bad(format!(
+            "holds sums in units of 2^-{}; this plume uses 2^-{FIXED_POINT_BITS}",
+            p.fixed_point_bits
+        )));
+    }
+    if p.status != Completion::Complete {
+        return Err(bad(format!(
+            "is {} with samples {}; run its command again to finish it",
+            p.status.as_str(),
+            format_range(&p.samples)
+        )));
+    }
+    let differs = |what: &str, mine: String, theirs: String| {
+        bad(format!("{what} is {mine}, but {} has {theirs}", first.path.display()))
+    };
+    if p.version != first.version {
+        return Err(differs("the plume version", p.version.clone(), first.version.clone()));
+    }
+    if p.frame != first.frame {
+        return Err(differs("the frame", format!("{:?}", p.frame), format!("{:?}", first.frame)));
+    }
+    if (p.width, p.height) != (first.width, first.height) {
+        return Err(differs(
+            "the image size",
+            format!("{}x{}", p.width, p.height),
+            format!("{}x{}", first.width, first.height),
+        ));
+    }
+    if p.seed != first.seed {
+        return Err(differs("the seed", p.seed.to_string(), first.seed.to_string()));
+    }
+    if p.input_sha256 != first.input_sha256 {
+        return Err(differs(
+            "the input (SHA-256)",
+            format!("{} ({})", p.input, p.input_sha256),
+            format!("{} ({})", first.input, first.input_sha256),
+        ));
+    }
+    if p.settings_hash != first.settings_hash {
+        return Err(differs(
+            "the settings hash",
+            p.settings_hash.clone(),
+            format!("{} (rendered with other flags)", first.settings_hash),
+        ));
+    }
+    Ok(())
+}
+
+/// The sorted, distinct edges along one axis (`axis` picks a crop's two) of all parts'
+/// crops and of the image (`0` and `size`): the cells between them are covered by whole
+/// parts.
+fn cell_edges(parts: &[PartInfo], axis: &dyn Fn(&Crop) -> [u32; 2], size: u32) -> Vec<u32> {
+    let mut v: Vec<u32> = parts.iter().flat_map(|p| axis(&p.crop)).chain([0, size]).collect();
+    v.sort_unstable();
+    v.dedup();
+    v
+}
+
+/// The samples the pixels of `cell` (of an image of `size`) receive: the parts covering
+/// it must hold non-overlapping sample ranges that join into one contiguous range.
+///
+/// # Errors
+/// [`Error::Scene`] when no part covers the cell or a sample range is missing,
+/// [`Error::InvalidPart`] naming a part whose samples overlap another's.
+fn cell_samples(parts: &[PartInfo], cell: Crop, size: (u32, u32)) -> Result<Range<u64>> {
+    let (w, h) = size;
+    let mut covering: Vec<&PartInfo> = parts.iter().filter(|p| p.crop.contains(&cell)).collect();
+    if covering.is_empty() {
+        return Err(Error::Scene(format!("no part covers pixels {cell} of the {w}x{h} image")));
+    }
+    covering.sort_by_key(|p| (p.samples.start, p.samples.end));
+    for pair in covering.windows(2) {
+        let (a, b) = (pair[0], pair[1]);
+        if a.samples.end > b.samples.start {
+            return Err(Error::InvalidPart {
+                path: b.path.clone(),
+                message: format!(
+                    "samples {} of pixels {cell} overlap samples {} of {}",
+                    format_range(&b.samples),
+                    format_range(&a.samples),
+                    a.path.display()
+                ),
+            });
+        }
+        if a.samples.end < b.samples.start {
+            return Err(Error::Scene(format!(
+                "no part holds samples {}..{} of pixels {cell}",
+                a.samples.end, b.samples.start
+            )));
+        }
+    }
+    Ok(covering[0].samples.start..covering[covering.len() - 1].samples.end)
 }
 
 /// Add the parts' sums into one image after [`check_parts`].
@@ -290,13 +309,8 @@ pub fn merge_command(args: &MergeOptions, command_line: &str) -> Result<()> {
     // Parts rendered with --denoise carry the half sums: the merged frame is denoised as
     // the single render would be
     let aov_sums = merged.aovs.as_ref().map_or(&[][..], |(_, sums)| sums.as_slice());
-    let crate::farm::frame::Written { pixels, layers, .. } = crate::farm::frame::beauty_and_layers(
-        layout.as_ref(),
-        (&merged.sums, aov_sums),
-        merged.pixels(),
-        spp,
-        full,
-    );
+    let Written { pixels, layers, .. } =
+        beauty_and_layers(layout.as_ref(), (&merged.sums, aov_sums), merged.pixels(), spp, full);
     let aovs = merged.aovs.as_ref().filter(|_| layout.is_some()).map(|(names, sums)| AovChannels {
         layers: &layers,
         sums: args.sums.then_some((names.as_slice(), sums.as_slice())),

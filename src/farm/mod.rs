@@ -10,12 +10,15 @@
 pub mod fingerprint;
 pub mod frame;
 pub mod job;
+pub mod layers;
 pub mod merge;
 pub mod observer;
+pub mod outputs;
 pub mod part;
 pub mod pattern;
 pub mod plan;
 pub mod progress;
+mod resume;
 pub mod signals;
 
 pub use plume_scene::{frames, split};

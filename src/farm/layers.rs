@@ -1,0 +1,101 @@
+//! What is written of a frame's image: the AOV layout asked for (`--aovs`, `--denoise`),
+//! and the beauty (denoised when the layout holds half sums) and AOV layers computed from
+//! exact sums. Shared by `plume render` (`farm::outputs`) and `plume merge`
+//! (`farm::merge`), so that a merged frame is the single render's.
+
+use crate::farm::plan::Job;
+use crate::load::LoadedScene;
+use plume_engine::film::Crop;
+use plume_engine::integrator::AovLayout;
+
+/// The AOV layout that `output` asks for (`--aovs`, `--denoise`): one layer per light
+/// group of the job's lights, and the half sums with `--denoise`.
+pub(crate) fn layout_for(output: &plume_scene::OutputSettings, job: &Job<'_>) -> Option<AovLayout> {
+    let filtered = plume_engine::denoise::Filtered::for_camera(
+        plume_engine::integrator::Integrator::for_scene(&job.shot.scene).camera_estimator(),
+    );
+    (output.aovs || output.denoise).then(|| AovLayout {
+        groups: job.shot.scene.lights.groups(),
+        halves: output.denoise.then_some(filtered),
+    })
+}
+
+/// The AOV layout of this frame ([`layout_for`]).
+pub(crate) fn aov_layout(job: &Job<'_>, loaded: &LoadedScene) -> Option<AovLayout> {
+    let layout = layout_for(&job.shot.settings.output, job);
+    if let (Some(l), Some(e)) = (&layout, &loaded.scene.lights().external) {
+        debug_assert_eq!(l.groups, e.groups(), "the description's groups are the built lights'");
+    }
+    layout
+}
+
+/// Named `f32` channels (`emission.R`, …), each row-major over the image.
+pub type Layers = Vec<(String, Vec<f32>)>;
+
+/// What is written of an image: its beauty and its AOV layers.
+#[derive(Debug)]
+pub struct Written {
+    /// The beauty, row-major over the image.
+    pub pixels: Vec<[f32; 4]>,
+    /// The AOV layers (with `noisy` when denoised).
+    pub layers: Layers,
+    /// Whether the beauty was denoised.
+    pub denoised: bool,
+}
+
+/// The beauty and the AOV layers of an image (`crop`) from its exact sums `(RGBA, AOV
+/// channels)` over `spp` samples and its noisy beauty: with half sums in the layout (and
+/// samples in both halves) the beauty is denoised ([`plume_engine::denoise::from_sums`]) and the
+/// noisy one becomes the layer `noisy`. Used by `plume render` and `plume merge`, so that
+/// a merged frame is the single render's.
+#[must_use]
+pub fn beauty_and_layers(
+    layout: Option<&AovLayout>,
+    sums: (&[[i128; 4]], &[i128]),
+    noisy: Vec<[f32; 4]>,
+    spp: u64,
+    crop: Crop,
+) -> Written {
+    let Some(layout) = layout else {
+        return Written { pixels: noisy, layers: Vec::new(), denoised: false };
+    };
+    let mut layers = aov_layers(layout, sums.1, &noisy, spp);
+    match plume_engine::denoise::from_sums(
+        layout,
+        sums.0,
+        sums.1,
+        spp,
+        (crop.width() as usize, crop.height() as usize),
+    ) {
+        Some(denoised) => {
+            for (c, name) in ["R", "G", "B", "A"].iter().enumerate() {
+                layers.push((format!("noisy.{name}"), noisy.iter().map(|p| p[c]).collect()));
+            }
+            Written { pixels: denoised, layers, denoised: true }
+        }
+        None => Written { pixels: noisy, layers, denoised: false },
+    }
+}
+
+/// The AOV layers' pixel values from their exact sums (`aov_sums`, `layout.channels()`
+/// per pixel) over `spp` samples, with `alpha` from the beauty: `(name, values)` per
+/// channel.
+#[must_use]
+pub fn aov_layers(layout: &AovLayout, aov_sums: &[i128], beauty: &[[f32; 4]], spp: u64) -> Layers {
+    let (n, n_layers) = (layout.channels(), layout.layer_channels());
+    let names = layout.channel_names();
+    // Every layer channel but depth's hit count, which `depth.Z` divides by
+    let mut layers: Layers = names[..n_layers - 1]
+        .iter()
+        .map(|c| (c.clone(), Vec::with_capacity(beauty.len())))
+        .collect();
+    for sums in aov_sums.chunks_exact(n) {
+        for (layer, v) in
+            layers.iter_mut().zip(layout.pixel(sums, spp, plume_engine::film::pixel_value))
+        {
+            layer.1.push(v);
+        }
+    }
+    layers.push(("alpha.A".into(), beauty.iter().map(|p| p[3]).collect()));
+    layers
+}

@@ -333,107 +333,16 @@ pub fn compare(
     cfg: &CompareConfig,
     on_line: &dyn Fn(&str),
 ) -> Result<CompareReport> {
-    let (w, h) = (scene.shot.scene.camera.width, scene.shot.scene.camera.height);
-    if (reference.width, reference.height) != (w, h) {
-        return Err(Error::invalid(
-            "--reference",
-            format!(
-                "reference is {}x{}, the scene renders {w}x{h}",
-                reference.width, reference.height
-            ),
-        ));
-    }
-    if !(cfg.cpu_seconds.is_finite() && cfg.cpu_seconds > 0.0) || cfg.runs == 0 {
-        return Err(Error::invalid(
-            "--time/--runs",
-            "need a positive CPU time and at least one run",
-        ));
-    }
+    let (w, h) = check_inputs(scene, reference, cfg)?;
     let curve: Vec<f64> = (0..cfg.curve_points.max(1))
         .rev()
         .map(|k| cfg.cpu_seconds / f64::from(1u32 << k))
         .collect();
     let mut raw: Vec<(MethodResult, Vec<RunResult>)> = Vec::new();
     for m in &cfg.methods {
-        let per_method = reset_peak_rss();
-        let proxy = plume_volume::proxy::ProxyGrid::resolution_for(
-            scene.loaded.scene.volume(),
-            m.proxy_resolution.or(scene.shot.scene.integrator.proxy_resolution),
-        );
-        let t = Instant::now();
-        let light_bytes = install_lights(scene, m.light_sampling, proxy)?;
-        let light_build_seconds = t.elapsed().as_secs_f64();
-        let integ = integrator_for(scene, m.estimator, m.light_sampling);
-        let mut runs = Vec::new();
-        for r in 0..cfg.runs {
-            let plan = RunPlan {
-                cpu_checkpoints: curve.clone(),
-                min_spp: cfg.spp.map_or(1, u64::from),
-                seed: scene.shot.settings.render.seed.unwrap_or(0) + u64::from(r),
-                sampler: scene.shot.settings.render.sampler,
-                threads: scene.shot.settings.render.threads,
-            };
-            let res = plume_engine::with_scene!(&scene.loaded.scene, s => progressive::run(s, &integ, &plan, Some(&reference.pixels), cfg.epsilon));
-            let last = res.time_points.last().copied();
-            if let Some(s) = last {
-                on_line(&format!(
-                    "{}: run {}: {} spp in {:.1} CPU s, RMSE {:.4e}",
-                    m.name,
-                    r + 1,
-                    s.spp,
-                    s.cpu_seconds,
-                    s.errors.rmse
-                ));
-            }
-            runs.push(res);
-        }
-        let image = std::mem::take(&mut runs[0].image);
-        for r in &mut runs {
-            // Keep only the figures: the next method's peak RSS should not carry these
-            r.sums = Vec::new();
-            r.image = Vec::new();
-        }
-        let uses_proxy = m.light_sampling == LightSampling::Fnee && !emission_only(scene);
-        let result = MethodResult {
-            method: m.name.clone(),
-            estimator: format!("{:?}", m.estimator),
-            light_sampling: format!("{:?}", m.light_sampling),
-            proxy_resolution: uses_proxy.then_some(proxy),
-            equal_time: Point::of(
-                &runs.iter().filter_map(|r| r.time_points.last().copied()).collect::<Vec<_>>(),
-            ),
-            equal_spp: Point::default(),
-            curve: (0..curve.len())
-                .map(|k| Point::of(&runs.iter().map(|r| r.time_points[k]).collect::<Vec<_>>()))
-                .collect(),
-            samples_per_cpu_second: Spread::of(
-                &runs
-                    .iter()
-                    .map(|r| r.counters.samples as f64 / r.cpu_seconds.max(1e-9))
-                    .collect::<Vec<_>>(),
-            ),
-            light_build_seconds,
-            scene_bytes: scene.loaded.scene.volume().memory_bytes() as u64 + light_bytes,
-            peak_rss_bytes: peak_rss_bytes(),
-            peak_rss_per_method: per_method,
-            nonfinite_samples: runs.iter().map(|r| r.counters.nonfinite_samples).sum(),
-            image,
-        };
-        raw.push((result, runs));
+        raw.push(measure_method(scene, m, reference, cfg, &curve, on_line)?);
     }
-    // Equal spp: as asked, or the largest power of two every run reached
-    let equal_spp = match cfg.spp {
-        Some(n) => u64::from(n),
-        None => {
-            let reached = raw
-                .iter()
-                .flat_map(|(_, runs)| runs.iter().map(|r| r.spp))
-                .min()
-                .unwrap_or(1)
-                .max(1);
-            1u64 << (63 - reached.leading_zeros())
-        }
-    };
+    let equal_spp = equal_spp_point(cfg, &raw);
     let mut methods = Vec::new();
     for (mut result, runs) in raw {
         let snaps: Vec<Snapshot> = runs
@@ -465,6 +374,139 @@ pub fn compare(
         relmse_trim: RELMSE_TRIM,
         methods,
     })
+}
+
+/// The image size, after checking that the reference has it and that the budget is
+/// positive.
+fn check_inputs(
+    scene: &BenchScene,
+    reference: &Reference,
+    cfg: &CompareConfig,
+) -> Result<(u32, u32)> {
+    let (w, h) = (scene.shot.scene.camera.width, scene.shot.scene.camera.height);
+    if (reference.width, reference.height) != (w, h) {
+        return Err(Error::invalid(
+            "--reference",
+            format!(
+                "reference is {}x{}, the scene renders {w}x{h}",
+                reference.width, reference.height
+            ),
+        ));
+    }
+    if !(cfg.cpu_seconds.is_finite() && cfg.cpu_seconds > 0.0) || cfg.runs == 0 {
+        return Err(Error::invalid(
+            "--time/--runs",
+            "need a positive CPU time and at least one run",
+        ));
+    }
+    Ok((w, h))
+}
+
+/// One method: its light structures built (timed), then `cfg.runs` progressive runs with
+/// checkpoints `curve`; its result (without the equal-spp point) and the runs.
+fn measure_method(
+    scene: &mut BenchScene,
+    m: &MethodSpec,
+    reference: &Reference,
+    cfg: &CompareConfig,
+    curve: &[f64],
+    on_line: &dyn Fn(&str),
+) -> Result<(MethodResult, Vec<RunResult>)> {
+    let per_method = reset_peak_rss();
+    let proxy = plume_volume::proxy::ProxyGrid::resolution_for(
+        scene.loaded.scene.volume(),
+        m.proxy_resolution.or(scene.shot.scene.integrator.proxy_resolution),
+    );
+    let t = Instant::now();
+    let light_bytes = install_lights(scene, m.light_sampling, proxy)?;
+    let light_build_seconds = t.elapsed().as_secs_f64();
+    let mut runs = method_runs(scene, m, reference, cfg, curve, on_line);
+    let image = std::mem::take(&mut runs[0].image);
+    for r in &mut runs {
+        // Keep only the figures: the next method's peak RSS should not carry these
+        r.sums = Vec::new();
+        r.image = Vec::new();
+    }
+    let uses_proxy = m.light_sampling == LightSampling::Fnee && !emission_only(scene);
+    let result = MethodResult {
+        method: m.name.clone(),
+        estimator: format!("{:?}", m.estimator),
+        light_sampling: format!("{:?}", m.light_sampling),
+        proxy_resolution: uses_proxy.then_some(proxy),
+        equal_time: Point::of(
+            &runs.iter().filter_map(|r| r.time_points.last().copied()).collect::<Vec<_>>(),
+        ),
+        equal_spp: Point::default(),
+        curve: (0..curve.len())
+            .map(|k| Point::of(&runs.iter().map(|r| r.time_points[k]).collect::<Vec<_>>()))
+            .collect(),
+        samples_per_cpu_second: Spread::of(
+            &runs
+                .iter()
+                .map(|r| r.counters.samples as f64 / r.cpu_seconds.max(1e-9))
+                .collect::<Vec<_>>(),
+        ),
+        light_build_seconds,
+        scene_bytes: scene.loaded.scene.volume().memory_bytes() as u64 + light_bytes,
+        peak_rss_bytes: peak_rss_bytes(),
+        peak_rss_per_method: per_method,
+        nonfinite_samples: runs.iter().map(|r| r.counters.nonfinite_samples).sum(),
+        image,
+    };
+    Ok((result, runs))
+}
+
+/// The `cfg.runs` progressive runs of method `m` (its lights installed), seeds `seed, seed
+/// + 1, …`, each line of progress to `on_line`.
+fn method_runs(
+    scene: &BenchScene,
+    m: &MethodSpec,
+    reference: &Reference,
+    cfg: &CompareConfig,
+    curve: &[f64],
+    on_line: &dyn Fn(&str),
+) -> Vec<RunResult> {
+    let integ = integrator_for(scene, m.estimator, m.light_sampling);
+    let mut runs = Vec::new();
+    for r in 0..cfg.runs {
+        let plan = RunPlan {
+            cpu_checkpoints: curve.to_vec(),
+            min_spp: cfg.spp.map_or(1, u64::from),
+            seed: scene.shot.settings.render.seed.unwrap_or(0) + u64::from(r),
+            sampler: scene.shot.settings.render.sampler,
+            threads: scene.shot.settings.render.threads,
+        };
+        let res = plume_engine::with_scene!(&scene.loaded.scene, s => progressive::run(s, &integ, &plan, Some(&reference.pixels), cfg.epsilon));
+        let last = res.time_points.last().copied();
+        if let Some(s) = last {
+            on_line(&format!(
+                "{}: run {}: {} spp in {:.1} CPU s, RMSE {:.4e}",
+                m.name,
+                r + 1,
+                s.spp,
+                s.cpu_seconds,
+                s.errors.rmse
+            ));
+        }
+        runs.push(res);
+    }
+    runs
+}
+
+/// Equal spp: as asked, or the largest power of two every run reached.
+fn equal_spp_point(cfg: &CompareConfig, raw: &[(MethodResult, Vec<RunResult>)]) -> u64 {
+    match cfg.spp {
+        Some(n) => u64::from(n),
+        None => {
+            let reached = raw
+                .iter()
+                .flat_map(|(_, runs)| runs.iter().map(|r| r.spp))
+                .min()
+                .unwrap_or(1)
+                .max(1);
+            1u64 << (63 - reached.leading_zeros())
+        }
+    }
 }
 
 impl CompareReport {

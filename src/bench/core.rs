@@ -71,6 +71,9 @@ fn emission() -> Emission {
     }
 }
 
+/// Rays of the random-chord DDA benchmark.
+const DDA_RAYS: u64 = 20_000;
+
 /// Run the core benchmark.
 ///
 /// # Errors
@@ -82,16 +85,42 @@ pub fn run(resolution: u32, threads: usize, ttfs_file: &Path) -> Result<CoreRepo
     let em = emission();
     let volume = Volume::build(&ex.density, Some(&ex.temperature), |v| em.map_source(v))?;
     let volume_bytes = volume.memory_bytes() as u64;
+    let (steps, dda_seconds) = random_chord_steps(&volume);
+    let (coherent_steps, coherent_seconds) = coherent_steps(&volume)?;
+    let threads = if threads == 0 {
+        std::thread::available_parallelism().map_or(2, |n| n.get())
+    } else {
+        threads
+    };
+    let (one, many) = render_seconds(volume, em, threads)?;
+    let ttfs = time_to_first_sample(ttfs_file)?;
+    Ok(CoreReport {
+        resolution,
+        voxel_steps_per_second_millions: steps as f64 / dda_seconds / 1e6,
+        coherent_voxel_steps_per_second_millions: coherent_steps as f64 / coherent_seconds / 1e6,
+        dda_rays: DDA_RAYS,
+        render_seconds_1_thread: one,
+        render_seconds_n_threads: many,
+        threads,
+        speedup: one / many,
+        ttfs_file: ttfs_file.display().to_string(),
+        time_to_first_sample_seconds: ttfs,
+        volume_bytes,
+        raw_bytes,
+        memory_ratio: volume_bytes as f64 / raw_bytes as f64,
+    })
+}
 
-    // DDA: random chords between points on a sphere around the volume and points inside.
+/// DDA on random chords between points on a sphere around the volume and points inside:
+/// (raw DDA pieces, seconds).
+fn random_chord_steps(volume: &Volume) -> (u64, f64) {
     let plume_volume::Bounds3 { lo, hi } = volume.world_bounds();
     let centre = 0.5 * (lo + hi);
     let radius = 0.5 * (hi - lo).length();
     let mut sampler = Sampler::new(1, 0, 0);
     let mut steps = 0u64;
-    let rays = 20_000u64;
     let t = Instant::now();
-    for _ in 0..rays {
+    for _ in 0..DDA_RAYS {
         let z = 2.0 * sampler.next_f64() - 1.0;
         let phi = std::f64::consts::TAU * sampler.next_f64();
         let r = (1.0 - z * z).sqrt();
@@ -105,10 +134,13 @@ pub fn run(resolution: u32, threads: usize, ttfs_file: &Path) -> Result<CoreRepo
         }
         steps += it.raw_steps();
     }
-    let dda_seconds = t.elapsed().as_secs_f64();
+    (steps, t.elapsed().as_secs_f64())
+}
 
-    // DDA on coherent rays: a 640×480 camera's rays in 16×16 tiles, as the renderer
-    // traces them.
+/// DDA on coherent rays: a 640×480 camera's rays in 16×16 tiles, as the renderer traces
+/// them: (raw DDA pieces, seconds).
+fn coherent_steps(volume: &Volume) -> Result<(u64, f64)> {
+    let plume_volume::Bounds3 { lo, hi } = volume.world_bounds();
     let camera =
         Camera::frame_bounds(lo, hi, DVec3::new(0.35, 0.25, 1.0), DVec3::Y, 40.0, 640, 480)?;
     let mut coherent_steps = 0u64;
@@ -127,9 +159,13 @@ pub fn run(resolution: u32, threads: usize, ttfs_file: &Path) -> Result<CoreRepo
             }
         }
     }
-    let coherent_seconds = t.elapsed().as_secs_f64();
+    Ok((coherent_steps, t.elapsed().as_secs_f64()))
+}
 
-    // Parallel speed-up of a whole render.
+/// Parallel speed-up of a whole render: wall seconds of the same emission render on 1 and
+/// on `threads` threads (after a warm-up on `threads`).
+fn render_seconds(volume: Volume, em: Emission, threads: usize) -> Result<(f64, f64)> {
+    let plume_volume::Bounds3 { lo, hi } = volume.world_bounds();
     let camera =
         Camera::frame_bounds(lo, hi, DVec3::new(0.35, 0.25, 1.0), DVec3::Y, 40.0, 320, 240)?;
     let scene = Scene {
@@ -154,16 +190,14 @@ pub fn run(resolution: u32, threads: usize, ttfs_file: &Path) -> Result<CoreRepo
         std::hint::black_box(r.spp);
         t.elapsed().as_secs_f64()
     };
-    let threads = if threads == 0 {
-        std::thread::available_parallelism().map_or(2, |n| n.get())
-    } else {
-        threads
-    };
     time_render(threads); // warm-up
     let one = time_render(1);
     let many = time_render(threads);
+    Ok((one, many))
+}
 
-    // Time to first sample on a real file.
+/// Time to first sample on a real file: best of 5 loads, seconds.
+fn time_to_first_sample(ttfs_file: &Path) -> Result<f64> {
     let mut shot = Shot::new(ttfs_file, super::spec::UNUSED_OUTPUT);
     shot.settings.render.quiet = true;
     let shot = shot.validate()?;
@@ -174,21 +208,7 @@ pub fn run(resolution: u32, threads: usize, ttfs_file: &Path) -> Result<CoreRepo
         std::hint::black_box(loaded.scene.camera());
         ttfs = ttfs.min(t.elapsed().as_secs_f64());
     }
-    Ok(CoreReport {
-        resolution,
-        voxel_steps_per_second_millions: steps as f64 / dda_seconds / 1e6,
-        coherent_voxel_steps_per_second_millions: coherent_steps as f64 / coherent_seconds / 1e6,
-        dda_rays: rays,
-        render_seconds_1_thread: one,
-        render_seconds_n_threads: many,
-        threads,
-        speedup: one / many,
-        ttfs_file: ttfs_file.display().to_string(),
-        time_to_first_sample_seconds: ttfs,
-        volume_bytes,
-        raw_bytes,
-        memory_ratio: volume_bytes as f64 / raw_bytes as f64,
-    })
+    Ok(ttfs)
 }
 
 impl std::fmt::Display for CoreReport {

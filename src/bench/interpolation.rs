@@ -19,6 +19,7 @@
 
 pub mod closeup;
 pub mod rule;
+mod switch;
 
 use std::fmt::Write as _;
 use std::path::PathBuf;
@@ -36,6 +37,7 @@ use plume_engine::stats::cpu_seconds;
 use plume_scene::file::with_keys;
 use plume_volume::proxy::ProxyGrid;
 use plume_volume::Interpolation;
+use switch::Switch;
 
 /// A real file of the cost and memory tables, and how it is lit.
 #[derive(Clone, Copy, Debug)]
@@ -293,16 +295,6 @@ pub struct InterpolationReport {
     pub closeup: Option<closeup::CloseupReport>,
     /// Wall seconds of the whole benchmark.
     pub wall_seconds: f64,
-}
-
-/// Moves one scene between reconstructions (the volume is never copied).
-struct Switch(Option<AnyScene>);
-
-impl Switch {
-    fn to(&mut self, interpolation: Interpolation) -> &AnyScene {
-        let s = self.0.take().expect("invariant: the scene is put back after every switch");
-        self.0.insert(s.into_interpolation(interpolation))
-    }
 }
 
 /// CPU seconds and counters of one render of `spp` at seed 0.

@@ -1,6 +1,7 @@
-//! Numbers as benchmark tables and plots show them: 4 significant digits ([`num`]),
-//! short axis labels ([`label`]), `mean ± std` ([`pm`], [`pm_count`]). A leaf: tables
-//! (`outputs`), plots (`plot`) and reports use it.
+//! Numbers as benchmark tables and plots show them: 4 significant digits ([`num`]), the
+//! same without trailing zeros for commands and prose ([`arg`]), short axis labels
+//! ([`label`]), `mean ± std` ([`pm`], [`pm_count`]). A leaf: tables (`outputs`), plots
+//! (`plot`) and reports use it.
 
 use super::metrics::Spread;
 
@@ -17,6 +18,17 @@ pub fn num(v: f64) -> String {
     } else {
         let decimals = (3 - a.log10().floor() as i32).max(0) as usize;
         format!("{v:.decimals$}")
+    }
+}
+
+/// A number for a command line or a sentence: [`num`] without trailing zeros.
+#[must_use]
+pub fn arg(v: f64) -> String {
+    let s = num(v);
+    if s.contains('.') && !s.contains('e') {
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        s
     }
 }
 

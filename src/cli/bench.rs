@@ -1,13 +1,15 @@
 //! `plume bench …`: flags of the benchmarks, turned into the library's options. The
 //! render flags of `plume bench compare` (after `--`) go through the `plume render`
 //! conversion, so every render flag, scene file and validation applies.
+//!
+//! `plume bench compare` and `plume bench flare` are in `bench/compare.rs`; the other
+//! commands' flags are here.
 
 use std::path::PathBuf;
 
-use clap::{ArgMatches, Args, CommandFactory, FromArgMatches, Subcommand};
+use clap::{ArgMatches, Args, Subcommand};
 use plume::bench::interpolation::{closeup::CloseupConfig, rule::RuleConfig, InterpolationConfig};
-use plume::bench::metrics::RELMSE_EPSILON;
-use plume::bench::options::{CompareOptions, ExtremesOptions, InterpolationOptions};
+use plume::bench::options::{ExtremesOptions, InterpolationOptions};
 use plume::bench::report::{Budgets, ReportOptions};
 use plume::bench::write_json;
 use plume_core::error::{Error, Result};
@@ -15,9 +17,11 @@ use plume_engine::integrator::MisHeuristic;
 
 use super::environment::{bench_work_dir, working_dir};
 use super::flags::choice;
-use super::logger::{set_key_names, KeyNames};
-use super::request::RenderRequest;
-use super::{Cli, Command};
+
+mod compare;
+
+use compare::{compare, flare};
+pub use compare::{CompareArgs, FlareArgs};
 
 /// `plume bench …`.
 #[derive(Debug, Subcommand)]
@@ -51,38 +55,6 @@ pub enum BenchCommand {
     /// The whole benchmark suite: writes docs/BENCHMARKS.md, its plots and data (--quick:
     /// the short form, under 20 minutes on 2 cores).
     Report(ReportArgs),
-}
-
-/// `plume bench flare`.
-#[derive(Debug, Args)]
-pub struct FlareArgs {
-    /// Flare resolution (voxels per axis): 4096 is the paper's ≈30 GB.
-    #[arg(long, default_value_t = 4096, value_parser = clap::value_parser!(u32).range(8..=65536))]
-    pub resolution: u32,
-    /// Equal-spp point of both methods (the paper: 128).
-    #[arg(long, default_value_t = 16)]
-    pub spp: u32,
-    /// CPU seconds of the line-fnee reference (two independent halves).
-    #[arg(long, default_value_t = 1800.0)]
-    pub reference_time: f64,
-    /// Scattering albedo.
-    #[arg(long, default_value_t = 0.5)]
-    pub albedo: f64,
-    /// Image size.
-    #[arg(long, default_value_t = 320)]
-    pub width: u32,
-    /// Image size.
-    #[arg(long, default_value_t = 240)]
-    pub height: u32,
-    /// Write flare.csv, flare.json and the plots here.
-    #[arg(long, short)]
-    pub out: Option<PathBuf>,
-    /// Where the flare cache is made (once; reused while it is current).
-    #[arg(long, default_value_os_t = bench_work_dir())]
-    pub work_dir: PathBuf,
-    /// More `plume render` flags after `--` (e.g. `-- --interpolation nearest`).
-    #[arg(last = true)]
-    pub render_flags: Vec<String>,
 }
 
 /// `plume bench methods`.
@@ -135,64 +107,6 @@ pub struct BenchCoreArgs {
     /// Also write the figures as JSON here.
     #[arg(long)]
     pub json: Option<PathBuf>,
-}
-
-/// `plume bench compare`.
-#[derive(Debug, Args)]
-#[command(allow_negative_numbers = true)]
-pub struct CompareArgs {
-    /// The scene: a .vdb file, `explosion:RES[:SEED]` (a generated explosion), or a
-    /// scene file (.toml; its volume file may be such a spec).
-    pub scene: String,
-    /// Methods, comma-separated: presets (point-nee, line-nee, line-fnee, ray-march) or
-    /// ESTIMATOR+LIGHTS (point|line|ray-march|blend + none|nee|fnee, e.g. line+none,
-    /// blend+fnee), each optionally @N for an N³ FNEE proxy (line-fnee@16). The first is
-    /// the baseline of ratios.
-    #[arg(long, default_value = "point-nee,line-nee,line-fnee,ray-march")]
-    pub methods: String,
-    /// CPU seconds per method and run (the equal-time budget; user + system time of all
-    /// threads).
-    #[arg(long, default_value_t = 8.0)]
-    pub time: f64,
-    /// Equal-spp point: runs continue to at least this spp. Default: the largest power of
-    /// two that every run reaches within --time.
-    #[arg(long)]
-    pub spp: Option<u32>,
-    /// Runs (seeds) per method; figures are mean ± std over runs.
-    #[arg(long, default_value_t = 3)]
-    pub runs: u32,
-    /// Reference image (EXR of the same size, e.g. a long `plume render`).
-    #[arg(long, conflicts_with = "make_reference")]
-    pub reference: Option<PathBuf>,
-    /// Compute the reference: ray-march (expected value, forward only) for emission-only
-    /// scenes, a long line-fnee run otherwise.
-    #[arg(long)]
-    pub make_reference: bool,
-    /// CPU seconds for --make-reference (default: 16 × --time).
-    #[arg(long)]
-    pub reference_time: Option<f64>,
-    /// Also save the computed reference as EXR here.
-    #[arg(long)]
-    pub save_reference: Option<PathBuf>,
-    /// ε of relMSE, (x − ref)²/(ref² + ε), an absolute radiance².
-    #[arg(long, default_value_t = RELMSE_EPSILON)]
-    pub epsilon: f64,
-    /// Points on the error-vs-time curve (at T/2^k).
-    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(1..=12))]
-    pub curve_points: u32,
-    /// Write NAME.csv, NAME.json, NAME-error.png and NAME-crops.png here.
-    #[arg(long, short)]
-    pub out: Option<PathBuf>,
-    /// NAME of the output files (default: `compare`).
-    #[arg(long, default_value = "compare")]
-    pub name: String,
-    /// Where generated explosions are written.
-    #[arg(long, default_value_os_t = bench_work_dir())]
-    pub work_dir: PathBuf,
-    /// `plume render` flags after `--`, e.g. `-- --density-scale 20 --albedo 0.8 --width
-    /// 320 --height 240 --threads 2`. --method, --spp, --time and -o are not used here.
-    #[arg(last = true)]
-    pub render_flags: Vec<String>,
 }
 
 /// `plume bench extremes`.
@@ -408,52 +322,9 @@ pub fn run(command: BenchCommand, _matches: Option<&ArgMatches>) -> Result<()> {
             print!("{}", report.table());
             report.verdict()
         }
-        BenchCommand::Interpolation(args) => {
-            if !(args.time.is_finite() && args.time > 0.0) {
-                return Err(Error::invalid(
-                    "--time",
-                    format!("{} must be a positive number of CPU seconds", args.time),
-                ));
-            }
-            if !(args.closeup_pixels_per_voxel.is_finite() && args.closeup_pixels_per_voxel > 0.0) {
-                return Err(Error::invalid(
-                    "--closeup-pixels-per-voxel",
-                    format!("{} must be positive", args.closeup_pixels_per_voxel),
-                ));
-            }
-            let markdown =
-                InterpolationOptions { config: args.config(), json: args.json.clone() }.run()?;
-            print!("{markdown}");
-            Ok(())
-        }
+        BenchCommand::Interpolation(args) => interpolation(&args),
         BenchCommand::Flare(args) => flare(&args),
-        BenchCommand::Demo(args) => {
-            for (flag, v) in [
-                ("--target-seconds", args.target_seconds),
-                ("--target-rel-rmse", args.target_rel_rmse),
-            ] {
-                if !(v.is_finite() && v > 0.0) {
-                    return Err(Error::invalid(flag, format!("{v} must be a positive number")));
-                }
-            }
-            let exe = std::env::current_exe()
-                .map_err(|e| Error::Scene(format!("cannot find the plume binary: {e}")))?;
-            let config = plume::bench::demo::DemoConfig {
-                exe,
-                scene: args.scene,
-                seeds: args.seeds,
-                reference_spp: args.reference_spp,
-                reference_seeds: args.reference_seeds,
-                references: args.references,
-                work_dir: args.work_dir,
-                working_dir: working_dir(),
-                target_seconds: args.target_seconds,
-                target_rel_rmse: args.target_rel_rmse,
-            };
-            let report = plume::bench::demo::run(&config)?;
-            print!("{}", report.table());
-            write_json(&args.json, &report)
-        }
+        BenchCommand::Demo(args) => demo(args),
         BenchCommand::Report(args) => ReportOptions {
             out: args.out,
             budgets: Budgets::form(args.quick).with_overrides(args.time_scale, args.resolution),
@@ -466,81 +337,51 @@ pub fn run(command: BenchCommand, _matches: Option<&ArgMatches>) -> Result<()> {
     }
 }
 
-/// `plume bench flare`: make the cache if it is missing, then `bench compare` of line-fnee
-/// and line-nee (brick table: the voxel table of a 4096³ flare would need about 90 GiB)
-/// at `--spp`, one run each, against a computed line-fnee reference.
-fn flare(args: &FlareArgs) -> Result<()> {
-    let cache = args.work_dir.join(format!("flare{}.plume", args.resolution));
-    if !cache.exists() {
-        std::fs::create_dir_all(&args.work_dir).map_err(|e| {
-            Error::invalid("--work-dir", format!("{}: {e}", args.work_dir.display()))
-        })?;
-        eprintln!("plume: making {} (once)", cache.display());
-        super::files::synth_flare_command(&super::files::SynthFlareArgs {
-            resolution: args.resolution,
-            output: cache.clone(),
-            seed: 1,
-        })?;
+/// `plume bench interpolation`: the budgets checked, then the tables on stdout.
+fn interpolation(args: &InterpolationArgs) -> Result<()> {
+    if !(args.time.is_finite() && args.time > 0.0) {
+        return Err(Error::invalid(
+            "--time",
+            format!("{} must be a positive number of CPU seconds", args.time),
+        ));
     }
-    let mut render_flags: Vec<String> = [
-        "--nee-table",
-        "brick",
-        "--albedo",
-        &args.albedo.to_string(),
-        "--width",
-        &args.width.to_string(),
-        "--height",
-        &args.height.to_string(),
-    ]
-    .iter()
-    .map(ToString::to_string)
-    .collect();
-    render_flags.extend(args.render_flags.iter().cloned());
-    let compare = CompareArgs {
-        scene: cache.display().to_string(),
-        methods: "line-fnee,line-nee".into(),
-        // Equal spp: every run stops at --spp (the CPU budget is reached at once)
-        time: 1e-3,
-        spp: Some(args.spp),
-        runs: 1,
-        reference: None,
-        make_reference: true,
-        reference_time: Some(args.reference_time),
-        save_reference: args.out.as_ref().map(|o| o.join("flare-reference.exr")),
-        epsilon: RELMSE_EPSILON,
-        curve_points: 1,
-        out: args.out.clone(),
-        name: "flare".into(),
-        work_dir: args.work_dir.clone(),
-        render_flags,
+    if !(args.closeup_pixels_per_voxel.is_finite() && args.closeup_pixels_per_voxel > 0.0) {
+        return Err(Error::invalid(
+            "--closeup-pixels-per-voxel",
+            format!("{} must be positive", args.closeup_pixels_per_voxel),
+        ));
+    }
+    let markdown = InterpolationOptions { config: args.config(), json: args.json.clone() }.run()?;
+    print!("{markdown}");
+    Ok(())
+}
+
+/// `plume bench demo`: the targets checked, then the README's demo rendered by this binary.
+fn demo(args: DemoArgs) -> Result<()> {
+    for (flag, v) in
+        [("--target-seconds", args.target_seconds), ("--target-rel-rmse", args.target_rel_rmse)]
+    {
+        if !(v.is_finite() && v > 0.0) {
+            return Err(Error::invalid(flag, format!("{v} must be a positive number")));
+        }
+    }
+    let exe = std::env::current_exe()
+        .map_err(|e| Error::Scene(format!("cannot find the plume binary: {e}")))?;
+    let config = plume::bench::demo::DemoConfig {
+        exe,
+        scene: args.scene,
+        seeds: args.seeds,
+        reference_spp: args.reference_spp,
+        reference_seeds: args.reference_seeds,
+        references: args.references,
+        work_dir: args.work_dir,
+        working_dir: working_dir(),
+        target_seconds: args.target_seconds,
+        target_rel_rmse: args.target_rel_rmse,
     };
-    self::compare(&compare)
-}
-
-/// `plume bench compare`: the table on stdout, then the files under `--out`.
-fn compare(args: &CompareArgs) -> Result<()> {
-    let options = compare_options(args);
-    let report = options.run(compare_scene(args)?)?;
-    print!("{report}");
-    options.write(&report)
-}
-
-/// The library's options of `plume bench compare`.
-fn compare_options(args: &CompareArgs) -> CompareOptions {
-    CompareOptions {
-        methods: args.methods.clone(),
-        time: args.time,
-        spp: args.spp,
-        runs: args.runs,
-        reference: args.reference.clone(),
-        make_reference: args.make_reference,
-        reference_time: args.reference_time,
-        save_reference: args.save_reference.clone(),
-        epsilon: args.epsilon,
-        curve_points: args.curve_points,
-        out: args.out.clone(),
-        name: args.name.clone(),
-    }
+    let report = plume::bench::demo::run(&config)?;
+    print!("{}", report.table());
+    write_json(&args.json, &report)
 }
 
 /// An error's key renamed to the flag.
@@ -551,46 +392,13 @@ fn rename(e: Error, key: &str, flag: &str) -> Error {
     }
 }
 
-/// The scene of `plume bench compare`: SCENE and the render flags after `--`, through
-/// the `plume render` conversion (the output is a placeholder, never written).
-fn compare_scene(args: &CompareArgs) -> Result<plume::bench::spec::BenchScene> {
-    let placeholder = std::env::temp_dir().join("plume-bench-unused.exr");
-    let mut argv: Vec<String> = vec![
-        "plume".into(),
-        "render".into(),
-        args.scene.clone(),
-        "-o".into(),
-        placeholder.display().to_string(),
-    ];
-    argv.extend(args.render_flags.iter().cloned());
-    let bad = |e: clap::Error| {
-        let msg = e.to_string();
-        Error::invalid(
-            "render flags",
-            msg.lines().next().unwrap_or_default().trim_start_matches("error: ").to_string(),
-        )
-    };
-    let matches = Cli::command().try_get_matches_from(&argv).map_err(bad)?;
-    let cli = Cli::from_arg_matches(&matches).map_err(bad)?;
-    let Command::Render(render) = cli.command else {
-        unreachable!("invariant: parsed a render command")
-    };
-    let sub = matches.subcommand().map(|(_, m)| m).expect("invariant: a render subcommand");
-    let request = RenderRequest::try_from((&*render, sub))?;
-    set_key_names(KeyNames::of(&request.origin));
-    plume::bench::spec::load(
-        request.shot.clone().into_inner(),
-        args.render_flags.clone(),
-        &args.work_dir,
-    )
-    .map_err(|e| request.origin.explain(e))
-}
-
 #[cfg(test)]
 mod tests {
     use clap::Parser;
 
+    use super::compare::compare_scene;
     use super::*;
+    use crate::cli::{Cli, Command};
 
     #[test]
     fn render_flags_go_through_the_render_parser() {

@@ -20,7 +20,7 @@ use std::time::Instant;
 use glam::DVec3;
 use serde::Serialize;
 
-use super::Switch;
+use super::switch::Switch;
 use crate::bench::progressive::{accumulate, average};
 use crate::bench::spec::{bench_shot, load_file};
 use plume_core::error::{Error, Result};

@@ -4,7 +4,8 @@
 
 use std::fmt::Write as _;
 
-use super::*;
+use super::budgets::{Budgets, ReportOptions};
+use crate::bench::numbers::arg;
 
 /// Ideas measured and not kept: the idea, its measured effect, why it was not kept. The
 /// figures are those measured when each was tried.
@@ -277,7 +278,8 @@ pub fn check_document(md: &str) -> Vec<String> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bench::report::sections::{DEMO_INTRO, EXTREMES_INTRO};
+    use crate::bench::report::groups::GROUPS;
+    use crate::bench::report::sections::{CYCLES, DEMO_INTRO, EXTREMES_INTRO, OUT_OF_CORE};
 
     #[test]
     fn history_finds_hashes_dates_issues_and_days() {
@@ -349,12 +351,5 @@ mod tests {
         let without = format!("{head}## A\n\n| a |\n|---|\n| 1 |\n\n{}", ideas_section());
         assert_eq!(check_document(&without).len(), 1, "{:?}", check_document(&without));
         assert_eq!(check_document(&format!("{head}{head}{}", ideas_section())).len(), 1);
-    }
-
-    #[test]
-    fn overrides_replace_only_what_is_given() {
-        assert_eq!(Budgets::form(true).with_overrides(None, None), Budgets::QUICK);
-        let b = Budgets::form(false).with_overrides(Some(0.5), None);
-        assert_eq!((b.time_scale, b.resolution, b.quick, b.demo), (0.5, 256, false, true));
     }
 }

@@ -1,28 +1,27 @@
 //! Renderer options at equal CPU time, each against the default on one scene ([`GROUPS`]):
 //! tracking, splitting, splitting by brightness, forced camera collisions, stochastic
-//! point lookups, and motion blur against the still image.
+//! point lookups, and motion blur against the still image. What each group measures is
+//! here; `group_section` runs one and writes its section.
 
-use std::fmt::Write as _;
-
-use super::*;
+use std::path::{Path, PathBuf};
 
 /// One renderer option's values, compared at equal CPU time on one scene.
 pub(super) struct Group {
     /// Section title.
     pub(super) title: &'static str,
     /// File name stem of its scene files and JSON.
-    name: &'static str,
+    pub(super) name: &'static str,
     /// What it measures.
     pub(super) intro: &'static str,
     /// The scene all variants share.
-    base: Base,
+    pub(super) base: Base,
     /// The method of every run.
-    method: &'static str,
+    pub(super) method: &'static str,
     /// Each value: a label, the flag it is on the command line, its scene-file keys.
-    variants: &'static [(&'static str, &'static str, &'static str)],
+    pub(super) variants: &'static [(&'static str, &'static str, &'static str)],
     /// One reference, of the base scene, for every variant (the variants render the same
     /// image in expectation); otherwise each variant computes its own.
-    shared_reference: bool,
+    pub(super) shared_reference: bool,
 }
 
 /// A scene of the option groups.
@@ -35,7 +34,8 @@ pub(super) enum Base {
 }
 
 impl Base {
-    fn name(self) -> &'static str {
+    /// File name stem of its scene file and saved reference.
+    pub(super) fn name(self) -> &'static str {
         match self {
             Base::Kelvin40 => "kelvin40",
             Base::Demo => "demo-scene",
@@ -43,7 +43,7 @@ impl Base {
     }
 
     /// The scene spec (under `data`) and its scene-file keys.
-    fn spec(self, data: &Path) -> (PathBuf, &'static str) {
+    pub(super) fn spec(self, data: &Path) -> (PathBuf, &'static str) {
         match self {
             Base::Kelvin40 => (
                 data.join("explosion/mantaflow_explosion_kelvin_0040.vdb"),
@@ -56,7 +56,8 @@ impl Base {
         }
     }
 
-    fn about(self) -> &'static str {
+    /// The scene in words, for the section.
+    pub(super) fn about(self) -> &'static str {
         match self {
             Base::Kelvin40 => "`explosion/mantaflow_explosion_kelvin_0040.vdb` (Blender's explosion, frame 40, blackbody from the Kelvin grid) as the Cycles comparison renders it: `--convention cycles --albedo 0.8 --up-axis z`, 128×128, line-fnee",
             Base::Demo => "the README demo's scene (the generated explosion 128³, σ_t = 4, albedo 0.8, g 0.3, ray-marched camera segment, 6 paths per camera collision, 32³ proxy) at 160×120, line-fnee",
@@ -143,155 +144,3 @@ pub(super) const GROUPS: [Group; 6] = [
         shared_reference: false,
     },
 ];
-
-/// One option group: every variant at equal CPU time against the base scene's reference
-/// (or its own); a table, the commands, the JSON.
-pub(super) fn group_section(suite: &mut Suite<'_>, group: &Group) -> Result<()> {
-    let title = format!("## {}", group.title);
-    (suite.log)(&format!("== {}", group.title));
-    let (spec, base_keys) = group.base.spec(&suite.args.data);
-    if group.base == Base::Kelvin40 && !spec.exists() {
-        let _ = writeln!(
-            suite.md,
-            "{title}\n\n{}\n\nNot measured: {} was not found.\n",
-            group.intro,
-            spec.display()
-        );
-        suite.skipped.push(format!("the {} section (data file missing)", group.name));
-        return Ok(());
-    }
-    let spec = spec.display().to_string();
-    let reference_seconds =
-        suite.seconds(REFERENCE_SECONDS) / if group.shared_reference { 1.0 } else { 2.0 };
-    let saved = suite.args.work_dir.join(format!("{}-reference.exr", group.base.name()));
-    let mut commands = Vec::new();
-    let shared = if group.shared_reference {
-        let (_, file, _) = suite.write_scene(group.base.name(), &spec, &[base_keys])?;
-        commands.push(suite.compare_command(
-            &file,
-            group.method,
-            1,
-            &RefArg::MakeAndSave(reference_seconds, &saved),
-            None,
-        ));
-        Some(base_reference(suite, group.base, (&spec, base_keys), reference_seconds, &saved)?)
-    } else {
-        None
-    };
-    let wall = Instant::now();
-    let mut rows = Vec::new();
-    for &(label, flags, keys) in group.variants {
-        let stem = format!("{}-{}", group.name, label.split(' ').next().unwrap_or(label));
-        let (_, file, text) = suite.write_scene(&stem, &spec, &[base_keys, keys])?;
-        commands.push(match &shared {
-            Some(_) => suite.compare_command(&file, group.method, 1, &RefArg::Given(&saved), None),
-            None => suite.compare_command(
-                &file,
-                group.method,
-                1,
-                &RefArg::Make(reference_seconds),
-                None,
-            ),
-        });
-        if let Some((_, r)) =
-            suite.measured.iter().find(|(t, _)| *t == text).filter(|_| shared.is_some())
-        {
-            rows.push((label, flags, r.clone()));
-            continue;
-        }
-        let (mut scene, _) = suite.scene(&stem, &spec, &[base_keys, keys])?;
-        let own;
-        let reference = match &shared {
-            Some(r) => r,
-            None => {
-                own = make_reference(&mut scene, reference_seconds, suite.log)?;
-                &own
-            }
-        };
-        let cfg = suite.config(&scene, group.method, 1)?;
-        let report = compare(&mut scene, reference, &cfg, suite.log)?;
-        if shared.is_some() {
-            suite.measured.push((text, report.clone()));
-        }
-        rows.push((label, flags, report));
-    }
-    let wall = wall.elapsed().as_secs_f64();
-    let json = suite.bench_dir().join(format!("{}.json", group.name));
-    let value: Vec<serde_json::Value> =
-        rows.iter().map(|(label, flags, r)| serde_json::json!({ "variant": label, "flags": flags, "report": r })).collect();
-    crate::bench::write_json(&Some(json), &value)?;
-    let run_seconds = suite.seconds(RUN_SECONDS);
-    let md = &mut suite.md;
-    let _ = writeln!(md, "{title}\n\n{}\n", group.intro);
-    let _ = writeln!(
-        md,
-        "Scene: {}. {} runs (seeds) per variant of {} CPU s each, mean ± std. Reference: {}. Efficiency = 1/(RMSE² · CPU s), relative to the first row.\n",
-        group.base.about(),
-        RUNS,
-        arg(run_seconds),
-        if group.shared_reference {
-            format!("one, of the scene with the default settings: {}", rows[0].2.reference.description)
-        } else {
-            "each variant's own, a long line-fnee run".to_string()
-        }
-    );
-    let _ = writeln!(md, "| variant | flags | spp | samples / CPU s | RMSE | relMSE | bias | efficiency |\n|---|---|---|---|---|---|---|---|");
-    let base_cost = rows.first().map_or(f64::NAN, |(_, _, r)| cost(r));
-    for (label, flags, r) in &rows {
-        let m = &r.methods[0];
-        let e = &m.equal_time;
-        let _ = writeln!(
-            md,
-            "| {label} | {} | {} | {} | {} | {} | {} | {:.2}× |",
-            if flags.is_empty() { "–".to_string() } else { format!("`{flags}`") },
-            pm_count(&e.spp),
-            num(m.samples_per_cpu_second.mean),
-            pm(&e.rmse),
-            pm(&e.relmse),
-            pm(&e.bias),
-            base_cost / cost(r)
-        );
-    }
-    let _ = writeln!(
-        md,
-        "\n```sh\n{}\n```\n\nThe scene files are in `bench/scenes`{}. Data: [`bench/{name}.json`](bench/{name}.json). Section wall time {wall:.0} s.\n",
-        commands.join("\n"),
-        if group.shared_reference { "; the first command makes and saves the reference the others read" } else { "" },
-        name = group.name
-    );
-    Ok(())
-}
-
-/// RMSE² × CPU s of a one-method comparison: the inverse of its efficiency.
-pub(super) fn cost(r: &CompareReport) -> f64 {
-    let e = &r.methods[0].equal_time;
-    e.rmse.mean.powi(2) * e.cpu_seconds.mean
-}
-
-/// The reference of a base scene (`spec` with `keys`), computed once per report and saved
-/// to `saved`, which the commands read.
-pub(super) fn base_reference(
-    suite: &mut Suite<'_>,
-    base: Base,
-    (spec, keys): (&str, &str),
-    seconds: f64,
-    saved: &Path,
-) -> Result<Reference> {
-    if let Some((_, r)) = suite.references.iter().find(|(b, _)| *b == base) {
-        return Ok(r.clone());
-    }
-    (suite.log)(&format!("== reference of {}", base.name()));
-    let (mut scene, _) = suite.scene(base.name(), spec, &[keys])?;
-    let r = make_reference(&mut scene, seconds, suite.log)?;
-    std::fs::create_dir_all(&suite.args.work_dir)
-        .map_err(|source| Error::Write { path: suite.args.work_dir.clone(), source })?;
-    crate::output::write_exr(
-        saved,
-        r.width,
-        r.height,
-        &r.pixels,
-        &[("plume:reference".to_string(), r.description.clone())],
-    )?;
-    suite.references.push((base, r.clone()));
-    Ok(r)
-}

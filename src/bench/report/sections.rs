@@ -1,9 +1,39 @@
-//! The sections that run other benchmarks (interpolation, numerical extremes, the README
-//! demo) and the ones that give commands only (out of core, the Cycles comparison).
+//! The sections that run other benchmarks (the core figures, interpolation, numerical
+//! extremes, the README demo) and the ones that give commands only (out of core, the
+//! Cycles comparison).
 
 use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
 
-use super::*;
+use super::suite::Suite;
+use crate::bench::demo::DemoReport;
+use plume_core::error::{Error, Result};
+
+/// The README demo's scene file, relative to the working directory.
+const DEMO_SCENE: &str = "data/explosion.toml";
+
+/// `plume bench core` at the budgets' resolution, timed on the openvdb.org smoke.
+pub(super) fn core_section(suite: &mut Suite<'_>) -> Result<()> {
+    (suite.log)("== core");
+    let res = suite.args.budgets.core_resolution;
+    let ttfs = suite.args.data.join("smoke/openvdb_org_smoke1.vdb");
+    let title = "## Core renderer";
+    if !ttfs.exists() {
+        let _ = writeln!(suite.md, "{title}\n\nNot measured: {} was not found.\n", ttfs.display());
+        suite.skipped.push("the core figures (data file missing)".into());
+        return Ok(());
+    }
+    let report = crate::bench::core::run(res, 0, &ttfs)?;
+    let json = suite.bench_dir().join("core.json");
+    crate::bench::write_json(&Some(json.clone()), &report)?;
+    let _ = writeln!(
+        suite.md,
+        "{title}\n\nThe renderer's own speed on the generated explosion ({res}³, blackbody, emission only): hierarchical DDA voxel steps per second on one core, for camera rays in tile order and for random chords (every brick a cold miss); the speed-up of a whole render on all cores against one; the time from opening a real file to the first sample; and the brick volume's memory against the raw f32 voxels it holds.\n\n{report}\n```sh\nplume bench core --resolution {res} --ttfs-file {} --json {}\n```\n",
+        ttfs.display(),
+        json.display()
+    );
+    Ok(())
+}
 
 /// Trilinear against nearest ([`crate::bench::interpolation`]), its picture in `DIR/img`, its
 /// JSON in `DIR/bench`; skipped when a data file is missing.
@@ -68,76 +98,38 @@ pub(super) const EXTREMES_INTRO: &str = "Boxes of constant density and emission 
 - *invalid voxels*: NaN, ±inf and negative density and emission voxels must be clamped to 0 by the volume builder and counted exactly, and the image must be bit-identical to the box with zeros there. Through `plume render`, negative voxels in a file are clamped with a warning that gives the exact count (checked through the binary in `tests/bench.rs`); NaN and ±inf in a *file* are refused earlier, by the VDB reader, as a corrupt file (exit 3, naming the file and the count), so they never reach the clamp.\n\
 Stochastic tolerances are 5 standard errors (the larger of the pixel spread and METHOD.md §4's variance for a homogeneous segment); ray-march 1e-4 relative (2e-3 for blackbody: the table's accuracy).";
 
-/// Seeds of the README demo's timed renders, and of its references.
-pub(super) const DEMO_SEEDS: [u64; 3] = [0, 2, 3];
-pub(super) const DEMO_REFERENCE_SEEDS: [u64; 2] = [11, 12];
-pub(super) const DEMO_REFERENCE_SPP: u32 = 512;
+/// Seeds of the README demo's timed renders.
+const DEMO_SEEDS: [u64; 3] = [0, 2, 3];
+/// Seeds of the README demo's references.
+const DEMO_REFERENCE_SEEDS: [u64; 2] = [11, 12];
+/// Samples per pixel of each README demo reference.
+const DEMO_REFERENCE_SPP: u32 = 512;
 
 pub(super) const DEMO_INTRO: &str = "The README's first picture: `scripts/demo.sh` renders the sample scene file `data/explosion.toml` (the generated explosion 128³, 640×480, 32 spp, scattering, denoised). `plume bench demo` renders that file as a user would, one `plume render` process per seed, and measures the wall time of the whole process and the image's relRMSE over the smoke against two 512-spp references with other seeds (their own noise subtracted), and the largest speck: a covered pixel's luminance against the median of its 5×5 neighbourhood. Targets: under a minute, relRMSE ≤ 0.03.";
+
+/// The title of the README demo's section.
+const DEMO_TITLE: &str = "## README demo";
+
+/// Seeds as a command takes them: comma-separated.
+fn seed_list(s: &[u64]) -> String {
+    s.iter().map(ToString::to_string).collect::<Vec<_>>().join(",")
+}
 
 /// `plume bench demo` on the README's scene file (full form only).
 pub(super) fn demo_section(suite: &mut Suite<'_>) -> Result<()> {
     let work = suite.args.work_dir.join("demo");
     let json = suite.bench_dir().join("demo.json");
-    let seeds = |s: &[u64]| s.iter().map(ToString::to_string).collect::<Vec<_>>().join(",");
     let command = format!(
         "plume bench demo --scene {DEMO_SCENE} --seeds {} --reference-spp {DEMO_REFERENCE_SPP} --reference-seeds {} --work-dir {} --json {}",
-        seeds(&DEMO_SEEDS),
-        seeds(&DEMO_REFERENCE_SEEDS),
+        seed_list(&DEMO_SEEDS),
+        seed_list(&DEMO_REFERENCE_SEEDS),
         work.display(),
         json.display()
     );
-    let title = "## README demo";
     let scene = suite.args.working_dir.join(DEMO_SCENE);
-    let not_run = |why: &str| {
-        format!("{title}\n\n{DEMO_INTRO}\n\n{why} Measure it with (after `scripts/demo.sh`, which makes its volume):\n\n```sh\n{command}\n```\n")
-    };
-    let exe = match (&suite.args.exe, suite.args.budgets.demo) {
-        (_, false) => {
-            let _ = writeln!(
-                suite.md,
-                "{}",
-                not_run("The quick form does not run this section: its two references are 512-spp renders of the demo's 640×480, each 16 times the demo's own 32 spp (they are then kept in the work directory). The full form runs it.")
-            );
-            suite.skipped.push("the README demo".into());
-            return Ok(());
-        }
-        (None, true) => {
-            let _ = writeln!(
-                suite.md,
-                "{}",
-                not_run("Not measured: no `plume` binary was given to render it.")
-            );
-            suite.skipped.push("the README demo (no binary to render it)".into());
-            return Ok(());
-        }
-        (Some(exe), true) => exe.clone(),
-    };
-    if !scene.exists() {
-        let _ = writeln!(
-            suite.md,
-            "{}",
-            not_run(&format!(
-                "Not measured: {} was not found (run the report from the repository root).",
-                scene.display()
-            ))
-        );
-        suite.skipped.push("the README demo (scene file missing)".into());
-        return Ok(());
-    }
+    let Some(exe) = demo_exe(suite, &scene, &command) else { return Ok(()) };
     (suite.log)("== README demo");
-    // The volume, made as scripts/demo.sh makes it when it is missing
-    let (shot, _) = plume_scene::file::SceneFile::read(&scene)?;
-    let volume = &shot.scene.volume.file;
-    if !volume.exists() {
-        let generated = crate::bench::spec::scene_file("explosion:128:1", &suite.args.work_dir)?;
-        if let Some(dir) = volume.parent().filter(|d| !d.as_os_str().is_empty()) {
-            std::fs::create_dir_all(dir)
-                .map_err(|source| Error::Write { path: dir.to_path_buf(), source })?;
-        }
-        std::fs::copy(&generated, volume)
-            .map_err(|source| Error::Write { path: volume.clone(), source })?;
-    }
+    make_demo_volume(&scene, &suite.args.work_dir)?;
     let config = crate::bench::demo::DemoConfig {
         exe,
         scene,
@@ -152,13 +144,76 @@ pub(super) fn demo_section(suite: &mut Suite<'_>) -> Result<()> {
     };
     let report = crate::bench::demo::run(&config)?;
     crate::bench::write_json(&Some(json.clone()), &report)?;
-    let md = &mut suite.md;
+    demo_text(&mut suite.md, &report, &command);
+    Ok(())
+}
+
+/// The binary that renders the demo, when this form runs it and its scene file is there;
+/// otherwise `None`, with the section saying why and how to measure it (`command`).
+fn demo_exe(suite: &mut Suite<'_>, scene: &Path, command: &str) -> Option<PathBuf> {
+    let not_run = |why: &str| {
+        format!("{DEMO_TITLE}\n\n{DEMO_INTRO}\n\n{why} Measure it with (after `scripts/demo.sh`, which makes its volume):\n\n```sh\n{command}\n```\n")
+    };
+    let exe = match (&suite.args.exe, suite.args.budgets.demo) {
+        (_, false) => {
+            let _ = writeln!(
+                suite.md,
+                "{}",
+                not_run("The quick form does not run this section: its two references are 512-spp renders of the demo's 640×480, each 16 times the demo's own 32 spp (they are then kept in the work directory). The full form runs it.")
+            );
+            suite.skipped.push("the README demo".into());
+            return None;
+        }
+        (None, true) => {
+            let _ = writeln!(
+                suite.md,
+                "{}",
+                not_run("Not measured: no `plume` binary was given to render it.")
+            );
+            suite.skipped.push("the README demo (no binary to render it)".into());
+            return None;
+        }
+        (Some(exe), true) => exe.clone(),
+    };
+    if !scene.exists() {
+        let _ = writeln!(
+            suite.md,
+            "{}",
+            not_run(&format!(
+                "Not measured: {} was not found (run the report from the repository root).",
+                scene.display()
+            ))
+        );
+        suite.skipped.push("the README demo (scene file missing)".into());
+        return None;
+    }
+    Some(exe)
+}
+
+/// The demo's volume, made as scripts/demo.sh makes it when it is missing.
+fn make_demo_volume(scene: &Path, work_dir: &Path) -> Result<()> {
+    let (shot, _) = plume_scene::file::SceneFile::read(scene)?;
+    let volume = &shot.scene.volume.file;
+    if !volume.exists() {
+        let generated = crate::bench::spec::scene_file("explosion:128:1", work_dir)?;
+        if let Some(dir) = volume.parent().filter(|d| !d.as_os_str().is_empty()) {
+            std::fs::create_dir_all(dir)
+                .map_err(|source| Error::Write { path: dir.to_path_buf(), source })?;
+        }
+        std::fs::copy(&generated, volume)
+            .map_err(|source| Error::Write { path: volume.clone(), source })?;
+    }
+    Ok(())
+}
+
+/// The demo's section: its references, one row per seed, the command and the targets.
+fn demo_text(md: &mut String, report: &DemoReport, command: &str) {
     let _ = writeln!(
         md,
-        "{title}\n\n{DEMO_INTRO}\n\nReferences: {} × {} spp (seeds {}), their noise {:.4} of the mean, subtracted.\n\n| seed | wall s | CPU s | relRMSE | mean ÷ reference | largest speck (pixel) |\n|---|---|---|---|---|---|",
+        "{DEMO_TITLE}\n\n{DEMO_INTRO}\n\nReferences: {} × {} spp (seeds {}), their noise {:.4} of the mean, subtracted.\n\n| seed | wall s | CPU s | relRMSE | mean ÷ reference | largest speck (pixel) |\n|---|---|---|---|---|---|",
         report.reference_seeds.len(),
         report.reference_spp,
-        seeds(&report.reference_seeds),
+        seed_list(&report.reference_seeds),
         report.runs.first().map_or(0.0, |r| r.error.reference_noise)
     );
     for r in &report.runs {
@@ -185,7 +240,6 @@ pub(super) fn demo_section(suite: &mut Suite<'_>) -> Result<()> {
         report.target_rel_rmse,
         yes(report.runs.iter().all(|r| r.error.rel_rmse <= report.target_rel_rmse))
     );
-    Ok(())
 }
 
 /// The out-of-core benchmarks, which neither form runs: commands only.

@@ -269,7 +269,6 @@ impl Integrator {
 
     /// [`Integrator::li_aovs`], or with `defer`, up to the camera segment's collision
     /// ([`Integrator::li_deferring`]).
-    #[allow(clippy::too_many_lines)]
     fn li_camera<F: Field, T: Trace, A: Aovs>(
         &self,
         scene: &Scene<F>,

@@ -219,16 +219,11 @@ impl ProxySampling for ProxyGrid {
         let Some((t_start, t_end)) = clip_to_box(o, d, lo, hi, 0.0, f64::INFINITY) else {
             return 0.0;
         };
-        let (cell_at, face_ahead, exits) = (
-            |a, t| line.cell_at(a, t),
-            |a, lo, hi| line.face_ahead(a, lo, hi),
-            |lo, hi| line.exits(lo, hi),
-        );
         let (occupied_lo, occupied_hi) = (self.occupied_lo, self.occupied_hi);
         let inside = |c: IVec3| c.cmpge(occupied_lo).all() && c.cmplt(occupied_hi).all();
         let mut c = IVec3::ZERO;
         for a in 0..3 {
-            c[a] = cell_at(a, t_start).clamp(occupied_lo[a], occupied_hi[a] - 1);
+            c[a] = line.cell_at(a, t_start).clamp(occupied_lo[a], occupied_hi[a] - 1);
         }
         let (nx, ny) = (self.dims.x as usize, self.dims.y as usize);
         let (bx, by) = (self.block_dims.x as usize, self.block_dims.y as usize);
@@ -236,13 +231,13 @@ impl ProxySampling for ProxyGrid {
         let mut sum = 0.0f64;
         // The current cell's exits, kept from step to step: a step recomputes only the
         // axes it crossed (from the exact face, as every crossing is)
-        let mut ta = exits(c, c + 1);
+        let mut ta = line.exits(c, c + 1);
         loop {
             let b = c / BLOCK;
             if !self.block_occupied[b.x as usize + bx * (b.y as usize + by * b.z as usize)] {
                 // Cross a block without emission in one step
                 let (lo, hi) = (b * BLOCK, (b * BLOCK + BLOCK).min(self.dims));
-                let tb = exits(lo, hi);
+                let tb = line.exits(lo, hi);
                 let t_exit = tb[0].min(tb[1]).min(tb[2]);
                 if t_exit >= t_end {
                     break;
@@ -256,13 +251,13 @@ impl ProxySampling for ProxyGrid {
                             lo[a] - 1
                         }
                     } else {
-                        cell_at(a, t_exit).clamp(lo[a], hi[a] - 1)
+                        line.cell_at(a, t_exit).clamp(lo[a], hi[a] - 1)
                     };
                 }
                 if !inside(c) {
                     break;
                 }
-                ta = exits(c, c + 1);
+                ta = line.exits(c, c + 1);
                 continue;
             }
             // Step one cell
@@ -282,7 +277,7 @@ impl ProxySampling for ProxyGrid {
             for a in 0..3 {
                 if ta[a] == t_exit {
                     c[a] += if d[a] > 0.0 { 1 } else { -1 };
-                    ta[a] = face_ahead(a, c[a], c[a] + 1);
+                    ta[a] = line.face_ahead(a, c[a], c[a] + 1);
                 }
             }
             if !inside(c) {

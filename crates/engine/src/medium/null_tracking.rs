@@ -304,15 +304,11 @@ pub fn ratio_transmittance(
             if s >= seg.t1 {
                 break;
             }
-            weight *= 1.0
-                - (medium.mu_t(density_of(field, picks, ray.at(s), sampler)) / mu_bar)
-                    .clamp(0.0, 1.0);
-            if weight < RAY_MARCH_ROULETTE_THRESHOLD {
-                let q = weight / RAY_MARCH_ROULETTE_THRESHOLD;
-                if sampler.next_f64() >= q {
-                    return 0.0;
-                }
-                weight = RAY_MARCH_ROULETTE_THRESHOLD;
+            let ratio = (medium.mu_t(density_of(field, picks, ray.at(s), sampler)) / mu_bar)
+                .clamp(0.0, 1.0);
+            weight = ratio_weight(weight, ratio, sampler);
+            if weight == 0.0 {
+                return 0.0;
             }
         }
     }

@@ -223,3 +223,39 @@ fn numerical_extremes_give_finite_pixels() {
         }
     }
 }
+
+/// `plume render --help` groups every flag under a heading; `-h` shows the flags most
+/// renders use and leaves the tuning flags to `--help`.
+#[test]
+fn render_help_is_grouped_and_short_help_leaves_out_tuning_flags() {
+    let text = |flag: &str| {
+        let o = common::plume(&["render", flag]);
+        assert!(o.status.success(), "render {flag}");
+        String::from_utf8(o.stdout).unwrap()
+    };
+    let long = text("--help");
+    for heading in [
+        "Output:",
+        "Sampling:",
+        "Camera:",
+        "Volume and grids:",
+        "Medium:",
+        "Lights:",
+        "Motion:",
+        "Method:",
+        "Farm:",
+        "Out of core:",
+        "Advanced:",
+    ] {
+        assert!(long.lines().any(|l| l == heading), "--help lacks the heading {heading:?}");
+    }
+    let short = text("-h");
+    for common in ["--spp", "--albedo", "--method", "--denoise", "--frames", "--memory-budget"] {
+        assert!(short.contains(common), "-h lacks {common}");
+    }
+    for tuning in ["--point-lookup", "--nee-table", "--kappa", "--defer-paths", "--tracking"] {
+        assert!(!short.contains(tuning), "-h shows the tuning flag {tuning}");
+        assert!(long.contains(tuning), "--help lacks {tuning}");
+    }
+    assert!(!long.contains("--sampler"), "--sampler is a scene key only");
+}

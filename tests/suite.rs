@@ -11,6 +11,7 @@
 mod common;
 
 mod aovs;
+mod batch_slurm;
 mod bench;
 mod cache;
 mod cli;
@@ -21,6 +22,7 @@ mod denoise;
 mod environment_map;
 mod estimators;
 mod farm;
+
 mod faults;
 mod forced_collision;
 mod fuzz_mutants;
@@ -38,6 +40,7 @@ mod point_lookup;
 mod render;
 mod sampling;
 mod scene_file;
+
 mod split_by;
 mod stream;
 mod synth_flare_cli;

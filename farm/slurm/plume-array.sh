@@ -14,7 +14,10 @@
 # style %04d when tiling, since this script fills it in for the merge), FIRST, LAST,
 # CHUNK (1), SPP (64), WIDTH (640), HEIGHT (480), TILES (1), SAMPLE_SPLITS (1),
 # EXTRA_ARGS (more `plume render` flags, split at spaces), SBATCH_ARGS (more sbatch
-# flags, e.g. "--partition=render --time=02:00:00 --requeue").
+# flags, e.g. "--partition=render --time=02:00:00 --mem=8G --requeue"; they override the
+# #SBATCH lines below). The output directory is created at submission. With memory
+# confined by Slurm (task/cgroup, ConstrainRAMSpace=yes), plume sizes its memory budget
+# from --mem and renders a brick cache larger than it tile by tile (docs/farm.md).
 #
 # plume writes atomically, skips complete outputs and continues interrupted ones, so
 # requeued or resubmitted tasks finish only what is missing. Slurm sends SIGTERM at the
@@ -52,6 +55,7 @@ case "${1:-submit}" in
 submit)
     # shellcheck disable=SC2206
     sbatch_args=($SBATCH_ARGS)
+    mkdir -p "$(dirname "$OUTPUT")"
     if (( parts_per_frame == 1 )); then
         tasks=$(( (frames + CHUNK - 1) / CHUNK ))
         sbatch --parsable --array=0-$(( tasks - 1 )) --export=ALL "${sbatch_args[@]}" "$0" render

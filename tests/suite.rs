@@ -19,6 +19,7 @@ mod cli_lights;
 mod cli_method;
 mod deferred_paths;
 mod denoise;
+mod dense_tracking;
 mod environment_map;
 mod estimators;
 mod farm;

@@ -159,6 +159,14 @@ impl MajorantGrid {
         self.edge
     }
 
+    /// About how many voxels `ray` crosses per unit of its parameter: the L1 norm of its
+    /// direction in index space (each unit of `|d_x|` crosses one voxel face along x).
+    #[must_use]
+    pub fn voxel_crossings_per_length(&self, ray: &Ray) -> f64 {
+        let d = self.index_from_world.transform_vector3(ray.direction);
+        d.x.abs() + d.y.abs() + d.z.abs()
+    }
+
     /// Bytes held.
     #[must_use]
     pub fn memory_bytes(&self) -> usize {

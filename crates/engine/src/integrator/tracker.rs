@@ -21,7 +21,9 @@ use super::buffered::{Ask, BufferedPoints, Request};
 use crate::medium::emission::EmissionMemo;
 use crate::medium::forced::SplitFirsts;
 use crate::medium::null_tracking::{null_track, ratio_transmittance, PointField, PointSample};
-use crate::medium::tracking::{optical_depth, track_split, OpticalDepth};
+use crate::medium::tracking::{
+    expected_stretch, free_path_stretch, optical_depth, track_split, OpticalDepth, StretchWalk,
+};
 use crate::medium::{track, Collision, Estimator, Medium, TrackResult};
 use plume_core::sampling::Sampler;
 pub use plume_scene::sets::{PointLookup, Tracking};
@@ -78,6 +80,7 @@ impl<F: Field> Copy for Tracker<'_, F> {}
 /// points along a ray share voxels).
 pub(super) struct Points<'a, F: Field> {
     field: &'a F,
+    medium: &'a Medium,
     motion: Option<(&'a Motion, f64)>,
     memo: EmissionMemo<'a>,
     /// Tentative points read one voxel picked by its weight ([`PointLookup::picks_density`]
@@ -97,7 +100,8 @@ impl<'a, F: Field> Points<'a, F> {
         let fewer = field.picks_fewer();
         let (picks, picks_emission) =
             (fewer && lookup.picks_density(), fewer && lookup.picks_emission());
-        Points { field, motion, memo: EmissionMemo::new(&medium.emission), picks, picks_emission }
+        let memo = EmissionMemo::new(&medium.emission);
+        Points { field, medium, motion, memo, picks, picks_emission }
     }
 
     #[inline]
@@ -156,6 +160,39 @@ impl<F: Field> PointField for Points<'_, F> {
         self.field.albedo_at(self.source_point(p))
     }
 
+    #[inline]
+    fn walks_exactly(&self) -> bool {
+        self.motion.is_none()
+    }
+
+    fn exact_stretch(
+        &self,
+        ray: &Ray,
+        t0: f64,
+        t1: f64,
+        estimator: Estimator,
+        e: f64,
+    ) -> Option<StretchWalk> {
+        self.walks_exactly()
+            .then(|| free_path_stretch(self.field, self.medium, ray, t0, t1, estimator, e))
+    }
+
+    fn expected_stretch(
+        &self,
+        ray: &Ray,
+        t0: f64,
+        t1: f64,
+        need_collision: bool,
+        e: f64,
+        weight: f64,
+        sampler: &mut Sampler,
+    ) -> Option<TrackResult> {
+        self.walks_exactly().then(|| {
+            let (field, medium) = (self.field, self.medium);
+            expected_stretch(field, medium, ray, t0, t1, need_collision, e, weight, sampler)
+        })
+    }
+
     fn sample(&self, p: glam::DVec3, emission: bool) -> PointSample {
         let q = self.source_point(p);
         let albedo = self.field.albedo_at(q);
@@ -190,25 +227,32 @@ const MAX_READ_AHEAD_POINTS: usize = 512;
 /// Deferred paths (`integrator::deferred`) use the same walk to learn which values a
 /// segment will ask for, each with what it asks ([`Ask`]) and the number a picked lookup
 /// draws.
-pub(super) struct Recorder {
+pub(super) struct Recorder<'a> {
     requests: std::cell::RefCell<Vec<Request>>,
     /// Most requests kept.
     cap: usize,
     /// As the real walk's field: the walk draws a number per read when it picks.
     picks: bool,
     picks_emission: bool,
+    /// The field of the walk it mirrors where that walk tracks dense stretches exactly:
+    /// the recording walk tracks them the same way (reading their voxels now), so that
+    /// its tentative points after them are the real walk's.
+    exact: Option<&'a dyn PointField>,
 }
 
-impl Recorder {
+impl<'a> Recorder<'a> {
     /// A recorder that draws what the walk through `points` draws, keeping at most `cap`
     /// requests.
-    fn mirroring<F: Field>(points: &Points<'_, F>, cap: usize) -> Recorder {
-        Recorder::with_picks(points.picks, points.picks_emission, cap)
+    fn mirroring<F: Field>(points: &'a Points<'_, F>, cap: usize) -> Recorder<'a> {
+        let recorder = Recorder::with_picks(points.picks, points.picks_emission, cap);
+        let exact = points.walks_exactly().then_some(points as &dyn PointField);
+        Recorder { exact, ..recorder }
     }
 
     /// A recorder of a walk whose field picks as said.
-    pub(super) fn with_picks(picks: bool, picks_emission: bool, cap: usize) -> Recorder {
-        Recorder { requests: std::cell::RefCell::default(), cap, picks, picks_emission }
+    pub(super) fn with_picks(picks: bool, picks_emission: bool, cap: usize) -> Recorder<'a> {
+        let requests = std::cell::RefCell::default();
+        Recorder { requests, cap, picks, picks_emission, exact: None }
     }
 
     fn record(&self, p: glam::DVec3, ask: Ask, u: f64) {
@@ -224,7 +268,7 @@ impl Recorder {
     }
 }
 
-impl PointField for Recorder {
+impl PointField for Recorder<'_> {
     fn picks(&self) -> bool {
         self.picks
     }
@@ -254,6 +298,31 @@ impl PointField for Recorder {
     fn sample(&self, p: glam::DVec3, _emission: bool) -> PointSample {
         self.record(p, Ask::Albedo, 0.0);
         PointSample::default()
+    }
+    fn walks_exactly(&self) -> bool {
+        self.exact.is_some()
+    }
+    fn exact_stretch(
+        &self,
+        ray: &Ray,
+        t0: f64,
+        t1: f64,
+        estimator: Estimator,
+        e: f64,
+    ) -> Option<StretchWalk> {
+        self.exact?.exact_stretch(ray, t0, t1, estimator, e)
+    }
+    fn expected_stretch(
+        &self,
+        ray: &Ray,
+        t0: f64,
+        t1: f64,
+        need_collision: bool,
+        e: f64,
+        weight: f64,
+        sampler: &mut Sampler,
+    ) -> Option<TrackResult> {
+        self.exact?.expected_stretch(ray, t0, t1, need_collision, e, weight, sampler)
     }
 }
 

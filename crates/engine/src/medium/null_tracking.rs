@@ -37,6 +37,20 @@
 //! The point estimator scores `L_e(x)/μ(x)` at the real collision. Blend (a per-voxel
 //! mix) has no voxels to mix over here and is refused before rendering.
 //!
+//! **Dense stretches.** A stretch of majorant `μ̄` costs `μ̄ ℓ` tentative points on
+//! average, without bound as the density grows, while regular tracking costs the voxels
+//! it crosses. Where a field can walk its voxels (a still volume) and `μ̄` exceeds
+//! [`DENSE_TENTATIVE_PER_VOXEL`] tentative points per voxel crossed, the stretch is
+//! tracked exactly ([`PointField::exact_stretch`], [`PointField::expected_stretch`]) with
+//! what is left of the free path's exponential: delta tracking's `e` left at the
+//! stretch's start is `Exp(1)` whatever came before (memorylessness), so it serves as the
+//! target optical depth of the exact walk, and on escape `e − τ_stretch` is again `Exp(1)`
+//! for the next stretch. The free path keeps its law; the line estimate is exact over
+//! such a stretch, the point estimate scores where the exact walk collides, and ray-march
+//! multiplies its ratio-tracking weight by the stretch's exact transmittance (its roulette
+//! applies to the product). Every estimate stays unbiased, and a segment costs at most
+//! about its voxels, whatever the density.
+//!
 //! Randomness: the first step uses the segment's `u` (a stratified dimension); every
 //! later number comes from the sample's hashed stream, so a sample stays a pure function
 //! of its key.
@@ -45,6 +59,7 @@ use super::coefficients::Medium;
 use super::free_path::{
     sample_exponential, DistanceSample, TrackResult, RAY_MARCH_ROULETTE_THRESHOLD,
 };
+use super::tracking::StretchWalk;
 use plume_core::sampling::Sampler;
 use plume_scene::Estimator;
 use plume_volume::field::Ray;
@@ -97,7 +112,45 @@ pub trait PointField {
     fn emission_picked(&self, p: glam::DVec3, _u: f64) -> [f64; 3] {
         self.emission(p)
     }
+    /// Whether the field can walk its voxels exactly ([`PointField::exact_stretch`]): a
+    /// still volume can, a moving one cannot.
+    fn walks_exactly(&self) -> bool {
+        false
+    }
+    /// Regular tracking of `[t0, t1]` of `ray` against the exponential `e`
+    /// (`medium::tracking::free_path_stretch`), where [`PointField::walks_exactly`].
+    fn exact_stretch(
+        &self,
+        _ray: &Ray,
+        _t0: f64,
+        _t1: f64,
+        _estimator: Estimator,
+        _e: f64,
+    ) -> Option<StretchWalk> {
+        None
+    }
+    /// The ray-march walk of `[t0, t1]` of `ray` (`medium::tracking::expected_stretch`),
+    /// where [`PointField::walks_exactly`].
+    // Each argument is a distinct input of the walk (randomness stays an argument: STYLE §3)
+    #[allow(clippy::too_many_arguments)]
+    fn expected_stretch(
+        &self,
+        _ray: &Ray,
+        _t0: f64,
+        _t1: f64,
+        _need_collision: bool,
+        _e: f64,
+        _weight: f64,
+        _sampler: &mut Sampler,
+    ) -> Option<TrackResult> {
+        None
+    }
 }
+
+/// Tentative points per voxel crossed above which a stretch is walked exactly: there a
+/// regular walk (one closed form per voxel) costs less than the tentative points, whose
+/// number grows with the density (module docs, "Dense stretches").
+pub const DENSE_TENTATIVE_PER_VOXEL: f64 = 1.0;
 
 /// `field`'s density at `p`, picked with a number of `sampler`'s when `picks` (the
 /// field's [`PointField::picks`], asked once per walk).
@@ -163,9 +216,50 @@ pub fn null_track(
     // needs it; classic NEE is refused with motion blur)
     let mut od_to_collision = 0.0f64;
     let mut done = false;
+    // Above this majorant a stretch costs more tentative points than voxels: walked exactly
+    let dense = if field.walks_exactly() {
+        DENSE_TENTATIVE_PER_VOXEL * majorants.voxel_crossings_per_length(ray)
+    } else {
+        f64::INFINITY
+    };
+    let mut exact_steps = 0u64;
     for seg in majorants.segments(ray, 0.0, t_max) {
         segments += 1;
         let mu_bar = medium.mu_t(seg.bounds.density);
+        if mu_bar > dense && expected {
+            let collide = need_collision && event == DistanceSample::Escaped;
+            let (t0, t1) = (seg.t0, seg.t1);
+            if let Some(walk) = field.expected_stretch(ray, t0, t1, collide, e, weight, sampler) {
+                exact_steps += walk.voxel_steps;
+                add(&mut f, walk.emission, 1.0);
+                weight = walk.transmittance;
+                if collide {
+                    if let DistanceSample::Collided { .. } = walk.event {
+                        event = walk.event;
+                        od_to_collision = f64::NAN;
+                    } else {
+                        e -= walk.optical_depth;
+                    }
+                }
+                if weight == 0.0 && (event != DistanceSample::Escaped || !need_collision) {
+                    break;
+                }
+                continue;
+            }
+        } else if mu_bar > dense {
+            if let Some(walk) = field.exact_stretch(ray, seg.t0, seg.t1, estimator, e) {
+                exact_steps += walk.voxel_steps;
+                add(&mut f, walk.emission, 1.0);
+                if let Some(collision) = walk.collision {
+                    event = collision;
+                    od_to_collision = f64::NAN;
+                    break;
+                }
+                // What is left of the exponential, by memorylessness again Exp(1)
+                e -= walk.optical_depth;
+                continue;
+            }
+        }
         let emits = seg.bounds.source > 0.0;
         let mut s = seg.t0;
         loop {
@@ -238,7 +332,7 @@ pub fn null_track(
         transmittance,
         optical_depth: od_to_collision,
         segments,
-        voxel_steps: u64::from(segments),
+        voxel_steps: u64::from(segments) + exact_steps,
         collision_weight: 1.0,
     }
 }

@@ -59,10 +59,14 @@ pub fn track<F: Field>(
         // A forced walk is its own instance, so that walks without one run the code they ran
         // before forcing existed, with no branch or buffer of it
         Estimator::RayMarch if collision == Collision::Forced => {
-            track_expected::<F, true>(field, medium, ray, t_max, collision, u, sampler, None)
+            let start = MarchStart::whole(u);
+            track_expected::<F, true>(field, medium, ray, start, t_max, collision, u, sampler, None)
         }
         Estimator::RayMarch => {
-            track_expected::<F, false>(field, medium, ray, t_max, collision, u, sampler, None)
+            let start = MarchStart::whole(u);
+            track_expected::<F, false>(
+                field, medium, ray, start, t_max, collision, u, sampler, None,
+            )
         }
         _ => track_free_path(field, medium, ray, t_max, estimator, u),
     }
@@ -86,7 +90,18 @@ pub(crate) fn track_split<F: Field>(
     split: SplitFirsts<'_>,
 ) -> TrackResult {
     if estimator == Estimator::RayMarch && collision == Collision::Forced {
-        track_expected::<F, true>(field, medium, ray, t_max, collision, u, sampler, Some(split))
+        let start = MarchStart::whole(u);
+        track_expected::<F, true>(
+            field,
+            medium,
+            ray,
+            start,
+            t_max,
+            collision,
+            u,
+            sampler,
+            Some(split),
+        )
     } else {
         track(field, medium, ray, t_max, estimator, collision, u, sampler)
     }
@@ -100,12 +115,56 @@ fn track_free_path<F: Field>(
     estimator: Estimator,
     u: f64,
 ) -> TrackResult {
-    let memo = EmissionMemo::new(&medium.emission);
     let e = sample_exponential(u);
+    let walk = free_path_stretch(field, medium, ray, 0.0, t_max, estimator, e);
+    TrackResult {
+        event: walk.collision.unwrap_or(DistanceSample::Escaped),
+        emission: walk.emission,
+        transmittance: if walk.collision.is_some() { 0.0 } else { 1.0 },
+        optical_depth: walk.optical_depth,
+        segments: walk.segments,
+        voxel_steps: walk.voxel_steps,
+        collision_weight: 1.0,
+    }
+}
+
+/// What a free-path walk over a stretch of a ray found ([`free_path_stretch`]).
+#[derive(Clone, Copy, Debug)]
+pub struct StretchWalk {
+    /// The collision, if the free path ended in the stretch.
+    pub collision: Option<DistanceSample>,
+    /// The point, line or blend estimate over the stretch (up to the collision).
+    pub emission: [f64; 3],
+    /// The optical depth walked: `e` at a collision, the stretch's on escape.
+    pub optical_depth: f64,
+    /// Pieces visited.
+    pub segments: u32,
+    /// Voxel steps of the traversal.
+    pub voxel_steps: u64,
+}
+
+/// Regular tracking of `ray` over `[t0, t1]` against the exponential `e` (the free path
+/// ends where the optical depth from `t0` reaches `e`), with the point, line or blend
+/// estimate of the emission collected on the way. A whole free path is the stretch
+/// `[0, t_max]` with `e = −ln(1 − u)`; null-collision tracking hands dense stretches of
+/// its walk here with what is left of its exponential (`medium::null_tracking`).
+///
+/// # Panics
+/// For [`Estimator::RayMarch`] (an expected-value walk, `track_expected`).
+pub fn free_path_stretch<F: Field>(
+    field: &F,
+    medium: &Medium,
+    ray: &Ray,
+    t0: f64,
+    t1: f64,
+    estimator: Estimator,
+    e: f64,
+) -> StretchWalk {
+    let memo = EmissionMemo::new(&medium.emission);
     let mut od = 0.0f64;
     let mut f = [0.0f64; 3];
     let mut segments = 0u32;
-    let mut it = field.segments(ray, 0.0, t_max);
+    let mut it = field.segments(ray, t0, t1);
     let collision = it.visit(|piece| {
         segments += 1;
         let Some(seg) = piece.constant() else {
@@ -147,26 +206,11 @@ fn track_free_path<F: Field>(
         }
         ControlFlow::Continue(())
     });
-    match collision {
-        ControlFlow::Break(event) => TrackResult {
-            event,
-            emission: f,
-            transmittance: 0.0,
-            optical_depth: e,
-            segments,
-            voxel_steps: it.voxel_steps(),
-            collision_weight: 1.0,
-        },
-        ControlFlow::Continue(()) => TrackResult {
-            event: DistanceSample::Escaped,
-            emission: f,
-            transmittance: 1.0,
-            optical_depth: od,
-            segments,
-            voxel_steps: it.voxel_steps(),
-            collision_weight: 1.0,
-        },
-    }
+    let (collision, optical_depth) = match collision {
+        ControlFlow::Break(event) => (Some(event), e),
+        ControlFlow::Continue(()) => (None, od),
+    };
+    StretchWalk { collision, emission: f, optical_depth, segments, voxel_steps: it.voxel_steps() }
 }
 
 #[inline]
@@ -382,12 +426,53 @@ fn draw_forced<P: Piece>(
     forced.draw(medium, u)
 }
 
+/// Where a ray-march walk starts: at `t0`, with the exponential `e` of its free path and
+/// the weight it carries (the roulette's, and ratio tracking's before a dense stretch).
+#[derive(Clone, Copy, Debug)]
+struct MarchStart {
+    t0: f64,
+    e: f64,
+    weight: f64,
+}
+
+impl MarchStart {
+    /// A whole segment's walk: from 0, with `E = −ln(1 − u)` and weight 1.
+    fn whole(u: f64) -> MarchStart {
+        MarchStart { t0: 0.0, e: sample_exponential(u), weight: 1.0 }
+    }
+}
+
+/// The ray-march walk of `ray` over `[t0, t1]` for null-collision tracking's dense
+/// stretches (`medium::null_tracking`): `e` is what is left of the free path's exponential
+/// and `weight` ratio tracking's weight so far. The result's emission carries the weight,
+/// its transmittance is the weight after the stretch (0 once the roulette ends the
+/// march), and with `need_collision` its event is the collision where the optical depth
+/// from `t0` reaches `e`.
+// Each argument is a distinct input of the walk (randomness stays an argument: STYLE §3)
+#[allow(clippy::too_many_arguments)]
+pub fn expected_stretch<F: Field>(
+    field: &F,
+    medium: &Medium,
+    ray: &Ray,
+    t0: f64,
+    t1: f64,
+    need_collision: bool,
+    e: f64,
+    weight: f64,
+    sampler: &mut Sampler,
+) -> TrackResult {
+    let collision = if need_collision { Collision::Analog } else { Collision::Skip };
+    let start = MarchStart { t0, e, weight };
+    track_expected::<F, false>(field, medium, ray, start, t1, collision, 0.0, sampler, None)
+}
+
 // Each argument is a distinct input of the walk (randomness stays an argument: STYLE §3)
 #[allow(clippy::too_many_arguments)]
 fn track_expected<F: Field, const FORCED: bool>(
     field: &F,
     medium: &Medium,
     ray: &Ray,
+    start: MarchStart,
     t_max: f64,
     collision: Collision,
     u: f64,
@@ -398,9 +483,9 @@ fn track_expected<F: Field, const FORCED: bool>(
     // The analog free path is drawn on the way; a forced one once the walk is done
     let need_collision = collision == Collision::Analog;
     let mut forced = FORCED.then(ForcedCollision::new);
-    let e = sample_exponential(u);
+    let e = start.e;
     let mut od = 0.0f64;
-    let mut weight = 1.0f64; // roulette weight
+    let mut weight = start.weight; // roulette weight
     let mut f = [0.0f64; 3];
     let mut segments = 0u32;
     let mut event = DistanceSample::Escaped;
@@ -409,7 +494,7 @@ fn track_expected<F: Field, const FORCED: bool>(
     let mut xi: Option<f64> = None;
     // Below this optical depth the roulette cannot fire at the current weight
     let mut roulette_free_below = roulette_free_depth(weight);
-    let mut it = field.segments(ray, 0.0, t_max);
+    let mut it = field.segments(ray, start.t0, t_max);
     let _ = it.visit(|piece| {
         segments += 1;
         let len = piece.length();

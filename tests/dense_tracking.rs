@@ -16,9 +16,7 @@ use plume_core::sampling::Sampler;
 use plume_engine::medium::null_tracking::{
     null_track, PointField, PointSample, DENSE_TENTATIVE_PER_VOXEL,
 };
-use plume_engine::medium::tracking::{
-    expected_stretch, free_path_stretch, optical_depth, StretchWalk,
-};
+use plume_engine::medium::tracking::{optical_depth, walk_stretch, StretchKind, StretchWalk};
 use plume_engine::medium::{
     track, Collision, Convention, DistanceSample, Emission, EmissionKind, Estimator, Medium,
     TemperatureMap, TrackResult,
@@ -86,23 +84,10 @@ impl<F: Field> PointField for Still<'_, F> {
         ray: &Ray,
         t0: f64,
         t1: f64,
-        estimator: Estimator,
-        e: f64,
-    ) -> Option<StretchWalk> {
-        Some(free_path_stretch(self.field, self.medium, ray, t0, t1, estimator, e))
-    }
-    fn expected_stretch(
-        &self,
-        ray: &Ray,
-        t0: f64,
-        t1: f64,
-        need_collision: bool,
-        e: f64,
-        weight: f64,
+        kind: StretchKind,
         sampler: &mut Sampler,
-    ) -> Option<TrackResult> {
-        let (f, m) = (self.field, self.medium);
-        Some(expected_stretch(f, m, ray, t0, t1, need_collision, e, weight, sampler))
+    ) -> Option<StretchWalk> {
+        Some(walk_stretch(self.field, self.medium, ray, t0, t1, kind, sampler))
     }
 }
 

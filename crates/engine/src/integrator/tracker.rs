@@ -22,7 +22,7 @@ use crate::medium::emission::EmissionMemo;
 use crate::medium::forced::SplitFirsts;
 use crate::medium::null_tracking::{null_track, ratio_transmittance, PointField, PointSample};
 use crate::medium::tracking::{
-    expected_stretch, free_path_stretch, optical_depth, track_split, OpticalDepth, StretchWalk,
+    optical_depth, track_split, walk_stretch, OpticalDepth, StretchKind, StretchWalk,
 };
 use crate::medium::{track, Collision, Estimator, Medium, TrackResult};
 use plume_core::sampling::Sampler;
@@ -170,27 +170,11 @@ impl<F: Field> PointField for Points<'_, F> {
         ray: &Ray,
         t0: f64,
         t1: f64,
-        estimator: Estimator,
-        e: f64,
+        kind: StretchKind,
+        sampler: &mut Sampler,
     ) -> Option<StretchWalk> {
         self.walks_exactly()
-            .then(|| free_path_stretch(self.field, self.medium, ray, t0, t1, estimator, e))
-    }
-
-    fn expected_stretch(
-        &self,
-        ray: &Ray,
-        t0: f64,
-        t1: f64,
-        need_collision: bool,
-        e: f64,
-        weight: f64,
-        sampler: &mut Sampler,
-    ) -> Option<TrackResult> {
-        self.walks_exactly().then(|| {
-            let (field, medium) = (self.field, self.medium);
-            expected_stretch(field, medium, ray, t0, t1, need_collision, e, weight, sampler)
-        })
+            .then(|| walk_stretch(self.field, self.medium, ray, t0, t1, kind, sampler))
     }
 
     fn sample(&self, p: glam::DVec3, emission: bool) -> PointSample {
@@ -307,22 +291,10 @@ impl PointField for Recorder<'_> {
         ray: &Ray,
         t0: f64,
         t1: f64,
-        estimator: Estimator,
-        e: f64,
-    ) -> Option<StretchWalk> {
-        self.exact?.exact_stretch(ray, t0, t1, estimator, e)
-    }
-    fn expected_stretch(
-        &self,
-        ray: &Ray,
-        t0: f64,
-        t1: f64,
-        need_collision: bool,
-        e: f64,
-        weight: f64,
+        kind: StretchKind,
         sampler: &mut Sampler,
-    ) -> Option<TrackResult> {
-        self.exact?.expected_stretch(ray, t0, t1, need_collision, e, weight, sampler)
+    ) -> Option<StretchWalk> {
+        self.exact?.exact_stretch(ray, t0, t1, kind, sampler)
     }
 }
 

@@ -41,7 +41,7 @@
 //! average, without bound as the density grows, while regular tracking costs the voxels
 //! it crosses. Where a field can walk its voxels (a still volume) and `μ̄` exceeds
 //! [`DENSE_TENTATIVE_PER_VOXEL`] tentative points per voxel crossed, the stretch is
-//! tracked exactly ([`PointField::exact_stretch`], [`PointField::expected_stretch`]) with
+//! tracked exactly ([`PointField::exact_stretch`]) with
 //! what is left of the free path's exponential: delta tracking's `e` left at the
 //! stretch's start is `Exp(1)` whatever came before (memorylessness), so it serves as the
 //! target optical depth of the exact walk, and on escape `e − τ_stretch` is again `Exp(1)`
@@ -59,7 +59,7 @@ use super::coefficients::Medium;
 use super::free_path::{
     sample_exponential, DistanceSample, TrackResult, RAY_MARCH_ROULETTE_THRESHOLD,
 };
-use super::tracking::StretchWalk;
+use super::tracking::{StretchKind, StretchWalk};
 use plume_core::sampling::Sampler;
 use plume_scene::Estimator;
 use plume_volume::field::Ray;
@@ -117,32 +117,16 @@ pub trait PointField {
     fn walks_exactly(&self) -> bool {
         false
     }
-    /// Regular tracking of `[t0, t1]` of `ray` against the exponential `e`
-    /// (`medium::tracking::free_path_stretch`), where [`PointField::walks_exactly`].
+    /// Regular tracking of `[t0, t1]` of `ray` as `kind` says
+    /// (`medium::tracking::walk_stretch`), where [`PointField::walks_exactly`].
     fn exact_stretch(
         &self,
         _ray: &Ray,
         _t0: f64,
         _t1: f64,
-        _estimator: Estimator,
-        _e: f64,
-    ) -> Option<StretchWalk> {
-        None
-    }
-    /// The ray-march walk of `[t0, t1]` of `ray` (`medium::tracking::expected_stretch`),
-    /// where [`PointField::walks_exactly`].
-    // Each argument is a distinct input of the walk (randomness stays an argument: STYLE §3)
-    #[allow(clippy::too_many_arguments)]
-    fn expected_stretch(
-        &self,
-        _ray: &Ray,
-        _t0: f64,
-        _t1: f64,
-        _need_collision: bool,
-        _e: f64,
-        _weight: f64,
+        _kind: StretchKind,
         _sampler: &mut Sampler,
-    ) -> Option<TrackResult> {
+    ) -> Option<StretchWalk> {
         None
     }
 }
@@ -183,6 +167,79 @@ fn add(f: &mut [f64; 3], e: [f64; 3], w: f64) {
     }
 }
 
+/// What a null-collision walk carries from stretch to stretch.
+struct Walk {
+    /// The estimator's emission so far.
+    f: [f64; 3],
+    /// Ratio tracking's weight `W` (ray-march).
+    weight: f64,
+    /// The real collision, once found.
+    event: DistanceSample,
+    /// What is left of the free path's exponential, in majorant optical depth.
+    e: f64,
+    /// Null collisions do not know the optical depth to the collision (point NEE's MIS
+    /// needs it; classic NEE is refused with motion blur): NaN once collided.
+    od_to_collision: f64,
+}
+
+impl Walk {
+    /// Whether the walk is over: ray-march once its weight is 0 and it needs no more
+    /// collision; the others at their collision.
+    fn ended(&self, expected: bool, need_collision: bool) -> bool {
+        if expected {
+            self.weight == 0.0 && (self.event != DistanceSample::Escaped || !need_collision)
+        } else {
+            self.event != DistanceSample::Escaped
+        }
+    }
+
+    /// The walk's result: its transmittance estimate is ray-march's weight, or 0/1.
+    fn result(self, expected: bool, segments: u32, voxel_steps: u64) -> TrackResult {
+        let transmittance = if expected {
+            self.weight
+        } else if self.event == DistanceSample::Escaped {
+            1.0
+        } else {
+            0.0
+        };
+        TrackResult {
+            event: self.event,
+            emission: self.f,
+            transmittance,
+            optical_depth: self.od_to_collision,
+            segments,
+            voxel_steps,
+            collision_weight: 1.0,
+        }
+    }
+
+    /// Take in an exact walk of a dense stretch ("Dense stretches"); `collide` when it
+    /// was asked to locate the collision.
+    fn cross_exactly(&mut self, walk: &StretchWalk, collide: bool) {
+        add(&mut self.f, walk.emission, 1.0);
+        self.weight = walk.weight;
+        match walk.collision {
+            Some(collision) => {
+                self.event = collision;
+                self.od_to_collision = f64::NAN;
+            }
+            // What is left of the exponential, by memorylessness again Exp(1)
+            None if collide => self.e -= walk.optical_depth,
+            None => {}
+        }
+    }
+}
+
+/// The majorant above which a stretch of `ray` costs more tentative points than voxels
+/// and is walked exactly ("Dense stretches"); infinite where `field` cannot walk.
+fn dense_majorant(majorants: &MajorantGrid, field: &impl PointField, ray: &Ray) -> f64 {
+    if field.walks_exactly() {
+        DENSE_TENTATIVE_PER_VOXEL * majorants.voxel_crossings_per_length(ray)
+    } else {
+        f64::INFINITY
+    }
+}
+
 /// Track `ray` over `[0, t_max]` by null collisions: the free path (delta tracking) and
 /// the estimator's emission (module docs). `field` gives the field at world points.
 ///
@@ -207,56 +264,34 @@ pub fn null_track(
     let integrates = estimator != Estimator::Point;
     let picks = field.picks();
     let picks_emission = field.picks_emission();
-    let mut f = [0.0f64; 3];
-    let mut weight = 1.0f64; // ratio-tracking W (ray-march)
-    let mut event = DistanceSample::Escaped;
-    let mut segments = 0u32;
-    let mut e = sample_exponential(u);
-    // Null collisions do not know the optical depth to the collision (point NEE's MIS
-    // needs it; classic NEE is refused with motion blur)
-    let mut od_to_collision = 0.0f64;
-    let mut done = false;
-    // Above this majorant a stretch costs more tentative points than voxels: walked exactly
-    let dense = if field.walks_exactly() {
-        DENSE_TENTATIVE_PER_VOXEL * majorants.voxel_crossings_per_length(ray)
-    } else {
-        f64::INFINITY
+    let mut w = Walk {
+        f: [0.0; 3],
+        weight: 1.0,
+        event: DistanceSample::Escaped,
+        e: sample_exponential(u),
+        od_to_collision: 0.0,
     };
+    let mut segments = 0u32;
+    let mut done = false;
+    let dense = dense_majorant(majorants, field, ray);
     let mut exact_steps = 0u64;
     for seg in majorants.segments(ray, 0.0, t_max) {
         segments += 1;
         let mu_bar = medium.mu_t(seg.bounds.density);
-        if mu_bar > dense && expected {
-            let collide = need_collision && event == DistanceSample::Escaped;
-            let (t0, t1) = (seg.t0, seg.t1);
-            if let Some(walk) = field.expected_stretch(ray, t0, t1, collide, e, weight, sampler) {
+        if mu_bar > dense {
+            let collide = w.event == DistanceSample::Escaped && (need_collision || !expected);
+            let (e, weight) = (w.e, w.weight);
+            let kind = if expected {
+                StretchKind::Expected { need_collision: collide, e, weight }
+            } else {
+                StretchKind::FreePath { estimator, e }
+            };
+            if let Some(walk) = field.exact_stretch(ray, seg.t0, seg.t1, kind, sampler) {
                 exact_steps += walk.voxel_steps;
-                add(&mut f, walk.emission, 1.0);
-                weight = walk.transmittance;
-                if collide {
-                    if let DistanceSample::Collided { .. } = walk.event {
-                        event = walk.event;
-                        od_to_collision = f64::NAN;
-                    } else {
-                        e -= walk.optical_depth;
-                    }
-                }
-                if weight == 0.0 && (event != DistanceSample::Escaped || !need_collision) {
+                w.cross_exactly(&walk, collide);
+                if w.ended(expected, need_collision) {
                     break;
                 }
-                continue;
-            }
-        } else if mu_bar > dense {
-            if let Some(walk) = field.exact_stretch(ray, seg.t0, seg.t1, estimator, e) {
-                exact_steps += walk.voxel_steps;
-                add(&mut f, walk.emission, 1.0);
-                if let Some(collision) = walk.collision {
-                    event = collision;
-                    od_to_collision = f64::NAN;
-                    break;
-                }
-                // What is left of the exponential, by memorylessness again Exp(1)
-                e -= walk.optical_depth;
                 continue;
             }
         }
@@ -264,35 +299,35 @@ pub fn null_track(
         let mut s = seg.t0;
         loop {
             // The next tentative point, or the stretch's end
-            let next = if mu_bar > 0.0 { s + e / mu_bar } else { f64::INFINITY };
+            let next = if mu_bar > 0.0 { s + w.e / mu_bar } else { f64::INFINITY };
             let end = next.min(seg.t1);
             if integrates
                 && emits
                 && end > s
-                && (event == DistanceSample::Escaped || expected)
-                && weight > 0.0
+                && (w.event == DistanceSample::Escaped || expected)
+                && w.weight > 0.0
             {
                 let x = s + sampler.next_f64() * (end - s);
-                let e = if picks_emission {
+                let le = if picks_emission {
                     field.emission_picked(ray.at(x), sampler.next_f64())
                 } else {
                     field.emission(ray.at(x))
                 };
-                add(&mut f, e, (end - s) * weight);
+                add(&mut w.f, le, (end - s) * w.weight);
             }
             if next >= seg.t1 {
                 // Carry the unused part of the exponential into the next stretch
                 if mu_bar > 0.0 {
-                    e -= (seg.t1 - s) * mu_bar;
+                    w.e -= (seg.t1 - s) * mu_bar;
                 }
                 break;
             }
             // A tentative collision at `next`
-            e = sample_exponential(sampler.next_f64());
+            w.e = sample_exponential(sampler.next_f64());
             s = next;
             let density = density_of(field, picks, ray.at(next), sampler);
             let ratio = (medium.mu_t(density) / mu_bar).clamp(0.0, 1.0);
-            if event == DistanceSample::Escaped
+            if w.event == DistanceSample::Escaped
                 && (need_collision || !expected)
                 && sampler.next_f64() < ratio
             {
@@ -300,41 +335,22 @@ pub fn null_track(
                 // collision's law is the exact field's, and so must its record and score
                 // be. Only the point estimator scores here; the others need only the
                 // albedo factor, to carry the path on
-                event = real_collision(field, medium, estimator, ray, next, &mut f);
-                od_to_collision = f64::NAN; // not tracked by null collisions
-                if !expected {
-                    done = true;
-                    break;
-                }
+                w.event = real_collision(field, medium, estimator, ray, next, &mut w.f);
+                w.od_to_collision = f64::NAN; // not tracked by null collisions
             }
             if expected {
-                weight = ratio_weight(weight, ratio, sampler);
-                if weight == 0.0 && (event != DistanceSample::Escaped || !need_collision) {
-                    done = true;
-                    break;
-                }
+                w.weight = ratio_weight(w.weight, ratio, sampler);
+            }
+            if w.ended(expected, need_collision) {
+                done = true;
+                break;
             }
         }
         if done {
             break;
         }
     }
-    let transmittance = if expected {
-        weight
-    } else if event == DistanceSample::Escaped {
-        1.0
-    } else {
-        0.0
-    };
-    TrackResult {
-        event,
-        emission: f,
-        transmittance,
-        optical_depth: od_to_collision,
-        segments,
-        voxel_steps: u64::from(segments) + exact_steps,
-        collision_weight: 1.0,
-    }
+    w.result(expected, segments, u64::from(segments) + exact_steps)
 }
 
 /// The record of a real collision at `ray.at(t)`, read from the exact field (a picked

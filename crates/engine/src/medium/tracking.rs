@@ -30,6 +30,9 @@ use plume_core::color::Rgb;
 use plume_core::sampling::Sampler;
 use plume_volume::field::{Field, Piece, PieceIntegrals, PointValues, Ray, Segment, SegmentIter};
 
+mod stretch;
+pub use stretch::{walk_stretch, StretchKind, StretchWalk};
+
 #[inline]
 fn add(acc: &mut [f64; 3], le: Rgb, w: f64) {
     for (a, c) in acc.iter_mut().zip(le.0) {
@@ -128,30 +131,14 @@ fn track_free_path<F: Field>(
     }
 }
 
-/// What a free-path walk over a stretch of a ray found ([`free_path_stretch`]).
-#[derive(Clone, Copy, Debug)]
-pub struct StretchWalk {
-    /// The collision, if the free path ended in the stretch.
-    pub collision: Option<DistanceSample>,
-    /// The point, line or blend estimate over the stretch (up to the collision).
-    pub emission: [f64; 3],
-    /// The optical depth walked: `e` at a collision, the stretch's on escape.
-    pub optical_depth: f64,
-    /// Pieces visited.
-    pub segments: u32,
-    /// Voxel steps of the traversal.
-    pub voxel_steps: u64,
-}
-
 /// Regular tracking of `ray` over `[t0, t1]` against the exponential `e` (the free path
 /// ends where the optical depth from `t0` reaches `e`), with the point, line or blend
 /// estimate of the emission collected on the way. A whole free path is the stretch
-/// `[0, t_max]` with `e = −ln(1 − u)`; null-collision tracking hands dense stretches of
-/// its walk here with what is left of its exponential (`medium::null_tracking`).
+/// `[0, t_max]` with `e = −ln(1 − u)`.
 ///
 /// # Panics
 /// For [`Estimator::RayMarch`] (an expected-value walk, `track_expected`).
-pub fn free_path_stretch<F: Field>(
+fn free_path_stretch<F: Field>(
     field: &F,
     medium: &Medium,
     ray: &Ray,
@@ -210,7 +197,8 @@ pub fn free_path_stretch<F: Field>(
         ControlFlow::Break(event) => (Some(event), e),
         ControlFlow::Continue(()) => (None, od),
     };
-    StretchWalk { collision, emission: f, optical_depth, segments, voxel_steps: it.voxel_steps() }
+    let voxel_steps = it.voxel_steps();
+    StretchWalk { collision, emission: f, optical_depth, weight: 1.0, segments, voxel_steps }
 }
 
 #[inline]
@@ -440,30 +428,6 @@ impl MarchStart {
     fn whole(u: f64) -> MarchStart {
         MarchStart { t0: 0.0, e: sample_exponential(u), weight: 1.0 }
     }
-}
-
-/// The ray-march walk of `ray` over `[t0, t1]` for null-collision tracking's dense
-/// stretches (`medium::null_tracking`): `e` is what is left of the free path's exponential
-/// and `weight` ratio tracking's weight so far. The result's emission carries the weight,
-/// its transmittance is the weight after the stretch (0 once the roulette ends the
-/// march), and with `need_collision` its event is the collision where the optical depth
-/// from `t0` reaches `e`.
-// Each argument is a distinct input of the walk (randomness stays an argument: STYLE §3)
-#[allow(clippy::too_many_arguments)]
-pub fn expected_stretch<F: Field>(
-    field: &F,
-    medium: &Medium,
-    ray: &Ray,
-    t0: f64,
-    t1: f64,
-    need_collision: bool,
-    e: f64,
-    weight: f64,
-    sampler: &mut Sampler,
-) -> TrackResult {
-    let collision = if need_collision { Collision::Analog } else { Collision::Skip };
-    let start = MarchStart { t0, e, weight };
-    track_expected::<F, false>(field, medium, ray, start, t1, collision, 0.0, sampler, None)
 }
 
 // Each argument is a distinct input of the walk (randomness stays an argument: STYLE §3)

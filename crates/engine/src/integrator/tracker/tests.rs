@@ -268,22 +268,10 @@ fn read_ahead_records_the_real_walks_lookups_first() {
             ray: &Ray,
             t0: f64,
             t1: f64,
-            estimator: Estimator,
-            e: f64,
-        ) -> Option<crate::medium::tracking::StretchWalk> {
-            self.inner.exact_stretch(ray, t0, t1, estimator, e)
-        }
-        fn expected_stretch(
-            &self,
-            ray: &Ray,
-            t0: f64,
-            t1: f64,
-            need_collision: bool,
-            e: f64,
-            weight: f64,
+            kind: crate::medium::tracking::StretchKind,
             sampler: &mut Sampler,
-        ) -> Option<crate::medium::TrackResult> {
-            self.inner.expected_stretch(ray, t0, t1, need_collision, e, weight, sampler)
+        ) -> Option<crate::medium::tracking::StretchWalk> {
+            self.inner.exact_stretch(ray, t0, t1, kind, sampler)
         }
     }
     /// Collisions and lookups compared on 400 rays per density scale.

@@ -52,14 +52,9 @@ fn the_array_script_runs_under_a_real_slurm() {
     );
 }
 
-/// Say loudly why the test did not run: straight to stderr, which the harness does not
-/// capture.
+/// Say loudly why the test did not run ([`common::skip`]).
 fn skip(reason: &str) {
-    use std::io::Write as _;
-    let _ = writeln!(
-        std::io::stderr(),
-        "\n**********\nSKIPPED: the real-Slurm test did not run: {reason}\n**********"
-    );
+    common::skip("the real-Slurm test", reason);
 }
 
 /// One scenario's submissions: the script's settings, in a scratch directory that is also

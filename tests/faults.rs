@@ -27,7 +27,8 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 
 use common::{
-    explosion, exr_pixels, names_in, pixel_bits, plume, s, stderr, synth_explosion, tmpdir, PLUME,
+    explosion, exr_pixels, names_in, pixel_bits, plume, s, skip, stderr, synth_explosion, tmpdir,
+    PLUME,
 };
 
 const MIB: u64 = 1 << 20;
@@ -125,15 +126,6 @@ fn tmpfs_or_skip(test: &str, dir: &Path, name: &str, bytes: u64) -> Option<Tmpfs
             None
         }
     }
-}
-
-/// Say why a test did not run, straight to stderr: `std::io::stderr()` is not the
-/// harness's captured output (an `eprintln!` of a passing test would be hidden).
-fn skip(test: &str, reason: &str) {
-    let _ = writeln!(
-        std::io::stderr(),
-        "\n**********\nSKIPPED: {test} did not run: {reason}\n**********"
-    );
 }
 
 /// Fill the file system of `dir` to the last block with `dir/filler`.

@@ -144,14 +144,9 @@ fn cgroup_or_skip(name: &str, limit: u64) -> Option<TestCgroup> {
     }
 }
 
-/// Say loudly why a test did not run: straight to stderr, which the test harness does not
-/// capture (`eprintln!` output of a passing test would be hidden).
+/// Say loudly why the test did not run ([`common::skip`]).
 fn skip(reason: &str) {
-    use std::io::Write as _;
-    let _ = writeln!(
-        std::io::stderr(),
-        "\n**********\nSKIPPED: the real-cgroup test did not run: {reason}\n**********"
-    );
+    common::skip("the real-cgroup test", reason);
 }
 
 /// A flare brick cache at `resolution` in `dir`.

@@ -296,6 +296,17 @@ pub fn refused_in_one_line(args: &[&str], code: i32, needles: &[&str], out: &Pat
     assert!(!out.exists(), "{args:?}: wrote {}", out.display());
 }
 
+/// Say loudly why `test` did not run (a machine without root, packages or cgroups),
+/// straight to stderr: `std::io::stderr()` is not the harness's captured output (an
+/// `eprintln!` of a passing test would be hidden).
+pub fn skip(test: &str, reason: &str) {
+    use std::io::Write as _;
+    let _ = writeln!(
+        std::io::stderr(),
+        "\n**********\nSKIPPED: {test} did not run: {reason}\n**********"
+    );
+}
+
 /// A fresh, empty temporary directory `plume-<tier>-<name>-<pid>` for one test.
 pub fn tmpdir(tier: &str, name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("plume-{tier}-{name}-{}", std::process::id()));

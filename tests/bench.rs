@@ -70,6 +70,21 @@ fn extremes_sweep_passes_at_small_size() {
     assert_eq!(count("temperature"), 6 * 3);
     assert_eq!(count("voxel size"), 9 * 3);
     assert_eq!(count("invalid voxels"), 1 + 4);
+    assert_eq!(count("cost"), 5, "four presets with their tracking, and null tracking");
+    // The cost sweep: 13 density scales per series, its work counted; at the dense end
+    // paths scatter (more walks per sample) while a walk costs no more than 2×
+    assert_eq!(report.cost.len(), 13 * 5);
+    for series in report.cost.chunks(13) {
+        let (thin, dense) = (&series[0], &series[12]);
+        assert!(thin.density_scale == 1e-6 && (dense.density_scale - 1e6).abs() < 1e-6);
+        assert!(dense.walks_per_sample() > 4.0 * thin.walks_per_sample(), "{dense:?}");
+        assert!(dense.collisions > 0 && thin.walks >= thin.samples);
+        let work: Vec<f64> = series.iter().map(|p| p.work_per_walk()).collect();
+        if series[0].tracking != "null" {
+            assert!(extremes::growth(&work) <= extremes::MAX_GROWTH, "{work:?}");
+        }
+    }
+    assert!(report.cost.iter().any(|p| p.tentative_points > 0), "null collisions counted");
     // The closed forms span the extremes: 1e-6 … 1 for density, up to 1e7 K
     let rm = |case: &str| {
         report

@@ -8,6 +8,8 @@
 
 use crate::common;
 
+use common::{plume, s, stderr, tmpdir};
+
 use std::cell::Cell;
 
 use common::{chi2_test, mean_stderr};
@@ -256,14 +258,17 @@ fn the_work_of_a_segment_is_bounded_by_its_voxels_at_any_density() {
     let work = |sigma_t: f64, estimator: Estimator| {
         let m = medium(sigma_t);
         let still = Still::new(&vol, &m);
-        let mut steps = 0u64;
+        let (mut steps, mut counted) = (0u64, 0u64);
         for i in 0..n {
             let mut s = Sampler::new(5, 0, i);
             let u = s.next_f64();
             let t = null_track(&grid, &still, &m, &r, f64::INFINITY, estimator, true, u, &mut s);
-            steps += t.voxel_steps;
+            steps += t.voxel_steps + t.tentative_points;
+            counted += t.tentative_points;
         }
-        (still.tentative.get() + steps) as f64 / n as f64
+        // The walk counts exactly the density reads it makes
+        assert_eq!(counted, still.tentative.get(), "{estimator:?}: counted tentative points");
+        steps as f64 / n as f64
     };
     for estimator in [Estimator::Line, Estimator::Point, Estimator::RayMarch] {
         let base = work(3.0, estimator);
@@ -278,5 +283,63 @@ fn the_work_of_a_segment_is_bounded_by_its_voxels_at_any_density() {
                 "{estimator:?} at {scale:e}: {w:.1} against {base:.1} at 1"
             );
         }
+    }
+}
+
+/// The counters of a `plume render` of `ex` at `density_scale` with `method`, albedo 0.8.
+fn render_counters(ex: &std::path::Path, method: &str, density_scale: f64) -> serde_json::Value {
+    let dir = ex.parent().unwrap();
+    let stats = dir.join(format!("{method}-{density_scale:e}.json"));
+    let scale = density_scale.to_string();
+    let o = plume(&[
+        "render",
+        s(ex),
+        "-o",
+        s(&dir.join(format!("{method}-{density_scale:e}.exr"))),
+        "--stats",
+        s(&stats),
+        "--method",
+        method,
+        "--albedo",
+        "0.8",
+        "--density-scale",
+        &scale,
+        "--spp",
+        "2",
+        "--width",
+        "24",
+        "--height",
+        "24",
+        "-q",
+    ]);
+    assert!(o.status.success(), "{method} at {density_scale:e}: {}", stderr(&o));
+    let st: serde_json::Value = serde_json::from_slice(&std::fs::read(&stats).unwrap()).unwrap();
+    st["counters"].clone()
+}
+
+#[test]
+fn a_whole_render_at_a_million_times_the_density_does_bounded_work() {
+    // Through the binary with each method's defaults. The bound per walk (a camera or
+    // scattered segment, or a shadow ray): in an n³ grid a ray crosses at most 3n voxels;
+    // an exact walk steps once per voxel, and pyramid nodes skipped or majorant stretches
+    // entered are at most one per voxel crossed; a stretch left to tentative points holds
+    // at most DENSE_TENTATIVE_PER_VOXEL of them per voxel on average. So a walk costs at
+    // most (2 + DENSE) · 3n tentative points plus voxel steps, on average over walks;
+    // before dense stretches were walked exactly, a walk at 10⁶ cost about σ̄·L, millions.
+    // And the work per walk may not grow more than 2× from the density as generated.
+    let n = 32u32;
+    let ex = common::explosion(&tmpdir("dense", "render"), n, Some(4));
+    let bound = (2.0 + DENSE_TENTATIVE_PER_VOXEL) * 3.0 * f64::from(n);
+    for method in ["line-fnee", "line-nee", "point-nee", "ray-march"] {
+        let per_walk = |c: &serde_json::Value| {
+            let work = c["voxel_steps"].as_u64().unwrap() + c["tentative_points"].as_u64().unwrap();
+            work as f64 / c["walks"].as_u64().unwrap() as f64
+        };
+        let base = render_counters(&ex, method, 1.0);
+        let dense = render_counters(&ex, method, 1e6);
+        assert!(dense["collisions"].as_u64().unwrap() > base["collisions"].as_u64().unwrap());
+        let (w1, w6) = (per_walk(&base), per_walk(&dense));
+        assert!(w6 <= bound, "{method}: {w6:.1} per walk at 1e6, bound {bound:.0}: {dense}");
+        assert!(w6 <= 2.0 * w1, "{method}: {w6:.2} per walk at 1e6 against {w1:.2} at 1");
     }
 }

@@ -238,6 +238,7 @@ fn ratio_tracking_averages_to_the_transmittance() {
                         f64::INFINITY,
                         &mut Sampler::new(11, 0, i),
                     )
+                    .transmittance
                 })
                 .collect();
             let (mean, se) = mean_stderr(&values);

@@ -30,10 +30,15 @@
 //! line-fnee) there is no closed form; the mean must lie between the emission-only value
 //! and the infinite-medium equilibrium `L_e/μ_a` (METHOD.md §11.2).
 //!
+//! - *cost*: the explosion with scattering at density scales 1e-6 … 1e6, per method:
+//!   work per walk may grow at most 2× (`cost`, where the measure is explained).
+//!
 //! Files: the settings, rows and their table in `rows`; the scenes, renders and the
-//! closed-form check shared by the sweeps in `check`; the four sweeps in `sweeps`.
+//! closed-form check shared by the sweeps in `check`; the four checks of the image in
+//! `sweeps`; the cost sweep in `cost`.
 
 mod check;
+mod cost;
 mod rows;
 mod sweeps;
 
@@ -43,6 +48,7 @@ use check::Check;
 use sweeps::{density_sweep, invalid_voxels, temperature_sweep, voxel_size_sweep};
 
 pub use check::box_grid;
+pub use cost::{cost_table, growth, CostPoint, MAX_GROWTH};
 pub use rows::{ExtremesConfig, ExtremesReport, Row};
 
 /// Run the sweep.
@@ -62,5 +68,11 @@ pub fn run(cfg: &ExtremesConfig) -> Result<ExtremesReport> {
     temperature_sweep(cfg, &mut check)?;
     voxel_size_sweep(cfg, &mut check)?;
     invalid_voxels(cfg, &mut check)?;
-    Ok(ExtremesReport { config: *cfg, rows: check.rows, seconds: start.elapsed().as_secs_f64() })
+    let cost = cost::cost_sweep(cfg, &mut check)?;
+    Ok(ExtremesReport {
+        config: *cfg,
+        rows: check.rows,
+        cost,
+        seconds: start.elapsed().as_secs_f64(),
+    })
 }

@@ -118,7 +118,7 @@ impl CompareOptions {
 pub struct ExtremesOptions {
     /// Voxels along each edge of the test boxes (a multiple of 8).
     pub box_voxels: u32,
-    /// Resolution of the generated explosion of the voxel-size sweep.
+    /// Resolution of the generated explosion of the voxel-size and cost sweeps.
     pub explosion_resolution: u32,
     /// Image width and height.
     pub size: u32,

@@ -37,7 +37,8 @@ pub enum BenchCommand {
     /// memory; as a table, CSV, JSON and PNG plots.
     Compare(Box<CompareArgs>),
     /// Numerical extremes: density scales, temperatures, voxel sizes and NaN/inf/negative
-    /// voxels, checked against closed forms.
+    /// voxels, checked against closed forms; and the cost of a walk from 1e-6 to 1e6 times
+    /// the density, per method.
     Extremes(ExtremesArgs),
     /// Trilinear against nearest reconstruction on real files: cost per sample (linear ÷
     /// nearest, samples per CPU second), dual-pyramid memory, plume's emission rule
@@ -115,7 +116,7 @@ pub struct ExtremesArgs {
     /// Voxels along each edge of the test boxes (a multiple of 8).
     #[arg(long, default_value_t = 32)]
     pub box_voxels: u32,
-    /// Resolution of the generated explosion of the voxel-size sweep.
+    /// Resolution of the generated explosion of the voxel-size and cost sweeps.
     #[arg(long, default_value_t = 64)]
     pub explosion_resolution: u32,
     /// Image width and height.
@@ -319,7 +320,7 @@ pub fn run(command: BenchCommand, _matches: Option<&ArgMatches>) -> Result<()> {
                 json: args.json,
             }
             .run()?;
-            print!("{}", report.table());
+            print!("{}\n{}", report.table(), plume::bench::extremes::cost_table(&report.cost));
             report.verdict()
         }
         BenchCommand::Interpolation(args) => interpolation(&args),

@@ -13,7 +13,7 @@ use plume_core::error::{Error, Result};
 pub struct ExtremesConfig {
     /// Voxels along each box edge (a multiple of 8).
     pub box_voxels: u32,
-    /// Resolution of the explosion of the voxel-size sweep.
+    /// Resolution of the explosion of the voxel-size and cost sweeps.
     pub explosion_resolution: u32,
     /// Image width and height.
     pub size: u32,
@@ -53,6 +53,8 @@ pub struct ExtremesReport {
     pub config: ExtremesConfig,
     /// Checks in order.
     pub rows: Vec<Row>,
+    /// The cost sweep's renders, method by method in order of density.
+    pub cost: Vec<super::cost::CostPoint>,
     /// Wall seconds of the sweep.
     pub seconds: f64,
 }

@@ -80,8 +80,9 @@ pub(super) fn extremes_section(suite: &mut Suite<'_>) -> Result<()> {
     crate::bench::write_json(&Some(json.clone()), &ex)?;
     let _ = writeln!(
         suite.md,
-        "## Numerical extremes\n\n{EXTREMES_INTRO}\n\n{}\n```sh\nplume bench extremes --box-voxels {} --explosion-resolution {} --size {} --spp {} --json {}\n```\n\nA smaller version runs in `cargo test` (`tests/bench.rs`).\n",
+        "## Numerical extremes\n\n{EXTREMES_INTRO}\n\n{}\n{EXTREMES_COST}\n\n{}\n```sh\nplume bench extremes --box-voxels {} --explosion-resolution {} --size {} --spp {} --json {}\n```\n\nA smaller version runs in `cargo test` (`tests/bench.rs`).\n",
         ex.table(),
+        crate::bench::extremes::cost_table(&ex.cost),
         cfg.box_voxels,
         cfg.explosion_resolution,
         cfg.size,
@@ -96,7 +97,10 @@ pub(super) const EXTREMES_INTRO: &str = "Boxes of constant density and emission 
 - *temperature*: blackbody box via `--temperature-map linear:0,T` up to 1e7 K (solar-flare plasma), against the f64 Planck × CIE integral; 300 K is below the 500 K cutoff and must be black.\n\
 - *voxel size*: the explosion with voxel edge `h` = 1e-4 … 1e4 (its `world_from_index` scaled), **σ_t and the emission scale both multiplied by h₀/h** so optical depth and radiance do not change: images must match the generator's own voxel size `h₀` to float rounding, 1e-5 (ray-march: largest pixel difference; point/line: image mean, since a near-tie can flip one collision).\n\
 - *invalid voxels*: NaN, ±inf and negative density and emission voxels must be clamped to 0 by the volume builder and counted exactly, and the image must be bit-identical to the box with zeros there. Through `plume render`, negative voxels in a file are clamped with a warning that gives the exact count (checked through the binary in `tests/bench.rs`); NaN and ±inf in a *file* are refused earlier, by the VDB reader, as a corrupt file (exit 3, naming the file and the count), so they never reach the clamp.\n\
+- *cost*: the explosion with scattering (albedo 0.8) at density scales 1e-6 … 1e6, each method with its default tracking: the work of a walk, voxel steps plus null collisions' tentative points, may grow at most 2× (the table below).\n\
 Stochastic tolerances are 5 standard errors (the larger of the pixel spread and METHOD.md §4's variance for a homogeneous segment); ray-march 1e-4 relative (2e-3 for blackbody: the table's accuracy).";
+
+pub(super) const EXTREMES_COST: &str = "**Cost against density.** One thread, the explosion of the voxel-size sweep, albedo 0.8. A *walk* is a ray tracked (a camera or scattered segment, or a shadow ray); its *work* is voxel steps plus tentative points, each one read of the field, from the renderer's counters (`walks`, `voxel_steps`, `tentative_points` in `--stats`). A sample costs (walks per sample) × (cost per walk): the first factor is the light transport's (a thin medium lets a camera ray through; a dense one scatters every path until roulette ends it, a few walks per vertex), the second is the tracking's, and it is the one that must not grow with density. *Growth* is the largest rise from any density to a denser one. Null tracking on every segment (`--tracking null`) is shown as a figure: its thinnest walks cost a few majorant stretches, a fifth of a regular walk, so its rise is measured from a floor no other tracking has.";
 
 /// Seeds of the README demo's timed renders.
 const DEMO_SEEDS: [u64; 3] = [0, 2, 3];

@@ -1,5 +1,6 @@
 //! Integer counters of a render, gathered per tile and summed in tile order (`--stats`).
 
+use crate::medium::{ShadowResult, TrackResult};
 use plume_scene::SampleId;
 
 /// Integer counters gathered per tile and summed in tile order.
@@ -7,10 +8,14 @@ use plume_scene::SampleId;
 pub struct Counters {
     /// Camera samples taken.
     pub samples: u64,
+    /// Rays tracked: camera and scattered segments, and shadow rays.
+    pub walks: u64,
     /// Segments visited by tracking (after merging equal neighbours).
     pub segments: u64,
     /// Voxel steps of all traversals (voxels crossed plus skipped pyramid nodes).
     pub voxel_steps: u64,
+    /// Tentative points of null-collision tracking (each a read of the field).
+    pub tentative_points: u64,
     /// Real collisions sampled.
     pub collisions: u64,
     /// FNEE direction samples taken.
@@ -35,11 +40,30 @@ pub struct Counters {
 }
 
 impl Counters {
+    /// Count a tracked segment's work: its segments, voxel steps and tentative points.
+    #[inline]
+    pub fn add_track(&mut self, r: &TrackResult) {
+        self.walks += 1;
+        self.segments += u64::from(r.segments);
+        self.voxel_steps += r.voxel_steps;
+        self.tentative_points += r.tentative_points;
+    }
+
+    /// Count a shadow ray's work: its voxel steps and tentative points.
+    #[inline]
+    pub fn add_shadow(&mut self, r: &ShadowResult) {
+        self.walks += 1;
+        self.voxel_steps += r.voxel_steps;
+        self.tentative_points += r.tentative_points;
+    }
+
     /// Add another tile's counters (keeps the first non-finite sample of `self`).
     pub fn merge(&mut self, o: &Counters) {
         self.samples += o.samples;
+        self.walks += o.walks;
         self.segments += o.segments;
         self.voxel_steps += o.voxel_steps;
+        self.tentative_points += o.tentative_points;
         self.collisions += o.collisions;
         self.fnee_samples += o.fnee_samples;
         self.nee_samples += o.nee_samples;

@@ -121,8 +121,7 @@ impl Integrator {
         let u = state.sampler.get_1d(Dim::FreePath);
         let collision = if need_collision { Collision::Analog } else { Collision::Skip };
         let r = tracker.track(m, &ray, t_max, self.estimator, collision, u, state.sampler);
-        state.counters.segments += u64::from(r.segments);
-        state.counters.voxel_steps += r.voxel_steps;
+        state.counters.add_track(&r);
         // Add emission along the segment
         let has_emission = r.emission.iter().any(|&v| v != 0.0);
         let mut w = match w_fwd {
@@ -197,8 +196,7 @@ impl Integrator {
                     u2,
                     sampler,
                 );
-                c.segments += u64::from(rl.segments);
-                c.voxel_steps += rl.voxel_steps;
+                c.add_track(&rl);
                 // p_σ only when the free path collected emission
                 if rl.emission.iter().any(|&v| v != 0.0) {
                     let p_sigma = proxy.direction_pdf(x, wi);
@@ -234,9 +232,10 @@ impl Integrator {
                     let dist = r2.sqrt();
                     let wi = d / dist;
                     // (Classic NEE is refused with motion blur: its table is the frame's)
-                    let (tau, n) =
+                    let shadow =
                         tracker.transmittance(m, &Ray { origin: x, direction: wi }, dist, sampler);
-                    c.voxel_steps += n;
+                    c.add_shadow(&shadow);
+                    let tau = shadow.transmittance;
                     if tau > 0.0 {
                         // L_e and ρ at y as the field reconstructs them (the table's
                         // pdf follows the same reconstruction: light/nee.rs)
@@ -288,13 +287,14 @@ impl Integrator {
         };
         state.counters.external_light_samples += 1;
         let f = hg_pdf(m.g, incoming.dot(s.direction));
-        let (tau, n) = tracker.transmittance(
+        let shadow = tracker.transmittance(
             m,
             &Ray { origin: x, direction: s.direction },
             s.distance,
             state.sampler,
         );
-        state.counters.voxel_steps += n;
+        state.counters.add_shadow(&shadow);
+        let tau = shadow.transmittance;
         if tau > 0.0 {
             let w = if s.pdf > 0.0 { self.mis.weight(pmf * s.pdf, f) } else { 1.0 };
             contribute(

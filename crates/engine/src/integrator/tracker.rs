@@ -24,7 +24,7 @@ use crate::medium::null_tracking::{null_track, ratio_transmittance, PointField, 
 use crate::medium::tracking::{
     optical_depth, track_split, walk_stretch, OpticalDepth, StretchKind, StretchWalk,
 };
-use crate::medium::{track, Collision, Estimator, Medium, TrackResult};
+use crate::medium::{track, Collision, Estimator, Medium, ShadowResult, TrackResult};
 use plume_core::sampling::Sampler;
 pub use plume_scene::sets::{PointLookup, Tracking};
 use plume_volume::field::{Field, Ray};
@@ -432,7 +432,7 @@ impl<F: Field> Tracker<'_, F> {
         }
     }
 
-    /// Transmittance along `ray` over `[0, t_max]` and the traversal's steps: exact in a
+    /// Transmittance along `ray` over `[0, t_max]` and what the walk cost: exact in a
     /// still volume (regular tracking, stopped once the optical depth passes 745, where
     /// `e^{−OD}` is 0), ratio tracking's unbiased estimate in a moving one.
     #[inline]
@@ -442,7 +442,7 @@ impl<F: Field> Tracker<'_, F> {
         ray: &Ray,
         t_max: f64,
         sampler: &mut Sampler,
-    ) -> (f64, u64) {
+    ) -> ShadowResult {
         match *self {
             // A still volume's shadow rays stay exact under null collisions too: they only
             // sum optical depth (no emission cubics), and an exact τ adds no noise to the
@@ -453,24 +453,21 @@ impl<F: Field> Tracker<'_, F> {
                 }
                 let OpticalDepth { optical_depth: od, voxel_steps } =
                     optical_depth(field, medium, ray, t_max, 745.0);
-                ((-od).exp(), voxel_steps)
+                ShadowResult { transmittance: (-od).exp(), voxel_steps, tentative_points: 0 }
             }
             Tracker::Deferred { points, .. } => {
                 // Not deferred: shadow rays are exact walks (light sampling that needs
                 // them keeps its paths out of deferral); the path is rerun directly
                 points.give_up();
-                (0.0, 0)
+                ShadowResult { transmittance: 0.0, voxel_steps: 0, tentative_points: 0 }
             }
-            Tracker::Moving { field, motion, time, lookup } => (
-                ratio_transmittance(
-                    &motion.majorants,
-                    &Points::new(field, medium, Some((motion, time)), lookup),
-                    medium,
-                    ray,
-                    t_max,
-                    sampler,
-                ),
-                0,
+            Tracker::Moving { field, motion, time, lookup } => ratio_transmittance(
+                &motion.majorants,
+                &Points::new(field, medium, Some((motion, time)), lookup),
+                medium,
+                ray,
+                t_max,
+                sampler,
             ),
         }
     }

@@ -312,8 +312,7 @@ impl Integrator {
         } else {
             camera.track(m, camera_ray, t_max, self.camera_estimator(), collision, u, state.sampler)
         };
-        state.counters.segments += u64::from(r.segments);
-        state.counters.voxel_steps += r.voxel_steps;
+        state.counters.add_track(&r);
         contribute(&mut l, state.aovs, Component::Emission, 1.0, r.emission);
         state.trace.event(|| {
             format!(

@@ -45,6 +45,9 @@ pub struct TrackResult {
     pub segments: u32,
     /// Voxel steps of the traversal (see `SegmentIter::voxel_steps`).
     pub voxel_steps: u64,
+    /// Tentative points of null-collision tracking (each reads the field once); 0 for
+    /// regular tracking.
+    pub tentative_points: u64,
     /// The collision's weight: 1 for an analog free path, `W/q` for a forced one
     /// (`medium::forced`).
     pub collision_weight: f64,
@@ -61,9 +64,21 @@ impl TrackResult {
             optical_depth: 0.0,
             segments: 0,
             voxel_steps: 0,
+            tentative_points: 0,
             collision_weight: 1.0,
         }
     }
+}
+
+/// Outcome of a shadow ray: its transmittance and what the walk cost.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ShadowResult {
+    /// `τ` along the ray: exact, or ratio tracking's unbiased estimate.
+    pub transmittance: f64,
+    /// Voxel steps of the traversal (majorant stretches under ratio tracking).
+    pub voxel_steps: u64,
+    /// Tentative points of ratio tracking; 0 for an exact walk.
+    pub tentative_points: u64,
 }
 
 /// Transmittance below which the ray-march estimator plays Russian roulette.

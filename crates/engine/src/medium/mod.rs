@@ -16,4 +16,4 @@ pub mod tracking;
 pub use coefficients::Medium;
 pub use emission::{Convention, Emission, EmissionKind, TemperatureMap};
 pub use forced::Collision;
-pub use tracking::{track, DistanceSample, Estimator, TrackResult};
+pub use tracking::{track, DistanceSample, Estimator, ShadowResult, TrackResult};

@@ -57,7 +57,7 @@
 
 use super::coefficients::Medium;
 use super::free_path::{
-    sample_exponential, DistanceSample, TrackResult, RAY_MARCH_ROULETTE_THRESHOLD,
+    sample_exponential, DistanceSample, ShadowResult, TrackResult, RAY_MARCH_ROULETTE_THRESHOLD,
 };
 use super::tracking::{StretchKind, StretchWalk};
 use plume_core::sampling::Sampler;
@@ -167,6 +167,14 @@ fn add(f: &mut [f64; 3], e: [f64; 3], w: f64) {
     }
 }
 
+/// What a null-collision walk has cost: voxel steps of its exact stretches, and its
+/// tentative points.
+#[derive(Clone, Copy, Debug, Default)]
+struct Work {
+    exact_steps: u64,
+    tentative_points: u64,
+}
+
 /// What a null-collision walk carries from stretch to stretch.
 struct Walk {
     /// The estimator's emission so far.
@@ -194,7 +202,7 @@ impl Walk {
     }
 
     /// The walk's result: its transmittance estimate is ray-march's weight, or 0/1.
-    fn result(self, expected: bool, segments: u32, voxel_steps: u64) -> TrackResult {
+    fn result(self, expected: bool, segments: u32, work: Work) -> TrackResult {
         let transmittance = if expected {
             self.weight
         } else if self.event == DistanceSample::Escaped {
@@ -208,7 +216,8 @@ impl Walk {
             transmittance,
             optical_depth: self.od_to_collision,
             segments,
-            voxel_steps,
+            voxel_steps: u64::from(segments) + work.exact_steps,
+            tentative_points: work.tentative_points,
             collision_weight: 1.0,
         }
     }
@@ -274,7 +283,7 @@ pub fn null_track(
     let mut segments = 0u32;
     let mut done = false;
     let dense = dense_majorant(majorants, field, ray);
-    let mut exact_steps = 0u64;
+    let mut work = Work::default();
     for seg in majorants.segments(ray, 0.0, t_max) {
         segments += 1;
         let mu_bar = medium.mu_t(seg.bounds.density);
@@ -287,7 +296,7 @@ pub fn null_track(
                 StretchKind::FreePath { estimator, e }
             };
             if let Some(walk) = field.exact_stretch(ray, seg.t0, seg.t1, kind, sampler) {
-                exact_steps += walk.voxel_steps;
+                work.exact_steps += walk.voxel_steps;
                 w.cross_exactly(&walk, collide);
                 if w.ended(expected, need_collision) {
                     break;
@@ -325,6 +334,7 @@ pub fn null_track(
             // A tentative collision at `next`
             w.e = sample_exponential(sampler.next_f64());
             s = next;
+            work.tentative_points += 1;
             let density = density_of(field, picks, ray.at(next), sampler);
             let ratio = (medium.mu_t(density) / mu_bar).clamp(0.0, 1.0);
             if w.event == DistanceSample::Escaped
@@ -350,7 +360,7 @@ pub fn null_track(
             break;
         }
     }
-    w.result(expected, segments, u64::from(segments) + exact_steps)
+    w.result(expected, segments, work)
 }
 
 /// The record of a real collision at `ray.at(t)`, read from the exact field (a picked
@@ -400,10 +410,11 @@ pub fn ratio_transmittance(
     ray: &Ray,
     t_max: f64,
     sampler: &mut Sampler,
-) -> f64 {
+) -> ShadowResult {
     let picks = field.picks();
-    let mut weight = 1.0f64;
+    let mut r = ShadowResult { transmittance: 1.0, voxel_steps: 0, tentative_points: 0 };
     for seg in majorants.segments(ray, 0.0, t_max) {
+        r.voxel_steps += 1;
         let mu_bar = medium.mu_t(seg.bounds.density);
         if mu_bar <= 0.0 {
             continue;
@@ -414,13 +425,14 @@ pub fn ratio_transmittance(
             if s >= seg.t1 {
                 break;
             }
+            r.tentative_points += 1;
             let ratio = (medium.mu_t(density_of(field, picks, ray.at(s), sampler)) / mu_bar)
                 .clamp(0.0, 1.0);
-            weight = ratio_weight(weight, ratio, sampler);
-            if weight == 0.0 {
-                return 0.0;
+            r.transmittance = ratio_weight(r.transmittance, ratio, sampler);
+            if r.transmittance == 0.0 {
+                return r;
             }
         }
     }
-    weight
+    r
 }

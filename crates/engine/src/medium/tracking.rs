@@ -21,7 +21,7 @@ use std::ops::ControlFlow;
 
 use super::coefficients::Medium;
 pub use super::free_path::{
-    analog_collision, phi, sample_exponential, DistanceSample, TrackResult,
+    analog_collision, phi, sample_exponential, DistanceSample, ShadowResult, TrackResult,
     RAY_MARCH_ROULETTE_THRESHOLD,
 };
 use crate::medium::emission::{EmissionMemo, LeTask};
@@ -127,6 +127,7 @@ fn track_free_path<F: Field>(
         optical_depth: walk.optical_depth,
         segments: walk.segments,
         voxel_steps: walk.voxel_steps,
+        tentative_points: 0,
         collision_weight: 1.0,
     }
 }
@@ -527,6 +528,7 @@ fn track_expected<F: Field, const FORCED: bool>(
         optical_depth,
         segments,
         voxel_steps: it.voxel_steps(),
+        tentative_points: 0,
         collision_weight,
     }
 }

@@ -76,6 +76,20 @@ pub fn to_json(grids: &[GridInfo]) -> String {
     serde_json::to_string_pretty(grids).expect("invariant: GridInfo serializes to JSON")
 }
 
+/// A brick cache whose checksums were verified, as `plume info --json` prints it: the
+/// file, its size, brick counts and the cache's metadata.
+#[must_use]
+pub fn cache_json(path: &Path, cache: &crate::cache::Cache) -> serde_json::Value {
+    serde_json::json!({
+        "file": path,
+        "bytes": cache.file_bytes,
+        "checksums": "ok",
+        "bricks": cache.volume.brick_count(),
+        "dense_bricks": cache.volume.dense_brick_count(),
+        "meta": cache.meta,
+    })
+}
+
 /// `1049275` -> `1,049,275`.
 fn group_digits(n: u64) -> String {
     let digits = n.to_string();

@@ -40,7 +40,7 @@ fn read_with(
 ) -> plume::Result<Vec<plume_volume::grid::FloatGrid>> {
     retry_while_busy(reader, || {
         read_float_grids_isolated(
-            reader,
+            &reader.to_path_buf().into(),
             Path::new(SMOKE),
             &density(),
             &ReadLimits::default(),
@@ -71,7 +71,7 @@ fn assert_reader_failed(
 #[test]
 fn isolated_reads_equal_in_process_reads() {
     let isolated = read_float_grids_isolated(
-        Path::new(PLUME),
+        &PLUME.into(),
         Path::new(FIRE),
         &[GridSelector::first("heat"), GridSelector::first("density")],
         &ReadLimits::default(),
@@ -91,12 +91,9 @@ fn isolated_reads_equal_in_process_reads() {
     }
     let json = |infos: &[plume::vdb::GridInfo]| serde_json::to_string(infos).unwrap();
     for file in [SMOKE, FIRE, "../shared/data/sequence/openusd_smoke_000001.vdb"] {
-        let isolated = list_grids_isolated(
-            Path::new(PLUME),
-            Path::new(file),
-            &limits(Duration::from_secs(60)),
-        )
-        .unwrap();
+        let isolated =
+            list_grids_isolated(&PLUME.into(), Path::new(file), &limits(Duration::from_secs(60)))
+                .unwrap();
         assert_eq!(json(&isolated), json(&list_grids(Path::new(file)).unwrap()), "{file}");
     }
 }
@@ -115,7 +112,7 @@ fn alternatives_and_optional_requests_match_in_process() {
     ];
     let path = Path::new(FIRE);
     let isolated = read_grids_isolated(
-        Path::new(PLUME),
+        &PLUME.into(),
         path,
         &requests,
         &ReadLimits::default(),
@@ -143,7 +140,7 @@ fn alternatives_and_optional_requests_match_in_process() {
 
 #[test]
 fn clean_errors_in_the_child_are_the_in_process_errors() {
-    let reader = Path::new(PLUME);
+    let reader = &PLUME.into();
     let iso = limits(Duration::from_secs(60));
     let read = |file: &str, selector: &str, read_limits: ReadLimits| {
         let selector: GridSelector = selector.parse().unwrap();

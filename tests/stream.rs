@@ -21,7 +21,7 @@ use plume::vdb::{
 use plume::Error;
 
 fn child(limits: IsolationLimits) -> ReadIsolation {
-    ReadIsolation::Child { reader_exe: PathBuf::from(PLUME), limits }
+    ReadIsolation::Child { reader_exe: PathBuf::from(PLUME).into(), limits }
 }
 
 /// In-process, then in a child with the CLI's default limits.
@@ -355,7 +355,7 @@ fn streaming_memory_is_bounded_by_the_topology() {
         timeout: Duration::from_secs(60),
     };
     let whole = read_grids_isolated(
-        Path::new(PLUME),
+        &PLUME.into(),
         &path,
         &[GridRequest::required(selector.clone())],
         &ReadLimits::default(),
@@ -441,7 +441,7 @@ fn hostile_files_stream_to_clean_errors() {
             let what = format!("{} {selector}", path.display());
             let selector: GridSelector = selector.parse().unwrap();
             let whole = read_grids_isolated(
-                Path::new(PLUME),
+                &PLUME.into(),
                 path,
                 &[GridRequest::required(selector.clone())],
                 &ReadLimits::default(),
@@ -509,7 +509,7 @@ fn stream_with(reader: &Path) -> (plume::Result<StreamedGrid>, u64) {
     let result = retry_while_busy(reader, || {
         visited = 0;
         plume::vdb::stream_float_grid_isolated(
-            reader,
+            &reader.to_path_buf().into(),
             &path,
             &GridSelector::first("density"),
             &ReadLimits::default(),

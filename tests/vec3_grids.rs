@@ -481,7 +481,7 @@ fn memory_limit_counts_three_components() {
         let limits = ReadLimits { max_bytes: limit };
         let local = read_vec3_grid(&path, &selector("Cd"), &limits);
         let isolated = read_vec3_grid_isolated(
-            Path::new(PLUME),
+            &PLUME.into(),
             &path,
             &selector("Cd"),
             &limits,

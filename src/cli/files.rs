@@ -423,15 +423,7 @@ fn cache_info(args: &InfoArgs) -> Result<()> {
     let v = &cache.volume;
     let (bricks, dense) = (v.brick_count(), v.dense_brick_count());
     let report = if args.json {
-        let json = serde_json::json!({
-            "file": args.file,
-            "bytes": cache.file_bytes,
-            "checksums": "ok",
-            "bricks": bricks,
-            "dense_bricks": dense,
-            "meta": cache.meta,
-        });
-        format!("{json:#}\n")
+        format!("{:#}\n", plume::info::cache_json(&args.file, &cache))
     } else {
         let m = &cache.meta;
         let mut r = String::new();

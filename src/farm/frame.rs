@@ -325,7 +325,7 @@ fn run_passes(
         }
         film
     });
-    let stop = || signals::stop_requested().is_some();
+    let stop = || signals::stop_requested().is_some() || observer.stop_requested();
     let volume = loaded.scene.volume();
     let auto = job_settings.render.sample_order == SampleOrderChoice::Auto;
     let defer_auto = job_settings.render.defer_paths == DeferPaths::Auto;

@@ -83,6 +83,13 @@ pub trait JobObserver: Sync {
 
     /// `render.debug_pixel`: a sample was replayed instead of rendering the frame.
     fn replayed(&self, _replay: &Replay) {}
+
+    /// Whether the observer asks the render to stop, as a signal would: asked between
+    /// passes (an embedding application's own stop, such as Python's Ctrl-C or a progress
+    /// callback that failed). The frame is then written as interrupted.
+    fn stop_requested(&self) -> bool {
+        false
+    }
 }
 
 /// An observer that shows nothing (tests, benchmarks).

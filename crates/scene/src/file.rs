@@ -35,6 +35,17 @@ impl SceneFile {
     pub fn read(path: &Path) -> Result<(Shot, SceneFile)> {
         let text = std::fs::read_to_string(path)
             .map_err(|source| Error::Open { path: path.to_path_buf(), source })?;
+        SceneFile::parse(path, text, &plume_core::fs::parent_dir(path))
+    }
+
+    /// Parse `text`, a scene file that errors call `path`, its relative paths made
+    /// relative to `base` (a file's directory; an embedding application's working
+    /// directory for a scene built in code).
+    ///
+    /// # Errors
+    /// [`Error::SceneFile`] naming the line and key of a syntax error, unknown key or
+    /// wrong type.
+    pub fn parse(path: &Path, text: String, base: &Path) -> Result<(Shot, SceneFile)> {
         let doc = ImDocument::parse(text.clone()).ok();
         let file = SceneFile { path: path.to_path_buf(), text, doc };
         let mut shot: Shot = toml::from_str(&file.text).map_err(|e| {
@@ -46,7 +57,6 @@ impl SceneFile {
             let message = e.message().trim().lines().map(str::trim).collect::<Vec<_>>().join("; ");
             file.error(span.map(|s| s.start), key, &message)
         })?;
-        let base = plume_core::fs::parent_dir(path);
         resolve_paths(&mut shot, |p| {
             if p.is_relative() && !base.as_os_str().is_empty() && base != Path::new(".") {
                 base.join(p)

@@ -61,7 +61,7 @@ pub use child::{reader_main, ReaderFailure};
 pub(in crate::vdb) use parent::{child_error, malformed_reply, unexpected};
 pub use parent::{
     list_grids_isolated, read_float_grids_isolated, read_grids_isolated, read_vec3_grid_isolated,
-    reader_exe, set_reader_exe, ReadIsolation,
+    reader_exe, set_reader_command, set_reader_exe, ReadIsolation, ReaderCommand,
 };
 pub(in crate::vdb) use process::{ChildPipes, Parsed, ReaderRun};
 

@@ -18,19 +18,50 @@ use crate::vdb::{
 use crate::vdb::{GridSelector, ReadLimits};
 use plume_core::error::{Error, Result};
 
-/// The executable registered by [`set_reader_exe`].
-static READER_EXE: OnceLock<PathBuf> = OnceLock::new();
-
-/// Registers the executable that serves [`READER_SUBCOMMAND`](super::READER_SUBCOMMAND);
-/// the `plume` binary registers itself at start-up. Only the first call has an effect.
-pub fn set_reader_exe(exe: PathBuf) {
-    let _ = READER_EXE.set(exe);
+/// The command that serves [`READER_SUBCOMMAND`](super::READER_SUBCOMMAND): an executable
+/// and the arguments that come before the subcommand (none for the `plume` binary;
+/// `-m plume._reader` for the Python package's interpreter).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ReaderCommand {
+    /// The executable.
+    pub exe: PathBuf,
+    /// Arguments before the subcommand.
+    pub prefix: Vec<OsString>,
 }
 
-/// The executable registered by [`set_reader_exe`], if any.
+impl From<PathBuf> for ReaderCommand {
+    fn from(exe: PathBuf) -> ReaderCommand {
+        ReaderCommand { exe, prefix: Vec::new() }
+    }
+}
+
+impl From<&str> for ReaderCommand {
+    fn from(exe: &str) -> ReaderCommand {
+        ReaderCommand::from(PathBuf::from(exe))
+    }
+}
+
+/// The command registered by [`set_reader_exe`] or [`set_reader_command`].
+static READER: OnceLock<ReaderCommand> = OnceLock::new();
+
+/// Registers the executable that serves [`READER_SUBCOMMAND`](super::READER_SUBCOMMAND);
+/// the `plume` binary registers itself at start-up. Only the first registration has an
+/// effect.
+pub fn set_reader_exe(exe: PathBuf) {
+    set_reader_command(exe.into());
+}
+
+/// Registers a command that serves [`READER_SUBCOMMAND`](super::READER_SUBCOMMAND) after
+/// its prefix arguments (an interpreter running a module that calls [`super::reader_main`]).
+/// Only the first registration has an effect.
+pub fn set_reader_command(command: ReaderCommand) {
+    let _ = READER.set(command);
+}
+
+/// The command registered by [`set_reader_exe`] or [`set_reader_command`], if any.
 #[must_use]
-pub fn reader_exe() -> Option<&'static Path> {
-    READER_EXE.get().map(PathBuf::as_path)
+pub fn reader_exe() -> Option<&'static ReaderCommand> {
+    READER.get()
 }
 
 /// Where VDB files are read.
@@ -40,8 +71,8 @@ pub enum ReadIsolation {
     InProcess,
     /// In a child process of `reader_exe` (the `plume` binary) under `limits`.
     Child {
-        /// Executable that serves [`READER_SUBCOMMAND`](super::READER_SUBCOMMAND).
-        reader_exe: PathBuf,
+        /// The command that serves [`READER_SUBCOMMAND`](super::READER_SUBCOMMAND).
+        reader_exe: ReaderCommand,
         /// Limits of the child.
         limits: IsolationLimits,
     },
@@ -59,7 +90,7 @@ impl ReadIsolation {
     ) -> ReadIsolation {
         match reader_exe() {
             Some(exe) if !no_isolation => ReadIsolation::Child {
-                reader_exe: exe.to_path_buf(),
+                reader_exe: exe.clone(),
                 limits: IsolationLimits::new(read_limits, timeout),
             },
             _ => ReadIsolation::InProcess,
@@ -124,7 +155,7 @@ impl ReadIsolation {
 /// As [`crate::vdb::read_float_grid`]; [`Error::ReaderFailed`] when the child crashes, hangs,
 /// exceeds a limit or replies with garbage; [`Error::ReaderSpawn`] when it cannot start.
 pub fn read_float_grids_isolated(
-    reader_exe: &Path,
+    reader_exe: &ReaderCommand,
     path: &Path,
     selectors: &[GridSelector],
     read_limits: &ReadLimits,
@@ -145,7 +176,7 @@ pub fn read_float_grids_isolated(
 /// # Errors
 /// As [`read_float_grids_isolated`].
 pub fn read_grids_isolated(
-    reader_exe: &Path,
+    reader_exe: &ReaderCommand,
     path: &Path,
     requests: &[GridRequest],
     read_limits: &ReadLimits,
@@ -183,7 +214,7 @@ pub fn read_grids_isolated(
 /// hangs, exceeds a limit or replies with garbage; [`Error::ReaderSpawn`] when it cannot
 /// start.
 pub fn read_vec3_grid_isolated(
-    reader_exe: &Path,
+    reader_exe: &ReaderCommand,
     path: &Path,
     selector: &GridSelector,
     read_limits: &ReadLimits,
@@ -261,7 +292,7 @@ fn parse_vec3_reply<R: Read>(
 /// # Errors
 /// As [`read_float_grids_isolated`].
 pub fn list_grids_isolated(
-    reader_exe: &Path,
+    reader_exe: &ReaderCommand,
     path: &Path,
     limits: &IsolationLimits,
 ) -> Result<Vec<GridInfo>> {

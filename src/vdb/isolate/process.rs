@@ -10,7 +10,7 @@ use std::path::Path;
 use std::process::{Child, ChildStderr, ChildStdout, Command, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
 
-use super::{malformed_reply, IsolationLimits, READER_SUBCOMMAND};
+use super::{malformed_reply, IsolationLimits, ReaderCommand, READER_SUBCOMMAND};
 use crate::vdb::wire::{ChildError, Decoder, WireError};
 use plume_core::error::{Error, Result};
 
@@ -31,13 +31,14 @@ pub(in crate::vdb) type Parsed<T> =
 
 impl ReaderRun {
     pub(in crate::vdb) fn spawn(
-        exe: &Path,
+        reader: &ReaderCommand,
         args: &[OsString],
         limits: &IsolationLimits,
     ) -> Result<ReaderRun> {
         let deadline = Instant::now() + limits.timeout;
-        let mut command = Command::new(exe);
+        let mut command = Command::new(&reader.exe);
         command
+            .args(&reader.prefix)
             .arg(READER_SUBCOMMAND)
             .args(args)
             .stdin(Stdio::null())
@@ -53,14 +54,14 @@ impl ReaderRun {
         }
         let mut child = command
             .spawn()
-            .map_err(|source| Error::ReaderSpawn { exe: exe.to_path_buf(), source })?;
+            .map_err(|source| Error::ReaderSpawn { exe: reader.exe.clone(), source })?;
         let (stdout, stderr) = match (child.stdout.take(), child.stderr.take()) {
             (Some(stdout), Some(stderr)) => (stdout, stderr),
             _ => {
                 let _ = child.kill();
                 let _ = child.wait();
                 return Err(Error::ReaderSpawn {
-                    exe: exe.to_path_buf(),
+                    exe: reader.exe.clone(),
                     source: io::Error::other("no pipes to the child"),
                 });
             }

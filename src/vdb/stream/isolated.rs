@@ -22,7 +22,8 @@ use std::time::Instant;
 use super::STREAM_BATCH;
 use super::{Delivery, HeaderVisitor, LeafVisitor, LocalStream, Refusal, StreamedGrid};
 use crate::vdb::isolate::{
-    child_error, malformed_reply, unexpected, ChildPipes, IsolationLimits, Parsed, ReaderRun,
+    child_error, malformed_reply, unexpected, ChildPipes, IsolationLimits, Parsed, ReaderCommand,
+    ReaderRun,
 };
 use crate::vdb::read::check_file;
 use crate::vdb::wire::{ChildError, Decoder, Encoder, Record, WireError};
@@ -36,7 +37,7 @@ use plume_core::error::{Error, Result};
 /// exceeds a limit or replies with garbage (leaves already visited stay visited);
 /// [`Error::ReaderSpawn`] when it cannot start.
 pub fn stream_float_grid_isolated(
-    reader_exe: &Path,
+    reader_exe: &ReaderCommand,
     path: &Path,
     selector: &GridSelector,
     read_limits: &ReadLimits,

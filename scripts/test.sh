@@ -53,3 +53,19 @@ cargo clippy --workspace --all-targets -- -D warnings
 # it mostly waits for Slurm's time limit.
 export RUST_TEST_THREADS="${RUST_TEST_THREADS:-$(( $(nproc) + 1 ))}"
 cargo test --workspace --all-targets --no-fail-fast "$@"
+# The Python package (python/): built by maturin with the dev profile in this target
+# directory (reusing what the tests compiled), installed into a venv under target/, and
+# tested by pytest against the plume binary just built. Skipped when cargo test was given
+# a filter that names no Python test.
+if [ $# -eq 0 ] || [[ "$*" == *python* ]]; then
+    target="${CARGO_TARGET_DIR:-target}"
+    pyvenv="$target/python-venv"
+    if [ ! -x "$pyvenv/bin/maturin" ]; then
+        python3 -m venv "$pyvenv"
+        "$pyvenv/bin/python" -m pip install --quiet "maturin>=1.9,<2" "numpy>=1.21" "pytest>=7"
+    fi
+    rm -rf "$target/python-wheels"
+    "$pyvenv/bin/maturin" build --profile dev --quiet --manifest-path python/Cargo.toml -o "$target/python-wheels"
+    "$pyvenv/bin/python" -m pip install --quiet --force-reinstall --no-deps "$target"/python-wheels/plume-*.whl
+    PLUME_BIN="$target/debug/plume" "$pyvenv/bin/python" -m pytest -q python/tests
+fi

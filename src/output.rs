@@ -160,6 +160,45 @@ pub fn write_exr_image(path: &Path, image: &ExrImage<'_>) -> Result<()> {
     })
 }
 
+/// The float channels of an EXR's first layer, over its data window.
+#[derive(Clone, Debug)]
+pub struct ExrChannels {
+    /// Data window width.
+    pub width: usize,
+    /// Data window height.
+    pub height: usize,
+    /// Every `f32` or `f16` channel (as `f32`), row-major, in the file's order (sorted by
+    /// name); the exact-sum `u32` channels are left out.
+    pub channels: Vec<(String, Vec<f32>)>,
+}
+
+/// Read every float channel of the EXR at `path` ([`ExrChannels`]).
+///
+/// # Errors
+/// [`Error::Scene`] naming the file if it cannot be read or decoded.
+pub fn read_exr_channels(path: &Path) -> Result<ExrChannels> {
+    use exr::prelude::*;
+    let image = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .from_file(path)
+        .map_err(|e| {
+            plume_core::error::Error::Scene(format!("cannot read EXR {}: {e}", path.display()))
+        })?;
+    let layer = &image.layer_data;
+    let channels = layer
+        .channel_data
+        .list
+        .iter()
+        .filter(|c| !matches!(c.sample_data, FlatSamples::U32(_)))
+        .map(|c| (c.name.to_string(), c.sample_data.values_as_f32().collect()))
+        .collect();
+    Ok(ExrChannels { width: layer.size.0, height: layer.size.1, channels })
+}
+
 /// Everything [`write_exr_image`] stores, read back and decoded.
 #[derive(Clone, Debug)]
 pub struct ExrContents {

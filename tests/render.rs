@@ -28,14 +28,7 @@ fn blob_scene(estimator: Estimator) -> (Scene<Volume>, Integrator) {
         (1.0 - (p - centre).as_vec3().length() / 12.0).max(0.0) * 3.0
     });
     let t = grid("temperature", xf, &leaves, |p| 4000.0 - (p - centre).as_vec3().length() * 300.0);
-    let emission = Emission {
-        kind: EmissionKind::Blackbody,
-        convention: Convention::Physical,
-        scale: 1.0,
-        color: Rgb::ONE,
-        temperature_map: TemperatureMap::Kelvin,
-        cutoff_kelvin: 500.0,
-    };
+    let emission = Emission::blackbody(1.0);
     let vol = Volume::build(&d, Some(&t), |v| emission.map_source(v)).unwrap();
     let cam =
         Camera::look_at(DVec3::new(1.2, 1.2, -4.0), DVec3::splat(1.2), DVec3::Y, 40.0, 24, 20)

@@ -39,7 +39,7 @@ pub struct RenderData {
     /// Height of the image's data window.
     #[pyo3(get)]
     height: usize,
-    /// Every float channel, in the file's order, row-major.
+    /// Every float channel, in the file's order, row-major (`output::read_exr_channels`).
     channels: Vec<(String, Vec<f32>)>,
     /// The statistics record as JSON (the `--stats` line).
     #[pyo3(get)]
@@ -283,25 +283,14 @@ fn run_watched(
 
 /// The EXR at `path`: every float channel of its first layer, and the file's bytes.
 fn read_render(path: &Path, stats_json: String) -> plume::Result<RenderData> {
-    use exr::prelude::{read, ReadChannels, ReadLayers};
-    let bad = |m: String| Error::Scene(format!("cannot read back {}: {m}", path.display()));
     let exr =
         std::fs::read(path).map_err(|source| Error::Open { path: path.to_path_buf(), source })?;
-    let image = read()
-        .no_deep_data()
-        .largest_resolution_level()
-        .all_channels()
-        .first_valid_layer()
-        .all_attributes()
-        .from_buffered(std::io::Cursor::new(&exr))
-        .map_err(|e| bad(e.to_string()))?;
-    let size = image.layer_data.size;
-    let channels = image
-        .layer_data
-        .channel_data
-        .list
-        .iter()
-        .map(|c| (c.name.to_string(), c.sample_data.values_as_f32().collect()))
-        .collect();
-    Ok(RenderData { width: size.0, height: size.1, channels, stats_json, exr })
+    let image = plume::output::read_exr_channels(path)?;
+    Ok(RenderData {
+        width: image.width,
+        height: image.height,
+        channels: image.channels,
+        stats_json,
+        exr,
+    })
 }

@@ -17,13 +17,10 @@ use std::time::Instant;
 use glam::DVec3;
 use serde::Serialize;
 
-use plume_core::color::Rgb;
 use plume_core::error::Result;
 use plume_engine::camera::Camera;
 use plume_engine::integrator::{Integrator, LightSampling, Lights, MisHeuristic, Scene, Tracking};
-use plume_engine::medium::{
-    Collision, Convention, Emission, EmissionKind, Estimator, Medium, TemperatureMap,
-};
+use plume_engine::medium::{Collision, Emission, Estimator, Medium};
 use plume_engine::render::{render, RenderSettings, SampleBudget};
 use plume_engine::stats::cpu_seconds;
 use plume_synth::{explosion, ExplosionParams};
@@ -82,14 +79,7 @@ fn scene(
     proxy: u32,
 ) -> Result<Scene<Volume>> {
     let ex = explosion(&ExplosionParams { resolution, seed: 1, ..Default::default() });
-    let e = Emission {
-        kind: EmissionKind::Blackbody,
-        convention: Convention::Physical,
-        scale: 1.0,
-        color: Rgb::ONE,
-        temperature_map: TemperatureMap::Kelvin,
-        cutoff_kelvin: 500.0,
-    };
+    let e = Emission::blackbody(1.0);
     let vol = Volume::build(&ex.density, Some(&ex.temperature), |v| e.map_source(v))?;
     let lights = Lights::build(&vol, &e, ls, proxy.min(resolution.next_power_of_two()))?;
     let plume_volume::Bounds3 { lo, hi } = vol.world_bounds();

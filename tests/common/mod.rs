@@ -376,25 +376,9 @@ pub fn exr_pixels(p: &Path) -> Vec<[f32; 4]> {
     plume::output::read_exr(p).unwrap().pixels
 }
 
-/// Every `f32` channel of an EXR by name.
+/// Every float channel of an EXR by name.
 pub fn channels(path: &Path) -> std::collections::BTreeMap<String, Vec<f32>> {
-    use exr::prelude::*;
-    let image = read()
-        .no_deep_data()
-        .largest_resolution_level()
-        .all_channels()
-        .first_valid_layer()
-        .all_attributes()
-        .from_file(path)
-        .unwrap();
-    image
-        .layer_data
-        .channel_data
-        .list
-        .iter()
-        .filter(|c| matches!(c.sample_data, FlatSamples::F32(_)))
-        .map(|c| (c.name.to_string(), c.sample_data.values_as_f32().collect()))
-        .collect()
+    plume::output::read_exr_channels(path).unwrap().channels.into_iter().collect()
 }
 
 /// The bits of every value of every channel of [`channels`].
@@ -456,14 +440,7 @@ pub fn retry_while_busy<T>(
 
 /// The generated explosion's physical blackbody emission.
 pub fn explosion_emission() -> Emission {
-    Emission {
-        kind: EmissionKind::Blackbody,
-        convention: Convention::Physical,
-        scale: 1e-3,
-        color: Rgb::ONE,
-        temperature_map: TemperatureMap::Kelvin,
-        cutoff_kelvin: 500.0,
-    }
+    Emission::blackbody(1e-3)
 }
 
 /// The generated explosion (32³, seed 5) with [`explosion_emission`]'s blackbody as its

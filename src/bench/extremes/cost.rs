@@ -28,11 +28,10 @@ use serde::Serialize;
 use super::check::Check;
 use super::rows::{ExtremesConfig, Row};
 use crate::bench::numbers::num;
-use plume_core::color::Rgb;
 use plume_core::error::Result;
 use plume_engine::camera::Camera;
 use plume_engine::integrator::{Integrator, Lights, Scene, Tracking};
-use plume_engine::medium::{Convention, Emission, EmissionKind, Medium, TemperatureMap};
+use plume_engine::medium::{Emission, Medium};
 use plume_engine::render::{render, RenderSettings, SampleBudget};
 use plume_scene::choice::TrackingChoice;
 use plume_scene::SceneDescription;
@@ -146,14 +145,7 @@ pub(super) fn cost_sweep(cfg: &ExtremesConfig, check: &mut Check) -> Result<Vec<
         seed: 3,
         ..Default::default()
     });
-    let emission = Emission {
-        kind: EmissionKind::Blackbody,
-        convention: Convention::Physical,
-        scale: 1.0,
-        color: Rgb::ONE,
-        temperature_map: TemperatureMap::Kelvin,
-        cutoff_kelvin: 500.0,
-    };
+    let emission = Emission::blackbody(1.0);
     let mut volume = Volume::build(&ex.density, Some(&ex.temperature), |v| emission.map_source(v))?;
     let plume_volume::Bounds3 { lo, hi } = volume.world_bounds();
     let camera = Camera::frame_bounds(

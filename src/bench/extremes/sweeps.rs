@@ -136,14 +136,7 @@ fn explosion_at(ex: &plume_synth::Explosion, h: f64, h0: f64, size: u32) -> Resu
         g
     };
     let (d, t) = (rescale(&ex.density), rescale(&ex.temperature));
-    let emission = Emission {
-        kind: EmissionKind::Blackbody,
-        convention: Convention::Physical,
-        scale: (h0 / h) as f32,
-        color: Rgb::ONE,
-        temperature_map: TemperatureMap::Kelvin,
-        cutoff_kelvin: 500.0,
-    };
+    let emission = Emission::blackbody((h0 / h) as f32);
     let vol = Volume::build(&d, Some(&t), |v| emission.map_source(v))?;
     let plume_volume::Bounds3 { lo, hi } = vol.world_bounds();
     let camera =

@@ -52,6 +52,20 @@ impl Emission {
         }
     }
 
+    /// A physical blackbody read from a temperature grid in Kelvin, times `scale`, dark
+    /// below 500 K: what a scene's emission defaults to with a temperature grid.
+    #[must_use]
+    pub fn blackbody(scale: f32) -> Emission {
+        Emission {
+            kind: EmissionKind::Blackbody,
+            convention: Convention::Physical,
+            scale,
+            color: Rgb::ONE,
+            temperature_map: TemperatureMap::Kelvin,
+            cutoff_kelvin: 500.0,
+        }
+    }
+
     /// Raw source-grid value → stored source (Kelvin after map and cutoff, or the grid
     /// value). 0 means "no emission"; negative or non-finite results are cleaned (and
     /// counted) by the volume builder.

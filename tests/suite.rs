@@ -14,6 +14,7 @@ mod aovs;
 mod batch_slurm;
 mod bench;
 mod cache;
+mod camera_lens;
 mod cli;
 mod cli_lights;
 mod cli_method;

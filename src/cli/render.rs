@@ -12,9 +12,9 @@ use plume_engine::medium::Convention;
 use plume_scene::{
     ByteSize, CameraCollision, CameraSettings, DeferPaths, DistantSettings, EmissionSettings,
     EmissionSource, EnvironmentMapSettings, EstimatorKind, IntegratorSettings, Interpolation,
-    MediumSettings, Method, NeeTable, PointLookup, ProgressFormat, ReadSettings, RenderOptions,
-    SampleOrderChoice, SkySettings, SphereSettings, SplitBy, TileIndex, TrackingChoice, UpAxis,
-    VolumeInput,
+    MediumSettings, Method, NeeTable, PointLookup, ProgressFormat, Projection, ReadSettings,
+    RenderOptions, SampleOrderChoice, SkySettings, SphereSettings, SplitBy, TileIndex,
+    TrackingChoice, UpAxis, VolumeInput,
 };
 
 use super::flags::{choice, parse_environment_map, parse_keys, parse_pair, parse_size, parse_vec3};
@@ -67,6 +67,28 @@ pub struct RenderArgs {
     /// Horizontal field of view in degrees.
     #[arg(long, default_value_t = CameraSettings::default().fov, help_heading = "Camera")]
     pub fov: f64,
+    /// Focal length in mm: with --sensor-width sets the field of view, in place of --fov.
+    #[arg(long, help_heading = "Camera")]
+    pub focal_length: Option<f64>,
+    /// Sensor width in mm, with --focal-length [default: 36].
+    #[arg(long, help_heading = "Camera", hide_short_help = true)]
+    pub sensor_width: Option<f64>,
+    /// Depth of field: the f-number, with --focal-length (the millimetres taken as
+    /// thousandths of a world unit).
+    #[arg(long, help_heading = "Camera")]
+    pub fstop: Option<f64>,
+    /// Depth of field: the aperture radius in world units, in place of --fstop.
+    #[arg(long, help_heading = "Camera", hide_short_help = true)]
+    pub aperture_radius: Option<f64>,
+    /// Distance in focus along the view direction, world units [default: to --camera-at].
+    #[arg(long, help_heading = "Camera")]
+    pub focus_distance: Option<f64>,
+    /// Perspective, or orthographic (parallel rays, --ortho-width wide).
+    #[arg(long, value_parser = choice::<Projection>(), default_value_t = Projection::Perspective, help_heading = "Camera", hide_short_help = true)]
+    pub projection: Projection,
+    /// Orthographic: the image's width in world units [default: frames the volume].
+    #[arg(long, help_heading = "Camera", hide_short_help = true)]
+    pub ortho_width: Option<f64>,
     /// Up axis for automatic framing and the default --camera-up.
     #[arg(long, value_parser = choice::<UpAxis>(), default_value_t = CameraSettings::default().up_axis, help_heading = "Camera")]
     pub up_axis: UpAxis,

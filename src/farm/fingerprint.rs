@@ -123,12 +123,26 @@ fn camera_text(camera: &CameraSettings) -> String {
         width,
         height,
         up_axis,
+        focal_length,
+        sensor_width,
+        fstop,
+        aperture_radius,
+        focus_distance,
+        projection,
+        ortho_width,
         // In `motion_text`
         shutter: _,
         fps: _,
         keys: _,
     } = camera;
-    format!("camera {from:?} {at:?} {up:?} {fov:?} {width} {height} {up_axis}")
+    let line = format!("camera {from:?} {at:?} {up:?} {fov:?} {width} {height} {up_axis}");
+    // A pinhole camera given by its field of view hashes as before these keys existed
+    let optics = [focal_length, sensor_width, fstop, aperture_radius, focus_distance, ortho_width];
+    if optics.iter().all(|v| v.is_none()) && *projection == plume_scene::Projection::Perspective {
+        line
+    } else {
+        format!("{line} {projection} {optics:?}")
+    }
 }
 
 /// Motion blur's keys, only when there is motion: still scenes hash as without them.

@@ -259,7 +259,7 @@ fn keyed(scene: &SceneDescription, x: f64) -> LookAt {
         from: k.from,
         at: k.at,
         up: k.up.or(c.up).unwrap_or(up_axis(scene)),
-        fov: k.fov.unwrap_or(c.fov),
+        fov: k.fov.unwrap_or(c.horizontal_fov()),
     };
     let keys = &c.keys;
     let i = keys.iter().rposition(|k| k.frame <= x).unwrap_or(0);
@@ -272,7 +272,7 @@ fn keyed(scene: &SceneDescription, x: f64) -> LookAt {
 
 /// The camera of an animated scene at frame `frame`: the keys' placement at the frame, and
 /// its path over the shutter (knots at the opening, at every key inside, at the closing).
-fn keyed_camera(scene: &SceneDescription, frame: Option<i64>) -> Result<Camera> {
+fn keyed_camera(scene: &SceneDescription, frame: Option<i64>) -> Result<(Camera, DVec3)> {
     let c = &scene.camera;
     let f = frame.unwrap_or(0) as f64;
     let here = keyed(scene, f);
@@ -291,35 +291,68 @@ fn keyed_camera(scene: &SceneDescription, frame: Option<i64>) -> Result<Camera> 
             camera.motion = Some(CameraMotion::new(&knots, c.width, c.height)?);
         }
     }
-    Ok(camera)
+    Ok((camera, here.at))
 }
 
-/// The camera: as given, animated by keys, or framing the volume automatically.
+/// The camera: placed as given, animated by keys, or framing the volume automatically;
+/// then its lens: a thin lens, or orthographic.
 fn camera(
     scene: &SceneDescription,
     input: &Path,
     volume: &Volume,
     frame: Option<i64>,
 ) -> Result<Camera> {
-    let c = &scene.camera;
-    if !c.keys.is_empty() {
-        return keyed_camera(scene, frame);
-    }
-    let up = c.up.unwrap_or(up_axis(scene));
-    let Bounds3 { lo, hi } = if volume.is_empty() {
+    let bounds = if volume.is_empty() {
         Bounds3 { lo: DVec3::splat(-1.0), hi: DVec3::splat(1.0) }
     } else {
         volume.world_bounds()
     };
+    let (camera, at) = if scene.camera.keys.is_empty() {
+        placed_camera(scene, input, bounds)?
+    } else {
+        keyed_camera(scene, frame)?
+    };
+    camera_optics(camera, &scene.camera, at, bounds)
+}
+
+/// `camera` through the lens `c` asks for: orthographic (by default as wide as the
+/// volume's bounding sphere, with a margin), or a thin lens focused by default at the
+/// point looked at, `at`.
+fn camera_optics(
+    camera: Camera,
+    c: &plume_scene::CameraSettings,
+    at: DVec3,
+    Bounds3 { lo, hi }: Bounds3,
+) -> Result<Camera> {
+    match c.projection {
+        plume_scene::Projection::Orthographic => {
+            let aspect = f64::from(camera.width) / f64::from(camera.height);
+            let radius = (0.5 * (hi - lo).length()).max(1e-12);
+            camera.orthographic(c.ortho_width.unwrap_or(2.04 * radius * aspect.max(1.0)))
+        }
+        plume_scene::Projection::Perspective => match c.lens_radius() {
+            r if r > 0.0 => {
+                let focus = c.focus_distance.unwrap_or((at - camera.origin).dot(camera.forward()));
+                camera.with_thin_lens(r, focus)
+            }
+            _ => Ok(camera),
+        },
+    }
+}
+
+/// The still camera: as given, or framing the box `bounds` automatically; and the point
+/// it looks at.
+fn placed_camera(
+    scene: &SceneDescription,
+    input: &Path,
+    Bounds3 { lo, hi }: Bounds3,
+) -> Result<(Camera, DVec3)> {
+    let c = &scene.camera;
+    let fov = c.horizontal_fov();
+    let up = c.up.unwrap_or(up_axis(scene));
     if let Some(from) = c.from {
-        return Camera::look_at(
-            from,
-            c.at.unwrap_or(0.5 * (lo + hi)),
-            up,
-            c.fov,
-            c.width,
-            c.height,
-        );
+        let at = c.at.unwrap_or(0.5 * (lo + hi));
+        return Ok((Camera::look_at(from, at, up, fov, c.width, c.height)?, at));
     }
     // Automatic framing: a three-quarter view from the front, slightly above
     let view = match c.up_axis {
@@ -327,7 +360,7 @@ fn camera(
         UpAxis::Z => DVec3::new(0.35, -1.0, 0.25),
     };
     // Bounds too far out for f64 rays come from a corrupt transform, not from the description
-    let mut cam = Camera::frame_bounds(lo, hi, view, up, c.fov, c.width, c.height).map_err(|_| {
+    let mut cam = Camera::frame_bounds(lo, hi, view, up, fov, c.width, c.height).map_err(|_| {
         let v = |p: DVec3| format!("({:.3e}, {:.3e}, {:.3e})", p.x, p.y, p.z);
         Error::Scene(format!(
             "{}: grid {:?} lies at world coordinates {} .. {}, too far out to frame a camera; its transform is probably corrupt",
@@ -338,7 +371,7 @@ fn camera(
         ))
     })?;
     if let Some(at) = c.at {
-        cam = Camera::look_at(cam.origin, at, up, c.fov, c.width, c.height)?;
+        cam = Camera::look_at(cam.origin, at, up, fov, c.width, c.height)?;
     }
-    Ok(cam)
+    Ok((cam, c.at.unwrap_or(0.5 * (lo + hi))))
 }

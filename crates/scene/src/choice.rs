@@ -258,6 +258,21 @@ choice!(DeferPaths {
     "never" => DeferPaths::Never, "Each path where it scatters";
 });
 
+/// How the camera projects the world onto the image.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Projection {
+    /// Rays from the camera's position (a pinhole, or a thin lens with an aperture).
+    #[default]
+    Perspective,
+    /// Parallel rays along the view direction from the image plane through the position.
+    Orthographic,
+}
+
+choice!(Projection {
+    "perspective" => Projection::Perspective, "Rays from the camera position (pinhole, or thin lens with an aperture)";
+    "orthographic" => Projection::Orthographic, "Parallel rays along the view direction, camera.ortho_width wide";
+});
+
 /// Up axis of automatic framing.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum UpAxis {

@@ -34,7 +34,7 @@ use serde::{Deserialize, Serialize};
 
 pub use choice::{
     CameraCollision, Choice, DeferPaths, EmissionSource, EstimatorKind, Interpolation, Method,
-    NeeTable, ProgressFormat, SampleOrderChoice, SamplerKind, TrackingChoice, UpAxis,
+    NeeTable, ProgressFormat, Projection, SampleOrderChoice, SamplerKind, TrackingChoice, UpAxis,
 };
 pub use lights::{
     DistantSettings, EnvironmentMapSettings, LightSettings, SkySettings, SphereSettings,
@@ -306,8 +306,31 @@ pub struct CameraSettings {
     /// Up vector (default: from `up_axis`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub up: Option<DVec3>,
-    /// Horizontal field of view, degrees.
+    /// Horizontal field of view, degrees (unless `focal_length` is given).
     pub fov: f64,
+    /// Focal length in millimetres: with `sensor_width`, sets the horizontal field of
+    /// view, `2 atan(sensor_width / (2 focal_length))`, in place of `fov`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub focal_length: Option<f64>,
+    /// Sensor width in millimetres (default 36, full frame, as Cycles).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sensor_width: Option<f64>,
+    /// Depth of field: the f-number, with `focal_length` (aperture radius
+    /// `focal_length / (2 fstop)`, the millimetres taken as thousandths of a world unit).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fstop: Option<f64>,
+    /// Depth of field: the lens aperture's radius in world units (in place of `fstop`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub aperture_radius: Option<f64>,
+    /// Distance in focus, world units along the view direction (default: to `at`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub focus_distance: Option<f64>,
+    /// Perspective (default) or orthographic.
+    #[serde(skip_serializing_if = "is_perspective")]
+    pub projection: Projection,
+    /// Orthographic: the image's width in world units (default: frames the volume).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ortho_width: Option<f64>,
     /// Image width, pixels.
     pub width: u32,
     /// Image height, pixels.
@@ -324,6 +347,39 @@ pub struct CameraSettings {
     /// within each frame's shutter). Replaces `from`, `at`, `up` and `fov` when given.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub keys: Vec<CameraKey>,
+}
+
+/// Default sensor width in millimetres (full frame; Cycles' default).
+pub const DEFAULT_SENSOR_WIDTH_MM: f64 = 36.0;
+
+fn is_perspective(p: &Projection) -> bool {
+    *p == Projection::Perspective
+}
+
+impl CameraSettings {
+    /// The horizontal field of view in degrees: from `focal_length` and `sensor_width`
+    /// when a focal length is given, else `fov`.
+    #[must_use]
+    pub fn horizontal_fov(&self) -> f64 {
+        match self.focal_length {
+            Some(f) => {
+                let sensor = self.sensor_width.unwrap_or(DEFAULT_SENSOR_WIDTH_MM);
+                2.0 * (sensor / (2.0 * f)).atan().to_degrees()
+            }
+            None => self.fov,
+        }
+    }
+
+    /// The thin lens's aperture radius in world units: `aperture_radius`, or from `fstop`
+    /// and `focal_length` (millimetres as thousandths of a world unit); 0 for a pinhole.
+    #[must_use]
+    pub fn lens_radius(&self) -> f64 {
+        match (self.aperture_radius, self.fstop, self.focal_length) {
+            (Some(r), _, _) => r,
+            (None, Some(n), Some(f)) => f / 1000.0 / (2.0 * n),
+            _ => 0.0,
+        }
+    }
 }
 
 /// One key of an animated camera (`[[camera.keys]]`).
@@ -351,6 +407,13 @@ impl Default for CameraSettings {
             at: None,
             up: None,
             fov: 40.0,
+            focal_length: None,
+            sensor_width: None,
+            fstop: None,
+            aperture_radius: None,
+            focus_distance: None,
+            projection: Projection::Perspective,
+            ortho_width: None,
             width: 640,
             height: 480,
             up_axis: UpAxis::Y,

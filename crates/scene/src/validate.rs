@@ -8,7 +8,9 @@
 
 use std::ops::Deref;
 
-use super::{CameraSettings, JobSettings, RenderOptions, SceneDescription, Shot, VolumeInput};
+use super::{
+    CameraSettings, JobSettings, Projection, RenderOptions, SceneDescription, Shot, VolumeInput,
+};
 use crate::selector::GridSelector;
 use crate::sets::TemperatureMap;
 use plume_core::error::{Error, Result};
@@ -109,6 +111,63 @@ fn camera_frame(cam: &CameraSettings) -> Result<()> {
         return Err(Error::invalid(
             "camera.fov",
             format!("{} is not in (0, 180) degrees", cam.fov),
+        ));
+    }
+    camera_optics(cam)
+}
+
+/// Focal length, sensor, aperture, focus and orthographic width: positive where given,
+/// and only the combinations that mean something.
+fn camera_optics(cam: &CameraSettings) -> Result<()> {
+    let positive = |key: &str, v: Option<f64>| match v {
+        Some(x) if !(x.is_finite() && x > 0.0) => {
+            Err(Error::invalid(key, format!("{x} must be positive and finite")))
+        }
+        _ => Ok(()),
+    };
+    positive("camera.focal_length", cam.focal_length)?;
+    positive("camera.sensor_width", cam.sensor_width)?;
+    positive("camera.fstop", cam.fstop)?;
+    positive("camera.focus_distance", cam.focus_distance)?;
+    positive("camera.ortho_width", cam.ortho_width)?;
+    if let Some(r) = cam.aperture_radius.filter(|r| !(r.is_finite() && *r >= 0.0)) {
+        return Err(Error::invalid("camera.aperture_radius", format!("{r} must be 0 or more")));
+    }
+    if cam.fstop.is_some() && cam.aperture_radius.is_some() {
+        return Err(Error::invalid(
+            "camera.fstop",
+            "give camera.fstop (with camera.focal_length) or camera.aperture_radius, not both",
+        ));
+    }
+    if cam.fstop.is_some() && cam.focal_length.is_none() {
+        return Err(Error::invalid(
+            "camera.fstop",
+            "needs camera.focal_length (the aperture is focal_length / fstop wide)",
+        ));
+    }
+    if cam.sensor_width.is_some() && cam.focal_length.is_none() {
+        return Err(Error::invalid(
+            "camera.sensor_width",
+            "needs camera.focal_length (together they set the field of view)",
+        ));
+    }
+    let orthographic = cam.projection == Projection::Orthographic;
+    if orthographic && cam.lens_radius() > 0.0 {
+        return Err(Error::invalid(
+            "camera.projection",
+            "an orthographic camera has no lens: leave out camera.fstop and camera.aperture_radius",
+        ));
+    }
+    if !orthographic && cam.ortho_width.is_some() {
+        return Err(Error::invalid(
+            "camera.ortho_width",
+            "applies to camera.projection = \"orthographic\" only",
+        ));
+    }
+    if orthographic && cam.focal_length.is_some() {
+        return Err(Error::invalid(
+            "camera.focal_length",
+            "an orthographic camera has no focal length: give camera.ortho_width",
         ));
     }
     Ok(())

@@ -172,7 +172,7 @@ pub struct PointValues {
 }
 
 /// A ray in world space for [`Field::segments`]. `direction` must be unit length.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Ray {
     /// Origin, world space.
     pub origin: DVec3,

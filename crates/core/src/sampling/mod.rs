@@ -70,6 +70,8 @@ pub enum Dim {
     ExternalLightDirection,
     /// The sample's time in the shutter (motion blur; camera block only).
     Time,
+    /// 2-D: the point on the camera's lens (depth of field; camera block only).
+    Lens,
 }
 
 /// 4-D Sobol sets per segment block.
@@ -90,6 +92,8 @@ impl Dim {
             Dim::ExternalLightDirection => (2, 2, 2),
             // In the camera block, where neither roulette nor light sampling draws
             Dim::Time => (2, 1, 1),
+            // In the camera block, where light sampling's set is unused
+            Dim::Lens => (1, 0, 2),
         }
     }
 }

@@ -47,7 +47,13 @@ pub fn pixel_sample<F: Field>(
         scene.motion.as_ref().map(|m| m.shutter).or(scene.camera.motion.map(|m| m.shutter()));
     let time = shutter.map(|[open, close]| open + sampler.get_1d(Dim::Time) * (close - open));
     let camera = time.map_or(scene.camera, |t| scene.camera.at_time(t));
-    PixelSample { ray: camera.ray(f64::from(x) + jx, f64::from(y) + jy), sampler, time }
+    let (px, py) = (f64::from(x) + jx, f64::from(y) + jy);
+    let ray = if camera.needs_lens_sample() {
+        camera.ray_through_lens(px, py, sampler.get_2d(Dim::Lens))
+    } else {
+        camera.ray(px, py)
+    };
+    PixelSample { ray, sampler, time }
 }
 
 /// Where a tile's samples whose scattered paths are deferred go (`integrator::deferred`):

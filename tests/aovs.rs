@@ -148,7 +148,7 @@ fn depth_is_the_expected_distance_to_the_first_collision() {
         Volume::build(&grid("density", xf, &leaves, |_| 1.0), None, |v| e.map_source(v)).unwrap();
     let medium = Medium {
         sigma_t: sigma,
-        albedo: 0.0,
+        albedo: plume_core::color::Rgb::splat(0.0),
         g: 0.0,
         emission: Emission { kind: EmissionKind::None, ..e },
     };

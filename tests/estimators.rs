@@ -17,7 +17,12 @@ use plume_volume::field::{Constant, Ray, Segment, Strip};
 use plume_volume::Field;
 
 fn medium(sigma_t: f64, convention: Convention) -> Medium {
-    Medium { sigma_t, albedo: 0.0, g: 0.0, emission: grid_emission(convention) }
+    Medium {
+        sigma_t,
+        albedo: plume_core::color::Rgb::splat(0.0),
+        g: 0.0,
+        emission: grid_emission(convention),
+    }
 }
 
 const ALL: [Estimator; 4] =
@@ -292,7 +297,12 @@ fn extreme_densities_and_temperatures_stay_finite() {
                     density: 1.0,
                     source,
                 };
-                let m = Medium { sigma_t: density_scale, albedo: 0.0, g: 0.0, emission };
+                let m = Medium {
+                    sigma_t: density_scale,
+                    albedo: plume_core::color::Rgb::splat(0.0),
+                    g: 0.0,
+                    emission,
+                };
                 for est in ALL {
                     for i in 0..50 {
                         let mut s = Sampler::new(9, 1, i);

@@ -109,7 +109,8 @@ fn forced_collisions_have_the_analog_law_on_nearest_and_trilinear_fields() {
     let volume = explosion_volume();
     let (ray, t0, t1) = crossing(&volume);
     let emission = common::explosion_emission();
-    let unit = Medium { sigma_t: 1.0, albedo: 0.8, g: 0.0, emission };
+    let unit =
+        Medium { sigma_t: 1.0, albedo: plume_core::color::Rgb::splat(0.8), g: 0.0, emission };
     let trilinear = Trilinear::new(explosion_volume());
     for (name, field) in
         [("nearest", &volume as &dyn FieldRef), ("trilinear", &trilinear as &dyn FieldRef)]
@@ -190,8 +191,12 @@ fn forced_collisions_have_the_analog_law_within_one_dense_piece() {
     // 24 bins, |z| < 3.9 (Šidák at α = 0.01 over 24)
     let field =
         Constant { lo: DVec3::ZERO, hi: DVec3::new(2.0, 1.0, 1.0), density: 1.5, source: 1.0 };
-    let medium =
-        Medium { sigma_t: 1.0, albedo: 0.8, g: 0.0, emission: common::explosion_emission() };
+    let medium = Medium {
+        sigma_t: 1.0,
+        albedo: plume_core::color::Rgb::splat(0.8),
+        g: 0.0,
+        emission: common::explosion_emission(),
+    };
     let ray = Ray { origin: DVec3::new(-1.0, 0.5, 0.5), direction: DVec3::X };
     let (got, collided, expected) = masses(&field, &medium, &ray, (1.0, 3.0), 24, 40_000, 12);
     assert_eq!(got.len(), 24, "no bin was pooled");
@@ -209,7 +214,12 @@ fn analog_and_skipped_collisions_are_unchanged_by_the_forced_walk() {
     // analog collision has weight 1
     let volume = explosion_volume();
     let (ray, _, t1) = crossing(&volume);
-    let unit = Medium { sigma_t: 1.0, albedo: 0.8, g: 0.0, emission: common::explosion_emission() };
+    let unit = Medium {
+        sigma_t: 1.0,
+        albedo: plume_core::color::Rgb::splat(0.8),
+        g: 0.0,
+        emission: common::explosion_emission(),
+    };
     let medium = Medium {
         sigma_t: 1.0 / optical_depth(&volume, &unit, &ray, t1, f64::INFINITY).optical_depth,
         ..unit
@@ -290,7 +300,7 @@ fn where_paths_scatter_the_camera_is_ray_marched_and_its_collision_forced_by_def
     // No scattering: the camera segment keeps the estimator, no collision is forced
     let ea = plume_engine::integrator::Integrator::for_scene(&scene);
     assert_eq!(ea.camera_estimator(), ea.estimator);
-    scene.medium.albedo = Some(0.8);
+    scene.medium.albedo = Some(0.8.into());
     let scattering = plume_engine::integrator::Integrator::for_scene(&scene);
     assert_eq!(scattering.camera_estimator(), Estimator::RayMarch);
     assert_eq!(scattering.camera_collision, Collision::Forced);

@@ -74,7 +74,12 @@ fn linear_close_ups_are_continuous_and_nearest_ones_are_not() {
         Camera::look_at(centre - DVec3::Z * distance, centre, DVec3::Y, fov, width, width).unwrap();
     let scene = |interpolation| {
         let vol = Volume::build(&density, Some(&emission), |v| e.map_source(v)).unwrap();
-        let medium = Medium { sigma_t: 1e-10, albedo: 0.0, g: 0.0, emission: e };
+        let medium = Medium {
+            sigma_t: 1e-10,
+            albedo: plume_core::color::Rgb::splat(0.0),
+            g: 0.0,
+            emission: e,
+        };
         AnyScene::new(
             Scene {
                 field: vol,
@@ -245,7 +250,12 @@ fn nearest_and_linear_agree_on_smooth_data_up_to_the_boundary_band() {
         Camera::look_at(centre - DVec3::Z * distance, centre, DVec3::Y, fov, width, width).unwrap();
     let scene = |interpolation| {
         let vol = Volume::build(&density, Some(&emission), |v| e.map_source(v)).unwrap();
-        let medium = Medium { sigma_t: C / n, albedo: 0.0, g: 0.0, emission: e };
+        let medium = Medium {
+            sigma_t: C / n,
+            albedo: plume_core::color::Rgb::splat(0.0),
+            g: 0.0,
+            emission: e,
+        };
         AnyScene::new(
             Scene {
                 field: vol,
@@ -345,7 +355,12 @@ fn linear_scattering_renders_are_bit_identical_for_any_thread_count() {
     for ls in [LightSampling::Fnee, LightSampling::Nee] {
         let vol = Volume::build(&ex.density, Some(&ex.temperature), |v| e.map_source(v)).unwrap();
         let lights = Lights::build(&vol, &e, ls, 8).unwrap();
-        let medium = Medium { sigma_t: 4.0, albedo: 0.8, g: 0.3, emission: e };
+        let medium = Medium {
+            sigma_t: 4.0,
+            albedo: plume_core::color::Rgb::splat(0.8),
+            g: 0.3,
+            emission: e,
+        };
         let scene = AnyScene::new(
             Scene { field: vol, medium, camera, lights, motion: None, majorants: None },
             Interpolation::Linear,
@@ -600,7 +615,8 @@ fn cycles_convention_interpolates_each_voxels_emission() {
         cutoff_kelvin: 0.0,
     };
     let volume = Volume::build(&density, Some(&temperature), |v| emission.map_source(v)).unwrap();
-    let medium = Medium { sigma_t: 1e-9, albedo: 0.0, g: 0.0, emission };
+    let medium =
+        Medium { sigma_t: 1e-9, albedo: plume_core::color::Rgb::splat(0.0), g: 0.0, emission };
     let field = plume_volume::trilinear::Trilinear::new(volume);
     let ray = plume_volume::field::Ray { origin: DVec3::new(-2.0, 3.3, 4.6), direction: DVec3::X };
     // Reference: midpoint march over the support x ∈ [−1, 8] of both rules

@@ -49,7 +49,7 @@ fn slab() -> Volume {
 fn medium() -> Medium {
     Medium {
         sigma_t: SIGMA_T,
-        albedo: ALBEDO,
+        albedo: plume_core::color::Rgb::splat(ALBEDO),
         g: G,
         emission: Emission { kind: EmissionKind::None, ..grid_emission(Convention::Cycles) },
     }

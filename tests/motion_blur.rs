@@ -57,7 +57,12 @@ fn scene(
     AnyScene::new(
         Scene {
             field: vol,
-            medium: Medium { sigma_t: 2.0, albedo, g: 0.3, emission: e },
+            medium: Medium {
+                sigma_t: 2.0,
+                albedo: plume_core::color::Rgb::splat(albedo),
+                g: 0.3,
+                emission: e,
+            },
             camera: cam,
             lights,
             motion,
@@ -362,7 +367,12 @@ fn a_moving_camera_equals_the_average_over_its_positions() {
         AnyScene::new(
             Scene {
                 field: vol,
-                medium: Medium { sigma_t: 2.0, albedo: 0.8, g: 0.3, emission: e },
+                medium: Medium {
+                    sigma_t: 2.0,
+                    albedo: plume_core::color::Rgb::splat(0.8),
+                    g: 0.3,
+                    emission: e,
+                },
                 camera,
                 lights,
                 motion: None,

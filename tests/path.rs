@@ -118,7 +118,12 @@ fn infinite_medium_reaches_equilibrium_radiance_with_every_method() {
         let cam = Camera::look_at(DVec3::ZERO, DVec3::ONE, DVec3::Y, 40.0, 1, 1).unwrap();
         let scene = Scene {
             field: cube(4, 2.0, 1.0, le),
-            medium: Medium { sigma_t, albedo, g: 0.3, emission: e },
+            medium: Medium {
+                sigma_t,
+                albedo: plume_core::color::Rgb::splat(albedo),
+                g: 0.3,
+                emission: e,
+            },
             camera: cam,
             lights,
             motion: None,
@@ -155,7 +160,12 @@ fn white_furnace_with_albedo_one_renders_the_environment() {
             lights.external = ExternalLights::new(vec![Light::Environment(env)], 2.0);
             let scene = Scene {
                 field: vol,
-                medium: Medium { sigma_t: 2.0, albedo: 1.0, g: 0.5, emission: e },
+                medium: Medium {
+                    sigma_t: 2.0,
+                    albedo: plume_core::color::Rgb::splat(1.0),
+                    g: 0.5,
+                    emission: e,
+                },
                 camera: cam,
                 lights,
                 motion: None,
@@ -353,7 +363,12 @@ fn splitting_divides_the_variance_of_the_paths() {
     let cam = Camera::look_at(DVec3::ZERO, DVec3::ONE, DVec3::Y, 40.0, 1, 1).unwrap();
     let scene = Scene {
         field: vol,
-        medium: Medium { sigma_t, albedo, g: 0.3, emission: e },
+        medium: Medium {
+            sigma_t,
+            albedo: plume_core::color::Rgb::splat(albedo),
+            g: 0.3,
+            emission: e,
+        },
         camera: cam,
         lights,
         motion: None,
@@ -417,7 +432,7 @@ fn extreme_phase_albedo_and_density_stay_finite() {
                 let mut scene = explosion_scene(sigma_t, ls, 8, interpolation);
                 plume_engine::with_scene!(&mut scene, s => {
                     s.medium.g = g;
-                    s.medium.albedo = albedo;
+                    s.medium.albedo = plume_core::color::Rgb::splat(albedo);
                 });
                 let settings = RenderSettings {
                     budget: SampleBudget::Spp(2),
@@ -479,7 +494,12 @@ fn albedo_grid_matches_constant_albedo_and_varies_per_voxel() {
         let lights = Lights::build(&vol, &e, LightSampling::Fnee, 8).unwrap();
         let scene = Scene {
             field: vol,
-            medium: Medium { sigma_t: 5.0, albedo, g: 0.3, emission: e },
+            medium: Medium {
+                sigma_t: 5.0,
+                albedo: plume_core::color::Rgb::splat(albedo),
+                g: 0.3,
+                emission: e,
+            },
             camera: cam,
             lights,
             motion: None,

@@ -35,7 +35,12 @@ fn blob_scene(estimator: Estimator) -> (Scene<Volume>, Integrator) {
             .unwrap();
     let scene = Scene {
         field: vol,
-        medium: Medium { sigma_t: 2.0, albedo: 0.0, g: 0.0, emission },
+        medium: Medium {
+            sigma_t: 2.0,
+            albedo: plume_core::color::Rgb::splat(0.0),
+            g: 0.0,
+            emission,
+        },
         camera: cam,
         lights: Default::default(),
         motion: None,
@@ -90,7 +95,7 @@ fn same_seed_gives_identical_images_for_any_thread_count() {
 /// The blob, scattering (albedo 0.8) and lit by FNEE: paths with light segments.
 fn scattering_blob() -> (Scene<Volume>, Integrator) {
     let (mut scene, _) = blob_scene(Estimator::Line);
-    scene.medium.albedo = 0.8;
+    scene.medium.albedo = plume_core::color::Rgb::splat(0.8);
     scene.medium.sigma_t = 6.0;
     scene.lights =
         Lights::build(&scene.field, &scene.medium.emission, LightSampling::Fnee, 8).unwrap();
@@ -277,7 +282,7 @@ fn voxel_aligned_box_image_matches_closed_form() {
     let sigma_t = 1.5;
     let scene = Scene {
         field: vol,
-        medium: Medium { sigma_t, albedo: 0.0, g: 0.0, emission },
+        medium: Medium { sigma_t, albedo: plume_core::color::Rgb::splat(0.0), g: 0.0, emission },
         camera: cam,
         lights: Default::default(),
         motion: None,

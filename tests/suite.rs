@@ -18,6 +18,7 @@ mod camera_lens;
 mod cli;
 mod cli_lights;
 mod cli_method;
+mod coloured_albedo;
 mod deferred_paths;
 mod denoise;
 mod dense_tracking;

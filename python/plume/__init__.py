@@ -59,7 +59,10 @@ PathLike = Union[str, "os.PathLike[str]"]
 # The isolated VDB reader: this interpreter, without site packages, loading only the
 # extension module from its directory and serving the reader's arguments
 _READER_CODE = "import sys; sys.path.insert(0, sys.argv.pop(1)); import _plume; _plume.reader_main(sys.argv[1:])"
-_plume.use_isolated_reader(sys.executable, ["-S", "-c", _READER_CODE, os.path.dirname(_plume.__file__)])
+if os.path.basename(sys.executable or "").lower().startswith("python"):
+    _plume.use_isolated_reader(sys.executable, ["-S", "-c", _READER_CODE, os.path.dirname(_plume.__file__)])
+# else an application embedding Python, whose executable may not take -S -c: files are
+# read in this process, as with reading.no_isolation
 
 #: The volume file a scene built around arrays names until it is rendered.
 _ARRAYS_PLACEHOLDER = "<numpy arrays>.vdb"

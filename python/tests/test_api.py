@@ -282,3 +282,16 @@ def test_warnings_go_to_the_plume_logger(caplog):
         plume.render(plume.Scene(volume=plume.Volume.from_numpy(density), **small()))
     warnings = [r for r in caplog.records if r.name == "plume" and r.levelname == "WARNING"]
     assert any("no temperature or emission grid found" in r.getMessage() for r in warnings), caplog.records
+
+
+def test_a_coloured_albedo_is_a_list(tmp_path, explosion):
+    scene = plume.Scene(volume={"file": str(explosion)}, **small(medium={"albedo": [0.9, 0.5, 0.2]}))
+    scene.write_toml(tmp_path / "coloured.toml")
+    image = plume.render(scene)
+    again = plume.render(plume.Scene.from_toml(tmp_path / "coloured.toml"))
+    assert np.array_equal(bits(image.beauty), bits(again.beauty))
+    grey = plume.render(plume.Scene(volume={"file": str(explosion)}, **small(medium={"albedo": 0.9})))
+    # Red scatters as the grey 0.9 medium does on average; blue, with 0.2, less
+    assert image.beauty[..., 2].sum() < grey.beauty[..., 2].sum()
+    with pytest.raises(plume.SceneError, match="medium.albedo"):
+        plume.Scene(volume={"file": str(explosion)}, medium={"albedo": [0.9, 0.5]})

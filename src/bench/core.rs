@@ -170,7 +170,12 @@ fn render_seconds(volume: Volume, em: Emission, threads: usize) -> Result<(f64, 
         Camera::frame_bounds(lo, hi, DVec3::new(0.35, 0.25, 1.0), DVec3::Y, 40.0, 320, 240)?;
     let scene = Scene {
         field: volume,
-        medium: Medium { sigma_t: 4.0, albedo: 0.0, g: 0.0, emission: em },
+        medium: Medium {
+            sigma_t: 4.0,
+            albedo: plume_core::color::Rgb::splat(0.0),
+            g: 0.0,
+            emission: em,
+        },
         camera,
         lights: Default::default(),
         motion: None,

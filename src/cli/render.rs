@@ -10,11 +10,11 @@ use plume_engine::film::Crop;
 use plume_engine::integrator::{LightSampling, MisHeuristic};
 use plume_engine::medium::Convention;
 use plume_scene::{
-    ByteSize, CameraCollision, CameraSettings, DeferPaths, DistantSettings, EmissionSettings,
-    EmissionSource, EnvironmentMapSettings, EstimatorKind, IntegratorSettings, Interpolation,
-    MediumSettings, Method, NeeTable, PointLookup, ProgressFormat, Projection, ReadSettings,
-    RenderOptions, SampleOrderChoice, SkySettings, SphereSettings, SplitBy, TileIndex,
-    TrackingChoice, UpAxis, VolumeInput,
+    Albedo, ByteSize, CameraCollision, CameraSettings, DeferPaths, DistantSettings,
+    EmissionSettings, EmissionSource, EnvironmentMapSettings, EstimatorKind, IntegratorSettings,
+    Interpolation, MediumSettings, Method, NeeTable, PointLookup, ProgressFormat, Projection,
+    ReadSettings, RenderOptions, SampleOrderChoice, SkySettings, SphereSettings, SplitBy,
+    TileIndex, TrackingChoice, UpAxis, VolumeInput,
 };
 
 use super::flags::{choice, parse_environment_map, parse_keys, parse_pair, parse_size, parse_vec3};
@@ -141,10 +141,10 @@ pub struct RenderArgs {
     /// the data resolution). Default 64, or the data resolution if that is smaller.
     #[arg(long, help_heading = "Method", hide_short_help = true)]
     pub proxy_resolution: Option<u32>,
-    /// Single-scattering albedo in [0, 1] (0: emission–absorption only). With
-    /// --albedo-grid it multiplies the grid (default 1 then).
+    /// Single-scattering albedo in [0, 1] (0: emission–absorption only), grey or a
+    /// scattering colour r,g,b. With --albedo-grid it multiplies the grid (default 1 then).
     #[arg(long, help_heading = "Medium")]
-    pub albedo: Option<f32>,
+    pub albedo: Option<Albedo>,
     /// Henyey–Greenstein asymmetry g in (−1, 1).
     #[arg(long, default_value_t = MediumSettings::default().g, allow_hyphen_values = true, help_heading = "Medium")]
     pub g: f64,

@@ -110,7 +110,13 @@ fn emission_text(emission: &EmissionSettings) -> String {
 /// The medium's line.
 fn medium_text(medium: &MediumSettings) -> String {
     let MediumSettings { density_scale, albedo, g } = medium;
-    format!("medium {density_scale:?} {albedo:?} {g:?}")
+    // A grey albedo hashes as the number it was before colours existed
+    let albedo = match albedo {
+        None => "None".to_string(),
+        Some(plume_scene::Albedo::Grey(a)) => format!("Some({a:?})"),
+        Some(plume_scene::Albedo::Color(c)) => format!("Some({c:?})"),
+    };
+    format!("medium {density_scale:?} {albedo} {g:?}")
 }
 
 /// The camera's line (its motion keys are in [`motion_text`]).

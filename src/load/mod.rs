@@ -131,7 +131,7 @@ pub fn load_scene(
     let camera = camera(scene, input, &volume, frame)?;
     let medium = Medium {
         sigma_t: scene.medium.density_scale,
-        albedo: scene.albedo(),
+        albedo: plume_core::color::Rgb(scene.albedo_rgb()),
         g: scene.medium.g,
         emission,
     };

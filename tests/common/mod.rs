@@ -477,7 +477,12 @@ pub fn explosion_scene(
         8,
     )
     .unwrap();
-    let medium = plume_engine::medium::Medium { sigma_t, albedo: 0.8, g: 0.3, emission: e };
+    let medium = plume_engine::medium::Medium {
+        sigma_t,
+        albedo: plume_core::color::Rgb::splat(0.8),
+        g: 0.3,
+        emission: e,
+    };
     AnyScene::new(
         plume_engine::integrator::Scene {
             field: vol,

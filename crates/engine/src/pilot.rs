@@ -33,9 +33,9 @@ struct SeenDirectly {
 
 impl Aovs for SeenDirectly {
     const ON: bool = true;
-    fn add(&mut self, component: Component, w: f64, e: [f64; 3]) {
+    fn add(&mut self, component: Component, w: [f64; 3], e: [f64; 3]) {
         if component == Component::Emission {
-            for (s, v) in self.emission.iter_mut().zip(e) {
+            for ((s, v), w) in self.emission.iter_mut().zip(e).zip(w) {
                 *s += w * v;
             }
         }
@@ -60,7 +60,7 @@ pub fn split_map<F: Field>(scene: &Scene<F>, settings: &RenderSettings) -> Optio
     if integrator.split_by != SplitBy::Brightness
         || integrator.split <= 1
         || integrator.max_depth == 0
-        || scene.medium.albedo <= 0.0
+        || scene.medium.albedo.max_component() <= 0.0
     {
         return None;
     }

@@ -186,7 +186,7 @@ fn worker_threads<F: Field>(
     out_of_core: bool,
 ) -> usize {
     let cores = std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get);
-    let scatters = settings.integrator.max_depth > 0 && scene.medium.albedo > 0.0;
+    let scatters = settings.integrator.max_depth > 0 && scene.medium.albedo.max_component() > 0.0;
     match settings.threads {
         0 if out_of_core && scatters => 3 * cores,
         0 if out_of_core => cores + 1,

@@ -183,10 +183,18 @@ impl SceneDescription {
         }
     }
 
-    /// The albedo scale: `medium.albedo`, else 1 with an albedo grid, else 0.
+    /// The albedo scale per channel: `medium.albedo`, else 1 with an albedo grid, else 0.
+    #[must_use]
+    pub fn albedo_rgb(&self) -> [f32; 3] {
+        let default = if self.volume.albedo_grid.is_some() { 1.0 } else { 0.0 };
+        self.medium.albedo.map_or([default; 3], Albedo::rgb)
+    }
+
+    /// The albedo scale's largest channel: paths scatter when it is above 0.
     #[must_use]
     pub fn albedo(&self) -> f32 {
-        self.medium.albedo.unwrap_or(if self.volume.albedo_grid.is_some() { 1.0 } else { 0.0 })
+        let [r, g, b] = self.albedo_rgb();
+        r.max(g).max(b)
     }
 
     /// Whether paths scatter (albedo above 0 and at least one bounce).
@@ -274,15 +282,69 @@ impl Default for EmissionSettings {
     }
 }
 
+/// A medium's single-scattering albedo: grey (`albedo = 0.8`), or a scattering colour
+/// (`albedo = [0.9, 0.6, 0.3]`), each channel in [0, 1]. Extinction stays grey: the
+/// colour is what scatters, the rest of each channel is absorbed (Cycles' Principled
+/// Volume *Color* with a black *Absorption Color*).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum Albedo {
+    /// The same in every channel.
+    Grey(f32),
+    /// Red, green, blue.
+    Color([f32; 3]),
+}
+
+impl Albedo {
+    /// Per channel.
+    #[must_use]
+    pub fn rgb(self) -> [f32; 3] {
+        match self {
+            Albedo::Grey(a) => [a; 3],
+            Albedo::Color(c) => c,
+        }
+    }
+
+    /// The largest channel.
+    #[must_use]
+    pub fn max(self) -> f32 {
+        let [r, g, b] = self.rgb();
+        r.max(g).max(b)
+    }
+}
+
+impl From<f32> for Albedo {
+    fn from(a: f32) -> Albedo {
+        Albedo::Grey(a)
+    }
+}
+
+impl std::str::FromStr for Albedo {
+    type Err = String;
+
+    /// `0.8` or `0.9,0.6,0.3`.
+    fn from_str(s: &str) -> std::result::Result<Albedo, String> {
+        let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+        let num =
+            |t: &str| t.parse::<f32>().map_err(|_| format!("{s:?}: expected a number or r,g,b"));
+        match parts.as_slice() {
+            [a] => Ok(Albedo::Grey(num(a)?)),
+            [r, g, b] => Ok(Albedo::Color([num(r)?, num(g)?, num(b)?])),
+            _ => Err(format!("{s:?}: expected a number or r,g,b")),
+        }
+    }
+}
+
 /// Extinction and scattering.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct MediumSettings {
     /// σ_t: extinction per world unit (metre) per unit density.
     pub density_scale: f64,
-    /// Single-scattering albedo in [0, 1]; default 0, or 1 with an albedo grid.
+    /// Single-scattering albedo, grey or a colour, in [0, 1]; default 0, or 1 with an
+    /// albedo grid.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub albedo: Option<f32>,
+    pub albedo: Option<Albedo>,
     /// Henyey–Greenstein asymmetry in (−1, 1).
     pub g: f64,
 }

@@ -191,9 +191,10 @@ fn medium_and_method(scene: &SceneDescription) -> Result<()> {
     finite_nonneg("emission.temperature_cutoff", f64::from(scene.emission.temperature_cutoff))?;
     nonneg_components("emission.color", scene.emission.color.map(f64::from))?;
     scene.emission.temperature_map.parse::<TemperatureMap>()?;
-    let albedo = scene.albedo();
-    if !(0.0..=1.0).contains(&albedo) {
-        return Err(Error::invalid("medium.albedo", format!("{albedo} is not in [0, 1]")));
+    for albedo in scene.albedo_rgb() {
+        if !(0.0..=1.0).contains(&albedo) {
+            return Err(Error::invalid("medium.albedo", format!("{albedo} is not in [0, 1]")));
+        }
     }
     if !(scene.medium.g > -1.0 && scene.medium.g < 1.0) {
         return Err(Error::invalid("medium.g", format!("{} is not in (-1, 1)", scene.medium.g)));

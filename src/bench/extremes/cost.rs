@@ -162,7 +162,7 @@ pub(super) fn cost_sweep(cfg: &ExtremesConfig, check: &mut Check) -> Result<Vec<
     for Series { preset: name, tracking, checked } in SERIES {
         let spec = crate::bench::spec::parse_methods(name, 4.0)?.remove(0);
         let mut description = SceneDescription::new("explosion");
-        description.medium.albedo = Some(0.8);
+        description.medium.albedo = Some(0.8.into());
         description.integrator.tracking = tracking;
         let integrator =
             Integrator::for_scene_with(&description, spec.estimator, spec.light_sampling);
@@ -174,7 +174,12 @@ pub(super) fn cost_sweep(cfg: &ExtremesConfig, check: &mut Check) -> Result<Vec<
         )?;
         let mut scene = Scene {
             field: volume,
-            medium: Medium { sigma_t: 1.0, albedo: 0.8, g: 0.0, emission },
+            medium: Medium {
+                sigma_t: 1.0,
+                albedo: plume_core::color::Rgb::splat(0.8),
+                g: 0.0,
+                emission,
+            },
             camera,
             lights,
             motion: None,

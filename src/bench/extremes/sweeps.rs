@@ -32,7 +32,12 @@ pub(super) fn density_sweep(cfg: &ExtremesConfig, check: &mut Check) -> Result<(
         let vol = Volume::build(&dens, Some(&src), |v| emission.map_source(v))?;
         let mut scene = Scene {
             field: vol,
-            medium: Medium { sigma_t: sigma, albedo: 0.0, g: 0.0, emission },
+            medium: Medium {
+                sigma_t: sigma,
+                albedo: plume_core::color::Rgb::splat(0.0),
+                g: 0.0,
+                emission,
+            },
             camera: box_camera(1.0, cfg.size)?,
             lights: Lights::default(),
             motion: None,
@@ -46,7 +51,7 @@ pub(super) fn density_sweep(cfg: &ExtremesConfig, check: &mut Check) -> Result<(
             check.closed_form("density", &case, name, est, &img, expected, depth, 1e-4);
         }
         // Scattering: between the emission-only value and the equilibrium L_e/μ_a
-        scene.medium.albedo = 0.5;
+        scene.medium.albedo = plume_core::color::Rgb::splat(0.5);
         scene.lights = Lights::build(&scene.field, &emission, LightSampling::Fnee, 8)?;
         // The defaults' camera segment: ray-marched, its collision forced
         let integ = Integrator {
@@ -103,7 +108,12 @@ pub(super) fn temperature_sweep(cfg: &ExtremesConfig, check: &mut Check) -> Resu
         let sigma = 1.0;
         let scene = Scene {
             field: vol,
-            medium: Medium { sigma_t: sigma, albedo: 0.0, g: 0.0, emission },
+            medium: Medium {
+                sigma_t: sigma,
+                albedo: plume_core::color::Rgb::splat(0.0),
+                g: 0.0,
+                emission,
+            },
             camera: box_camera(1.0, cfg.size)?,
             lights: Lights::default(),
             motion: None,
@@ -143,7 +153,12 @@ fn explosion_at(ex: &plume_synth::Explosion, h: f64, h0: f64, size: u32) -> Resu
         Camera::frame_bounds(lo, hi, DVec3::new(0.35, 0.25, 1.0), DVec3::Y, 40.0, size, size)?;
     Ok(Scene {
         field: vol,
-        medium: Medium { sigma_t: 4.0 * h0 / h, albedo: 0.0, g: 0.0, emission },
+        medium: Medium {
+            sigma_t: 4.0 * h0 / h,
+            albedo: plume_core::color::Rgb::splat(0.0),
+            g: 0.0,
+            emission,
+        },
         camera,
         lights: Lights::default(),
         motion: None,
@@ -256,7 +271,8 @@ pub(super) fn invalid_voxels(cfg: &ExtremesConfig, check: &mut Check) -> Result<
             dirty.report.density_clamped, dirty.report.source_invalid
         ),
     });
-    let medium = Medium { sigma_t: 3.0, albedo: 0.0, g: 0.0, emission };
+    let medium =
+        Medium { sigma_t: 3.0, albedo: plume_core::color::Rgb::splat(0.0), g: 0.0, emission };
     let camera = box_camera(1.0, cfg.size)?;
     let dirty = Scene {
         field: dirty,

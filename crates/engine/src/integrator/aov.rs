@@ -51,7 +51,7 @@ pub trait Aovs {
     /// Whether anything is recorded (lets the integrator skip work for [`NoAovs`]).
     const ON: bool;
     /// `w · e` was added to the beauty for `component`.
-    fn add(&mut self, component: Component, w: f64, e: [f64; 3]);
+    fn add(&mut self, component: Component, w: [f64; 3], e: [f64; 3]);
     /// The camera ray's first collision is at distance `t`.
     fn first_collision(&mut self, t: f64);
     /// Start a new sample.
@@ -69,7 +69,7 @@ pub struct NoAovs;
 impl Aovs for NoAovs {
     const ON: bool = false;
     #[inline(always)]
-    fn add(&mut self, _component: Component, _w: f64, _e: [f64; 3]) {}
+    fn add(&mut self, _component: Component, _w: [f64; 3], _e: [f64; 3]) {}
     #[inline(always)]
     fn first_collision(&mut self, _t: f64) {}
     #[inline(always)]
@@ -217,9 +217,9 @@ impl AovSample {
 impl Aovs for AovSample {
     const ON: bool = true;
     #[inline]
-    fn add(&mut self, component: Component, w: f64, e: [f64; 3]) {
+    fn add(&mut self, component: Component, w: [f64; 3], e: [f64; 3]) {
         let o = AovLayout::offset(component);
-        for (a, v) in self.values[o..o + 3].iter_mut().zip(e) {
+        for ((a, v), w) in self.values[o..o + 3].iter_mut().zip(e).zip(w) {
             *a += w * v;
         }
     }
@@ -284,8 +284,8 @@ mod tests {
             let at = layout.half_at().unwrap();
             let mut a = AovSample::new(layout.channels(), Some((at, filtered)));
             a.begin();
-            a.add(Component::Emission, 1.0, [1.0, 2.0, 3.0]);
-            a.add(Component::Scattered, 0.5, [4.0, 6.0, 8.0]);
+            a.add(Component::Emission, [1.0; 3], [1.0, 2.0, 3.0]);
+            a.add(Component::Scattered, [0.5; 3], [4.0, 6.0, 8.0]);
             a.half([3.0, 5.0, 7.0, 0.5]);
             assert_eq!(&a.values()[at..at + 5], &want, "{filtered:?}");
         }

@@ -50,6 +50,16 @@ pub(super) enum ForwardWeight {
     },
 }
 
+/// A path's throughput per channel (the channels differ only through a coloured albedo:
+/// extinction is grey).
+pub(crate) type Beta = [f64; 3];
+
+/// `beta` times `w`, channel by channel.
+#[inline]
+pub(crate) fn times(beta: Beta, w: f64) -> Beta {
+    beta.map(|b| b * w)
+}
+
 /// A collision a scattered path starts from: at `incoming.at(t)`, in a segment with
 /// albedo factor `albedo`, carrying throughput `beta` (before the albedo) of a path whose
 /// nominal weight is `scale`, after `depth` earlier collisions of the path.
@@ -58,7 +68,7 @@ pub(crate) struct Vertex {
     pub(super) incoming: Ray,
     pub(super) t: f64,
     pub(super) albedo: f32,
-    pub(super) beta: f64,
+    pub(super) beta: Beta,
     /// 1, or `1/n` for one of `n` split paths: roulette keeps `β` near it.
     pub(super) scale: f64,
     /// Collisions of the path before this one (0 at the camera segment's).
@@ -82,17 +92,18 @@ impl Bounces for NoBounces {
     fn at(&mut self, _vertex: Vertex, _sampler: &Sampler, _l: &[f64; 3], _c: &Counters) {}
 }
 
-/// Add `w · e` to the radiance and to its AOV component.
+/// Add `w · e`, channel by channel, to the radiance and to its AOV component (`w` is a
+/// path's throughput times the estimate's weight).
 #[inline]
 pub(super) fn contribute<A: Aovs>(
     l: &mut [f64; 3],
     aovs: &mut A,
     component: Component,
-    w: f64,
+    w: Beta,
     e: [f64; 3],
 ) {
-    if w != 0.0 {
-        for (a, v) in l.iter_mut().zip(e) {
+    if w != [0.0; 3] {
+        for ((a, v), w) in l.iter_mut().zip(e).zip(w) {
             *a += w * v;
         }
         aovs.add(component, w, e);

@@ -7,7 +7,7 @@
 use glam::DVec3;
 
 use super::aov::{Aovs, Component};
-use super::path::{contribute, Bounces, ForwardWeight, PathState, Vertex};
+use super::path::{contribute, times, Beta, Bounces, ForwardWeight, PathState, Vertex};
 use super::scene::Scene;
 use super::trace::Trace;
 use super::tracker::Tracker;
@@ -27,7 +27,7 @@ use plume_volume::field::{Field, PointValues, Ray};
 struct ScatterPoint {
     x: DVec3,
     incoming: DVec3,
-    beta: f64,
+    beta: Beta,
 }
 
 impl Integrator {
@@ -56,9 +56,11 @@ impl Integrator {
             );
             state.counters.collisions += 1;
             depth += 1;
-            // Scattering albedo of the collision's own segment (METHOD §10.3)
-            beta *= f64::from(m.albedo * albedo);
-            if beta == 0.0 {
+            // Scattering albedo of the collision's own segment (METHOD §10.3), per channel
+            for (b, a) in beta.iter_mut().zip(m.albedo.0) {
+                *b *= f64::from(a * albedo);
+            }
+            if beta == [0.0; 3] {
                 break; // absorbed: nothing more to carry
             }
             let at = ScatterPoint { x: ray.at(t), incoming: ray.direction, beta };
@@ -71,13 +73,14 @@ impl Integrator {
             }
             // Russian roulette after this segment's emission
             state.sampler.start_vertex(depth);
-            let q = (beta / (scale * ROULETTE_THRESHOLD)).min(1.0);
+            // On the largest channel: a grey path plays exactly as with a scalar β
+            let q = (beta[0].max(beta[1]).max(beta[2]) / (scale * ROULETTE_THRESHOLD)).min(1.0);
             if q < 1.0 {
                 if state.sampler.get_1d(Dim::Roulette) >= q {
                     state.trace.event(|| format!("  roulette: terminated (q {q})"));
                     break;
                 }
-                beta /= q;
+                beta = beta.map(|b| b / q);
             }
             // Sample the phase function for the next direction (f/p = 1)
             let ps = sample_hg(m.g, ray.direction, state.sampler.get_2d(Dim::Direction));
@@ -141,18 +144,18 @@ impl Integrator {
             let p_fwd = p_phase * m.mu_t(density) * (-r.optical_depth).exp() / (t * t);
             w = self.mis.weight(p_fwd, nee.pdf(voxels, ray.at(t)));
         }
-        contribute(l, state.aovs, Component::Scattered, beta * w, r.emission);
+        contribute(l, state.aovs, Component::Scattered, times(beta, w), r.emission);
         state.trace.event(|| {
             format!(
-                "segment depth {depth}: origin {:?} dir {:?} -> {:?}, F {:?}, w_fwd {w}, beta {beta}, tau {}",
+                "segment depth {depth}: origin {:?} dir {:?} -> {:?}, F {:?}, w_fwd {w}, beta {beta:?}, tau {}",
                 ray.origin, ray.direction, r.event, r.emission, r.transmittance
             )
         });
         if let Some(e) = external.filter(|e| r.transmittance != 0.0 && e.reachable()) {
             // The lights this segment reaches, each weighted against light sampling
-            let weight = beta * r.transmittance;
+            let weight = times(beta, r.transmittance);
             e.arriving(&ray, hit.map(|(_, i)| i), Some(p_phase), self.mis, |i, w, radiance| {
-                contribute(l, state.aovs, Component::Light(e.group(i)), weight * w, radiance);
+                contribute(l, state.aovs, Component::Light(e.group(i)), times(weight, w), radiance);
                 state.trace.event(|| {
                     format!("  reaches light {i}: L {radiance:?}, w {w}, tau {}", r.transmittance)
                 });
@@ -207,7 +210,7 @@ impl Integrator {
                             l,
                             state.aovs,
                             Component::Scattered,
-                            beta * f * w_l / p_sigma,
+                            beta.map(|b| b * f * w_l / p_sigma),
                             rl.emission,
                         );
                         state.trace.event(|| {
@@ -251,7 +254,7 @@ impl Integrator {
                             l,
                             state.aovs,
                             Component::Scattered,
-                            beta * f * tau * w_l / (vs.pdf * r2),
+                            beta.map(|b| b * f * tau * w_l / (vs.pdf * r2)),
                             le,
                         );
                         state.trace.event(|| {
@@ -301,7 +304,7 @@ impl Integrator {
                 l,
                 state.aovs,
                 Component::Light(lights.group(index)),
-                beta * f * tau * w / pmf,
+                beta.map(|b| b * f * tau * w / pmf),
                 s.value,
             );
             state.trace.event(|| {
@@ -315,7 +318,7 @@ impl Integrator {
 #[derive(Clone, Copy, Debug)]
 struct Segment {
     ray: Ray,
-    beta: f64,
+    beta: Beta,
     depth: u32,
     /// Phase pdf of the segment's direction.
     p_phase: f64,

@@ -220,7 +220,7 @@ impl Integrator {
     /// lights) or scores a real collision's emission (not the point estimator).
     #[must_use]
     pub(crate) fn defers<F: Field>(&self, scene: &Scene<F>) -> bool {
-        let scatters = scene.medium.albedo > 0.0 && self.max_depth > 0;
+        let scatters = scene.medium.albedo.max_component() > 0.0 && self.max_depth > 0;
         let null_after = matches!(
             self.still_tracker(scene, self.tracking.null_after_scattering(), self.point_lookup),
             Tracker::Null { .. }
@@ -279,7 +279,7 @@ impl Integrator {
     ) -> [f64; 4] {
         let m = &scene.medium;
         let mut l = [0.0f64; 3];
-        let scatters = m.albedo > 0.0 && self.max_depth > 0;
+        let scatters = m.albedo.max_component() > 0.0 && self.max_depth > 0;
         let external = scene.lights.external.as_ref();
         let (camera, tracker) = self.trackers(scene, time, state.sampler);
         // The camera segment ends at the first sphere light it hits (they are opaque)
@@ -313,7 +313,7 @@ impl Integrator {
             camera.track(m, camera_ray, t_max, self.camera_estimator(), collision, u, state.sampler)
         };
         state.counters.add_track(&r);
-        contribute(&mut l, state.aovs, Component::Emission, 1.0, r.emission);
+        contribute(&mut l, state.aovs, Component::Emission, [1.0; 3], r.emission);
         state.trace.event(|| {
             format!(
                 "segment depth 0: origin {:?} dir {:?} -> {:?} (weight {}), F {:?}, w_fwd 1, beta 1, tau {}",
@@ -331,7 +331,7 @@ impl Integrator {
                     &mut l,
                     state.aovs,
                     Component::Light(e.group(i)),
-                    r.transmittance * w,
+                    [r.transmittance * w; 3],
                     radiance,
                 );
                 state.trace.event(|| {
@@ -351,7 +351,7 @@ impl Integrator {
                 incoming: *camera_ray,
                 t,
                 albedo,
-                beta: scale * r.collision_weight,
+                beta: [scale * r.collision_weight; 3],
                 scale,
                 depth: 0,
             };

@@ -7,8 +7,9 @@ use super::emission::Emission;
 pub struct Medium {
     /// σ_t: extinction per metre per unit density (the `--density-scale`).
     pub sigma_t: f64,
-    /// Single-scattering albedo `a = μ_s / μ_t`, in `[0, 1]`.
-    pub albedo: f32,
+    /// Single-scattering albedo `a = μ_s / μ_t` per channel, in `[0, 1]` (extinction is
+    /// grey: a channel's `1 − a` is absorbed).
+    pub albedo: plume_core::color::Rgb,
     /// Henyey–Greenstein asymmetry `g ∈ (−1, 1)`.
     pub g: f64,
     /// Emission model.

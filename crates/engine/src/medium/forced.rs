@@ -156,7 +156,12 @@ mod tests {
 
     /// The collision law needs only the density: no emission.
     fn medium(sigma_t: f64) -> Medium {
-        Medium { sigma_t, albedo: 0.8, g: 0.0, emission: Emission::none() }
+        Medium {
+            sigma_t,
+            albedo: plume_core::color::Rgb::splat(0.8),
+            g: 0.0,
+            emission: Emission::none(),
+        }
     }
 
     /// `n` first vertices of a forced walk with number `u`, and the walk's own result.

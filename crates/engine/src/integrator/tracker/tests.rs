@@ -32,7 +32,11 @@ fn hot_fields() -> (Volume, Trilinear, Medium) {
     let (ex, emission) = hot_explosion();
     let volume =
         || Volume::build(&ex.density, Some(&ex.temperature), |v| emission.map_source(v)).unwrap();
-    (volume(), Trilinear::new(volume()), Medium { sigma_t: 2.0, albedo: 0.8, g: 0.0, emission })
+    (
+        volume(),
+        Trilinear::new(volume()),
+        Medium { sigma_t: 2.0, albedo: plume_core::color::Rgb::splat(0.8), g: 0.0, emission },
+    )
 }
 
 /// What null collisions read of a still volume is exactly what the field
@@ -198,7 +202,12 @@ fn still_shadow_rays_are_exact_under_null_collisions() {
     });
     let volume = Volume::build(&ex.density, None, |v| v).unwrap();
     let majorants = MajorantGrid::new(&volume, 0.0);
-    let medium = Medium { sigma_t: 3.0, albedo: 0.8, g: 0.0, emission: Emission::none() };
+    let medium = Medium {
+        sigma_t: 3.0,
+        albedo: plume_core::color::Rgb::splat(0.8),
+        g: 0.0,
+        emission: Emission::none(),
+    };
     let b = volume.world_bounds();
     let mut rng = Sampler::new(9, 0, 0);
     for _ in 0..500 {
@@ -284,7 +293,8 @@ fn read_ahead_records_the_real_walks_lookups_first() {
         let mut rng = Sampler::new(11, 0, 0);
         let (mut collided, mut compared) = (0, 0);
         for sigma_t in [0.5, 20.0] {
-            let medium = Medium { sigma_t, albedo: 0.8, g: 0.0, emission };
+            let medium =
+                Medium { sigma_t, albedo: plume_core::color::Rgb::splat(0.8), g: 0.0, emission };
             for k in 0..400u64 {
                 let u = glam::DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64());
                 let ray = Ray {
@@ -344,7 +354,7 @@ fn read_ahead_records_the_real_walks_lookups_first() {
     assert!(
         Points::new(
             &linear,
-            &Medium { sigma_t: 1.0, albedo: 0.8, g: 0.0, emission },
+            &Medium { sigma_t: 1.0, albedo: plume_core::color::Rgb::splat(0.8), g: 0.0, emission },
             None,
             PointLookup::Stochastic
         )

@@ -2,11 +2,12 @@
 //! emission on every segment, optional next event estimation (classic NEE or FNEE), MIS,
 //! Russian roulette. METHOD.md §5–8.
 //!
-//! Per segment leaving `x` along `ω` with throughput `β` (grey, since μ_t and albedo are):
+//! Per segment leaving `x` along `ω` with throughput `β` (per channel; the channels differ
+//! only through a coloured albedo, since μ_t is grey):
 //! 1. `L += β · w_fwd(ω) · F` on every segment, before roulette;
-//! 2. at a collision, `β ← β · a`; light sampling at the collision point; roulette with
-//!    `q = min(1, β/t)` ([`ROULETTE_THRESHOLD`] `t`); HG sampling of the next direction
-//!    (`f/p = 1`).
+//! 2. at a collision, `β_c ← β_c · a_c`; light sampling at the collision point; roulette
+//!    with `q = min(1, max_c β_c / t)` ([`ROULETTE_THRESHOLD`] `t`); HG sampling of the
+//!    next direction (`f/p = 1`).
 //!
 //! No vertex emission is ever added: with line integration it would double count.
 //!

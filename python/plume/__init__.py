@@ -333,8 +333,9 @@ def render(scene: Scene, progress: Optional[Callable[[Dict[str, Any]], Any]] = N
     (0 … 1) and ``frame``. An exception it raises stops the render after that pass and is
     raised here. The interpreter is released while rendering, so other Python threads run
     (and may render too); Ctrl-C stops the render at the end of its current pass and
-    raises ``KeyboardInterrupt``. The scene renders one frame: its output paths are not
-    written (use :meth:`Render.write_exr`).
+    raises ``KeyboardInterrupt``. With ``farm.time_limit`` the frame reached when it runs
+    out is returned, ``stats["status"]`` saying ``"time-limit"``. The scene renders one
+    frame: its output paths are not written (use :meth:`Render.write_exr`).
 
     Raises :class:`SceneError`, :class:`InputError` or :class:`RenderError` with the
     command line's one-line message.

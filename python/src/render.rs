@@ -220,6 +220,11 @@ pub fn render_shot(
             "farm.frames: plume.render renders one frame, and {frames} are given; render each frame in its own call (farm.frames = \"N\")"
         )));
     }
+    if shot.settings.render.debug_pixel.is_some() {
+        return Err(crate::SceneError::new_err(
+            "render.debug_pixel: replaying one sample is the command line's (plume render --debug-pixel); plume.render renders images",
+        ));
+    }
     let valid = shot.validate().map_err(|e| to_py(&e))?;
     let observer = PyObserver {
         progress,
@@ -240,7 +245,11 @@ pub fn render_shot(
     {
         return Err(e);
     }
-    result.map_err(|e| to_py(&e))?;
+    match result {
+        // `farm.time_limit` ran out: the frame reached was written, and its record says so
+        Ok(()) | Err(Error::TimeLimit { .. }) => {}
+        Err(e) => return Err(to_py(&e)),
+    }
     let stats_json = observer
         .record
         .lock()

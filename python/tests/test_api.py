@@ -295,3 +295,16 @@ def test_a_coloured_albedo_is_a_list(tmp_path, explosion):
     assert image.beauty[..., 2].sum() < grey.beauty[..., 2].sum()
     with pytest.raises(plume.SceneError, match="medium.albedo"):
         plume.Scene(volume={"file": str(explosion)}, medium={"albedo": [0.9, 0.5]})
+
+
+def test_a_time_limit_returns_the_frame_reached_and_debug_pixels_are_refused(explosion):
+    scene = plume.Scene(
+        volume={"file": str(explosion)},
+        farm={"time_limit": 1.0},
+        **small(render={"spp": 1_000_000}),
+    )
+    image = plume.render(scene)
+    assert image.stats["status"] == "time-limit" and 0 < image.stats["spp"] < 1_000_000
+    assert image.beauty[..., 3].max() > 0.5
+    with pytest.raises(plume.SceneError, match="render.debug_pixel"):
+        plume.render(plume.Scene(volume={"file": str(explosion)}, render={"debug_pixel": "3,3,0"}))

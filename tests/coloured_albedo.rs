@@ -141,4 +141,15 @@ fn a_colour_of_equal_channels_is_the_grey_medium_through_the_binary() {
     );
     let o = plume(&["render", s(&ex), "-o", s(&dir.join("x.exr")), "--albedo", "0.9,0.3"]);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    // In a scene file: the line and key, and what is expected
+    let file = dir.join("two.toml");
+    let text = format!("[volume]\nfile = {:?}\n[medium]\nalbedo = [0.5, 0.2]\n", s(&ex));
+    std::fs::write(&file, text).unwrap();
+    let o = plume(&["render", s(&file), "-o", s(&dir.join("x.exr"))]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        stderr(&o).contains("two.toml:4: key `medium.albedo`: expected a number or [r, g, b]"),
+        "{}",
+        stderr(&o)
+    );
 }

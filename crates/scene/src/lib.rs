@@ -286,13 +286,32 @@ impl Default for EmissionSettings {
 /// (`albedo = [0.9, 0.6, 0.3]`), each channel in [0, 1]. Extinction stays grey: the
 /// colour is what scatters, the rest of each channel is absorbed (Cycles' Principled
 /// Volume *Color* with a black *Absorption Color*).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 #[serde(untagged)]
 pub enum Albedo {
     /// The same in every channel.
     Grey(f32),
     /// Red, green, blue.
     Color([f32; 3]),
+}
+
+impl<'de> Deserialize<'de> for Albedo {
+    /// A number or three; anything else is refused with what is expected.
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Albedo, D::Error> {
+        #[derive(Deserialize)]
+        #[serde(untagged)]
+        enum Raw {
+            Grey(f32),
+            Color([f32; 3]),
+        }
+        match Raw::deserialize(d) {
+            Ok(Raw::Grey(a)) => Ok(Albedo::Grey(a)),
+            Ok(Raw::Color(c)) => Ok(Albedo::Color(c)),
+            Err(_) => {
+                Err(serde::de::Error::custom("expected a number or [r, g, b], each in [0, 1]"))
+            }
+        }
+    }
 }
 
 impl Albedo {

@@ -281,7 +281,7 @@ class Render:
 
         names = list(data.channel_names)
         rgba = ["R", "G", "B", "A"]
-        self.beauty: np.ndarray = np.stack([channel(c) for c in rgba], axis=-1).astype(np.float32)
+        self.beauty: np.ndarray = np.stack([channel(c) for c in rgba], axis=-1)
         groups: Dict[str, List[str]] = {}
         # EXR stores channels sorted by name; a layer's come back as R, G, B, A, X, Y, Z,
         # then the others by name
@@ -293,7 +293,7 @@ class Render:
             layer = n.rsplit(".", 1)[0] if "." in n else n
             groups.setdefault(layer, []).append(n)
         self.layers: Dict[str, np.ndarray] = {
-            layer: np.stack([channel(c) for c in chans], axis=-1).astype(np.float32)
+            layer: np.stack([channel(c) for c in chans], axis=-1)
             for layer, chans in groups.items()
         }
         self.layer_channels: Dict[str, List[str]] = {

@@ -45,14 +45,9 @@ impl Dense {
     }
 }
 
-/// Run `f` on `array`, a 3-dimensional float32 buffer of any layout (copied once, in C
-/// order, while the leaves are built).
-fn with_dense<T>(
-    py: Python<'_>,
-    array: &Bound<'_, PyAny>,
-    name: &str,
-    f: impl FnOnce(&Dense) -> PyResult<T>,
-) -> PyResult<T> {
+/// `array`, a 3-dimensional float32 buffer of any layout, copied once in C order, its
+/// values checked finite (the count and first voxel of those that are not).
+fn dense(py: Python<'_>, array: &Bound<'_, PyAny>, name: &str) -> PyResult<Dense> {
     let buffer = PyBuffer::<f32>::get(array).map_err(|e| {
         InputError::new_err(format!("grid {name:?}: not a float32 array buffer ({e})"))
     })?;
@@ -63,26 +58,33 @@ fn with_dense<T>(
             shape.len()
         )));
     }
-    let values = buffer.to_vec(py)?;
-    f(&Dense { values, shape: [shape[0], shape[1], shape[2]] })
+    let dense = Dense { values: buffer.to_vec(py)?, shape: [shape[0], shape[1], shape[2]] };
+    let count = dense.values.iter().filter(|v| !v.is_finite()).count();
+    if let Some(o) = dense.values.iter().position(|v| !v.is_finite()) {
+        let [_, ny, nz] = dense.shape;
+        let first = (o / (ny * nz), o / nz % ny, o % nz);
+        return Err(InputError::new_err(format!(
+            "grid {name:?}: {count} voxels are NaN or infinite (the first at index {first:?})"
+        )));
+    }
+    Ok(dense)
 }
 
-/// The leaves of `dense` that hold a voxel other than `background` (all of them when
-/// `keep` says so for a leaf: the vector components share one topology).
-fn leaves(dense: &Dense, background: f32, keep: &dyn Fn(IVec3) -> bool) -> Vec<IVec3> {
+/// The leaves of `dense` that hold a voxel other than `background`, in order of
+/// `(x, y, z)`.
+fn leaves(dense: &Dense, background: f32) -> Vec<IVec3> {
     let [nx, ny, nz] = dense.shape;
     let mut out = Vec::new();
     for bx in 0..nx.div_ceil(8) {
         for by in 0..ny.div_ceil(8) {
             for bz in 0..nz.div_ceil(8) {
-                let o = IVec3::new(8 * bx as i32, 8 * by as i32, 8 * bz as i32);
                 let holds = (8 * bx..(8 * bx + 8).min(nx)).any(|i| {
                     (8 * by..(8 * by + 8).min(ny)).any(|j| {
                         (8 * bz..(8 * bz + 8).min(nz)).any(|k| dense.at(i, j, k) != background)
                     })
                 });
-                if holds || keep(o) {
-                    out.push(o);
+                if holds {
+                    out.push(IVec3::new(8 * bx as i32, 8 * by as i32, 8 * bz as i32));
                 }
             }
         }
@@ -108,28 +110,6 @@ fn gather(dense: &Dense, origins: &[IVec3], background: f32) -> Vec<f32> {
         }
     }
     values
-}
-
-/// Refuse non-finite values: the count and the first voxel.
-fn check_finite(dense: &Dense, name: &str) -> PyResult<()> {
-    let [nx, ny, nz] = dense.shape;
-    let (mut count, mut first) = (0u64, None);
-    for i in 0..nx {
-        for j in 0..ny {
-            for k in 0..nz {
-                if !dense.at(i, j, k).is_finite() {
-                    count += 1;
-                    first.get_or_insert((i, j, k));
-                }
-            }
-        }
-    }
-    match first {
-        None => Ok(()),
-        Some(v) => Err(InputError::new_err(format!(
-            "grid {name:?}: {count} voxels are NaN or infinite (the first at index {v:?})"
-        ))),
-    }
 }
 
 #[pymethods]
@@ -164,18 +144,16 @@ impl VolumeData {
     /// Add the float grid `name` from the 3-dimensional float32 `array`.
     fn add_grid(&mut self, py: Python<'_>, name: String, array: &Bound<'_, PyAny>) -> PyResult<()> {
         let background = self.background;
-        let grid = with_dense(py, array, &name, |dense| {
-            check_finite(dense, &name)?;
-            let origins = leaves(dense, background, &|_| false);
-            let values = gather(dense, &origins, background);
-            Ok(FloatGrid {
-                name: name.clone(),
-                world_from_index: self.world_from_index,
-                background,
-                origins,
-                values,
-            })
-        })?;
+        let dense = dense(py, array, &name)?;
+        let origins = leaves(&dense, background);
+        let values = gather(&dense, &origins, background);
+        let grid = FloatGrid {
+            name: name.clone(),
+            world_from_index: self.world_from_index,
+            background,
+            origins,
+            values,
+        };
         self.grids.retain(|g| g.name != name);
         self.grids.push(grid);
         Ok(())
@@ -191,31 +169,27 @@ impl VolumeData {
         y: &Bound<'_, PyAny>,
         z: &Bound<'_, PyAny>,
     ) -> PyResult<()> {
-        let arrays = [x, y, z];
-        let mut topology: Vec<IVec3> = Vec::new();
-        for (c, a) in ["x", "y", "z"].iter().zip(arrays) {
+        let mut components = Vec::with_capacity(3);
+        for (c, a) in ["x", "y", "z"].iter().zip([x, y, z]) {
             let label = format!("{name}.{c}");
-            with_dense(py, a, &label, |dense| {
-                check_finite(dense, &label)?;
-                topology.extend(leaves(dense, 0.0, &|_| false));
-                Ok(())
-            })?;
+            let d = dense(py, a, &label)?;
+            components.push((label, d));
         }
+        // One topology: the leaves where any component differs from 0
+        let mut topology: Vec<IVec3> =
+            components.iter().flat_map(|(_, d)| leaves(d, 0.0)).collect();
         topology.sort_by_key(|o| (o.x, o.y, o.z));
         topology.dedup();
-        let mut components = Vec::new();
-        for (c, a) in ["x", "y", "z"].iter().zip(arrays) {
-            let label = format!("{name}.{c}");
-            components.push(with_dense(py, a, &label, |dense| {
-                Ok(FloatGrid {
-                    name: label.clone(),
-                    world_from_index: self.world_from_index,
-                    background: 0.0,
-                    origins: topology.clone(),
-                    values: gather(dense, &topology, 0.0),
-                })
-            })?);
-        }
+        let components: Vec<FloatGrid> = components
+            .into_iter()
+            .map(|(label, d)| FloatGrid {
+                name: label,
+                world_from_index: self.world_from_index,
+                background: 0.0,
+                values: gather(&d, &topology, 0.0),
+                origins: topology.clone(),
+            })
+            .collect();
         let [cx, cy, cz]: [FloatGrid; 3] =
             components.try_into().map_err(|_| InputError::new_err("three components"))?;
         self.velocity = Some((name, [cx, cy, cz]));

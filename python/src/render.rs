@@ -120,7 +120,7 @@ struct PyObserver {
 
 impl PyObserver {
     fn fail(&self, e: PyErr) {
-        let mut failure = self.failure.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        let mut failure = locked(&self.failure);
         failure.get_or_insert(e);
         self.stop.store(true, Ordering::SeqCst);
     }
@@ -154,13 +154,18 @@ impl JobObserver for PyObserver {
         record: &plume_engine::stats::RenderStats,
     ) {
         if let Ok(json) = serde_json::to_string(record) {
-            *self.record.lock().unwrap_or_else(std::sync::PoisonError::into_inner) = Some(json);
+            *locked(&self.record) = Some(json);
         }
     }
 
     fn stop_requested(&self) -> bool {
         self.stop.load(Ordering::SeqCst)
     }
+}
+
+/// `mutex`'s value, also after a panic elsewhere held it (the values here are plain data).
+fn locked<T>(mutex: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    mutex.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
 }
 
 /// A private temporary directory, removed on drop.
@@ -240,9 +245,7 @@ pub fn render_shot(
         };
         plume::farm::job::render_command(&valid, &context)
     });
-    if let Some(e) =
-        observer.failure.lock().unwrap_or_else(std::sync::PoisonError::into_inner).take()
-    {
+    if let Some(e) = locked(&observer.failure).take() {
         return Err(e);
     }
     match result {
@@ -250,12 +253,7 @@ pub fn render_shot(
         Ok(()) | Err(Error::TimeLimit { .. }) => {}
         Err(e) => return Err(to_py(&e)),
     }
-    let stats_json = observer
-        .record
-        .lock()
-        .unwrap_or_else(std::sync::PoisonError::into_inner)
-        .take()
-        .unwrap_or_else(|| "{}".into());
+    let stats_json = locked(&observer.record).take().unwrap_or_else(|| "{}".into());
     py.detach(|| read_render(&output, stats_json)).map_err(|e| to_py(&e))
 }
 

@@ -308,3 +308,18 @@ def test_a_time_limit_returns_the_frame_reached_and_debug_pixels_are_refused(exp
     assert image.beauty[..., 3].max() > 0.5
     with pytest.raises(plume.SceneError, match="render.debug_pixel"):
         plume.render(plume.Scene(volume={"file": str(explosion)}, render={"debug_pixel": "3,3,0"}))
+
+
+def test_a_velocity_is_written_as_a_vector_grid(tmp_path):
+    density, _ = blob(16)
+    velocity = np.zeros(density.shape + (3,), dtype=np.float32)
+    velocity[..., 0] = np.where(density > 0, 2.0, 0.0)
+    volume = plume.Volume.from_numpy(density, velocity=velocity, voxel_size=0.1)
+    volume.write_vdb(tmp_path / "moving.vdb")
+    grids = {g["name"]: g for g in plume.info(tmp_path / "moving.vdb")}
+    assert grids["velocity"]["type"].startswith("vec3")
+    assert grids["velocity"]["max"] == pytest.approx(2.0)
+    with pytest.raises(plume.InputError, match=r"velocity.y.*NaN or infinite"):
+        bad = velocity.copy()
+        bad[3, 3, 3, 1] = np.inf
+        plume.Volume.from_numpy(density, velocity=bad)

@@ -48,8 +48,8 @@ use check::Check;
 use sweeps::{density_sweep, invalid_voxels, temperature_sweep, voxel_size_sweep};
 
 pub use check::box_grid;
-pub use cost::{cost_table, growth, CostPoint, MAX_GROWTH};
-pub use rows::{ExtremesConfig, ExtremesReport, Row};
+pub use cost::{cost_table, growth, MAX_GROWTH};
+pub use rows::{CostPoint, ExtremesConfig, ExtremesReport, Row};
 
 /// Run the sweep.
 ///

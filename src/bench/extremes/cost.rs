@@ -23,10 +23,8 @@
 use std::fmt::Write as _;
 use std::time::Instant;
 
-use serde::Serialize;
-
 use super::check::Check;
-use super::rows::{ExtremesConfig, Row};
+use super::rows::{CostPoint, ExtremesConfig, Row};
 use crate::bench::numbers::num;
 use plume_core::error::Result;
 use plume_engine::camera::Camera;
@@ -65,60 +63,6 @@ const SERIES: [Series; 5] = [
     Series { preset: "ray-march", tracking: TrackingChoice::Auto, checked: true },
     Series { preset: "line-fnee", tracking: TrackingChoice::Null, checked: false },
 ];
-
-/// One render of the sweep.
-#[derive(Clone, Debug, Serialize)]
-pub struct CostPoint {
-    /// Method preset.
-    pub method: String,
-    /// Tracking the method ran with.
-    pub tracking: String,
-    /// Density scale (σ_t per unit of the grid's density).
-    pub density_scale: f64,
-    /// Camera samples.
-    pub samples: u64,
-    /// Rays tracked.
-    pub walks: u64,
-    /// Voxel steps of all walks.
-    pub voxel_steps: u64,
-    /// Tentative points of null collisions.
-    pub tentative_points: u64,
-    /// Real collisions.
-    pub collisions: u64,
-    /// Render seconds (one thread).
-    pub seconds: f64,
-}
-
-impl CostPoint {
-    /// Voxel steps plus tentative points.
-    #[must_use]
-    pub fn work(&self) -> u64 {
-        self.voxel_steps + self.tentative_points
-    }
-    /// Work per walk.
-    #[must_use]
-    pub fn work_per_walk(&self) -> f64 {
-        self.work() as f64 / self.walks.max(1) as f64
-    }
-    /// Walks per sample.
-    #[must_use]
-    pub fn walks_per_sample(&self) -> f64 {
-        self.walks as f64 / self.samples.max(1) as f64
-    }
-    /// Microseconds per walk.
-    #[must_use]
-    pub fn micros_per_walk(&self) -> f64 {
-        1e6 * self.seconds / self.walks.max(1) as f64
-    }
-    /// Microseconds per sample.
-    #[must_use]
-    pub fn micros_per_sample(&self) -> f64 {
-        1e6 * self.seconds / self.samples.max(1) as f64
-    }
-    fn label(&self) -> String {
-        format!("{}, {} tracking", self.method, self.tracking)
-    }
-}
 
 /// The largest rise of `series` (in order of increasing density) from any point to a
 /// later one: `max_{i < j} c_j / c_i` (1 for a series that never rises).

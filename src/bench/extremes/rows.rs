@@ -1,5 +1,6 @@
-//! The numerical-extremes sweep's settings ([`ExtremesConfig`]), its checks ([`Row`]) and
-//! what it reports ([`ExtremesReport`]): the verdict and the Markdown table.
+//! The numerical-extremes sweep's settings ([`ExtremesConfig`]), its checks ([`Row`]), the
+//! cost sweep's renders ([`CostPoint`]) and what it reports ([`ExtremesReport`]): the
+//! verdict and the Markdown table.
 
 use std::fmt::Write as _;
 
@@ -46,6 +47,60 @@ pub struct Row {
     pub note: String,
 }
 
+/// One render of the sweep.
+#[derive(Clone, Debug, Serialize)]
+pub struct CostPoint {
+    /// Method preset.
+    pub method: String,
+    /// Tracking the method ran with.
+    pub tracking: String,
+    /// Density scale (σ_t per unit of the grid's density).
+    pub density_scale: f64,
+    /// Camera samples.
+    pub samples: u64,
+    /// Rays tracked.
+    pub walks: u64,
+    /// Voxel steps of all walks.
+    pub voxel_steps: u64,
+    /// Tentative points of null collisions.
+    pub tentative_points: u64,
+    /// Real collisions.
+    pub collisions: u64,
+    /// Render seconds (one thread).
+    pub seconds: f64,
+}
+
+impl CostPoint {
+    /// Voxel steps plus tentative points.
+    #[must_use]
+    pub fn work(&self) -> u64 {
+        self.voxel_steps + self.tentative_points
+    }
+    /// Work per walk.
+    #[must_use]
+    pub fn work_per_walk(&self) -> f64 {
+        self.work() as f64 / self.walks.max(1) as f64
+    }
+    /// Walks per sample.
+    #[must_use]
+    pub fn walks_per_sample(&self) -> f64 {
+        self.walks as f64 / self.samples.max(1) as f64
+    }
+    /// Microseconds per walk.
+    #[must_use]
+    pub fn micros_per_walk(&self) -> f64 {
+        1e6 * self.seconds / self.walks.max(1) as f64
+    }
+    /// Microseconds per sample.
+    #[must_use]
+    pub fn micros_per_sample(&self) -> f64 {
+        1e6 * self.seconds / self.samples.max(1) as f64
+    }
+    pub(super) fn label(&self) -> String {
+        format!("{}, {} tracking", self.method, self.tracking)
+    }
+}
+
 /// Everything the sweep checked.
 #[derive(Clone, Debug, Serialize)]
 pub struct ExtremesReport {
@@ -54,7 +109,7 @@ pub struct ExtremesReport {
     /// Checks in order.
     pub rows: Vec<Row>,
     /// The cost sweep's renders, method by method in order of density.
-    pub cost: Vec<super::cost::CostPoint>,
+    pub cost: Vec<CostPoint>,
     /// Wall seconds of the sweep.
     pub seconds: f64,
 }

@@ -7,7 +7,7 @@ use std::path::Path;
 
 use plume_core::error::Result;
 use plume_core::fs::write_atomic;
-use plume_engine::film::Crop;
+use plume_engine::film::{Crop, Moments};
 
 /// Write `pixels` (row-major RGBA, linear) as a 32-bit float EXR with text attributes
 /// `metadata` (name, value), atomically.
@@ -35,17 +35,35 @@ pub fn write_exr(
     )
 }
 
-/// Names of the 16 `u32` channels that hold a pixel's exact `i128` sums: `sum.{R,G,B,A}.w{0..3}`,
-/// 32-bit words, least significant first (two's complement).
-#[must_use]
-pub fn sum_channel_names() -> Vec<String> {
-    let mut names = Vec::with_capacity(16);
-    for c in ["R", "G", "B", "A"] {
-        for w in 0..4 {
-            names.push(format!("sum.{c}.w{w}"));
-        }
+/// Names of the `i128` channels (each stored as four `u32` words like the sums) that
+/// hold a pixel's [`Moments`]: its squared colour sums and its sample count.
+pub const MOMENT_CHANNELS: [&str; 4] = ["R2", "G2", "B2", "n"];
+
+/// A film's exact record over a crop, row-major: what `plume merge` adds and a continued
+/// render resumes from.
+#[derive(Clone, Copy, Debug)]
+pub struct ExactSums<'a> {
+    /// The RGBA sums (`film.rs`), stored as `sum.R.w0` … `sum.A.w3`.
+    pub rgba: &'a [[i128; 4]],
+    /// The pixels' moments, stored as `sum.R2.w0` … `sum.n.w3` ([`MOMENT_CHANNELS`]).
+    pub moments: &'a [Moments],
+}
+
+/// [`ExactSums`], owned (as read back).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct OwnedSums {
+    /// The RGBA sums.
+    pub rgba: Vec<[i128; 4]>,
+    /// The pixels' moments.
+    pub moments: Vec<Moments>,
+}
+
+impl OwnedSums {
+    /// Borrowed, to write.
+    #[must_use]
+    pub fn as_ref(&self) -> ExactSums<'_> {
+        ExactSums { rgba: &self.rgba, moments: &self.moments }
     }
-    names
 }
 
 /// An image to write: RGBA for the pixels of `crop` of a `width × height` image (the EXR
@@ -59,8 +77,8 @@ pub struct ExrImage<'a> {
     pub crop: Crop,
     /// Row-major RGBA over `crop`.
     pub pixels: &'a [[f32; 4]],
-    /// Exact fixed-point sums over `crop` (`film.rs`), stored as 16 `u32` channels.
-    pub sums: Option<&'a [[i128; 4]]>,
+    /// Exact fixed-point sums and moments over `crop` (`film.rs`), as `u32` words.
+    pub sums: Option<ExactSums<'a>>,
     /// AOV layers, if any.
     pub aovs: Option<AovChannels<'a>>,
     /// Text attributes (name, value); non-ASCII characters become `?`.
@@ -98,14 +116,14 @@ pub fn write_exr_image(path: &Path, image: &ExrImage<'_>) -> Result<()> {
             FlatSamples::F32(image.pixels.iter().map(|p| p[c]).collect()),
         ));
     }
-    if let Some(sums) = image.sums {
+    if let Some(ExactSums { rgba: sums, moments }) = image.sums {
         assert_eq!(sums.len(), n, "invariant: one sum per crop pixel");
-        let names = sum_channel_names();
-        for c in 0..4 {
-            for w in 0..4 {
-                let words = sums.iter().map(|s| ((s[c] as u128) >> (32 * w)) as u32).collect();
-                list.push(AnyChannel::new(names[c * 4 + w].as_str(), FlatSamples::U32(words)));
-            }
+        assert_eq!(moments.len(), n, "invariant: one moment per crop pixel");
+        for (c, name) in ["R", "G", "B", "A"].iter().enumerate() {
+            push_words(&mut list, name, sums.iter().map(|s| s[c]));
+        }
+        for (c, name) in MOMENT_CHANNELS.iter().enumerate() {
+            push_words(&mut list, name, moments.iter().map(|m| moment(m, c)));
         }
     }
     let mut aov_order = None;
@@ -118,14 +136,7 @@ pub fn write_exr_image(path: &Path, image: &ExrImage<'_>) -> Result<()> {
             let k = names.len();
             assert_eq!(sums.len(), n * k, "invariant: one sum per AOV channel and crop pixel");
             for (c, name) in names.iter().enumerate() {
-                for w in 0..4 {
-                    let words =
-                        (0..n).map(|i| ((sums[i * k + c] as u128) >> (32 * w)) as u32).collect();
-                    list.push(AnyChannel::new(
-                        format!("sum.{name}.w{w}").as_str(),
-                        FlatSamples::U32(words),
-                    ));
-                }
+                push_words(&mut list, name, (0..n).map(|i| sums[i * k + c]));
             }
             aov_order = Some(names.join(","));
         }
@@ -158,6 +169,29 @@ pub fn write_exr_image(path: &Path, image: &ExrImage<'_>) -> Result<()> {
             .to_buffered(out)
             .map_err(|e| std::io::Error::other(e.to_string()))
     })
+}
+
+/// Channel `c` of a pixel's moments as an `i128` ([`MOMENT_CHANNELS`]).
+fn moment(m: &Moments, c: usize) -> i128 {
+    if c < 3 {
+        m.squares[c]
+    } else {
+        i128::from(m.count)
+    }
+}
+
+/// Push the exact `i128` values of channel `name` as four `u32` channels
+/// `sum.<name>.w0..3`, 32-bit words, least significant first (two's complement).
+fn push_words(
+    list: &mut Vec<exr::prelude::AnyChannel<exr::prelude::FlatSamples>>,
+    name: &str,
+    values: impl Iterator<Item = i128> + Clone,
+) {
+    use exr::prelude::*;
+    for w in 0..4 {
+        let words = values.clone().map(|v| ((v as u128) >> (32 * w)) as u32).collect();
+        list.push(AnyChannel::new(format!("sum.{name}.w{w}").as_str(), FlatSamples::U32(words)));
+    }
 }
 
 /// The float channels of an EXR's first layer, over its data window.
@@ -210,8 +244,8 @@ pub struct ExrContents {
     pub crop: Crop,
     /// Row-major RGBA over `crop`.
     pub pixels: Vec<[f32; 4]>,
-    /// Exact sums, when the file has all 16 sum channels.
-    pub sums: Option<Vec<[i128; 4]>>,
+    /// Exact sums and the pixels' moments, when the file has all their channels.
+    pub sums: Option<OwnedSums>,
     /// Exact AOV sums: the channel names (in sum order) and their sums, names.len() per
     /// pixel, when the file has them all.
     pub aov_sums: Option<(Vec<String>, Vec<i128>)>,
@@ -264,48 +298,43 @@ pub fn read_exr_contents(path: &Path) -> Result<ExrContents> {
             None => return Err(bad(format!("no {name} channel"))),
         }
     }
-    let names = sum_channel_names();
-    let words: Option<Vec<&Vec<u32>>> = names
-        .iter()
-        .map(|n| match channel(n).map(|c| &c.sample_data) {
-            Some(FlatSamples::U32(v)) if v.len() == w * h => Some(v),
-            _ => None,
-        })
-        .collect();
-    let sums = words.map(|words| {
-        (0..w * h)
-            .map(|i| {
-                let mut s = [0i128; 4];
-                for (c, v) in s.iter_mut().enumerate() {
-                    let u = (0..4)
-                        .fold(0u128, |acc, k| acc | (u128::from(words[c * 4 + k][i]) << (32 * k)));
-                    *v = u as i128;
-                }
-                s
+    // One exact `i128` channel from its four words, if they are all there
+    let exact = |name: &str| -> Option<Vec<i128>> {
+        let words: Option<Vec<&Vec<u32>>> = (0..4)
+            .map(|k| match channel(&format!("sum.{name}.w{k}")).map(|c| &c.sample_data) {
+                Some(FlatSamples::U32(v)) if v.len() == w * h => Some(v),
+                _ => None,
             })
-            .collect()
+            .collect();
+        let words = words?;
+        Some(
+            (0..w * h)
+                .map(|i| {
+                    (0..4).fold(0u128, |acc, k| acc | (u128::from(words[k][i]) << (32 * k))) as i128
+                })
+                .collect(),
+        )
+    };
+    let rgba: Option<Vec<Vec<i128>>> = ["R", "G", "B", "A"].iter().map(|c| exact(c)).collect();
+    let moments: Option<Vec<Vec<i128>>> = MOMENT_CHANNELS.iter().map(|c| exact(c)).collect();
+    let sums = rgba.zip(moments).map(|(rgba, m)| {
+        let sums = (0..w * h).map(|i| std::array::from_fn(|c| rgba[c][i])).collect();
+        let moments = (0..w * h)
+            .map(|i| Moments {
+                squares: [m[0][i], m[1][i], m[2][i]],
+                count: u64::try_from(m[3][i]).unwrap_or(0),
+            })
+            .collect();
+        OwnedSums { rgba: sums, moments }
     });
     // AOV sums, in the order the attribute records, if every one of their words is there
     let aov_sums = match layer.attributes.other.get(&Text::new_or_panic(AOV_CHANNELS_ATTRIBUTE)) {
         Some(AttributeValue::Text(t)) => {
             let names: Vec<String> = t.to_string().split(',').map(str::to_string).collect();
-            let words: Option<Vec<&Vec<u32>>> = names
-                .iter()
-                .flat_map(|n| (0..4).map(move |k| format!("sum.{n}.w{k}")))
-                .map(|c| match channel(&c).map(|c| &c.sample_data) {
-                    Some(FlatSamples::U32(v)) if v.len() == w * h => Some(v),
-                    _ => None,
-                })
-                .collect();
-            words.map(|words| {
+            let channels: Option<Vec<Vec<i128>>> = names.iter().map(|n| exact(n)).collect();
+            channels.map(|channels| {
                 let k = names.len();
-                let mut sums = vec![0i128; w * h * k];
-                for (i, s) in sums.iter_mut().enumerate() {
-                    let (pixel, c) = (i / k, i % k);
-                    *s = (0..4).fold(0u128, |acc, q| {
-                        acc | (u128::from(words[c * 4 + q][pixel]) << (32 * q))
-                    }) as i128;
-                }
+                let sums = (0..w * h * k).map(|i| channels[i % k][i / k]).collect();
                 (names, sums)
             })
         }

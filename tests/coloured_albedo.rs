@@ -49,10 +49,11 @@ fn channel_means(scene: &Scene<Volume>, integrator: Integrator, seed: u64) -> [f
         sampler: SamplerKind::Sobol,
         threads: 0,
         first_sample: 0,
+        adaptive: None,
         integrator,
     };
     let r = render(scene, &settings, &|_, _| {});
-    let px = r.film.average(r.spp);
+    let px = r.film.average();
     let (w, h) = (scene.camera.width as usize, scene.camera.height as usize);
     let mut out = [0.0f64; 9];
     for y in 0..h {

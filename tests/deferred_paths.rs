@@ -203,6 +203,7 @@ fn a_stop_during_the_rounds_keeps_nothing_of_the_pass() {
         sampler: plume_core::sampling::SamplerKind::Sobol,
         threads: 1,
         first_sample: 0,
+        adaptive: None,
         integrator,
     };
     plume_engine::with_scene!(&scene, s => {

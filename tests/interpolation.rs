@@ -36,10 +36,11 @@ fn pixels(
         sampler: SamplerKind::Sobol,
         threads,
         first_sample: 0,
+        adaptive: None,
         integrator,
     };
     let r = plume_engine::with_scene!(scene, s => render(s, &settings, &|_, _| {}));
-    r.film.average(r.spp)
+    r.film.average()
 }
 
 // ---------------------------------------------------------------------------------------

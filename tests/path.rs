@@ -180,11 +180,12 @@ fn white_furnace_with_albedo_one_renders_the_environment() {
                     sampler: SamplerKind::Sobol,
                     threads: 0,
                     first_sample: 0,
+                    adaptive: None,
                     integrator: integ,
                 },
                 &|_, _| {},
             );
-            let px: Vec<f64> = r.film.average(r.spp).iter().map(|p| f64::from(p[0])).collect();
+            let px: Vec<f64> = r.film.average().iter().map(|p| f64::from(p[0])).collect();
             let (mean, se) = mean_stderr(&px);
             assert!(
                 (mean - 1.0).abs() < 4.0 * se + 1e-6,
@@ -440,6 +441,7 @@ fn extreme_phase_albedo_and_density_stay_finite() {
                     sampler: SamplerKind::Sobol,
                     threads: 0,
                     first_sample: 0,
+                    adaptive: None,
                     integrator: integrator(est, ls, MisHeuristic::Power, 32),
                 };
                 let r = plume_engine::with_scene!(&scene, s => render(s, &settings, &|_, _| {}));
@@ -447,7 +449,7 @@ fn extreme_phase_albedo_and_density_stay_finite() {
                     r.counters.nonfinite_samples, 0,
                     "{interpolation} σ={sigma_t} g={g} a={albedo} {est:?}/{ls:?}"
                 );
-                assert!(r.film.average(r.spp).iter().flatten().all(|v| v.is_finite()));
+                assert!(r.film.average().iter().flatten().all(|v| v.is_finite()));
             }
         }
     }
@@ -514,11 +516,12 @@ fn albedo_grid_matches_constant_albedo_and_varies_per_voxel() {
                 sampler: SamplerKind::Sobol,
                 threads: 0,
                 first_sample: 0,
+                adaptive: None,
                 integrator: integ,
             },
             &|_, _| {},
         );
-        (r.film.average(r.spp), r.counters)
+        (r.film.average(), r.counters)
     };
     let (a, ca) = render_with(Some(albedo_grid(0.8)), 1.0);
     let (b, cb) = render_with(None, 0.8);

@@ -63,12 +63,13 @@ fn same_seed_gives_identical_images_for_any_thread_count() {
                 sampler,
                 threads,
                 first_sample: 0,
+                adaptive: None,
                 integrator,
             };
             render(&scene, &s, &|_, _| {})
         };
         let (a, b) = (run(1), run(2));
-        let (pa, pb) = (a.film.average(a.spp), b.film.average(b.spp));
+        let (pa, pb) = (a.film.average(), b.film.average());
         assert!(pa.iter().any(|p| p[0] > 0.0), "{est:?}: image not black");
         assert_eq!(
             pixel_bits(&pa),
@@ -84,11 +85,12 @@ fn same_seed_gives_identical_images_for_any_thread_count() {
                 sampler,
                 threads: 2,
                 first_sample: 0,
+                adaptive: None,
                 integrator,
             },
             &|_, _| {},
         );
-        assert_ne!(pa, other.film.average(other.spp), "a different seed changes the image");
+        assert_ne!(pa, other.film.average(), "a different seed changes the image");
     }
 }
 
@@ -130,6 +132,7 @@ fn sample_ranges_merge_and_replays_equal_the_render_for_both_samplers() {
             sampler,
             threads: 2,
             first_sample: 0,
+            adaptive: None,
             integrator,
         };
         let whole = render(&scene, &settings, &|_, _| {});
@@ -145,6 +148,7 @@ fn sample_ranges_merge_and_replays_equal_the_render_for_both_samplers() {
             &RenderSettings {
                 budget: SampleBudget::Spp(4),
                 first_sample: 3,
+                adaptive: None,
                 threads: 1,
                 ..settings
             },
@@ -165,7 +169,7 @@ fn sample_ranges_merge_and_replays_equal_the_render_for_both_samplers() {
             &RenderSettings { budget: SampleBudget::Spp(1), first_sample: 5, ..settings },
             &|_, _| {},
         );
-        let px = one.film.average(1);
+        let px = one.film.average();
         let width = scene.camera.width;
         let mut scattered = 0;
         for (i, p) in px.iter().enumerate() {
@@ -188,8 +192,8 @@ fn sample_ranges_merge_and_replays_equal_the_render_for_both_samplers() {
     }
 }
 
-fn bits(film: &plume_engine::film::Film, spp: u64) -> Vec<u32> {
-    pixel_bits(&film.average(spp))
+fn bits(film: &plume_engine::film::Film) -> Vec<u32> {
+    pixel_bits(&film.average())
 }
 
 #[test]
@@ -201,6 +205,7 @@ fn tile_major_order_gives_the_same_image_and_a_stop_keeps_nothing_of_the_pass() 
         sampler: SamplerKind::Sobol,
         threads: 2,
         first_sample: 0,
+        adaptive: None,
         integrator,
     };
     let progressive = render(&scene, &settings, &|_, _| {});
@@ -211,7 +216,7 @@ fn tile_major_order_gives_the_same_image_and_a_stop_keeps_nothing_of_the_pass() 
         &|_, _| {},
     );
     assert_eq!((tile_major.spp, tile_major.stopped), (5, StopReason::Finished));
-    assert_eq!(bits(&progressive.film, 5), bits(&tile_major.film, 5), "same image in either order");
+    assert_eq!(bits(&progressive.film), bits(&tile_major.film), "same image in either order");
     assert_eq!(progressive.counters, tile_major.counters);
 
     // Continue that image by 3 spp, stopped after two tiles (the 24×20 image has four):
@@ -232,8 +237,8 @@ fn tile_major_order_gives_the_same_image_and_a_stop_keeps_nothing_of_the_pass() 
         "tiles were rendered before the stop"
     );
     assert_eq!(
-        bits(&stopped.film, 5),
-        bits(&progressive.film, 5),
+        bits(&stopped.film),
+        bits(&progressive.film),
         "nothing of the abandoned pass is kept"
     );
 
@@ -246,7 +251,7 @@ fn tile_major_order_gives_the_same_image_and_a_stop_keeps_nothing_of_the_pass() 
     let resumed = render_with(&scene, &continued, control, &|_, _| {});
     let whole =
         render(&scene, &RenderSettings { budget: SampleBudget::Spp(8), ..settings }, &|_, _| {});
-    assert_eq!(bits(&resumed.film, 8), bits(&whole.film, 8));
+    assert_eq!(bits(&resumed.film), bits(&whole.film));
 }
 
 #[test]
@@ -300,11 +305,12 @@ fn voxel_aligned_box_image_matches_closed_form() {
                 sampler: SamplerKind::Sobol,
                 threads: 0,
                 first_sample: 0,
+                adaptive: None,
                 integrator,
             },
             &|_, _| {},
         );
-        let px = r.film.average(r.spp)[4 * 9 + 4];
+        let px = r.film.average()[4 * 9 + 4];
         // Per-sample σ of line/point here is below 0.7·expected: 4σ/√4000 < 0.045·expected.
         let tol = if est == Estimator::RayMarch { 1e-5 } else { 0.045 } * expected;
         assert!((f64::from(px[0]) - expected).abs() < tol, "{est:?}: {} vs {expected}", px[0]);

@@ -77,6 +77,7 @@ fn settings(spp: u32, seed: u64, integrator: Integrator) -> RenderSettings {
         sampler: SamplerKind::Sobol,
         threads: 2,
         first_sample: 0,
+        adaptive: None,
         integrator,
     }
 }
@@ -106,7 +107,7 @@ fn splitting_by_brightness_is_deterministic_over_threads_ranges_crops_and_replay
     plume_engine::with_scene!(&scene, sc => {
         let whole = render(sc, &settings(5, 7, integ), &|_, _| {});
         let one_thread = render(sc, &RenderSettings { threads: 1, ..settings(5, 7, integ) }, &|_, _| {});
-        assert_eq!(pixel_bits(&whole.film.average(5)), pixel_bits(&one_thread.film.average(5)), "threads");
+        assert_eq!(pixel_bits(&whole.film.average()), pixel_bits(&one_thread.film.average()), "threads");
         // Samples 0..2 and 2..5 apart, added: the same sums (each range runs its own pilot)
         let a = render(sc, &settings(2, 7, integ), &|_, _| {});
         let b = render(sc, &RenderSettings { first_sample: 2, ..settings(3, 7, integ) }, &|_, _| {});
@@ -117,8 +118,8 @@ fn splitting_by_brightness_is_deterministic_over_threads_ranges_crops_and_replay
         // A crop is the whole image's pixels there (its pilot still covers the frame)
         let crop = Crop { x0: 13, y0: 9, x1: 31, y1: 23 };
         let cropped = render_with(sc, &settings(5, 7, integ), RenderControl { crop: Some(crop), ..Default::default() }, &|_, _| {});
-        let full = whole.film.average(5);
-        let part = cropped.film.average(5);
+        let full = whole.film.average();
+        let part = cropped.film.average();
         let width = sc.camera.width;
         for (i, p) in part.iter().enumerate() {
             let (x, y) = (crop.x0 + i as u32 % crop.width(), crop.y0 + i as u32 / crop.width());
@@ -127,7 +128,7 @@ fn splitting_by_brightness_is_deterministic_over_threads_ranges_crops_and_replay
         // Sample 3 of every pixel replayed as --debug-pixel does (the pilot's map, then the
         // pixel's integrator) is the 1-spp render of sample 3
         let one = render(sc, &RenderSettings { first_sample: 3, ..settings(1, 7, integ) }, &|_, _| {});
-        let px = one.film.average(1);
+        let px = one.film.average();
         let map = plume_engine::pilot::split_map(sc, &settings(1, 7, integ));
         assert!(map.is_some());
         let mut split_paths = 0;

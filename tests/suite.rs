@@ -10,6 +10,7 @@
 
 mod common;
 
+mod adaptive;
 mod aovs;
 mod batch_slurm;
 mod bench;

@@ -188,6 +188,7 @@ fn render_seconds(volume: Volume, em: Emission, threads: usize) -> Result<(f64, 
             sampler: plume_core::sampling::SamplerKind::default(),
             threads,
             first_sample: 0,
+            adaptive: None,
             integrator: Integrator::emission_only(Estimator::Line),
         };
         let t = Instant::now();

@@ -310,6 +310,7 @@ fn timed_render(
         sampler: plume_core::sampling::SamplerKind::default(),
         threads,
         first_sample: 0,
+        adaptive: None,
         integrator,
     };
     plume_engine::with_scene!(scene, s => {

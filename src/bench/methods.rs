@@ -163,6 +163,7 @@ pub fn run(
                 sampler: plume_core::sampling::SamplerKind::default(),
                 threads,
                 first_sample: 0,
+                adaptive: None,
                 integrator: integrator(Estimator::Line, LightSampling::Fnee, MisHeuristic::Power),
             },
             &|_, _| {},
@@ -173,7 +174,7 @@ pub fn run(
             t.elapsed().as_secs_f64()
         ));
         reference_spp.push((regime.to_string(), reference.spp));
-        let ref_px = reference.film.average(reference.spp);
+        let ref_px = reference.film.average();
         for (name, est, ls) in METHODS {
             let s = scene(resolution, sigma_t, ls, width, height, proxy)?;
             let cpu0 = cpu_seconds();
@@ -185,6 +186,7 @@ pub fn run(
                     sampler: plume_core::sampling::SamplerKind::default(),
                     threads,
                     first_sample: 0,
+                    adaptive: None,
                     integrator: integrator(est, ls, mis),
                 },
                 &|_, _| {},
@@ -193,7 +195,7 @@ pub fn run(
             let res = MethodResult {
                 regime: regime.into(),
                 method: name.into(),
-                rmse: rmse(&r.film.average(r.spp), &ref_px),
+                rmse: rmse(&r.film.average(), &ref_px),
                 spp: r.spp,
                 samples_per_cpu_second: r.counters.samples as f64 / cpu.max(1e-9),
                 core_hours: cpu / 3600.0,

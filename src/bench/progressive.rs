@@ -160,6 +160,7 @@ pub fn run<F: Field>(
             sampler: plan.sampler,
             threads: plan.threads,
             first_sample: spp,
+            adaptive: None,
             integrator: *integrator,
         };
         let c0 = cpu_seconds();

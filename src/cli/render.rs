@@ -41,6 +41,18 @@ pub struct RenderArgs {
     /// Render whole 1-spp passes until this many seconds are spent.
     #[arg(long, help_heading = "Sampling")]
     pub time: Option<f64>,
+    /// Adaptive sampling: each pixel stops once its estimated relative standard error is at
+    /// most this (e.g. 0.02), relative to its value or, where darker, to --noise-floor.
+    /// --spp (default 1024 here) or --time caps it.
+    #[arg(long, help_heading = "Sampling")]
+    pub noise_threshold: Option<f64>,
+    /// With --noise-threshold: samples every pixel takes before it may stop (default 16).
+    #[arg(long, help_heading = "Sampling")]
+    pub min_spp: Option<u32>,
+    /// With --noise-threshold: the radiance below which a pixel's error is taken relative
+    /// to it instead of the pixel's value (default 0.1).
+    #[arg(long, help_heading = "Sampling", hide_short_help = true)]
+    pub noise_floor: Option<f64>,
     /// Seed of the sample streams (default: the frame number with --frames, else 0).
     #[arg(long, help_heading = "Sampling")]
     pub seed: Option<u64>,

@@ -235,6 +235,9 @@ fn job_text(settings: &JobSettings) -> (String, String) {
     let RenderOptions {
         spp: _,
         time: _,
+        noise_threshold,
+        min_spp: _,
+        noise_floor: _,
         seed: _,
         sampler,
         threads: _,
@@ -256,7 +259,29 @@ fn job_text(settings: &JobSettings) -> (String, String) {
     let aovs = if *aovs { "\naovs" } else { "" };
     let denoise =
         if *denoise { format!("\ndenoise {}", half_block(settings)) } else { String::new() };
-    (sampler.to_string(), format!("{aovs}{denoise}"))
+    // Adaptive sampling decides which samples each pixel takes; without it nothing is added
+    let adaptive = match (noise_threshold, adaptive_settings(settings)) {
+        (Some(_), Some(a)) => format!("\nadaptive {:?} {} {:?}", a.threshold, a.min_spp, a.floor),
+        _ => String::new(),
+    };
+    (sampler.to_string(), format!("{aovs}{denoise}{adaptive}"))
+}
+
+/// Adaptive sampling's settings as the render takes them (`render.noise_threshold`, with
+/// `min_spp` and `noise_floor` or their defaults), or `None` without a threshold.
+#[must_use]
+pub fn adaptive_settings(settings: &JobSettings) -> Option<plume_engine::noise::Adaptive> {
+    let render = &settings.render;
+    let threshold = render.noise_threshold?;
+    let cap = match (&settings.farm.sample_range, render.spp, render.time) {
+        (_, _, Some(_)) => None,
+        (_, spp, None) => Some(spp.unwrap_or_else(|| render.default_spp())),
+    };
+    Some(plume_engine::noise::Adaptive {
+        threshold,
+        min_spp: u64::from(render.min_spp_or_default(cap)).max(2),
+        floor: render.noise_floor.unwrap_or(plume_engine::noise::DEFAULT_FLOOR),
+    })
 }
 
 /// The half block of a frame rendered with `--denoise` ([`plume_engine::denoise::half_block`] of
@@ -268,7 +293,7 @@ pub fn half_block(settings: &JobSettings) -> u64 {
     let planned = match (&farm.sample_range, render.spp, render.time) {
         (Some(_), spp, _) => spp,
         (None, _, Some(_)) => None,
-        (None, spp, None) => Some(spp.unwrap_or(64)),
+        (None, spp, None) => Some(spp.unwrap_or_else(|| render.default_spp())),
     };
     plume_engine::denoise::half_block(planned)
 }

@@ -103,6 +103,7 @@ pub fn render_frame(
         threads: settings.render.threads,
         first_sample: plan.first_sample,
         integrator: plume_engine::integrator::Integrator::for_scene(job.scene()),
+        adaptive: crate::farm::fingerprint::adaptive_settings(settings),
     };
     if let Some(dp) = settings.render.debug_pixel {
         observer.replayed(&replay(&loaded, &render_settings, dp));
@@ -223,6 +224,30 @@ fn log_written(
         timing.time_to_first_sample,
         timing.cpu / 3600.0
     );
+    if let Some(threshold) = job.shot.settings.render.noise_threshold {
+        log::info!("{}", adaptive_summary(record, threshold));
+    }
+}
+
+/// The line that ends an adaptive render: the estimated error reached and how the samples
+/// were spent.
+fn adaptive_summary(record: &RenderStats, threshold: f64) -> String {
+    let h = &record.spp_histogram;
+    let pixels: u64 = h.iter().map(|b| b.pixels).sum();
+    let samples: u64 = h.iter().map(|b| b.spp * b.pixels).sum();
+    let capped: u64 = h.iter().filter(|b| b.spp == record.spp).map(|b| b.pixels).sum();
+    let estimate = record
+        .error_estimate
+        .rel_rmse
+        .map_or_else(|| "no estimate (fewer than 2 samples)".into(), |e| format!("{e:.4}"));
+    format!(
+        "noise threshold {threshold}: estimated relRMSE {estimate} over {} pixels (floor {}); {:.1} spp on average, {} to {}, {capped} pixels at the cap",
+        record.error_estimate.pixels,
+        record.error_estimate.floor,
+        samples as f64 / pixels.max(1) as f64,
+        h.first().map_or(0, |b| b.spp),
+        h.last().map_or(0, |b| b.spp),
+    )
 }
 
 /// Warnings about the loaded data: clamped voxels, an empty volume, no emission, an
@@ -319,7 +344,8 @@ fn run_passes(
             job.pixels(),
             aovs.as_ref().map_or(0, AovLayout::channels),
         );
-        film.set_sums(&sums);
+        film.set_sums(&sums.rgba);
+        film.set_moments(&sums.moments);
         if let Some(aov) = aov {
             film.set_aov_sums(&aov);
         }

@@ -1,11 +1,11 @@
 //! What is written of a frame's image: the AOV layout asked for (`--aovs`, `--denoise`),
-//! and the beauty (denoised when the layout holds half sums) and AOV layers computed from
-//! exact sums. Shared by `plume render` (`farm::outputs`) and `plume merge`
+//! and the beauty (denoised when the layout holds half sums), the `error` layer and the AOV
+//! layers computed from exact sums. Shared by `plume render` (`farm::outputs`) and `plume merge`
 //! (`farm::merge`), so that a merged frame is the single render's.
 
 use crate::farm::plan::Job;
 use crate::load::LoadedScene;
-use plume_engine::film::Crop;
+use plume_engine::film::{Crop, Moments};
 use plume_engine::integrator::AovLayout;
 
 /// The AOV layout that `output` asks for (`--aovs`, `--denoise`): one layer per light
@@ -43,28 +43,41 @@ pub struct Written {
     pub denoised: bool,
 }
 
-/// The beauty and the AOV layers of an image (`crop`) from its exact sums `(RGBA, AOV
-/// channels)` over `spp` samples and its noisy beauty: with half sums in the layout (and
-/// samples in both halves) the beauty is denoised ([`plume_engine::denoise::from_sums`]) and the
-/// noisy one becomes the layer `noisy`. Used by `plume render` and `plume merge`, so that
-/// a merged frame is the single render's.
+/// An image's exact record, row-major over its pixels: what its beauty and layers are
+/// computed from.
+#[derive(Clone, Copy, Debug)]
+pub struct FrameSums<'a> {
+    /// RGBA sums.
+    pub rgba: &'a [[i128; 4]],
+    /// Squared colour sums and sample counts.
+    pub moments: &'a [Moments],
+    /// AOV channel sums (`layout.channels()` per pixel; empty without AOVs).
+    pub aov: &'a [i128],
+}
+
+/// The beauty and the layers of an image (`crop`) from its exact sums and its noisy
+/// beauty: the `error` layer ([`error_layer`]) always, the AOV layers of `layout` if any;
+/// with half sums in the layout (and samples in both halves) the beauty is denoised
+/// ([`plume_engine::denoise::from_sums`]) and the noisy one becomes the layer `noisy`.
+/// Used by `plume render` and `plume merge`, so that a merged frame is the single render's.
 #[must_use]
 pub fn beauty_and_layers(
     layout: Option<&AovLayout>,
-    sums: (&[[i128; 4]], &[i128]),
+    sums: FrameSums<'_>,
     noisy: Vec<[f32; 4]>,
-    spp: u64,
     crop: Crop,
 ) -> Written {
+    let counts: Vec<u64> = sums.moments.iter().map(|m| m.count).collect();
     let Some(layout) = layout else {
-        return Written { pixels: noisy, layers: Vec::new(), denoised: false };
+        return Written { pixels: noisy, layers: error_layer(sums), denoised: false };
     };
-    let mut layers = aov_layers(layout, sums.1, &noisy, spp);
+    let mut layers = aov_layers(layout, sums.aov, &noisy, &counts);
+    layers.extend(error_layer(sums));
     match plume_engine::denoise::from_sums(
         layout,
-        sums.0,
-        sums.1,
-        spp,
+        sums.rgba,
+        sums.aov,
+        &counts,
         (crop.width() as usize, crop.height() as usize),
     ) {
         Some(denoised) => {
@@ -77,11 +90,34 @@ pub fn beauty_and_layers(
     }
 }
 
-/// The AOV layers' pixel values from their exact sums (`aov_sums`, `layout.channels()`
-/// per pixel) over `spp` samples, with `alpha` from the beauty: `(name, values)` per
-/// channel.
+/// The `error` layer: per pixel and colour channel, the estimated standard error of the
+/// pixel's (noisy) mean ([`plume_engine::noise::standard_error`]; infinite for a pixel
+/// with fewer than two samples).
 #[must_use]
-pub fn aov_layers(layout: &AovLayout, aov_sums: &[i128], beauty: &[[f32; 4]], spp: u64) -> Layers {
+pub fn error_layer(sums: FrameSums<'_>) -> Layers {
+    let se: Vec<[f64; 3]> = sums
+        .rgba
+        .iter()
+        .zip(sums.moments)
+        .map(|(s, m)| plume_engine::noise::standard_error(s, m))
+        .collect();
+    ["R", "G", "B"]
+        .iter()
+        .enumerate()
+        .map(|(c, name)| (format!("error.{name}"), se.iter().map(|e| e[c] as f32).collect()))
+        .collect()
+}
+
+/// The AOV layers' pixel values from their exact sums (`aov_sums`, `layout.channels()`
+/// per pixel) over `counts` samples per pixel, with `alpha` from the beauty: `(name,
+/// values)` per channel.
+#[must_use]
+pub fn aov_layers(
+    layout: &AovLayout,
+    aov_sums: &[i128],
+    beauty: &[[f32; 4]],
+    counts: &[u64],
+) -> Layers {
     let (n, n_layers) = (layout.channels(), layout.layer_channels());
     let names = layout.channel_names();
     // Every layer channel but depth's hit count, which `depth.Z` divides by
@@ -89,7 +125,7 @@ pub fn aov_layers(layout: &AovLayout, aov_sums: &[i128], beauty: &[[f32; 4]], sp
         .iter()
         .map(|c| (c.clone(), Vec::with_capacity(beauty.len())))
         .collect();
-    for sums in aov_sums.chunks_exact(n) {
+    for (sums, &spp) in aov_sums.chunks_exact(n).zip(counts) {
         for (layer, v) in
             layers.iter_mut().zip(layout.pixel(sums, spp, plume_engine::film::pixel_value))
         {

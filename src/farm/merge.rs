@@ -16,11 +16,11 @@ use std::ops::Range;
 use std::path::Path;
 use std::time::Instant;
 
-use crate::farm::layers::{beauty_and_layers, Written};
+use crate::farm::layers::{beauty_and_layers, FrameSums, Written};
 use crate::farm::part::{read_part, Completion, PartInfo};
-use crate::output::{write_exr_image, AovChannels, ExrImage};
+use crate::output::{write_exr_image, AovChannels, ExactSums, ExrImage};
 use plume_core::error::{Error, Result};
-use plume_engine::film::{pixel_value, Crop, FIXED_POINT_BITS};
+use plume_engine::film::{pixel_value, Crop, Moments, FIXED_POINT_BITS};
 use plume_engine::integrator::AovLayout;
 use plume_scene::split::format_range;
 
@@ -35,6 +35,8 @@ pub struct Merged {
     pub samples: Range<u64>,
     /// Exact sums, row-major over the whole image.
     pub sums: Vec<[i128; 4]>,
+    /// The pixels' moments (squared sums and sample counts), row-major.
+    pub moments: Vec<Moments>,
     /// Sums clamped while adding parts (0 unless the image is beyond the fixed-point range).
     pub saturated: u64,
     /// AOV channel names and their exact sums (`names.len()` per pixel, row-major), when
@@ -43,11 +45,14 @@ pub struct Merged {
 }
 
 impl Merged {
-    /// The pixels: [`pixel_value`] of every sum.
+    /// The pixels: [`pixel_value`] of every sum over the pixel's sample count.
     #[must_use]
     pub fn pixels(&self) -> Vec<[f32; 4]> {
-        let spp = self.samples.end - self.samples.start;
-        self.sums.iter().map(|s| s.map(|v| pixel_value(v, spp))).collect()
+        self.sums
+            .iter()
+            .zip(&self.moments)
+            .map(|(s, m)| s.map(|v| pixel_value(v, m.count)))
+            .collect()
     }
 }
 
@@ -215,6 +220,7 @@ pub fn merge_parts(parts: &[(PartInfo, crate::output::ExrContents)]) -> Result<M
         }
     }
     let mut sums = vec![[0i128; 4]; w as usize * h as usize];
+    let mut moments = vec![Moments::default(); w as usize * h as usize];
     let k = aov_names.as_ref().map_or(0, Vec::len);
     let mut aov = vec![0i128; w as usize * h as usize * k];
     let mut saturated = 0u64;
@@ -229,15 +235,16 @@ pub fn merge_parts(parts: &[(PartInfo, crate::output::ExrContents)]) -> Result<M
         });
     };
     for (p, c) in parts {
-        let part_sums = c.sums.as_ref().expect("invariant: checked above");
+        let part = c.sums.as_ref().expect("invariant: checked above");
         let cw = p.crop.width() as usize;
         for y in p.crop.y0..p.crop.y1 {
             for x in p.crop.x0..p.crop.x1 {
                 let src = (y - p.crop.y0) as usize * cw + (x - p.crop.x0) as usize;
                 let dst = y as usize * w as usize + x as usize;
-                for (d, s) in sums[dst].iter_mut().zip(part_sums[src]) {
+                for (d, s) in sums[dst].iter_mut().zip(part.rgba[src]) {
                     add(d, s);
                 }
+                moments[dst] = moments[dst].plus(part.moments[src]);
                 if let Some((_, part_aov)) = &c.aov_sums {
                     for (d, s) in aov[dst * k..(dst + 1) * k]
                         .iter_mut()
@@ -249,7 +256,15 @@ pub fn merge_parts(parts: &[(PartInfo, crate::output::ExrContents)]) -> Result<M
             }
         }
     }
-    Ok(Merged { width: w, height: h, samples, sums, saturated, aovs: aov_names.map(|n| (n, aov)) })
+    Ok(Merged {
+        width: w,
+        height: h,
+        samples,
+        sums,
+        moments,
+        saturated,
+        aovs: aov_names.map(|n| (n, aov)),
+    })
 }
 
 /// Header keys of a part that describe only that part's process, not the merged image.
@@ -304,23 +319,27 @@ pub fn merge_command(args: &MergeOptions, command_line: &str) -> Result<()> {
     let merged = merge_parts(&parts)?;
     let metadata = merged_metadata(&parts, &merged, &args.output, command_line, &args.working_dir);
     let full = Crop::full(merged.width, merged.height);
-    let spp = merged.samples.end - merged.samples.start;
     let layout = merged.aovs.as_ref().and_then(|(names, _)| AovLayout::from_channel_names(names));
     // Parts rendered with --denoise carry the half sums: the merged frame is denoised as
     // the single render would be
     let aov_sums = merged.aovs.as_ref().map_or(&[][..], |(_, sums)| sums.as_slice());
+    let frame_sums = FrameSums { rgba: &merged.sums, moments: &merged.moments, aov: aov_sums };
     let Written { pixels, layers, .. } =
-        beauty_and_layers(layout.as_ref(), (&merged.sums, aov_sums), merged.pixels(), spp, full);
-    let aovs = merged.aovs.as_ref().filter(|_| layout.is_some()).map(|(names, sums)| AovChannels {
+        beauty_and_layers(layout.as_ref(), frame_sums, merged.pixels(), full);
+    let aovs = Some(AovChannels {
         layers: &layers,
-        sums: args.sums.then_some((names.as_slice(), sums.as_slice())),
+        sums: merged
+            .aovs
+            .as_ref()
+            .filter(|_| layout.is_some() && args.sums)
+            .map(|(names, sums)| (names.as_slice(), sums.as_slice())),
     });
     let image = ExrImage {
         width: merged.width,
         height: merged.height,
         crop: full,
         pixels: &pixels,
-        sums: args.sums.then_some(merged.sums.as_slice()),
+        sums: args.sums.then_some(ExactSums { rgba: &merged.sums, moments: &merged.moments }),
         aovs,
         metadata: &metadata,
     };
@@ -377,7 +396,17 @@ fn merged_metadata(
     };
     let spp = merged.samples.end - merged.samples.start;
     let cpu = sum_f("plume:cpuSeconds");
-    let set: [(&str, String); 14] = [
+    // The error estimate of the merged image, with the parts' noise floor
+    let floor = m
+        .get("plume:errorEstimate")
+        .and_then(|t| serde_json::from_str::<serde_json::Value>(t).ok())
+        .and_then(|v| v.get("floor")?.as_f64())
+        .unwrap_or(plume_engine::noise::DEFAULT_FLOOR);
+    let estimate = plume_engine::noise::estimate(&merged.sums, &merged.moments, floor);
+    let histogram = plume_engine::noise::spp_histogram(&merged.moments);
+    let set: [(&str, String); 16] = [
+        ("plume:errorEstimate", serde_json::to_string(&estimate).expect("invariant: serializes")),
+        ("plume:sppHistogram", serde_json::to_string(&histogram).expect("invariant: serializes")),
         ("plume:commandLine", command_line.to_string()),
         ("plume:host", plume_core::fs::host_name()),
         ("plume:output", output.display().to_string()),

@@ -5,11 +5,11 @@
 use std::path::PathBuf;
 
 use crate::farm::fingerprint::file_sha256;
-use crate::farm::layers::{aov_layout, beauty_and_layers, Written};
+use crate::farm::layers::{aov_layout, beauty_and_layers, FrameSums, Written};
 use crate::farm::part::{stats_metadata, Completion};
 use crate::farm::plan::Job;
 use crate::load::LoadedScene;
-use crate::output::{write_exr_image, AovChannels, ExrImage};
+use crate::output::{write_exr_image, AovChannels, ExactSums, ExrImage};
 use plume_core::error::{Error, Result};
 use plume_engine::film::FIXED_POINT_BITS;
 use plume_engine::integrator::AovLayout;
@@ -88,6 +88,8 @@ pub(crate) fn stats_record(
     };
     let samples = result.counters.samples as f64;
     let volume = loaded.scene.volume();
+    let moments = result.film.moments();
+    let floor = settings.render.noise_floor.unwrap_or(plume_engine::noise::DEFAULT_FLOOR);
     RenderStats {
         plume_version: env!("CARGO_PKG_VERSION").into(),
         command_line: id.command_line.into(),
@@ -99,6 +101,8 @@ pub(crate) fn stats_record(
         output: paths.output.display().to_string(),
         status: status.as_str().into(),
         spp,
+        spp_histogram: plume_engine::noise::spp_histogram(&moments),
+        error_estimate: plume_engine::noise::estimate(&result.film.sums(), &moments, floor),
         sample_range: format_range(&sample_range),
         resumed_from_spp: spp - result.spp,
         seed: id.seed,
@@ -173,9 +177,11 @@ pub(crate) fn write_outputs(
     }
     let (width, height) = (record.width, record.height);
     let crop = job.pixels();
-    let noisy = result.film.average(record.spp);
+    let noisy = result.film.average();
     let film_sums = result.film.sums();
-    let sums = (job.write_sums || status != Completion::Complete).then_some(film_sums.as_slice());
+    let moments = result.film.moments();
+    let sums = (job.write_sums || status != Completion::Complete)
+        .then_some(ExactSums { rgba: &film_sums, moments: &moments });
     let mut metadata = stats_metadata(record);
     match plume_scene::file::to_toml(job.shot, working_dir) {
         Ok(text) => metadata.push(("plume:scene".into(), text)),
@@ -187,15 +193,19 @@ pub(crate) fn write_outputs(
     let aov_sums = result.film.aov_sums();
     let layout = aov_layout(job, loaded);
     let names = layout.as_ref().map(AovLayout::channel_names).unwrap_or_default();
+    let frame_sums = FrameSums { rgba: &film_sums, moments: &moments, aov: &aov_sums };
     let Written { pixels, layers, denoised } =
-        beauty_and_layers(layout.as_ref(), (&film_sums, &aov_sums), noisy, record.spp, crop);
+        beauty_and_layers(layout.as_ref(), frame_sums, noisy, crop);
     if settings.output.denoise && !denoised {
         let block = crate::farm::fingerprint::half_block(settings);
         warn(format!("{} spp: denoising needs samples in both half buffers (blocks of {block}: more than {block} spp); the image is not denoised", record.spp));
     }
-    let aovs = layout.as_ref().map(|_| AovChannels {
+    let aovs = Some(AovChannels {
         layers: &layers,
-        sums: sums.is_some().then_some((names.as_slice(), aov_sums.as_slice())),
+        sums: layout
+            .as_ref()
+            .filter(|_| sums.is_some())
+            .map(|_| (names.as_slice(), aov_sums.as_slice())),
     });
     write_exr_image(
         &paths.output,

@@ -219,7 +219,7 @@ pub enum Existing {
     /// The same settings with exact sums and fewer samples than asked (an interrupted or
     /// time-limited render, or a smaller budget rendered with `--sums`): continue it (if
     /// the input is unchanged).
-    Resumable(PartInfo, Vec<[i128; 4]>, Option<Vec<i128>>),
+    Resumable(PartInfo, crate::output::OwnedSums, Option<Vec<i128>>),
     /// Anything else (unreadable, truncated, other settings): render anew; the reason.
     Stale(String),
 }

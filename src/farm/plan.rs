@@ -90,7 +90,7 @@ impl<'a> Job<'a> {
             (Some(r), _, _) => Some(r.clone()),
             (None, _, Some(_)) => None,
             (None, Some(n), None) => Some(0..u64::from(n)),
-            (None, None, None) => Some(0..64),
+            (None, None, None) => Some(0..u64::from(settings.render.default_spp())),
         };
         let write_sums = settings.output.sums || crop.is_some() || farm.sample_range.is_some();
         Ok(Job { shot, input, output, preview, stats, frames, crop, samples, write_sums })

@@ -14,8 +14,8 @@ use plume_core::error::Result;
 use plume_engine::render::SampleBudget;
 use plume_scene::split::format_range;
 
-/// An output to continue: what it holds and its exact sums (and AOV sums).
-pub(crate) type Resume = (PartInfo, Vec<[i128; 4]>, Option<Vec<i128>>);
+/// An output to continue: what it holds and its exact sums and moments (and AOV sums).
+pub(crate) type Resume = (PartInfo, crate::output::OwnedSums, Option<Vec<i128>>);
 
 /// Skip, continue or render anew: `None` when the output is complete (skip), else the
 /// output to continue, if any.

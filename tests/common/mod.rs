@@ -511,10 +511,11 @@ pub fn regions(
         sampler,
         threads: 0,
         first_sample: 0,
+        adaptive: None,
         integrator,
     };
     let r = plume_engine::with_scene!(scene, s => render(s, &settings, &|_, _| {}));
-    let px = r.film.average(r.spp);
+    let px = r.film.average();
     let (w, h) = (scene.camera().width as usize, scene.camera().height as usize);
     let (mut acc, mut cnt) = ([0.0f64; 5], [0.0f64; 5]);
     for y in 0..h {

@@ -190,8 +190,8 @@ pub fn denoise_per_opacity(
 }
 
 /// The denoised beauty of an image (`crop` pixels, row-major) from its exact sums over
-/// `spp` samples: `sums` (RGBA per pixel) and `aov_sums` (`layout.channels()` per pixel,
-/// with the half sums), with the default [`Nlm`]. `None` when the layout has no half sums
+/// `counts` samples per pixel: `sums` (RGBA per pixel) and `aov_sums`
+/// (`layout.channels()` per pixel, with the half sums), with the default [`Nlm`]. `None` when the layout has no half sums
 /// or no pixel has samples in both halves (fewer samples than one half block, e.g. a
 /// time budget that ended before sample 16).
 ///
@@ -210,7 +210,7 @@ pub fn from_sums(
     layout: &AovLayout,
     sums: &[[i128; 4]],
     aov_sums: &[i128],
-    spp: u64,
+    counts: &[u64],
     size: (usize, usize),
 ) -> Option<Vec<[f32; 4]>> {
     let at = layout.half_at()?;
@@ -221,7 +221,7 @@ pub fn from_sums(
     let mut kept = Vec::with_capacity(if rest { sums.len() } else { 0 });
     let mut both = false;
     let emission = AovLayout::offset(Component::Emission);
-    for (total, aov) in sums.iter().zip(aov_sums.chunks_exact(n)) {
+    for ((total, aov), &spp) in sums.iter().zip(aov_sums.chunks_exact(n)).zip(counts) {
         let half = &aov[at..at + 5];
         // The filtered part's total: the beauty, less the emission layer's sums when those
         // are kept out (as `AovSample::half` leaves them out of the half sums)
@@ -235,7 +235,7 @@ pub fn from_sums(
         }
         let nb = count(half[4]).min(spp);
         both |= nb > 0 && nb < spp;
-        b_share.push(((spp - nb) as f64 / spp as f64) as f32);
+        b_share.push(((spp - nb) as f64 / spp.max(1) as f64) as f32);
         if nb == 0 || nb == spp {
             let u: [f32; 4] = std::array::from_fn(|c| pixel_value(total[c], spp));
             a.push(u);
@@ -251,7 +251,8 @@ pub fn from_sums(
     let (width, height) = size;
     let (a, b) = (Rgba { width, height, pixels: &a }, Rgba { width, height, pixels: &b });
     let mut out = if rest {
-        let opacity: Vec<f32> = sums.iter().map(|t| pixel_value(t[3], spp)).collect();
+        let opacity: Vec<f32> =
+            sums.iter().zip(counts).map(|(t, &spp)| pixel_value(t[3], spp)).collect();
         denoise_per_opacity(a, b, Some(&b_share), &opacity, &Nlm::default())
     } else {
         denoise(a, b, Some(&b_share), &Nlm::default())

@@ -87,6 +87,9 @@ pub struct Tile {
     /// With half sums (`integrator::aov`, `--denoise`): their first AOV channel, the
     /// half block (`denoise::half_of`) and what they hold.
     pub half: Option<HalfSums>,
+    /// Per pixel, the sums of the samples' squared colour and the sample count
+    /// ([`Moments`]), row-major within the tile.
+    pub moments: Vec<Moments>,
     /// Sample values or sums that did not fit and were clamped to the `i128` range.
     pub saturated: u64,
     /// Non-zero sample values smaller than half a unit (2^−65), stored as 0.
@@ -104,12 +107,57 @@ pub struct HalfSums {
     pub filtered: plume_scene::Filtered,
 }
 
+/// What a pixel's error estimate needs besides its sums (`error.rs`): the sums of its
+/// samples' squared colour and how many samples it holds.
+///
+/// A square `v²` is rounded to units of 2^−F like a value ([`to_fixed`]) and added in
+/// `i128`, so moments, like sums, are exact integers whatever the split of the work. A
+/// square beyond the `i128` range (|v| ≥ 2^31.5) saturates the sum; the pixel's error is
+/// then infinite. Not counted in [`Tile::saturated`]: the image itself is exact.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Moments {
+    /// `Σ r²`, `Σ g²`, `Σ b²` over the pixel's samples, in units of 2^−F.
+    pub squares: [i128; 3],
+    /// Samples the pixel holds, dropped non-finite ones included (they count as zero,
+    /// as in the pixel's mean).
+    pub count: u64,
+}
+
+impl Moments {
+    /// Add the moments of another set of samples of the same pixel (merging parts).
+    #[must_use]
+    pub fn plus(self, other: Moments) -> Moments {
+        Moments {
+            squares: std::array::from_fn(|c| self.squares[c].saturating_add(other.squares[c])),
+            count: self.count + other.count,
+        }
+    }
+}
+
 impl Tile {
     /// Add one finite sample `l` to pixel `index` (row-major within the tile).
     #[inline]
     pub fn add_sample(&mut self, index: usize, l: [f64; 4]) {
         let sum = &mut self.sums[index];
         add_fixed(sum, &l, &mut self.saturated, &mut self.underflowed);
+        let m = &mut self.moments[index];
+        for (s, v) in m.squares.iter_mut().zip(l) {
+            *s = s.saturating_add(to_fixed(v * v).unwrap_or(i128::MAX));
+        }
+        m.count += 1;
+    }
+
+    /// Count a sample of pixel `index` that was dropped (non-finite): a zero in its mean.
+    #[inline]
+    pub fn add_dropped(&mut self, index: usize) {
+        self.moments[index].count += 1;
+    }
+
+    /// Samples pixel `index` holds (row-major within the tile).
+    #[must_use]
+    #[inline]
+    pub fn count(&self, index: usize) -> u64 {
+        self.moments[index].count
     }
 
     /// Add one sample's AOV values (`aov_channels` of them) to pixel `index`.
@@ -211,6 +259,7 @@ impl Film {
                     aov: vec![0; n * aov_channels],
                     aov_channels,
                     half: None,
+                    moments: vec![Moments::default(); n],
                     saturated: 0,
                     underflowed: 0,
                 });
@@ -235,27 +284,18 @@ impl Film {
         }
     }
 
-    /// Per-pixel values `sums / spp` ([`pixel_value`]) as `f32` RGBA, row-major over
-    /// `crop`.
+    /// Per-pixel values `sums / count` ([`pixel_value`], each pixel's own sample count)
+    /// as `f32` RGBA, row-major over `crop`.
     #[must_use]
-    pub fn average(&self, spp: u64) -> Vec<[f32; 4]> {
-        self.sums().iter().map(|s| s.map(|v| pixel_value(v, spp))).collect()
+    pub fn average(&self) -> Vec<[f32; 4]> {
+        let moments = self.moments();
+        self.sums().iter().zip(&moments).map(|(s, m)| s.map(|v| pixel_value(v, m.count))).collect()
     }
 
     /// The exact sums, row-major over `crop`.
     #[must_use]
     pub fn sums(&self) -> Vec<[i128; 4]> {
-        let cw = self.crop.width() as usize;
-        let mut out = vec![[0i128; 4]; self.crop.area() as usize];
-        for t in &self.tiles {
-            for ty in 0..t.height {
-                let row = (t.y0 - self.crop.y0 + ty) as usize * cw + (t.x0 - self.crop.x0) as usize;
-                let src = (ty * t.width) as usize;
-                out[row..row + t.width as usize]
-                    .copy_from_slice(&t.sums[src..src + t.width as usize]);
-            }
-        }
-        out
+        self.gather(|t| &t.sums)
     }
 
     /// Replace the sums by `sums` (row-major over `crop`), e.g. to resume a render.
@@ -263,15 +303,50 @@ impl Film {
     /// # Panics
     /// If `sums` does not have one entry per pixel of `crop`.
     pub fn set_sums(&mut self, sums: &[[i128; 4]]) {
-        assert_eq!(sums.len() as u64, self.crop.area(), "one sum per pixel of the crop");
+        self.scatter(sums, |t| &mut t.sums);
+    }
+
+    /// The pixels' moments (squares and sample counts), row-major over `crop`.
+    #[must_use]
+    pub fn moments(&self) -> Vec<Moments> {
+        self.gather(|t| &t.moments)
+    }
+
+    /// Replace the moments by `moments` (row-major over `crop`), e.g. to resume a render.
+    ///
+    /// # Panics
+    /// If `moments` does not have one entry per pixel of `crop`.
+    pub fn set_moments(&mut self, moments: &[Moments]) {
+        self.scatter(moments, |t| &mut t.moments);
+    }
+
+    /// One per-pixel record of every tile, row-major over `crop`.
+    fn gather<T: Copy + Default>(&self, of: impl Fn(&Tile) -> &Vec<T>) -> Vec<T> {
+        let cw = self.crop.width() as usize;
+        let mut out = vec![T::default(); self.crop.area() as usize];
+        for t in &self.tiles {
+            for ty in 0..t.height {
+                let row = (t.y0 - self.crop.y0 + ty) as usize * cw + (t.x0 - self.crop.x0) as usize;
+                let src = (ty * t.width) as usize;
+                out[row..row + t.width as usize]
+                    .copy_from_slice(&of(t)[src..src + t.width as usize]);
+            }
+        }
+        out
+    }
+
+    /// Set one per-pixel record of every tile from `values`, row-major over `crop`.
+    fn scatter<T: Copy>(&mut self, values: &[T], of: impl Fn(&mut Tile) -> &mut Vec<T>) {
+        assert_eq!(values.len() as u64, self.crop.area(), "one value per pixel of the crop");
         let cw = self.crop.width() as usize;
         let crop = self.crop;
         for t in &mut self.tiles {
-            for ty in 0..t.height {
-                let row = (t.y0 - crop.y0 + ty) as usize * cw + (t.x0 - crop.x0) as usize;
-                let dst = (ty * t.width) as usize;
-                t.sums[dst..dst + t.width as usize]
-                    .copy_from_slice(&sums[row..row + t.width as usize]);
+            let (x0, y0, width, height) = (t.x0, t.y0, t.width as usize, t.height);
+            let dst_all = of(t);
+            for ty in 0..height {
+                let row = (y0 - crop.y0 + ty) as usize * cw + (x0 - crop.x0) as usize;
+                let dst = ty as usize * width;
+                dst_all[dst..dst + width].copy_from_slice(&values[row..row + width]);
             }
         }
     }
@@ -380,7 +455,7 @@ mod tests {
         assert_eq!(f.saturated(), 2, "one sample clamped, then one sum");
         assert_eq!(f.underflowed(), 1);
         assert_eq!(f.sums()[0][0], i128::MAX);
-        assert!(f.average(2)[0][0].is_finite());
+        assert!(f.average()[0][0].is_finite());
     }
 
     #[test]

@@ -4,8 +4,8 @@
 //! estimators ([`medium`]), light sampling ([`light`]: NEE, FNEE, lights besides the
 //! volume), the path integrator ([`integrator`]), the camera ([`camera`]), the render loop
 //! over passes and tiles ([`render`], with [`pilot`] for splitting by brightness), the film
-//! of exact fixed-point sums ([`film`]), the denoiser ([`denoise`]) and per-frame
-//! statistics ([`stats`]).
+//! of exact fixed-point sums ([`film`]), error estimates and adaptive sampling ([`noise`]),
+//! the denoiser ([`denoise`]) and per-frame statistics ([`stats`]).
 //!
 //! Data flows one way: a loaded [`integrator::Scene`] (volume, medium, camera, lights) is
 //! rendered by [`render::render`] into a [`film::Film`], whose sums become pixels.
@@ -22,6 +22,7 @@ pub mod film;
 pub mod integrator;
 pub mod light;
 pub mod medium;
+pub mod noise;
 pub mod pilot;
 pub mod render;
 pub mod stats;

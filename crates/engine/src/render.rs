@@ -93,8 +93,10 @@ pub fn render_with<F: Field>(
     let split_map = pool.install(|| crate::pilot::split_map(scene, settings));
     let split_map = split_map.as_ref();
     // Scattered paths in rounds, reading the file in order (`integrator::deferred`)
+    // (not with adaptive sampling, whose checkpoints need each pixel's samples in its sums)
     let defer = control.order == SampleOrder::TileMajor
         && control.aovs.is_none()
+        && settings.adaptive.is_none()
         && settings.integrator.defers(scene)
         && match control.defer_paths {
             // One path per camera collision: with more, the paths' lookups outgrow what a
@@ -155,6 +157,11 @@ pub fn render_with<F: Field>(
             )
         };
         busy_seconds += tile_seconds.iter().sum::<f64>();
+        if settings.adaptive.is_some() && tile_counters.iter().all(|c| c.samples == 0) {
+            // Every pixel has converged: no more samples would be taken up to the cap
+            pacing.converged();
+            break StopReason::Finished;
+        }
         for c in &tile_counters {
             counters.merge(c);
             if let Some(id) = c.first_nonfinite {
@@ -309,6 +316,14 @@ impl Pacing {
             }
         }
         Ok(pass)
+    }
+
+    /// Every pixel converged (adaptive sampling): under a sample budget the frame holds
+    /// all it will ever take, so it counts as rendered to the cap.
+    fn converged(&mut self) {
+        if let SampleBudget::Spp(_) = self.budget {
+            self.done = self.total;
+        }
     }
 
     /// A pass of `pass` samples per pixel, started at `pass_start` and at CPU time

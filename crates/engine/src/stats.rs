@@ -74,6 +74,11 @@ pub struct RenderStats {
     pub status: String,
     /// Samples per pixel in the image.
     pub spp: u64,
+    /// Pixels per sample count held (one entry unless adaptive sampling stopped pixels
+    /// at different counts).
+    pub spp_histogram: Vec<crate::noise::SppCount>,
+    /// The image's estimated remaining error, from its own samples (`noise`).
+    pub error_estimate: crate::noise::ErrorEstimate,
     /// Sample indices in the image, `a..b` (b − a = spp).
     pub sample_range: String,
     /// Samples per pixel taken before a resume (0 for a fresh render).

@@ -49,6 +49,18 @@ pub struct RenderOptions {
     /// Render whole 1-spp passes until this many seconds are spent.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub time: Option<f64>,
+    /// Adaptive sampling: a pixel stops once its estimated relative standard error is at
+    /// most this (`plume_engine::noise`); `spp` (default 1024 here) or `time` caps it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub noise_threshold: Option<f64>,
+    /// With `noise_threshold`: samples every pixel takes before it may stop (default 16,
+    /// or the cap if smaller).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub min_spp: Option<u32>,
+    /// With `noise_threshold`: the radiance below which errors are taken relative to it
+    /// rather than to the pixel's value (default 0.1).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub noise_floor: Option<f64>,
     /// Seed of the sample streams (default: the frame number with frames, else 0).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub seed: Option<u64>,
@@ -86,6 +98,26 @@ pub struct RenderOptions {
     pub quiet: bool,
     /// Machine-readable progress on stdout.
     pub progress: ProgressFormat,
+}
+
+impl RenderOptions {
+    /// The samples per pixel when neither `spp`, `time` nor a sample range is given: 64,
+    /// or 1024 as the cap of adaptive sampling.
+    #[must_use]
+    pub fn default_spp(&self) -> u32 {
+        if self.noise_threshold.is_some() {
+            1024
+        } else {
+            64
+        }
+    }
+
+    /// Adaptive sampling's minimum samples per pixel: `min_spp`, else 16 or the `cap`
+    /// if smaller.
+    #[must_use]
+    pub fn min_spp_or_default(&self, cap: Option<u32>) -> u32 {
+        self.min_spp.unwrap_or_else(|| cap.map_or(16, |c| c.min(16)))
+    }
 }
 
 /// Frames, splits and limits (`[farm]`).

@@ -90,10 +90,66 @@ fn sample_budget(r: &RenderOptions) -> Result<()> {
     if r.spp == Some(0) {
         return Err(Error::invalid("render.spp", "must be at least 1"));
     }
+    adaptive(r)?;
     if let Some(t) = r.time {
         positive_seconds("render.time", t)?;
         if r.spp.is_some() {
             return Err(Error::invalid("render.spp", "give render.spp or render.time, not both"));
+        }
+    }
+    Ok(())
+}
+
+/// `render.noise_threshold`, `render.min_spp` and `render.noise_floor`.
+fn adaptive(r: &RenderOptions) -> Result<()> {
+    let Some(t) = r.noise_threshold else {
+        for (key, given) in [
+            ("render.min_spp", r.min_spp.is_some()),
+            ("render.noise_floor", r.noise_floor.is_some()),
+        ] {
+            if given {
+                return Err(Error::invalid(
+                    key,
+                    "is for adaptive sampling: give render.noise_threshold too",
+                ));
+            }
+        }
+        return Ok(());
+    };
+    if !(t.is_finite() && t > 0.0) {
+        return Err(Error::invalid(
+            "render.noise_threshold",
+            format!("{t} must be positive and finite"),
+        ));
+    }
+    if let Some(f) = r.noise_floor {
+        if !(f.is_finite() && f > 0.0) {
+            return Err(Error::invalid(
+                "render.noise_floor",
+                format!("{f} must be positive and finite"),
+            ));
+        }
+    }
+    if let Some(m) = r.min_spp {
+        if m < 2 {
+            return Err(Error::invalid(
+                "render.min_spp",
+                format!("{m} is below 2: a pixel's error needs two samples"),
+            ));
+        }
+        if r.time.is_none() {
+            let cap = r.spp.unwrap_or_else(|| r.default_spp());
+            if m > cap {
+                let what = if r.spp.is_some() {
+                    "render.spp"
+                } else {
+                    "the default cap of adaptive sampling"
+                };
+                return Err(Error::invalid(
+                    "render.min_spp",
+                    format!("{m} is more than {what} ({cap})"),
+                ));
+            }
         }
     }
     Ok(())
@@ -396,6 +452,14 @@ fn job_settings(job: &JobSettings, cam: &CameraSettings) -> Result<()> {
             return Err(Error::invalid(
                 "farm.sample_range",
                 "give farm.sample_range or render.spp/render.time, not both",
+            ));
+        }
+        if r.noise_threshold.is_some() {
+            // Checkpoints need each pixel's samples from 0: a range starting later cannot
+            // decide, and ranges rendered apart would decide differently from one render
+            return Err(Error::invalid(
+                "farm.sample_range",
+                "cannot be merged deterministically with adaptive sampling (render.noise_threshold), which decides from each pixel's samples from 0 on; split the frame with farm.tile or farm.crop instead",
             ));
         }
         if range.end - range.start > u64::from(u32::MAX) {

@@ -82,11 +82,12 @@ pub(super) fn render_image(
             sampler: plume_core::sampling::SamplerKind::default(),
             threads: 0,
             first_sample: 0,
+            adaptive: None,
             integrator,
         },
         &|_, _| {},
     );
-    r.film.average(r.spp)
+    r.film.average()
 }
 
 /// Mean over RGB of the central third of the pixels: (mean, standard error of the mean).

@@ -141,6 +141,7 @@ pub(super) fn cost_sweep(cfg: &ExtremesConfig, check: &mut Check) -> Result<Vec<
                     sampler: plume_core::sampling::SamplerKind::default(),
                     threads: 1,
                     first_sample: 0,
+                    adaptive: None,
                     integrator,
                 },
                 &|_, _| {},

@@ -166,6 +166,7 @@ pub fn run(data: &Path, cfg: &CloseupConfig, log: &dyn Fn(&str)) -> Result<Close
         sampler: plume_core::sampling::SamplerKind::default(),
         threads: cfg.threads,
         first_sample: 0,
+        adaptive: None,
         integrator: Integrator::emission_only(Estimator::RayMarch),
     };
     let mut images = Vec::new();

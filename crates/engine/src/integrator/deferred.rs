@@ -299,6 +299,7 @@ impl PendingSample {
         if l.iter().all(|v| v.is_finite()) {
             film.tiles[self.tile].add_sample(self.index, l);
         } else {
+            film.tiles[self.tile].add_dropped(self.index);
             counters.nonfinite_samples += 1;
             self.id.keep_earliest(&mut counters.first_nonfinite);
         }

@@ -7,6 +7,7 @@ use crate::film::{Crop, Film};
 use crate::integrator::aov::AovLayout;
 use crate::integrator::counters::Counters;
 use crate::integrator::volpath::Integrator;
+use crate::noise::Adaptive;
 use plume_core::sampling::SamplerKind;
 use plume_scene::DeferPaths;
 
@@ -38,6 +39,10 @@ pub struct RenderSettings {
     pub first_sample: u64,
     /// The integrator.
     pub integrator: Integrator,
+    /// Adaptive sampling (`render.noise_threshold`): pixels stop at a checkpoint once
+    /// their estimated relative error is below the threshold (`noise`); `None`: every
+    /// pixel takes every sample.
+    pub adaptive: Option<Adaptive>,
 }
 
 /// What a render produced.

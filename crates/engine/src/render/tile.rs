@@ -99,7 +99,20 @@ fn render_tile_with<F: Field, A: Aovs>(
             let (x, y) = (tile.x0 + tx, tile.y0 + ty);
             let index = (ty * tile.width + tx) as usize;
             let integrator = pixel_integrator(&settings.integrator, split_map, x, y);
+            // Adaptive sampling: a pixel that stopped at an earlier checkpoint holds fewer
+            // samples than this pass starts at; one that converges at a checkpoint of this
+            // pass stops there (`noise`)
+            let mut checkpoint = settings.adaptive.map(|a| (a, a.checkpoint_from(samples.start)));
+            if checkpoint.is_some() && tile.count(index) < samples.start {
+                continue;
+            }
             for s in samples.clone() {
+                if let Some((adaptive, c)) = checkpoint.as_mut().filter(|(_, c)| *c == s) {
+                    if adaptive.converged(&tile.sums[index], &tile.moments[index]) {
+                        break;
+                    }
+                    *c = crate::noise::Adaptive::after(*c);
+                }
                 let PixelSample { ray, mut sampler, time } =
                     pixel_sample(scene, settings.sampler, settings.seed, x, y, s);
                 aovs.begin();
@@ -152,6 +165,7 @@ fn render_tile_with<F: Field, A: Aovs>(
                     }
                 } else {
                     // Drop and count non-finite samples; report the first for replay
+                    tile.add_dropped(index);
                     counters.nonfinite_samples += 1;
                     counters.first_nonfinite.get_or_insert(SampleId { x, y, sample: s });
                 }

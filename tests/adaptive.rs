@@ -1,0 +1,135 @@
+//! Adaptive sampling and the error estimate through `plume render` and `plume merge`:
+//! the `error` layer is the standard error of the pixel's own samples, an adaptive frame
+//! is the same bits across threads, tiles merged and a continued render, pixels stop at
+//! checkpoints, and bad adaptive settings are refused in one line.
+
+use crate::common;
+
+use std::path::Path;
+
+use common::{bits, channels, explosion, plume, refused_in_one_line, s, stderr, tmpdir};
+
+/// The flags of every render here: a small scattering explosion view.
+const VIEW: [&str; 10] =
+    ["--width", "36", "--height", "28", "--albedo", "0.8", "--seed", "3", "-q", "--overwrite"];
+
+/// Render `input` to `out` with `extra` flags.
+fn render(input: &Path, out: &Path, extra: &[&str]) {
+    let mut args = vec!["render", s(input), "-o", s(out)];
+    args.extend(VIEW);
+    args.extend(extra);
+    let o = plume(&args);
+    assert!(o.status.success(), "{args:?}: {}", stderr(&o));
+}
+
+/// The JSON value of header attribute `plume:<key>`.
+fn header(path: &Path, key: &str) -> serde_json::Value {
+    let c = plume::output::read_exr_contents(path).unwrap();
+    let text = &c.metadata[&format!("plume:{key}")];
+    serde_json::from_str(text).unwrap_or_else(|_| serde_json::Value::String(text.clone()))
+}
+
+/// With two samples the standard error of the mean is |x₀ − x₁|/2: the `error` layer of a
+/// 2-spp render equals that of its two 1-spp sample ranges, channel by channel.
+#[test]
+fn error_layer_is_the_standard_error_of_the_pixels_samples() {
+    let d = tmpdir("adaptive", "error_layer");
+    let input = explosion(&d, 24, None);
+    let (both, first, second) = (d.join("both.exr"), d.join("s0.exr"), d.join("s1.exr"));
+    render(&input, &both, &["--spp", "2"]);
+    render(&input, &first, &["--sample-range", "0..1"]);
+    render(&input, &second, &["--sample-range", "1..2"]);
+    let (c, a, b) = (channels(&both), channels(&first), channels(&second));
+    let mut checked = 0;
+    for (name, layer) in [("R", "error.R"), ("G", "error.G"), ("B", "error.B")] {
+        for ((e, x0), x1) in c[layer].iter().zip(&a[name]).zip(&b[name]) {
+            let want = (f64::from(*x0) - f64::from(*x1)).abs() / 2.0;
+            let tolerance = 1e-5 * (f64::from(*x0).abs() + f64::from(*x1).abs()) + 1e-12;
+            assert!((f64::from(*e) - want).abs() <= tolerance, "{layer}: {e} vs {want}");
+            checked += usize::from(want > 0.0);
+        }
+    }
+    assert!(checked > 200, "pixels with two different samples: {checked}");
+    // The image estimate is in the header and the stats; every pixel has both samples
+    let estimate = header(&both, "errorEstimate");
+    assert!(estimate["rel_rmse"].as_f64().unwrap() > 0.0, "{estimate}");
+    assert_eq!(header(&both, "sppHistogram"), serde_json::json!([{"spp": 2, "pixels": 36 * 28}]));
+}
+
+/// An adaptive frame is one function of the seed: the same bits with 1 and 2 threads, as
+/// four tiles merged, and continued from a smaller cap; its pixels stop at checkpoints.
+#[test]
+fn adaptive_frame_is_the_same_across_threads_tiles_and_a_continued_render() {
+    let d = tmpdir("adaptive", "determinism");
+    let input = explosion(&d, 24, None);
+    let adaptive = ["--noise-threshold", "0.15", "--min-spp", "8", "--spp", "96"];
+    let one = d.join("one.exr");
+    render(&input, &one, &[&adaptive[..], &["--threads", "1"]].concat());
+    let two = d.join("two.exr");
+    render(&input, &two, &[&adaptive[..], &["--threads", "2"]].concat());
+    assert_eq!(bits(&channels(&one)), bits(&channels(&two)), "1 and 2 threads");
+
+    // Pixels stopped at several checkpoints, none before min_spp; some reached the cap
+    let histogram = header(&one, "sppHistogram");
+    let counts: Vec<u64> =
+        histogram.as_array().unwrap().iter().map(|b| b["spp"].as_u64().unwrap()).collect();
+    assert!(counts.len() > 3, "pixels stopped at several counts: {histogram}");
+    assert_eq!(counts[0], 8, "the background stops at min_spp: {histogram}");
+    let mut c = 8;
+    let mut checkpoints = vec![c];
+    while c < 96 {
+        c += (c / 8).max(1);
+        checkpoints.push(c.min(96));
+    }
+    assert!(counts.iter().all(|n| checkpoints.contains(n)), "{counts:?} not at {checkpoints:?}");
+
+    // Four tiles, merged
+    let mut parts = Vec::new();
+    for i in 0..4 {
+        let part = d.join(format!("tile{i}.exr"));
+        render(&input, &part, &[&adaptive[..], &["--tile", &format!("{i}/4")]].concat());
+        parts.push(part);
+    }
+    let merged = d.join("merged.exr");
+    let mut args = vec!["merge", "-o", s(&merged)];
+    args.extend(parts.iter().map(|p| s(p)));
+    let o = plume(&args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(bits(&channels(&merged)), bits(&channels(&one)), "four tiles merged");
+    assert_eq!(header(&merged, "errorEstimate"), header(&one, "errorEstimate"));
+    assert_eq!(header(&merged, "sppHistogram"), histogram);
+
+    // A smaller cap written with its sums, then continued to 96
+    let continued = d.join("continued.exr");
+    let capped = ["--noise-threshold", "0.15", "--min-spp", "8", "--spp", "27", "--sums"];
+    render(&input, &continued, &capped);
+    let mut args = vec!["render", s(&input), "-o", s(&continued)];
+    args.extend(VIEW.iter().filter(|f| **f != "--overwrite"));
+    args.extend(adaptive);
+    let o = plume(&args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(header(&continued, "resumedFromSpp"), serde_json::json!(27));
+    assert_eq!(bits(&channels(&continued)), bits(&channels(&one)), "continued from 27 spp");
+}
+
+/// Bad adaptive settings: one line naming the key or flag, exit 2, nothing written.
+#[test]
+fn bad_adaptive_settings_are_refused_in_one_line() {
+    let d = tmpdir("adaptive", "refused");
+    let input = explosion(&d, 16, None);
+    let out = d.join("never.exr");
+    let cases: [(&[&str], &[&str]); 7] = [
+        (&["--noise-threshold", "0"], &["--noise-threshold", "positive"]),
+        (&["--noise-threshold", "NaN"], &["--noise-threshold", "positive"]),
+        (&["--noise-threshold=-0.1"], &["--noise-threshold", "positive"]),
+        (&["--noise-threshold", "0.1", "--spp", "8", "--min-spp", "16"], &["--min-spp", "--spp"]),
+        (&["--noise-threshold", "0.1", "--min-spp", "1"], &["--min-spp", "2"]),
+        (&["--min-spp", "8"], &["--min-spp", "--noise-threshold"]),
+        (&["--noise-threshold", "0.1", "--sample-range", "0..8"], &["--sample-range", "--tile"]),
+    ];
+    for (flags, needles) in cases {
+        let mut args = vec!["render", s(&input), "-o", s(&out), "-q"];
+        args.extend(flags);
+        refused_in_one_line(&args, 2, needles, &out);
+    }
+}

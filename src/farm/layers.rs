@@ -69,10 +69,10 @@ pub fn beauty_and_layers(
 ) -> Written {
     let counts: Vec<u64> = sums.moments.iter().map(|m| m.count).collect();
     let Some(layout) = layout else {
-        return Written { pixels: noisy, layers: error_layer(sums), denoised: false };
+        return Written { pixels: noisy, layers: error_layer(sums, crop), denoised: false };
     };
     let mut layers = aov_layers(layout, sums.aov, &noisy, &counts);
-    layers.extend(error_layer(sums));
+    layers.extend(error_layer(sums, crop));
     match plume_engine::denoise::from_sums(
         layout,
         sums.rgba,
@@ -90,17 +90,13 @@ pub fn beauty_and_layers(
     }
 }
 
-/// The `error` layer: per pixel and colour channel, the estimated standard error of the
-/// pixel's (noisy) mean ([`plume_engine::noise::standard_error`]; infinite for a pixel
-/// with fewer than two samples).
+/// The `error` layer of the pixels of `crop`: per pixel and colour channel, the estimated
+/// standard error of the pixel's (noisy) mean, pooled over its neighbours
+/// ([`plume_engine::noise::pooled_standard_errors`]; infinite for a pixel with fewer
+/// than two samples).
 #[must_use]
-pub fn error_layer(sums: FrameSums<'_>) -> Layers {
-    let se: Vec<[f64; 3]> = sums
-        .rgba
-        .iter()
-        .zip(sums.moments)
-        .map(|(s, m)| plume_engine::noise::standard_error(s, m))
-        .collect();
+pub fn error_layer(sums: FrameSums<'_>, crop: Crop) -> Layers {
+    let se = plume_engine::noise::pooled_standard_errors(sums.rgba, sums.moments, crop);
     ["R", "G", "B"]
         .iter()
         .enumerate()

@@ -402,7 +402,12 @@ fn merged_metadata(
         .and_then(|t| serde_json::from_str::<serde_json::Value>(t).ok())
         .and_then(|v| v.get("floor")?.as_f64())
         .unwrap_or(plume_engine::noise::DEFAULT_FLOOR);
-    let estimate = plume_engine::noise::estimate(&merged.sums, &merged.moments, floor);
+    let estimate = plume_engine::noise::estimate(
+        &merged.sums,
+        &merged.moments,
+        Crop::full(merged.width, merged.height),
+        floor,
+    );
     let histogram = plume_engine::noise::spp_histogram(&merged.moments);
     let set: [(&str, String); 16] = [
         ("plume:errorEstimate", serde_json::to_string(&estimate).expect("invariant: serializes")),

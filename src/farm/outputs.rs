@@ -102,7 +102,7 @@ pub(crate) fn stats_record(
         status: status.as_str().into(),
         spp,
         spp_histogram: plume_engine::noise::spp_histogram(&moments),
-        error_estimate: plume_engine::noise::estimate(&result.film.sums(), &moments, floor),
+        error_estimate: plume_engine::noise::estimate(&result.film.sums(), &moments, crop, floor),
         sample_range: format_range(&sample_range),
         resumed_from_spp: spp - result.spp,
         seed: id.seed,

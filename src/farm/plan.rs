@@ -81,7 +81,7 @@ impl<'a> Job<'a> {
         let crop = match (farm.crop, farm.tile) {
             (Some(c), _) => Some(c),
             (None, Some(t)) => Some(
-                split::tile_crop(t.index, t.count, width, height)
+                split::tile_crop(t.index, t.count, width, height, settings.render.adaptive_block())
                     .map_err(|m| Error::invalid("farm.tile", m))?,
             ),
             (None, None) => None,

@@ -15,8 +15,10 @@ pub use plume_scene::Crop;
 /// Channels of the half sums (`--denoise`): colour, alpha and sample count of one half.
 pub const HALF_CHANNEL_COUNT: usize = 5;
 
-/// Edge length of a film tile in pixels.
-pub const TILE: u32 = 16;
+/// Edge length of a film tile in pixels. Tiles are aligned to the image (a crop's first
+/// row and column of tiles may be narrower), so each is one of adaptive sampling's pixel
+/// blocks, cut only where the crop is (`plume_engine::noise`).
+pub const TILE: u32 = plume_scene::ADAPTIVE_BLOCK;
 
 /// F: sample values are stored in units of 2^−F. With F = 64 an `i128` sum covers
 /// 2^−64 ≈ 5.4·10⁻²⁰ up to 2^63 ≈ 9.2·10¹⁸ (`ARCHITECTURE.md`, "Exact sums").
@@ -246,9 +248,14 @@ impl Film {
     pub fn with_aovs(width: u32, height: u32, crop: Crop, aov_channels: usize) -> Film {
         assert!(crop.fits(width, height), "crop {crop} outside the {width}x{height} image");
         let mut tiles = Vec::new();
-        for y0 in (crop.y0..crop.y1).step_by(TILE as usize) {
-            for x0 in (crop.x0..crop.x1).step_by(TILE as usize) {
-                let (w, h) = (TILE.min(crop.x1 - x0), TILE.min(crop.y1 - y0));
+        // Tile edges at multiples of TILE in image coordinates, and the crop's edges
+        let starts = |a: u32, b: u32| {
+            std::iter::successors(Some(a), move |&v| Some((v / TILE + 1) * TILE).filter(|&n| n < b))
+        };
+        for y0 in starts(crop.y0, crop.y1) {
+            for x0 in starts(crop.x0, crop.x1) {
+                let next = |v: u32, end: u32| ((v / TILE + 1) * TILE).min(end);
+                let (w, h) = (next(x0, crop.x1) - x0, next(y0, crop.y1) - y0);
                 let n = (w * h) as usize;
                 tiles.push(Tile {
                     x0,

@@ -15,24 +15,39 @@
 //! directly), so the estimate leans to the safe side; docs/adaptive.md measures it against
 //! converged references. A pixel with fewer than two samples has no estimate (infinite).
 //!
+//! **Pooled over neighbours.** One pixel's `σ̂²` is a noisy figure of its own: where the
+//! light is heavy-tailed (rare, bright scattered light from a fireball), a pixel that has
+//! not yet drawn the tail has both a low mean and a low `σ̂²`. The estimate a render uses
+//! is therefore pooled: for pixel `p`, the averages over its 3×3 neighbourhood `N(p)`,
+//!
+//! ```text
+//! σ̄²(p) = mean_{q ∈ N(p)} σ̂²(x̄_q),    x̃(p) = mean_{q ∈ N(p)} x̄_q
+//! ```
+//!
+//! where `N(p)` holds the neighbours inside the image-aligned block of
+//! [`crate::film::TILE`]² pixels that holds `p` (a film tile, so that a tile can decide
+//! alone) with two samples or more. A pixel with fewer than two samples has no estimate
+//! (infinite). docs/adaptive.md measures what pooling does against converged references.
+//!
 //! **Relative error with a floor.** Per pixel, over the colour channels `c`,
 //!
 //! ```text
-//! e² = (1/3) Σ_c σ̂²_c / (x̄²_c + ε),    ε = floor²
+//! e² = (1/3) Σ_c σ̄²_c / (x̃²_c + ε),    ε = floor²
 //! ```
 //!
 //! the error relative to the pixel's value, and relative to the floor (a radiance) where
 //! the pixel is darker: the per-pixel form of the relative MSE of `plume bench compare`,
-//! with the pixel's own mean for the unknown reference and the same `ε` (floor 0.1).
+//! with the pooled mean for the unknown reference and the same `ε` (floor 0.1).
 //! The image's estimated **relRMSE** is `sqrt(mean e²)` over the pixels whose alpha is
 //! above 0.01 (where there is something to see).
 //!
 //! **Adaptive sampling.** A pixel stops once `e ≤ T` (`render.noise_threshold`). The test
 //! is taken only at fixed sample counts, the checkpoints `c₀ = min_spp`,
-//! `c_{k+1} = c_k + max(1, ⌊c_k/8⌋)`, from the pixel's own sums of samples `0..c_k`: a
-//! pure function of the pixel's samples, so the image is the same for any thread count,
-//! pass size, tiling or interruption. Checkpoints every eighth of the samples so far
-//! cost a pixel at most 12.5 % more samples than it needed.
+//! `c_{k+1} = c_k + max(1, ⌊c_k/8⌋)`, for every pixel of a film tile together, from the
+//! tile's sums with every pixel at that count or stopped before it: a pure function of the
+//! samples, so the image is the same for any thread count, pass size, tiling that does
+//! not cut a block, or interruption. Checkpoints every eighth of the samples so far cost a
+//! pixel at most 12.5 % more samples than it needed.
 
 use crate::film::{Moments, FIXED_POINT_BITS};
 
@@ -64,18 +79,106 @@ pub fn standard_error(sums: &[i128; 4], moments: &Moments) -> [f64; 3] {
     })
 }
 
-/// The pixel's mean colour from its sums and count.
-fn mean(sums: &[i128; 4], moments: &Moments) -> [f64; 3] {
-    let n = moments.count.max(1) as f64;
-    std::array::from_fn(|c| sums[c] as f64 * unit() / n)
+/// One pixel's mean colour and squared standard error per channel (infinite with fewer
+/// than two samples).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PixelNoise {
+    /// The pixel's mean `x̄` per colour channel.
+    pub mean: [f64; 3],
+    /// `σ̂²(x̄)` per colour channel.
+    pub se2: [f64; 3],
 }
 
-/// The squared relative error `e²` of a pixel (module docs), with `epsilon = floor²`.
+impl PixelNoise {
+    /// A pixel's noise from its RGB(A) sums and moments.
+    #[must_use]
+    pub fn of(sums: &[i128; 4], moments: &Moments) -> PixelNoise {
+        let n = moments.count.max(1) as f64;
+        PixelNoise {
+            mean: std::array::from_fn(|c| sums[c] as f64 * unit() / n),
+            se2: standard_error(sums, moments).map(|s| s * s),
+        }
+    }
+
+    /// `e²` of these (pooled) figures, with `epsilon = floor²` (module docs).
+    #[must_use]
+    pub fn relative_variance(&self, epsilon: f64) -> f64 {
+        (0..3).map(|c| self.se2[c] / (self.mean[c] * self.mean[c] + epsilon)).sum::<f64>() / 3.0
+    }
+}
+
+/// The pixels of a rectangle of the image (a crop or a film tile), row-major, with their
+/// noise: what pooling reads.
+#[derive(Clone, Copy, Debug)]
+pub struct NoiseGrid<'a> {
+    /// The rectangle, in image coordinates.
+    pub rect: crate::film::Crop,
+    /// One per pixel of `rect`, row-major.
+    pub pixels: &'a [PixelNoise],
+}
+
+impl NoiseGrid<'_> {
+    /// The pooled mean and `σ̄²` of pixel `(x, y)` (image coordinates, inside the grid):
+    /// the averages over its 3×3 neighbours in the grid and in its block with an estimate
+    /// (module docs); infinite when the pixel itself has none.
+    #[must_use]
+    pub fn pooled(&self, x: u32, y: u32) -> PixelNoise {
+        let r = self.rect;
+        let at = |x: u32, y: u32| &self.pixels[((y - r.y0) * r.width() + (x - r.x0)) as usize];
+        let own = at(x, y);
+        if own.se2.iter().any(|v| !v.is_finite()) {
+            return *own;
+        }
+        let block = |v: u32| v / crate::film::TILE;
+        let mut sum = PixelNoise::default();
+        let mut count = 0.0;
+        for qy in y.saturating_sub(1)..=y + 1 {
+            for qx in x.saturating_sub(1)..=x + 1 {
+                let inside = qx >= r.x0 && qx < r.x1 && qy >= r.y0 && qy < r.y1;
+                if !inside || block(qx) != block(x) || block(qy) != block(y) {
+                    continue;
+                }
+                let q = at(qx, qy);
+                if q.se2.iter().all(|v| v.is_finite()) {
+                    for c in 0..3 {
+                        sum.mean[c] += q.mean[c];
+                        sum.se2[c] += q.se2[c];
+                    }
+                    count += 1.0;
+                }
+            }
+        }
+        PixelNoise { mean: sum.mean.map(|v| v / count), se2: sum.se2.map(|v| v / count) }
+    }
+}
+
+/// Every pixel's noise from sums and moments (row-major, the same pixels).
 #[must_use]
-pub fn relative_variance(sums: &[i128; 4], moments: &Moments, epsilon: f64) -> f64 {
-    let se = standard_error(sums, moments);
-    let m = mean(sums, moments);
-    (0..3).map(|c| se[c] * se[c] / (m[c] * m[c] + epsilon)).sum::<f64>() / 3.0
+pub fn pixel_noise(sums: &[[i128; 4]], moments: &[Moments]) -> Vec<PixelNoise> {
+    sums.iter().zip(moments).map(|(s, m)| PixelNoise::of(s, m)).collect()
+}
+
+/// The pooled standard error `σ̄` of every pixel of `crop` (row-major sums and moments
+/// over it), per colour channel: the `error` layer.
+///
+/// # Panics
+/// If the slices do not have one entry per pixel of `crop`.
+#[must_use]
+pub fn pooled_standard_errors(
+    sums: &[[i128; 4]],
+    moments: &[Moments],
+    crop: crate::film::Crop,
+) -> Vec<[f64; 3]> {
+    assert_eq!(sums.len() as u64, crop.area(), "one sum per pixel");
+    let pixels = pixel_noise(sums, moments);
+    let grid = NoiseGrid { rect: crop, pixels: &pixels };
+    let mut out = Vec::with_capacity(pixels.len());
+    for y in crop.y0..crop.y1 {
+        for x in crop.x0..crop.x1 {
+            out.push(grid.pooled(x, y).se2.map(f64::sqrt));
+        }
+    }
+    out
 }
 
 /// What a render says of its own remaining error (stats JSON, EXR header).
@@ -90,21 +193,30 @@ pub struct ErrorEstimate {
     pub floor: f64,
 }
 
-/// The image's error estimate from its sums and moments (row-major, the same pixels).
+/// The image's error estimate from its sums and moments (row-major over `crop`).
 ///
 /// # Panics
-/// If the slices differ in length.
+/// If the slices do not have one entry per pixel of `crop`.
 #[must_use]
-pub fn estimate(sums: &[[i128; 4]], moments: &[Moments], floor: f64) -> ErrorEstimate {
+pub fn estimate(
+    sums: &[[i128; 4]],
+    moments: &[Moments],
+    crop: crate::film::Crop,
+    floor: f64,
+) -> ErrorEstimate {
+    assert_eq!(sums.len() as u64, crop.area(), "one sum per pixel");
     assert_eq!(sums.len(), moments.len(), "one moment per pixel");
+    let noise = pixel_noise(sums, moments);
+    let grid = NoiseGrid { rect: crop, pixels: &noise };
     let epsilon = floor * floor;
     let mut total = 0.0;
     let mut pixels = 0u64;
     let mut finite = true;
-    for (s, m) in sums.iter().zip(moments) {
+    let coordinates = (crop.y0..crop.y1).flat_map(|y| (crop.x0..crop.x1).map(move |x| (x, y)));
+    for ((s, m), (x, y)) in sums.iter().zip(moments).zip(coordinates) {
         let alpha = crate::film::pixel_value(s[3], m.count);
         if alpha > ALPHA_MIN {
-            let e2 = relative_variance(s, m, epsilon);
+            let e2 = grid.pooled(x, y).relative_variance(epsilon);
             finite &= e2.is_finite();
             total += e2;
             pixels += 1;
@@ -163,11 +275,18 @@ impl Adaptive {
         c
     }
 
-    /// Whether a pixel with these sums and moments has converged (`e ≤ threshold`);
-    /// asked only at checkpoints.
+    /// Whether the first checkpoint at or after `n` is `n`.
     #[must_use]
-    pub fn converged(&self, sums: &[i128; 4], moments: &Moments) -> bool {
-        relative_variance(sums, moments, self.floor * self.floor) <= self.threshold * self.threshold
+    pub fn is_checkpoint(&self, n: u64) -> bool {
+        n >= self.min_spp && self.checkpoint_from(n) == n
+    }
+
+    /// Whether pixel `(x, y)` of `grid` has converged (`e ≤ threshold` with the pooled
+    /// figures); asked only at checkpoints.
+    #[must_use]
+    pub fn converged(&self, grid: &NoiseGrid<'_>, x: u32, y: u32) -> bool {
+        grid.pooled(x, y).relative_variance(self.floor * self.floor)
+            <= self.threshold * self.threshold
     }
 }
 
@@ -210,11 +329,34 @@ mod tests {
     #[test]
     fn relative_error_uses_the_floor_for_dark_pixels() {
         let bright = pixel(&[[99.0; 4], [101.0; 4]]);
-        let e2 = relative_variance(&bright.0, &bright.1, 0.01);
+        let e2 = PixelNoise::of(&bright.0, &bright.1).relative_variance(0.01);
         assert!((e2 - 1.0 / (100.0f64.powi(2) + 0.01)).abs() < 1e-12, "{e2}");
         let dark = pixel(&[[0.0; 4], [0.002; 4]]);
-        let e2 = relative_variance(&dark.0, &dark.1, 0.01);
+        let e2 = PixelNoise::of(&dark.0, &dark.1).relative_variance(0.01);
         assert!((e2 - 1e-6 / (1e-6 + 0.01)).abs() < 1e-12, "{e2}");
+    }
+
+    /// Pooling averages the 3×3 neighbours inside the grid and the pixel's block, leaves
+    /// out neighbours without an estimate, and keeps a pixel without one infinite.
+    #[test]
+    fn pooling_stays_inside_the_block_and_the_grid() {
+        use crate::film::Crop;
+        // A 20×2 strip from x = 6: columns 6..16 are one block, 16..26 the next
+        let rect = Crop { x0: 6, y0: 0, x1: 26, y1: 2 };
+        let mut pixels: Vec<PixelNoise> = (0..40)
+            .map(|i| {
+                let v = f64::from(6 + i % 20);
+                PixelNoise { mean: [v; 3], se2: [v; 3] }
+            })
+            .collect();
+        pixels[20 + 1].se2 = [f64::INFINITY; 3]; // (7, 1): one sample
+        let grid = NoiseGrid { rect, pixels: &pixels };
+        // (15, 0): neighbours x = 14, 15 (16 is the next block), y = 0, 1
+        assert_eq!(grid.pooled(15, 0).mean, [14.5; 3]);
+        // (6, 0): x = 6, 7 at y = 0 and x = 6 at y = 1 ((7, 1) has no estimate)
+        let p = grid.pooled(6, 0);
+        assert!((p.se2[0] - (6.0 + 7.0 + 6.0) / 3.0).abs() < 1e-12, "{p:?}");
+        assert!(grid.pooled(7, 1).se2[0].is_infinite());
     }
 
     /// The checkpoints grow by an eighth, from min_spp.
@@ -248,9 +390,19 @@ mod tests {
             spp_histogram(&moments),
             [SppCount { spp: 2, pixels: 2 }, SppCount { spp: 3, pixels: 1 }]
         );
-        let est = estimate(&sums, &moments, 0.1);
+        // Three pixels in a row: the empty one between the two has no alpha
+        let crop = crate::film::Crop { x0: 0, y0: 0, x1: 3, y1: 1 };
+        let est = estimate(&sums, &moments, crop, 0.1);
         assert_eq!(est.pixels, 2);
-        let e2 = relative_variance(&a.0, &a.1, 0.01);
+        let noise = pixel_noise(&sums, &moments);
+        let pooled = |i: usize| {
+            let (a, b) = (noise[i], noise[1]);
+            PixelNoise {
+                mean: std::array::from_fn(|c| (a.mean[c] + b.mean[c]) / 2.0),
+                se2: std::array::from_fn(|c| (a.se2[c] + b.se2[c]) / 2.0),
+            }
+        };
+        let e2 = (pooled(0).relative_variance(0.01) + pooled(2).relative_variance(0.01)) / 2.0;
         assert!((est.rel_rmse.unwrap() - e2.sqrt()).abs() < 1e-15);
     }
 }

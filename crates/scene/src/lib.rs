@@ -42,7 +42,9 @@ pub use lights::{
     DistantSettings, EnvironmentMapSettings, LightSettings, SkySettings, SphereSettings,
 };
 pub use pixels::{Crop, SampleId};
-pub use settings::{FarmOptions, JobSettings, OutputSettings, ReadSettings, RenderOptions};
+pub use settings::{
+    FarmOptions, JobSettings, OutputSettings, ReadSettings, RenderOptions, ADAPTIVE_BLOCK,
+};
 pub use validate::ValidShot;
 pub use values::{parse_bytes, ByteSize, TileIndex};
 

@@ -100,6 +100,10 @@ pub struct RenderOptions {
     pub progress: ProgressFormat,
 }
 
+/// The edge, in pixels, of the image-aligned blocks within which adaptive sampling pools
+/// a pixel's neighbours (the film's tile size).
+pub const ADAPTIVE_BLOCK: u32 = 16;
+
 impl RenderOptions {
     /// The samples per pixel when neither `spp`, `time` nor a sample range is given: 64,
     /// or 1024 as the cap of adaptive sampling.
@@ -109,6 +113,18 @@ impl RenderOptions {
             1024
         } else {
             64
+        }
+    }
+
+    /// The edge of the pixel blocks whose decisions a render takes together: 16 with
+    /// adaptive sampling (`plume_engine::noise`: crops and tiles must not cut them), else
+    /// 1 (every pixel alone).
+    #[must_use]
+    pub fn adaptive_block(&self) -> u32 {
+        if self.noise_threshold.is_some() {
+            ADAPTIVE_BLOCK
+        } else {
+            1
         }
     }
 

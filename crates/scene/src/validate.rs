@@ -444,8 +444,23 @@ fn job_settings(job: &JobSettings, cam: &CameraSettings) -> Result<()> {
         }
     }
     if let Some(t) = farm.tile {
-        crate::split::tile_crop(t.index, t.count, cam.width, cam.height)
+        crate::split::tile_crop(t.index, t.count, cam.width, cam.height, r.adaptive_block())
             .map_err(|m| Error::invalid("farm.tile", m))?;
+    }
+    if let (Some(c), true) = (farm.crop, r.noise_threshold.is_some()) {
+        // Adaptive decisions pool blocks of pixels: a crop must not cut one
+        let b = r.adaptive_block();
+        let on_edge = |v: u32, size: u32| v % b == 0 || v == size;
+        if !(on_edge(c.x0, cam.width)
+            && on_edge(c.y0, cam.height)
+            && on_edge(c.x1, cam.width)
+            && on_edge(c.y1, cam.height))
+        {
+            return Err(Error::invalid(
+                "farm.crop",
+                format!("{c} cuts adaptive sampling's blocks of {b}x{b} pixels: with render.noise_threshold its edges must be multiples of {b} or the image's"),
+            ));
+        }
     }
     if let Some(range) = &farm.sample_range {
         if r.spp.is_some() || r.time.is_some() {

@@ -87,90 +87,131 @@ pub(super) fn render_tile<F: Field>(
 
 fn render_tile_with<F: Field, A: Aovs>(
     scene: &Scene<F>,
-    TileJob { settings, split_map }: TileJob<'_>,
+    job: TileJob<'_>,
     samples: std::ops::Range<u64>,
     tile: &mut Tile,
     aovs: &mut A,
     mut defer: Deferring<'_>,
 ) -> Counters {
     let mut counters = Counters::default();
-    for ty in 0..tile.height {
-        for tx in 0..tile.width {
-            let (x, y) = (tile.x0 + tx, tile.y0 + ty);
-            let index = (ty * tile.width + tx) as usize;
-            let integrator = pixel_integrator(&settings.integrator, split_map, x, y);
-            // Adaptive sampling: a pixel that stopped at an earlier checkpoint holds fewer
-            // samples than this pass starts at; one that converges at a checkpoint of this
-            // pass stops there (`noise`)
-            let mut checkpoint = settings.adaptive.map(|a| (a, a.checkpoint_from(samples.start)));
-            if checkpoint.is_some() && tile.count(index) < samples.start {
-                continue;
-            }
-            for s in samples.clone() {
-                if let Some((adaptive, c)) = checkpoint.as_mut().filter(|(_, c)| *c == s) {
-                    if adaptive.converged(&tile.sums[index], &tile.moments[index]) {
-                        break;
-                    }
-                    *c = crate::noise::Adaptive::after(*c);
-                }
-                let PixelSample { ray, mut sampler, time } =
-                    pixel_sample(scene, settings.sampler, settings.seed, x, y, s);
-                aovs.begin();
-                let l = if let Some((tile_index, pending)) = defer.as_mut() {
-                    let mut paths = Vec::new();
-                    let state = PathState {
-                        sampler: &mut sampler,
-                        counters: &mut counters,
-                        trace: &mut NoTrace,
-                        aovs: &mut NoAovs,
-                    };
-                    let l = integrator.li_deferring(scene, &ray, time, state, &mut paths);
-                    if !paths.is_empty() {
-                        // Added to the film when its paths are done
-                        counters.samples += 1;
-                        pending.push(PendingSample::new(
-                            *tile_index,
-                            index,
-                            SampleId { x, y, sample: s },
-                            integrator,
-                            l,
-                            paths,
-                        ));
-                        continue;
-                    }
-                    l
-                } else {
-                    integrator.li_aovs(
-                        scene,
-                        &ray,
-                        time,
-                        PathState {
-                            sampler: &mut sampler,
-                            counters: &mut counters,
-                            trace: &mut NoTrace,
-                            aovs,
-                        },
-                    )
-                };
-                if tile.half.is_some_and(|h| A::ON && crate::denoise::half_of(s, h.block)) {
-                    aovs.half(l);
-                }
-                counters.samples += 1;
-                if l.iter().all(|v| v.is_finite())
-                    && (!A::ON || aovs.values().iter().all(|v| v.is_finite()))
-                {
-                    tile.add_sample(index, l);
-                    if A::ON {
-                        tile.add_aov(index, aovs.values());
-                    }
-                } else {
-                    // Drop and count non-finite samples; report the first for replay
-                    tile.add_dropped(index);
-                    counters.nonfinite_samples += 1;
-                    counters.first_nonfinite.get_or_insert(SampleId { x, y, sample: s });
-                }
-            }
+    let pixels = (tile.width * tile.height) as usize;
+    let Some(adaptive) = job.settings.adaptive else {
+        for index in 0..pixels {
+            let run = PixelRun { samples: samples.clone(), index };
+            render_pixel(scene, job, run, tile, aovs, &mut defer, &mut counters);
         }
+        return counters;
+    };
+    // Adaptive sampling (`noise`): the pixels still sampling hold every sample before
+    // this pass; at each checkpoint the tile decides for all of them together, from its
+    // sums at that count, then renders them to the next checkpoint
+    let mut active: Vec<bool> = (0..pixels).map(|i| tile.count(i) == samples.start).collect();
+    let mut s0 = samples.start;
+    while s0 < samples.end {
+        if adaptive.is_checkpoint(s0) {
+            stop_converged(&adaptive, tile, &mut active);
+        }
+        let s1 = adaptive.checkpoint_from(s0 + 1).min(samples.end);
+        for index in (0..pixels).filter(|&i| active[i]) {
+            let run = PixelRun { samples: s0..s1, index };
+            render_pixel(scene, job, run, tile, aovs, &mut defer, &mut counters);
+        }
+        s0 = s1;
     }
     counters
+}
+
+/// At a checkpoint: the active pixels of `tile` whose pooled error is below the
+/// threshold stop (`active` becomes `false`). Every decision reads the tile as it is
+/// before any is applied.
+fn stop_converged(adaptive: &crate::noise::Adaptive, tile: &Tile, active: &mut [bool]) {
+    let noise = crate::noise::pixel_noise(&tile.sums, &tile.moments);
+    let rect = crate::film::Crop {
+        x0: tile.x0,
+        y0: tile.y0,
+        x1: tile.x0 + tile.width,
+        y1: tile.y0 + tile.height,
+    };
+    let grid = crate::noise::NoiseGrid { rect, pixels: &noise };
+    for (i, a) in active.iter_mut().enumerate() {
+        let (x, y) = (tile.x0 + i as u32 % tile.width, tile.y0 + i as u32 / tile.width);
+        if *a && adaptive.converged(&grid, x, y) {
+            *a = false;
+        }
+    }
+}
+
+/// Which samples of which pixel (row-major within the tile) [`render_pixel`] renders.
+struct PixelRun {
+    samples: std::ops::Range<u64>,
+    index: usize,
+}
+
+/// Render samples `run.samples` of pixel `run.index` of `tile`, adding each to its sums
+/// (or, deferring, to the pending list).
+fn render_pixel<F: Field, A: Aovs>(
+    scene: &Scene<F>,
+    TileJob { settings, split_map }: TileJob<'_>,
+    PixelRun { samples, index }: PixelRun,
+    tile: &mut Tile,
+    aovs: &mut A,
+    defer: &mut Deferring<'_>,
+    counters: &mut Counters,
+) {
+    let (tx, ty) = (index as u32 % tile.width, index as u32 / tile.width);
+    let (x, y) = (tile.x0 + tx, tile.y0 + ty);
+    let integrator = pixel_integrator(&settings.integrator, split_map, x, y);
+    for s in samples {
+        let PixelSample { ray, mut sampler, time } =
+            pixel_sample(scene, settings.sampler, settings.seed, x, y, s);
+        aovs.begin();
+        let l = if let Some((tile_index, pending)) = defer.as_mut() {
+            let mut paths = Vec::new();
+            let state = PathState {
+                sampler: &mut sampler,
+                counters,
+                trace: &mut NoTrace,
+                aovs: &mut NoAovs,
+            };
+            let l = integrator.li_deferring(scene, &ray, time, state, &mut paths);
+            if !paths.is_empty() {
+                // Added to the film when its paths are done
+                counters.samples += 1;
+                pending.push(PendingSample::new(
+                    *tile_index,
+                    index,
+                    SampleId { x, y, sample: s },
+                    integrator,
+                    l,
+                    paths,
+                ));
+                continue;
+            }
+            l
+        } else {
+            integrator.li_aovs(
+                scene,
+                &ray,
+                time,
+                PathState { sampler: &mut sampler, counters, trace: &mut NoTrace, aovs },
+            )
+        };
+        if tile.half.is_some_and(|h| A::ON && crate::denoise::half_of(s, h.block)) {
+            aovs.half(l);
+        }
+        counters.samples += 1;
+        if l.iter().all(|v| v.is_finite())
+            && (!A::ON || aovs.values().iter().all(|v| v.is_finite()))
+        {
+            tile.add_sample(index, l);
+            if A::ON {
+                tile.add_aov(index, aovs.values());
+            }
+        } else {
+            // Drop and count non-finite samples; report the first for replay
+            tile.add_dropped(index);
+            counters.nonfinite_samples += 1;
+            counters.first_nonfinite.get_or_insert(SampleId { x, y, sample: s });
+        }
+    }
 }

@@ -133,9 +133,24 @@ fn compare_measures_every_method_and_writes_all_outputs() {
         runs: 2,
         epsilon: 1e-2,
         curve_points: 3,
+        adaptive: true,
     };
     let report = compare(&mut scene, &reference, &cfg, &|_| {}).unwrap();
     assert_eq!(report.methods.len(), 4);
+    // The cost of each target error, uniform and adaptive (a series of halving thresholds
+    // ending with the first render that spends the budget)
+    let table = report.target_table();
+    for m in &report.methods {
+        assert_eq!(m.to_target.len(), 3, "{}", m.method);
+        assert_eq!(m.adaptive_to_target.len(), 3, "{}", m.method);
+        assert!(m.to_target.iter().all(|t| t.cpu_seconds.is_some_and(|c| c > 0.0)));
+        let a = &m.adaptive;
+        assert!(!a.is_empty() && a.len() <= 6, "{}: {} adaptive renders", m.method, a.len());
+        assert!(a.windows(2).all(|w| w[1].threshold == w[0].threshold / 2.0));
+        assert!(a[..a.len() - 1].iter().all(|p| p.point.cpu_seconds < 0.2), "only the last spends it");
+        assert!(a.iter().all(|p| p.point.rel_rmse > 0.0 && p.mean_spp >= 16.0));
+        assert!(table.contains(&format!("| {} | adaptive |", m.method)), "{table}");
+    }
     assert!(report.equal_spp.is_power_of_two());
     for m in &report.methods {
         assert_eq!(m.curve.len(), 3);

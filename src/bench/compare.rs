@@ -22,6 +22,7 @@ use serde::Serialize;
 use super::metrics::{mean_rgb, Errors, Spread, RELMSE_TRIM};
 use super::progressive::{self, RunPlan, RunResult, Snapshot};
 use super::spec::{BenchScene, MethodSpec};
+use super::targets::{time_to_targets, AdaptivePoint, CurvePoint, SeriesPlan, TimeToError};
 use super::{peak_rss_bytes, reset_peak_rss};
 use plume_core::error::{Error, Result};
 use plume_engine::integrator::{Integrator, LightSampling, Lights};
@@ -218,6 +219,9 @@ pub struct CompareConfig {
     pub epsilon: f64,
     /// Points of the error-vs-time curve: `T/2^k`, `k < curve_points`.
     pub curve_points: u32,
+    /// Also render each method adaptively at halving noise thresholds
+    /// ([`super::targets::adaptive_series`]).
+    pub adaptive: bool,
 }
 
 /// Statistics of one checkpoint over runs.
@@ -268,6 +272,13 @@ pub struct MethodResult {
     pub equal_spp: Point,
     /// The error-vs-CPU-time curve, ascending.
     pub curve: Vec<Point>,
+    /// CPU seconds to reach each target relative RMSE on the uniform curve
+    /// ([`super::targets`]).
+    pub to_target: Vec<TimeToError>,
+    /// The adaptive renders (with `adaptive`), by threshold.
+    pub adaptive: Vec<AdaptivePoint>,
+    /// CPU seconds to reach each target on the adaptive curve (empty without it).
+    pub adaptive_to_target: Vec<TimeToError>,
     /// Camera samples per CPU second over the whole run.
     pub samples_per_cpu_second: Spread,
     /// Seconds to build the light-sampling structures (not in the render budget).
@@ -428,6 +439,22 @@ fn measure_method(
         r.image = Vec::new();
     }
     let uses_proxy = m.light_sampling == LightSampling::Fnee && !emission_only(scene);
+    let curve_points: Vec<Point> = (0..curve.len())
+        .map(|k| Point::of(&runs.iter().map(|r| r.time_points[k]).collect::<Vec<_>>()))
+        .collect();
+    let uniform: Vec<CurvePoint> = curve_points
+        .iter()
+        .map(|p| CurvePoint { cpu_seconds: p.cpu_seconds.mean, rel_rmse: p.relmse.mean.sqrt() })
+        .collect();
+    let adaptive = if cfg.adaptive {
+        // Up to 4× the samples the uniform runs took where the error is
+        let spp = runs.iter().map(|r| r.spp).max().unwrap_or(1);
+        let cap = u32::try_from(4 * spp).unwrap_or(u32::MAX);
+        adaptive_runs(scene, m, (reference, cap), cfg, curve, on_line)
+    } else {
+        Vec::new()
+    };
+    let adaptive_curve: Vec<CurvePoint> = adaptive.iter().map(|a| a.point).collect();
     let result = MethodResult {
         method: m.name.clone(),
         estimator: format!("{:?}", m.estimator),
@@ -437,9 +464,14 @@ fn measure_method(
             &runs.iter().filter_map(|r| r.time_points.last().copied()).collect::<Vec<_>>(),
         ),
         equal_spp: Point::default(),
-        curve: (0..curve.len())
-            .map(|k| Point::of(&runs.iter().map(|r| r.time_points[k]).collect::<Vec<_>>()))
-            .collect(),
+        to_target: time_to_targets(&uniform),
+        adaptive_to_target: if cfg.adaptive {
+            time_to_targets(&adaptive_curve)
+        } else {
+            Vec::new()
+        },
+        adaptive,
+        curve: curve_points,
         samples_per_cpu_second: Spread::of(
             &runs
                 .iter()
@@ -469,13 +501,7 @@ fn method_runs(
     let integ = integrator_for(scene, m.estimator, m.light_sampling);
     let mut runs = Vec::new();
     for r in 0..cfg.runs {
-        let plan = RunPlan {
-            cpu_checkpoints: curve.to_vec(),
-            min_spp: cfg.spp.map_or(1, u64::from),
-            seed: scene.shot.settings.render.seed.unwrap_or(0) + u64::from(r),
-            sampler: scene.shot.settings.render.sampler,
-            threads: scene.shot.settings.render.threads,
-        };
+        let plan = run_plan(scene, cfg, curve, r);
         let res = plume_engine::with_scene!(&scene.loaded.scene, s => progressive::run(s, &integ, &plan, Some(&reference.pixels), cfg.epsilon));
         let last = res.time_points.last().copied();
         if let Some(s) = last {
@@ -491,6 +517,51 @@ fn method_runs(
         runs.push(res);
     }
     runs
+}
+
+/// The plan of run `r` (seed `seed + r`) to the checkpoints `curve`.
+fn run_plan(scene: &BenchScene, cfg: &CompareConfig, curve: &[f64], r: u32) -> RunPlan {
+    RunPlan {
+        cpu_checkpoints: curve.to_vec(),
+        min_spp: cfg.spp.map_or(1, u64::from),
+        seed: scene.shot.settings.render.seed.unwrap_or(0) + u64::from(r),
+        sampler: scene.shot.settings.render.sampler,
+        threads: scene.shot.settings.render.threads,
+    }
+}
+
+/// The adaptive series of method `m` (its lights installed), with the first run's seed,
+/// each render's line to `on_line`.
+fn adaptive_runs(
+    scene: &BenchScene,
+    m: &MethodSpec,
+    (reference, cap): (&Reference, u32),
+    cfg: &CompareConfig,
+    curve: &[f64],
+    on_line: &dyn Fn(&str),
+) -> Vec<AdaptivePoint> {
+    let integ = integrator_for(scene, m.estimator, m.light_sampling);
+    let plan = run_plan(scene, cfg, curve, 0);
+    let series_plan = SeriesPlan {
+        budget: cfg.cpu_seconds,
+        cap,
+        reference: &reference.pixels,
+        epsilon: cfg.epsilon,
+    };
+    let series = plume_engine::with_scene!(&scene.loaded.scene, s => super::targets::adaptive_series(s, &integ, &plan, &series_plan));
+    for a in &series {
+        on_line(&format!(
+            "{}: adaptive, threshold {}: {:.1} spp on average (cap {cap}, reached by {} pixels) in {:.1} CPU s, relRMSE {:.4} (its own estimate over the pixels with alpha: {})",
+            m.name,
+            a.threshold,
+            a.mean_spp,
+            a.pixels_at_cap,
+            a.point.cpu_seconds,
+            a.point.rel_rmse,
+            a.estimated_rel_rmse.map_or("none".into(), |e| format!("{e:.4}"))
+        ));
+    }
+    series
 }
 
 /// Equal spp: as asked, or the largest power of two every run reached.

@@ -27,6 +27,7 @@ pub mod plot;
 pub mod progressive;
 pub mod report;
 pub mod spec;
+pub mod targets;
 
 use plume_core::error::{Error, Result};
 

@@ -39,6 +39,9 @@ pub struct CompareOptions {
     pub epsilon: f64,
     /// Points on the error-vs-time curve (at T/2^k).
     pub curve_points: u32,
+    /// Also render each method adaptively at halving noise thresholds, for the CPU time
+    /// to a target error with adaptive sampling.
+    pub adaptive: bool,
     /// Write NAME.csv, NAME.json, NAME-error.png and NAME-crops.png here.
     pub out: Option<PathBuf>,
     /// NAME of the output files (default: `compare`).
@@ -95,6 +98,7 @@ impl CompareOptions {
             runs: self.runs,
             epsilon: self.epsilon,
             curve_points: self.curve_points,
+            adaptive: self.adaptive,
         };
         compare(&mut scene, &reference, &cfg, &log)
     }

@@ -74,6 +74,42 @@ impl CompareReport {
         s
     }
 
+    /// CPU time and core-hours to each target relative RMSE, per method, uniform and (with
+    /// `--adaptive`) adaptive (Markdown; `~` marks a time extrapolated at `t^(−1/2)` past
+    /// the measured curve).
+    #[must_use]
+    pub fn target_table(&self) -> String {
+        let mut s = String::new();
+        let heads: Vec<String> =
+            super::targets::TARGETS.iter().map(|t| format!("CPU s to relRMSE {t}")).collect();
+        let _ = writeln!(
+            s,
+            "| method | sampling | {} | core-h to {} |",
+            heads.join(" | "),
+            super::targets::TARGETS[2]
+        );
+        let _ = writeln!(s, "|---|---|{}---|", "---|".repeat(heads.len()));
+        let cell = |t: &super::targets::TimeToError| match t.cpu_seconds {
+            Some(c) if t.extrapolated => format!("~{}", num(c)),
+            Some(c) => num(c),
+            None => "–".into(),
+        };
+        for m in &self.methods {
+            for (label, times) in [("uniform", &m.to_target), ("adaptive", &m.adaptive_to_target)] {
+                if times.is_empty() {
+                    continue;
+                }
+                let cells: Vec<String> = times.iter().map(cell).collect();
+                let hours = times
+                    .last()
+                    .and_then(|t| t.cpu_seconds)
+                    .map_or("–".into(), |c| num(c / 3600.0));
+                let _ = writeln!(s, "| {} | {label} | {} | {hours} |", m.method, cells.join(" | "));
+            }
+        }
+        s
+    }
+
     /// Cost of the light structures per method (Markdown).
     #[must_use]
     pub fn cost_table(&self) -> String {
@@ -199,6 +235,11 @@ impl std::fmt::Display for CompareReport {
         writeln!(f, "{}", self.equal_time_table())?;
         writeln!(f, "Equal spp ({} spp):\n", self.equal_spp)?;
         writeln!(f, "{}", self.equal_spp_table())?;
+        writeln!(
+            f,
+            "CPU time to a target error (relRMSE = √relMSE; ~: extrapolated at t^(−1/2)):\n"
+        )?;
+        writeln!(f, "{}", self.target_table())?;
         write!(f, "{}", self.cost_table())
     }
 }

@@ -160,6 +160,7 @@ impl Suite<'_> {
             runs: RUNS,
             epsilon: crate::bench::metrics::RELMSE_EPSILON,
             curve_points,
+            adaptive: false,
         })
     }
 

@@ -147,7 +147,10 @@ fn compare_measures_every_method_and_writes_all_outputs() {
         let a = &m.adaptive;
         assert!(!a.is_empty() && a.len() <= 6, "{}: {} adaptive renders", m.method, a.len());
         assert!(a.windows(2).all(|w| w[1].threshold == w[0].threshold / 2.0));
-        assert!(a[..a.len() - 1].iter().all(|p| p.point.cpu_seconds < 0.2), "only the last spends it");
+        assert!(
+            a[..a.len() - 1].iter().all(|p| p.point.cpu_seconds < 0.2),
+            "only the last spends it"
+        );
         assert!(a.iter().all(|p| p.point.rel_rmse > 0.0 && p.mean_spp >= 16.0));
         assert!(table.contains(&format!("| {} | adaptive |", m.method)), "{table}");
     }

@@ -43,11 +43,13 @@
 //!
 //! **Adaptive sampling.** A pixel stops once `e ≤ T` (`render.noise_threshold`). The test
 //! is taken only at fixed sample counts, the checkpoints `c₀ = min_spp`,
-//! `c_{k+1} = c_k + max(1, ⌊c_k/8⌋)`, for every pixel of a film tile together, from the
+//! `c_{k+1} = 2 c_k`, for every pixel of a film tile together, from the
 //! tile's sums with every pixel at that count or stopped before it: a pure function of the
 //! samples, so the image is the same for any thread count, pass size, tiling that does
-//! not cut a block, or interruption. Checkpoints every eighth of the samples so far cost a
-//! pixel at most 12.5 % more samples than it needed.
+//! not cut a block, or interruption. Doubling keeps what the Sobol sampler gives: the first
+//! `2^m` samples of a pixel are a stratified net, and a pixel stopped between nets would
+//! lose that (measured: stopping every eighth of the samples cost 1.4–2× the CPU for the
+//! same error on the shared cloud, smoke and explosion).
 
 use crate::film::{Moments, FIXED_POINT_BITS};
 
@@ -262,7 +264,7 @@ impl Adaptive {
     #[must_use]
     #[inline]
     pub fn after(c: u64) -> u64 {
-        c + (c / 8).max(1)
+        2 * c
     }
 
     /// The first checkpoint at or after sample count `n`.
@@ -359,9 +361,9 @@ mod tests {
         assert!(grid.pooled(7, 1).se2[0].is_infinite());
     }
 
-    /// The checkpoints grow by an eighth, from min_spp.
+    /// The checkpoints double from min_spp.
     #[test]
-    fn checkpoints_grow_by_an_eighth() {
+    fn checkpoints_double() {
         let a = Adaptive { threshold: 0.1, min_spp: 4, floor: 0.1 };
         let mut c = a.min_spp;
         let mut seen = vec![c];
@@ -369,13 +371,10 @@ mod tests {
             c = Adaptive::after(c);
             seen.push(c);
         }
-        assert_eq!(
-            seen,
-            [4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 18, 20, 22, 24, 27, 30, 33, 37, 41]
-        );
+        assert_eq!(seen, [4, 8, 16, 32, 64]);
         assert_eq!(a.checkpoint_from(0), 4);
-        assert_eq!(a.checkpoint_from(17), 18);
-        assert_eq!(a.checkpoint_from(18), 18);
+        assert_eq!(a.checkpoint_from(17), 32);
+        assert!(a.is_checkpoint(16) && !a.is_checkpoint(17) && !a.is_checkpoint(2));
     }
 
     /// The histogram counts pixels per sample count; the image estimate averages e² over

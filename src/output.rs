@@ -37,7 +37,7 @@ pub fn write_exr(
 
 /// Names of the `i128` channels (each stored as four `u32` words like the sums) that
 /// hold a pixel's [`Moments`]: its squared colour sums and its sample count.
-pub const MOMENT_CHANNELS: [&str; 4] = ["R2", "G2", "B2", "n"];
+pub const MOMENT_CHANNELS: [&str; 11] = plume_engine::moments::CHANNELS;
 
 /// A film's exact record over a crop, row-major: what `plume merge` adds and a continued
 /// render resumes from.
@@ -45,7 +45,7 @@ pub const MOMENT_CHANNELS: [&str; 4] = ["R2", "G2", "B2", "n"];
 pub struct ExactSums<'a> {
     /// The RGBA sums (`film.rs`), stored as `sum.R.w0` … `sum.A.w3`.
     pub rgba: &'a [[i128; 4]],
-    /// The pixels' moments, stored as `sum.R2.w0` … `sum.n.w3` ([`MOMENT_CHANNELS`]).
+    /// The pixels' moments, stored as `sum.R2.w0` … `sum.top.w3` ([`MOMENT_CHANNELS`]).
     pub moments: &'a [Moments],
 }
 
@@ -122,8 +122,9 @@ pub fn write_exr_image(path: &Path, image: &ExrImage<'_>) -> Result<()> {
         for (c, name) in ["R", "G", "B", "A"].iter().enumerate() {
             push_words(&mut list, name, sums.iter().map(|s| s[c]));
         }
+        let values: Vec<[i128; 11]> = moments.iter().map(Moments::to_values).collect();
         for (c, name) in MOMENT_CHANNELS.iter().enumerate() {
-            push_words(&mut list, name, moments.iter().map(|m| moment(m, c)));
+            push_words(&mut list, name, values.iter().map(|v| v[c]));
         }
     }
     let mut aov_order = None;
@@ -169,15 +170,6 @@ pub fn write_exr_image(path: &Path, image: &ExrImage<'_>) -> Result<()> {
             .to_buffered(out)
             .map_err(|e| std::io::Error::other(e.to_string()))
     })
-}
-
-/// Channel `c` of a pixel's moments as an `i128` ([`MOMENT_CHANNELS`]).
-fn moment(m: &Moments, c: usize) -> i128 {
-    if c < 3 {
-        m.squares[c]
-    } else {
-        i128::from(m.count)
-    }
 }
 
 /// Push the exact `i128` values of channel `name` as four `u32` channels
@@ -319,14 +311,11 @@ pub fn read_exr_contents(path: &Path) -> Result<ExrContents> {
     let moments: Option<Vec<Vec<i128>>> = MOMENT_CHANNELS.iter().map(|c| exact(c)).collect();
     let sums = rgba.zip(moments).map(|(rgba, m)| {
         let sums = (0..w * h).map(|i| std::array::from_fn(|c| rgba[c][i])).collect();
-        let moments = (0..w * h)
-            .map(|i| Moments {
-                squares: [m[0][i], m[1][i], m[2][i]],
-                count: u64::try_from(m[3][i]).unwrap_or(0),
-            })
-            .collect();
-        OwnedSums { rgba: sums, moments }
+        let moments: Option<Vec<Moments>> =
+            (0..w * h).map(|i| Moments::from_values(std::array::from_fn(|c| m[c][i]))).collect();
+        moments.map(|moments| OwnedSums { rgba: sums, moments })
     });
+    let sums = sums.flatten();
     // AOV sums, in the order the attribute records, if every one of their words is there
     let aov_sums = match layer.attributes.other.get(&Text::new_or_panic(AOV_CHANNELS_ATTRIBUTE)) {
         Some(AttributeValue::Text(t)) => {

@@ -323,3 +323,16 @@ def test_a_velocity_is_written_as_a_vector_grid(tmp_path):
         bad = velocity.copy()
         bad[3, 3, 3, 1] = np.inf
         plume.Volume.from_numpy(density, velocity=bad)
+
+
+def test_adaptive_sampling_and_the_error_layer(explosion):
+    render = {"spp": 64, "seed": 3, "noise_threshold": 0.3, "min_spp": 8}
+    image = plume.render(plume.Scene(volume={"file": str(explosion)}, **small(render=render)))
+    # Every render has the error layer and the image's estimate
+    assert image.layers["error"].shape == (30, 40, 3)
+    assert image.stats["error_estimate"]["rel_rmse"] > 0
+    # Pixels stopped at doubling checkpoints from min_spp, the background at the first
+    counts = [b["spp"] for b in image.stats["spp_histogram"]]
+    assert counts[0] == 8 and set(counts) <= {8, 16, 32, 64} and len(counts) > 1
+    with pytest.raises(plume.SceneError, match="render.noise_threshold"):
+        plume.render(plume.Scene(volume={"file": str(explosion)}, render={"noise_threshold": 0}))

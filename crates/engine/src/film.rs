@@ -109,50 +109,26 @@ pub struct HalfSums {
     pub filtered: plume_scene::Filtered,
 }
 
-/// What a pixel's error estimate needs besides its sums (`error.rs`): the sums of its
-/// samples' squared colour and how many samples it holds.
-///
-/// A square `v²` is rounded to units of 2^−F like a value ([`to_fixed`]) and added in
-/// `i128`, so moments, like sums, are exact integers whatever the split of the work. A
-/// square beyond the `i128` range (|v| ≥ 2^31.5) saturates the sum; the pixel's error is
-/// then infinite. Not counted in [`Tile::saturated`]: the image itself is exact.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct Moments {
-    /// `Σ r²`, `Σ g²`, `Σ b²` over the pixel's samples, in units of 2^−F.
-    pub squares: [i128; 3],
-    /// Samples the pixel holds, dropped non-finite ones included (they count as zero,
-    /// as in the pixel's mean).
-    pub count: u64,
-}
-
-impl Moments {
-    /// Add the moments of another set of samples of the same pixel (merging parts).
-    #[must_use]
-    pub fn plus(self, other: Moments) -> Moments {
-        Moments {
-            squares: std::array::from_fn(|c| self.squares[c].saturating_add(other.squares[c])),
-            count: self.count + other.count,
-        }
-    }
-}
+pub use crate::moments::Moments;
 
 impl Tile {
-    /// Add one finite sample `l` to pixel `index` (row-major within the tile).
+    /// Add one finite sample `l`, sample `s` of pixel `index` (row-major within the tile).
     #[inline]
-    pub fn add_sample(&mut self, index: usize, l: [f64; 4]) {
+    pub fn add_sample(&mut self, index: usize, s: u64, l: [f64; 4]) {
         let sum = &mut self.sums[index];
         add_fixed(sum, &l, &mut self.saturated, &mut self.underflowed);
-        let m = &mut self.moments[index];
-        for (s, v) in m.squares.iter_mut().zip(l) {
-            *s = s.saturating_add(to_fixed(v * v).unwrap_or(i128::MAX));
-        }
-        m.count += 1;
+        let fixed = |v: f64| to_fixed(v).unwrap_or(if v < 0.0 { i128::MIN } else { i128::MAX });
+        self.moments[index].add(
+            s,
+            [fixed(l[0]), fixed(l[1]), fixed(l[2])],
+            [fixed(l[0] * l[0]), fixed(l[1] * l[1]), fixed(l[2] * l[2])],
+        );
     }
 
-    /// Count a sample of pixel `index` that was dropped (non-finite): a zero in its mean.
+    /// Count sample `s` of pixel `index`, dropped (non-finite): a zero in its mean.
     #[inline]
-    pub fn add_dropped(&mut self, index: usize) {
-        self.moments[index].count += 1;
+    pub fn add_dropped(&mut self, index: usize, s: u64) {
+        self.moments[index].add_dropped(s);
     }
 
     /// Samples pixel `index` holds (row-major within the tile).
@@ -457,8 +433,8 @@ mod tests {
     #[test]
     fn tile_counts_saturation_and_underflow() {
         let mut f = Film::new(2, 1);
-        f.tiles[0].add_sample(0, [1e300, 1e-30, 0.0, 1.0]);
-        f.tiles[0].add_sample(0, [1e18, 0.0, 0.0, 1.0]);
+        f.tiles[0].add_sample(0, 0, [1e300, 1e-30, 0.0, 1.0]);
+        f.tiles[0].add_sample(0, 1, [1e18, 0.0, 0.0, 1.0]);
         assert_eq!(f.saturated(), 2, "one sample clamped, then one sum");
         assert_eq!(f.underflowed(), 1);
         assert_eq!(f.sums()[0][0], i128::MAX);

@@ -22,6 +22,7 @@ pub mod film;
 pub mod integrator;
 pub mod light;
 pub mod medium;
+pub mod moments;
 pub mod noise;
 pub mod pilot;
 pub mod render;

@@ -297,9 +297,9 @@ impl PendingSample {
     fn add_to(&self, film: &mut Film, counters: &mut Counters) {
         let l = [self.l[0], self.l[1], self.l[2], self.alpha];
         if l.iter().all(|v| v.is_finite()) {
-            film.tiles[self.tile].add_sample(self.index, l);
+            film.tiles[self.tile].add_sample(self.index, self.id.sample, l);
         } else {
-            film.tiles[self.tile].add_dropped(self.index);
+            film.tiles[self.tile].add_dropped(self.index, self.id.sample);
             counters.nonfinite_samples += 1;
             self.id.keep_earliest(&mut counters.first_nonfinite);
         }

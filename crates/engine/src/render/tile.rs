@@ -132,7 +132,7 @@ fn stop_converged(adaptive: &crate::noise::Adaptive, tile: &Tile, active: &mut [
         x1: tile.x0 + tile.width,
         y1: tile.y0 + tile.height,
     };
-    let grid = crate::noise::NoiseGrid { rect, pixels: &noise };
+    let grid = crate::noise::NoiseGrid::new(rect, &noise);
     for (i, a) in active.iter_mut().enumerate() {
         let (x, y) = (tile.x0 + i as u32 % tile.width, tile.y0 + i as u32 / tile.width);
         if *a && adaptive.converged(&grid, x, y) {
@@ -203,13 +203,13 @@ fn render_pixel<F: Field, A: Aovs>(
         if l.iter().all(|v| v.is_finite())
             && (!A::ON || aovs.values().iter().all(|v| v.is_finite()))
         {
-            tile.add_sample(index, l);
+            tile.add_sample(index, s, l);
             if A::ON {
                 tile.add_aov(index, aovs.values());
             }
         } else {
             // Drop and count non-finite samples; report the first for replay
-            tile.add_dropped(index);
+            tile.add_dropped(index, s);
             counters.nonfinite_samples += 1;
             counters.first_nonfinite.get_or_insert(SampleId { x, y, sample: s });
         }

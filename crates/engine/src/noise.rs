@@ -18,10 +18,12 @@
 //! **Pooled over neighbours.** One pixel's `σ̂²` is a noisy figure of its own: where the
 //! light is heavy-tailed (rare, bright scattered light from a fireball), a pixel that has
 //! not yet drawn the tail has both a low mean and a low `σ̂²`. The estimate a render uses
-//! is therefore pooled: for pixel `p`, the averages over its 3×3 neighbourhood `N(p)`,
+//! is therefore pooled: for pixel `p` with `n_p` samples, over its 3×3 neighbourhood
+//! `N(p)`, the mean per-sample variance `s²_q = n_q σ̂²_q` (what neighbours share; their
+//! counts differ under adaptive sampling) over the pixel's own count, and the mean value:
 //!
 //! ```text
-//! σ̄²(p) = η_B mean_{q ∈ N(p)} σ̂²(x̄_q),    x̃(p) = mean_{q ∈ N(p)} x̄_q
+//! σ̄²(p) = η_B mean_{q ∈ N(p)} s²_q / n_p,    x̃(p) = mean_{q ∈ N(p)} x̄_q
 //! ```
 //!
 //! where `N(p)` holds the neighbours inside the image-aligned block of
@@ -102,6 +104,8 @@ pub struct PixelNoise {
     pub se2: [f64; 3],
     /// Per channel, the per-sample variance `s² = n σ̂²` (0 without an estimate).
     pub s2: [f64; 3],
+    /// Samples the pixel holds.
+    pub n: f64,
     /// Per channel, `(Ā − B̄)² h / 2` from the pixel's two halves of `h` samples
     /// (`moments`): the same `s²` as the nets actually vary; `None` without halves.
     pub net: Option<[f64; 3]>,
@@ -125,7 +129,8 @@ impl PixelNoise {
             }
             _ => None,
         };
-        PixelNoise { mean: std::array::from_fn(|c| sums[c] as f64 * unit() / n), se2, s2, net }
+        let mean = std::array::from_fn(|c| sums[c] as f64 * unit() / n);
+        PixelNoise { mean, se2, s2, n: moments.count as f64, net }
     }
 
     /// `e²` of these (pooled) figures, with `epsilon = floor²` (module docs).
@@ -209,16 +214,17 @@ impl<'a> NoiseGrid<'a> {
                 if q.se2.iter().all(|v| v.is_finite()) {
                     for c in 0..3 {
                         sum.mean[c] += q.mean[c];
-                        sum.se2[c] += q.se2[c];
+                        sum.s2[c] += q.s2[c];
                     }
                     count += 1.0;
                 }
             }
         }
+        // The per-sample variance is what neighbours share; the pixel's own count divides it
         let gain = self.gain(x, y);
         PixelNoise {
             mean: sum.mean.map(|v| v / count),
-            se2: sum.se2.map(|v| gain * v / count),
+            se2: sum.s2.map(|v| gain * v / count / own.n),
             ..PixelNoise::default()
         }
     }
@@ -419,6 +425,7 @@ mod tests {
                 mean: [1.0; 3],
                 se2: [0.01; 3],
                 s2: [1.0; 3],
+                n: 100.0,
                 // The first block's nets vary a quarter as much; the second has none
                 net: (x < 16).then_some([0.25; 3]),
             })
@@ -439,7 +446,7 @@ mod tests {
         let mut pixels: Vec<PixelNoise> = (0..40)
             .map(|i| {
                 let v = f64::from(6 + i % 20);
-                PixelNoise { mean: [v; 3], se2: [v; 3], ..PixelNoise::default() }
+                PixelNoise { mean: [v; 3], se2: [v; 3], s2: [v; 3], n: 1.0, net: None }
             })
             .collect();
         pixels[20 + 1].se2 = [f64::INFINITY; 3]; // (7, 1): one sample

@@ -7,7 +7,8 @@
 //! the same integer whether it was taken in one pass, in passes of any size, in several
 //! processes each rendering a sample range, or resumed after an interruption.
 //! [`pixel_value`] turns a sum and a sample count into the pixel value; it is the only
-//! place that does, used by the render loop and by `plume merge` alike. See
+//! place that does, used by the render loop and by `plume merge` alike. Each pixel keeps
+//! its own count and, for the error estimate, its [`Moments`] beside its sums. See
 //! `ARCHITECTURE.md`, "Exact sums", for the choice of F = 64.
 
 pub use plume_scene::Crop;
@@ -89,8 +90,8 @@ pub struct Tile {
     /// With half sums (`integrator::aov`, `--denoise`): their first AOV channel, the
     /// half block (`denoise::half_of`) and what they hold.
     pub half: Option<HalfSums>,
-    /// Per pixel, the sums of the samples' squared colour and the sample count
-    /// ([`Moments`]), row-major within the tile.
+    /// Per pixel, the sums of the samples' squared colour, the sample count and the two
+    /// highest sample levels ([`Moments`]), row-major within the tile.
     pub moments: Vec<Moments>,
     /// Sample values or sums that did not fit and were clamped to the `i128` range.
     pub saturated: u64,

@@ -204,16 +204,7 @@ pub struct ExrChannels {
 /// [`Error::Scene`] naming the file if it cannot be read or decoded.
 pub fn read_exr_channels(path: &Path) -> Result<ExrChannels> {
     use exr::prelude::*;
-    let image = read()
-        .no_deep_data()
-        .largest_resolution_level()
-        .all_channels()
-        .first_valid_layer()
-        .all_attributes()
-        .from_file(path)
-        .map_err(|e| {
-            plume_core::error::Error::Scene(format!("cannot read EXR {}: {e}", path.display()))
-        })?;
+    let image = read_whole_exr(path)?;
     let layer = &image.layer_data;
     let channels = layer
         .channel_data
@@ -223,6 +214,28 @@ pub fn read_exr_channels(path: &Path) -> Result<ExrChannels> {
         .map(|c| (c.name.to_string(), c.sample_data.values_as_f32().collect()))
         .collect();
     Ok(ExrChannels { width: layer.size.0, height: layer.size.1, channels })
+}
+
+/// Every channel and attribute of the first layer of the EXR at `path`, decoded whole.
+///
+/// # Errors
+/// [`Error::Scene`] naming the file if it cannot be read or decoded.
+fn read_whole_exr(
+    path: &Path,
+) -> Result<exr::image::Image<exr::image::Layer<exr::image::AnyChannels<exr::prelude::FlatSamples>>>>
+{
+    use exr::prelude::*;
+    read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .non_parallel()
+        .from_file(path)
+        .map_err(|e| {
+            plume_core::error::Error::Scene(format!("cannot read EXR {}: {e}", path.display()))
+        })
 }
 
 /// Everything [`write_exr_image`] stores, read back and decoded.
@@ -255,15 +268,7 @@ pub fn read_exr_contents(path: &Path) -> Result<ExrContents> {
     use plume_core::error::Error;
     use plume_engine::film::Crop;
     let bad = |m: String| Error::Scene(format!("cannot read EXR {}: {m}", path.display()));
-    let image = read()
-        .no_deep_data()
-        .largest_resolution_level()
-        .all_channels()
-        .first_valid_layer()
-        .all_attributes()
-        .non_parallel()
-        .from_file(path)
-        .map_err(|e| bad(e.to_string()))?;
+    let image = read_whole_exr(path)?;
     let layer = &image.layer_data;
     let display = image.attributes.display_window;
     let pos = layer.attributes.layer_position;

@@ -273,29 +273,29 @@ fn job_text(settings: &JobSettings) -> (String, String) {
 pub fn adaptive_settings(settings: &JobSettings) -> Option<plume_engine::noise::Adaptive> {
     let render = &settings.render;
     let threshold = render.noise_threshold?;
-    let cap = match (&settings.farm.sample_range, render.spp, render.time) {
-        (_, _, Some(_)) => None,
-        (_, spp, None) => Some(spp.unwrap_or_else(|| render.default_spp())),
-    };
     Some(plume_engine::noise::Adaptive {
         threshold,
-        min_spp: u64::from(render.min_spp_or_default(cap)).max(2),
+        min_spp: u64::from(render.min_spp_or_default(planned_spp(settings))).max(2),
         floor: render.noise_floor.unwrap_or(plume_engine::noise::DEFAULT_FLOOR),
     })
 }
 
 /// The half block of a frame rendered with `--denoise` ([`plume_engine::denoise::half_block`] of
-/// its planned spp: `--spp`, the default 64, or none with a time budget or sample ranges
-/// without `--spp`). Hashed, so parts and resumes agree on the halves.
+/// its [`planned_spp`]). Hashed, so parts and resumes agree on the halves.
 #[must_use]
 pub fn half_block(settings: &JobSettings) -> u64 {
+    plume_engine::denoise::half_block(planned_spp(settings))
+}
+
+/// The spp a frame plans: `render.spp` or its default (`RenderOptions::default_spp`), or
+/// none with a time budget or sample ranges (which exclude `render.spp`).
+fn planned_spp(settings: &JobSettings) -> Option<u32> {
     let (farm, render) = (&settings.farm, &settings.render);
-    let planned = match (&farm.sample_range, render.spp, render.time) {
+    match (&farm.sample_range, render.spp, render.time) {
         (Some(_), spp, _) => spp,
         (None, _, Some(_)) => None,
         (None, spp, None) => Some(spp.unwrap_or_else(|| render.default_spp())),
-    };
-    plume_engine::denoise::half_block(planned)
+    }
 }
 
 fn hex(bytes: &[u8]) -> String {

@@ -67,10 +67,10 @@ pub fn beauty_and_layers(
     noisy: Vec<[f32; 4]>,
     crop: Crop,
 ) -> Written {
-    let counts: Vec<u64> = sums.moments.iter().map(|m| m.count).collect();
     let Some(layout) = layout else {
         return Written { pixels: noisy, layers: error_layer(sums, crop), denoised: false };
     };
+    let counts: Vec<u64> = sums.moments.iter().map(|m| m.count).collect();
     let mut layers = aov_layers(layout, sums.aov, &noisy, &counts);
     layers.extend(error_layer(sums, crop));
     match plume_engine::denoise::from_sums(

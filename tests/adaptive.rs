@@ -29,9 +29,11 @@ fn header(path: &Path, key: &str) -> serde_json::Value {
     serde_json::from_str(text).unwrap_or_else(|_| serde_json::Value::String(text.clone()))
 }
 
-/// With two samples the squared standard error of the mean is (x₀ − x₁)²/4: the `error`
-/// layer of a 2-spp render is that, pooled over each pixel's 3×3 neighbours within its
-/// 16×16 block, computed here from its two 1-spp sample ranges.
+/// With two samples `x₀`, `x₁` a pixel's per-sample variance is `s² = (x₀ − x₁)²/2` and its
+/// two halves are its two samples (so the sampler's gain is 1): the `error` layer of a 2-spp
+/// render is `σ̄² = max(mean v_q, v_p) (x̄_p + f) / 2` with `v = s² / (x̄ + f)` over each
+/// pixel's 3×3 neighbours within its 16×16 block and the floor `f = 0.1`, computed here
+/// from its two 1-spp sample ranges.
 #[test]
 fn error_layer_is_the_pooled_standard_error_of_the_pixels_samples() {
     let d = tmpdir("adaptive", "error_layer");
@@ -42,26 +44,32 @@ fn error_layer_is_the_pooled_standard_error_of_the_pixels_samples() {
     render(&input, &second, &["--sample-range", "1..2"]);
     let (c, a, b) = (channels(&both), channels(&first), channels(&second));
     let (w, h) = (36usize, 28usize);
+    let floor = 0.1;
     let mut checked = 0;
     for (name, layer) in [("R", "error.R"), ("G", "error.G"), ("B", "error.B")] {
-        let own: Vec<f64> = a[name]
+        let (mean, v): (Vec<f64>, Vec<f64>) = a[name]
             .iter()
             .zip(&b[name])
-            .map(|(x0, x1)| (f64::from(*x0) - f64::from(*x1)).powi(2) / 4.0)
-            .collect();
+            .map(|(x0, x1)| {
+                let (x0, x1) = (f64::from(*x0), f64::from(*x1));
+                let mean = (x0 + x1) / 2.0;
+                (mean, (x0 - x1).powi(2) / 2.0 / (mean + floor))
+            })
+            .unzip();
         for y in 0..h {
             for x in 0..w {
                 let (mut sum, mut n) = (0.0, 0.0);
                 for qy in y.saturating_sub(1)..=(y + 1).min(h - 1) {
                     for qx in x.saturating_sub(1)..=(x + 1).min(w - 1) {
                         if qx / 16 == x / 16 && qy / 16 == y / 16 {
-                            sum += own[qy * w + qx];
+                            sum += v[qy * w + qx];
                             n += 1.0;
                         }
                     }
                 }
-                let want = (sum / n).sqrt();
-                let got = f64::from(c[layer][y * w + x]);
+                let p = y * w + x;
+                let want = ((sum / n).max(v[p]) * (mean[p] + floor) / 2.0).sqrt();
+                let got = f64::from(c[layer][p]);
                 assert!(
                     (got - want).abs() <= 1e-5 * want + 1e-12,
                     "{layer} ({x}, {y}): {got} vs {want}"

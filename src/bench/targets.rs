@@ -47,7 +47,7 @@ pub struct AdaptivePoint {
     pub threshold: f64,
     /// CPU seconds and measured relative RMSE.
     pub point: CurvePoint,
-    /// The render's own estimate of its relative RMSE (`noise::estimate`).
+    /// The render's own estimate of its relative RMSE (`noise::FrameNoise`).
     pub estimated_rel_rmse: Option<f64>,
     /// Mean samples per pixel.
     pub mean_spp: f64,
@@ -76,6 +76,43 @@ pub fn time_to_targets(points: &[CurvePoint]) -> Vec<TimeToError> {
         .collect();
     p.sort_by(|a, b| a.cpu_seconds.total_cmp(&b.cpu_seconds));
     TARGETS.iter().map(|&target| time_to(&p, target)).collect()
+}
+
+/// The relative RMSE a curve reaches at a CPU time.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct ErrorAt {
+    /// Relative RMSE.
+    pub rel_rmse: f64,
+    /// Whether the time lies outside the measured curve (extrapolated at `t^(−1/2)`).
+    pub extrapolated: bool,
+}
+
+/// The relative RMSE at `cpu_seconds` on the curve `points` (any order): interpolated on
+/// log–log axes between the points around it, extrapolated at `t^(−1/2)` outside it
+/// (module docs); `None` without a curve. What an adaptive render is compared with at
+/// equal CPU.
+#[must_use]
+pub fn error_at(points: &[CurvePoint], cpu_seconds: f64) -> Option<ErrorAt> {
+    let mut p: Vec<CurvePoint> = points
+        .iter()
+        .copied()
+        .filter(|q| q.cpu_seconds > 0.0 && q.rel_rmse.is_finite() && q.rel_rmse > 0.0)
+        .collect();
+    p.sort_by(|a, b| a.cpu_seconds.total_cmp(&b.cpu_seconds));
+    let mc = |q: &CurvePoint| q.rel_rmse * (q.cpu_seconds / cpu_seconds).sqrt();
+    let (first, last) = (p.first()?, p.last()?);
+    if cpu_seconds < first.cpu_seconds {
+        return Some(ErrorAt { rel_rmse: mc(first), extrapolated: true });
+    }
+    for w in p.windows(2) {
+        let (a, b) = (w[0], w[1]);
+        if cpu_seconds <= b.cpu_seconds {
+            let f = (cpu_seconds / a.cpu_seconds).ln() / (b.cpu_seconds / a.cpu_seconds).ln();
+            let e = (a.rel_rmse.ln() + f * (b.rel_rmse / a.rel_rmse).ln()).exp();
+            return Some(ErrorAt { rel_rmse: e, extrapolated: false });
+        }
+    }
+    Some(ErrorAt { rel_rmse: mc(last), extrapolated: cpu_seconds > last.cpu_seconds })
 }
 
 /// The CPU time to `target` on the ascending curve `p` (module docs).
@@ -141,7 +178,9 @@ pub fn adaptive_series<F: Field>(
         let image = r.film.average();
         let errors = Errors::of(&image, reference, epsilon);
         let moments = r.film.moments();
-        let estimate = plume_engine::noise::estimate(&r.film.sums(), &moments, r.film.crop, floor);
+        let estimate =
+            plume_engine::noise::FrameNoise::of(&r.film.sums(), &moments, r.film.crop, floor)
+                .estimate;
         out.push(AdaptivePoint {
             threshold,
             point: CurvePoint { cpu_seconds: cpu, rel_rmse: errors.relmse.sqrt() },
@@ -181,5 +220,21 @@ mod tests {
         let early = time_to_targets(&[pt(10.0, 0.01)]);
         assert!((early[0].cpu_seconds.unwrap() - 0.4).abs() < 1e-12 && early[0].extrapolated);
         assert_eq!(time_to_targets(&[])[0].cpu_seconds, None);
+    }
+
+    /// The error at a time: exact at the points, on the Monte Carlo line between and
+    /// beyond them, marked where extrapolated.
+    #[test]
+    fn error_at_a_time_on_a_monte_carlo_curve() {
+        let curve: Vec<CurvePoint> =
+            [16.0, 1.0, 4.0].iter().map(|&t| pt(t, 0.1 / f64::sqrt(t))).collect();
+        for (t, extrapolated) in
+            [(1.0, false), (2.0, false), (16.0, false), (0.25, true), (64.0, true)]
+        {
+            let e = error_at(&curve, t).unwrap();
+            assert!((e.rel_rmse - 0.1 / f64::sqrt(t)).abs() < 1e-12, "{t}: {e:?}");
+            assert_eq!(e.extrapolated, extrapolated, "{t}");
+        }
+        assert_eq!(error_at(&[], 1.0), None);
     }
 }

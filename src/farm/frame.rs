@@ -25,7 +25,9 @@ use std::time::{Duration, Instant};
 use crate::farm::fingerprint::{file_sha256, settings_hash};
 use crate::farm::layers::aov_layout;
 use crate::farm::observer::{JobObserver, Pass, Replay, RunContext};
-use crate::farm::outputs::{stats_record, write_outputs, FrameId, FramePaths, InputId, Timing};
+use crate::farm::outputs::{
+    stats_record, write_outputs, FrameId, FramePaths, InputId, Rendered, Timing,
+};
 use crate::farm::part::Completion;
 use crate::farm::plan::Job;
 use crate::farm::resume::{decide, log_continuing, unless_input_changed, Resume, SamplePlan};
@@ -135,9 +137,9 @@ pub fn render_frame(
         time_to_first_sample,
     };
     let frame_id = FrameId { frame, seed, settings_hash: hash, command_line: context.command_line };
-    let record =
-        stats_record(job, &paths, &loaded, &result, &frame_id, input, status, spp, &timing);
-    write_outputs(job, &paths, &loaded, &result, &record, status, context.working_dir)?;
+    let rendered = Rendered::new(job, &result, status, spp);
+    let record = stats_record(job, &paths, &loaded, &rendered, &frame_id, input, &timing);
+    write_outputs(job, &paths, &loaded, &rendered, &record, context.working_dir)?;
     if !settings.render.quiet {
         log_written(job, &paths, &record, status, &timing);
     }

@@ -55,8 +55,9 @@ pub struct FrameSums<'a> {
     pub aov: &'a [i128],
 }
 
-/// The beauty and the layers of an image (`crop`) from its exact sums and its noisy
-/// beauty: the `error` layer ([`error_layer`]) always, the AOV layers of `layout` if any;
+/// The beauty and the layers of an image (`crop`) from its exact sums, its noisy beauty
+/// and its pooled standard errors (`FrameNoise::errors`): the `error` layer
+/// ([`error_layer`]) always, the AOV layers of `layout` if any;
 /// with half sums in the layout (and samples in both halves) the beauty is denoised
 /// ([`plume_engine::denoise::from_sums`]) and the noisy one becomes the layer `noisy`.
 /// Used by `plume render` and `plume merge`, so that a merged frame is the single render's.
@@ -65,14 +66,15 @@ pub fn beauty_and_layers(
     layout: Option<&AovLayout>,
     sums: FrameSums<'_>,
     noisy: Vec<[f32; 4]>,
+    errors: &[[f64; 3]],
     crop: Crop,
 ) -> Written {
     let Some(layout) = layout else {
-        return Written { pixels: noisy, layers: error_layer(sums, crop), denoised: false };
+        return Written { pixels: noisy, layers: error_layer(errors), denoised: false };
     };
     let counts: Vec<u64> = sums.moments.iter().map(|m| m.count).collect();
     let mut layers = aov_layers(layout, sums.aov, &noisy, &counts);
-    layers.extend(error_layer(sums, crop));
+    layers.extend(error_layer(errors));
     match plume_engine::denoise::from_sums(
         layout,
         sums.rgba,
@@ -90,17 +92,16 @@ pub fn beauty_and_layers(
     }
 }
 
-/// The `error` layer of the pixels of `crop`: per pixel and colour channel, the estimated
-/// standard error of the pixel's (noisy) mean, pooled over its neighbours
-/// ([`plume_engine::noise::pooled_standard_errors`]; infinite for a pixel with fewer
-/// than two samples).
+/// The `error` layer: per pixel and colour channel, the estimated standard error of the
+/// pixel's (noisy) mean, pooled over its neighbours (`errors`, from
+/// [`plume_engine::noise::FrameNoise`]; infinite for a pixel with fewer than two
+/// samples).
 #[must_use]
-pub fn error_layer(sums: FrameSums<'_>, crop: Crop) -> Layers {
-    let se = plume_engine::noise::pooled_standard_errors(sums.rgba, sums.moments, crop);
+pub fn error_layer(errors: &[[f64; 3]]) -> Layers {
     ["R", "G", "B"]
         .iter()
         .enumerate()
-        .map(|(c, name)| (format!("error.{name}"), se.iter().map(|e| e[c] as f32).collect()))
+        .map(|(c, name)| (format!("error.{name}"), errors.iter().map(|e| e[c] as f32).collect()))
         .collect()
 }
 

@@ -22,6 +22,7 @@ use crate::output::{write_exr_image, AovChannels, ExactSums, ExrImage};
 use plume_core::error::{Error, Result};
 use plume_engine::film::{pixel_value, Crop, Moments, FIXED_POINT_BITS};
 use plume_engine::integrator::AovLayout;
+use plume_engine::noise::FrameNoise;
 use plume_scene::split::format_range;
 
 /// A merged frame.
@@ -317,15 +318,17 @@ pub fn merge_command(args: &MergeOptions, command_line: &str) -> Result<()> {
     }
     let parts = args.parts.iter().map(|p| read_part(p)).collect::<Result<Vec<_>>>()?;
     let merged = merge_parts(&parts)?;
-    let metadata = merged_metadata(&parts, &merged, &args.output, command_line, &args.working_dir);
     let full = Crop::full(merged.width, merged.height);
+    let noise = FrameNoise::of(&merged.sums, &merged.moments, full, noise_floor(&parts));
+    let metadata =
+        merged_metadata(&parts, &merged, &noise, &args.output, command_line, &args.working_dir);
     let layout = merged.aovs.as_ref().and_then(|(names, _)| AovLayout::from_channel_names(names));
     // Parts rendered with --denoise carry the half sums: the merged frame is denoised as
     // the single render would be
     let aov_sums = merged.aovs.as_ref().map_or(&[][..], |(_, sums)| sums.as_slice());
     let frame_sums = FrameSums { rgba: &merged.sums, moments: &merged.moments, aov: aov_sums };
     let Written { pixels, layers, .. } =
-        beauty_and_layers(layout.as_ref(), frame_sums, merged.pixels(), full);
+        beauty_and_layers(layout.as_ref(), frame_sums, merged.pixels(), &noise.errors, full);
     let aovs = Some(AovChannels {
         layers: &layers,
         sums: merged
@@ -366,11 +369,25 @@ pub fn merge_command(args: &MergeOptions, command_line: &str) -> Result<()> {
     Ok(())
 }
 
+/// The noise floor the parts were rendered with (their error estimate's), for the merged
+/// image's estimate.
+fn noise_floor(parts: &[(PartInfo, crate::output::ExrContents)]) -> f64 {
+    parts[0]
+        .1
+        .metadata
+        .get("plume:errorEstimate")
+        .and_then(|t| serde_json::from_str::<serde_json::Value>(t).ok())
+        .and_then(|v| v.get("floor")?.as_f64())
+        .filter(|f| f.is_finite() && *f > 0.0)
+        .unwrap_or(plume_engine::noise::DEFAULT_FLOOR)
+}
+
 /// The merged image's header: the first part's record without per-process figures, with
 /// the merged sample range and crop, costs summed over the parts, and this command.
 fn merged_metadata(
     parts: &[(PartInfo, crate::output::ExrContents)],
     merged: &Merged,
+    noise: &FrameNoise,
     output: &Path,
     command_line: &str,
     working_dir: &Path,
@@ -396,22 +413,15 @@ fn merged_metadata(
     };
     let spp = merged.samples.end - merged.samples.start;
     let cpu = sum_f("plume:cpuSeconds");
-    // The error estimate of the merged image, with the parts' noise floor
-    let floor = m
-        .get("plume:errorEstimate")
-        .and_then(|t| serde_json::from_str::<serde_json::Value>(t).ok())
-        .and_then(|v| v.get("floor")?.as_f64())
-        .unwrap_or(plume_engine::noise::DEFAULT_FLOOR);
-    let estimate = plume_engine::noise::estimate(
-        &merged.sums,
-        &merged.moments,
-        Crop::full(merged.width, merged.height),
-        floor,
-    );
-    let histogram = plume_engine::noise::spp_histogram(&merged.moments);
     let set: [(&str, String); 16] = [
-        ("plume:errorEstimate", serde_json::to_string(&estimate).expect("invariant: serializes")),
-        ("plume:sppHistogram", serde_json::to_string(&histogram).expect("invariant: serializes")),
+        (
+            "plume:errorEstimate",
+            serde_json::to_string(&noise.estimate).expect("invariant: serializes"),
+        ),
+        (
+            "plume:sppHistogram",
+            serde_json::to_string(&noise.histogram).expect("invariant: serializes"),
+        ),
         ("plume:commandLine", command_line.to_string()),
         ("plume:host", plume_core::fs::host_name()),
         ("plume:output", output.display().to_string()),

@@ -11,8 +11,9 @@ use crate::farm::plan::Job;
 use crate::load::LoadedScene;
 use crate::output::{write_exr_image, AovChannels, ExactSums, ExrImage};
 use plume_core::error::{Error, Result};
-use plume_engine::film::FIXED_POINT_BITS;
+use plume_engine::film::{Moments, FIXED_POINT_BITS};
 use plume_engine::integrator::AovLayout;
+use plume_engine::noise::FrameNoise;
 use plume_engine::render::RenderResult;
 use plume_engine::stats::{peak_rss_since_reset_bytes, RenderStats};
 use plume_scene::split::format_range;
@@ -63,19 +64,47 @@ pub(crate) struct FrameId<'a> {
     pub(crate) command_line: &'a str,
 }
 
+/// A frame as rendered: the engine's result, its film's sums and moments gathered once,
+/// and the noise computed from them once (for the record and for the `error` layer).
+pub(crate) struct Rendered<'a> {
+    pub(crate) result: &'a RenderResult,
+    /// RGBA sums, row-major over the job's pixels.
+    pub(crate) sums: Vec<[i128; 4]>,
+    /// Moments, the same pixels.
+    pub(crate) moments: Vec<Moments>,
+    pub(crate) noise: FrameNoise,
+    pub(crate) status: Completion,
+    /// Samples per pixel of the frame, resumed ones included.
+    pub(crate) spp: u64,
+}
+
+impl<'a> Rendered<'a> {
+    /// The frame of `job` that `result` rendered, `spp` samples in all.
+    pub(crate) fn new(
+        job: &Job<'_>,
+        result: &'a RenderResult,
+        status: Completion,
+        spp: u64,
+    ) -> Rendered<'a> {
+        let (sums, moments) = (result.film.sums(), result.film.moments());
+        let floor =
+            job.shot.settings.render.noise_floor.unwrap_or(plume_engine::noise::DEFAULT_FLOOR);
+        let noise = FrameNoise::of(&sums, &moments, job.pixels(), floor);
+        Rendered { result, sums, moments, noise, status, spp }
+    }
+}
+
 /// The frame's record: EXR header and stats line.
-#[allow(clippy::too_many_arguments)] // one per part of the record: job, files, scene, result, ids, timing
 pub(crate) fn stats_record(
     job: &Job<'_>,
     paths: &FramePaths,
     loaded: &LoadedScene,
-    result: &RenderResult,
+    rendered: &Rendered<'_>,
     id: &FrameId<'_>,
     input: InputId,
-    status: Completion,
-    spp: u64,
     timing: &Timing,
 ) -> RenderStats {
+    let Rendered { result, status, spp, .. } = *rendered;
     let settings = &job.shot.settings;
     let (width, height) = (job.scene().camera.width, job.scene().camera.height);
     let crop = job.pixels();
@@ -88,8 +117,6 @@ pub(crate) fn stats_record(
     };
     let samples = result.counters.samples as f64;
     let volume = loaded.scene.volume();
-    let moments = result.film.moments();
-    let floor = settings.render.noise_floor.unwrap_or(plume_engine::noise::DEFAULT_FLOOR);
     RenderStats {
         plume_version: env!("CARGO_PKG_VERSION").into(),
         command_line: id.command_line.into(),
@@ -101,8 +128,8 @@ pub(crate) fn stats_record(
         output: paths.output.display().to_string(),
         status: status.as_str().into(),
         spp,
-        spp_histogram: plume_engine::noise::spp_histogram(&moments),
-        error_estimate: plume_engine::noise::estimate(&result.film.sums(), &moments, crop, floor),
+        spp_histogram: rendered.noise.histogram.clone(),
+        error_estimate: rendered.noise.estimate,
         sample_range: format_range(&sample_range),
         resumed_from_spp: spp - result.spp,
         seed: id.seed,
@@ -142,11 +169,11 @@ pub(crate) fn write_outputs(
     job: &Job<'_>,
     paths: &FramePaths,
     loaded: &LoadedScene,
-    result: &RenderResult,
+    rendered: &Rendered<'_>,
     record: &RenderStats,
-    status: Completion,
     working_dir: &std::path::Path,
 ) -> Result<()> {
+    let Rendered { result, status, .. } = *rendered;
     let settings = &job.shot.settings;
     let warn = |msg: String| log::warn!("{msg}");
     if let Some(c) = result.counters.first_nonfinite {
@@ -178,10 +205,9 @@ pub(crate) fn write_outputs(
     let (width, height) = (record.width, record.height);
     let crop = job.pixels();
     let noisy = result.film.average();
-    let film_sums = result.film.sums();
-    let moments = result.film.moments();
+    let (film_sums, moments) = (&rendered.sums, &rendered.moments);
     let sums = (job.write_sums || status != Completion::Complete)
-        .then_some(ExactSums { rgba: &film_sums, moments: &moments });
+        .then_some(ExactSums { rgba: film_sums, moments });
     let mut metadata = stats_metadata(record);
     match plume_scene::file::to_toml(job.shot, working_dir) {
         Ok(text) => metadata.push(("plume:scene".into(), text)),
@@ -193,9 +219,9 @@ pub(crate) fn write_outputs(
     let aov_sums = result.film.aov_sums();
     let layout = aov_layout(job, loaded);
     let names = layout.as_ref().map(AovLayout::channel_names).unwrap_or_default();
-    let frame_sums = FrameSums { rgba: &film_sums, moments: &moments, aov: &aov_sums };
+    let frame_sums = FrameSums { rgba: film_sums, moments, aov: &aov_sums };
     let Written { pixels, layers, denoised } =
-        beauty_and_layers(layout.as_ref(), frame_sums, noisy, crop);
+        beauty_and_layers(layout.as_ref(), frame_sums, noisy, &rendered.noise.errors, crop);
     if settings.output.denoise && !denoised {
         let block = crate::farm::fingerprint::half_block(settings);
         warn(format!("{} spp: denoising needs samples in both half buffers (blocks of {block}: more than {block} spp); the image is not denoised", record.spp));

@@ -18,39 +18,56 @@
 //! **Pooled over neighbours.** One pixel's `σ̂²` is a noisy figure of its own: where the
 //! light is heavy-tailed (rare, bright scattered light from a fireball), a pixel that has
 //! not yet drawn the tail has both a low mean and a low `σ̂²`. The estimate a render uses
-//! is therefore pooled: for pixel `p` with `n_p` samples, over its 3×3 neighbourhood
-//! `N(p)`, the mean per-sample variance `s²_q = n_q σ̂²_q` (what neighbours share; their
-//! counts differ under adaptive sampling) over the pixel's own count, and the mean value:
+//! is therefore pooled over the pixel's 3×3 neighbourhood `N(p)`. What neighbours share
+//! is the per-sample variance **per unit of brightness**, `v_q = s²_q / (x̄_q + f)` with
+//! `s²_q = n_q σ̂²_q` and the noise floor `f` (below): light arrives in bright pieces whose
+//! number grows with the pixel's value, so the variance of a sample grows about in
+//! proportion to the value (as for photon counts), and a dim pixel on the silhouette of a
+//! bright fireball does not inherit its neighbours' spread. The pixel's own count and
+//! brightness scale it back:
 //!
 //! ```text
-//! σ̄²(p) = η_B mean_{q ∈ N(p)} s²_q / n_p,    x̃(p) = mean_{q ∈ N(p)} x̄_q
+//! σ̄²(p) = η(p) max(mean_{q ∈ N(p)} v_q, v_p) (x̄_p + f) / n_p
 //! ```
 //!
 //! where `N(p)` holds the neighbours inside the image-aligned block of
 //! [`crate::film::TILE`]² pixels that holds `p` (a film tile, so that a tile can decide
-//! alone) with two samples or more. A pixel with fewer than two samples has no estimate
-//! (infinite). docs/adaptive.md measures what pooling does against converged references.
+//! alone) with two samples or more. The maximum keeps a pixel that has drawn a rare bright
+//! sample from sharing it out: its own spread is then its error, and averaging it with
+//! eight neighbours that missed the tail would hide most of it. A pixel with fewer than
+//! two samples has no estimate (infinite). docs/adaptive.md measures what pooling does
+//! against converged references (pooling the variance itself, or dividing by the
+//! neighbours' mean value, read half the error of the shared explosion's silhouette).
 //!
 //! **The sampler's gain.** `σ̂²` is the error of independent samples. plume's Owen-scrambled
 //! Sobol points do better (on the self-lit shared cloud, 3× less RMSE at 256 spp). The
 //! first `2^k` samples of a pixel are a net, and so is each level `[2^ℓ, 2^{ℓ+1})`
 //! (`moments`): two halves `A`, `B` of `h` samples that are both nets give
 //! `net = (Ā − B̄)² h / 2`, an estimate of the per-sample variance `s²` as the nets
-//! actually vary (for independent samples its mean is `s²`). Per block (below) the gain
-//! is `η = min(1, Σ net / Σ s²)` over the pixels with halves and their channels, and the
-//! estimate is `η σ̂²`. This assumes the sampler's gain is a factor that does not change
-//! from `h` samples to `n` (measured: about constant from 64 to 1024 spp on the shared
-//! files), and is taken per block because one pixel's halves are one number each.
+//! actually vary (for independent samples its mean is `s²`). One pixel's halves are one
+//! number per channel, too noisy alone, so the gain is taken over the pixel's 5×5
+//! neighbourhood `M(p)` (inside its block, like `N(p)`, with the pixels that have halves),
+//! summed over the channels:
+//!
+//! ```text
+//! η(p) = min(1, Σ_{q ∈ M(p)} net_q / Σ_{q ∈ M(p)} s²_q)
+//! ```
+//!
+//! Local, because the gain differs across an image: emission seen directly gains most,
+//! scattered light little, and a ratio over a whole block is ruled by its noisiest
+//! pixels. This assumes the gain is a factor that does not change from `h` samples to `n`
+//! (measured: about constant from 64 to 1024 spp on the shared files).
 //!
 //! **Relative error with a floor.** Per pixel, over the colour channels `c`,
 //!
 //! ```text
-//! e² = (1/3) Σ_c σ̄²_c / (x̃²_c + ε),    ε = floor²
+//! e² = (1/3) Σ_c σ̄²_c / (x̄²_c + f²)
 //! ```
 //!
-//! the error relative to the pixel's value, and relative to the floor (a radiance) where
-//! the pixel is darker: the per-pixel form of the relative MSE of `plume bench compare`,
-//! with the pooled mean for the unknown reference and the same `ε` (floor 0.1).
+//! the error relative to the pixel's value, and relative to the floor `f` (a radiance)
+//! where the pixel is darker: the per-pixel form of the relative MSE of
+//! `plume bench compare`, with the pixel's mean for the unknown reference and the same
+//! `ε = f²` (floor 0.1).
 //! The image's estimated **relRMSE** is `sqrt(mean e²)` over the pixels whose alpha is
 //! above 0.01 (where there is something to see).
 //!
@@ -141,58 +158,80 @@ impl PixelNoise {
 }
 
 /// The pixels of a rectangle of the image (a crop or a film tile), row-major, with their
-/// noise and their blocks' sampler gains: what pooling reads.
-#[derive(Clone, Debug)]
+/// noise, and the noise floor: what pooling reads.
+#[derive(Clone, Copy, Debug)]
 pub struct NoiseGrid<'a> {
     /// The rectangle, in image coordinates.
     rect: crate::film::Crop,
     /// One per pixel of `rect`, row-major.
     pixels: &'a [PixelNoise],
-    /// Per block of `rect` (row-major over the blocks it touches), the gain `η`.
-    gains: Vec<f64>,
+    /// The noise floor `f` (radiance, > 0).
+    floor: f64,
 }
 
+/// The radius of the neighbourhood `N(p)` the variance and the mean are pooled over (3×3).
+const POOL_RADIUS: u32 = 1;
+
+/// The radius of the neighbourhood `M(p)` the sampler's gain is taken over (5×5).
+const GAIN_RADIUS: u32 = 2;
+
 impl<'a> NoiseGrid<'a> {
-    /// The grid of `pixels` (row-major over `rect`), with each block's gain
-    /// `η = min(1, Σ net / Σ s²)` over its pixels with halves and their channels (module
-    /// docs; 1 where no pixel has halves or there is no spread at all).
+    /// The grid of `pixels` (row-major over `rect`) with the noise floor `floor`.
     ///
     /// # Panics
-    /// If `pixels` does not have one entry per pixel of `rect`.
+    /// If `pixels` does not have one entry per pixel of `rect`, or `floor` is not
+    /// positive.
     #[must_use]
-    pub fn new(rect: crate::film::Crop, pixels: &'a [PixelNoise]) -> NoiseGrid<'a> {
+    pub fn new(rect: crate::film::Crop, pixels: &'a [PixelNoise], floor: f64) -> NoiseGrid<'a> {
         assert_eq!(pixels.len() as u64, rect.area(), "one entry per pixel");
-        let (bx0, by0) = (rect.x0 / crate::film::TILE, rect.y0 / crate::film::TILE);
-        let bw = ((rect.x1 - 1) / crate::film::TILE - bx0 + 1) as usize;
-        let bh = ((rect.y1 - 1) / crate::film::TILE - by0 + 1) as usize;
-        let mut sums = vec![(0.0f64, 0.0f64); bw * bh];
-        for (i, p) in pixels.iter().enumerate() {
-            let (x, y) = (rect.x0 + i as u32 % rect.width(), rect.y0 + i as u32 / rect.width());
-            let b = ((y / crate::film::TILE - by0) as usize) * bw
-                + (x / crate::film::TILE - bx0) as usize;
-            if let Some(net) = p.net {
-                sums[b].0 += net.iter().sum::<f64>();
-                sums[b].1 += p.s2.iter().sum::<f64>();
-            }
-        }
-        let gains = sums
-            .iter()
-            .map(|&(net, s2)| if s2 > 0.0 { (net / s2).min(1.0) } else { 1.0 })
-            .collect();
-        NoiseGrid { rect, pixels, gains }
+        assert!(floor > 0.0, "the noise floor is positive");
+        NoiseGrid { rect, pixels, floor }
     }
 
-    /// The gain `η` of the block holding pixel `(x, y)`.
+    /// The per-sample variance of channel `c` of `q` per unit of brightness above the
+    /// floor, `v = s² / (x̄ + f)` (module docs).
+    fn per_brightness(&self, q: &PixelNoise, c: usize) -> f64 {
+        q.s2[c] / (q.mean[c].max(0.0) + self.floor)
+    }
+
+    /// The pixels within `radius` of `(x, y)` (itself included) that lie in the grid and
+    /// in the block holding `(x, y)` and have an estimate.
+    fn neighbours(&self, x: u32, y: u32, radius: u32) -> impl Iterator<Item = &'a PixelNoise> {
+        let (r, pixels) = (self.rect, self.pixels);
+        let block = |v: u32| v / crate::film::TILE;
+        let (xs, ys) =
+            (x.saturating_sub(radius)..=x + radius, y.saturating_sub(radius)..=y + radius);
+        ys.flat_map(move |qy| xs.clone().map(move |qx| (qx, qy)))
+            .filter(move |&(qx, qy)| {
+                let inside = qx >= r.x0 && qx < r.x1 && qy >= r.y0 && qy < r.y1;
+                inside && block(qx) == block(x) && block(qy) == block(y)
+            })
+            .map(move |(qx, qy)| &pixels[((qy - r.y0) * r.width() + (qx - r.x0)) as usize])
+            .filter(|q| q.se2.iter().all(|v| v.is_finite()))
+    }
+
+    /// The sampler's gain `η` at pixel `(x, y)`: `min(1, Σ net / Σ s²)` over its 5×5
+    /// neighbours in the grid and its block that have halves, summed over the channels
+    /// (module docs; 1 where none has halves or there is no spread at all).
     #[must_use]
     pub fn gain(&self, x: u32, y: u32) -> f64 {
-        let (bx0, by0) = (self.rect.x0 / crate::film::TILE, self.rect.y0 / crate::film::TILE);
-        let bw = (self.rect.x1 - 1) / crate::film::TILE - bx0 + 1;
-        self.gains[((y / crate::film::TILE - by0) * bw + (x / crate::film::TILE - bx0)) as usize]
+        let (mut net, mut s2) = (0.0f64, 0.0f64);
+        for q in self.neighbours(x, y, GAIN_RADIUS) {
+            if let Some(v) = q.net {
+                net += v.iter().sum::<f64>();
+                s2 += q.s2.iter().sum::<f64>();
+            }
+        }
+        if s2 > 0.0 {
+            (net / s2).min(1.0)
+        } else {
+            1.0
+        }
     }
 
-    /// The pooled mean and `σ̄²` of pixel `(x, y)` (image coordinates, inside the grid):
-    /// the averages over its 3×3 neighbours in the grid and in its block with an estimate
-    /// (module docs); infinite when the pixel itself has none.
+    /// The pixel's mean and pooled `σ̄²` at `(x, y)` (image coordinates, inside the grid),
+    /// from its 3×3 neighbours in the grid and in its block with an estimate (module
+    /// docs); infinite when the pixel itself has none.
     #[must_use]
     pub fn pooled(&self, x: u32, y: u32) -> PixelNoise {
         let r = self.rect;
@@ -201,31 +240,23 @@ impl<'a> NoiseGrid<'a> {
         if own.se2.iter().any(|v| !v.is_finite()) {
             return *own;
         }
-        let block = |v: u32| v / crate::film::TILE;
-        let mut sum = PixelNoise::default();
+        let mut shared = [0.0; 3];
         let mut count = 0.0;
-        for qy in y.saturating_sub(1)..=y + 1 {
-            for qx in x.saturating_sub(1)..=x + 1 {
-                let inside = qx >= r.x0 && qx < r.x1 && qy >= r.y0 && qy < r.y1;
-                if !inside || block(qx) != block(x) || block(qy) != block(y) {
-                    continue;
-                }
-                let q = at(qx, qy);
-                if q.se2.iter().all(|v| v.is_finite()) {
-                    for c in 0..3 {
-                        sum.mean[c] += q.mean[c];
-                        sum.s2[c] += q.s2[c];
-                    }
-                    count += 1.0;
-                }
+        for q in self.neighbours(x, y, POOL_RADIUS) {
+            for (c, v) in shared.iter_mut().enumerate() {
+                *v += self.per_brightness(q, c);
             }
+            count += 1.0;
         }
-        // The per-sample variance is what neighbours share; the pixel's own count divides it
+        // The variance per unit of brightness is what neighbours share, at least the
+        // pixel's own; the pixel's own brightness and count scale it back
         let gain = self.gain(x, y);
         PixelNoise {
-            mean: sum.mean.map(|v| v / count),
-            se2: sum.s2.map(|v| gain * v / count / own.n),
-            ..PixelNoise::default()
+            se2: std::array::from_fn(|c| {
+                let v = (shared[c] / count).max(self.per_brightness(own, c));
+                gain * v * (own.mean[c].max(0.0) + self.floor) / own.n
+            }),
+            ..*own
         }
     }
 }
@@ -234,29 +265,6 @@ impl<'a> NoiseGrid<'a> {
 #[must_use]
 pub fn pixel_noise(sums: &[[i128; 4]], moments: &[Moments]) -> Vec<PixelNoise> {
     sums.iter().zip(moments).map(|(s, m)| PixelNoise::of(s, m)).collect()
-}
-
-/// The pooled standard error `σ̄` of every pixel of `crop` (row-major sums and moments
-/// over it), per colour channel: the `error` layer.
-///
-/// # Panics
-/// If the slices do not have one entry per pixel of `crop`.
-#[must_use]
-pub fn pooled_standard_errors(
-    sums: &[[i128; 4]],
-    moments: &[Moments],
-    crop: crate::film::Crop,
-) -> Vec<[f64; 3]> {
-    assert_eq!(sums.len() as u64, crop.area(), "one sum per pixel");
-    let pixels = pixel_noise(sums, moments);
-    let grid = NoiseGrid::new(crop, &pixels);
-    let mut out = Vec::with_capacity(pixels.len());
-    for y in crop.y0..crop.y1 {
-        for x in crop.x0..crop.x1 {
-            out.push(grid.pooled(x, y).se2.map(f64::sqrt));
-        }
-    }
-    out
 }
 
 /// What a render says of its own remaining error (stats JSON, EXR header).
@@ -271,37 +279,58 @@ pub struct ErrorEstimate {
     pub floor: f64,
 }
 
-/// The image's error estimate from its sums and moments (row-major over `crop`).
-///
-/// # Panics
-/// If the slices do not have one entry per pixel of `crop`.
-#[must_use]
-pub fn estimate(
-    sums: &[[i128; 4]],
-    moments: &[Moments],
-    crop: crate::film::Crop,
-    floor: f64,
-) -> ErrorEstimate {
-    assert_eq!(sums.len() as u64, crop.area(), "one sum per pixel");
-    assert_eq!(sums.len(), moments.len(), "one moment per pixel");
-    let noise = pixel_noise(sums, moments);
-    let grid = NoiseGrid::new(crop, &noise);
-    let epsilon = floor * floor;
-    let mut total = 0.0;
-    let mut pixels = 0u64;
-    let mut finite = true;
-    let coordinates = (crop.y0..crop.y1).flat_map(|y| (crop.x0..crop.x1).map(move |x| (x, y)));
-    for ((s, m), (x, y)) in sums.iter().zip(moments).zip(coordinates) {
-        let alpha = crate::film::pixel_value(s[3], m.count);
-        if alpha > ALPHA_MIN {
-            let e2 = grid.pooled(x, y).relative_variance(epsilon);
-            finite &= e2.is_finite();
-            total += e2;
-            pixels += 1;
+/// A frame's noise, computed once from its sums and moments: the `error` layer, the
+/// image's estimate and the spp histogram.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FrameNoise {
+    /// Per pixel (row-major over the crop) and colour channel, the pooled standard error
+    /// `σ̄` (infinite for a pixel with fewer than two samples): the `error` layer.
+    pub errors: Vec<[f64; 3]>,
+    /// The image's estimated relative RMSE.
+    pub estimate: ErrorEstimate,
+    /// How many pixels hold each sample count.
+    pub histogram: Vec<SppCount>,
+}
+
+impl FrameNoise {
+    /// The noise of the pixels of `crop` from their sums and moments (row-major over it),
+    /// with the noise floor `floor` (module docs).
+    ///
+    /// # Panics
+    /// If the slices do not have one entry per pixel of `crop`, or `floor` is not
+    /// positive.
+    #[must_use]
+    pub fn of(
+        sums: &[[i128; 4]],
+        moments: &[Moments],
+        crop: crate::film::Crop,
+        floor: f64,
+    ) -> FrameNoise {
+        assert_eq!(sums.len() as u64, crop.area(), "one sum per pixel");
+        assert_eq!(sums.len(), moments.len(), "one moment per pixel");
+        let noise = pixel_noise(sums, moments);
+        let grid = NoiseGrid::new(crop, &noise, floor);
+        let epsilon = floor * floor;
+        let mut errors = Vec::with_capacity(noise.len());
+        let (mut total, mut pixels, mut finite) = (0.0, 0u64, true);
+        let coordinates = (crop.y0..crop.y1).flat_map(|y| (crop.x0..crop.x1).map(move |x| (x, y)));
+        for ((s, m), (x, y)) in sums.iter().zip(moments).zip(coordinates) {
+            let pooled = grid.pooled(x, y);
+            errors.push(pooled.se2.map(f64::sqrt));
+            if crate::film::pixel_value(s[3], m.count) > ALPHA_MIN {
+                let e2 = pooled.relative_variance(epsilon);
+                finite &= e2.is_finite();
+                total += e2;
+                pixels += 1;
+            }
+        }
+        let rel_rmse = (pixels > 0 && finite).then(|| (total / pixels as f64).sqrt());
+        FrameNoise {
+            errors,
+            estimate: ErrorEstimate { rel_rmse, pixels, floor },
+            histogram: spp_histogram(moments),
         }
     }
-    let rel_rmse = (pixels > 0 && finite).then(|| (total / pixels as f64).sqrt());
-    ErrorEstimate { rel_rmse, pixels, floor }
 }
 
 /// How many pixels hold each sample count.
@@ -414,10 +443,10 @@ mod tests {
         assert!((e2 - 1e-6 / (1e-6 + 0.01)).abs() < 1e-12, "{e2}");
     }
 
-    /// The gain of a block is Σ net / Σ s² over its pixels with halves, at most 1; a block
-    /// without halves keeps the independent-sample estimate.
+    /// The gain is Σ net / Σ s² over the 5×5 neighbours in the pixel's block that have
+    /// halves, at most 1; without halves the independent-sample estimate stays.
     #[test]
-    fn the_gain_scales_the_estimate_per_block() {
+    fn the_gain_is_local_and_stays_inside_the_block() {
         use crate::film::Crop;
         let rect = Crop { x0: 0, y0: 0, x1: 32, y1: 1 };
         let pixels: Vec<PixelNoise> = (0..32)
@@ -426,37 +455,75 @@ mod tests {
                 se2: [0.01; 3],
                 s2: [1.0; 3],
                 n: 100.0,
-                // The first block's nets vary a quarter as much; the second has none
-                net: (x < 16).then_some([0.25; 3]),
+                // Nets vary a quarter as much in 0..8, fully in 8..12, twice in 12..16;
+                // the second block has none
+                net: match x {
+                    0..8 => Some([0.25; 3]),
+                    8..12 => Some([1.0; 3]),
+                    12..16 => Some([2.0; 3]),
+                    _ => None,
+                },
             })
             .collect();
-        let grid = NoiseGrid::new(rect, &pixels);
-        assert_eq!((grid.gain(3, 0), grid.gain(20, 0)), (0.25, 1.0));
-        assert!((grid.pooled(3, 0).se2[0] - 0.0025).abs() < 1e-15);
+        let grid = NoiseGrid::new(rect, &pixels, 0.1);
+        assert_eq!(grid.gain(2, 0), 0.25);
+        // (7, 0): 5, 6, 7 at a quarter and 8, 9 at one
+        assert!((grid.gain(7, 0) - (3.0 * 0.25 + 2.0) / 5.0).abs() < 1e-15);
+        assert_eq!((grid.gain(15, 0), grid.gain(16, 0)), (1.0, 1.0));
+        assert!((grid.pooled(2, 0).se2[0] - 0.0025).abs() < 1e-15);
         assert!((grid.pooled(20, 0).se2[0] - 0.01).abs() < 1e-15);
     }
 
-    /// Pooling averages the 3×3 neighbours inside the grid and the pixel's block, leaves
-    /// out neighbours without an estimate, and keeps a pixel without one infinite.
+    /// Pooling averages the variance per unit of brightness of the 3×3 neighbours inside
+    /// the grid and the pixel's block, leaves out neighbours without an estimate, takes at
+    /// least the pixel's own, and keeps a pixel without an estimate infinite.
     #[test]
     fn pooling_stays_inside_the_block_and_the_grid() {
         use crate::film::Crop;
-        // A 20×2 strip from x = 6: columns 6..16 are one block, 16..26 the next
+        // A 20×2 strip from x = 6: columns 6..16 are one block, 16..26 the next; a
+        // pixel's value and variance are its x, but column 16 is a thousand times noisier
         let rect = Crop { x0: 6, y0: 0, x1: 26, y1: 2 };
         let mut pixels: Vec<PixelNoise> = (0..40)
             .map(|i| {
-                let v = f64::from(6 + i % 20);
-                PixelNoise { mean: [v; 3], se2: [v; 3], s2: [v; 3], n: 1.0, net: None }
+                let x = f64::from(6 + i % 20);
+                let s2 = if x == 16.0 { 1000.0 * x } else { x };
+                PixelNoise { mean: [x; 3], se2: [s2; 3], s2: [s2; 3], n: 1.0, net: None }
             })
             .collect();
         pixels[20 + 1].se2 = [f64::INFINITY; 3]; // (7, 1): one sample
-        let grid = NoiseGrid::new(rect, &pixels);
-        // (15, 0): neighbours x = 14, 15 (16 is the next block), y = 0, 1
-        assert_eq!(grid.pooled(15, 0).mean, [14.5; 3]);
-        // (6, 0): x = 6, 7 at y = 0 and x = 6 at y = 1 ((7, 1) has no estimate)
+        let floor = 1.0;
+        let grid = NoiseGrid::new(rect, &pixels, floor);
+        let v = |x: f64| x / (x + floor);
+        // (6, 0): x = 6, 7 at y = 0 and x = 6 at y = 1 ((7, 1) has no estimate); their
+        // mean is above the pixel's own v(6), and the pixel's own brightness scales it
         let p = grid.pooled(6, 0);
-        assert!((p.se2[0] - (6.0 + 7.0 + 6.0) / 3.0).abs() < 1e-12, "{p:?}");
+        assert_eq!(p.mean, [6.0; 3], "a pixel keeps its own mean");
+        let shared = (v(6.0) + v(7.0) + v(6.0)) / 3.0;
+        assert!((p.se2[0] - shared * (6.0 + floor)).abs() < 1e-12, "{p:?}");
+        // (15, 0): x = 14, 15 (the noisy 16 is the next block): the mean is below its
+        // own, which it keeps
+        assert!((grid.pooled(15, 0).se2[0] - 15.0).abs() < 1e-12);
         assert!(grid.pooled(7, 1).se2[0].is_infinite());
+    }
+
+    /// A dim pixel beside bright ones whose variance grows with their value is not given
+    /// their variance: what it shares is the variance per unit of brightness.
+    #[test]
+    fn a_dim_pixel_beside_bright_ones_keeps_a_small_error() {
+        use crate::film::Crop;
+        let rect = Crop { x0: 0, y0: 0, x1: 3, y1: 1 };
+        let at = |x: f64| PixelNoise {
+            mean: [x; 3],
+            se2: [x / 64.0; 3],
+            s2: [x; 3],
+            n: 64.0,
+            net: None,
+        };
+        let pixels = [at(100.0), at(1.0), at(100.0)];
+        let grid = NoiseGrid::new(rect, &pixels, 0.1);
+        let dim = grid.pooled(1, 0).se2[0];
+        // Its own σ̂² is 1/64; pooling the variance itself would give about 67/64
+        assert!(dim > 1.0 / 64.0 && dim < 1.1 / 64.0, "{dim}");
     }
 
     /// The checkpoints double from min_spp.
@@ -489,18 +556,16 @@ mod tests {
         );
         // Three pixels in a row: the empty one between the two has no alpha
         let crop = crate::film::Crop { x0: 0, y0: 0, x1: 3, y1: 1 };
-        let est = estimate(&sums, &moments, crop, 0.1);
+        let frame = FrameNoise::of(&sums, &moments, crop, 0.1);
+        assert_eq!(frame.histogram, spp_histogram(&moments));
+        let est = frame.estimate;
         assert_eq!(est.pixels, 2);
+        // Each bright pixel's own spread is above what it shares with the empty one, and
+        // its halves (1 and 3) vary as independent samples would: its own σ̂²
         let noise = pixel_noise(&sums, &moments);
-        let pooled = |i: usize| {
-            let (a, b) = (noise[i], noise[1]);
-            PixelNoise {
-                mean: std::array::from_fn(|c| (a.mean[c] + b.mean[c]) / 2.0),
-                se2: std::array::from_fn(|c| (a.se2[c] + b.se2[c]) / 2.0),
-                ..PixelNoise::default()
-            }
-        };
-        let e2 = (pooled(0).relative_variance(0.01) + pooled(2).relative_variance(0.01)) / 2.0;
+        assert!(noise[1].s2[0] == 0.0 && noise[0].s2[0] > 0.0);
+        let e2 = (noise[0].relative_variance(0.01) + noise[2].relative_variance(0.01)) / 2.0;
         assert!((est.rel_rmse.unwrap() - e2.sqrt()).abs() < 1e-15);
+        assert_eq!(frame.errors[0], noise[0].se2.map(f64::sqrt));
     }
 }

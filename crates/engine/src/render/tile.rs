@@ -132,7 +132,7 @@ fn stop_converged(adaptive: &crate::noise::Adaptive, tile: &Tile, active: &mut [
         x1: tile.x0 + tile.width,
         y1: tile.y0 + tile.height,
     };
-    let grid = crate::noise::NoiseGrid::new(rect, &noise);
+    let grid = crate::noise::NoiseGrid::new(rect, &noise, adaptive.floor);
     for (i, a) in active.iter_mut().enumerate() {
         let (x, y) = (tile.x0 + i as u32 % tile.width, tile.y0 + i as u32 / tile.width);
         if *a && adaptive.converged(&grid, x, y) {

@@ -37,6 +37,16 @@ render: file load, scene sync, volume build) is reported apart. Each render runs
 adds time. The repeats go round the ladder, so a stretch of load slows one render of each
 rung, not all of one.
 
+Adaptive sampling (`--adaptive`). Each renderer also renders the noise thresholds
+`--thresholds` with its own adaptive sampling (Cycles: Noise Threshold, automatic minimum
+samples; plume: `--noise-threshold`, `min_spp` 16), both capped at `--adaptive-cap` spp.
+An adaptive render's CPU is its least process CPU time less the fixed cost o fitted over
+the renderer's uniform ladder, and its error is corrected for the reference's noise by
+subtracting the reference's relMSE, estimated from the uniform ladder's longest rung as
+relMSE(n) * n / N_ref. Rows: per Cycles threshold, Cycles' CPU and error, plume's error at
+the same threshold (and its CPU), and plume's error at Cycles' CPU, interpolated along
+plume's adaptive curve as for the ladders (the ratio the issue of efficiency asks for).
+
 Both rules live in `scripts/budget.py` (standard library only; the test suite runs its
 self-test).
 
@@ -108,11 +118,17 @@ def parse_args():
         metavar="DIR",
         help="rerun plume only: take Cycles' ladders, the cameras and plume's references from an earlier run's DIR (its results.json and *_plume_ref.exr)",
     )
+    p.add_argument("--adaptive", action="store_true", help="also compare adaptive sampling at matched noise thresholds (settings default to a0.8)")
+    p.add_argument("--thresholds", default="0.1,0.05,0.02,0.01", help="noise thresholds of --adaptive")
+    p.add_argument("--adaptive-cap", type=int, default=1024, help="spp cap of the adaptive renders")
     p.add_argument("--quick", action="store_true", help="blender40 and kelvin40, ea and a0.8, short ladders and references")
     a = p.parse_args()
     if a.quick:
         a.files, a.settings = "blender40,kelvin40", "ea,a0.8"
         a.cycles_spp, a.plume_spp, a.ref_spp = "4,16", "2,4,8,16,64", 256
+        a.thresholds, a.adaptive_cap = "0.1,0.05", 256
+    if a.adaptive and "--settings" not in sys.argv:
+        a.settings = "a0.8"
     a.files = a.files.split(",")
     a.settings = a.settings.split(",")
     for f in a.files:
@@ -123,6 +139,7 @@ def parse_args():
             sys.exit(f"compare_cycles: --settings: unknown setting {s!r} (known: {', '.join(SETTINGS)})")
     if a.repeats < 1:
         sys.exit(f"compare_cycles: --repeats: {a.repeats}: at least 1")
+    a.thresholds = [float(t) for t in a.thresholds.split(",")]
     a.cycles_spp = [int(s) for s in a.cycles_spp.split(",")]
     a.plume_spp = [int(s) for s in a.plume_spp.split(",")]
     return a
@@ -240,11 +257,16 @@ class Cycles:
             pv.inputs["Emission Color"].default_value = (1.0, 1.0, 1.0, 1.0)
         links.new(pv.outputs["Volume"], out.inputs["Volume"])
 
-    def render(self, spp, path, seed=0):
-        """Render `spp` samples to `path` with `seed`; returns the process CPU seconds it took."""
+    def render(self, spp, path, seed=0, threshold=None):
+        """Render `spp` samples to `path` with `seed` (adaptively to the noise `threshold`
+        if one is given, `spp` the cap); returns the process CPU seconds it took."""
         scene = self.bpy.context.scene
         scene.cycles.seed = seed
         scene.cycles.samples = spp
+        scene.cycles.use_adaptive_sampling = threshold is not None
+        if threshold is not None:
+            scene.cycles.adaptive_threshold = threshold
+            scene.cycles.adaptive_min_samples = 0
         scene.render.filepath = path
         t0 = time.process_time()
         self.bpy.ops.render.render(write_still=True)
@@ -254,8 +276,9 @@ class Cycles:
 # ---------------------------------------------------------------- plume
 
 
-def plume_render(args, spec, camera, albedo, spp, path, seed=0):
-    """One plume render with the matched settings; returns its CPU seconds (stats)."""
+def plume_render(args, spec, camera, albedo, spp, path, seed=0, threshold=None):
+    """One plume render with the matched settings (adaptively to the noise `threshold` if
+    one is given, `spp` the cap); returns its CPU seconds (stats)."""
     kind, grid = spec["emission"]
     cmd = [args.plume, "render", os.path.join(args.data, spec["path"]), "--density-grid", spec["density"], "--convention", "cycles"]
     cmd += ["--emission", "grid", "--emission-grid", grid] if kind == "grid" else ["--emission", "blackbody", "--temperature-grid", grid]
@@ -263,6 +286,8 @@ def plume_render(args, spec, camera, albedo, spp, path, seed=0):
     cmd += ["--camera-up", "0,0,1", "--fov", repr(camera["fov"]), "--width", str(args.size), "--height", str(args.size)]
     cmd += ["--spp", str(spp), "--threads", str(args.threads), "--seed", str(seed), "--max-depth", str(args.max_depth), "--g", "0"]
     cmd += ["--method", "ray-march"] if albedo == 0.0 else ["--method", "line-fnee", "--albedo", repr(albedo)]
+    if threshold is not None:
+        cmd += ["--noise-threshold", repr(threshold)]
     stats = path + ".json"
     if os.path.exists(stats):
         os.remove(stats)  # plume appends one JSON line per render
@@ -328,7 +353,39 @@ def ladder(render, spps, ref_spp, out, name, repeats, ref_from=None):
                 "relrmse": math.sqrt(measured / (1 + spp / ref_spp)),
             }
         )
-    return {"setup_cpu": setup, "overhead_cpu": overhead, "cpu_per_spp": per_sample, "ref_spp": ref_spp, "ref_cpu": ref_cpu, "ref_mean": float(ref.mean()), "rungs": rungs}
+    return {"ref_path": ref_path, "setup_cpu": setup, "overhead_cpu": overhead, "cpu_per_spp": per_sample, "ref_spp": ref_spp, "ref_cpu": ref_cpu, "ref_mean": float(ref.mean()), "rungs": rungs}
+
+
+def adaptive_series(render, thresholds, cap, ladder_result, out, name, repeats):
+    """Each threshold's adaptive render against the ladder's reference: its CPU (least of
+    `repeats`, less the ladder's fixed cost) and relRMSE less the reference's noise."""
+    ref = read_rgb(ladder_result["ref_path"])
+    longest = max(ladder_result["rungs"], key=lambda r: r["spp"])
+    ref_noise = longest["relrmse"] ** 2 * longest["spp"] / ladder_result["ref_spp"]
+    points = []
+    for t in thresholds:
+        path = os.path.join(out, f"{name}_t{t}.exr")
+        cpu = min(render(cap, path, threshold=t) for _ in range(repeats))
+        measured = rel_mse(read_rgb(path), ref)
+        points.append(
+            {
+                "threshold": t,
+                "cpu": max(cpu - ladder_result["overhead_cpu"], 1e-9),
+                "relrmse_measured": math.sqrt(measured),
+                "relrmse": math.sqrt(max(measured - ref_noise, 0.0)),
+            }
+        )
+    return points
+
+
+def adaptive_rows(cycles_points, plume_points):
+    """Per Cycles threshold: plume at the same threshold, and plume at Cycles' CPU."""
+    rows = []
+    for c in cycles_points:
+        same = next(p for p in plume_points if p["threshold"] == c["threshold"])
+        pe = at_budget(plume_points, c["cpu"])
+        rows.append({"threshold": c["threshold"], "cycles_cpu": c["cpu"], "cycles": c["relrmse"], "plume_cpu": same["cpu"], "plume_same_threshold": same["relrmse"], "plume": pe, "ratio": pe / c["relrmse"]})
+    return rows
 
 
 def main():
@@ -370,12 +427,28 @@ def main():
                 args.repeats,
                 ref_from,
             )
+            entry = {}
+            if args.adaptive:
+                if cycles is None:
+                    sys.exit("compare_cycles: --adaptive needs Cycles' adaptive renders: run it without --cycles-from")
+                print(f"compare_cycles: {name}: adaptive", file=sys.stderr, flush=True)
+                ca = adaptive_series(cycles.render, args.thresholds, args.adaptive_cap, c, args.out, f"{name}_cycles", args.repeats)
+                pa = adaptive_series(
+                    lambda spp, path, seed=0, threshold=None: plume_render(args, spec, camera, albedo, spp, path, seed, threshold),
+                    args.thresholds,
+                    args.adaptive_cap,
+                    p,
+                    args.out,
+                    f"{name}_plume",
+                    args.repeats,
+                )
+                entry = {"adaptive": {"cycles": ca, "plume": pa, "rows": adaptive_rows(ca, pa)}}
             rows = []
             for rung in (r for r in c["rungs"] if r["spp"] in args.cycles_spp):
                 budget = rung["cpu"]
                 pe = at_budget(p["rungs"], budget)
                 rows.append({"cycles_spp": rung["spp"], "cpu": budget, "cycles": rung["relrmse"], "plume": pe, "ratio": pe / rung["relrmse"]})
-            results.append({"file": fname, "setting": sname, "albedo": albedo, "camera": camera, "cycles": c, "plume": p, "rows": rows, "mean_ratio": p["ref_mean"] / c["ref_mean"]})
+            results.append({"file": fname, "setting": sname, "albedo": albedo, "camera": camera, "cycles": c, "plume": p, "rows": rows, "mean_ratio": p["ref_mean"] / c["ref_mean"], **entry})
             with open(os.path.join(args.out, "results.json"), "w") as f:
                 json.dump({"args": {k: v for k, v in vars(args).items()}, "results": results}, f, indent=1)
     table = render_table(args, results)
@@ -398,6 +471,20 @@ def render_table(args, results):
                 f"| {r['file']} | {r['setting']} | {row['cpu']:.2f} | {row['cycles_spp']} | {row['cycles']:.4f} | {row['plume']:.4f} | **{row['ratio']:.2f}** | "
                 f"{r['plume']['setup_cpu']:.2f} / {r['cycles']['setup_cpu']:.2f} | {100 * (r['mean_ratio'] - 1):+.2f} % |"
             )
+    if any("adaptive" in r for r in results):
+        lines += [
+            "",
+            f"Adaptive sampling, capped at {args.adaptive_cap} spp (Cycles: Noise Threshold; plume: --noise-threshold); CPU seconds without the fixed cost.",
+            "",
+            "| file | setting | threshold | Cycles CPU s | Cycles relRMSE | plume CPU s | plume relRMSE | plume at Cycles' CPU | plume ÷ Cycles at equal CPU |",
+            "|---|---|---|---|---|---|---|---|---|",
+        ]
+        for r in (r for r in results if "adaptive" in r):
+            for row in r["adaptive"]["rows"]:
+                lines.append(
+                    f"| {r['file']} | {r['setting']} | {row['threshold']} | {row['cycles_cpu']:.2f} | {row['cycles']:.4f} | {row['plume_cpu']:.2f} | "
+                    f"{row['plume_same_threshold']:.4f} | {row['plume']:.4f} | **{row['ratio']:.2f}** |"
+                )
     return "\n".join(lines) + "\n"
 
 

@@ -110,6 +110,52 @@ impl CompareReport {
         s
     }
 
+    /// Each adaptive render against uniform sampling at the same CPU time, per method
+    /// (Markdown; empty without `--adaptive`): the measured relative RMSE, the render's own
+    /// estimate of it, and the uniform curve's relative RMSE at that CPU time (`~`:
+    /// extrapolated at `t^(−1/2)`).
+    #[must_use]
+    pub fn adaptive_table(&self) -> String {
+        let mut s = String::new();
+        if self.methods.iter().all(|m| m.adaptive.is_empty()) {
+            return s;
+        }
+        let _ = writeln!(s, "| method | threshold | CPU s | mean spp | pixels at the cap | relRMSE | estimated | uniform at that CPU | adaptive ÷ uniform |");
+        let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|");
+        for m in &self.methods {
+            let uniform: Vec<super::targets::CurvePoint> = m
+                .curve
+                .iter()
+                .map(|p| super::targets::CurvePoint {
+                    cpu_seconds: p.cpu_seconds.mean,
+                    rel_rmse: p.relmse.mean.sqrt(),
+                })
+                .collect();
+            for a in &m.adaptive {
+                let at = super::targets::error_at(&uniform, a.point.cpu_seconds);
+                let (u, ratio) = at.map_or(("–".into(), "–".into()), |u| {
+                    let mark = if u.extrapolated { "~" } else { "" };
+                    (
+                        format!("{mark}{}", num(u.rel_rmse)),
+                        format!("{mark}{:.2}", a.point.rel_rmse / u.rel_rmse),
+                    )
+                });
+                let _ = writeln!(
+                    s,
+                    "| {} | {} | {} | {:.1} | {} | {} | {} | {u} | {ratio} |",
+                    m.method,
+                    a.threshold,
+                    num(a.point.cpu_seconds),
+                    a.mean_spp,
+                    a.pixels_at_cap,
+                    num(a.point.rel_rmse),
+                    a.estimated_rel_rmse.map_or("–".into(), num),
+                );
+            }
+        }
+        s
+    }
+
     /// Cost of the light structures per method (Markdown).
     #[must_use]
     pub fn cost_table(&self) -> String {
@@ -240,6 +286,11 @@ impl std::fmt::Display for CompareReport {
             "CPU time to a target error (relRMSE = √relMSE; ~: extrapolated at t^(−1/2)):\n"
         )?;
         writeln!(f, "{}", self.target_table())?;
+        let adaptive = self.adaptive_table();
+        if !adaptive.is_empty() {
+            writeln!(f, "Adaptive renders against uniform sampling at equal CPU:\n")?;
+            writeln!(f, "{adaptive}")?;
+        }
         write!(f, "{}", self.cost_table())
     }
 }

@@ -41,6 +41,7 @@ use std::time::Instant;
 
 use plume_core::error::{Error, Result};
 
+mod adaptive;
 mod budgets;
 mod comparisons;
 mod document;
@@ -49,6 +50,7 @@ mod groups;
 mod sections;
 mod suite;
 
+use adaptive::adaptive_section;
 use comparisons::{explosion_sections, real_file_sections};
 use document::{header, ideas_section};
 use group_section::group_section;
@@ -105,6 +107,7 @@ pub fn run(args: &ReportOptions) -> Result<()> {
     core_section(&mut suite)?;
     let headline = explosion_sections(&mut suite)?;
     real_file_sections(&mut suite)?;
+    adaptive_section(&mut suite)?;
     for group in &GROUPS {
         group_section(&mut suite, group)?;
     }

@@ -155,19 +155,30 @@ fn proxy_sweep(
     Ok(())
 }
 
+/// The openvdb.org smoke's file (under the data directory) and scene keys: lit by its own
+/// density as emission.
+pub(super) const SMOKE: (&str, &str) = (
+    "smoke/openvdb_org_smoke1.vdb",
+    "[volume]\nemission_grid = \"density\"\n[emission]\nsource = \"grid\"\ncolor = [1, 0.45, 0.15]\nscale = 1\n[medium]\ndensity_scale = 0.5\nalbedo = 0.7\ng = 0.2\n[camera]\nwidth = 150\nheight = 200",
+);
+
+/// The Disney cloud's file and scene keys, as [`SMOKE`].
+pub(super) const CLOUD: (&str, &str) = (
+    "cloud/wdas_cloud_sixteenth.vdb",
+    "[volume]\nemission_grid = \"density\"\n[emission]\nsource = \"grid\"\ncolor = [1, 0.6, 0.3]\nscale = 0.05\n[medium]\ndensity_scale = 0.02\nalbedo = 0.8\ng = 0.5\n[camera]\nwidth = 200\nheight = 150",
+);
+
 /// The openvdb.org smoke and the Disney cloud, lit by their own density as emission.
 pub(super) fn real_file_sections(suite: &mut Suite<'_>) -> Result<()> {
-    for (name, file, extra, intro) in [
+    for (name, (file, extra), intro) in [
         (
             "smoke",
-            "smoke/openvdb_org_smoke1.vdb",
-            "[volume]\nemission_grid = \"density\"\n[emission]\nsource = \"grid\"\ncolor = [1, 0.45, 0.15]\nscale = 1\n[medium]\ndensity_scale = 0.5\nalbedo = 0.7\ng = 0.2\n[camera]\nwidth = 150\nheight = 200",
+            SMOKE,
             "The openvdb.org smoke plume (111×222×112 voxels of 0.48 units), glowing where it is dense: emission density `L_e = s_e c ρ²` (its own density as the emission grid, physical convention), σ_t = 0.5, albedo 0.7. Each file is lit by its own density rather than by a generated fireball because plume renders one volume per scene; this keeps the comparison a property of the data.",
         ),
         (
             "cloud",
-            "cloud/wdas_cloud_sixteenth.vdb",
-            "[volume]\nemission_grid = \"density\"\n[emission]\nsource = \"grid\"\ncolor = [1, 0.6, 0.3]\nscale = 0.05\n[medium]\ndensity_scale = 0.02\nalbedo = 0.8\ng = 0.5\n[camera]\nwidth = 200\nheight = 150",
+            CLOUD,
             "The Disney cloud at 1/16 resolution (126×86×154 voxels of 3.3 units), self-luminous with `L_e = s_e c ρ²`, σ_t = 0.02 per unit (optical depth ≈ 4 across), albedo 0.8, forward scattering g = 0.5.",
         ),
     ] {

@@ -22,7 +22,7 @@ pub(super) const REFERENCE_SECONDS: f64 = 96.0;
 /// Runs (seeds) per method.
 pub(super) const RUNS: u32 = 3;
 /// Points of the error-vs-time curves of the method sections.
-const CURVE_POINTS: u32 = 4;
+pub(super) const CURVE_POINTS: u32 = 4;
 
 /// Where a comparison's reference comes from, as its command says it.
 pub(super) enum RefArg<'a> {

@@ -1,0 +1,61 @@
+//! The adaptive-sampling section: on an explosion with scattering, the smoke and the
+//! cloud, the CPU time line-fnee needs to reach a target error, sampling uniformly and
+//! adaptively, and each adaptive render against uniform sampling at the same CPU time
+//! (docs/adaptive.md explains the estimate and the stopping rule).
+
+use std::fmt::Write as _;
+
+use super::comparisons::{CLOUD, SMOKE};
+use super::groups::Base;
+use super::suite::{RefArg, Suite, CURVE_POINTS, REFERENCE_SECONDS};
+use crate::bench::compare::{compare, make_reference};
+use plume_core::error::Result;
+
+/// The method measured.
+const METHOD: &str = "line-fnee";
+
+const INTRO: &str = "`--noise-threshold T`: each pixel stops once its estimated relative error is at most `T` (docs/adaptive.md). For one method, the CPU time to reach a relative RMSE (√relMSE against the reference, its own noise included) of 0.05, 0.02 and 0.01, read off the uniform runs' error-against-time curve and off a series of adaptive renders at thresholds 0.4, 0.2, 0.1, … (`min_spp` 16, capped at 4× the uniform runs' spp, ending with the first render that spends the run's budget); and each adaptive render against the uniform curve at the same CPU time, with the render's own estimate of its error beside the measured one. `~` marks a figure extrapolated at t^(−1/2) past a measured curve.";
+
+/// Section: CPU time to a target error, uniform and adaptive, on three scenes.
+pub(super) fn adaptive_section(suite: &mut Suite<'_>) -> Result<()> {
+    (suite.log)("== adaptive");
+    let _ = writeln!(suite.md, "## Adaptive sampling: CPU time to a target error\n\n{INTRO}\n");
+    let (kelvin, kelvin_keys) = Base::Kelvin40.spec(&suite.args.data);
+    let scenes = [
+        ("adaptive-kelvin40", "Blender's explosion, frame 40, albedo 0.8", kelvin, kelvin_keys),
+        ("adaptive-smoke", "The openvdb.org smoke", suite.args.data.join(SMOKE.0), SMOKE.1),
+        ("adaptive-cloud", "The Disney cloud, 1/16", suite.args.data.join(CLOUD.0), CLOUD.1),
+    ];
+    for (name, title, path, keys) in scenes {
+        if !path.exists() {
+            let _ = writeln!(
+                suite.md,
+                "### {title}\n\nNot measured: {} was not found.\n",
+                path.display()
+            );
+            suite.skipped.push(format!("the {name} section (data file missing)"));
+            continue;
+        }
+        let (mut scene, scene_file) = suite.scene(name, &path.display().to_string(), &[keys])?;
+        let reference_seconds = suite.seconds(REFERENCE_SECONDS) / 2.0;
+        let reference = make_reference(&mut scene, reference_seconds, suite.log)?;
+        let mut cfg = suite.config(&scene, METHOD, CURVE_POINTS)?;
+        cfg.adaptive = true;
+        let report = compare(&mut scene, &reference, &cfg, suite.log)?;
+        let command = suite.compare_command(
+            &scene_file,
+            METHOD,
+            CURVE_POINTS,
+            &RefArg::Make(reference_seconds),
+            None,
+        );
+        let _ = writeln!(
+            suite.md,
+            "### {title}\n\n{}\n\n**CPU time to a target error:**\n\n{}\n**Adaptive renders against uniform sampling at equal CPU:**\n\n{}\n```sh\n{command} --adaptive\n```\n",
+            report.setup(),
+            report.target_table(),
+            report.adaptive_table()
+        );
+    }
+    Ok(())
+}

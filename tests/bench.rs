@@ -145,8 +145,18 @@ fn compare_measures_every_method_and_writes_all_outputs() {
         assert_eq!(m.adaptive_to_target.len(), 3, "{}", m.method);
         assert!(m.to_target.iter().all(|t| t.cpu_seconds.is_some_and(|c| c > 0.0)));
         let a = &m.adaptive;
-        assert!(!a.is_empty() && a.len() <= 6, "{}: {} adaptive renders", m.method, a.len());
-        assert!(a.windows(2).all(|w| w[1].threshold == w[0].threshold / 2.0));
+        assert!(!a.is_empty() && a.len() <= 8, "{}: {} adaptive renders", m.method, a.len());
+        assert!(
+            a[0].threshold == 0.1 && a.windows(2).all(|w| w[1].threshold == w[0].threshold / 2.0)
+        );
+        // Each render gives its own estimate over the measured pixels
+        assert!(
+            a.iter().all(|p| p.estimated_rel_rmse.is_some_and(|e| e > 0.0)),
+            "{}: {a:?}",
+            m.method
+        );
+        let adaptive = report.adaptive_table();
+        assert!(adaptive.contains(&format!("| {} | 0.1 |", m.method)), "{adaptive}");
         assert!(
             a[..a.len() - 1].iter().all(|p| p.point.cpu_seconds < 0.2),
             "only the last spends it"

@@ -3,10 +3,10 @@
 //! reference, read off its error-against-CPU-time curve, uniform and adaptive.
 //!
 //! - **Uniform**: the curve of `plume bench compare`'s progressive runs (means over runs).
-//! - **Adaptive**: one render per noise threshold `T = 0.4, 0.2, 0.1, …` (halving), each
-//!   with `min_spp` 16, the relMSE's floor (`√ε`) and a cap of 4× the spp the uniform
+//! - **Adaptive**: one render per noise threshold `T = 0.1, 0.05, 0.025, …` (halving),
+//!   each with `min_spp` 16, the relMSE's floor (`√ε`) and a cap of 4× the spp the uniform
 //!   runs reached in the budget; the series ends with the first render that spends the
-//!   run's CPU budget, or after six.
+//!   run's CPU budget, or after eight.
 //!
 //! The relative RMSE is `√relMSE` (trimmed, with the comparison's `ε`). Between two curve
 //! points the time is interpolated on log–log axes; past the last point it is extrapolated
@@ -26,10 +26,10 @@ use plume_volume::Field;
 pub const TARGETS: [f64; 3] = [0.05, 0.02, 0.01];
 
 /// The first noise threshold of the adaptive series.
-const FIRST_THRESHOLD: f64 = 0.4;
+const FIRST_THRESHOLD: f64 = 0.1;
 
 /// At most this many adaptive renders per method.
-const MAX_THRESHOLDS: usize = 6;
+const MAX_THRESHOLDS: usize = 8;
 
 /// A point of an error-against-CPU-time curve.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
@@ -47,7 +47,9 @@ pub struct AdaptivePoint {
     pub threshold: f64,
     /// CPU seconds and measured relative RMSE.
     pub point: CurvePoint,
-    /// The render's own estimate of its relative RMSE (`noise::FrameNoise`).
+    /// The render's own estimate of its relative RMSE over the pixels the measurement
+    /// takes (all of them): its pooled standard errors (`noise::FrameNoise`) relative to
+    /// its pixel values with the relMSE's `ε`.
     pub estimated_rel_rmse: Option<f64>,
     /// Mean samples per pixel.
     pub mean_spp: f64,
@@ -178,13 +180,12 @@ pub fn adaptive_series<F: Field>(
         let image = r.film.average();
         let errors = Errors::of(&image, reference, epsilon);
         let moments = r.film.moments();
-        let estimate =
-            plume_engine::noise::FrameNoise::of(&r.film.sums(), &moments, r.film.crop, floor)
-                .estimate;
+        let noise =
+            plume_engine::noise::FrameNoise::of(&r.film.sums(), &moments, r.film.crop, floor);
         out.push(AdaptivePoint {
             threshold,
             point: CurvePoint { cpu_seconds: cpu, rel_rmse: errors.relmse.sqrt() },
-            estimated_rel_rmse: estimate.rel_rmse,
+            estimated_rel_rmse: estimated_rel_rmse(&image, &noise.errors, epsilon),
             mean_spp: moments.iter().map(|m| m.count as f64).sum::<f64>()
                 / moments.len().max(1) as f64,
             pixels_at_cap: moments.iter().filter(|m| m.count >= u64::from(cap)).count() as u64,
@@ -195,6 +196,21 @@ pub fn adaptive_series<F: Field>(
         threshold /= 2.0;
     }
     out
+}
+
+/// `sqrt(mean e²)` over every pixel of `image`, `e² = (1/3) Σ_c σ̄_c² / (x_c² + ε)` with
+/// the pooled standard errors `errors` (the measurement's pixels and `ε`); `None` where a
+/// pixel has no estimate.
+fn estimated_rel_rmse(image: &[[f32; 4]], errors: &[[f64; 3]], epsilon: f64) -> Option<f64> {
+    let mut total = 0.0;
+    for (x, e) in image.iter().zip(errors) {
+        total += (0..3)
+            .map(|c| e[c] * e[c] / (f64::from(x[c]) * f64::from(x[c]) + epsilon))
+            .sum::<f64>()
+            / 3.0;
+    }
+    let mean = total / image.len().max(1) as f64;
+    mean.is_finite().then(|| mean.sqrt())
 }
 
 #[cfg(test)]

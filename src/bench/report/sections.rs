@@ -271,6 +271,7 @@ plume against Blender Cycles 5.0.1 on the shared Blender explosions with matched
 scripts/compare-cycles.sh            # the full table (target/compare-cycles/table.md)
 scripts/compare-cycles.sh --quick    # one file, two settings, short references
 scripts/compare-cycles.sh --lights   # external lights
+scripts/compare-cycles.sh --adaptive # adaptive sampling at matched noise thresholds (docs/adaptive.md)
 ```
 
 ";

@@ -70,10 +70,24 @@ impl Suite<'_> {
         reference: &RefArg<'_>,
         name: Option<&str>,
     ) -> String {
+        let run_seconds = self.seconds(RUN_SECONDS);
+        self.compare_command_at(run_seconds, scene_file, methods, curve_points, reference, name)
+    }
+
+    /// [`Suite::compare_command`] with runs of `run_seconds` CPU seconds.
+    pub(super) fn compare_command_at(
+        &self,
+        run_seconds: f64,
+        scene_file: &Path,
+        methods: &str,
+        curve_points: u32,
+        reference: &RefArg<'_>,
+        name: Option<&str>,
+    ) -> String {
         let mut c = format!(
             "plume bench compare {} --methods {methods} --time {} --runs {RUNS} --curve-points {curve_points}",
             scene_file.display(),
-            arg(self.seconds(RUN_SECONDS))
+            arg(run_seconds)
         );
         match reference {
             RefArg::Make(s) => {

@@ -68,15 +68,21 @@ pub struct TimeToError {
     pub extrapolated: bool,
 }
 
-/// The CPU time to each of [`TARGETS`] on the curve `points` (any order).
-#[must_use]
-pub fn time_to_targets(points: &[CurvePoint]) -> Vec<TimeToError> {
+/// The points of a curve that have a time and an error, in increasing CPU time.
+fn measured(points: &[CurvePoint]) -> Vec<CurvePoint> {
     let mut p: Vec<CurvePoint> = points
         .iter()
         .copied()
         .filter(|q| q.cpu_seconds > 0.0 && q.rel_rmse.is_finite() && q.rel_rmse > 0.0)
         .collect();
     p.sort_by(|a, b| a.cpu_seconds.total_cmp(&b.cpu_seconds));
+    p
+}
+
+/// The CPU time to each of [`TARGETS`] on the curve `points` (any order).
+#[must_use]
+pub fn time_to_targets(points: &[CurvePoint]) -> Vec<TimeToError> {
+    let p = measured(points);
     TARGETS.iter().map(|&target| time_to(&p, target)).collect()
 }
 
@@ -95,12 +101,7 @@ pub struct ErrorAt {
 /// equal CPU.
 #[must_use]
 pub fn error_at(points: &[CurvePoint], cpu_seconds: f64) -> Option<ErrorAt> {
-    let mut p: Vec<CurvePoint> = points
-        .iter()
-        .copied()
-        .filter(|q| q.cpu_seconds > 0.0 && q.rel_rmse.is_finite() && q.rel_rmse > 0.0)
-        .collect();
-    p.sort_by(|a, b| a.cpu_seconds.total_cmp(&b.cpu_seconds));
+    let p = measured(points);
     let mc = |q: &CurvePoint| q.rel_rmse * (q.cpu_seconds / cpu_seconds).sqrt();
     let (first, last) = (p.first()?, p.last()?);
     if cpu_seconds < first.cpu_seconds {

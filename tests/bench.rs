@@ -648,6 +648,7 @@ fn benchmarks_md_has_the_reports_form() {
         "Splitting by brightness",
         "Forced camera collisions",
         "Stochastic point lookups",
+        "Adaptive sampling: CPU time to a target error",
         "Motion blur",
         "Interpolation",
         "Numerical extremes",

@@ -36,8 +36,8 @@
 //! sample from sharing it out: its own spread is then its error, and averaging it with
 //! eight neighbours that missed the tail would hide most of it. A pixel with fewer than
 //! two samples has no estimate (infinite). docs/adaptive.md measures what pooling does
-//! against converged references (pooling the variance itself, or dividing by the
-//! neighbours' mean value, read half the error of the shared explosion's silhouette).
+//! against converged references (pooling the variance itself, divided by the neighbours'
+//! mean value, read 0.6–0.8× the shared explosion's error, which sits on its silhouette).
 //!
 //! **The sampler's gain.** `σ̂²` is the error of independent samples. plume's Owen-scrambled
 //! Sobol points do better (on the self-lit shared cloud, 3× less RMSE at 256 spp). The
@@ -169,7 +169,8 @@ pub struct NoiseGrid<'a> {
     floor: f64,
 }
 
-/// The radius of the neighbourhood `N(p)` the variance and the mean are pooled over (3×3).
+/// The radius of the neighbourhood `N(p)` the variance per unit of brightness is pooled
+/// over (3×3).
 const POOL_RADIUS: u32 = 1;
 
 /// The radius of the neighbourhood `M(p)` the sampler's gain is taken over (5×5).

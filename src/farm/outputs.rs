@@ -67,12 +67,15 @@ pub(crate) struct FrameId<'a> {
 /// A frame as rendered: the engine's result, its film's sums and moments gathered once,
 /// and the noise computed from them once (for the record and for the `error` layer).
 pub(crate) struct Rendered<'a> {
+    /// What the engine returned: the film, counters and times.
     pub(crate) result: &'a RenderResult,
     /// RGBA sums, row-major over the job's pixels.
     pub(crate) sums: Vec<[i128; 4]>,
     /// Moments, the same pixels.
     pub(crate) moments: Vec<Moments>,
+    /// The `error` layer, the estimate and the spp histogram.
     pub(crate) noise: FrameNoise,
+    /// Whether the frame is complete, stopped or timed out.
     pub(crate) status: Completion,
     /// Samples per pixel of the frame, resumed ones included.
     pub(crate) spp: u64,

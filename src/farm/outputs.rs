@@ -75,7 +75,8 @@ pub(crate) struct Rendered<'a> {
     pub(crate) moments: Vec<Moments>,
     /// The `error` layer, the estimate and the spp histogram.
     pub(crate) noise: FrameNoise,
-    /// Whether the frame is complete, stopped or timed out.
+    /// Whether the whole budget was rendered, or the frame was interrupted or hit its time
+    /// limit.
     pub(crate) status: Completion,
     /// Samples per pixel of the frame, resumed ones included.
     pub(crate) spp: u64,

@@ -116,14 +116,15 @@ impl Tile {
     /// Add one finite sample `l`, sample `s` of pixel `index` (row-major within the tile).
     #[inline]
     pub fn add_sample(&mut self, index: usize, s: u64, l: [f64; 4]) {
-        let sum = &mut self.sums[index];
-        add_fixed(sum, &l, &mut self.saturated, &mut self.underflowed);
-        let fixed = |v: f64| to_fixed(v).unwrap_or(if v < 0.0 { i128::MIN } else { i128::MAX });
-        self.moments[index].add(
-            s,
-            [fixed(l[0]), fixed(l[1]), fixed(l[2])],
-            [fixed(l[0] * l[0]), fixed(l[1] * l[1]), fixed(l[2] * l[2])],
-        );
+        // Each value is quantized once, for its sum and for its level's sum in the moments
+        let mut q = [0i128; 4];
+        for ((a, &v), q) in self.sums[index].iter_mut().zip(&l).zip(&mut q) {
+            *q = quantize(v, &mut self.saturated, &mut self.underflowed);
+            add_quantized(a, *q, &mut self.saturated);
+        }
+        // Squares are not counted as clamps: the image itself is exact (`Moments`)
+        let square = |v: f64| to_fixed(v * v).unwrap_or(i128::MAX);
+        self.moments[index].add(s, [q[0], q[1], q[2]], [square(l[0]), square(l[1]), square(l[2])]);
     }
 
     /// Count sample `s` of pixel `index`, dropped (non-finite): a zero in its mean.
@@ -155,34 +156,43 @@ impl Tile {
 /// Add sample values to fixed-point sums, counting clamps and underflows.
 #[inline]
 fn add_fixed(sum: &mut [i128], l: &[f64], saturated: &mut u64, underflowed: &mut u64) {
-    {
-        for (a, &v) in sum.iter_mut().zip(l) {
-            let q = match to_fixed(v) {
-                Some(q) => {
-                    if q == 0 && v != 0.0 {
-                        *underflowed += 1;
-                    }
-                    q
-                }
-                None => {
-                    *saturated += 1;
-                    if v < 0.0 {
-                        i128::MIN
-                    } else {
-                        i128::MAX
-                    }
-                }
-            };
-            // Radiance and alpha are ≥ 0, so saturating addition is min(Σ, MAX): still
-            // independent of order, and every clamp is counted
-            let (s, overflow) = a.overflowing_add(q);
-            if overflow {
-                *saturated += 1;
-                *a = if q < 0 { i128::MIN } else { i128::MAX };
+    for (a, &v) in sum.iter_mut().zip(l) {
+        add_quantized(a, quantize(v, saturated, underflowed), saturated);
+    }
+}
+
+/// A sample value in fixed point ([`to_fixed`]), clamped to the `i128` range by its sign;
+/// counts the clamp, or a nonzero value that rounds to 0.
+#[inline]
+fn quantize(v: f64, saturated: &mut u64, underflowed: &mut u64) -> i128 {
+    match to_fixed(v) {
+        Some(q) => {
+            if q == 0 && v != 0.0 {
+                *underflowed += 1;
+            }
+            q
+        }
+        None => {
+            *saturated += 1;
+            if v < 0.0 {
+                i128::MIN
             } else {
-                *a = s;
+                i128::MAX
             }
         }
+    }
+}
+
+/// Add a quantized value to a fixed-point sum. Radiance and alpha are ≥ 0, so saturating
+/// addition is min(Σ, MAX): still independent of order, and every clamp is counted.
+#[inline]
+fn add_quantized(a: &mut i128, q: i128, saturated: &mut u64) {
+    let (s, overflow) = a.overflowing_add(q);
+    if overflow {
+        *saturated += 1;
+        *a = if q < 0 { i128::MIN } else { i128::MAX };
+    } else {
+        *a = s;
     }
 }
 

@@ -36,7 +36,8 @@ pub fn write_exr(
 }
 
 /// Names of the `i128` channels (each stored as four `u32` words like the sums) that
-/// hold a pixel's [`Moments`]: its squared colour sums and its sample count.
+/// hold a pixel's [`Moments`]: its squared colour sums, its sample count, and the colour
+/// sums and index of its two highest sample levels.
 pub const MOMENT_CHANNELS: [&str; 11] = plume_engine::moments::CHANNELS;
 
 /// A film's exact record over a crop, row-major: what `plume merge` adds and a continued

@@ -253,6 +253,13 @@ impl Point {
             bias: f(&|s| s.errors.bias),
         }
     }
+
+    /// The mean CPU time and relative RMSE (`√relMSE`) of this checkpoint: a point of the
+    /// uniform error-against-time curve ([`super::targets`]).
+    #[must_use]
+    pub fn curve_point(&self) -> CurvePoint {
+        CurvePoint { cpu_seconds: self.cpu_seconds.mean, rel_rmse: self.relmse.mean.sqrt() }
+    }
 }
 
 /// One method's results.
@@ -442,10 +449,7 @@ fn measure_method(
     let curve_points: Vec<Point> = (0..curve.len())
         .map(|k| Point::of(&runs.iter().map(|r| r.time_points[k]).collect::<Vec<_>>()))
         .collect();
-    let uniform: Vec<CurvePoint> = curve_points
-        .iter()
-        .map(|p| CurvePoint { cpu_seconds: p.cpu_seconds.mean, rel_rmse: p.relmse.mean.sqrt() })
-        .collect();
+    let uniform: Vec<CurvePoint> = curve_points.iter().map(Point::curve_point).collect();
     let adaptive = if cfg.adaptive {
         // Up to 4× the samples the uniform runs took where the error is
         let spp = runs.iter().map(|r| r.spp).max().unwrap_or(1);
@@ -551,7 +555,7 @@ fn adaptive_runs(
     let series = plume_engine::with_scene!(&scene.loaded.scene, s => super::targets::adaptive_series(s, &integ, &plan, &series_plan));
     for a in &series {
         on_line(&format!(
-            "{}: adaptive, threshold {}: {:.1} spp on average (cap {cap}, reached by {} pixels) in {:.1} CPU s, relRMSE {:.4} (its own estimate over the pixels with alpha: {})",
+            "{}: adaptive, threshold {}: {:.1} spp on average (cap {cap}, reached by {} pixels) in {:.1} CPU s, relRMSE {:.4} (its own estimate: {})",
             m.name,
             a.threshold,
             a.mean_spp,

@@ -123,14 +123,8 @@ impl CompareReport {
         let _ = writeln!(s, "| method | threshold | CPU s | mean spp | pixels at the cap | relRMSE | estimated | uniform at that CPU | adaptive ÷ uniform |");
         let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|");
         for m in &self.methods {
-            let uniform: Vec<super::targets::CurvePoint> = m
-                .curve
-                .iter()
-                .map(|p| super::targets::CurvePoint {
-                    cpu_seconds: p.cpu_seconds.mean,
-                    rel_rmse: p.relmse.mean.sqrt(),
-                })
-                .collect();
+            let uniform: Vec<super::targets::CurvePoint> =
+                m.curve.iter().map(Point::curve_point).collect();
             for a in &m.adaptive {
                 let at = super::targets::error_at(&uniform, a.point.cpu_seconds);
                 let (u, ratio) = at.map_or(("–".into(), "–".into()), |u| {

@@ -90,8 +90,9 @@ pub struct CompareArgs {
     /// Points on the error-vs-time curve (at T/2^k).
     #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(1..=12))]
     pub curve_points: u32,
-    /// Also render each method adaptively (--noise-threshold 0.4, 0.2, 0.1, … within
-    /// --time each), for the CPU time to relRMSE 0.05/0.02/0.01 with adaptive sampling.
+    /// Also render each method adaptively (--noise-threshold 0.1, 0.05, 0.025, … until a
+    /// render spends --time), for the CPU time to relRMSE 0.05/0.02/0.01 with adaptive
+    /// sampling, and each adaptive render against uniform sampling at equal CPU.
     #[arg(long)]
     pub adaptive: bool,
     /// Write NAME.csv, NAME.json, NAME-error.png and NAME-crops.png here.

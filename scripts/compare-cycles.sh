@@ -13,6 +13,8 @@
 #   bash scripts/compare-cycles.sh --quick    # a quick look
 #   bash scripts/compare-cycles.sh --lights   # sun, environment map and sphere light
 #                                             # (scripts/compare_lights.py)
+#   bash scripts/compare-cycles.sh --shots    # a coloured medium, depth of field
+#                                             # (scripts/compare_shots.py)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source scripts/setup.sh
@@ -28,5 +30,9 @@ fi
 if [ "${1:-}" = "--lights" ]; then
     shift
     exec "$venv/bin/python" scripts/compare_lights.py --plume "${CARGO_TARGET_DIR:-target}/release/plume" "$@"
+fi
+if [ "${1:-}" = "--shots" ]; then
+    shift
+    exec "$venv/bin/python" scripts/compare_shots.py --plume "${CARGO_TARGET_DIR:-target}/release/plume" "$@"
 fi
 exec "$venv/bin/python" scripts/compare_cycles.py --plume "${CARGO_TARGET_DIR:-target}/release/plume" "$@"

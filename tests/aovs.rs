@@ -151,6 +151,7 @@ fn depth_is_the_expected_distance_to_the_first_collision() {
         albedo: plume_core::color::Rgb::splat(0.0),
         g: 0.0,
         emission: Emission { kind: EmissionKind::None, ..e },
+        extinction: Default::default(),
     };
     let cam =
         Camera::look_at(DVec3::new(0.0, 0.0, -1.0), DVec3::ZERO, DVec3::Y, 1.0, 1, 1).unwrap();

@@ -33,7 +33,13 @@ fn scene(albedo: Rgb) -> Scene<Volume> {
     .unwrap();
     Scene {
         field: explosion_volume(),
-        medium: Medium { sigma_t: 4.0, albedo, g: 0.3, emission: explosion_emission() },
+        medium: Medium {
+            sigma_t: 4.0,
+            albedo,
+            g: 0.3,
+            emission: explosion_emission(),
+            extinction: Default::default(),
+        },
         camera,
         lights,
         motion: None,

@@ -47,7 +47,13 @@ fn medium(sigma_t: f64) -> Medium {
         temperature_map: TemperatureMap::Kelvin,
         cutoff_kelvin: 500.0,
     };
-    Medium { sigma_t, albedo: plume_core::color::Rgb::splat(0.8), g: 0.0, emission }
+    Medium {
+        sigma_t,
+        albedo: plume_core::color::Rgb::splat(0.8),
+        g: 0.0,
+        emission,
+        extinction: Default::default(),
+    }
 }
 
 /// A still volume as null collisions read it, able to walk its voxels exactly, and

@@ -22,6 +22,7 @@ fn medium(sigma_t: f64, convention: Convention) -> Medium {
         albedo: plume_core::color::Rgb::splat(0.0),
         g: 0.0,
         emission: grid_emission(convention),
+        extinction: Default::default(),
     }
 }
 
@@ -302,6 +303,7 @@ fn extreme_densities_and_temperatures_stay_finite() {
                     albedo: plume_core::color::Rgb::splat(0.0),
                     g: 0.0,
                     emission,
+                    extinction: Default::default(),
                 };
                 for est in ALL {
                     for i in 0..50 {

@@ -109,8 +109,13 @@ fn forced_collisions_have_the_analog_law_on_nearest_and_trilinear_fields() {
     let volume = explosion_volume();
     let (ray, t0, t1) = crossing(&volume);
     let emission = common::explosion_emission();
-    let unit =
-        Medium { sigma_t: 1.0, albedo: plume_core::color::Rgb::splat(0.8), g: 0.0, emission };
+    let unit = Medium {
+        sigma_t: 1.0,
+        albedo: plume_core::color::Rgb::splat(0.8),
+        g: 0.0,
+        emission,
+        extinction: Default::default(),
+    };
     let trilinear = Trilinear::new(explosion_volume());
     for (name, field) in
         [("nearest", &volume as &dyn FieldRef), ("trilinear", &trilinear as &dyn FieldRef)]
@@ -196,6 +201,7 @@ fn forced_collisions_have_the_analog_law_within_one_dense_piece() {
         albedo: plume_core::color::Rgb::splat(0.8),
         g: 0.0,
         emission: common::explosion_emission(),
+        extinction: Default::default(),
     };
     let ray = Ray { origin: DVec3::new(-1.0, 0.5, 0.5), direction: DVec3::X };
     let (got, collided, expected) = masses(&field, &medium, &ray, (1.0, 3.0), 24, 40_000, 12);
@@ -219,6 +225,7 @@ fn analog_and_skipped_collisions_are_unchanged_by_the_forced_walk() {
         albedo: plume_core::color::Rgb::splat(0.8),
         g: 0.0,
         emission: common::explosion_emission(),
+        extinction: Default::default(),
     };
     let medium = Medium {
         sigma_t: 1.0 / optical_depth(&volume, &unit, &ray, t1, f64::INFINITY).optical_depth,

@@ -80,6 +80,7 @@ fn linear_close_ups_are_continuous_and_nearest_ones_are_not() {
             albedo: plume_core::color::Rgb::splat(0.0),
             g: 0.0,
             emission: e,
+            extinction: Default::default(),
         };
         AnyScene::new(
             Scene {
@@ -256,6 +257,7 @@ fn nearest_and_linear_agree_on_smooth_data_up_to_the_boundary_band() {
             albedo: plume_core::color::Rgb::splat(0.0),
             g: 0.0,
             emission: e,
+            extinction: Default::default(),
         };
         AnyScene::new(
             Scene {
@@ -361,6 +363,7 @@ fn linear_scattering_renders_are_bit_identical_for_any_thread_count() {
             albedo: plume_core::color::Rgb::splat(0.8),
             g: 0.3,
             emission: e,
+            extinction: Default::default(),
         };
         let scene = AnyScene::new(
             Scene { field: vol, medium, camera, lights, motion: None, majorants: None },
@@ -616,8 +619,13 @@ fn cycles_convention_interpolates_each_voxels_emission() {
         cutoff_kelvin: 0.0,
     };
     let volume = Volume::build(&density, Some(&temperature), |v| emission.map_source(v)).unwrap();
-    let medium =
-        Medium { sigma_t: 1e-9, albedo: plume_core::color::Rgb::splat(0.0), g: 0.0, emission };
+    let medium = Medium {
+        sigma_t: 1e-9,
+        albedo: plume_core::color::Rgb::splat(0.0),
+        g: 0.0,
+        emission,
+        extinction: Default::default(),
+    };
     let field = plume_volume::trilinear::Trilinear::new(volume);
     let ray = plume_volume::field::Ray { origin: DVec3::new(-2.0, 3.3, 4.6), direction: DVec3::X };
     // Reference: midpoint march over the support x ∈ [−1, 8] of both rules

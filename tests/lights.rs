@@ -52,6 +52,7 @@ fn medium() -> Medium {
         albedo: plume_core::color::Rgb::splat(ALBEDO),
         g: G,
         emission: Emission { kind: EmissionKind::None, ..grid_emission(Convention::Cycles) },
+        extinction: Default::default(),
     }
 }
 

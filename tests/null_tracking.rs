@@ -35,7 +35,13 @@ fn medium() -> Medium {
         temperature_map: TemperatureMap::Kelvin,
         cutoff_kelvin: 500.0,
     };
-    Medium { sigma_t: 3.0, albedo: plume_core::color::Rgb::splat(0.8), g: 0.0, emission }
+    Medium {
+        sigma_t: 3.0,
+        albedo: plume_core::color::Rgb::splat(0.8),
+        g: 0.0,
+        emission,
+        extinction: Default::default(),
+    }
 }
 
 /// The field at a point as the tracker reads it (no motion).

@@ -40,6 +40,7 @@ fn blob_scene(estimator: Estimator) -> (Scene<Volume>, Integrator) {
             albedo: plume_core::color::Rgb::splat(0.0),
             g: 0.0,
             emission,
+            extinction: Default::default(),
         },
         camera: cam,
         lights: Default::default(),
@@ -287,7 +288,13 @@ fn voxel_aligned_box_image_matches_closed_form() {
     let sigma_t = 1.5;
     let scene = Scene {
         field: vol,
-        medium: Medium { sigma_t, albedo: plume_core::color::Rgb::splat(0.0), g: 0.0, emission },
+        medium: Medium {
+            sigma_t,
+            albedo: plume_core::color::Rgb::splat(0.0),
+            g: 0.0,
+            emission,
+            extinction: Default::default(),
+        },
         camera: cam,
         lights: Default::default(),
         motion: None,

@@ -39,8 +39,13 @@ fn scene() -> AnyScene {
         32,
     )
     .unwrap();
-    let medium =
-        Medium { sigma_t: 4.0, albedo: plume_core::color::Rgb::splat(0.8), g: 0.3, emission: e };
+    let medium = Medium {
+        sigma_t: 4.0,
+        albedo: plume_core::color::Rgb::splat(0.8),
+        g: 0.3,
+        emission: e,
+        extinction: Default::default(),
+    };
     AnyScene::new(
         plume_engine::integrator::Scene {
             field: vol,

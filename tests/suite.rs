@@ -16,6 +16,7 @@ mod batch_slurm;
 mod bench;
 mod cache;
 mod camera_lens;
+mod chromatic;
 mod cli;
 mod cli_lights;
 mod cli_method;

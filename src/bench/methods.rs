@@ -87,7 +87,13 @@ fn scene(
         Camera::frame_bounds(lo, hi, DVec3::new(0.35, 0.25, 1.0), DVec3::Y, 40.0, width, height)?;
     Ok(Scene {
         field: vol,
-        medium: Medium { sigma_t, albedo: plume_core::color::Rgb::splat(0.8), g: 0.3, emission: e },
+        medium: Medium {
+            sigma_t,
+            albedo: plume_core::color::Rgb::splat(0.8),
+            g: 0.3,
+            emission: e,
+            extinction: Default::default(),
+        },
         camera,
         lights,
         motion: None,

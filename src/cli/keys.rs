@@ -56,6 +56,7 @@ flags_to_keys! { RENDER_ONLY_FLAGS, apply_render_only, RenderArgs, s, a;
     "point_lookup" => "integrator.point_lookup": s.scene.integrator.point_lookup => a.point_lookup;
     "proxy_resolution" => "integrator.proxy_resolution": s.scene.integrator.proxy_resolution => a.proxy_resolution;
     "albedo" => "medium.albedo": s.scene.medium.albedo => a.albedo;
+    "absorption_color" => "medium.absorption_color": s.scene.medium.absorption_color => a.absorption_color;
     "g" => "medium.g": s.scene.medium.g => a.g;
     "max_depth" => "integrator.max_depth": s.scene.integrator.max_depth => a.max_depth;
     "split" => "integrator.split": s.scene.integrator.split => a.split;

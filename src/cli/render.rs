@@ -157,6 +157,11 @@ pub struct RenderArgs {
     /// scattering colour r,g,b. With --albedo-grid it multiplies the grid (default 1 then).
     #[arg(long, help_heading = "Medium")]
     pub albedo: Option<Albedo>,
+    /// Cycles' Absorption Color in [0, 1], grey or r,g,b: channel c's extinction becomes
+    /// density scale × (C + (1 − C)(1 − √A)) with C the albedo (then Cycles' Color), so
+    /// a colour that differs per channel makes extinction chromatic. Default black (grey).
+    #[arg(long, help_heading = "Medium")]
+    pub absorption_color: Option<Albedo>,
     /// Henyey–Greenstein asymmetry g in (−1, 1).
     #[arg(long, default_value_t = MediumSettings::default().g, allow_hyphen_values = true, help_heading = "Medium")]
     pub g: f64,

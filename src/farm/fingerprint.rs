@@ -109,14 +109,19 @@ fn emission_text(emission: &EmissionSettings) -> String {
 
 /// The medium's line.
 fn medium_text(medium: &MediumSettings) -> String {
-    let MediumSettings { density_scale, albedo, g } = medium;
+    let MediumSettings { density_scale, albedo, absorption_color, g } = medium;
     // A grey albedo hashes as the number it was before colours existed
-    let albedo = match albedo {
+    let colour = |c: &Option<plume_scene::Albedo>| match c {
         None => "None".to_string(),
         Some(plume_scene::Albedo::Grey(a)) => format!("Some({a:?})"),
         Some(plume_scene::Albedo::Color(c)) => format!("Some({c:?})"),
     };
-    format!("medium {density_scale:?} {albedo} {g:?}")
+    let albedo = colour(albedo);
+    // Without an absorption colour the line is what it was before it existed
+    match absorption_color {
+        None => format!("medium {density_scale:?} {albedo} {g:?}"),
+        a => format!("medium {density_scale:?} {albedo} {g:?} absorption {}", colour(a)),
+    }
 }
 
 /// The camera's line (its motion keys are in [`motion_text`]).

@@ -129,12 +129,13 @@ pub fn load_scene(
     };
     let LoadedVolume { volume, emission, source_grid, proxy_power, cache } = loaded;
     let camera = camera(scene, input, &volume, frame)?;
-    let medium = Medium {
-        sigma_t: scene.medium.density_scale,
-        albedo: plume_core::color::Rgb(scene.albedo_rgb()),
-        g: scene.medium.g,
+    let medium = Medium::principled(
+        scene.medium.density_scale,
+        scene.albedo_rgb(),
+        scene.medium.absorption_color.map_or([0.0; 3], plume_scene::Albedo::rgb),
+        scene.medium.g,
         emission,
-    };
+    );
     // Light-sampling structures, only for the technique in use and only when paths scatter
     let (_, light_sampling) = scene.integrator.parts();
     let mut lights = if scene.scatters() {

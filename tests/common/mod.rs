@@ -482,6 +482,7 @@ pub fn explosion_scene(
         albedo: plume_core::color::Rgb::splat(0.8),
         g: 0.3,
         emission: e,
+        extinction: Default::default(),
     };
     AnyScene::new(
         plume_engine::integrator::Scene {

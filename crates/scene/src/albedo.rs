@@ -3,9 +3,10 @@
 use serde::{Deserialize, Serialize};
 
 /// A medium's single-scattering albedo: grey (`albedo = 0.8`), or a scattering colour
-/// (`albedo = [0.9, 0.6, 0.3]`), each channel in [0, 1]. Extinction stays grey: the
-/// colour is what scatters, the rest of each channel is absorbed (Cycles' Principled
-/// Volume *Color* with a black *Absorption Color*).
+/// (`albedo = [0.9, 0.6, 0.3]`), each channel in [0, 1]. Without an absorption colour
+/// extinction stays grey: the colour is what scatters, the rest of each channel is
+/// absorbed (Cycles' Principled Volume *Color* with a black *Absorption Color*). The same
+/// type holds the absorption colour (`medium.absorption_color`).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 #[serde(untagged)]
 pub enum Albedo {

@@ -293,16 +293,23 @@ pub struct MediumSettings {
     /// σ_t: extinction per world unit (metre) per unit density.
     pub density_scale: f64,
     /// Single-scattering albedo, grey or a colour, in [0, 1]; default 0, or 1 with an
-    /// albedo grid.
+    /// albedo grid. With an absorption colour it is Cycles' Principled Volume *Color*:
+    /// the scattering coefficient per unit of `density_scale`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub albedo: Option<Albedo>,
+    /// Cycles' Principled Volume *Absorption Color*, grey or a colour, in [0, 1]: with
+    /// the albedo `C` it makes the extinction of channel `c`
+    /// `σ_t (C_c + (1 − C_c)(1 − √A_c))` per unit density (chromatic where the channels
+    /// differ). Default black: grey extinction `σ_t`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub absorption_color: Option<Albedo>,
     /// Henyey–Greenstein asymmetry in (−1, 1).
     pub g: f64,
 }
 
 impl Default for MediumSettings {
     fn default() -> Self {
-        MediumSettings { density_scale: 1.0, albedo: None, g: 0.0 }
+        MediumSettings { density_scale: 1.0, albedo: None, absorption_color: None, g: 0.0 }
     }
 }
 

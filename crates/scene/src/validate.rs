@@ -255,6 +255,7 @@ fn medium_and_method(scene: &SceneDescription) -> Result<()> {
     if !(scene.medium.g > -1.0 && scene.medium.g < 1.0) {
         return Err(Error::invalid("medium.g", format!("{} is not in (-1, 1)", scene.medium.g)));
     }
+    absorption_color(scene)?;
     scene.lights.validate()?;
     let (estimator, light_sampling) = scene.integrator.parts();
     if matches!(
@@ -281,6 +282,40 @@ fn medium_and_method(scene: &SceneDescription) -> Result<()> {
             "integrator.camera_estimator",
             "blend mixes per voxel, which null-collision tracking of camera rays (tracking = null, motion blur) has not: use line, point or ray-march",
         ));
+    }
+    Ok(())
+}
+
+/// The absorption colour, and what chromatic extinction may be used with: it is tracked
+/// regularly (its hero-channel pdfs need exact optical depths), and its channels'
+/// extinction ratios must be the same everywhere (an albedo grid would change them per
+/// voxel).
+fn absorption_color(scene: &SceneDescription) -> Result<()> {
+    let Some(color) = scene.medium.absorption_color else { return Ok(()) };
+    for a in color.rgb() {
+        if !(0.0..=1.0).contains(&a) {
+            return Err(Error::invalid("medium.absorption_color", format!("{a} is not in [0, 1]")));
+        }
+    }
+    if color.rgb() == [0.0; 3] {
+        return Ok(());
+    }
+    let refuse = |with: &str| {
+        Err(Error::invalid(
+            "medium.absorption_color",
+            format!("an absorption colour cannot be used with {with}"),
+        ))
+    };
+    if scene.volume.albedo_grid.is_some() {
+        return refuse(
+            "an albedo grid (volume.albedo_grid): it would change the extinction per voxel",
+        );
+    }
+    if scene.volume.velocity_grid.is_some() {
+        return refuse("motion blur (volume.velocity_grid), which tracks by null collisions");
+    }
+    if scene.integrator.tracking == super::TrackingChoice::Null {
+        return refuse("integrator.tracking = \"null\": coloured media track regularly");
     }
     Ok(())
 }

@@ -123,6 +123,7 @@ pub(super) fn cost_sweep(cfg: &ExtremesConfig, check: &mut Check) -> Result<Vec<
                 albedo: plume_core::color::Rgb::splat(0.8),
                 g: 0.0,
                 emission,
+                extinction: Default::default(),
             },
             camera,
             lights,

@@ -37,6 +37,7 @@ pub(super) fn density_sweep(cfg: &ExtremesConfig, check: &mut Check) -> Result<(
                 albedo: plume_core::color::Rgb::splat(0.0),
                 g: 0.0,
                 emission,
+                extinction: Default::default(),
             },
             camera: box_camera(1.0, cfg.size)?,
             lights: Lights::default(),
@@ -113,6 +114,7 @@ pub(super) fn temperature_sweep(cfg: &ExtremesConfig, check: &mut Check) -> Resu
                 albedo: plume_core::color::Rgb::splat(0.0),
                 g: 0.0,
                 emission,
+                extinction: Default::default(),
             },
             camera: box_camera(1.0, cfg.size)?,
             lights: Lights::default(),
@@ -158,6 +160,7 @@ fn explosion_at(ex: &plume_synth::Explosion, h: f64, h0: f64, size: u32) -> Resu
             albedo: plume_core::color::Rgb::splat(0.0),
             g: 0.0,
             emission,
+            extinction: Default::default(),
         },
         camera,
         lights: Lights::default(),
@@ -271,8 +274,13 @@ pub(super) fn invalid_voxels(cfg: &ExtremesConfig, check: &mut Check) -> Result<
             dirty.report.density_clamped, dirty.report.source_invalid
         ),
     });
-    let medium =
-        Medium { sigma_t: 3.0, albedo: plume_core::color::Rgb::splat(0.0), g: 0.0, emission };
+    let medium = Medium {
+        sigma_t: 3.0,
+        albedo: plume_core::color::Rgb::splat(0.0),
+        g: 0.0,
+        emission,
+        extinction: Default::default(),
+    };
     let camera = box_camera(1.0, cfg.size)?;
     let dirty = Scene {
         field: dirty,

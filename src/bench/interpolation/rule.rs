@@ -315,8 +315,13 @@ mod tests {
             temperature_map: TemperatureMap::Kelvin,
             cutoff_kelvin: 0.0,
         };
-        let medium =
-            Medium { sigma_t: 2.0, albedo: plume_core::color::Rgb::splat(0.0), g: 0.0, emission };
+        let medium = Medium {
+            sigma_t: 2.0,
+            albedo: plume_core::color::Rgb::splat(0.0),
+            g: 0.0,
+            emission,
+            extinction: Default::default(),
+        };
         let camera =
             Camera::look_at(DVec3::new(0.3, 0.2, 5.0), DVec3::ZERO, DVec3::Y, 30.0, 12, 12)
                 .unwrap();

@@ -265,13 +265,14 @@ scripts/bench-out-of-core.sh /tmp/ooc
 /// The peer comparison with Blender Cycles, which neither form runs.
 pub(super) const CYCLES: &str = "## Peer comparison: Cycles 5.0.1
 
-plume against Blender Cycles 5.0.1 on the shared Blender explosions with matched conventions (`docs/cycles.md`): each renderer's relRMSE against its own converged reference at several equal CPU budgets; and, with `--lights`, a sun, an environment map and a sphere light lighting the explosion's density, plume's image mean against Cycles'. Neither form of the report runs it: it installs Blender's `bpy` 5.0.1 from PyPI into a virtual environment and takes hours for the full set on 2 cores (the references dominate).
+plume against Blender Cycles 5.0.1 on the shared Blender explosions with matched conventions (`docs/cycles.md`): each renderer's relRMSE against its own converged reference at several equal CPU budgets; and, with `--lights`, a sun, an environment map and a sphere light lighting the explosion's density, and with `--shots`, a coloured medium and depth of field, plume's image mean against Cycles'. Neither form of the report runs it: it installs Blender's `bpy` 5.0.1 from PyPI into a virtual environment and takes hours for the full set on 2 cores (the references dominate).
 
 ```sh
 scripts/compare-cycles.sh            # the full table (target/compare-cycles/table.md)
 scripts/compare-cycles.sh --quick    # one file, two settings, short references
 scripts/compare-cycles.sh --lights   # external lights
 scripts/compare-cycles.sh --adaptive # adaptive sampling at matched noise thresholds (docs/adaptive.md)
+scripts/compare-cycles.sh --shots    # a coloured medium and depth of field (docs/cycles.md)
 ```
 
 ";

@@ -50,8 +50,8 @@ pub(super) enum ForwardWeight {
     },
 }
 
-/// A path's throughput per channel (the channels differ only through a coloured albedo:
-/// extinction is grey).
+/// A path's throughput per channel (the channels differ through a coloured albedo and,
+/// in a chromatic medium, the hero-channel walk's weights).
 pub(crate) type Beta = [f64; 3];
 
 /// `beta` times `w`, channel by channel.

@@ -88,7 +88,13 @@ impl Integrator {
             let need_collision = depth < self.max_depth;
             let next = Segment { ray, beta, depth, p_phase: ps.pdf, need_collision, point_nee };
             match self.forward_segment(scene, tracker, next, state, l) {
-                Some((tc, ac)) if need_collision => (t, albedo) = (tc, ac),
+                Some(end) if need_collision => {
+                    (t, albedo) = (end.t, end.albedo);
+                    // A chromatic walk's weights of the collision (all 1 when grey)
+                    for (b, w) in beta.iter_mut().zip(end.channels) {
+                        *b *= w;
+                    }
+                }
                 _ => break,
             }
         }
@@ -104,7 +110,7 @@ impl Integrator {
         next: Segment,
         state: &mut PathState<'_, T, A>,
         l: &mut [f64; 3],
-    ) -> Option<(f64, f32)> {
+    ) -> Option<SegmentEnd> {
         let (m, lights) = (&scene.medium, &scene.lights);
         let external = lights.external.as_ref();
         let Segment { ray, beta, depth, p_phase, need_collision, point_nee } = next;
@@ -141,7 +147,8 @@ impl Integrator {
             (point_nee, lights.nee.as_ref(), scene.field.voxels(), r.event)
         {
             // MIS in volume measure against NEE at the collision point
-            let p_fwd = p_phase * m.mu_t(density) * (-r.optical_depth).exp() / (t * t);
+            let p_fwd = p_phase * m.mu_t(density) * m.extinction.collision_density(r.optical_depth)
+                / (t * t);
             w = self.mis.weight(p_fwd, nee.pdf(voxels, ray.at(t)));
         }
         contribute(l, state.aovs, Component::Scattered, times(beta, w), r.emission);
@@ -153,7 +160,10 @@ impl Integrator {
         });
         if let Some(e) = external.filter(|e| r.transmittance != 0.0 && e.reachable()) {
             // The lights this segment reaches, each weighted against light sampling
-            let weight = times(beta, r.transmittance);
+            let mut weight = times(beta, r.transmittance);
+            for (v, c) in weight.iter_mut().zip(r.channels.transmittance) {
+                *v *= c;
+            }
             e.arriving(&ray, hit.map(|(_, i)| i), Some(p_phase), self.mis, |i, w, radiance| {
                 contribute(l, state.aovs, Component::Light(e.group(i)), times(weight, w), radiance);
                 state.trace.event(|| {
@@ -162,7 +172,9 @@ impl Integrator {
             });
         }
         match r.event {
-            DistanceSample::Collided { t, albedo, .. } => Some((t, albedo)),
+            DistanceSample::Collided { t, albedo, .. } => {
+                Some(SegmentEnd { t, albedo, channels: r.channels.collision })
+            }
             DistanceSample::Escaped => None,
         }
     }
@@ -238,7 +250,7 @@ impl Integrator {
                     let shadow =
                         tracker.transmittance(m, &Ray { origin: x, direction: wi }, dist, sampler);
                     c.add_shadow(&shadow);
-                    let tau = shadow.transmittance;
+                    let (tau, channels) = (shadow.transmittance, shadow.channels);
                     if tau > 0.0 {
                         // L_e and ρ at y as the field reconstructs them (the table's
                         // pdf follows the same reconstruction: light/nee.rs)
@@ -246,17 +258,15 @@ impl Integrator {
                             emission_at_point(&scene.field, m, vs.p_world);
                         let f = hg_pdf(m.g, incoming.dot(wi));
                         let w_l = if point_nee {
-                            self.mis.weight(vs.pdf, f * m.mu_t(dy) * tau / r2)
+                            let p_fwd = m.extinction.collision_density_of(tau, channels);
+                            self.mis.weight(vs.pdf, f * m.mu_t(dy) * p_fwd / r2)
                         } else {
                             1.0
                         };
-                        contribute(
-                            l,
-                            state.aovs,
-                            Component::Scattered,
-                            beta.map(|b| b * f * tau * w_l / (vs.pdf * r2)),
-                            le,
-                        );
+                        let w: Beta = std::array::from_fn(|c| {
+                            beta[c] * f * (tau * channels[c]) * w_l / (vs.pdf * r2)
+                        });
+                        contribute(l, state.aovs, Component::Scattered, w, le);
                         state.trace.event(|| {
                             format!(
                                 "  nee: y {:?} p_V {} tau {tau} f {f} w {w_l} L_e {le:?}",
@@ -297,21 +307,25 @@ impl Integrator {
             state.sampler,
         );
         state.counters.add_shadow(&shadow);
-        let tau = shadow.transmittance;
+        let (tau, channels) = (shadow.transmittance, shadow.channels);
         if tau > 0.0 {
             let w = if s.pdf > 0.0 { self.mis.weight(pmf * s.pdf, f) } else { 1.0 };
-            contribute(
-                l,
-                state.aovs,
-                Component::Light(lights.group(index)),
-                beta.map(|b| b * f * tau * w / pmf),
-                s.value,
-            );
+            let weight: Beta = std::array::from_fn(|c| beta[c] * f * (tau * channels[c]) * w / pmf);
+            contribute(l, state.aovs, Component::Light(lights.group(index)), weight, s.value);
             state.trace.event(|| {
                 format!("  light {index}: dir {:?} dist {} pmf {pmf} pdf {} tau {tau} f {f} w {w} L/p {:?}", s.direction, s.distance, s.pdf, s.value)
             });
         }
     }
+}
+
+/// Where a forward segment's free path ended in a collision: the distance, the albedo
+/// factor of its segment, and the chromatic walk's weights of it (all 1 when grey).
+#[derive(Clone, Copy, Debug)]
+struct SegmentEnd {
+    t: f64,
+    albedo: f32,
+    channels: [f64; 3],
 }
 
 /// The segment a path takes after a bounce, as [`Integrator::forward_segment`] walks it.

@@ -18,13 +18,14 @@
 //! A moving volume is tracked by null collisions everywhere (no closed form exists).
 
 use super::buffered::{Ask, BufferedPoints, Request};
+use crate::medium::chromatic::track_chromatic;
 use crate::medium::emission::EmissionMemo;
 use crate::medium::forced::SplitFirsts;
 use crate::medium::null_tracking::{null_track, ratio_transmittance, PointField, PointSample};
 use crate::medium::tracking::{
     optical_depth, track_split, walk_stretch, OpticalDepth, StretchKind, StretchWalk,
 };
-use crate::medium::{track, Collision, Estimator, Medium, ShadowResult, TrackResult};
+use crate::medium::{track, Collision, Estimator, Extinction, Medium, ShadowResult, TrackResult};
 use plume_core::sampling::Sampler;
 pub use plume_scene::sets::{PointLookup, Tracking};
 use plume_volume::field::{Field, Ray};
@@ -347,8 +348,8 @@ impl<F: Field> Tracker<'_, F> {
         sampler: &mut Sampler,
         split: SplitFirsts<'_>,
     ) -> TrackResult {
-        match *self {
-            Tracker::Regular(field) => {
+        match (*self, medium.extinction) {
+            (Tracker::Regular(field), Extinction::Grey) => {
                 track_split(field, medium, ray, t_max, estimator, collision, u, sampler, split)
             }
             _ => self.track(medium, ray, t_max, estimator, collision, u, sampler),
@@ -373,9 +374,14 @@ impl<F: Field> Tracker<'_, F> {
         // Null collisions draw every collision as the analog one (`medium::forced`)
         let need_collision = collision.needed();
         match *self {
-            Tracker::Regular(field) => {
-                track(field, medium, ray, t_max, estimator, collision, u, sampler)
-            }
+            Tracker::Regular(field) => match &medium.extinction {
+                Extinction::Grey => {
+                    track(field, medium, ray, t_max, estimator, collision, u, sampler)
+                }
+                Extinction::Chromatic(chromatic) => track_chromatic(
+                    field, medium, chromatic, ray, t_max, estimator, collision, u, sampler,
+                ),
+            },
             Tracker::Null { field, majorants, lookup } => {
                 let points = Points::new(field, medium, None, lookup);
                 if let Some(volume) = field.voxels().filter(|v| v.reading_ahead()) {
@@ -452,14 +458,28 @@ impl<F: Field> Tracker<'_, F> {
                     volume.read_ahead_ray(ray, t_max);
                 }
                 let OpticalDepth { optical_depth: od, voxel_steps } =
-                    optical_depth(field, medium, ray, t_max, 745.0);
-                ShadowResult { transmittance: (-od).exp(), voxel_steps, tentative_points: 0 }
+                    optical_depth(field, medium, ray, t_max, medium.extinction.od_stop());
+                let (transmittance, channels) = match &medium.extinction {
+                    Extinction::Grey => ((-od).exp(), [1.0; 3]),
+                    Extinction::Chromatic(chromatic) => {
+                        let taus = chromatic.transmittances(od);
+                        let mean = (taus[0] + taus[1] + taus[2]) / 3.0;
+                        let channels = if mean > 0.0 { taus.map(|t| t / mean) } else { [1.0; 3] };
+                        (mean, channels)
+                    }
+                };
+                ShadowResult { transmittance, voxel_steps, tentative_points: 0, channels }
             }
             Tracker::Deferred { points, .. } => {
                 // Not deferred: shadow rays are exact walks (light sampling that needs
                 // them keeps its paths out of deferral); the path is rerun directly
                 points.give_up();
-                ShadowResult { transmittance: 0.0, voxel_steps: 0, tentative_points: 0 }
+                ShadowResult {
+                    transmittance: 0.0,
+                    voxel_steps: 0,
+                    tentative_points: 0,
+                    channels: [1.0; 3],
+                }
             }
             Tracker::Moving { field, motion, time, lookup } => ratio_transmittance(
                 &motion.majorants,

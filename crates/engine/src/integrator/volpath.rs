@@ -2,10 +2,11 @@
 //! emission on every segment, optional next event estimation (classic NEE or FNEE), MIS,
 //! Russian roulette. METHOD.md §5–8.
 //!
-//! Per segment leaving `x` along `ω` with throughput `β` (per channel; the channels differ
-//! only through a coloured albedo, since μ_t is grey):
+//! Per segment leaving `x` along `ω` with throughput `β` (per channel: a coloured albedo,
+//! and in a chromatic medium the hero channel's weights, `medium::extinction`):
 //! 1. `L += β · w_fwd(ω) · F` on every segment, before roulette;
-//! 2. at a collision, `β_c ← β_c · a_c`; light sampling at the collision point; roulette
+//! 2. at a collision, `β_c ← β_c · a_c` (times the walk's `channels.collision[c]`, 1 in a
+//!    grey medium); light sampling at the collision point; roulette
 //!    with `q = min(1, max_c β_c / t)` ([`ROULETTE_THRESHOLD`] `t`); HG sampling of the
 //!    next direction (`f/p = 1`).
 //!
@@ -70,7 +71,7 @@ use super::aov::{Aovs, Component, NoAovs};
 use super::buffered::BufferedPoints;
 use super::tracker::Tracker;
 use crate::medium::forced::{Forced, SplitFirsts};
-use crate::medium::{Collision, DistanceSample, Estimator};
+use crate::medium::{Collision, DistanceSample, Estimator, Extinction};
 use plume_core::sampling::{Dim, Sampler};
 use plume_scene::SplitBy;
 use plume_scene::{LightSampling, MisHeuristic};
@@ -332,7 +333,7 @@ impl Integrator {
                     &mut l,
                     state.aovs,
                     Component::Light(e.group(i)),
-                    [r.transmittance * w; 3],
+                    r.channels.transmittance.map(|c| r.transmittance * w * c),
                     radiance,
                 );
                 state.trace.event(|| {
@@ -352,7 +353,7 @@ impl Integrator {
                 incoming: *camera_ray,
                 t,
                 albedo,
-                beta: [scale * r.collision_weight; 3],
+                beta: r.channels.collision.map(|c| scale * r.collision_weight * c),
                 scale,
                 depth: 0,
             };
@@ -438,9 +439,11 @@ impl Integrator {
         use_null: bool,
         lookup: PointLookup,
     ) -> Tracker<'s, F> {
+        // A chromatic medium tracks regularly (`medium::chromatic`)
+        let grey = scene.medium.extinction == Extinction::Grey;
         match &scene.majorants {
             Some(majorants)
-                if use_null && Tracking::applies(self.estimator, self.light_sampling) =>
+                if use_null && grey && Tracking::applies(self.estimator, self.light_sampling) =>
             {
                 Tracker::Null { field: &scene.field, majorants, lookup }
             }

@@ -161,6 +161,7 @@ mod tests {
             albedo: plume_core::color::Rgb::splat(0.8),
             g: 0.0,
             emission: Emission::none(),
+            extinction: Default::default(),
         }
     }
 

@@ -51,6 +51,25 @@ pub struct TrackResult {
     /// The collision's weight: 1 for an analog free path, `W/q` for a forced one
     /// (`medium::forced`).
     pub collision_weight: f64,
+    /// Per-channel factors of a chromatic medium's hero-channel walk; all 1 when grey.
+    pub channels: Channels,
+}
+
+/// What a chromatic medium's hero-channel walk weighs each channel by
+/// (`medium::extinction`); [`Channels::GREY`] (all 1) in a grey medium.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Channels {
+    /// Multiplies channel `c`'s throughput at the collision, with `collision_weight` and
+    /// the albedo: `e^{−k_c OD}/k̄(OD)`.
+    pub collision: [f64; 3],
+    /// Channel `c`'s transmittance estimate is `transmittance` times this: `τ_c/τ̄` at the
+    /// end of the range.
+    pub transmittance: [f64; 3],
+}
+
+impl Channels {
+    /// A grey medium's: every factor 1.
+    pub const GREY: Channels = Channels { collision: [1.0; 3], transmittance: [1.0; 3] };
 }
 
 impl TrackResult {
@@ -66,6 +85,7 @@ impl TrackResult {
             voxel_steps: 0,
             tentative_points: 0,
             collision_weight: 1.0,
+            channels: Channels::GREY,
         }
     }
 }
@@ -79,6 +99,9 @@ pub struct ShadowResult {
     pub voxel_steps: u64,
     /// Tentative points of ratio tracking; 0 for an exact walk.
     pub tentative_points: u64,
+    /// Channel `c`'s transmittance is `transmittance` times this in a chromatic medium
+    /// (`transmittance` is then the channels' mean); all 1 when grey.
+    pub channels: [f64; 3],
 }
 
 /// Transmittance below which the ray-march estimator plays Russian roulette.

@@ -219,6 +219,7 @@ impl Walk {
             voxel_steps: u64::from(segments) + work.exact_steps,
             tentative_points: work.tentative_points,
             collision_weight: 1.0,
+            channels: super::free_path::Channels::GREY,
         }
     }
 
@@ -412,7 +413,12 @@ pub fn ratio_transmittance(
     sampler: &mut Sampler,
 ) -> ShadowResult {
     let picks = field.picks();
-    let mut r = ShadowResult { transmittance: 1.0, voxel_steps: 0, tentative_points: 0 };
+    let mut r = ShadowResult {
+        transmittance: 1.0,
+        voxel_steps: 0,
+        tentative_points: 0,
+        channels: [1.0; 3],
+    };
     for seg in majorants.segments(ray, 0.0, t_max) {
         r.voxel_steps += 1;
         let mu_bar = medium.mu_t(seg.bounds.density);

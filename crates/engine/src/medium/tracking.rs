@@ -21,7 +21,7 @@ use std::ops::ControlFlow;
 
 use super::coefficients::Medium;
 pub use super::free_path::{
-    analog_collision, phi, sample_exponential, DistanceSample, ShadowResult, TrackResult,
+    analog_collision, phi, sample_exponential, Channels, DistanceSample, ShadowResult, TrackResult,
     RAY_MARCH_ROULETTE_THRESHOLD,
 };
 use crate::medium::emission::{EmissionMemo, LeTask};
@@ -34,7 +34,7 @@ mod stretch;
 pub use stretch::{walk_stretch, StretchKind, StretchWalk};
 
 #[inline]
-fn add(acc: &mut [f64; 3], le: Rgb, w: f64) {
+pub(super) fn add(acc: &mut [f64; 3], le: Rgb, w: f64) {
     for (a, c) in acc.iter_mut().zip(le.0) {
         *a += f64::from(c) * w;
     }
@@ -129,6 +129,7 @@ fn track_free_path<F: Field>(
         voxel_steps: walk.voxel_steps,
         tentative_points: 0,
         collision_weight: 1.0,
+        channels: Channels::GREY,
     }
 }
 
@@ -212,7 +213,7 @@ fn add_scaled(acc: &mut [f64; 3], v: [f64; 3], w: f64) {
 /// `L_e` at `u` on a polynomial piece: each voxel's emission density interpolated
 /// (`volume/trilinear/mod.rs`, "What is interpolated").
 #[inline]
-fn emission_at<P: Piece>(piece: &P, le: &EmissionMemo<'_>, u: f64) -> [f64; 3] {
+pub(super) fn emission_at<P: Piece>(piece: &P, le: &EmissionMemo<'_>, u: f64) -> [f64; 3] {
     /// [`Piece::emission_at`] as a task of the memo.
     struct At<'p, P>(&'p P, f64);
     impl<P: Piece> LeTask for At<'_, P> {
@@ -530,6 +531,7 @@ fn track_expected<F: Field, const FORCED: bool>(
         voxel_steps: it.voxel_steps(),
         tentative_points: 0,
         collision_weight,
+        channels: Channels::GREY,
     }
 }
 
@@ -547,7 +549,7 @@ fn roulette_free_depth(weight: f64) -> f64 {
 /// `tau / threshold`, `weight` scaled up by the inverse, and the piece is weighted by the
 /// threshold; `None` ends it (`weight` 0). Keeps the walk finite.
 #[inline]
-fn march_roulette(tau: f64, weight: &mut f64, sampler: &mut Sampler) -> Option<f64> {
+pub(super) fn march_roulette(tau: f64, weight: &mut f64, sampler: &mut Sampler) -> Option<f64> {
     if tau < RAY_MARCH_ROULETTE_THRESHOLD {
         let q = tau / RAY_MARCH_ROULETTE_THRESHOLD;
         if sampler.next_f64() >= q {

@@ -35,7 +35,13 @@ fn hot_fields() -> (Volume, Trilinear, Medium) {
     (
         volume(),
         Trilinear::new(volume()),
-        Medium { sigma_t: 2.0, albedo: plume_core::color::Rgb::splat(0.8), g: 0.0, emission },
+        Medium {
+            sigma_t: 2.0,
+            albedo: plume_core::color::Rgb::splat(0.8),
+            g: 0.0,
+            emission,
+            extinction: Default::default(),
+        },
     )
 }
 
@@ -207,6 +213,7 @@ fn still_shadow_rays_are_exact_under_null_collisions() {
         albedo: plume_core::color::Rgb::splat(0.8),
         g: 0.0,
         emission: Emission::none(),
+        extinction: Default::default(),
     };
     let b = volume.world_bounds();
     let mut rng = Sampler::new(9, 0, 0);
@@ -293,8 +300,13 @@ fn read_ahead_records_the_real_walks_lookups_first() {
         let mut rng = Sampler::new(11, 0, 0);
         let (mut collided, mut compared) = (0, 0);
         for sigma_t in [0.5, 20.0] {
-            let medium =
-                Medium { sigma_t, albedo: plume_core::color::Rgb::splat(0.8), g: 0.0, emission };
+            let medium = Medium {
+                sigma_t,
+                albedo: plume_core::color::Rgb::splat(0.8),
+                g: 0.0,
+                emission,
+                extinction: Default::default(),
+            };
             for k in 0..400u64 {
                 let u = glam::DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64());
                 let ray = Ray {
@@ -354,7 +366,13 @@ fn read_ahead_records_the_real_walks_lookups_first() {
     assert!(
         Points::new(
             &linear,
-            &Medium { sigma_t: 1.0, albedo: plume_core::color::Rgb::splat(0.8), g: 0.0, emission },
+            &Medium {
+                sigma_t: 1.0,
+                albedo: plume_core::color::Rgb::splat(0.8),
+                g: 0.0,
+                emission,
+                extinction: Default::default()
+            },
             None,
             PointLookup::Stochastic
         )

@@ -1,0 +1,181 @@
+#!/usr/bin/env python3
+"""plume against Blender Cycles 5.0.1 on shots that combine scene features: image means.
+
+Runs inside the venv of `scripts/compare-cycles.sh` (bpy==5.0.1, OpenEXR, numpy):
+`bash scripts/compare-cycles.sh --shots`. A benchmark, not a test.
+
+A shared Mantaflow explosion with its blackbody emission (Cycles' convention), g 0,
+64 bounces, matched as in `compare_cycles.py` (same camera placement, box filter, no
+denoising, adaptive sampling or clamping), rendered as
+- `coloured`: a coloured medium, Principled Volume Color = `--color` and Absorption
+  Color = `--absorption`, so extinction differs per channel ==
+  `--albedo R,G,B --absorption-color R,G,B`;
+- `dof`: depth of field, grey albedo `--albedo-grey`: Cycles' camera with focal length
+  `f` mm for the field of view on a 36 mm sensor (horizontal fit), F-stop `--fstop-scale`
+  times the one that gives an aperture radius of 5 % of the camera distance, focused at
+  0.75 of the distance to the volume's centre ==
+  `--focal-length f --sensor-width 36 --fstop N --focus-distance d`.
+Each renderer runs `--spp` samples twice, with seeds 0 and 1; the table gives each
+channel's image mean (of both runs), their ratio, twice the standard error of the ratio
+(from the difference of the two runs: per-pixel variance var(I0 - I1)/2, pixels
+independent), and the means of four image quadrants (RGB together).
+"""
+
+import argparse
+import json
+import math
+import os
+import subprocess
+import sys
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from compare_cycles import FILES, Cycles, read_rgb  # noqa: E402
+
+
+def parse_args():
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--plume", default="target/release/plume")
+    p.add_argument("--data", default="../shared/data")
+    p.add_argument("--out", default="target/compare-shots")
+    p.add_argument("--file", default="kelvin40", choices=[k for k, v in FILES.items() if v["emission"][0] == "blackbody"])
+    p.add_argument("--size", type=int, default=128)
+    p.add_argument("--fov", type=float, default=40.0)
+    p.add_argument("--threads", type=int, default=2)
+    p.add_argument("--max-depth", type=int, default=64)
+    p.add_argument("--spp", type=int, default=256)
+    p.add_argument("--color", default="0.9,0.6,0.3")
+    p.add_argument("--absorption", default="0.2,0.5,0.8")
+    p.add_argument("--albedo-grey", type=float, default=0.8)
+    p.add_argument("--fstop-scale", type=float, default=1.0)
+    p.add_argument("--cases", default="coloured,dof")
+    a = p.parse_args()
+    a.cases = a.cases.split(",")
+    a.color = [float(v) for v in a.color.split(",")]
+    a.absorption = [float(v) for v in a.absorption.split(",")]
+    return a
+
+
+def principled(cycles, color, absorption):
+    """Principled Volume: density 1 x the grid, blackbody of the Kelvin grid."""
+    m = cycles.material
+    m.use_nodes = True
+    nodes, links = m.node_tree.nodes, m.node_tree.links
+    nodes.clear()
+    out = nodes.new("ShaderNodeOutputMaterial")
+    pv = nodes.new("ShaderNodeVolumePrincipled")
+    pv.inputs["Color"].default_value = (*color, 1.0)
+    pv.inputs["Density"].default_value = 1.0
+    pv.inputs["Density Attribute"].default_value = cycles.spec["density"]
+    pv.inputs["Absorption Color"].default_value = (*absorption, 1.0)
+    pv.inputs["Anisotropy"].default_value = 0.0
+    pv.inputs["Blackbody Intensity"].default_value = 1.0
+    pv.inputs["Blackbody Tint"].default_value = (1.0, 1.0, 1.0, 1.0)
+    pv.inputs["Temperature"].default_value = 1.0
+    pv.inputs["Temperature Attribute"].default_value = cycles.spec["emission"][1]
+    links.new(pv.outputs["Volume"], out.inputs["Volume"])
+
+
+def lens(a, camera):
+    """The `dof` case's thin lens: focal length (mm), F-stop, focus distance."""
+    distance = math.dist(camera["from"], camera["at"])
+    focal = 18.0 / math.tan(math.radians(a.fov) / 2)
+    radius = 0.05 * distance
+    return {"focal": focal, "fstop": a.fstop_scale * focal * 1e-3 / (2 * radius), "focus": 0.75 * distance}
+
+
+def set_case(cycles, a, case):
+    """Cycles' material and camera for `case`; returns plume's flags for the same."""
+    cam = cycles.bpy.context.scene.camera.data
+    cam.dof.use_dof = False
+    cam.sensor_fit = "HORIZONTAL"
+    cam.angle = math.radians(a.fov)
+    rgb = lambda v: ",".join(repr(x) for x in v)  # noqa: E731
+    if case == "coloured":
+        principled(cycles, a.color, a.absorption)
+        return ["--fov", repr(a.fov), "--albedo", rgb(a.color), "--absorption-color", rgb(a.absorption)]
+    if case == "dof":
+        principled(cycles, [a.albedo_grey] * 3, [0.0] * 3)
+        t = lens(a, cycles.camera)
+        cam.lens_unit = "MILLIMETERS"
+        cam.sensor_width = 36.0
+        cam.lens = t["focal"]
+        cam.dof.use_dof = True
+        cam.dof.focus_distance = t["focus"]
+        cam.dof.aperture_fstop = t["fstop"]
+        cam.dof.aperture_blades = 0
+        return ["--focal-length", repr(t["focal"]), "--sensor-width", "36", "--fstop", repr(t["fstop"]),
+                "--focus-distance", repr(t["focus"]), "--albedo", repr(a.albedo_grey)]
+    sys.exit(f"compare_shots: unknown case {case!r}")
+
+
+def stats(runs):
+    """Per channel: mean of two independent renders and the standard error of that mean
+    (per-pixel variance from their difference); the four quadrants' means (RGB)."""
+    img = 0.5 * (runs[0] + runs[1])
+    means, ses = [], []
+    for c in range(3):
+        var_pixel = np.var(runs[0][..., c] - runs[1][..., c], ddof=1) / 2.0
+        means.append(float(img[..., c].mean()))
+        ses.append(math.sqrt(var_pixel / (2 * runs[0][..., c].size)))
+    h, w = img.shape[:2]
+    q = [img[:h // 2, :w // 2], img[:h // 2, w // 2:], img[h // 2:, :w // 2], img[h // 2:, w // 2:]]
+    return means, ses, [float(x.mean()) for x in q]
+
+
+def main():
+    a = parse_args()
+    os.makedirs(a.out, exist_ok=True)
+    spec = FILES[a.file]
+    cycles = Cycles(a, spec)
+    cam = cycles.camera
+    scene = cycles.bpy.context.scene
+    results = []
+    for case in a.cases:
+        flags = set_case(cycles, a, case)
+        print(f"compare_shots: {case}: Cycles", file=sys.stderr, flush=True)
+        c_runs, p_runs = [], []
+        for seed in (0, 1):
+            c_path = os.path.join(a.out, f"{case}_cycles_{seed}.exr")
+            scene.cycles.seed = seed
+            cycles.render(a.spp, c_path, seed=seed)
+            c_runs.append(read_rgb(c_path))
+        print(f"compare_shots: {case}: plume {' '.join(flags)}", file=sys.stderr, flush=True)
+        cmd = [a.plume, "render", os.path.join(a.data, spec["path"]), "--density-grid", spec["density"], "--convention", "cycles"]
+        cmd += ["--emission", "blackbody", "--temperature-grid", spec["emission"][1], "--up-axis", "z"]
+        cmd += ["--camera-from", ",".join(map(repr, cam["from"])), "--camera-at", ",".join(map(repr, cam["at"])), "--camera-up", "0,0,1"]
+        cmd += ["--width", str(a.size), "--height", str(a.size), "--spp", str(a.spp), "--threads", str(a.threads)]
+        cmd += ["--max-depth", str(a.max_depth), "--g", "0", "--method", "line-fnee", "--overwrite", "-q"]
+        for seed in (0, 1):
+            p_path = os.path.join(a.out, f"{case}_plume_{seed}.exr")
+            subprocess.run(cmd + flags + ["--seed", str(seed), "-o", p_path], check=True)
+            p_runs.append(read_rgb(p_path))
+        (cm, cse, cq), (pm, pse, pq) = stats(c_runs), stats(p_runs)
+        results.append({"case": case, "flags": flags, "cycles_means": cm, "cycles_se": cse, "plume_means": pm, "plume_se": pse,
+                        "cycles_quadrants": cq, "plume_quadrants": pq})
+        with open(os.path.join(a.out, "results.json"), "w") as f:
+            json.dump(results, f, indent=1)
+    lines = [
+        f"{a.file}, {a.size}x{a.size}, 2 x {a.spp} spp each, blackbody emission (Cycles' convention), g 0, max depth {a.max_depth}.",
+        "",
+        "| shot | channel | Cycles mean | plume mean | plume ÷ Cycles − 1 | ± (2σ of both means) |",
+        "|---|---|---|---|---|---|",
+    ]
+    for r in results:
+        for c, name in enumerate("RGB"):
+            cm, pm = r["cycles_means"][c], r["plume_means"][c]
+            sig = 2 * math.hypot(r["plume_se"][c], r["cycles_se"][c]) / cm
+            lines.append(f"| {r['case']} | {name} | {cm:.5f} | {pm:.5f} | **{100 * (pm / cm - 1):+.2f} %** | {100 * sig:.2f} % |")
+    lines += ["", "| shot | quadrants plume ÷ Cycles − 1 (RGB) |", "|---|---|"]
+    for r in results:
+        quads = ", ".join(f"{100 * (p / c - 1):+.2f} %" for p, c in zip(r["plume_quadrants"], r["cycles_quadrants"]))
+        lines.append(f"| {r['case']} | {quads} |")
+    table = "\n".join(lines) + "\n"
+    with open(os.path.join(a.out, "table.md"), "w") as f:
+        f.write(table)
+    print(table)
+
+
+if __name__ == "__main__":
+    main()

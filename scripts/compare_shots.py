@@ -14,7 +14,12 @@ denoising, adaptive sampling or clamping), rendered as
   `f` mm for the field of view on a 36 mm sensor (horizontal fit), F-stop `--fstop-scale`
   times the one that gives an aperture radius of 5 % of the camera distance, focused at
   0.75 of the distance to the volume's centre ==
-  `--focal-length f --sensor-width 36 --fstop N --focus-distance d`.
+  `--focal-length f --sensor-width 36 --fstop N --focus-distance d`;
+- `placed`: grey albedo `--albedo-grey`, the volume object moved, rotated and scaled
+  (Location 0.04 r, 0, 0.03 r with r the camera distance, Rotation XYZ Euler 10, 15, 20
+  degrees, Scale 1.2, 0.8, 1; the Volume's render Space left at Blender's default, Object)
+  and seen by the unmoved camera == `--volume-translate x,y,z --volume-rotate 10,15,20
+  --volume-scale 1.2,0.8,1 --volume-space object`.
 Each renderer runs `--spp` samples twice, with seeds 0 and 1; the table gives each
 channel's image mean (of both runs), their ratio, twice the standard error of the ratio
 (from the difference of the two runs: per-pixel variance var(I0 - I1)/2, pixels
@@ -49,7 +54,7 @@ def parse_args():
     p.add_argument("--absorption", default="0.2,0.5,0.8")
     p.add_argument("--albedo-grey", type=float, default=0.8)
     p.add_argument("--fstop-scale", type=float, default=1.0)
-    p.add_argument("--cases", default="coloured,dof")
+    p.add_argument("--cases", default="coloured,dof,placed")
     a = p.parse_args()
     a.cases = a.cases.split(",")
     a.color = [float(v) for v in a.color.split(",")]
@@ -86,8 +91,12 @@ def lens(a, camera):
 
 
 def set_case(cycles, a, case):
-    """Cycles' material and camera for `case`; returns plume's flags for the same."""
+    """Cycles' material, camera and object transform for `case`; returns plume's flags
+    for the same."""
     cam = cycles.bpy.context.scene.camera.data
+    obj = next(o for o in cycles.bpy.data.objects if o.type == "VOLUME")
+    obj.location, obj.rotation_mode = (0.0, 0.0, 0.0), "XYZ"
+    obj.rotation_euler, obj.scale = (0.0, 0.0, 0.0), (1.0, 1.0, 1.0)
     cam.dof.use_dof = False
     cam.sensor_fit = "HORIZONTAL"
     cam.angle = math.radians(a.fov)
@@ -107,6 +116,15 @@ def set_case(cycles, a, case):
         cam.dof.aperture_blades = 0
         return ["--focal-length", repr(t["focal"]), "--sensor-width", "36", "--fstop", repr(t["fstop"]),
                 "--focus-distance", repr(t["focus"]), "--albedo", repr(a.albedo_grey)]
+    if case == "placed":
+        principled(cycles, [a.albedo_grey] * 3, [0.0] * 3)
+        r = math.dist(cycles.camera["from"], cycles.camera["at"])
+        move, turn, scale = (0.04 * r, 0.0, 0.03 * r), (10.0, 15.0, 20.0), (1.2, 0.8, 1.0)
+        obj.location = move
+        obj.rotation_euler = tuple(math.radians(d) for d in turn)
+        obj.scale = scale
+        return ["--fov", repr(a.fov), "--albedo", repr(a.albedo_grey), "--volume-translate", rgb(move),
+                "--volume-rotate", rgb(turn), "--volume-scale", rgb(scale), "--volume-space", "object"]
     sys.exit(f"compare_shots: unknown case {case!r}")
 
 
@@ -169,7 +187,7 @@ def main():
             lines.append(f"| {r['case']} | {name} | {cm:.5f} | {pm:.5f} | **{100 * (pm / cm - 1):+.2f} %** | {100 * sig:.2f} % |")
     lines += ["", "| shot | quadrants plume ÷ Cycles − 1 (RGB) |", "|---|---|"]
     for r in results:
-        quads = ", ".join(f"{100 * (p / c - 1):+.2f} %" for p, c in zip(r["plume_quadrants"], r["cycles_quadrants"]))
+        quads = ", ".join(f"{100 * (p / c - 1):+.2f} %" if c > 0 else f"{p:.3g} vs 0" for p, c in zip(r["plume_quadrants"], r["cycles_quadrants"]))
         lines.append(f"| {r['case']} | {quads} |")
     table = "\n".join(lines) + "\n"
     with open(os.path.join(a.out, "table.md"), "w") as f:

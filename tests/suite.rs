@@ -41,6 +41,7 @@ mod motion_blur;
 mod nee_table;
 mod null_tracking;
 mod path;
+mod placement;
 mod point_lookup;
 mod render;
 mod sampling;

@@ -32,6 +32,22 @@ pub fn parse_vec3(s: &str) -> Result<DVec3, String> {
     Ok(DVec3::from_array(v))
 }
 
+/// Parse a 4×4 matrix: sixteen numbers, row by row.
+///
+/// # Errors
+/// A message for clap when the text is not sixteen numbers.
+pub fn parse_matrix(s: &str) -> Result<[[f64; 4]; 4], String> {
+    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+    if parts.len() != 16 {
+        return Err(format!("expected 16 numbers, row by row, got {}", parts.len()));
+    }
+    let mut m = [[0.0; 4]; 4];
+    for (k, p) in parts.iter().enumerate() {
+        m[k / 4][k % 4] = p.parse::<f64>().map_err(|_| format!("{p:?} is not a number"))?;
+    }
+    Ok(m)
+}
+
 /// Parse a light's keys as written in a scene file's table, comma-separated (a TOML
 /// inline table's body): `direction = [0, 0, -1], irradiance = 3`. Empty: all defaults.
 ///

@@ -17,7 +17,9 @@ use plume_scene::{
     TileIndex, TrackingChoice, UpAxis, VolumeInput,
 };
 
-use super::flags::{choice, parse_environment_map, parse_keys, parse_pair, parse_size, parse_vec3};
+use super::flags::{
+    choice, parse_environment_map, parse_keys, parse_matrix, parse_pair, parse_size, parse_vec3,
+};
 
 /// `plume render`.
 #[derive(Clone, Debug, Args)]
@@ -204,6 +206,27 @@ pub struct RenderArgs {
     /// or `kelvin = K`.
     #[arg(long, value_parser = parse_keys::<SphereSettings>, help_heading = "Lights")]
     pub sphere_light: Vec<SphereSettings>,
+    /// Place the volume in the world: move it by x,y,z (world units), after its scale and
+    /// rotation and after the file's own transform.
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true, help_heading = "Placement", hide_short_help = true)]
+    pub volume_translate: Option<DVec3>,
+    /// Rotate the volume by XYZ Euler angles x,y,z in degrees (Blender's default mode:
+    /// about the world x axis first, then y, then z).
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true, help_heading = "Placement", hide_short_help = true)]
+    pub volume_rotate: Option<DVec3>,
+    /// Scale the volume: one factor or x,y,z (first of the three, as Blender's object matrix
+    /// T·R·S).
+    #[arg(long, allow_hyphen_values = true, help_heading = "Placement", hide_short_help = true)]
+    pub volume_scale: Option<plume_scene::Scale>,
+    /// Place the volume by a 4×4 affine matrix: sixteen numbers row by row, translation in
+    /// the last column (in place of the three above).
+    #[arg(long, value_parser = parse_matrix, allow_hyphen_values = true, help_heading = "Placement", hide_short_help = true)]
+    pub volume_matrix: Option<[[f64; 4]; 4]>,
+    /// What the volume's coefficients are per once placed: world units, or Cycles' Object
+    /// space (Blender's default), where extinction and emission are divided by the
+    /// placement's scale.
+    #[arg(long, value_parser = choice::<plume_scene::VolumeSpace>(), default_value_t = VolumeInput::new("").space, help_heading = "Placement", hide_short_help = true)]
+    pub volume_space: plume_scene::VolumeSpace,
     /// Motion blur: the velocity grid (world units per second), a vector grid NAME or
     /// three float grids NAME.x, NAME.y, NAME.z. The volume is advected back along it (Eulerian blur:
     /// density at x and time t is the frame's at x − t·v(x); docs/methods.md).

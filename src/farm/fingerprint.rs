@@ -92,10 +92,20 @@ fn volume_text(volume: &VolumeInput) -> String {
         // In `motion_text`
         velocity_grid: _,
         velocity_scale: _,
+        translate,
+        rotate,
+        scale,
+        matrix,
+        space,
     } = volume;
-    format!(
+    let line = format!(
         "volume {density_grid:?} {temperature_grid:?} {emission_grid:?} {albedo_grid:?} {interpolation}"
-    )
+    );
+    // Without a placement the line is what it was before placements existed
+    if translate.is_none() && rotate.is_none() && scale.is_none() && matrix.is_none() {
+        return line;
+    }
+    format!("{line} placed {translate:?} {rotate:?} {scale:?} {matrix:?} {space}")
 }
 
 /// The emission's line.

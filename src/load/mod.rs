@@ -128,13 +128,31 @@ pub fn load_scene(
         load_vdb(scene, input, settings)?
     };
     let LoadedVolume { volume, emission, source_grid, proxy_power, cache } = loaded;
+    // Placed in the world before anything is built from world space
+    let placement = scene.volume.placement().transform("volume")?;
+    let volume = match placement {
+        Some(m) => volume.placed(m),
+        None => volume,
+    };
     let camera = camera(scene, input, &volume, frame)?;
+    // Coefficients per world unit, or per unit of the placed volume (Cycles' Object space)
+    let (density_scale, medium_emission) =
+        match placement.map(|m| scene.volume.space.coefficient_factor(m)) {
+            Some(f) if f != 1.0 => (
+                scene.medium.density_scale * f,
+                plume_engine::medium::Emission {
+                    scale: (f64::from(emission.scale) * f) as f32,
+                    ..emission
+                },
+            ),
+            _ => (scene.medium.density_scale, emission),
+        };
     let medium = Medium::principled(
-        scene.medium.density_scale,
+        density_scale,
         scene.albedo_rgb(),
         scene.medium.absorption_color.map_or([0.0; 3], plume_scene::Albedo::rgb),
         scene.medium.g,
-        emission,
+        medium_emission,
     );
     // Light-sampling structures, only for the technique in use and only when paths scatter
     let (_, light_sampling) = scene.integrator.parts();
@@ -182,7 +200,10 @@ pub fn load_scene(
     let motion = match (&scene.volume.velocity_grid, scene.shutter_seconds()) {
         (Some(name), Some(shutter)) => Some(Motion::new(
             &volume,
-            Velocity::Grid(read_velocity(input, name, settings)?),
+            Velocity::Grid(match placement {
+                Some(m) => read_velocity(input, name, settings)?.placed(m),
+                None => read_velocity(input, name, settings)?,
+            }),
             scene.volume.velocity_scale,
             shutter,
         )),

@@ -21,6 +21,7 @@ pub mod file;
 pub mod frames;
 pub mod lights;
 pub mod pixels;
+pub mod placement;
 pub mod selector;
 pub mod sets;
 mod settings;
@@ -42,6 +43,7 @@ pub use lights::{
     DistantSettings, EnvironmentMapSettings, LightSettings, SkySettings, SphereSettings,
 };
 pub use pixels::{Crop, SampleId};
+pub use placement::{Placement, Scale, VolumeSpace};
 pub use settings::{
     FarmOptions, JobSettings, OutputSettings, ReadSettings, RenderOptions, ADAPTIVE_BLOCK,
 };
@@ -236,6 +238,22 @@ pub struct VolumeInput {
     /// Multiplies the velocity.
     #[serde(default = "defaults::one", skip_serializing_if = "defaults::is_one")]
     pub velocity_scale: f64,
+    /// Placement after the file's own transform (`placement`): translation, world units.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub translate: Option<[f64; 3]>,
+    /// XYZ Euler rotation in degrees (Blender's default mode).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rotate: Option<[f64; 3]>,
+    /// Scale, one factor or x, y, z.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scale: Option<Scale>,
+    /// The placement as a 4×4 affine matrix, rows as written (in place of the three above).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub matrix: Option<[[f64; 4]; 4]>,
+    /// Whether coefficients are per world unit or, as Cycles' *Object* space, per unit of
+    /// the placed volume.
+    #[serde(default, skip_serializing_if = "defaults::is_world")]
+    pub space: VolumeSpace,
 }
 
 impl VolumeInput {
@@ -251,6 +269,22 @@ impl VolumeInput {
             interpolation: Interpolation::default(),
             velocity_grid: None,
             velocity_scale: 1.0,
+            translate: None,
+            rotate: None,
+            scale: None,
+            matrix: None,
+            space: VolumeSpace::World,
+        }
+    }
+
+    /// The placement keys together (`placement::Placement::transform` makes the map).
+    #[must_use]
+    pub fn placement(&self) -> Placement {
+        Placement {
+            translate: self.translate,
+            rotate: self.rotate,
+            scale: self.scale,
+            matrix: self.matrix,
         }
     }
 }
@@ -521,6 +555,10 @@ impl IntegratorSettings {
 
 /// Defaults that serde needs as functions.
 mod defaults {
+    pub fn is_world(space: &super::VolumeSpace) -> bool {
+        *space == super::VolumeSpace::World
+    }
+
     pub(super) fn density_grid() -> String {
         "density".into()
     }

@@ -80,6 +80,7 @@ impl Shot {
         motion(scene)?;
         camera_motion(&scene.camera)?;
         grids(&scene.volume)?;
+        scene.volume.placement().transform("volume")?;
         job_settings(job, &scene.camera)?;
         Ok(ValidShot(self))
     }

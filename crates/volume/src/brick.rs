@@ -219,6 +219,18 @@ impl Volume {
         self.index_from_world
     }
 
+    /// The volume placed in the world by `world_from_file` (invertible), applied after
+    /// the file's own transform: `world_from_index` becomes `world_from_file ·
+    /// world_from_index`. Index space, and so every brick, value and pyramid node, stays
+    /// as it is; what is built from world space (majorants, the FNEE proxy, the camera's
+    /// framing) is built after.
+    #[must_use]
+    pub fn placed(mut self, world_from_file: DAffine3) -> Volume {
+        self.world_from_index = world_from_file * self.world_from_index;
+        self.index_from_world = self.world_from_index.inverse();
+        self
+    }
+
     /// Index-space box covered by the brick table: `[lo, hi]`, voxel faces included.
     pub fn index_bounds(&self) -> Bounds3 {
         let lo = (self.brick_lo * BRICK).as_dvec3() - 0.5;

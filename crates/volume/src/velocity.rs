@@ -113,6 +113,24 @@ impl VelocityGrid {
         })
     }
 
+    /// The grid placed in the world by `world_from_file` (invertible), as the volume it
+    /// moves ([`crate::Volume::placed`]): positions through the whole map, and the
+    /// velocities, world vectors, through its linear part (so a volume scaled by 2 moves
+    /// twice as far, and a rotated one along its rotated flow).
+    #[must_use]
+    pub fn placed(mut self, world_from_file: DAffine3) -> VelocityGrid {
+        let linear = world_from_file.matrix3;
+        self.index_from_world *= world_from_file.inverse();
+        let mut max2 = 0.0f64;
+        for v in &mut self.values {
+            let w = linear * DVec3::new(f64::from(v[0]), f64::from(v[1]), f64::from(v[2]));
+            *v = [w.x as f32, w.y as f32, w.z as f32];
+            max2 = max2.max(v.iter().map(|c| f64::from(*c).powi(2)).sum::<f64>());
+        }
+        self.max_speed = max2.sqrt();
+        self
+    }
+
     /// Bytes held.
     #[must_use]
     pub fn memory_bytes(&self) -> usize {

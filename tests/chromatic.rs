@@ -247,7 +247,7 @@ fn explosion(medium: Medium, light_sampling: LightSampling) -> Scene<Volume> {
 }
 
 /// Mean and standard error over runs of each channel's image mean.
-fn image_means(scene: &Scene<Volume>, integ: Integrator, seed0: u64) -> [(f64, f64); 3] {
+fn image_means<F: Field>(scene: &Scene<F>, integ: Integrator, seed0: u64) -> [(f64, f64); 3] {
     let per_run: Vec<[f64; 3]> = (0..12u64)
         .map(|k| {
             let settings = plume_engine::render::RenderSettings {
@@ -275,10 +275,19 @@ fn each_channel_of_a_chromatic_render_is_the_grey_medium_of_that_channel() {
     let e = common::explosion_emission();
     let chromatic = Medium::principled(4.0, COLOR, ABSORPTION, G, e);
     let methods = [
-        (Estimator::Line, Some(Estimator::RayMarch), LightSampling::Fnee),
-        (Estimator::Point, None, LightSampling::Nee),
+        (Estimator::Line, Some(Estimator::RayMarch), LightSampling::Fnee, Interpolation::Nearest),
+        (Estimator::Line, Some(Estimator::RayMarch), LightSampling::Fnee, Interpolation::Linear),
+        (Estimator::Point, None, LightSampling::Nee, Interpolation::Nearest),
     ];
-    for (estimator, camera_estimator, light_sampling) in methods {
+    // Either reconstruction of the explosion in `medium`
+    let means = |medium, light_sampling, interpolation, integ, seed| match AnyScene::new(
+        explosion(medium, light_sampling),
+        interpolation,
+    ) {
+        AnyScene::Nearest(s) => image_means(&s, integ, seed),
+        AnyScene::Linear(s) => image_means(&s, integ, seed),
+    };
+    for (estimator, camera_estimator, light_sampling, interpolation) in methods {
         let integ = Integrator {
             camera_estimator,
             light_sampling,
@@ -286,16 +295,16 @@ fn each_channel_of_a_chromatic_render_is_the_grey_medium_of_that_channel() {
             split: 2,
             ..integrator(estimator, 64)
         };
-        let got = image_means(&explosion(chromatic, light_sampling), integ, 100);
+        let got = means(chromatic, light_sampling, interpolation, integ, 100);
         for (c, k) in k().iter().enumerate() {
             let albedo = Rgb::splat((f64::from(COLOR[c]) / k) as f32);
             let grey = Medium::principled(4.0 * k, albedo.0, [0.0; 3], G, e);
-            let want = image_means(&explosion(grey, light_sampling), integ, 200)[c];
+            let want = means(grey, light_sampling, interpolation, integ, 200)[c];
             let ((m, se), (rm, rse)) = (got[c], want);
             let z = (m - rm) / (se * se + rse * rse).sqrt().max(1e-300);
             assert!(
                 z.abs() < 4.0,
-                "{light_sampling:?} channel {c}: {m} ± {se} vs grey {rm} ± {rse}"
+                "{light_sampling:?} {interpolation:?} channel {c}: {m} ± {se} vs grey {rm} ± {rse}"
             );
         }
         assert!(got[0].0 > 1.05 * got[2].0, "the colour shows: {got:?}");

@@ -3,7 +3,8 @@
 //! estimator (emission, a sun's single scattering, shadow transmittance), the trilinear
 //! walk against its own expected value, Cycles' mapping, and through the binary: a black
 //! absorption colour is today's grey medium bit for bit, renders are the same bits on any
-//! number of threads, and what cannot go with it is refused naming the key.
+//! number of threads, parts and resumes, extreme densities stay finite, a channel without
+//! extinction is transparent, and what cannot go with it is refused naming the key.
 //! Fixed seeds; means within 4 standard errors of the samples' own spread.
 
 use crate::common;
@@ -383,4 +384,39 @@ fn what_chromatic_extinction_cannot_go_with_is_refused_naming_the_key() {
         assert_eq!(err.trim_end().lines().count(), 1, "{err}");
         assert!(!out.exists());
     }
+}
+
+#[test]
+fn extremes_stay_finite_and_a_channel_without_extinction_is_transparent() {
+    let dir = tmpdir("chromatic", "extremes");
+    let ex = common::explosion(&dir, 16, Some(2));
+    let render = |name: &str, extra: &[&str]| {
+        let out = dir.join(format!("{name}.exr"));
+        let mut args = vec!["render", s(&ex), "-o", s(&out), "--width", "16", "--height", "12"];
+        args.extend_from_slice(&["--spp", "4", "-q"]);
+        args.extend_from_slice(extra);
+        let o = plume(&args);
+        assert!(o.status.success(), "{name}: {}", stderr(&o));
+        common::exr_pixels(&out)
+    };
+    let coloured = ["--albedo", "0.8,0.5,0.2", "--absorption-color", "0.2,0.5,0.8"];
+    for scale in ["1e-6", "1e6"] {
+        for method in ["line-fnee", "point-nee", "ray-march"] {
+            let px = render(
+                "x",
+                &[&coloured[..], &["--density-scale", scale, "--method", method]].concat(),
+            );
+            assert!(px.iter().flatten().all(|v| v.is_finite()), "{scale} {method}");
+        }
+    }
+    // Red: Color 0 and Absorption Color 1 make k = 0, so red is the unattenuated emission,
+    // which a nearly empty medium shows too (both camera rays ray-marched: the same points)
+    let transparent = render("red", &["--albedo", "0,0.5,0.9", "--absorption-color", "1,0.5,0.1"]);
+    let thin = render(
+        "thin",
+        &["--density-scale", "1e-9", "--albedo", "0", "--camera-estimator", "ray-march"],
+    );
+    let red = |px: &[[f32; 4]]| px.iter().map(|p| f64::from(p[0])).sum::<f64>();
+    let (a, b) = (red(&transparent), red(&thin));
+    assert!((a - b).abs() <= 1e-6 * b, "red {a} vs an empty medium's {b}");
 }

@@ -73,7 +73,6 @@ impl VelocityGrid {
         }
         let mut leaves: HashMap<IVec3, usize> = HashMap::new();
         let mut values: Vec<[f32; 3]> = Vec::new();
-        let mut max2 = 0.0f64;
         for (axis, c) in components.iter().enumerate() {
             for (leaf, &origin) in c.origins.iter().enumerate() {
                 let base = *leaves.entry(origin).or_insert_with(|| {
@@ -90,11 +89,9 @@ impl VelocityGrid {
                 }
             }
         }
-        for v in &values {
-            max2 = max2.max(v.iter().map(|c| f64::from(*c).powi(2)).sum::<f64>());
-        }
         // World velocity: the components are world-space vectors (Blender, Houdini)
-        Ok(VelocityGrid { index_from_world: xf.inverse(), leaves, values, max_speed: max2.sqrt() })
+        let max_speed = max_speed(&values);
+        Ok(VelocityGrid { index_from_world: xf.inverse(), leaves, values, max_speed })
     }
 
     /// Velocity at world point `p`: the nearest voxel's, 0 outside the leaves.
@@ -121,13 +118,11 @@ impl VelocityGrid {
     pub fn placed(mut self, world_from_file: DAffine3) -> VelocityGrid {
         let linear = world_from_file.matrix3;
         self.index_from_world *= world_from_file.inverse();
-        let mut max2 = 0.0f64;
         for v in &mut self.values {
             let w = linear * DVec3::new(f64::from(v[0]), f64::from(v[1]), f64::from(v[2]));
             *v = [w.x as f32, w.y as f32, w.z as f32];
-            max2 = max2.max(v.iter().map(|c| f64::from(*c).powi(2)).sum::<f64>());
         }
-        self.max_speed = max2.sqrt();
+        self.max_speed = max_speed(&self.values);
         self
     }
 
@@ -136,4 +131,13 @@ impl VelocityGrid {
     pub fn memory_bytes(&self) -> usize {
         self.values.len() * 12 + self.leaves.len() * 24
     }
+}
+
+/// The largest speed among `values` (world units per second).
+fn max_speed(values: &[[f32; 3]]) -> f64 {
+    values
+        .iter()
+        .map(|v| v.iter().map(|c| f64::from(*c).powi(2)).sum::<f64>())
+        .fold(0.0, f64::max)
+        .sqrt()
 }

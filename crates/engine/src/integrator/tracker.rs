@@ -461,12 +461,7 @@ impl<F: Field> Tracker<'_, F> {
                     optical_depth(field, medium, ray, t_max, medium.extinction.od_stop());
                 let (transmittance, channels) = match &medium.extinction {
                     Extinction::Grey => ((-od).exp(), [1.0; 3]),
-                    Extinction::Chromatic(chromatic) => {
-                        let taus = chromatic.transmittances(od);
-                        let mean = (taus[0] + taus[1] + taus[2]) / 3.0;
-                        let channels = if mean > 0.0 { taus.map(|t| t / mean) } else { [1.0; 3] };
-                        (mean, channels)
-                    }
+                    Extinction::Chromatic(chromatic) => chromatic.transmittance_ratios(od, 1.0),
                 };
                 ShadowResult { transmittance, voxel_steps, tentative_points: 0, channels }
             }

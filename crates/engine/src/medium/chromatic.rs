@@ -29,7 +29,7 @@ use super::emission::EmissionMemo;
 use super::extinction::Chromatic;
 use super::forced::Collision;
 use super::free_path::{
-    analog_collision, phi, sample_exponential, Channels, DistanceSample, TrackResult,
+    analog_collision, collision_at, phi, sample_exponential, Channels, DistanceSample, TrackResult,
 };
 use super::tracking::{emission_at, march_roulette, Estimator};
 use plume_core::sampling::{Dim, Sampler};
@@ -124,22 +124,21 @@ impl<F: Field> Walk<'_, F> {
         let mut f = [0.0f64; 3];
         let mut segments = 0u32;
         let mut xi: Option<f64> = None;
+        // The point estimator's score at the collision, before its channels' weights
+        let mut point = [0.0f64; 3];
         let mut it = self.field.segments(self.ray, 0.0, self.t_max);
         let end = it.visit(|piece| {
             segments += 1;
             let constant = piece.constant();
             let Read { len, x, emits } = self.read(piece, constant);
-            // The collision, as a distance into the piece
-            let hit = (od + x > target).then(|| match constant {
-                Some(seg) => (target - od) / self.medium.mu_t(seg.density),
-                None => piece.free_path(self.medium.sigma_t, target - od),
-            });
+            // The collision, and its distance into the piece
+            let hit = (od + x > target).then(|| collision_at(piece, self.medium, target - od));
             let alpha = match estimator {
                 Estimator::Point => 0.0,
                 Estimator::Blend { kappa } => 1.0 / (1.0 + kappa * x),
                 Estimator::Line | Estimator::RayMarch => 1.0,
             };
-            let crossed = hit.map_or(len, |u| u.clamp(0.0, len));
+            let crossed = hit.map_or(len, |(u, _)| u.clamp(0.0, len));
             if alpha > 0.0 && emits && crossed > 0.0 {
                 // One point of the crossed part carries its ratio τ_c/τ̄
                 let s = *xi.get_or_insert_with(|| sampler.get_1d(Dim::OnePoint)) * crossed;
@@ -149,34 +148,17 @@ impl<F: Field> Walk<'_, F> {
                     f[c] += alpha * crossed * le[c] * r[c];
                 }
             }
-            let Some(u) = hit else {
+            let Some((u, event)) = hit else {
                 od += x;
                 return ControlFlow::Continue(());
             };
-            let event = match constant {
-                Some(seg) => DistanceSample::Collided {
-                    t: (seg.t0 + u).clamp(seg.t0, seg.t1),
-                    density: seg.density,
-                    source: seg.source,
-                    albedo: seg.albedo,
-                },
-                None => DistanceSample::Collided {
-                    t: (piece.t0() + u).clamp(piece.t0(), piece.t1()),
-                    density: piece.density_at(u),
-                    source: piece.source_at(u),
-                    albedo: piece.albedo_at(u),
-                },
-            };
+            // The point part's `(1 − α) L_e/μ`, weighted once the collision's weights are
             if let (true, true, DistanceSample::Collided { density, .. }) =
                 (alpha < 1.0, emits, event)
             {
                 let mu = self.medium.mu_t(density);
                 if mu > 0.0 {
-                    let le = self.le_at(piece, constant, u);
-                    let w = chromatic.collision_weights(target);
-                    for c in 0..3 {
-                        f[c] += (1.0 - alpha) * le[c] / mu * w[c];
-                    }
+                    point = self.le_at(piece, constant, u).map(|v| (1.0 - alpha) * v / mu);
                 }
             }
             ControlFlow::Break(event)
@@ -185,6 +167,9 @@ impl<F: Field> Walk<'_, F> {
         let (event, transmittance, optical_depth, channels) = match end {
             ControlFlow::Break(event) => {
                 let collision = chromatic.collision_weights(target);
+                for c in 0..3 {
+                    f[c] += point[c] * collision[c];
+                }
                 (event, 0.0, target, Channels { collision, ..Channels::GREY })
             }
             ControlFlow::Continue(()) => {
@@ -260,17 +245,12 @@ impl<F: Field> Walk<'_, F> {
             }
             ControlFlow::Continue(())
         });
-        let taus =
-            if marching { chromatic.transmittances(od).map(|t| t * weight) } else { [0.0; 3] };
-        let transmittance = (taus[0] + taus[1] + taus[2]) / 3.0;
+        let (transmittance, ratios) =
+            if marching { chromatic.transmittance_ratios(od, weight) } else { (0.0, [1.0; 3]) };
         let collided = matches!(event, DistanceSample::Collided { .. });
         let channels = Channels {
             collision: if collided { chromatic.collision_weights(target) } else { [1.0; 3] },
-            transmittance: if transmittance > 0.0 {
-                taus.map(|t| t / transmittance)
-            } else {
-                [1.0; 3]
-            },
+            transmittance: ratios,
         };
         TrackResult {
             event,

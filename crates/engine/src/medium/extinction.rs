@@ -127,6 +127,17 @@ impl Chromatic {
         self.k.map(|k| (-k * od).exp())
     }
 
+    /// Each channel's transmittance at optical depth `od` times `weight`, as their mean and
+    /// each channel's ratio to it (`τ_c · weight = mean · ratio_c`; ratios 1 where the mean
+    /// is 0): what a walk reports as `transmittance` and its channels.
+    #[inline]
+    #[must_use]
+    pub fn transmittance_ratios(&self, od: f64, weight: f64) -> (f64, [f64; 3]) {
+        let taus = self.transmittances(od).map(|t| t * weight);
+        let mean = (taus[0] + taus[1] + taus[2]) / 3.0;
+        (mean, if mean > 0.0 { taus.map(|t| t / mean) } else { [1.0; 3] })
+    }
+
     /// `τ_c / τ̄` at optical depth `od`: an escape's weights, and the line estimator's
     /// ratio at a point before the collision.
     #[inline]

@@ -130,25 +130,35 @@ pub fn sample_exponential(u: f64) -> f64 {
 /// analog collision, and where a forced one falls (`medium::forced`).
 #[inline]
 pub fn analog_collision<P: Piece>(piece: &P, medium: &Medium, od_left: f64) -> DistanceSample {
+    collision_at(piece, medium, od_left).1
+}
+
+/// [`analog_collision`] and its distance `u` into the piece (before `t` is clamped to the
+/// piece), for a walk that also reads the piece up to it (`medium::chromatic`).
+#[inline]
+pub fn collision_at<P: Piece>(piece: &P, medium: &Medium, od_left: f64) -> (f64, DistanceSample) {
     match piece.constant() {
         Some(seg) => {
-            let t = (seg.t0 + od_left / medium.mu_t(seg.density)).clamp(seg.t0, seg.t1);
-            DistanceSample::Collided {
+            let u = od_left / medium.mu_t(seg.density);
+            let t = (seg.t0 + u).clamp(seg.t0, seg.t1);
+            let event = DistanceSample::Collided {
                 t,
                 density: seg.density,
                 source: seg.source,
                 albedo: seg.albedo,
-            }
+            };
+            (u, event)
         }
         None => {
             let u = piece.free_path(medium.sigma_t, od_left);
             let t = (piece.t0() + u).clamp(piece.t0(), piece.t1());
-            DistanceSample::Collided {
+            let event = DistanceSample::Collided {
                 t,
                 density: piece.density_at(u),
                 source: piece.source_at(u),
                 albedo: piece.albedo_at(u),
-            }
+            };
+            (u, event)
         }
     }
 }

@@ -232,16 +232,22 @@ class Cycles:
 
     def set_albedo(self, albedo):
         """Principled Volume with the conventions of the module docs."""
+        self.set_principled((albedo, albedo, albedo))
+
+    def set_principled(self, color, absorption=(0.0, 0.0, 0.0)):
+        """Principled Volume with the conventions of the module docs, but for the
+        scattering Color `color` and the Absorption Color `absorption` (black: grey
+        extinction)."""
         m = self.material
         m.use_nodes = True
         nodes, links = m.node_tree.nodes, m.node_tree.links
         nodes.clear()
         out = nodes.new("ShaderNodeOutputMaterial")
         pv = nodes.new("ShaderNodeVolumePrincipled")
-        pv.inputs["Color"].default_value = (albedo, albedo, albedo, 1.0)
+        pv.inputs["Color"].default_value = (*color, 1.0)
         pv.inputs["Density"].default_value = 1.0
         pv.inputs["Density Attribute"].default_value = self.spec["density"]
-        pv.inputs["Absorption Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+        pv.inputs["Absorption Color"].default_value = (*absorption, 1.0)
         pv.inputs["Anisotropy"].default_value = 0.0
         kind, grid = self.spec["emission"]
         if kind == "blackbody":

@@ -133,6 +133,24 @@ def cycles_volume(cycles, albedo, density):
     links.new(pv.outputs["Volume"], out.inputs["Volume"])
 
 
+def seed_pairs(cycles, a, case, cmd, flags, label):
+    """Cycles (as set up) and plume (`cmd` with the case's `flags`, all but its seed and
+    output) each render `a.spp` samples with seeds 0 and 1 into `a.out`; returns both
+    renderers' images and Cycles' CPU seconds. `label` names the script in progress lines."""
+    print(f"{label}: {case}: Cycles", file=sys.stderr, flush=True)
+    c_runs, p_runs, c_cpu = [], [], 0.0
+    for seed in (0, 1):
+        c_path = os.path.join(a.out, f"{case}_cycles_{seed}.exr")
+        c_cpu += cycles.render(a.spp, c_path, seed=seed)
+        c_runs.append(read_rgb(c_path))
+    print(f"{label}: {case}: plume {' '.join(flags)}", file=sys.stderr, flush=True)
+    for seed in (0, 1):
+        p_path = os.path.join(a.out, f"{case}_plume_{seed}.exr")
+        subprocess.run(cmd + flags + ["--seed", str(seed), "-o", p_path], check=True)
+        p_runs.append(read_rgb(p_path))
+    return c_runs, p_runs, c_cpu
+
+
 def stats(runs):
     """Mean of two independent renders, the standard error of that mean (per-pixel
     variance from their difference), and the four quadrants' means."""
@@ -142,12 +160,6 @@ def stats(runs):
     h, w = img.shape[:2]
     q = [img[:h // 2, :w // 2], img[:h // 2, w // 2:], img[h // 2:, :w // 2], img[h // 2:, w // 2:]]
     return float(img.mean()), se, [float(x.mean()) for x in q]
-
-
-def bpy_scene():
-    import bpy
-
-    return bpy.context.scene
 
 
 def main():
@@ -164,22 +176,11 @@ def main():
     results = []
     for case in a.cases:
         flags = cycles_lights(cycles, case, centre, radius, map_path)
-        print(f"compare_lights: {case}: Cycles", file=sys.stderr, flush=True)
-        c_runs, p_runs, c_cpu = [], [], 0.0
-        for seed in (0, 1):
-            c_path = os.path.join(a.out, f"{case}_cycles_{seed}.exr")
-            bpy_scene().cycles.seed = seed
-            c_cpu += cycles.render(a.spp, c_path)
-            c_runs.append(read_rgb(c_path))
-        print(f"compare_lights: {case}: plume {' '.join(flags)}", file=sys.stderr, flush=True)
         cmd = [a.plume, "render", os.path.join(a.data, spec["path"]), "--density-grid", spec["density"], "--emission", "none", "--up-axis", "z"]
         cmd += ["--camera-from", ",".join(map(repr, cam["from"])), "--camera-at", ",".join(map(repr, cam["at"])), "--camera-up", "0,0,1"]
         cmd += ["--fov", repr(a.fov), "--width", str(a.size), "--height", str(a.size), "--spp", str(a.spp), "--threads", str(a.threads)]
         cmd += ["--max-depth", str(a.max_depth), "--g", "0", "--albedo", repr(a.albedo), "--method", "line-fnee", "--overwrite", "-q"]
-        for seed in (0, 1):
-            p_path = os.path.join(a.out, f"{case}_plume_{seed}.exr")
-            subprocess.run(cmd + flags + ["--seed", str(seed), "-o", p_path], check=True)
-            p_runs.append(read_rgb(p_path))
+        c_runs, p_runs, c_cpu = seed_pairs(cycles, a, case, cmd, flags, "compare_lights")
         (cm, cse, cq), (pm, pse, pq) = stats(c_runs), stats(p_runs)
         results.append({"case": case, "flags": flags, "cycles_mean": cm, "cycles_se": cse, "plume_mean": pm, "plume_se": pse, "cycles_quadrants": cq, "plume_quadrants": pq, "cycles_cpu": c_cpu})
         with open(os.path.join(a.out, "results.json"), "w") as f:

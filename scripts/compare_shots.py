@@ -30,13 +30,11 @@ import argparse
 import json
 import math
 import os
-import subprocess
 import sys
 
-import numpy as np
-
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from compare_cycles import FILES, Cycles, read_rgb  # noqa: E402
+from compare_cycles import FILES, Cycles  # noqa: E402
+from compare_lights import seed_pairs, stats  # noqa: E402
 
 
 def parse_args():
@@ -62,26 +60,6 @@ def parse_args():
     return a
 
 
-def principled(cycles, color, absorption):
-    """Principled Volume: density 1 x the grid, blackbody of the Kelvin grid."""
-    m = cycles.material
-    m.use_nodes = True
-    nodes, links = m.node_tree.nodes, m.node_tree.links
-    nodes.clear()
-    out = nodes.new("ShaderNodeOutputMaterial")
-    pv = nodes.new("ShaderNodeVolumePrincipled")
-    pv.inputs["Color"].default_value = (*color, 1.0)
-    pv.inputs["Density"].default_value = 1.0
-    pv.inputs["Density Attribute"].default_value = cycles.spec["density"]
-    pv.inputs["Absorption Color"].default_value = (*absorption, 1.0)
-    pv.inputs["Anisotropy"].default_value = 0.0
-    pv.inputs["Blackbody Intensity"].default_value = 1.0
-    pv.inputs["Blackbody Tint"].default_value = (1.0, 1.0, 1.0, 1.0)
-    pv.inputs["Temperature"].default_value = 1.0
-    pv.inputs["Temperature Attribute"].default_value = cycles.spec["emission"][1]
-    links.new(pv.outputs["Volume"], out.inputs["Volume"])
-
-
 def lens(a, camera):
     """The `dof` case's thin lens: focal length (mm), F-stop, focus distance."""
     distance = math.dist(camera["from"], camera["at"])
@@ -102,10 +80,10 @@ def set_case(cycles, a, case):
     cam.angle = math.radians(a.fov)
     rgb = lambda v: ",".join(repr(x) for x in v)  # noqa: E731
     if case == "coloured":
-        principled(cycles, a.color, a.absorption)
+        cycles.set_principled(a.color, a.absorption)
         return ["--fov", repr(a.fov), "--albedo", rgb(a.color), "--absorption-color", rgb(a.absorption)]
     if case == "dof":
-        principled(cycles, [a.albedo_grey] * 3, [0.0] * 3)
+        cycles.set_albedo(a.albedo_grey)
         t = lens(a, cycles.camera)
         cam.lens_unit = "MILLIMETERS"
         cam.sensor_width = 36.0
@@ -117,7 +95,7 @@ def set_case(cycles, a, case):
         return ["--focal-length", repr(t["focal"]), "--sensor-width", "36", "--fstop", repr(t["fstop"]),
                 "--focus-distance", repr(t["focus"]), "--albedo", repr(a.albedo_grey)]
     if case == "placed":
-        principled(cycles, [a.albedo_grey] * 3, [0.0] * 3)
+        cycles.set_albedo(a.albedo_grey)
         r = math.dist(cycles.camera["from"], cycles.camera["at"])
         move, turn, scale = (0.04 * r, 0.0, 0.03 * r), (10.0, 15.0, 20.0), (1.2, 0.8, 1.0)
         obj.location = move
@@ -128,18 +106,11 @@ def set_case(cycles, a, case):
     sys.exit(f"compare_shots: unknown case {case!r}")
 
 
-def stats(runs):
+def channel_stats(runs):
     """Per channel: mean of two independent renders and the standard error of that mean
-    (per-pixel variance from their difference); the four quadrants' means (RGB)."""
-    img = 0.5 * (runs[0] + runs[1])
-    means, ses = [], []
-    for c in range(3):
-        var_pixel = np.var(runs[0][..., c] - runs[1][..., c], ddof=1) / 2.0
-        means.append(float(img[..., c].mean()))
-        ses.append(math.sqrt(var_pixel / (2 * runs[0][..., c].size)))
-    h, w = img.shape[:2]
-    q = [img[:h // 2, :w // 2], img[:h // 2, w // 2:], img[h // 2:, :w // 2], img[h // 2:, w // 2:]]
-    return means, ses, [float(x.mean()) for x in q]
+    (`compare_lights.stats` of the channel); the four quadrants' means (RGB)."""
+    per = [stats([r[..., c] for r in runs]) for c in range(3)]
+    return [m for m, _, _ in per], [se for _, se, _ in per], stats(runs)[2]
 
 
 def main():
@@ -148,28 +119,16 @@ def main():
     spec = FILES[a.file]
     cycles = Cycles(a, spec)
     cam = cycles.camera
-    scene = cycles.bpy.context.scene
     results = []
     for case in a.cases:
         flags = set_case(cycles, a, case)
-        print(f"compare_shots: {case}: Cycles", file=sys.stderr, flush=True)
-        c_runs, p_runs = [], []
-        for seed in (0, 1):
-            c_path = os.path.join(a.out, f"{case}_cycles_{seed}.exr")
-            scene.cycles.seed = seed
-            cycles.render(a.spp, c_path, seed=seed)
-            c_runs.append(read_rgb(c_path))
-        print(f"compare_shots: {case}: plume {' '.join(flags)}", file=sys.stderr, flush=True)
         cmd = [a.plume, "render", os.path.join(a.data, spec["path"]), "--density-grid", spec["density"], "--convention", "cycles"]
         cmd += ["--emission", "blackbody", "--temperature-grid", spec["emission"][1], "--up-axis", "z"]
         cmd += ["--camera-from", ",".join(map(repr, cam["from"])), "--camera-at", ",".join(map(repr, cam["at"])), "--camera-up", "0,0,1"]
         cmd += ["--width", str(a.size), "--height", str(a.size), "--spp", str(a.spp), "--threads", str(a.threads)]
         cmd += ["--max-depth", str(a.max_depth), "--g", "0", "--method", "line-fnee", "--overwrite", "-q"]
-        for seed in (0, 1):
-            p_path = os.path.join(a.out, f"{case}_plume_{seed}.exr")
-            subprocess.run(cmd + flags + ["--seed", str(seed), "-o", p_path], check=True)
-            p_runs.append(read_rgb(p_path))
-        (cm, cse, cq), (pm, pse, pq) = stats(c_runs), stats(p_runs)
+        c_runs, p_runs, _ = seed_pairs(cycles, a, case, cmd, flags, "compare_shots")
+        (cm, cse, cq), (pm, pse, pq) = channel_stats(c_runs), channel_stats(p_runs)
         results.append({"case": case, "flags": flags, "cycles_means": cm, "cycles_se": cse, "plume_means": pm, "plume_se": pse,
                         "cycles_quadrants": cq, "plume_quadrants": pq})
         with open(os.path.join(a.out, "results.json"), "w") as f:

@@ -281,12 +281,9 @@ fn each_channel_of_a_chromatic_render_is_the_grey_medium_of_that_channel() {
         (Estimator::Point, None, LightSampling::Nee, Interpolation::Nearest),
     ];
     // Either reconstruction of the explosion in `medium`
-    let means = |medium, light_sampling, interpolation, integ, seed| match AnyScene::new(
-        explosion(medium, light_sampling),
-        interpolation,
-    ) {
-        AnyScene::Nearest(s) => image_means(&s, integ, seed),
-        AnyScene::Linear(s) => image_means(&s, integ, seed),
+    let means = |medium, light_sampling, interpolation, integ, seed| {
+        let any = AnyScene::new(explosion(medium, light_sampling), interpolation);
+        plume_engine::with_scene!(any, s => image_means(&s, integ, seed))
     };
     for (estimator, camera_estimator, light_sampling, interpolation) in methods {
         let integ = Integrator {

@@ -340,7 +340,9 @@ fn a_collision_record_holds_what_its_estimator_reads() {
             let mut s = Sampler::new(5, 0, i);
             let u = s.next_f64();
             let r = null_track(&grid, &field, &m, &ray, f64::INFINITY, estimator, true, u, &mut s);
-            let DistanceSample::Collided { t, density, source, albedo } = r.event else { continue };
+            let DistanceSample::Collided { t, density, source, albedo, .. } = r.event else {
+                continue;
+            };
             collided += 1;
             assert_eq!(albedo, 0.37, "{estimator:?}: the albedo factor at the collision");
             if estimator == Estimator::Point {

@@ -24,6 +24,7 @@ pub mod light;
 pub mod medium;
 pub mod moments;
 pub mod noise;
+pub mod overlap;
 pub mod pilot;
 pub mod render;
 pub mod stats;

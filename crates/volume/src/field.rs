@@ -14,6 +14,7 @@ use glam::DVec3;
 
 use plume_core::color::Rgb;
 
+pub use crate::overlap::{ClassWeights, PieceCubics, ScatterClass};
 pub use crate::values::{Bounds3, VoxelValues};
 
 /// A piece of a ray over which density and emission source are constant.
@@ -97,6 +98,16 @@ pub trait Piece: Copy + std::fmt::Debug {
     fn may_emit(&self) -> bool {
         true
     }
+    /// The piece's density and emission density from `offset` on, as cubics in
+    /// `u − offset` (what a field of overlapping volumes sums: `volume::overlap`).
+    fn cubics(&self, le: &impl Fn(f32, f32) -> Rgb, offset: f64) -> PieceCubics;
+    /// Where several volumes overlap, the share of each scattering class in a collision at
+    /// `u` (`volume::overlap`); `None` for one volume's piece, whose collisions scatter
+    /// with its own medium.
+    #[inline]
+    fn class_weights(&self, _u: f64) -> Option<ClassWeights> {
+        None
+    }
     /// [`Piece::optical_depth`] and [`Piece::emission_integral`] over `[0, u]` together
     /// (a piece may share work between them; emission is 0 where [`Piece::may_emit`] is
     /// false).
@@ -156,6 +167,16 @@ impl Piece for Segment {
     #[inline]
     fn emission_integral(&self, le: &impl Fn(f32, f32) -> Rgb, u: f64) -> [f64; 3] {
         le(self.density, self.source).to_f64().map(|c| c * u)
+    }
+    #[inline]
+    fn cubics(&self, le: &impl Fn(f32, f32) -> Rgb, _offset: f64) -> PieceCubics {
+        let emits = self.source != 0.0;
+        let e = if emits { le(self.density, self.source).to_f64() } else { [0.0; 3] };
+        PieceCubics {
+            density: [f64::from(self.density), 0.0, 0.0, 0.0],
+            emission: e.map(|c| [c, 0.0, 0.0, 0.0]),
+            emits,
+        }
     }
 }
 
@@ -370,6 +391,21 @@ pub trait Field: Sync {
     /// brick table); `None` for an analytic field.
     fn voxels(&self) -> Option<&super::Volume> {
         None
+    }
+
+    /// The scattering classes of a field of several volumes, which its pieces'
+    /// [`Piece::class_weights`] index (`volume::overlap`); empty for one volume.
+    fn scatter_classes(&self) -> &[ScatterClass] {
+        &[]
+    }
+
+    /// The field as camera rays see it: itself, or a field of several volumes without
+    /// those hidden from the camera.
+    fn camera_view(&self) -> &Self
+    where
+        Self: Sized,
+    {
+        self
     }
 }
 

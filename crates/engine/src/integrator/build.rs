@@ -30,7 +30,7 @@ impl Integrator {
             camera_estimator: camera_estimator.or(scene.scatters().then_some(Estimator::RayMarch)),
             light_sampling,
             mis: scene.integrator.mis,
-            max_depth: if scene.albedo() > 0.0 { scene.integrator.max_depth } else { 0 },
+            max_depth: if scene.scatters() { scene.integrator.max_depth } else { 0 },
             tracking: scene.integrator.tracking.resolve(estimator, light_sampling),
             split: scene.integrator.split,
             split_by: scene.integrator.split_by,

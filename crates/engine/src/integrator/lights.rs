@@ -6,6 +6,7 @@
 //! weights).
 
 use crate::light::external::ExternalLights;
+use crate::light::mixture::{ProxyMixture, VolumeProxy};
 use crate::light::nee::EmitterDistribution;
 pub use plume_scene::sets::{LightSampling, MisHeuristic};
 use plume_scene::NeeTable;
@@ -18,6 +19,8 @@ pub struct Lights {
     pub nee: Option<EmitterDistribution>,
     /// FNEE proxy grid.
     pub proxy: Option<ProxyGrid>,
+    /// FNEE over several volumes (`light::mixture`), in place of `proxy`.
+    pub proxies: Option<ProxyMixture>,
     /// Lights besides the volume (`light::external`); `None` costs nothing.
     pub external: Option<ExternalLights>,
 }
@@ -68,6 +71,18 @@ impl Lights {
 }
 
 impl Lights {
+    /// The proxy FNEE samples the volume's emission through, if any: one volume's, or
+    /// several volumes' mixture.
+    #[inline]
+    #[must_use]
+    pub fn volume_proxy(&self) -> Option<VolumeProxy<'_>> {
+        match (&self.proxy, &self.proxies) {
+            (Some(p), _) => Some(VolumeProxy::One(p)),
+            (None, Some(m)) => Some(VolumeProxy::Several(m)),
+            (None, None) => None,
+        }
+    }
+
     /// The same structures for a volume reconstructed by `interpolation`: NEE draws its
     /// points from the voxel's box or from the trilinear hat (`light/nee.rs`); FNEE's proxy
     /// only guides directions and stays as it is (METHOD.md §12).
@@ -86,4 +101,12 @@ impl Lights {
 pub fn light_power(emission: &crate::medium::Emission) -> impl Fn(f32, f32) -> f64 + Sync {
     let power = crate::light::power::LightPower::new(emission);
     move |d: f32, s: f32| power.power(d, s)
+}
+
+/// The weight `Φ_i` by which FNEE over several volumes chooses a volume's proxy
+/// (`light::mixture`): its total power times the emission scale and the luminance of the
+/// tint, which [`light_power`] leaves out.
+#[must_use]
+pub fn proxy_weight(proxy: &ProxyGrid, emission: &crate::medium::Emission) -> f64 {
+    proxy.total_power() * f64::from(emission.scale) * f64::from(emission.color.luminance())
 }

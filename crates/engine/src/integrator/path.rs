@@ -4,7 +4,7 @@
 //! integrators, which keep a path's state in one place rather than in loose arguments.
 
 use plume_core::sampling::Sampler;
-use plume_volume::field::Ray;
+use plume_volume::field::{ClassWeights, Ray};
 
 use super::aov::{Aovs, Component};
 use super::counters::Counters;
@@ -61,13 +61,16 @@ pub(crate) fn times(beta: Beta, w: f64) -> Beta {
 }
 
 /// A collision a scattered path starts from: at `incoming.at(t)`, in a segment with
-/// albedo factor `albedo`, carrying throughput `beta` (before the albedo) of a path whose
+/// albedo factor `albedo` (or the class shares `classes`), carrying throughput `beta` (before the albedo) of a path whose
 /// nominal weight is `scale`, after `depth` earlier collisions of the path.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Vertex {
     pub(super) incoming: Ray,
     pub(super) t: f64,
     pub(super) albedo: f32,
+    /// Where several volumes overlap, the collision's class shares (`overlap`), which
+    /// then give its albedo and phase instead of `albedo` and the medium's.
+    pub(super) classes: Option<ClassWeights>,
     pub(super) beta: Beta,
     /// 1, or `1/n` for one of `n` split paths: roulette keeps `β` near it.
     pub(super) scale: f64,

@@ -16,18 +16,19 @@ use crate::light::external::{ChosenLight, ExternalLights};
 use crate::light::fnee::ProxySampling;
 use crate::medium::tracking::emission_at_point;
 use crate::medium::{Collision, DistanceSample, Medium};
-use plume_core::sampling::phase::{hg_pdf, sample_hg};
+use crate::overlap::scattering::{mixture, Phase, PhaseValue};
 use plume_core::sampling::Dim;
 use plume_scene::{Estimator, LightSampling};
-use plume_volume::field::{Field, PointValues, Ray};
+use plume_volume::field::{ClassWeights, Field, PointValues, Ray};
 
 /// A scattering vertex as light sampling sees it: the point, the direction the path
-/// arrived along, and the throughput after the vertex's albedo.
+/// arrived along, the throughput after the vertex's albedo, and its phase function.
 #[derive(Clone, Copy, Debug)]
-struct ScatterPoint {
+struct ScatterPoint<'p> {
     x: DVec3,
     incoming: DVec3,
     beta: Beta,
+    phase: &'p Phase,
 }
 
 impl Integrator {
@@ -46,24 +47,45 @@ impl Integrator {
         let external = scene.lights.external.as_ref();
         let point_nee =
             self.light_sampling == LightSampling::Nee && self.estimator == Estimator::Point;
-        let Vertex { incoming: mut ray, mut t, mut albedo, mut beta, scale, mut depth } = vertex;
+        let Vertex {
+            incoming: mut ray,
+            mut t,
+            mut albedo,
+            mut classes,
+            mut beta,
+            scale,
+            mut depth,
+        } = vertex;
         loop {
             bounces.at(
-                Vertex { incoming: ray, t, albedo, beta, scale, depth },
+                Vertex { incoming: ray, t, albedo, classes, beta, scale, depth },
                 state.sampler,
                 l,
                 state.counters,
             );
             state.counters.collisions += 1;
             depth += 1;
-            // Scattering albedo of the collision's own segment (METHOD §10.3), per channel
-            for (b, a) in beta.iter_mut().zip(m.albedo.0) {
-                *b *= f64::from(a * albedo);
-            }
+            // Scattering albedo of the collision's own segment (METHOD §10.3), per channel,
+            // or of its classes where volumes overlap (`overlap::scattering`)
+            let phase = match classes {
+                None => {
+                    for (b, a) in beta.iter_mut().zip(m.albedo.0) {
+                        *b *= f64::from(a * albedo);
+                    }
+                    Phase::Hg(m.g)
+                }
+                Some(w) => {
+                    let (alpha, phase) = mixture(scene.field.scatter_classes(), &w);
+                    for (b, a) in beta.iter_mut().zip(alpha) {
+                        *b *= a;
+                    }
+                    phase
+                }
+            };
             if beta == [0.0; 3] {
                 break; // absorbed: nothing more to carry
             }
-            let at = ScatterPoint { x: ray.at(t), incoming: ray.direction, beta };
+            let at = ScatterPoint { x: ray.at(t), incoming: ray.direction, beta, phase: &phase };
             // Sample the volume light at x
             state.sampler.start_light_segment(depth);
             self.sample_volume_light(scene, tracker, at, state, l);
@@ -82,14 +104,19 @@ impl Integrator {
                 }
                 beta = beta.map(|b| b / q);
             }
-            // Sample the phase function for the next direction (f/p = 1)
-            let ps = sample_hg(m.g, ray.direction, state.sampler.get_2d(Dim::Direction));
+            // Sample the phase function for the next direction (f/p = 1 for one lobe)
+            let ps = phase.sample(ray.direction, state.sampler.get_2d(Dim::Direction));
+            if let Some(w) = ps.weight {
+                for (b, w) in beta.iter_mut().zip(w) {
+                    *b *= w;
+                }
+            }
             ray = Ray { origin: at.x, direction: ps.direction };
             let need_collision = depth < self.max_depth;
             let next = Segment { ray, beta, depth, p_phase: ps.pdf, need_collision, point_nee };
             match self.forward_segment(scene, tracker, next, state, l) {
                 Some(end) if need_collision => {
-                    (t, albedo) = (end.t, end.albedo);
+                    (t, albedo, classes) = (end.t, end.albedo, end.classes);
                     // A chromatic walk's weights of the collision (all 1 when grey)
                     for (b, w) in beta.iter_mut().zip(end.channels) {
                         *b *= w;
@@ -118,7 +145,9 @@ impl Integrator {
         // needs a proxy walk, and the weight of a zero F is irrelevant
         let w_fwd = match self.light_sampling {
             LightSampling::None => ForwardWeight::One,
-            LightSampling::Fnee if lights.proxy.is_some() => ForwardWeight::Fnee { p_phase },
+            LightSampling::Fnee if lights.volume_proxy().is_some() => {
+                ForwardWeight::Fnee { p_phase }
+            }
             LightSampling::Fnee => ForwardWeight::One,
             LightSampling::Nee if point_nee => ForwardWeight::One, // weighted at the collision
             LightSampling::Nee if lights.nee.is_some() => ForwardWeight::Zero,
@@ -137,7 +166,7 @@ impl Integrator {
             ForwardWeight::One => 1.0,
             ForwardWeight::Zero => 0.0,
             ForwardWeight::Fnee { p_phase } if has_emission => {
-                lights.proxy.as_ref().map_or(1.0, |p| {
+                lights.volume_proxy().map_or(1.0, |p| {
                     self.mis.weight(p_phase, p.direction_pdf(ray.origin, ray.direction))
                 })
             }
@@ -172,8 +201,8 @@ impl Integrator {
             });
         }
         match r.event {
-            DistanceSample::Collided { t, albedo, .. } => {
-                Some(SegmentEnd { t, albedo, channels: r.channels.collision })
+            DistanceSample::Collided { t, albedo, classes, .. } => {
+                Some(SegmentEnd { t, albedo, classes, channels: r.channels.collision })
             }
             DistanceSample::Escaped => None,
         }
@@ -186,17 +215,17 @@ impl Integrator {
         &self,
         scene: &Scene<F>,
         tracker: &Tracker<'_, F>,
-        at: ScatterPoint,
+        at: ScatterPoint<'_>,
         state: &mut PathState<'_, T, A>,
         l: &mut [f64; 3],
     ) {
         let (m, lights) = (&scene.medium, &scene.lights);
-        let ScatterPoint { x, incoming, beta } = at;
+        let ScatterPoint { x, incoming, beta, phase } = at;
         let sampler = &mut *state.sampler;
         let c = &mut *state.counters;
         match self.light_sampling {
             LightSampling::Fnee => {
-                let Some(proxy) = &lights.proxy else { return };
+                let Some(proxy) = lights.volume_proxy() else { return };
                 let u_cell = sampler.get_1d(Dim::LightChoice);
                 let u_pos = sampler.get_3d(Dim::LightPosition);
                 let Some(wi) = proxy.sample_direction_only(x, u_cell, u_pos) else { return };
@@ -216,18 +245,18 @@ impl Integrator {
                 if rl.emission.iter().any(|&v| v != 0.0) {
                     let p_sigma = proxy.direction_pdf(x, wi);
                     if p_sigma > 0.0 {
-                        let f = hg_pdf(m.g, incoming.dot(wi));
-                        let w_l = self.mis.weight(p_sigma, f);
+                        let PhaseValue { f, pdf } = phase.eval(incoming.dot(wi));
+                        let w_l = self.mis.weight(p_sigma, pdf);
                         contribute(
                             l,
                             state.aovs,
                             Component::Scattered,
-                            beta.map(|b| b * f * w_l / p_sigma),
+                            std::array::from_fn(|c| beta[c] * f[c] * w_l / p_sigma),
                             rl.emission,
                         );
                         state.trace.event(|| {
                             format!(
-                                "  fnee: dir {wi:?} p_sigma {p_sigma} f {f} w {w_l} F {:?}",
+                                "  fnee: dir {wi:?} p_sigma {p_sigma} f {pdf} w {w_l} F {:?}",
                                 rl.emission
                             )
                         });
@@ -256,20 +285,20 @@ impl Integrator {
                         // pdf follows the same reconstruction: light/nee.rs)
                         let PointValues { density: dy, emission: le, .. } =
                             emission_at_point(&scene.field, m, vs.p_world);
-                        let f = hg_pdf(m.g, incoming.dot(wi));
+                        let PhaseValue { f, pdf } = phase.eval(incoming.dot(wi));
                         let w_l = if point_nee {
                             let p_fwd = m.extinction.collision_density_of(tau, channels);
-                            self.mis.weight(vs.pdf, f * m.mu_t(dy) * p_fwd / r2)
+                            self.mis.weight(vs.pdf, pdf * m.mu_t(dy) * p_fwd / r2)
                         } else {
                             1.0
                         };
                         let w: Beta = std::array::from_fn(|c| {
-                            beta[c] * f * (tau * channels[c]) * w_l / (vs.pdf * r2)
+                            beta[c] * f[c] * (tau * channels[c]) * w_l / (vs.pdf * r2)
                         });
                         contribute(l, state.aovs, Component::Scattered, w, le);
                         state.trace.event(|| {
                             format!(
-                                "  nee: y {:?} p_V {} tau {tau} f {f} w {w_l} L_e {le:?}",
+                                "  nee: y {:?} p_V {} tau {tau} f {pdf} w {w_l} L_e {le:?}",
                                 vs.p_world, vs.pdf
                             )
                         });
@@ -288,18 +317,18 @@ impl Integrator {
         m: &Medium,
         tracker: &Tracker<'_, F>,
         lights: &ExternalLights,
-        at: ScatterPoint,
+        at: ScatterPoint<'_>,
         state: &mut PathState<'_, T, A>,
         l: &mut [f64; 3],
     ) {
-        let ScatterPoint { x, incoming, beta } = at;
+        let ScatterPoint { x, incoming, beta, phase } = at;
         let u_choice = state.sampler.get_1d(Dim::ExternalLightChoice);
         let u = state.sampler.get_2d(Dim::ExternalLightDirection);
         let Some(ChosenLight { index, pmf, sample: s }) = lights.sample(x, u_choice, u) else {
             return;
         };
         state.counters.external_light_samples += 1;
-        let f = hg_pdf(m.g, incoming.dot(s.direction));
+        let PhaseValue { f, pdf } = phase.eval(incoming.dot(s.direction));
         let shadow = tracker.transmittance(
             m,
             &Ray { origin: x, direction: s.direction },
@@ -309,11 +338,12 @@ impl Integrator {
         state.counters.add_shadow(&shadow);
         let (tau, channels) = (shadow.transmittance, shadow.channels);
         if tau > 0.0 {
-            let w = if s.pdf > 0.0 { self.mis.weight(pmf * s.pdf, f) } else { 1.0 };
-            let weight: Beta = std::array::from_fn(|c| beta[c] * f * (tau * channels[c]) * w / pmf);
+            let w = if s.pdf > 0.0 { self.mis.weight(pmf * s.pdf, pdf) } else { 1.0 };
+            let weight: Beta =
+                std::array::from_fn(|c| beta[c] * f[c] * (tau * channels[c]) * w / pmf);
             contribute(l, state.aovs, Component::Light(lights.group(index)), weight, s.value);
             state.trace.event(|| {
-                format!("  light {index}: dir {:?} dist {} pmf {pmf} pdf {} tau {tau} f {f} w {w} L/p {:?}", s.direction, s.distance, s.pdf, s.value)
+                format!("  light {index}: dir {:?} dist {} pmf {pmf} pdf {} tau {tau} f {pdf} w {w} L/p {:?}", s.direction, s.distance, s.pdf, s.value)
             });
         }
     }
@@ -325,6 +355,7 @@ impl Integrator {
 struct SegmentEnd {
     t: f64,
     albedo: f32,
+    classes: Option<ClassWeights>,
     channels: [f64; 3],
 }
 

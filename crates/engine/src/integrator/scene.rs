@@ -8,6 +8,8 @@ use plume_volume::field::Field;
 use plume_volume::trilinear::Trilinear;
 use plume_volume::{Interpolation, Volume};
 
+use crate::overlap::volumes::Volumes;
+
 use super::lights::Lights;
 
 /// Everything a render reads: immutable and `Sync`, built once.
@@ -33,13 +35,17 @@ pub struct Scene<F: Field> {
 ///
 /// Render code is generic over the [`Field`]; [`crate::with_scene!`] picks the
 /// monomorphized version once per call, so nearest reconstruction runs exactly the code
-/// it ran before trilinear existed.
+/// it ran before trilinear existed, and one volume the code it ran before several.
 #[derive(Debug)]
 pub enum AnyScene {
     /// Piecewise-constant voxels.
     Nearest(Scene<Volume>),
     /// Trilinear reconstruction (METHOD.md §12).
     Linear(Scene<Trilinear>),
+    /// Several volumes of piecewise-constant voxels (`overlap`).
+    NearestVolumes(Scene<Volumes<Volume>>),
+    /// Several volumes reconstructed trilinearly.
+    LinearVolumes(Scene<Volumes<Trilinear>>),
 }
 
 /// Evaluate `$body` with `$s` bound to the [`Scene`] inside an [`AnyScene`], whichever
@@ -50,6 +56,8 @@ macro_rules! with_scene {
         match $any {
             $crate::integrator::scene::AnyScene::Nearest($s) => $body,
             $crate::integrator::scene::AnyScene::Linear($s) => $body,
+            $crate::integrator::scene::AnyScene::NearestVolumes($s) => $body,
+            $crate::integrator::scene::AnyScene::LinearVolumes($s) => $body,
         }
     };
 }
@@ -93,6 +101,7 @@ impl AnyScene {
                 })
             }
             (linear, Interpolation::Linear) => linear,
+            (several, _) => several,
         }
     }
 
@@ -100,17 +109,31 @@ impl AnyScene {
     #[must_use]
     pub fn interpolation(&self) -> Interpolation {
         match self {
-            AnyScene::Nearest(_) => Interpolation::Nearest,
-            AnyScene::Linear(_) => Interpolation::Linear,
+            AnyScene::Nearest(_) | AnyScene::NearestVolumes(_) => Interpolation::Nearest,
+            AnyScene::Linear(_) | AnyScene::LinearVolumes(_) => Interpolation::Linear,
         }
     }
 
-    /// The volume's bricks.
+    /// The volume's bricks (the first volume's, in a scene of several).
     #[must_use]
     pub fn volume(&self) -> &Volume {
         match self {
             AnyScene::Nearest(s) => &s.field,
             AnyScene::Linear(s) => s.field.volume(),
+            AnyScene::NearestVolumes(s) => &s.field.members()[0].field,
+            AnyScene::LinearVolumes(s) => s.field.members()[0].field.volume(),
+        }
+    }
+
+    /// Every volume's bricks, in the scene's order.
+    #[must_use]
+    pub fn volumes(&self) -> Vec<&Volume> {
+        match self {
+            AnyScene::Nearest(_) | AnyScene::Linear(_) => vec![self.volume()],
+            AnyScene::NearestVolumes(s) => s.field.members().iter().map(|m| &*m.field).collect(),
+            AnyScene::LinearVolumes(s) => {
+                s.field.members().iter().map(|m| m.field.volume()).collect()
+            }
         }
     }
 
@@ -140,6 +163,8 @@ impl AnyScene {
         let old = match self {
             AnyScene::Nearest(s) => &mut s.lights,
             AnyScene::Linear(s) => &mut s.lights,
+            AnyScene::NearestVolumes(s) => &mut s.lights,
+            AnyScene::LinearVolumes(s) => &mut s.lights,
         };
         if lights.external.is_none() {
             lights.external = old.external.take();

@@ -341,7 +341,7 @@ impl Integrator {
                 });
             });
         }
-        if let (true, DistanceSample::Collided { t, albedo, .. }) = (scatters, r.event) {
+        if let (true, DistanceSample::Collided { t, albedo, classes, .. }) = (scatters, r.event) {
             // Splitting: `split` paths share the camera walk, each of weight 1/split and
             // with numbers of its own (`Sampler::split`); from a forced collision each
             // starts at its own vertex, of the same weight
@@ -353,6 +353,7 @@ impl Integrator {
                 incoming: *camera_ray,
                 t,
                 albedo,
+                classes,
                 beta: r.channels.collision.map(|c| scale * r.collision_weight * c),
                 scale,
                 depth: 0,
@@ -382,9 +383,9 @@ impl Integrator {
                 state.trace.event(|| format!("split path {} of {n}", k + 1));
             }
             let vertex = match firsts.get(k as usize).map(|first| first.event) {
-                Some(DistanceSample::Collided { t, albedo, .. }) => {
+                Some(DistanceSample::Collided { t, albedo, classes, .. }) => {
                     state.trace.event(|| format!("  first vertex at t {t}"));
-                    Vertex { t, albedo, ..vertex }
+                    Vertex { t, albedo, classes, ..vertex }
                 }
                 _ => vertex,
             };
@@ -424,8 +425,13 @@ impl Integrator {
         // The camera segment's own estimator must be one null collisions serve, too
         let camera_null = self.tracking.null_on_camera()
             && Tracking::applies(self.camera_estimator(), self.light_sampling);
+        // Camera rays see the volumes visible to the camera (all but in a scene of several)
+        let camera = match self.still_tracker(scene, camera_null, self.point_lookup.on_camera()) {
+            Tracker::Regular(field) => Tracker::Regular(field.camera_view()),
+            tracker => tracker,
+        };
         (
-            self.still_tracker(scene, camera_null, self.point_lookup.on_camera()),
+            camera,
             self.still_tracker(scene, self.tracking.null_after_scattering(), self.point_lookup),
         )
     }

@@ -25,6 +25,7 @@
 pub mod envmap;
 pub mod external;
 pub mod fnee;
+pub mod mixture;
 pub mod nee;
 mod nee_bricks;
 pub mod power;

@@ -3,7 +3,7 @@
 //! collision a given optical depth into a piece lands on ([`analog_collision`]), shared by
 //! regular, forced and null-collision tracking.
 
-use plume_volume::field::Piece;
+use plume_volume::field::{ClassWeights, Piece};
 
 use super::coefficients::Medium;
 
@@ -23,6 +23,9 @@ pub enum DistanceSample {
         source: f32,
         /// Albedo factor of that segment.
         albedo: f32,
+        /// Where several volumes overlap, the collision's share of each scattering class
+        /// (`volume::overlap`); `None` in one volume.
+        classes: Option<ClassWeights>,
     },
     /// No collision before `t_max` (or the field's end).
     Escaped,
@@ -146,6 +149,7 @@ pub fn collision_at<P: Piece>(piece: &P, medium: &Medium, od_left: f64) -> (f64,
                 density: seg.density,
                 source: seg.source,
                 albedo: seg.albedo,
+                classes: None,
             };
             (u, event)
         }
@@ -157,6 +161,7 @@ pub fn collision_at<P: Piece>(piece: &P, medium: &Medium, od_left: f64) -> (f64,
                 density: piece.density_at(u),
                 source: piece.source_at(u),
                 albedo: piece.albedo_at(u),
+                classes: piece.class_weights(u),
             };
             (u, event)
         }

@@ -381,9 +381,21 @@ fn real_collision(
     if estimator == Estimator::Point {
         let p = field.sample(x, true);
         add(f, p.emission, 1.0 / medium.mu_t(p.density));
-        DistanceSample::Collided { t, density: p.density, source: p.source, albedo: p.albedo }
+        DistanceSample::Collided {
+            t,
+            density: p.density,
+            source: p.source,
+            albedo: p.albedo,
+            classes: None,
+        }
     } else {
-        DistanceSample::Collided { t, density: f32::NAN, source: f32::NAN, albedo: field.albedo(x) }
+        DistanceSample::Collided {
+            t,
+            density: f32::NAN,
+            source: f32::NAN,
+            albedo: field.albedo(x),
+            classes: None,
+        }
     }
 }
 

@@ -184,6 +184,7 @@ fn free_path_stretch<F: Field>(
                 density: seg.density,
                 source: seg.source,
                 albedo: seg.albedo,
+                classes: None,
             });
         }
         od += x;
@@ -321,6 +322,7 @@ fn free_path_polynomial<P: Piece>(
             density,
             source: piece.source_at(u),
             albedo: piece.albedo_at(u),
+            classes: piece.class_weights(u),
         });
     }
     *od += x;

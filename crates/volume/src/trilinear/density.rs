@@ -23,6 +23,7 @@ use super::window::{window_slot, CORNER_STEP};
 use crate::brick::Volume;
 use crate::dda::{CellBox, CellTable, Cells, IndexLine};
 use crate::field::{Piece, Segment};
+use crate::overlap::PieceCubics;
 use crate::pyramid::NodeBounds;
 use plume_core::color::Rgb;
 
@@ -99,6 +100,16 @@ impl Piece for DensityPiece {
 
     fn density_at(&self, u: f64) -> f32 {
         poly::eval(&self.cubic(), u).max(0.0) as f32
+    }
+
+    /// The density cubic from `offset` on; no emission.
+    fn cubics(&self, _le: &impl Fn(f32, f32) -> Rgb, offset: f64) -> PieceCubics {
+        let density = if self.constant {
+            [f64::from(self.density[0]), 0.0, 0.0, 0.0]
+        } else {
+            poly::cubic_along(self.density.map(f64::from), self.f0 + self.d * offset, self.d)
+        };
+        PieceCubics { density, emission: [[0.0; 4]; 3], emits: false }
     }
 
     /// No source is read: 0.

@@ -5,6 +5,7 @@ use glam::DVec3;
 
 use super::poly;
 use crate::field::{Piece, PieceIntegrals, Segment, VoxelValues};
+use crate::overlap::PieceCubics;
 use plume_core::color::Rgb;
 
 /// A piece of a ray inside one dual cell (or a constant run of them).
@@ -237,6 +238,34 @@ impl Piece for CubicSegment {
             return seg.emission_integral(le, u);
         }
         self.weighted_emission(le, &poly::integrated_weights(self.f0, self.d, u))
+    }
+
+    /// The density cubic and each channel's `L_e` cubic from the corners' values, along the
+    /// cell from `f0 + d·offset` on.
+    fn cubics(&self, le: &impl Fn(f32, f32) -> Rgb, offset: f64) -> PieceCubics {
+        if let Some(seg) = self.constant() {
+            return seg.cubics(le, offset);
+        }
+        let f0 = self.f0 + self.d * offset;
+        let emits = self.may_emit();
+        let mut corners = [[0.0f64; 8]; 3];
+        if emits {
+            for (c, v) in self.corners.iter().enumerate() {
+                if v.source != 0.0 {
+                    let e = le(v.density, v.source).0;
+                    (0..3).for_each(|k| corners[k][c] = f64::from(e[k]));
+                }
+            }
+        }
+        PieceCubics {
+            density: poly::cubic_along(self.densities(), f0, self.d),
+            emission: if emits {
+                corners.map(|v| poly::cubic_along(v, f0, self.d))
+            } else {
+                [[0.0; 4]; 3]
+            },
+            emits,
+        }
     }
 }
 

@@ -405,7 +405,7 @@ fn measure_file(
     let volume_bytes = scene.to(Interpolation::Nearest).volume().memory_bytes() as u64;
     let dual_bytes = match scene.to(Interpolation::Linear) {
         AnyScene::Linear(s) => s.field.dual_bytes() as u64,
-        AnyScene::Nearest(_) => unreachable!("invariant: switched to linear"),
+        _ => unreachable!("invariant: one volume, switched to linear"),
     };
     let memory = MemoryRow {
         file: file.name.into(),

@@ -197,7 +197,7 @@ pub fn prepare_command(args: &PrepareArgs) -> Result<()> {
     super::keys::apply_grids(&mut shot, &args.grids, &|_| true);
     let (scene, reading) = (&shot.scene, &shot.settings.reading);
     let input_bytes = std::fs::metadata(&args.file).map(|m| m.len()).unwrap_or(0);
-    let flags = super::request::Origin { scene_file: None, given: Vec::new() };
+    let flags = super::request::Origin { scene_file: None, given: Vec::new(), added_volumes: 0..0 };
     let what = plume::cache::convert::Conversion {
         volume: &scene.volume,
         emission: &scene.emission,

@@ -54,13 +54,27 @@ pub fn parse_matrix(s: &str) -> Result<[[f64; 4]; 4], String> {
 /// # Errors
 /// A one-line message for clap naming the key that does not parse or is unknown.
 pub fn parse_keys<T: serde::de::DeserializeOwned>(s: &str) -> Result<T, String> {
+    parse_keys_like(s, "direction = [0, 0, -1], irradiance = 3")
+}
+
+/// Parse a volume's keys as written in a `[[volumes]]` entry, comma-separated:
+/// `file = "smoke.vdb", translate = [1, 0, 0], medium = { g = 0.3 }`.
+///
+/// # Errors
+/// As [`parse_keys`].
+pub fn parse_volume_keys(s: &str) -> Result<plume_scene::VolumeEntryKeys, String> {
+    parse_keys_like(s, r#"file = "smoke.vdb", translate = [1, 0, 0], medium = { g = 0.3 }"#)
+}
+
+/// [`parse_keys`], its message ending with `example`.
+fn parse_keys_like<T: serde::de::DeserializeOwned>(s: &str, example: &str) -> Result<T, String> {
     #[derive(serde::Deserialize)]
     struct Wrapper<T> {
         v: T,
     }
     toml::from_str::<Wrapper<T>>(&format!("v = {{ {s} }}")).map(|w| w.v).map_err(|e| {
         let message = e.message().trim().lines().map(str::trim).collect::<Vec<_>>().join("; ");
-        format!("{message} (expected keys like `direction = [0, 0, -1], irradiance = 3`)")
+        format!("{message} (expected keys like `{example}`)")
     })
 }
 

@@ -2,6 +2,8 @@
 //! sets its key, and the way back: the flag a user typed for a key that a library error
 //! names (`lights.sky.turbidity` → `--sky turbidity`).
 
+use std::ops::Range;
+
 use super::render::{GridArgs, RenderArgs};
 use plume_scene::Shot;
 
@@ -74,6 +76,9 @@ flags_to_keys! { RENDER_ONLY_FLAGS, apply_render_only, RenderArgs, s, a;
     "volume_scale" => "volume.scale": s.scene.volume.scale => a.volume_scale;
     "volume_matrix" => "volume.matrix": s.scene.volume.matrix => a.volume_matrix;
     "volume_space" => "volume.space": s.scene.volume.space => a.volume_space;
+    "volume_name" => "volume.name": s.scene.volume.name => a.volume_name.clone();
+    "volume_visible_to_camera" => "volume.visible_to_camera": s.scene.volume.visible_to_camera => a.volume_visible_to_camera;
+    "volume_casts_shadows" => "volume.casts_shadows": s.scene.volume.casts_shadows => a.volume_casts_shadows;
     "shutter" => "camera.shutter": s.scene.camera.shutter => a.shutter;
     "fps" => "camera.fps": s.scene.camera.fps => a.fps;
     "kappa" => "integrator.kappa": s.scene.integrator.kappa => a.kappa;
@@ -116,15 +121,27 @@ flags_to_keys! { GRID_FLAGS, apply_grids, GridArgs, s, a;
     "no_isolation" => "reading.no_isolation": s.settings.reading.no_isolation => a.no_isolation;
 }
 
+/// `--add-volume` appends to the list of volumes (`volumes`) instead of setting a key; it is
+/// applied after every other flag, so that its entries take the first volume's emission
+/// and medium as the flags left them.
+pub const LIST_FLAGS: &[(&str, &str)] = &[("add_volume", "volumes")];
+
 /// Every render flag's id and key.
 pub fn render_flags() -> impl Iterator<Item = &'static (&'static str, &'static str)> {
-    RENDER_ONLY_FLAGS.iter().chain(GRID_FLAGS)
+    RENDER_ONLY_FLAGS.iter().chain(GRID_FLAGS).chain(LIST_FLAGS)
 }
 
-/// Set the key of every render flag that `given` says counts.
+/// Set the key of every render flag that `given` says counts, and append the volumes of
+/// `--add-volume`.
 pub(super) fn apply(shot: &mut Shot, args: &RenderArgs, given: &dyn Fn(&str) -> bool) {
     apply_render_only(shot, args, given);
     apply_grids(shot, &args.grids, given);
+    if given("add_volume") {
+        let scene = &mut shot.scene;
+        let added: Vec<_> =
+            args.add_volume.iter().map(|k| k.resolve(&scene.emission, &scene.medium)).collect();
+        scene.more_volumes.extend(added);
+    }
 }
 
 /// `--flag-name` of a flag id (`FILE` for the positional).
@@ -136,10 +153,36 @@ pub(super) fn flag_name(id: &str) -> String {
     }
 }
 
-/// The flag that sets `key`, if one does: a key inside a flag's table (`lights.sky.turbidity`)
-/// is set by that flag (`--sky`).
-pub(super) fn flag_of(key: &str) -> Option<&'static str> {
-    flag_and_rest(key).map(|(id, _)| id)
+/// The flag that set `key` and how a user reads it (`--albedo`, `--sky turbidity`), where
+/// the volumes of indices `added` came from `--add-volume`: a key of one of them is inside
+/// that flag (`volumes[1].medium.g` → `--add-volume medium.g`, `--add-volume #2 …` when
+/// there are several), and a key of the first volume in a list is the first volume's
+/// (`volumes[0].medium.g` → `--g`).
+pub(super) fn flag_for_key(key: &str, added: &Range<usize>) -> Option<(&'static str, String)> {
+    if let Some((index, rest)) = volume_entry_key(key) {
+        if added.contains(&index) {
+            let which = if added.len() > 1 {
+                format!(" #{}", index - added.start + 1)
+            } else {
+                String::new()
+            };
+            let rest = if rest.is_empty() { String::new() } else { format!(" {rest}") };
+            return Some(("add_volume", format!("--add-volume{which}{rest}")));
+        }
+        if index > 0 || rest.is_empty() {
+            return None;
+        }
+        return flag_for_key(&plume_scene::volumes::key("volume", rest), &(0..0));
+    }
+    let (id, rest) = flag_and_rest(key)?;
+    let name = if rest.is_empty() { flag_name(id) } else { format!("{} {rest}", flag_name(id)) };
+    Some((id, name))
+}
+
+/// `volumes[INDEX].REST` as `(INDEX, REST)`.
+fn volume_entry_key(key: &str) -> Option<(usize, &str)> {
+    let (index, rest) = key.strip_prefix("volumes[")?.split_once(']')?;
+    Some((index.parse().ok()?, rest.strip_prefix('.').unwrap_or(rest)))
 }
 
 /// The flag that sets `key`, and the rest of the key inside the flag's table

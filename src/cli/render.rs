@@ -14,11 +14,12 @@ use plume_scene::{
     EmissionSettings, EmissionSource, EnvironmentMapSettings, EstimatorKind, IntegratorSettings,
     Interpolation, MediumSettings, Method, NeeTable, PointLookup, ProgressFormat, Projection,
     ReadSettings, RenderOptions, SampleOrderChoice, SkySettings, SphereSettings, SplitBy,
-    TileIndex, TrackingChoice, UpAxis, VolumeInput,
+    TileIndex, TrackingChoice, UpAxis, VolumeEntryKeys, VolumeInput,
 };
 
 use super::flags::{
     choice, parse_environment_map, parse_keys, parse_matrix, parse_pair, parse_size, parse_vec3,
+    parse_volume_keys,
 };
 
 /// `plume render`.
@@ -227,6 +228,29 @@ pub struct RenderArgs {
     /// placement's scale.
     #[arg(long, value_parser = choice::<plume_scene::VolumeSpace>(), default_value_t = VolumeInput::new("").space, help_heading = "Placement", hide_short_help = true)]
     pub volume_space: plume_scene::VolumeSpace,
+    /// A name for the volume (letters, digits, `_` and `-`), kept with the scene; it does
+    /// not change the render.
+    #[arg(long, help_heading = "Placement", hide_short_help = true)]
+    pub volume_name: Option<String>,
+    /// Whether camera rays see the volume (true or false); when false, only the light it
+    /// scatters or shadows is seen.
+    #[arg(long, action = clap::ArgAction::Set, default_value_t = VolumeInput::new("").visible_to_camera, help_heading = "Placement", hide_short_help = true)]
+    pub volume_visible_to_camera: bool,
+    /// Whether the volume shadows the light that reaches scattering points (true or
+    /// false).
+    #[arg(long, action = clap::ArgAction::Set, default_value_t = VolumeInput::new("").casts_shadows, help_heading = "Placement", hide_short_help = true)]
+    pub volume_casts_shadows: bool,
+    /// Add another volume to the scene (repeatable), with the keys of a scene file's
+    /// `[[volumes]]` entry: `file = "smoke.vdb", translate = [1, 0, 0], name = "smoke",
+    /// medium = { density_scale = 2, g = 0.3 }`. Besides `file`: the grids, the placement,
+    /// `instances = [{ translate = [2, 0, 0] }, …]` (the volume once per placement, its data
+    /// shared), `interpolation`, `name`, `visible_to_camera`, `casts_shadows`, and
+    /// `emission = {…}` and `medium = {…}` with the keys of a scene file's [emission] and
+    /// [medium]. The emission and medium keys it leaves out take the first volume's values
+    /// (from --density-scale, --albedo, --g, --emission-scale and the like, or a scene
+    /// file's first volume). Beside a scene file, the volumes are added after the file's.
+    #[arg(long, value_name = "KEYS", value_parser = parse_volume_keys, help_heading = "Placement", hide_short_help = true)]
+    pub add_volume: Vec<VolumeEntryKeys>,
     /// Motion blur: the velocity grid (world units per second), a vector grid NAME or
     /// three float grids NAME.x, NAME.y, NAME.z. The volume is advected back along it (Eulerian blur:
     /// density at x and time t is the frame's at x − t·v(x); docs/methods.md).

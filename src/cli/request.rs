@@ -7,12 +7,14 @@
 //! key; it also turns the keys that library errors name back into the flags a user
 //! typed, or into the scene file's line.
 
+use std::ops::Range;
+
 use clap::ArgMatches;
 use plume_core::error::{Error, Result};
 use plume_scene::file::{is_scene_file, SceneFile};
 use plume_scene::{Shot, ValidShot};
 
-use super::keys::{apply, flag_and_rest, flag_name, flag_of, render_flags};
+use super::keys::{apply, flag_for_key, flag_name, render_flags};
 use super::render::RenderArgs;
 
 /// A render command line as library types.
@@ -29,6 +31,8 @@ pub struct Origin {
     pub scene_file: Option<SceneFile>,
     /// Flag ids typed on the command line.
     pub given: Vec<String>,
+    /// The indices of the volumes that `--add-volume` added (`volumes[INDEX]`).
+    pub added_volumes: Range<usize>,
 }
 
 impl TryFrom<(&RenderArgs, &ArgMatches)> for RenderRequest {
@@ -45,7 +49,7 @@ impl TryFrom<(&RenderArgs, &ArgMatches)> for RenderRequest {
             |id: &str| matches.value_source(id) == Some(clap::parser::ValueSource::CommandLine);
         let given: Vec<String> =
             render_flags().map(|(id, _)| *id).filter(|id| typed(id)).map(String::from).collect();
-        let (mut shot, scene_file) = if is_scene_file(&args.file) {
+        let (mut shot, scene_file, before) = if is_scene_file(&args.file) {
             let (mut shot, file) = SceneFile::read(&args.file)?;
             // A flag overrides the keys it conflicts with, too
             if typed("time") || typed("sample_range") {
@@ -63,8 +67,9 @@ impl TryFrom<(&RenderArgs, &ArgMatches)> for RenderRequest {
             if typed("tile") {
                 shot.settings.farm.crop = None;
             }
+            let before = shot.scene.volume_count();
             apply(&mut shot, args, &typed);
-            (shot, Some(file))
+            (shot, Some(file), before)
         } else {
             let output = args.output.clone().ok_or_else(|| {
                 Error::invalid(
@@ -74,11 +79,12 @@ impl TryFrom<(&RenderArgs, &ArgMatches)> for RenderRequest {
             })?;
             let mut shot = Shot::new(&args.file, output);
             apply(&mut shot, args, &|_| true);
-            (shot, None)
+            (shot, None, 1)
         };
         // Not a flag nor a key: where this machine keeps caches
         shot.settings.render.user_cache_dir = Some(super::environment::user_cache_dir());
-        let origin = Origin { scene_file, given };
+        let added_volumes = before..shot.scene.volume_count();
+        let origin = Origin { scene_file, given, added_volumes };
         match shot.validate() {
             Ok(shot) => Ok(RenderRequest { shot, origin }),
             Err(e) => Err(origin.explain(e)),
@@ -93,23 +99,23 @@ impl Origin {
     pub fn explain(&self, e: Error) -> Error {
         let Error::InvalidArgument { flag: field, message } = e else { return e };
         let keys: Vec<&str> = field.split('/').collect();
-        let typed = |k: &str| flag_of(k).is_some_and(|id| self.given.iter().any(|g| g == id));
+        let flags: Vec<_> = keys.iter().map(|k| flag_for_key(k, &self.added_volumes)).collect();
+        let typed = flags.iter().flatten().any(|(id, _)| self.given.iter().any(|g| g == id));
         if let Some(file) = &self.scene_file {
-            if !keys.iter().any(|k| typed(k)) {
+            if !typed {
                 return file.error_at_key(keys[0], &message);
             }
         }
         let named: Vec<String> = keys
             .iter()
-            .map(|k| match flag_and_rest(k) {
-                Some((id, "")) => flag_name(id),
-                Some((id, rest)) => format!("{} {rest}", flag_name(id)),
-                None => (*k).to_string(),
-            })
+            .zip(flags)
+            .map(|(k, flag)| flag.map_or_else(|| (*k).to_string(), |(_, name)| name))
             .collect();
-        // Keys named inside the message too, longest first
+        // Keys named inside the message too, longest first (`volumes`, a list, is not
+        // named inside messages: its name is part of the keys of its entries)
         let mut message = message;
-        let mut all: Vec<(&str, &str)> = render_flags().copied().collect();
+        let mut all: Vec<(&str, &str)> =
+            render_flags().copied().filter(|(_, key)| key.contains('.')).collect();
         all.sort_by_key(|(_, k)| std::cmp::Reverse(k.len()));
         for (id, key) in all {
             message = message.replace(key, &flag_name(id));
@@ -164,5 +170,30 @@ mod tests {
         assert!(e.contains("--width/--height"), "{e}");
         let e = request(&["in.vdb"]).err().unwrap().to_string();
         assert!(e.contains("--output"), "{e}");
+    }
+
+    #[test]
+    fn added_volumes_take_the_first_volumes_values_and_errors_name_the_flag() {
+        let add = |keys: &'static str| ["--add-volume", keys];
+        let shot = request(
+            &[
+                &["in.vdb", "-o", "out.exr", "--albedo", "0.5", "--emission-scale", "3"][..],
+                &add("file = \"b.vdb\", medium = { g = 0.3 }"),
+            ]
+            .concat(),
+        )
+        .unwrap()
+        .shot;
+        let b = &shot.scene.more_volumes[0];
+        assert_eq!((b.medium.albedo, b.medium.g, b.emission.scale), (Some(0.5.into()), 0.3, 3.0));
+        assert!(!shot.scene.listed);
+        let base = ["in.vdb", "-o", "out.exr"];
+        let e = request(&[&base[..], &add("file = \"b.vdb\", medium = { g = 2 }")].concat());
+        let e = e.err().unwrap().to_string();
+        assert!(e.contains("--add-volume medium.g"), "{e}");
+        let second = add("file = \"c.vdb\", interpolation = \"nearest\"");
+        let e = request(&[&base[..], &add("file = \"b.vdb\""), &second].concat());
+        let e = e.err().unwrap().to_string();
+        assert!(e.contains("--add-volume #2 interpolation"), "{e}");
     }
 }

@@ -11,7 +11,7 @@ use plume_core::error::{Error, Result};
 use plume_scene::{
     CameraSettings, EmissionSettings, EnvironmentMapSettings, FarmOptions, IntegratorSettings,
     JobSettings, LightSettings, MediumSettings, OutputSettings, ReadSettings, RenderOptions,
-    SceneDescription, Shot, VolumeInput,
+    SceneDescription, Shot, VolumeEntry, VolumeInput,
 };
 
 /// Hex SHA-256 of a file's bytes and its size.
@@ -46,6 +46,17 @@ pub fn file_sha256(path: &Path) -> Result<(String, u64)> {
     Ok((hex(&hasher.finalize()), bytes))
 }
 
+/// The identity of a frame's inputs from each one's SHA-256 (`each`, the first volume's
+/// first): the first input's own for a scene of one volume, else the hex SHA-256 of all of
+/// them, one per line, in order, so that a change to any input changes it.
+#[must_use]
+pub fn inputs_sha256(each: &[String]) -> String {
+    match each {
+        [one] => one.clone(),
+        all => hex(&Sha256::digest(all.join("\n").as_bytes())),
+    }
+}
+
 /// Hash (32 hex digits) of the plume version, the seed and every value of the shot that
 /// can change pixels.
 ///
@@ -58,14 +69,24 @@ pub fn file_sha256(path: &Path) -> Result<(String, u64)> {
 #[must_use]
 pub fn settings_hash(shot: &Shot, seed: u64) -> String {
     let Shot { scene, settings } = shot;
-    let SceneDescription { volume, emission, medium, camera, lights, integrator } = scene;
+    let SceneDescription {
+        volume,
+        emission,
+        medium,
+        more_volumes,
+        // A list of one volume renders as the same volume given alone
+        listed: _,
+        camera,
+        lights,
+        integrator,
+    } = scene;
     let (sampler, output) = job_text(settings);
     // The split count is always hashed: its default (8) changed every scattering render's
     // pixels, so parts rendered before it existed must not merge with parts rendered after.
     // So is the camera collision, whose default (forced, with a ray-marched camera segment)
     // did the same
     let text = format!(
-        "plume {}\nseed {seed}\nsampler {sampler}\nfixed point {}\n{}\n{}\n{}\n{}\nlights {}\n{}{output}{}",
+        "plume {}\nseed {seed}\nsampler {sampler}\nfixed point {}\n{}\n{}\n{}\n{}\nlights {}\n{}{output}{}{}",
         env!("CARGO_PKG_VERSION"),
         plume_engine::film::FIXED_POINT_BITS,
         volume_text(volume),
@@ -75,6 +96,7 @@ pub fn settings_hash(shot: &Shot, seed: u64) -> String {
         lights_text(lights),
         integrator_text(integrator, &volume.interpolation),
         motion_text(volume, camera),
+        more_volumes_text(more_volumes),
     );
     hex(&Sha256::digest(text.as_bytes())[..16])
 }
@@ -97,15 +119,45 @@ fn volume_text(volume: &VolumeInput) -> String {
         scale,
         matrix,
         space,
+        name,
+        visible_to_camera,
+        casts_shadows,
+        instances,
     } = volume;
-    let line = format!(
+    let mut line = format!(
         "volume {density_grid:?} {temperature_grid:?} {emission_grid:?} {albedo_grid:?} {interpolation}"
     );
     // Without a placement the line is what it was before placements existed
-    if translate.is_none() && rotate.is_none() && scale.is_none() && matrix.is_none() {
-        return line;
+    if translate.is_some() || rotate.is_some() || scale.is_some() || matrix.is_some() {
+        line += &format!(" placed {translate:?} {rotate:?} {scale:?} {matrix:?} {space}");
     }
-    format!("{line} placed {translate:?} {rotate:?} {scale:?} {matrix:?} {space}")
+    // Likewise a volume without a name that the camera sees and that casts shadows
+    if name.is_some() || !visible_to_camera || !casts_shadows {
+        line += &format!(" object {name:?} {visible_to_camera} {casts_shadows}");
+    }
+    // Likewise a volume without instances
+    if let Some(instances) = instances {
+        line += &format!(" instances {instances:?}");
+    }
+    line
+}
+
+/// The further volumes' lines, one each: grids, placement, emission, medium and motion (not
+/// the files, which are identified by their SHA-256); nothing for a scene of one volume.
+fn more_volumes_text(more_volumes: &[VolumeEntry]) -> String {
+    let mut text = String::new();
+    for (i, entry) in more_volumes.iter().enumerate() {
+        let VolumeEntry { volume, emission, medium } = entry;
+        let motion = format!("{:?} {:?}", volume.velocity_grid, volume.velocity_scale);
+        text += &format!(
+            "\nvolumes[{}] {} {} {} motion {motion}",
+            i + 1,
+            volume_text(volume),
+            emission_text(emission),
+            medium_text(medium)
+        );
+    }
+    text
 }
 
 /// The emission's line.
@@ -349,5 +401,35 @@ mod tests {
         let mut random = shot.clone();
         random.settings.render.sampler = plume_scene::SamplerKind::Random;
         assert_ne!(settings_hash(&random, 1), base);
+    }
+
+    #[test]
+    fn further_volumes_are_hashed_and_a_list_of_one_is_one_volume() {
+        let shot = Shot::new("in.vdb", "out.exr");
+        let base = settings_hash(&shot, 1);
+        let mut listed = shot.clone();
+        listed.scene.listed = true;
+        assert_eq!(settings_hash(&listed, 1), base);
+        let mut two = shot.clone();
+        two.scene.more_volumes.push(VolumeEntry::new("b.vdb"));
+        let with_two = settings_hash(&two, 1);
+        assert_ne!(with_two, base);
+        // Not the file (identified by its SHA-256), but what it is made into
+        two.scene.more_volumes[0].volume.file = "elsewhere/c.vdb".into();
+        assert_eq!(settings_hash(&two, 1), with_two);
+        two.scene.more_volumes[0].medium.g = 0.5;
+        assert_ne!(settings_hash(&two, 1), with_two);
+        let mut named = shot.clone();
+        named.scene.volume.name = Some("fire".into());
+        assert_ne!(settings_hash(&named, 1), base);
+    }
+
+    #[test]
+    fn one_input_is_identified_by_its_own_sha256_several_by_all_of_theirs() {
+        let (a, b) = ("a".repeat(64), "b".repeat(64));
+        assert_eq!(inputs_sha256(std::slice::from_ref(&a)), a);
+        let both = inputs_sha256(&[a.clone(), b.clone()]);
+        assert_eq!(both.len(), 64);
+        assert_ne!(both, inputs_sha256(&[b, a]));
     }
 }

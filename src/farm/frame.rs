@@ -22,7 +22,7 @@
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-use crate::farm::fingerprint::{file_sha256, settings_hash};
+use crate::farm::fingerprint::{file_sha256, inputs_sha256, settings_hash};
 use crate::farm::layers::aov_layout;
 use crate::farm::observer::{JobObserver, Pass, Replay, RunContext};
 use crate::farm::outputs::{
@@ -33,7 +33,7 @@ use crate::farm::plan::Job;
 use crate::farm::resume::{decide, log_continuing, unless_input_changed, Resume, SamplePlan};
 use crate::farm::signals;
 use crate::load::{load_scene, LoadedScene};
-use plume_core::error::Result;
+use plume_core::error::{Error, Result};
 use plume_engine::film::Film;
 use plume_engine::integrator::AovLayout;
 use plume_engine::integrator::LineTrace;
@@ -92,10 +92,10 @@ pub fn render_frame(
         return Ok(FrameOutcome::Skipped);
     };
     observer.frame_started(index, frame, &paths.output);
-    let (input, resume) = check_files(&paths, resume)?;
+    let (input, resume) = check_files(job, &paths, resume)?;
 
     // Load the frame's grids once and build the scene
-    let loaded = load_scene(job.scene(), &paths.input, settings, frame)?;
+    let loaded = load_scene(&paths.scene(job.scene()), &paths.input, settings, frame)?;
     warn_about(job, &paths, &loaded);
     let plan = SamplePlan::new(job, resume.as_ref());
     let render_settings = RenderSettings {
@@ -138,8 +138,8 @@ pub fn render_frame(
     };
     let frame_id = FrameId { frame, seed, settings_hash: hash, command_line: context.command_line };
     let rendered = Rendered::new(job, &result, status, spp);
-    let record = stats_record(job, &paths, &loaded, &rendered, &frame_id, input, &timing);
-    write_outputs(job, &paths, &loaded, &rendered, &record, context.working_dir)?;
+    let record = stats_record(job, &paths, &loaded, &rendered, &frame_id, &input, &timing);
+    write_outputs(job, &paths, &loaded, &rendered, &record, &input, context.working_dir)?;
     if !settings.render.quiet {
         log_written(job, &paths, &record, status, &timing);
     }
@@ -147,19 +147,38 @@ pub fn render_frame(
     Ok(FrameOutcome::Written { status, output: paths.output, spp })
 }
 
-/// Check that the frame's outputs can be written and identify its input (SHA-256 and
-/// size); `resume` is dropped if the input changed since it was started.
+/// Check that the frame's outputs can be written and identify its inputs (SHA-256 and
+/// size); `resume` is dropped if an input changed since it was started.
 ///
 /// # Errors
-/// An output that cannot be written (code 4), an input that cannot be read (3).
-fn check_files(paths: &FramePaths, resume: Option<Resume>) -> Result<(InputId, Option<Resume>)> {
+/// An output that cannot be written (code 4), an input that cannot be read (3; a further
+/// volume's named by its key, `volumes[1].file`).
+fn check_files(
+    job: &Job<'_>,
+    paths: &FramePaths,
+    resume: Option<Resume>,
+) -> Result<(InputId, Option<Resume>)> {
     for path in std::iter::once(&paths.output).chain(paths.preview.iter()).chain(paths.stats.iter())
     {
         plume_core::fs::check_writable(path)?;
     }
-    let (sha256, bytes) = file_sha256(&paths.input)?;
+    let (first_sha256, mut bytes) = file_sha256(&paths.input)?;
+    let mut each = vec![first_sha256.clone()];
+    let entries = job.scene().entries();
+    for (entry, path) in entries.iter().skip(1).zip(&paths.more_inputs) {
+        let (sha256, size) = file_sha256(path).map_err(|e| match e {
+            Error::Open { path, source } => Error::InvalidInput {
+                what: entry.key("file"),
+                message: format!("cannot open {}: {source}", path.display()),
+            },
+            other => other,
+        })?;
+        each.push(sha256);
+        bytes += size;
+    }
+    let sha256 = inputs_sha256(&each);
     let resume = unless_input_changed(resume, &paths.output, &sha256);
-    Ok((InputId { sha256, bytes }, resume))
+    Ok((InputId { sha256, first_sha256, bytes }, resume))
 }
 
 /// Tells `observer` of each pass of the frame (the `index`-th, `frame`) rendering `plan`

@@ -2,6 +2,7 @@
 //! record (EXR header and stats line: `stats_record`) and writing them (`write_outputs`:
 //! the EXR with its exact sums and scene description, the PNG preview, the stats line).
 
+use std::borrow::Cow;
 use std::path::PathBuf;
 
 use crate::farm::fingerprint::file_sha256;
@@ -17,11 +18,14 @@ use plume_engine::noise::FrameNoise;
 use plume_engine::render::RenderResult;
 use plume_engine::stats::{peak_rss_since_reset_bytes, RenderStats};
 use plume_scene::split::format_range;
+use plume_scene::SceneDescription;
 
 /// The files of one frame, frame tokens resolved.
 pub struct FramePaths {
-    /// The volume file.
+    /// The (first) volume's file.
     pub input: PathBuf,
+    /// The further volumes' files (`volumes[1].file`, …), in order.
+    pub more_inputs: Vec<PathBuf>,
     /// The EXR.
     pub output: PathBuf,
     /// The PNG preview.
@@ -36,10 +40,28 @@ impl FramePaths {
     pub fn resolve(job: &Job<'_>, frame: Option<i64>) -> FramePaths {
         FramePaths {
             input: job.input.resolve(frame),
+            more_inputs: job.more_inputs.iter().map(|p| p.resolve(frame)).collect(),
             output: job.output.resolve(frame),
             preview: job.preview.as_ref().map(|p| p.resolve(frame)),
             stats: job.stats.as_ref().map(|p| p.resolve(frame)),
         }
+    }
+}
+
+impl FramePaths {
+    /// `scene` as this frame loads it: the further volumes' files are this frame's
+    /// ([`FramePaths::more_inputs`]; the first volume's is [`FramePaths::input`], given to
+    /// the loader beside the scene). Borrowed as it is for a scene of one volume.
+    #[must_use]
+    pub fn scene<'a>(&self, scene: &'a SceneDescription) -> Cow<'a, SceneDescription> {
+        if self.more_inputs.is_empty() {
+            return Cow::Borrowed(scene);
+        }
+        let mut frame_scene = scene.clone();
+        for (entry, file) in frame_scene.more_volumes.iter_mut().zip(&self.more_inputs) {
+            entry.volume.file.clone_from(file);
+        }
+        Cow::Owned(frame_scene)
     }
 }
 
@@ -50,9 +72,14 @@ pub(crate) struct Timing {
     pub(crate) time_to_first_sample: f64,
 }
 
-/// The input file's identity.
+/// The frame's inputs' identity.
 pub(crate) struct InputId {
+    /// The first input's SHA-256, or with several volumes the SHA-256 of every input's
+    /// (`fingerprint::inputs_sha256`): what resumes and merged parts must agree on.
     pub(crate) sha256: String,
+    /// The first input's own SHA-256.
+    pub(crate) first_sha256: String,
+    /// The inputs' sizes together.
     pub(crate) bytes: u64,
 }
 
@@ -105,7 +132,7 @@ pub(crate) fn stats_record(
     loaded: &LoadedScene,
     rendered: &Rendered<'_>,
     id: &FrameId<'_>,
-    input: InputId,
+    input: &InputId,
     timing: &Timing,
 ) -> RenderStats {
     let Rendered { result, status, spp, .. } = *rendered;
@@ -128,7 +155,7 @@ pub(crate) fn stats_record(
         frame: id.frame,
         input: paths.input.display().to_string(),
         input_bytes: input.bytes,
-        input_sha256: input.sha256,
+        input_sha256: input.sha256.clone(),
         output: paths.output.display().to_string(),
         status: status.as_str().into(),
         spp,
@@ -175,6 +202,7 @@ pub(crate) fn write_outputs(
     loaded: &LoadedScene,
     rendered: &Rendered<'_>,
     record: &RenderStats,
+    input: &InputId,
     working_dir: &std::path::Path,
 ) -> Result<()> {
     let Rendered { result, status, .. } = *rendered;
@@ -192,12 +220,17 @@ pub(crate) fn write_outputs(
             record.saturated_samples
         ));
     }
+    // The further volumes' mapped caches: their checksums too
+    for check in &loaded.further_caches {
+        check.verified()?;
+    }
     if let Some(check) = &loaded.cache {
         // Checksums, and the file at the path is still the one mapped
         check.verified()?;
-        // ... and the one whose identity the record holds, hashed before it was opened
+        // ... and the one whose identity the record holds (part of it, with several
+        // volumes), hashed before it was opened
         if crate::cache::is_cache_path(&paths.input)
-            && file_sha256(&paths.input)?.0 != record.input_sha256
+            && file_sha256(&paths.input)?.0 != input.first_sha256
         {
             return Err(Error::InputFailed {
                 kind: "brick cache",

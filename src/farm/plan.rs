@@ -14,8 +14,11 @@ use plume_scene::{SceneDescription, ValidShot};
 pub struct Job<'a> {
     /// The shot as given.
     pub shot: &'a ValidShot,
-    /// The volume file, maybe with a frame token.
+    /// The (first) volume's file, maybe with a frame token.
     pub input: FramePattern,
+    /// The further volumes' files (`volumes[1].file`, …), in order, each maybe with a
+    /// frame token.
+    pub more_inputs: Vec<FramePattern>,
     /// The EXR, maybe with a frame token.
     pub output: FramePattern,
     /// The preview.
@@ -41,6 +44,8 @@ impl<'a> Job<'a> {
     pub fn new(shot: &'a ValidShot) -> Result<Job<'a>> {
         let (scene, settings) = (&shot.scene, &shot.settings);
         let input = FramePattern::parse(&scene.volume.file);
+        let more_inputs: Vec<FramePattern> =
+            scene.more_volumes.iter().map(|e| FramePattern::parse(&e.volume.file)).collect();
         let output = FramePattern::parse(&settings.output.image);
         let preview = settings.output.preview.as_deref().map(FramePattern::parse);
         let stats = settings.output.stats.as_deref().map(FramePattern::parse);
@@ -51,7 +56,10 @@ impl<'a> Job<'a> {
                 .map(Some)
                 .collect(),
             None => {
-                for (key, p) in [("volume.file", &input), ("output.image", &output)] {
+                let inputs = std::iter::once(&input).chain(&more_inputs);
+                let keys = scene.entries().iter().map(|e| e.key("file")).collect::<Vec<_>>();
+                let files = keys.iter().map(String::as_str).zip(inputs);
+                for (key, p) in files.chain([("output.image", &output)]) {
                     if p.has_frame() && !p.as_path().exists() {
                         return Err(Error::invalid(
                             key,
@@ -93,7 +101,18 @@ impl<'a> Job<'a> {
             (None, None, None) => Some(0..u64::from(settings.render.default_spp())),
         };
         let write_sums = settings.output.sums || crop.is_some() || farm.sample_range.is_some();
-        Ok(Job { shot, input, output, preview, stats, frames, crop, samples, write_sums })
+        Ok(Job {
+            shot,
+            input,
+            more_inputs,
+            output,
+            preview,
+            stats,
+            frames,
+            crop,
+            samples,
+            write_sums,
+        })
     }
 
     /// The scene.

@@ -12,6 +12,7 @@
 //! ```
 
 pub mod bind;
+mod several;
 
 use std::path::Path;
 
@@ -44,6 +45,8 @@ pub struct LoadedScene {
     /// When the volume is mapped from a brick cache: its background checksum check, which
     /// must pass before any output is written ([`CacheCheck::verified`]).
     pub cache: Option<CacheCheck>,
+    /// The same for the further volumes of a scene of several that are mapped.
+    pub further_caches: Vec<CacheCheck>,
 }
 
 /// The volume of a render and what it was built with.
@@ -85,6 +88,72 @@ fn load_vdb(
     })
 }
 
+/// The volume of `input` as `scene`'s (one) volume describes it: mapped from a `.plume`
+/// brick cache, through an automatic cache for a `.vdb` larger than a quarter of `budget`,
+/// or read into memory.
+fn load_volume(
+    scene: &SceneDescription,
+    input: &Path,
+    settings: &JobSettings,
+    budget: u64,
+) -> Result<LoadedVolume> {
+    if crate::cache::is_cache_path(input) {
+        load_cache(scene, crate::cache::Cache::open(input)?)
+    } else if let Some(cache) = crate::cache::convert::auto_cache(scene, input, settings, budget)? {
+        load_cache(scene, cache)
+    } else {
+        load_vdb(scene, input, settings)
+    }
+}
+
+/// The medium of `scene`'s (one) volume, emitting as `emission`: coefficients per world
+/// unit, or per unit of the placed volume (Cycles' Object space) when `placement` scales.
+fn placed_medium(
+    scene: &SceneDescription,
+    emission: Emission,
+    placement: Option<glam::DAffine3>,
+) -> Medium {
+    let (density_scale, emission) =
+        match placement.map(|m| scene.volume.space.coefficient_factor(m)) {
+            Some(f) if f != 1.0 => (
+                scene.medium.density_scale * f,
+                Emission { scale: (f64::from(emission.scale) * f) as f32, ..emission },
+            ),
+            _ => (scene.medium.density_scale, emission),
+        };
+    Medium::principled(
+        density_scale,
+        scene.albedo_rgb(),
+        scene.medium.absorption_color.map_or([0.0; 3], plume_scene::Albedo::rgb),
+        scene.medium.g,
+        emission,
+    )
+}
+
+/// The world box a volume fills, or the unit box around the origin for an empty one.
+fn bounds_of(volume: &Volume) -> Bounds3 {
+    if volume.is_empty() {
+        Bounds3 { lo: DVec3::splat(-1.0), hi: DVec3::splat(1.0) }
+    } else {
+        volume.world_bounds()
+    }
+}
+
+/// The lights besides the volumes, sized to the scene's box `bounds`; `None` without any.
+fn external_lights(
+    scene: &SceneDescription,
+    Bounds3 { lo, hi }: Bounds3,
+) -> Result<Option<plume_engine::light::external::ExternalLights>> {
+    if !scene.lights.any() {
+        return Ok(None);
+    }
+    plume_engine::light::external::settings::build(
+        &scene.lights,
+        up_axis(scene),
+        0.5 * (hi - lo).length(),
+    )
+}
+
 /// Check a brick cache against the description and take its volume.
 fn load_cache(scene: &SceneDescription, cache: crate::cache::Cache) -> Result<LoadedVolume> {
     let kind =
@@ -119,41 +188,20 @@ pub fn load_scene(
 ) -> Result<LoadedScene> {
     // Mapping values are checked before any reading
     emission_model(&scene.emission, EmissionKind::None)?;
+    if scene.is_several() {
+        return several::load_several(scene, input, settings, frame);
+    }
     let budget = memory_budget(settings);
-    let loaded = if crate::cache::is_cache_path(input) {
-        load_cache(scene, crate::cache::Cache::open(input)?)?
-    } else if let Some(cache) = crate::cache::convert::auto_cache(scene, input, settings, budget)? {
-        load_cache(scene, cache)?
-    } else {
-        load_vdb(scene, input, settings)?
-    };
-    let LoadedVolume { volume, emission, source_grid, proxy_power, cache } = loaded;
+    let LoadedVolume { volume, emission, source_grid, proxy_power, cache } =
+        load_volume(scene, input, settings, budget)?;
     // Placed in the world before anything is built from world space
     let placement = scene.volume.placement().transform("volume")?;
     let volume = match placement {
         Some(m) => volume.placed(m),
         None => volume,
     };
-    let camera = camera(scene, input, &volume, frame)?;
-    // Coefficients per world unit, or per unit of the placed volume (Cycles' Object space)
-    let (density_scale, medium_emission) =
-        match placement.map(|m| scene.volume.space.coefficient_factor(m)) {
-            Some(f) if f != 1.0 => (
-                scene.medium.density_scale * f,
-                plume_engine::medium::Emission {
-                    scale: (f64::from(emission.scale) * f) as f32,
-                    ..emission
-                },
-            ),
-            _ => (scene.medium.density_scale, emission),
-        };
-    let medium = Medium::principled(
-        density_scale,
-        scene.albedo_rgb(),
-        scene.medium.absorption_color.map_or([0.0; 3], plume_scene::Albedo::rgb),
-        scene.medium.g,
-        medium_emission,
-    );
+    let camera = camera(scene, input, bounds_of(&volume), frame)?;
+    let medium = placed_medium(scene, emission, placement);
     // Light-sampling structures, only for the technique in use and only when paths scatter
     let (_, light_sampling) = scene.integrator.parts();
     let mut lights = if scene.scatters() {
@@ -185,18 +233,7 @@ pub fn load_scene(
         Lights::default()
     };
     // Lights besides the volume: seen by camera rays even when nothing scatters
-    if scene.lights.any() {
-        let Bounds3 { lo, hi } = if volume.is_empty() {
-            Bounds3 { lo: DVec3::splat(-1.0), hi: DVec3::splat(1.0) }
-        } else {
-            volume.world_bounds()
-        };
-        lights.external = plume_engine::light::external::settings::build(
-            &scene.lights,
-            up_axis(scene),
-            0.5 * (hi - lo).length(),
-        )?;
-    }
+    lights.external = external_lights(scene, bounds_of(&volume))?;
     let motion = match (&scene.volume.velocity_grid, scene.shutter_seconds()) {
         (Some(name), Some(shutter)) => Some(Motion::new(
             &volume,
@@ -217,7 +254,13 @@ pub fn load_scene(
         Scene { field: volume, medium, camera, lights, motion, majorants },
         scene.volume.interpolation,
     );
-    Ok(LoadedScene { scene, emission_kind: emission.kind, source_grid, cache })
+    Ok(LoadedScene {
+        scene,
+        emission_kind: emission.kind,
+        source_grid,
+        cache,
+        further_caches: Vec::new(),
+    })
 }
 
 /// The velocity grid `name` of the .vdb `input`: a vec3 grid `name` (Blender, Houdini
@@ -321,14 +364,9 @@ fn keyed_camera(scene: &SceneDescription, frame: Option<i64>) -> Result<(Camera,
 fn camera(
     scene: &SceneDescription,
     input: &Path,
-    volume: &Volume,
+    bounds: Bounds3,
     frame: Option<i64>,
 ) -> Result<Camera> {
-    let bounds = if volume.is_empty() {
-        Bounds3 { lo: DVec3::splat(-1.0), hi: DVec3::splat(1.0) }
-    } else {
-        volume.world_bounds()
-    };
     let (camera, at) = if scene.camera.keys.is_empty() {
         placed_camera(scene, input, bounds)?
     } else {

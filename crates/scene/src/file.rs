@@ -13,7 +13,7 @@
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 
-use toml_edit::{ImDocument, Item, Table};
+use toml_edit::{ImDocument, Item, TableLike};
 
 use super::Shot;
 use plume_core::error::{Error, Result};
@@ -48,6 +48,18 @@ impl SceneFile {
     pub fn parse(path: &Path, text: String, base: &Path) -> Result<(Shot, SceneFile)> {
         let doc = ImDocument::parse(text.clone()).ok();
         let file = SceneFile { path: path.to_path_buf(), text, doc };
+        // `[volume]` beside `[[volumes]]`, an empty list: named at their line
+        if let Some(doc) = &file.doc {
+            let volumes = doc.get("volumes").map(|v| match v {
+                Item::ArrayOfTables(a) => a.len(),
+                other => other.as_array().map_or(1, toml_edit::Array::len),
+            });
+            if let Some((key, message)) =
+                crate::volume_tables_error(doc.contains_key("volume"), volumes)
+            {
+                return Err(file.error_at_key(key, message));
+            }
+        }
         let mut shot: Shot = toml::from_str(&file.text).map_err(|e| {
             let span = e.span();
             let key = span
@@ -96,17 +108,31 @@ impl SceneFile {
             + 1
     }
 
-    /// Byte offset of `key`'s definition.
+    /// Byte offset of `key`'s definition. A part of the key may index a list of tables
+    /// (`volumes[1].medium.g`; inline tables count as tables): a key inside an entry that
+    /// the entry leaves out (it inherits the value) is at the entry's start.
     fn line_offset(&self, key: &str) -> Option<usize> {
         let doc = self.doc.as_ref()?;
-        let mut table = doc.as_table();
+        let mut table: &dyn TableLike = doc.as_table();
+        let mut entry = None;
         let parts: Vec<&str> = key.split('/').next().unwrap_or(key).split('.').collect();
         for (i, part) in parts.iter().enumerate() {
-            let (k, item) = table.get_key_value(part)?;
-            if i + 1 == parts.len() {
-                return k.span().or_else(|| item.span()).map(|s| s.start);
+            let (name, index) = match part.strip_suffix(']').and_then(|p| p.split_once('[')) {
+                Some((name, index)) => (name, Some(index.parse::<usize>().ok()?)),
+                None => (*part, None),
+            };
+            let Some((k, mut item)) = table.get_key_value(name) else { return entry };
+            let mut span = k.span();
+            if let Some(index) = index {
+                item = item.get(index)?;
+                span = item.span().or(span);
+                entry = span.as_ref().map(|s| s.start);
             }
-            table = item.as_table()?;
+            if i + 1 == parts.len() {
+                return span.or_else(|| item.span()).map(|s| s.start);
+            }
+            let Some(inner) = item.as_table_like() else { return entry };
+            table = inner;
         }
         None
     }
@@ -116,6 +142,8 @@ impl SceneFile {
     fn key_in_text(&self, offset: usize) -> Option<String> {
         let line = self.line_at(offset);
         let mut table = String::new();
+        // Entries of each list of tables (`[[volumes]]`) so far
+        let mut lists: Vec<(String, usize)> = Vec::new();
         for (i, text) in self.text.lines().enumerate() {
             let t = text.trim();
             if i + 1 == line {
@@ -128,28 +156,42 @@ impl SceneFile {
                 };
             }
             if t.starts_with('[') {
-                table = t.trim_matches(|c| c == '[' || c == ']').trim().to_string();
+                table = header_key(t, &mut lists);
             }
         }
         None
     }
 
-    /// The dotted key whose definition (key or value) holds byte `offset`.
+    /// The dotted key whose definition (key or value) holds byte `offset`; an entry of a
+    /// list of tables is named by its index (`volumes[1].medium.g`).
     fn key_at(&self, offset: usize) -> Option<String> {
-        fn walk(table: &Table, offset: usize, prefix: &str) -> Option<String> {
+        fn walk(table: &dyn TableLike, offset: usize, prefix: &str) -> Option<String> {
+            let inside =
+                |s: Option<Range<usize>>| s.is_some_and(|s| s.contains(&offset) || s.end == offset);
             for (name, item) in table.iter() {
                 let path =
                     if prefix.is_empty() { name.to_string() } else { format!("{prefix}.{name}") };
-                if let Some(sub) = item.as_table() {
+                if let Some(sub) = item.as_table_like() {
                     if let Some(found) = walk(sub, offset, &path) {
                         return Some(found);
                     }
                 }
-                let key_span = table.key(name).and_then(toml_edit::Key::span);
-                let inside = |s: Option<Range<usize>>| {
-                    s.is_some_and(|s| s.contains(&offset) || s.end == offset)
+                let entries = match item {
+                    Item::ArrayOfTables(a) => a.iter().map(|t| t as &dyn TableLike).collect(),
+                    _ => item.as_array().map_or(Vec::new(), |a| {
+                        a.iter()
+                            .filter_map(|v| v.as_inline_table().map(|t| t as &dyn TableLike))
+                            .collect()
+                    }),
                 };
-                if inside(key_span) || (!matches!(item, Item::Table(_)) && inside(item.span())) {
+                for (i, entry) in entries.into_iter().enumerate() {
+                    if let Some(found) = walk(entry, offset, &format!("{path}[{i}]")) {
+                        return Some(found);
+                    }
+                }
+                let key_span = table.key(name).and_then(toml_edit::Key::span);
+                let whole_table = matches!(item, Item::Table(_) | Item::ArrayOfTables(_));
+                if inside(key_span) || (!whole_table && inside(item.span())) {
                     return Some(path);
                 }
             }
@@ -159,12 +201,47 @@ impl SceneFile {
     }
 }
 
+/// The key of a table header line (`[camera]`, `[[volumes]]`, `[volumes.medium]`,
+/// `[[volumes.instances]]`), each list it is in or is named by its current entry
+/// (`volumes[1].instances[0]`); `lists` counts the entries of each list so far, those of a
+/// list inside another counted afresh in each of the other's entries.
+fn header_key(line: &str, lists: &mut Vec<(String, usize)>) -> String {
+    let name: Vec<&str> =
+        line.trim_matches(|c| c == '[' || c == ']').trim().split('.').map(str::trim).collect();
+    let name = name.join(".");
+    if line.starts_with("[[") {
+        let inner = format!("{name}.");
+        lists.retain(|(n, _)| !n.starts_with(&inner));
+        match lists.iter_mut().find(|(n, _)| *n == name) {
+            Some((_, count)) => *count += 1,
+            None => lists.push((name.clone(), 1)),
+        }
+    }
+    let mut key = String::new();
+    let mut end = 0;
+    for part in name.split('.') {
+        if end > 0 {
+            key.push('.');
+            end += 1;
+        }
+        end += part.len();
+        key.push_str(part);
+        if let Some((_, count)) = lists.iter().find(|(n, _)| *n == name[..end]) {
+            key += &format!("[{}]", count - 1);
+        }
+    }
+    key
+}
+
 /// Apply `f` to every path of `shot` (inputs, outputs, cache directory) that is given:
 /// an empty path means "not given" and stays empty, so validation can say it is required.
 pub fn resolve_paths(shot: &mut Shot, f: impl Fn(&Path) -> PathBuf) {
     let f = |p: &Path| if p.as_os_str().is_empty() { PathBuf::new() } else { f(p) };
     let s = &mut shot.settings;
     shot.scene.volume.file = f(&shot.scene.volume.file);
+    for entry in &mut shot.scene.more_volumes {
+        entry.volume.file = f(&entry.volume.file);
+    }
     s.output.image = f(&s.output.image);
     for p in
         [&mut s.output.preview, &mut s.output.stats, &mut s.render.cache_dir].into_iter().flatten()

@@ -25,9 +25,11 @@ pub mod placement;
 pub mod selector;
 pub mod sets;
 mod settings;
+pub mod several_volumes;
 pub mod split;
 pub mod validate;
 mod values;
+pub mod volumes;
 
 use std::path::PathBuf;
 
@@ -49,6 +51,9 @@ pub use settings::{
 };
 pub use validate::ValidShot;
 pub use values::{parse_bytes, ByteSize, TileIndex};
+pub use volumes::{
+    EmissionSettings, EntryRef, MediumSettings, VolumeEntry, VolumeEntryKeys, VolumeInput,
+};
 
 pub use sets::{
     Collision, Convention, EmissionKind, Estimator, Filtered, LightSampling, MisHeuristic,
@@ -57,11 +62,11 @@ pub use sets::{
 
 /// Everything a `plume render` command says: the scene and how the job runs.
 ///
-/// As a scene file it is one table per part: `[volume]`, `[emission]`, `[medium]`,
-/// `[camera]`, `[lights]`, `[integrator]` (the scene) and `[render]`, `[farm]`,
-/// `[output]`, `[reading]` (the job).
+/// As a scene file it is one table per part: `[volume]` (or a list of `[[volumes]]`),
+/// `[emission]`, `[medium]`, `[camera]`, `[lights]`, `[integrator]` (the scene) and
+/// `[render]`, `[farm]`, `[output]`, `[reading]` (the job).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(from = "ShotFile", into = "ShotFile")]
+#[serde(try_from = "ShotFile", into = "ShotFile")]
 pub struct Shot {
     /// What is rendered.
     pub scene: SceneDescription,
@@ -69,15 +74,21 @@ pub struct Shot {
     pub settings: JobSettings,
 }
 
-/// A [`Shot`] as a scene file lays it out: every table at the top level.
+/// A [`Shot`] as a scene file lays it out: every table at the top level. One volume is
+/// `volume` with the top-level `emission` and `medium`; several are `volumes`, whose
+/// entries take the emission and medium keys they leave out from the top-level tables.
 #[derive(Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct ShotFile {
-    volume: VolumeInput,
-    #[serde(default)]
-    emission: EmissionSettings,
-    #[serde(default)]
-    medium: MediumSettings,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    volume: Option<VolumeInput>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    volumes: Option<Vec<VolumeEntryKeys>>,
+    // A list written out gives every entry's emission and medium whole: no top-level tables
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    emission: Option<EmissionSettings>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    medium: Option<MediumSettings>,
     #[serde(default)]
     camera: CameraSettings,
     #[serde(default)]
@@ -95,10 +106,28 @@ struct ShotFile {
     reading: ReadSettings,
 }
 
-impl From<ShotFile> for Shot {
-    fn from(f: ShotFile) -> Shot {
+/// What a scene file's volume tables say that no scene can be, given whether it has
+/// `[volume]` and how many `[[volumes]]` entries: `(key, message)`.
+pub(crate) fn volume_tables_error(
+    volume: bool,
+    volumes: Option<usize>,
+) -> Option<(&'static str, &'static str)> {
+    match (volume, volumes) {
+        (true, Some(_)) => {
+            Some(("volumes", "give one volume as [volume] or a list as [[volumes]], not both"))
+        }
+        (false, Some(0)) => Some(("volumes", "is empty: give at least one [[volumes]] entry")),
+        _ => None,
+    }
+}
+
+impl TryFrom<ShotFile> for Shot {
+    type Error = String;
+
+    fn try_from(f: ShotFile) -> Result<Shot, String> {
         let ShotFile {
             volume,
+            volumes,
             emission,
             medium,
             camera,
@@ -109,21 +138,67 @@ impl From<ShotFile> for Shot {
             output,
             reading,
         } = f;
-        Shot {
-            scene: SceneDescription { volume, emission, medium, camera, lights, integrator },
-            settings: JobSettings { render, farm, output, reading },
+        if volume.is_none() && volumes.is_none() {
+            // As serde says it of any other required key
+            return Err("missing field `volume`".into());
         }
+        let count = volumes.as_ref().map(Vec::len);
+        if let Some((key, message)) = volume_tables_error(volume.is_some(), count) {
+            return Err(format!("key `{key}`: {message}"));
+        }
+        let (emission, medium) = (emission.unwrap_or_default(), medium.unwrap_or_default());
+        let (first, more_volumes, listed) = match (volume, volumes) {
+            (Some(volume), _) => (VolumeEntry { volume, emission, medium }, Vec::new(), false),
+            (None, list) => {
+                let list = list.unwrap_or_default();
+                let mut entries = list.iter().map(|e| e.resolve(&emission, &medium));
+                let first = entries.next().expect("invariant: checked to be non-empty");
+                (first, entries.collect(), true)
+            }
+        };
+        let VolumeEntry { volume, emission, medium } = first;
+        Ok(Shot {
+            scene: SceneDescription {
+                volume,
+                emission,
+                medium,
+                more_volumes,
+                listed,
+                camera,
+                lights,
+                integrator,
+            },
+            settings: JobSettings { render, farm, output, reading },
+        })
     }
 }
 
 impl From<Shot> for ShotFile {
     fn from(s: Shot) -> ShotFile {
         let Shot {
-            scene: SceneDescription { volume, emission, medium, camera, lights, integrator },
+            scene:
+                SceneDescription {
+                    volume,
+                    emission,
+                    medium,
+                    more_volumes,
+                    listed,
+                    camera,
+                    lights,
+                    integrator,
+                },
             settings: JobSettings { render, farm, output, reading },
         } = s;
+        let (volume, volumes, emission, medium) = if listed || !more_volumes.is_empty() {
+            let first = VolumeEntry { volume, emission, medium };
+            let list = std::iter::once(&first).chain(&more_volumes).map(VolumeEntryKeys::written);
+            (None, Some(list.collect()), None, None)
+        } else {
+            (Some(volume), None, Some(emission), Some(medium))
+        };
         ShotFile {
             volume,
+            volumes,
             emission,
             medium,
             camera,
@@ -145,19 +220,29 @@ impl Shot {
     }
 }
 
-/// What is rendered. The volume's file may hold a frame token (`fire.####.vdb`), resolved
-/// per frame by the job.
+/// What is rendered: one volume or several, the camera, lights and method. A volume's
+/// file may hold a frame token (`fire.####.vdb`), resolved per frame by the job.
+///
+/// The first volume is `volume`, `emission` and `medium`; the 2nd, 3rd, … are
+/// `more_volumes` ([`entries`](SceneDescription::entries) gives them all alike). Any of
+/// them may appear several times (`VolumeInput::instances`).
 #[derive(Clone, Debug, PartialEq)]
 pub struct SceneDescription {
-    /// The volume and the grids that make it.
+    /// The (first) volume and the grids that make it.
     pub volume: VolumeInput,
-    /// What emits and how.
+    /// What the (first) volume emits and how.
     pub emission: EmissionSettings,
-    /// Extinction and scattering.
+    /// The (first) volume's extinction and scattering.
     pub medium: MediumSettings,
+    /// The 2nd, 3rd, … volumes (`[[volumes]]` after the first, `--add-volume`).
+    pub more_volumes: Vec<VolumeEntry>,
+    /// Whether the volumes were given as a list (`[[volumes]]`), even of one: the first
+    /// volume's keys are then `volumes[0].…` ([`EntryRef::key`]), and a scene file written
+    /// from it lists them again.
+    pub listed: bool,
     /// The camera and the image size.
     pub camera: CameraSettings,
-    /// Lights besides the volume's own emission.
+    /// Lights besides the volumes' own emission.
     pub lights: LightSettings,
     /// Estimators and light sampling.
     pub integrator: IntegratorSettings,
@@ -183,167 +268,77 @@ impl SceneDescription {
             volume: VolumeInput::new(file),
             emission: EmissionSettings::default(),
             medium: MediumSettings::default(),
+            more_volumes: Vec::new(),
+            listed: false,
             camera: CameraSettings::default(),
             lights: LightSettings::default(),
             integrator: IntegratorSettings::default(),
         }
     }
 
-    /// The albedo scale per channel: `medium.albedo`, else 1 with an albedo grid, else 0.
+    /// How many volumes the scene has: 1 and the further ones (entries, not instances:
+    /// [`placed_volume_count`](SceneDescription::placed_volume_count)).
     #[must_use]
-    pub fn albedo_rgb(&self) -> [f32; 3] {
-        let default = if self.volume.albedo_grid.is_some() { 1.0 } else { 0.0 };
-        self.medium.albedo.map_or([default; 3], Albedo::rgb)
+    pub fn volume_count(&self) -> usize {
+        1 + self.more_volumes.len()
     }
 
-    /// The albedo scale's largest channel: paths scatter when it is above 0.
+    /// How many volumes the scene places in the world: each entry once, or once per
+    /// instance.
+    #[must_use]
+    pub fn placed_volume_count(&self) -> usize {
+        self.volume.placed_count()
+            + self.more_volumes.iter().map(|e| e.volume.placed_count()).sum::<usize>()
+    }
+
+    /// Whether the scene renders as several volumes: more than one entry, or any volume
+    /// with `instances` (even one instance of one volume). What several volumes cannot do
+    /// yet is refused for it (`several_volumes`), and it is loaded as several.
+    #[must_use]
+    pub fn is_several(&self) -> bool {
+        !self.more_volumes.is_empty() || self.volume.instances.is_some()
+    }
+
+    /// Every volume in order, the first included, each with the prefix of its keys:
+    /// `volume` for one volume given as `[volume]`, else `volumes[0]`, `volumes[1]`, …
+    #[must_use]
+    pub fn entries(&self) -> Vec<EntryRef<'_>> {
+        let first = EntryRef {
+            index: 0,
+            prefix: if self.listed { "volumes[0]" } else { "volume" }.to_string(),
+            volume: &self.volume,
+            emission: &self.emission,
+            medium: &self.medium,
+        };
+        let more = self.more_volumes.iter().enumerate().map(|(i, e)| EntryRef {
+            index: i + 1,
+            prefix: format!("volumes[{}]", i + 1),
+            volume: &e.volume,
+            emission: &e.emission,
+            medium: &e.medium,
+        });
+        std::iter::once(first).chain(more).collect()
+    }
+
+    /// The first volume's albedo scale per channel: `medium.albedo`, else 1 with an
+    /// albedo grid, else 0 (each volume's: [`EntryRef::albedo_rgb`]).
+    #[must_use]
+    pub fn albedo_rgb(&self) -> [f32; 3] {
+        volumes::albedo_rgb(&self.volume, &self.medium)
+    }
+
+    /// The first volume's albedo scale's largest channel (each volume's:
+    /// [`EntryRef::albedo`]).
     #[must_use]
     pub fn albedo(&self) -> f32 {
         let [r, g, b] = self.albedo_rgb();
         r.max(g).max(b)
     }
 
-    /// Whether paths scatter (albedo above 0 and at least one bounce).
+    /// Whether paths scatter: an albedo above 0 in any volume, and at least one bounce.
     #[must_use]
     pub fn scatters(&self) -> bool {
-        self.albedo() > 0.0 && self.integrator.max_depth > 0
-    }
-}
-
-/// The volume file and the grids bound by name (`name[N]` for the N-th of a name).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct VolumeInput {
-    /// The .vdb file or .plume brick cache; with frames, a pattern with a frame token.
-    pub file: PathBuf,
-    /// Density grid.
-    #[serde(default = "defaults::density_grid")]
-    pub density_grid: String,
-    /// Temperature grid (blackbody).
-    #[serde(default = "defaults::temperature_grid")]
-    pub temperature_grid: String,
-    /// Emission grid (`emission.source = "grid"`); default: the first of the usual names.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub emission_grid: Option<String>,
-    /// Per-voxel albedo grid (values clamped to [0, 1]), times `medium.albedo`.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub albedo_grid: Option<String>,
-    /// How values are reconstructed between voxel centres.
-    #[serde(default)]
-    pub interpolation: Interpolation,
-    /// Velocity for motion blur (world units per second): the vector grid `NAME`, or three
-    /// float grids `NAME.x`, `NAME.y`, `NAME.z`. Motion blur needs it.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub velocity_grid: Option<String>,
-    /// Multiplies the velocity.
-    #[serde(default = "defaults::one", skip_serializing_if = "defaults::is_one")]
-    pub velocity_scale: f64,
-    /// Placement after the file's own transform (`placement`): translation, world units.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub translate: Option<[f64; 3]>,
-    /// XYZ Euler rotation in degrees (Blender's default mode).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub rotate: Option<[f64; 3]>,
-    /// Scale, one factor or x, y, z.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub scale: Option<Scale>,
-    /// The placement as a 4×4 affine matrix, rows as written (in place of the three above).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub matrix: Option<[[f64; 4]; 4]>,
-    /// Whether coefficients are per world unit or, as Cycles' *Object* space, per unit of
-    /// the placed volume.
-    #[serde(default, skip_serializing_if = "defaults::is_world")]
-    pub space: VolumeSpace,
-}
-
-impl VolumeInput {
-    /// The default grids of `file`.
-    #[must_use]
-    pub fn new(file: impl Into<PathBuf>) -> VolumeInput {
-        VolumeInput {
-            file: file.into(),
-            density_grid: defaults::density_grid(),
-            temperature_grid: defaults::temperature_grid(),
-            emission_grid: None,
-            albedo_grid: None,
-            interpolation: Interpolation::default(),
-            velocity_grid: None,
-            velocity_scale: 1.0,
-            translate: None,
-            rotate: None,
-            scale: None,
-            matrix: None,
-            space: VolumeSpace::World,
-        }
-    }
-
-    /// The placement keys together (`placement::Placement::transform` makes the map).
-    #[must_use]
-    pub fn placement(&self) -> Placement {
-        Placement {
-            translate: self.translate,
-            rotate: self.rotate,
-            scale: self.scale,
-            matrix: self.matrix,
-        }
-    }
-}
-
-/// What emits and how (`medium::Emission` once the source grid is known).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct EmissionSettings {
-    /// What drives emission.
-    pub source: EmissionSource,
-    /// Physical, or Blender Cycles' Principled Volume convention.
-    pub convention: Convention,
-    /// Temperature grid values to Kelvin: `kelvin` or `linear:OFFSET,SCALE`.
-    pub temperature_map: String,
-    /// Physical blackbody: temperatures below this (Kelvin) emit nothing.
-    pub temperature_cutoff: f32,
-    /// Emission scale s_e.
-    pub scale: f32,
-    /// Emission colour (a tint for blackbody), linear Rec.709.
-    pub color: [f32; 3],
-}
-
-impl Default for EmissionSettings {
-    fn default() -> Self {
-        EmissionSettings {
-            source: EmissionSource::Auto,
-            convention: Convention::Physical,
-            temperature_map: "kelvin".into(),
-            temperature_cutoff: 500.0,
-            scale: 1.0,
-            color: [1.0; 3],
-        }
-    }
-}
-
-/// Extinction and scattering.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct MediumSettings {
-    /// σ_t: extinction per world unit (metre) per unit density.
-    pub density_scale: f64,
-    /// Single-scattering albedo, grey or a colour, in [0, 1]; default 0, or 1 with an
-    /// albedo grid. With an absorption colour it is Cycles' Principled Volume *Color*:
-    /// the scattering coefficient per unit of `density_scale`.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub albedo: Option<Albedo>,
-    /// Cycles' Principled Volume *Absorption Color*, grey or a colour, in [0, 1]: with
-    /// the albedo `C` it makes the extinction of channel `c`
-    /// `σ_t (C_c + (1 − C_c)(1 − √A_c))` per unit density (chromatic where the channels
-    /// differ). Default black: grey extinction `σ_t`.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub absorption_color: Option<Albedo>,
-    /// Henyey–Greenstein asymmetry in (−1, 1).
-    pub g: f64,
-}
-
-impl Default for MediumSettings {
-    fn default() -> Self {
-        MediumSettings { density_scale: 1.0, albedo: None, absorption_color: None, g: 0.0 }
+        self.integrator.max_depth > 0 && self.entries().iter().any(|e| e.albedo() > 0.0)
     }
 }
 
@@ -553,23 +548,5 @@ impl IntegratorSettings {
     }
 }
 
-/// Defaults that serde needs as functions.
-mod defaults {
-    pub fn is_world(space: &super::VolumeSpace) -> bool {
-        *space == super::VolumeSpace::World
-    }
-
-    pub(super) fn density_grid() -> String {
-        "density".into()
-    }
-    pub(super) fn temperature_grid() -> String {
-        "temperature".into()
-    }
-    pub(super) fn one() -> f64 {
-        1.0
-    }
-    #[allow(clippy::trivially_copy_pass_by_ref)] // serde's signature
-    pub(super) fn is_one(v: &f64) -> bool {
-        *v == 1.0
-    }
-}
+#[cfg(test)]
+mod tests;

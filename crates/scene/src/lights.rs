@@ -208,7 +208,7 @@ fn colour(key: &str, what: &str, color: Option<[f32; 3]>, kelvin: Option<f32>) -
 
 /// A light group's name: a layer name of the EXR, so letters, digits, `_` and `-`, and
 /// not one of the fixed layers.
-fn group_name(key: &str, group: Option<&String>) -> Result<()> {
+pub(crate) fn group_name(key: &str, group: Option<&String>) -> Result<()> {
     let Some(g) = group else { return Ok(()) };
     check(
         !g.is_empty() && g.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-'),

@@ -9,6 +9,10 @@
 //! affine map, rows as written (`[[a, b, c, tx], [d, e, f, ty], [g, h, i, tz],
 //! [0, 0, 0, 1]]`, translation in the last column), as Blender prints `matrix_world`.
 //!
+//! **Instances** (`instances = [{ translate = [2, 0, 0] }, …]`) are placements too, each
+//! applied after the volume's own: an instance's whole placement is
+//! `M_instance · M` ([`instance_placement`]).
+//!
 //! **Coefficients under a placement** ([`VolumeSpace`]): per world unit by default, so a
 //! volume scaled by 2 is twice as deep; or, as Cycles has it for volume objects whose
 //! render space is *Object* (Blender's default), divided by the placement's scale
@@ -103,16 +107,23 @@ impl std::str::FromStr for Scale {
     }
 }
 
-/// A volume's placement as the scene gives it (the `[volume]` keys of the same names).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+/// A volume's placement as the scene gives it (the `[volume]` keys of the same names), and
+/// as a scene file writes one instance of a volume (an inline table of those keys in
+/// `instances`, `volumes::VolumeInput::instances`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct Placement {
     /// Translation, world units.
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub translate: Option<[f64; 3]>,
     /// XYZ Euler angles, degrees.
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub rotate: Option<[f64; 3]>,
     /// Scale factors.
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub scale: Option<Scale>,
     /// The whole affine map, rows as written.
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub matrix: Option<[[f64; 4]; 4]>,
 }
 
@@ -180,6 +191,19 @@ impl Placement {
     }
 }
 
+/// The whole placement of an instance, `instance · volume` (the instance's placement after
+/// the volume's own), where `None` is the identity either way; `None` when both are.
+#[must_use]
+pub fn instance_placement(
+    volume: Option<DAffine3>,
+    instance: Option<DAffine3>,
+) -> Option<DAffine3> {
+    match (instance, volume) {
+        (Some(i), Some(v)) => Some(i * v),
+        (i, v) => i.or(v),
+    }
+}
+
 /// `xf` where it has a finite inverse; else an error naming `key`.
 fn invertible(key: &str, xf: DAffine3) -> Result<DAffine3> {
     let det = xf.matrix3.determinant();
@@ -219,6 +243,19 @@ mod tests {
         let by_matrix = Placement { matrix: Some(rows), ..Placement::default() };
         assert_eq!(by_matrix.transform("volume").unwrap(), Some(m));
         assert_eq!(Placement::default().transform("volume").unwrap(), None);
+    }
+
+    #[test]
+    fn an_instance_is_placed_after_the_volume() {
+        let volume = Placement { rotate: Some([0.0, 0.0, 90.0]), ..Placement::default() };
+        let instance = Placement { translate: Some([5.0, 0.0, 0.0]), ..Placement::default() };
+        let (v, i) = (volume.transform("volume").unwrap(), instance.transform("i").unwrap());
+        // Turned first (x → y), then moved along the world's x
+        let p = instance_placement(v, i).unwrap().transform_point3(DVec3::X);
+        assert!((p - DVec3::new(5.0, 1.0, 0.0)).length() < 1e-12, "{p}");
+        assert_eq!(instance_placement(v, None), v);
+        assert_eq!(instance_placement(None, i), i);
+        assert_eq!(instance_placement(None, None), None);
     }
 
     #[test]

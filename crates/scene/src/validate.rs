@@ -2,17 +2,22 @@
 //! [`Error::InvalidArgument`] naming the field by its key (`camera.width`). The binary
 //! turns a key into the flag a user typed or the scene file's line.
 //!
+//! Every volume of a scene gets the same checks, each naming the volume's own key
+//! ([`EntryRef::key`]: `volume.matrix`, `medium.g` for one volume given as `[volume]`;
+//! `volumes[1].matrix`, `volumes[1].medium.g` in a list). What several volumes cannot
+//! do yet is refused in `several_volumes.rs`, also for a volume with `instances`, whose
+//! placements are checked as a volume's own (`volume.instances[1].matrix`).
+//!
 //! What needs the file system (frame tokens of paths that exist, writable outputs) or
 //! the data (proxy resolution against the volume, grids present) is checked when the
 //! job runs.
 
 use std::ops::Deref;
 
-use super::{
-    CameraSettings, JobSettings, Projection, RenderOptions, SceneDescription, Shot, VolumeInput,
-};
+use super::{CameraSettings, JobSettings, Projection, RenderOptions, SceneDescription, Shot};
 use crate::selector::GridSelector;
 use crate::sets::TemperatureMap;
+use crate::volumes::EntryRef;
 use plume_core::error::{Error, Result};
 
 /// A [`Shot`] that passed [`Shot::validate`]; what renders take.
@@ -74,13 +79,20 @@ impl Shot {
     /// [`Error::InvalidArgument`] naming the field's key, e.g. `medium.albedo`.
     pub fn validate(self) -> Result<ValidShot> {
         let (scene, job) = (&self.scene, &self.settings);
+        let entries = scene.entries();
         sample_budget(&job.render)?;
         camera_frame(&scene.camera)?;
-        medium_and_method(scene)?;
-        motion(scene)?;
+        for entry in &entries {
+            instances(entry)?;
+        }
+        crate::several_volumes::check(scene, &entries)?;
+        medium_and_method(scene, &entries)?;
+        motion(scene, &entries[0])?;
         camera_motion(&scene.camera)?;
-        grids(&scene.volume)?;
-        scene.volume.placement().transform("volume")?;
+        for entry in &entries {
+            grids(entry)?;
+            entry.volume.placement().transform(&entry.prefix)?;
+        }
         job_settings(job, &scene.camera)?;
         Ok(ValidShot(self))
     }
@@ -230,11 +242,13 @@ fn camera_optics(cam: &CameraSettings) -> Result<()> {
     Ok(())
 }
 
-/// The medium, emission, lights and the integrator's choices, and which of them go
+/// The media, emission, lights and the integrator's choices, and which of them go
 /// together.
-fn medium_and_method(scene: &SceneDescription) -> Result<()> {
-    finite_nonneg("medium.density_scale", scene.medium.density_scale)?;
-    finite_nonneg("emission.scale", f64::from(scene.emission.scale))?;
+fn medium_and_method(scene: &SceneDescription, entries: &[EntryRef<'_>]) -> Result<()> {
+    for e in entries {
+        finite_nonneg(&e.key("medium.density_scale"), e.medium.density_scale)?;
+        finite_nonneg(&e.key("emission.scale"), f64::from(e.emission.scale))?;
+    }
     finite_nonneg("integrator.kappa", scene.integrator.kappa)?;
     if !(1..=256).contains(&scene.integrator.split) {
         return Err(Error::invalid(
@@ -245,18 +259,9 @@ fn medium_and_method(scene: &SceneDescription) -> Result<()> {
             ),
         ));
     }
-    finite_nonneg("emission.temperature_cutoff", f64::from(scene.emission.temperature_cutoff))?;
-    nonneg_components("emission.color", scene.emission.color.map(f64::from))?;
-    scene.emission.temperature_map.parse::<TemperatureMap>()?;
-    for albedo in scene.albedo_rgb() {
-        if !(0.0..=1.0).contains(&albedo) {
-            return Err(Error::invalid("medium.albedo", format!("{albedo} is not in [0, 1]")));
-        }
+    for e in entries {
+        emission_and_medium(scene, e)?;
     }
-    if !(scene.medium.g > -1.0 && scene.medium.g < 1.0) {
-        return Err(Error::invalid("medium.g", format!("{} is not in (-1, 1)", scene.medium.g)));
-    }
-    absorption_color(scene)?;
     scene.lights.validate()?;
     let (estimator, light_sampling) = scene.integrator.parts();
     if matches!(
@@ -287,48 +292,78 @@ fn medium_and_method(scene: &SceneDescription) -> Result<()> {
     Ok(())
 }
 
-/// The absorption colour, and what chromatic extinction may be used with: it is tracked
-/// regularly (its hero-channel pdfs need exact optical depths), and its channels'
+/// One volume's emission mapping, albedo, g and absorption colour.
+fn emission_and_medium(scene: &SceneDescription, e: &EntryRef<'_>) -> Result<()> {
+    finite_nonneg(&e.key("emission.temperature_cutoff"), f64::from(e.emission.temperature_cutoff))?;
+    nonneg_components(&e.key("emission.color"), e.emission.color.map(f64::from))?;
+    e.emission.temperature_map.parse::<TemperatureMap>().map_err(|err| match err {
+        Error::InvalidArgument { message, .. } => {
+            Error::invalid(&e.key("emission.temperature_map"), message)
+        }
+        other => other,
+    })?;
+    for albedo in e.albedo_rgb() {
+        if !(0.0..=1.0).contains(&albedo) {
+            return Err(Error::invalid(
+                &e.key("medium.albedo"),
+                format!("{albedo} is not in [0, 1]"),
+            ));
+        }
+    }
+    if !(e.medium.g > -1.0 && e.medium.g < 1.0) {
+        return Err(Error::invalid(
+            &e.key("medium.g"),
+            format!("{} is not in (-1, 1)", e.medium.g),
+        ));
+    }
+    absorption_color(scene, e)
+}
+
+/// A volume's absorption colour, and what chromatic extinction may be used with: it is
+/// tracked regularly (its hero-channel pdfs need exact optical depths), and its channels'
 /// extinction ratios must be the same everywhere (an albedo grid would change them per
 /// voxel).
-fn absorption_color(scene: &SceneDescription) -> Result<()> {
-    let Some(color) = scene.medium.absorption_color else { return Ok(()) };
+fn absorption_color(scene: &SceneDescription, e: &EntryRef<'_>) -> Result<()> {
+    let Some(color) = e.medium.absorption_color else { return Ok(()) };
+    let key = e.key("medium.absorption_color");
     for a in color.rgb() {
         if !(0.0..=1.0).contains(&a) {
-            return Err(Error::invalid("medium.absorption_color", format!("{a} is not in [0, 1]")));
+            return Err(Error::invalid(&key, format!("{a} is not in [0, 1]")));
         }
     }
     if color.rgb() == [0.0; 3] {
         return Ok(());
     }
-    let refuse = |with: &str| {
-        Err(Error::invalid(
-            "medium.absorption_color",
-            format!("an absorption colour cannot be used with {with}"),
-        ))
+    let refuse = |with: String| {
+        Err(Error::invalid(&key, format!("an absorption colour cannot be used with {with}")))
     };
-    if scene.volume.albedo_grid.is_some() {
-        return refuse(
-            "an albedo grid (volume.albedo_grid): it would change the extinction per voxel",
-        );
+    if e.volume.albedo_grid.is_some() {
+        return refuse(format!(
+            "an albedo grid ({}): it would change the extinction per voxel",
+            e.key("albedo_grid")
+        ));
     }
-    if scene.volume.velocity_grid.is_some() {
-        return refuse("motion blur (volume.velocity_grid), which tracks by null collisions");
+    if e.volume.velocity_grid.is_some() {
+        return refuse(format!(
+            "motion blur ({}), which tracks by null collisions",
+            e.key("velocity_grid")
+        ));
     }
     if scene.integrator.tracking == super::TrackingChoice::Null {
-        return refuse("integrator.tracking = \"null\": coloured media track regularly");
+        return refuse("integrator.tracking = \"null\": coloured media track regularly".into());
     }
     Ok(())
 }
 
-/// Motion blur: the velocity grid and what may be used with it.
-fn motion(scene: &SceneDescription) -> Result<()> {
-    if let Some(name) = &scene.volume.velocity_grid {
-        selector("volume.velocity_grid", name)?;
-        if !scene.volume.velocity_scale.is_finite() {
+/// Motion blur: the first volume's velocity grid (several volumes have none) and what may
+/// be used with it.
+fn motion(scene: &SceneDescription, first: &EntryRef<'_>) -> Result<()> {
+    if let Some(name) = &first.volume.velocity_grid {
+        selector(&first.key("velocity_grid"), name)?;
+        if !first.volume.velocity_scale.is_finite() {
             return Err(Error::invalid(
-                "volume.velocity_scale",
-                format!("{} must be finite", scene.volume.velocity_scale),
+                &first.key("velocity_scale"),
+                format!("{} must be finite", first.volume.velocity_scale),
             ));
         }
         let (_, light_sampling) = scene.integrator.parts();
@@ -406,18 +441,33 @@ fn camera_motion(cam: &CameraSettings) -> Result<()> {
     Ok(())
 }
 
-/// Every grid name parses as `name` or `name[N]`.
-fn grids(v: &VolumeInput) -> Result<()> {
-    selector("volume.density_grid", &v.density_grid)?;
-    selector("volume.temperature_grid", &v.temperature_grid)?;
-    for (key, name) in
-        [("volume.emission_grid", &v.emission_grid), ("volume.albedo_grid", &v.albedo_grid)]
-    {
-        if let Some(n) = name {
-            selector(key, n)?;
-        }
+/// A volume's instances: where given, at least one, each a valid placement (named
+/// `volumes[1].instances[0].matrix`).
+fn instances(e: &EntryRef<'_>) -> Result<()> {
+    let Some(list) = &e.volume.instances else { return Ok(()) };
+    if list.is_empty() {
+        return Err(Error::invalid(
+            &e.key("instances"),
+            "is empty: give at least one placement ({ translate = [x, y, z] }, rotate, scale or matrix), or leave instances out",
+        ));
+    }
+    for (k, placement) in list.iter().enumerate() {
+        placement.transform(&e.key(&format!("instances[{k}]")))?;
     }
     Ok(())
+}
+
+/// Every grid name of a volume parses as `name` or `name[N]`; its name is a layer name.
+fn grids(e: &EntryRef<'_>) -> Result<()> {
+    let v = e.volume;
+    selector(&e.key("density_grid"), &v.density_grid)?;
+    selector(&e.key("temperature_grid"), &v.temperature_grid)?;
+    for (field, name) in [("emission_grid", &v.emission_grid), ("albedo_grid", &v.albedo_grid)] {
+        if let Some(n) = name {
+            selector(&e.key(field), n)?;
+        }
+    }
+    crate::lights::group_name(&e.key("name"), v.name.as_ref())
 }
 
 /// Outputs, reading, and the farm's frames, crops, tiles and sample ranges.

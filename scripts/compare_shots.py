@@ -19,7 +19,20 @@ denoising, adaptive sampling or clamping), rendered as
   (Location 0.04 r, 0, 0.03 r with r the camera distance, Rotation XYZ Euler 10, 15, 20
   degrees, Scale 1.2, 0.8, 1; the Volume's render Space left at Blender's default, Object)
   and seen by the unmoved camera == `--volume-translate x,y,z --volume-rotate 10,15,20
-  --volume-scale 1.2,0.8,1 --volume-space object`.
+  --volume-scale 1.2,0.8,1 --volume-space object`;
+- `overlap`: two volumes that overlap, both showing the same VDB file: the imported
+  object, unmoved, with the grey-albedo material (`--albedo-grey`, g 0), and a duplicate
+  (its own copy of the Volume data-block, for a material of its own) placed at Location
+  0.1 r, 0, 0.05 r, Rotation XYZ Euler 0, 0, 35 degrees, Scale 0.8 (render Space left at
+  Object), with another Principled Volume, set up as the first's but for Color 0.5,
+  Density 1.5 times, Anisotropy 0.5 and Blackbody Intensity 0.5 times the first's ==
+  `--add-volume 'file = ..., translate = [x, y, z], rotate = [0, 0, 35], scale = 0.8,
+  space = "object", medium = { density_scale = 1.5, albedo = 0.5, g = 0.5 },
+  emission = { source = "blackbody", convention = "cycles", scale = 0.5 }'`. Cycles'
+  blackbody strength is sigma * mix(1, T^4, Blackbody Intensity), so Intensity 0.5 is
+  plume's emission scale 0.5 up to sigma / 2, about 1e-14 (against sigma T^4 / 2, about
+  0.05 at 1500 K); Object space divides both the density and the emission by the scale
+  0.8 on both sides. The duplicate is removed after the case.
 Each renderer runs `--spp` samples twice, with seeds 0 and 1; the table gives each
 channel's image mean (of both runs), their ratio, twice the standard error of the ratio
 (from the difference of the two runs: per-pixel variance var(I0 - I1)/2, pixels
@@ -52,7 +65,7 @@ def parse_args():
     p.add_argument("--absorption", default="0.2,0.5,0.8")
     p.add_argument("--albedo-grey", type=float, default=0.8)
     p.add_argument("--fstop-scale", type=float, default=1.0)
-    p.add_argument("--cases", default="coloured,dof,placed")
+    p.add_argument("--cases", default="coloured,dof,placed,overlap")
     a = p.parse_args()
     a.cases = a.cases.split(",")
     a.color = [float(v) for v in a.color.split(",")]
@@ -68,11 +81,86 @@ def lens(a, camera):
     return {"focal": focal, "fstop": a.fstop_scale * focal * 1e-3 / (2 * radius), "focus": 0.75 * distance}
 
 
-def set_case(cycles, a, case):
-    """Cycles' material, camera and object transform for `case`; returns plume's flags
-    for the same."""
+# The `overlap` case's second volume: its Principled Volume's Color, and its Density and
+# Blackbody Intensity as factors of the first's; its Anisotropy; its object transform
+# (Location in camera distances r, Rotation XYZ Euler in degrees, uniform Scale).
+OVERLAP = {"color": 0.5, "density": 1.5, "anisotropy": 0.5, "blackbody": 0.5,
+           "location": (0.1, 0.0, 0.05), "rotation": (0.0, 0.0, 35.0), "scale": 0.8}
+
+
+def toml_string(text):
+    """A TOML basic string (JSON's escapes are TOML's)."""
+    return json.dumps(text)
+
+
+def add_second(cycles, a, obj, spec):
+    """The `overlap` case: a duplicate of the volume object `obj` (same VDB file, its own
+    copy of the Volume data-block so that it holds its own material) with the OVERLAP
+    material and transform; returns plume's `--add-volume` value for the same volume."""
+    bpy = cycles.bpy
+    dup = obj.copy()
+    dup.name = "overlap"
+    dup.data = obj.data.copy()
+    dup.data.name = "overlap"
+    dup.data.grids.load()
+    if dup.data.render.space != "OBJECT":
+        sys.exit(f"compare_shots: overlap: the Volume's render Space is {dup.data.render.space!r}, not Blender's default 'OBJECT'")
+    material = bpy.data.materials.new("overlap")
+    dup.data.materials.clear()
+    dup.data.materials.append(material)
+    for collection in obj.users_collection:
+        collection.objects.link(dup)
+    # `set_principled` writes `cycles.material`: point it at the second material for the
+    # conventions (density attribute, black absorption, Kelvin temperature, white tint),
+    # then change what differs.
+    first = cycles.material
+    cycles.material = material
+    try:
+        cycles.set_principled((OVERLAP["color"],) * 3)
+    finally:
+        cycles.material = first
+    pv = next(n for n in material.node_tree.nodes if n.bl_idname == "ShaderNodeVolumePrincipled")
+    pv.inputs["Density"].default_value *= OVERLAP["density"]
+    pv.inputs["Anisotropy"].default_value = OVERLAP["anisotropy"]
+    pv.inputs["Blackbody Intensity"].default_value *= OVERLAP["blackbody"]
+    r = math.dist(cycles.camera["from"], cycles.camera["at"])
+    move = tuple(f * r for f in OVERLAP["location"])
+    dup.location, dup.rotation_mode = move, "XYZ"
+    dup.rotation_euler = tuple(math.radians(d) for d in OVERLAP["rotation"])
+    dup.scale = (OVERLAP["scale"],) * 3
+    vec = lambda v: "[" + ", ".join(repr(float(x)) for x in v) + "]"  # noqa: E731
+    # The first volume's density and emission scales are plume's defaults, 1: Density 1
+    # and Blackbody Intensity 1 in `set_principled`.
+    return ", ".join([
+        f"file = {toml_string(os.path.join(a.data, spec['path']))}",
+        f"density_grid = {toml_string(spec['density'])}",
+        f"temperature_grid = {toml_string(spec['emission'][1])}",
+        f"translate = {vec(move)}", f"rotate = {vec(OVERLAP['rotation'])}", f"scale = {OVERLAP['scale']!r}",
+        'space = "object"',
+        f"medium = {{ density_scale = {pv.inputs['Density'].default_value!r}, albedo = {OVERLAP['color']!r}, "
+        f"g = {OVERLAP['anisotropy']!r} }}",
+        f'emission = {{ source = "blackbody", convention = "cycles", scale = {pv.inputs["Blackbody Intensity"].default_value!r} }}',
+    ])
+
+
+def remove_others(cycles, keep):
+    """Removes every volume object but `keep`, with the data-blocks and materials only
+    they used: the scene as the cases before found it."""
+    bpy = cycles.bpy
+    for o in [o for o in bpy.data.objects if o.type == "VOLUME" and o != keep]:
+        data, materials = o.data, [m for m in o.data.materials if m is not None]
+        bpy.data.objects.remove(o, do_unlink=True)
+        if data != keep.data and data.users == 0:
+            bpy.data.volumes.remove(data)
+        for m in materials:
+            if m != cycles.material and m.users == 0:
+                bpy.data.materials.remove(m)
+
+
+def set_case(cycles, a, case, obj, spec):
+    """Cycles' material, camera and object transform for `case` (`obj` the imported volume
+    object); returns plume's flags for the same."""
     cam = cycles.bpy.context.scene.camera.data
-    obj = next(o for o in cycles.bpy.data.objects if o.type == "VOLUME")
     obj.location, obj.rotation_mode = (0.0, 0.0, 0.0), "XYZ"
     obj.rotation_euler, obj.scale = (0.0, 0.0, 0.0), (1.0, 1.0, 1.0)
     cam.dof.use_dof = False
@@ -103,6 +191,9 @@ def set_case(cycles, a, case):
         obj.scale = scale
         return ["--fov", repr(a.fov), "--albedo", repr(a.albedo_grey), "--volume-translate", rgb(move),
                 "--volume-rotate", rgb(turn), "--volume-scale", rgb(scale), "--volume-space", "object"]
+    if case == "overlap":
+        cycles.set_albedo(a.albedo_grey)
+        return ["--fov", repr(a.fov), "--albedo", repr(a.albedo_grey), "--add-volume", add_second(cycles, a, obj, spec)]
     sys.exit(f"compare_shots: unknown case {case!r}")
 
 
@@ -119,15 +210,19 @@ def main():
     spec = FILES[a.file]
     cycles = Cycles(a, spec)
     cam = cycles.camera
+    obj = next(o for o in cycles.bpy.data.objects if o.type == "VOLUME")
     results = []
     for case in a.cases:
-        flags = set_case(cycles, a, case)
-        cmd = [a.plume, "render", os.path.join(a.data, spec["path"]), "--density-grid", spec["density"], "--convention", "cycles"]
-        cmd += ["--emission", "blackbody", "--temperature-grid", spec["emission"][1], "--up-axis", "z"]
-        cmd += ["--camera-from", ",".join(map(repr, cam["from"])), "--camera-at", ",".join(map(repr, cam["at"])), "--camera-up", "0,0,1"]
-        cmd += ["--width", str(a.size), "--height", str(a.size), "--spp", str(a.spp), "--threads", str(a.threads)]
-        cmd += ["--max-depth", str(a.max_depth), "--g", "0", "--method", "line-fnee", "--overwrite", "-q"]
-        c_runs, p_runs, _ = seed_pairs(cycles, a, case, cmd, flags, "compare_shots")
+        try:
+            flags = set_case(cycles, a, case, obj, spec)
+            cmd = [a.plume, "render", os.path.join(a.data, spec["path"]), "--density-grid", spec["density"], "--convention", "cycles"]
+            cmd += ["--emission", "blackbody", "--temperature-grid", spec["emission"][1], "--up-axis", "z"]
+            cmd += ["--camera-from", ",".join(map(repr, cam["from"])), "--camera-at", ",".join(map(repr, cam["at"])), "--camera-up", "0,0,1"]
+            cmd += ["--width", str(a.size), "--height", str(a.size), "--spp", str(a.spp), "--threads", str(a.threads)]
+            cmd += ["--max-depth", str(a.max_depth), "--g", "0", "--method", "line-fnee", "--overwrite", "-q"]
+            c_runs, p_runs, _ = seed_pairs(cycles, a, case, cmd, flags, "compare_shots")
+        finally:
+            remove_others(cycles, obj)
         (cm, cse, cq), (pm, pse, pq) = channel_stats(c_runs), channel_stats(p_runs)
         results.append({"case": case, "flags": flags, "cycles_means": cm, "cycles_se": cse, "plume_means": pm, "plume_se": pse,
                         "cycles_quadrants": cq, "plume_quadrants": pq})

@@ -11,6 +11,7 @@
 //!   (the clean first picture);
 //! - `interpolation`: trilinear against nearest reconstruction on real files: cost per
 //!   sample, memory, plume's emission rule against Cycles', a close-up picture;
+//! - `volumes`: cost per sample and memory against the number of instances of a volume;
 //! - `report`: the whole suite that writes `docs/BENCHMARKS.md` (`--quick`: its short form).
 
 pub mod compare;
@@ -28,6 +29,7 @@ pub mod progressive;
 pub mod report;
 pub mod spec;
 pub mod targets;
+pub mod volumes;
 
 use plume_core::error::{Error, Result};
 

@@ -44,6 +44,9 @@ pub enum BenchCommand {
     /// nearest, samples per CPU second), dual-pyramid memory, plume's emission rule
     /// against Cycles', and a close-up picture pair (--pictures).
     Interpolation(InterpolationArgs),
+    /// Several volumes: cost per sample (samples per CPU second, relative to the fewest)
+    /// and memory per instance of one shared explosion placed 1 … 1000 times.
+    Volumes(VolumesArgs),
     /// The paper's solar-flare experiment: a generated flare brick cache
     /// (≈33 GB at 4096³, made once in --work-dir) rendered out of core with scattering,
     /// FNEE against classic NEE (brick table) at equal spp: RMSE against a longer
@@ -126,6 +129,29 @@ pub struct ExtremesArgs {
     #[arg(long, default_value_t = 16)]
     pub spp: u32,
     /// Also write the rows as JSON here.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+}
+
+/// `plume bench volumes`.
+#[derive(Debug, Args)]
+pub struct VolumesArgs {
+    /// Resolution of the generated explosion.
+    #[arg(long, default_value_t = 32)]
+    pub resolution: u32,
+    /// Numbers of instances, comma-separated.
+    #[arg(long, value_delimiter = ',', default_value = "1,10,100,1000")]
+    pub instances: Vec<usize>,
+    /// Image width and height.
+    #[arg(long, default_value_t = 64)]
+    pub size: u32,
+    /// Samples per pixel.
+    #[arg(long, default_value_t = 8)]
+    pub spp: u32,
+    /// Renders per number of instances (the least CPU time is kept).
+    #[arg(long, default_value_t = 3)]
+    pub repeats: u32,
+    /// Also write the figures as JSON here.
     #[arg(long)]
     pub json: Option<PathBuf>,
 }
@@ -324,6 +350,18 @@ pub fn run(command: BenchCommand, _matches: Option<&ArgMatches>) -> Result<()> {
             report.verdict()
         }
         BenchCommand::Interpolation(args) => interpolation(&args),
+        BenchCommand::Volumes(args) => {
+            let report = plume::bench::volumes::run(&plume::bench::volumes::VolumesConfig {
+                resolution: args.resolution,
+                instances: args.instances,
+                size: args.size,
+                spp: args.spp,
+                repeats: args.repeats,
+            })?;
+            print!("{}", report.table());
+            write_json(&args.json, &report)?;
+            report.verdict()
+        }
         BenchCommand::Flare(args) => flare(&args),
         BenchCommand::Demo(args) => demo(args),
         BenchCommand::Report(args) => ReportOptions {

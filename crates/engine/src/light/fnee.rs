@@ -159,7 +159,11 @@ pub trait ProxySampling {
         x_world: DVec3,
         u_cell: f64,
         u_pos: [f64; 3],
-    ) -> Option<DirectionSample>;
+    ) -> Option<DirectionSample> {
+        let direction = self.sample_direction_only(x_world, u_cell, u_pos)?;
+        let pdf = self.direction_pdf(x_world, direction);
+        (pdf > 0.0).then_some(DirectionSample { direction, pdf })
+    }
 
     /// The direction of [`ProxyGrid::sample_direction`] without its pdf, for callers that
     /// need `p_σ` only when the sample turns out to contribute (the pdf is then
@@ -183,17 +187,6 @@ impl ProxySampling for ProxyGrid {
         let p_index = self.origin
             + (self.cell_coords(cell).as_dvec3() + DVec3::from(u_pos)) * f64::from(self.edge);
         ProxyPoint { p_world: self.world_from_index.transform_point3(p_index), cell, pmf: s.pmf }
-    }
-
-    fn sample_direction(
-        &self,
-        x_world: DVec3,
-        u_cell: f64,
-        u_pos: [f64; 3],
-    ) -> Option<DirectionSample> {
-        let direction = self.sample_direction_only(x_world, u_cell, u_pos)?;
-        let pdf = self.direction_pdf(x_world, direction);
-        (pdf > 0.0).then_some(DirectionSample { direction, pdf })
     }
 
     fn sample_direction_only(&self, x_world: DVec3, u_cell: f64, u_pos: [f64; 3]) -> Option<DVec3> {

@@ -24,7 +24,7 @@ use std::sync::Arc;
 
 use glam::DVec3;
 
-use super::fnee::{DirectionSample, ProxyPoint, ProxySampling};
+use super::fnee::{ProxyPoint, ProxySampling};
 use plume_volume::field::{Bounds3, Ray};
 use plume_volume::instance::{BoundsIndex, Instance};
 use plume_volume::proxy::ProxyGrid;
@@ -157,17 +157,6 @@ impl ProxySampling for ProxyMixture {
         ProxyPoint { pmf: p * point.pmf, p_world, ..point }
     }
 
-    fn sample_direction(
-        &self,
-        x_world: DVec3,
-        u_cell: f64,
-        u_pos: [f64; 3],
-    ) -> Option<DirectionSample> {
-        let direction = self.sample_direction_only(x_world, u_cell, u_pos)?;
-        let pdf = self.direction_pdf(x_world, direction);
-        (pdf > 0.0).then_some(DirectionSample { direction, pdf })
-    }
-
     fn sample_direction_only(&self, x_world: DVec3, u_cell: f64, u_pos: [f64; 3]) -> Option<DVec3> {
         let (i, _, v) = self.choose(u_cell);
         self.proxies[i].sample_direction_only(x_world, v, u_pos)
@@ -197,19 +186,6 @@ impl ProxySampling for VolumeProxy<'_> {
         match self {
             VolumeProxy::One(p) => p.sample_point(u_cell, u_pos),
             VolumeProxy::Several(m) => m.sample_point(u_cell, u_pos),
-        }
-    }
-
-    #[inline]
-    fn sample_direction(
-        &self,
-        x_world: DVec3,
-        u_cell: f64,
-        u_pos: [f64; 3],
-    ) -> Option<DirectionSample> {
-        match self {
-            VolumeProxy::One(p) => p.sample_direction(x_world, u_cell, u_pos),
-            VolumeProxy::Several(m) => m.sample_direction(x_world, u_cell, u_pos),
         }
     }
 

@@ -156,16 +156,22 @@ fn instances_render_as_the_volume_listed_at_each_placement() {
 }
 
 #[test]
-fn instances_scatter_with_fnee_as_the_volume_listed_at_each_placement() {
+fn instances_scatter_with_fnee_and_nee_as_the_volume_listed_at_each_placement() {
     let dir = tmpdir("instances", "fnee");
     let lit = "[medium]\ndensity_scale = 2\nalbedo = 0.8\ng = 0.3";
     for (name, entry) in
         [("world", ENTRY.to_string()), ("object", format!("{ENTRY}\nspace = \"object\""))]
     {
         let (instanced, listed) = instanced_and_listed(&entry);
-        let a = render(&scene(&dir, name, lit, &instanced), &[]);
-        let b = render(&scene(&dir, &format!("{name}_listed"), lit, &listed), &[]);
-        assert_same_pixels(name, &a, &b);
+        let (instanced, listed) = (
+            scene(&dir, name, lit, &instanced),
+            scene(&dir, &format!("{name}_listed"), lit, &listed),
+        );
+        for method in ["line-fnee", "point-nee"] {
+            let a = render(&instanced, &["--method", method]);
+            let b = render(&listed, &["--method", method]);
+            assert_same_pixels(&format!("{name} {method}"), &a, &b);
+        }
     }
 }
 
@@ -224,7 +230,6 @@ fn instances_make_a_scene_of_one_volume_several() {
     let fire = s(&fire()).to_string();
     let volume = format!("[volume]\nfile = {fire:?}\ninstances = [{}]\n", INSTANCES[0]);
     for (top, entry, key, needle) in [
-        ("[integrator]\nlight_sampling = \"nee\"", "", "integrator.light_sampling", "fnee"),
         ("[integrator]\ntracking = \"null\"", "", "integrator.tracking", "regularly"),
         ("", "velocity_grid = \"vel\"", "volume.velocity_grid", "motion blur"),
         ("", "albedo_grid = \"density\"", "volume.albedo_grid", "albedo grid"),
@@ -236,7 +241,10 @@ fn instances_make_a_scene_of_one_volume_several() {
         refused_in_one_line(&["render", s(&file)], 2, &[&key, needle], &out);
     }
     // The same scene without instances may
-    let text = format!("[integrator]\nlight_sampling = \"nee\"\n[volume]\nfile = {fire:?}\n[output]\nimage = {:?}\n", s(&out));
+    let text = format!(
+        "[integrator]\ntracking = \"null\"\n[volume]\nfile = {fire:?}\n[output]\nimage = {:?}\n",
+        s(&out)
+    );
     let shot = SceneFile::parse(Path::new("x.toml"), text, Path::new("")).unwrap().0;
     assert!(!shot.scene.is_several());
     assert!(shot.validate().is_ok());

@@ -39,7 +39,7 @@ const H: f64 = 0.05;
 
 /// A slab `[−HALF, HALF]² × [z0, z0 + nz H]` whose voxel layer `k` holds `values(k)`
 /// (density, emission source; Cycles convention: the source is `L_e`).
-fn slab(z0: f64, nz: i32, values: impl Fn(i32) -> (f32, f32)) -> Volume {
+pub(crate) fn slab(z0: f64, nz: i32, values: impl Fn(i32) -> (f32, f32)) -> Volume {
     let n = 8; // leaves a side
     let w = 2.0 * HALF / f64::from(8 * n);
     let xf = DAffine3::from_mat3_translation(
@@ -55,7 +55,7 @@ fn slab(z0: f64, nz: i32, values: impl Fn(i32) -> (f32, f32)) -> Volume {
     Volume::build(&density, Some(&emission), |v| e.map_source(v)).unwrap()
 }
 
-fn medium(sigma_t: f64, albedo: [f32; 3], g: f64, emits: bool) -> Medium {
+pub(crate) fn medium(sigma_t: f64, albedo: [f32; 3], g: f64, emits: bool) -> Medium {
     let e = grid_emission(Convention::Cycles);
     let emission = if emits { e } else { Emission { kind: EmissionKind::None, ..e } };
     Medium::principled(sigma_t, albedo, [0.0; 3], g, emission)
@@ -63,7 +63,11 @@ fn medium(sigma_t: f64, albedo: [f32; 3], g: f64, emits: bool) -> Medium {
 
 /// The two overlapping slabs: A over `z ∈ [0, 0.4]` (σ_t 3, `L_e` 2), B over
 /// `[0.2, 0.6]` (σ_t 5, `L_e` 1.5), with the albedos and asymmetries given.
-fn two_slabs(a: ([f32; 3], f64), b: ([f32; 3], f64), emits: bool) -> Vec<Member<Volume>> {
+pub(crate) fn two_slabs(
+    a: ([f32; 3], f64),
+    b: ([f32; 3], f64),
+    emits: bool,
+) -> Vec<Member<Volume>> {
     let member = |v: Volume, m: Medium| Member {
         field: Arc::new(v),
         instance: None,
@@ -82,7 +86,7 @@ const REGIONS: [(f64, f64, f64, f64); 3] =
     [(0.0, 0.2, 3.0, 2.0), (0.2, 0.4, 8.0, 3.5), (0.4, 0.6, 5.0, 1.5)];
 
 /// One volume holding the sums, walked with `σ_t = 1` (its density is `μ_t`).
-fn merged() -> Volume {
+pub(crate) fn merged() -> Volume {
     slab(0.0, 16, |k| match k {
         0..=3 => (3.0, 2.0),
         4..=7 => (8.0, 3.5),
@@ -95,11 +99,15 @@ fn camera() -> Camera {
     Camera::look_at(DVec3::new(0.0, 0.0, -1.0), DVec3::ZERO, DVec3::Y, 1.0, 1, 1).unwrap()
 }
 
-fn scene<F: Field>(field: F, medium: Medium, lights: Lights) -> Scene<F> {
+pub(crate) fn scene<F: Field>(field: F, medium: Medium, lights: Lights) -> Scene<F> {
     Scene { field, medium, camera: camera(), lights, motion: None, majorants: None }
 }
 
-fn integrator(estimator: Estimator, max_depth: u32, light_sampling: LightSampling) -> Integrator {
+pub(crate) fn integrator(
+    estimator: Estimator,
+    max_depth: u32,
+    light_sampling: LightSampling,
+) -> Integrator {
     Integrator {
         estimator,
         camera_estimator: None,
@@ -230,7 +238,7 @@ fn emission_and_alpha_through_overlapping_slabs_match_the_closed_form() {
 }
 
 /// FNEE over the members' proxies, each chosen by its power.
-fn mixture_lights(members: &[Member<Volume>]) -> Lights {
+pub(crate) fn mixture_lights(members: &[Member<Volume>]) -> Lights {
     let proxies = members
         .iter()
         .filter_map(|m| {
@@ -245,7 +253,11 @@ fn mixture_lights(members: &[Member<Volume>]) -> Lights {
 
 /// Mean and standard error over runs of each channel's image mean, through a camera
 /// looking down at the slabs.
-fn image_means<F: Field>(sc: &Scene<F>, integ: Integrator, seed0: u64) -> [(f64, f64); 3] {
+pub(crate) fn image_means<F: Field>(
+    sc: &Scene<F>,
+    integ: Integrator,
+    seed0: u64,
+) -> [(f64, f64); 3] {
     let per_run: Vec<[f64; 3]> = (0..12u64)
         .map(|k| {
             let settings = plume_engine::render::RenderSettings {

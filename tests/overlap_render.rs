@@ -46,6 +46,10 @@ fn several_volumes_give_the_same_bits_across_threads_parts_and_resumes() {
     let one = render("one", &["--spp", "4", "--threads", "1"]);
     assert_eq!(one, render("three", &["--spp", "4", "--threads", "3"]));
     assert_ne!(one, render_bits(&dir, "alone", &ex, &["--spp", "4", "--threads", "1"]));
+    // Classic NEE over the volumes' tables, too
+    let nee = render("nee1", &["--spp", "4", "--threads", "1", "--method", "point-nee"]);
+    assert_eq!(nee, render("nee3", &["--spp", "4", "--threads", "3", "--method", "point-nee"]));
+    assert_ne!(nee, one);
     // Two tiles × two sample ranges, merged
     let mut parts = Vec::new();
     for tile in ["0/2", "1/2"] {

@@ -265,8 +265,6 @@ fn what_several_volumes_cannot_do_yet_is_refused_in_one_line_naming_the_key() {
             "one volume",
         ),
         ("[integrator]\ntracking = \"null\"", "", "integrator.tracking", "regularly"),
-        ("[integrator]\nlight_sampling = \"nee\"", "", "integrator.light_sampling", "fnee"),
-        ("[integrator]\nmethod = \"line-nee\"", "", "integrator.method", "fnee"),
         (&media, "", "volumes[8].medium", "at most 8"),
         ("", singular, "volumes[1].matrix", "singular"),
         ("", "medium = { albedo = [0.5, 1.5, 0.5] }", "volumes[1].medium.albedo", "[0, 1]"),
@@ -280,7 +278,6 @@ fn what_several_volumes_cannot_do_yet_is_refused_in_one_line_naming_the_key() {
     let (smoke, add) = (smoke(), format!("file = {:?}", s(&fire())));
     for (flags, needle) in [
         (&["--tracking", "null"][..], "--tracking"),
-        (&["--light-sampling", "nee"], "--light-sampling"),
         (&["--absorption-color", "0.5"], "--absorption-color"),
     ] {
         let mut args = vec!["render", s(&smoke), "-o", s(&out), "--add-volume", &add];

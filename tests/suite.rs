@@ -42,6 +42,7 @@ mod motion_blur;
 mod nee_table;
 mod null_tracking;
 mod overlap;
+mod overlap_lights;
 mod overlap_render;
 mod path;
 mod placement;

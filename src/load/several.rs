@@ -34,6 +34,8 @@ use plume_core::error::{Error, Result};
 use plume_engine::integrator::lights::proxy_weight;
 use plume_engine::integrator::{AnyScene, LightSampling, Lights, Scene};
 use plume_engine::light::mixture::{PlacedProxy, ProxyMixture};
+use plume_engine::light::nee_mixture::{emitting_bounds, EmitterMixture, PlacedEmitters};
+use plume_engine::light::{EmitterDistribution, LightPower};
 use plume_engine::medium::{Emission, EmissionKind, Medium};
 use plume_engine::overlap::member::Member;
 use plume_engine::overlap::volumes::Volumes;
@@ -125,7 +127,7 @@ pub(super) fn load_several(
         .reduce(|a, b| Bounds3 { lo: a.lo.min(b.lo), hi: a.hi.max(b.hi) });
     let bounds = bounds.expect("invariant: a scene of several volumes has volumes");
     let camera = camera(scene, input, bounds, frame)?;
-    let mut lights = volume_lights(scene, &parts)?;
+    let mut lights = volume_lights(scene, &parts, budget)?;
     lights.external = external_lights(scene, bounds)?;
     let (emission_kind, source_grid) = first.expect("invariant: at least one volume");
     let scene = match scene.volume.interpolation {
@@ -198,16 +200,15 @@ fn several<F: plume_volume::Field + Send>(
 /// FNEE's proxies of the emitting volumes, when paths scatter: each from its cache's
 /// stored power where it matches, else built, once per volume and shared by its
 /// appearances; chosen by power (an instance's scaled by the world volume it fills).
-fn volume_lights(scene: &SceneDescription, parts: &[Part]) -> Result<Lights> {
+fn volume_lights(scene: &SceneDescription, parts: &[Part], budget: u64) -> Result<Lights> {
     let scatters = scene.scatters();
     let (_, light_sampling) = scene.integrator.parts();
     match light_sampling {
         _ if !scatters => Ok(Lights::default()),
         LightSampling::None => Ok(Lights::default()),
-        LightSampling::Nee => Err(Error::invalid(
-            "integrator.light_sampling",
-            "classic NEE samples one volume; with several volumes use fnee",
-        )),
+        LightSampling::Nee => {
+            Ok(Lights { nee_several: volume_emitters(scene, parts, budget)?, ..Lights::default() })
+        }
         LightSampling::Fnee => {
             let mut proxies = Vec::new();
             for part in parts {
@@ -236,6 +237,49 @@ fn volume_lights(scene: &SceneDescription, parts: &[Part]) -> Result<Lights> {
             Ok(Lights { proxies: ProxyMixture::new(proxies), ..Lights::default() })
         }
     }
+}
+
+/// Classic NEE's emitter tables of the emitting volumes: each built once per volume (at
+/// the resolution `integrator.nee_table` asks for, within the volume's share of the
+/// budget) and shared by its appearances; chosen by power as FNEE's proxies are.
+fn volume_emitters(
+    scene: &SceneDescription,
+    parts: &[Part],
+    budget: u64,
+) -> Result<Option<EmitterMixture>> {
+    let mut emitters = Vec::new();
+    let mut member = 0;
+    for part in parts {
+        let first = member;
+        member += part.appearances.len();
+        crate::cache::convert::check_light_budget(
+            &part.volume,
+            LightSampling::Nee,
+            scene.integrator.nee_table,
+            budget,
+        )?;
+        let table = EmitterDistribution::build_as(
+            &part.volume,
+            LightPower::new(&part.emission),
+            scene.integrator.nee_table,
+        )?;
+        let Some(table) = table.map(|t| Arc::new(t.for_interpolation(scene.volume.interpolation)))
+        else {
+            continue;
+        };
+        for a in &part.appearances {
+            let e = &a.medium.emission;
+            let power = table.total_power() * f64::from(e.scale) * f64::from(e.color.luminance());
+            let placed = PlacedEmitters {
+                table: Arc::clone(&table),
+                member: first,
+                instance: a.instance,
+                bounds: emitting_bounds(&part.volume, a.instance),
+            };
+            emitters.push((placed, power / a.base_per_world_volume()));
+        }
+    }
+    Ok(EmitterMixture::new(emitters))
 }
 
 /// `scene` with `entry` as its one volume (what loading a volume alone reads).

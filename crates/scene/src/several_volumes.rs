@@ -8,13 +8,11 @@
 //! - Motion blur (`velocity_grid`), albedo grids and absorption colours are for one
 //!   volume only.
 //! - Several volumes are tracked regularly (no `integrator.tracking = "null"`).
-//! - Classic NEE's table is one volume's ([`several_volumes_light_sampling`]; FNEE works).
 //! - At most [`MAX_SCATTERING_MEDIA`] distinct scattering media, each an albedo colour
 //!   and a `g`.
 
 use super::SceneDescription;
 use crate::choice::{Choice, TrackingChoice};
-use crate::sets::LightSampling;
 use crate::volumes::EntryRef;
 use plume_core::error::{Error, Result};
 
@@ -50,7 +48,6 @@ pub(crate) fn check(scene: &SceneDescription, entries: &[EntryRef<'_>]) -> Resul
             "null tracks one volume: several volumes and instances are tracked regularly (use auto or regular)",
         ));
     }
-    several_volumes_light_sampling(scene)?;
     scattering_media(scene, entries)
 }
 
@@ -72,24 +69,6 @@ fn one_volume_only(e: &EntryRef<'_>) -> Result<()> {
         return refuse("medium.absorption_color", "an absorption colour (coloured extinction)");
     }
     Ok(())
-}
-
-/// Classic NEE draws from one volume's table of emitting voxels: several volumes need
-/// FNEE (the default) or no light sampling. Refused as `integrator.light_sampling`, or
-/// `integrator.method` where the method's preset chose NEE.
-fn several_volumes_light_sampling(scene: &SceneDescription) -> Result<()> {
-    if !scene.is_several() || scene.integrator.parts().1 != LightSampling::Nee {
-        return Ok(());
-    }
-    let key = if scene.integrator.light_sampling.is_some() {
-        "integrator.light_sampling"
-    } else {
-        "integrator.method"
-    };
-    Err(Error::invalid(
-        key,
-        "classic NEE (light sampling nee) draws from one volume's table of emitters: with several volumes or instances use fnee (the default) or none",
-    ))
 }
 
 /// At most [`MAX_SCATTERING_MEDIA`] distinct pairs (albedo colour, `g`) among the volumes

@@ -393,6 +393,16 @@ pub trait Field: Sync {
         None
     }
 
+    /// The voxels of volume `i` of a field of several (`volume::overlap`), for light
+    /// sampling that reads them; a field of one volume has only its own, `i = 0`.
+    fn member_voxels(&self, i: usize) -> Option<&super::Volume> {
+        if i == 0 {
+            self.voxels()
+        } else {
+            None
+        }
+    }
+
     /// The scattering classes of a field of several volumes, which its pieces'
     /// [`Piece::class_weights`] index (`volume::overlap`); empty for one volume.
     fn scatter_classes(&self) -> &[ScatterClass] {

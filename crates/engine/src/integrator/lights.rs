@@ -8,15 +8,19 @@
 use crate::light::external::ExternalLights;
 use crate::light::mixture::{ProxyMixture, VolumeProxy};
 use crate::light::nee::EmitterDistribution;
+use crate::light::nee_mixture::{EmitterMixture, VolumeEmitters};
 pub use plume_scene::sets::{LightSampling, MisHeuristic};
 use plume_scene::NeeTable;
 use plume_volume::proxy::ProxyGrid;
+use plume_volume::Field;
 
 /// The lights of a scene and their sampling structures (built once, immutable).
 #[derive(Debug, Default)]
 pub struct Lights {
     /// Full-resolution emitter distribution for classic NEE.
     pub nee: Option<EmitterDistribution>,
+    /// Classic NEE over several volumes (`light::nee_mixture`), in place of `nee`.
+    pub nee_several: Option<EmitterMixture>,
     /// FNEE proxy grid.
     pub proxy: Option<ProxyGrid>,
     /// FNEE over several volumes (`light::mixture`), in place of `proxy`.
@@ -79,6 +83,19 @@ impl Lights {
         match (&self.proxy, &self.proxies) {
             (Some(p), _) => Some(VolumeProxy::One(p)),
             (None, Some(m)) => Some(VolumeProxy::Several(m)),
+            (None, None) => None,
+        }
+    }
+
+    /// The emitters classic NEE samples, with the voxels `field` holds for them: one
+    /// volume's table, or several volumes' mixture. `None` without a table, or where the
+    /// field has no voxels.
+    #[inline]
+    #[must_use]
+    pub fn volume_emitters<'a, F: Field>(&'a self, field: &'a F) -> Option<VolumeEmitters<'a, F>> {
+        match (&self.nee, &self.nee_several) {
+            (Some(table), _) => Some(VolumeEmitters::One { table, volume: field.voxels()? }),
+            (None, Some(mixture)) => Some(VolumeEmitters::Several { mixture, field }),
             (None, None) => None,
         }
     }

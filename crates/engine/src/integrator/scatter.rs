@@ -150,7 +150,9 @@ impl Integrator {
             }
             LightSampling::Fnee => ForwardWeight::One,
             LightSampling::Nee if point_nee => ForwardWeight::One, // weighted at the collision
-            LightSampling::Nee if lights.nee.is_some() => ForwardWeight::Zero,
+            LightSampling::Nee if lights.nee.is_some() || lights.nee_several.is_some() => {
+                ForwardWeight::Zero
+            }
             LightSampling::Nee => ForwardWeight::One,
         };
         // The next segment, which ends at the first sphere light it hits
@@ -172,13 +174,13 @@ impl Integrator {
             }
             ForwardWeight::Fnee { .. } => 0.0,
         };
-        if let (true, Some(nee), Some(voxels), DistanceSample::Collided { t, density, .. }) =
-            (point_nee, lights.nee.as_ref(), scene.field.voxels(), r.event)
+        if let (true, Some(nee), DistanceSample::Collided { t, density, .. }) =
+            (point_nee, lights.volume_emitters(&scene.field), r.event)
         {
             // MIS in volume measure against NEE at the collision point
             let p_fwd = p_phase * m.mu_t(density) * m.extinction.collision_density(r.optical_depth)
                 / (t * t);
-            w = self.mis.weight(p_fwd, nee.pdf(voxels, ray.at(t)));
+            w = self.mis.weight(p_fwd, nee.pdf(ray.at(t)));
         }
         contribute(l, state.aovs, Component::Scattered, times(beta, w), r.emission);
         state.trace.event(|| {
@@ -264,11 +266,11 @@ impl Integrator {
                 }
             }
             LightSampling::Nee => {
-                let (Some(nee), Some(voxels)) = (&lights.nee, scene.field.voxels()) else { return };
+                let Some(nee) = lights.volume_emitters(&scene.field) else { return };
                 let point_nee = self.estimator == Estimator::Point;
                 let u_voxel = sampler.get_1d(Dim::LightChoice);
                 let u_pos = sampler.get_3d(Dim::LightPosition);
-                let vs = nee.sample(voxels, u_voxel, u_pos);
+                let Some(vs) = nee.sample(u_voxel, u_pos) else { return };
                 let d = vs.p_world - x;
                 let r2 = d.length_squared();
                 if r2 > 0.0 {

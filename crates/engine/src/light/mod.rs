@@ -28,6 +28,7 @@ pub mod fnee;
 pub mod mixture;
 pub mod nee;
 mod nee_bricks;
+pub mod nee_mixture;
 pub mod power;
 pub mod sky;
 pub mod weigh;

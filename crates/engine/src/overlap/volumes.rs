@@ -230,6 +230,10 @@ impl<F: Field + Send> Field for Volumes<F> {
         self.members.iter().map(|m| m.field.data_bytes()).sum()
     }
 
+    fn member_voxels(&self, i: usize) -> Option<&plume_volume::Volume> {
+        self.members.get(i).and_then(|m| m.field.voxels())
+    }
+
     fn scatter_classes(&self) -> &[ScatterClass] {
         &self.classes
     }

@@ -62,6 +62,7 @@ mod vdb_real;
 mod vdb_write;
 mod vec3_grids;
 mod volume;
+mod volume_groups;
 mod volume_trilinear;
 
 /// With `autotests = false` cargo no longer finds test files by itself: a file in `tests/`

@@ -77,6 +77,7 @@ flags_to_keys! { RENDER_ONLY_FLAGS, apply_render_only, RenderArgs, s, a;
     "volume_matrix" => "volume.matrix": s.scene.volume.matrix => a.volume_matrix;
     "volume_space" => "volume.space": s.scene.volume.space => a.volume_space;
     "volume_name" => "volume.name": s.scene.volume.name => a.volume_name.clone();
+    "volume_group" => "volume.group": s.scene.volume.group => a.volume_group.clone();
     "volume_visible_to_camera" => "volume.visible_to_camera": s.scene.volume.visible_to_camera => a.volume_visible_to_camera;
     "volume_casts_shadows" => "volume.casts_shadows": s.scene.volume.casts_shadows => a.volume_casts_shadows;
     "shutter" => "camera.shutter": s.scene.camera.shutter => a.shutter;

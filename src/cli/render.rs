@@ -232,6 +232,10 @@ pub struct RenderArgs {
     /// not change the render.
     #[arg(long, help_heading = "Placement", hide_short_help = true)]
     pub volume_name: Option<String>,
+    /// The light group of the volume's emission: with --aovs its light, seen directly and
+    /// scattered, is the EXR layer of that name instead of `emission` and `scattered`.
+    #[arg(long, help_heading = "Placement", hide_short_help = true)]
+    pub volume_group: Option<String>,
     /// Whether camera rays see the volume (true or false); when false, only the light it
     /// scatters or shadows is seen.
     #[arg(long, action = clap::ArgAction::Set, default_value_t = VolumeInput::new("").visible_to_camera, help_heading = "Placement", hide_short_help = true)]
@@ -244,7 +248,7 @@ pub struct RenderArgs {
     /// `[[volumes]]` entry: `file = "smoke.vdb", translate = [1, 0, 0], name = "smoke",
     /// medium = { density_scale = 2, g = 0.3 }`. Besides `file`: the grids, the placement,
     /// `instances = [{ translate = [2, 0, 0] }, …]` (the volume once per placement, its data
-    /// shared), `interpolation`, `name`, `visible_to_camera`, `casts_shadows`, and
+    /// shared), `interpolation`, `name`, `group`, `visible_to_camera`, `casts_shadows`, and
     /// `emission = {…}` and `medium = {…}` with the keys of a scene file's [emission] and
     /// [medium]. The emission and medium keys it leaves out take the first volume's values
     /// (from --density-scale, --albedo, --g, --emission-scale and the like, or a scene

@@ -120,6 +120,7 @@ fn volume_text(volume: &VolumeInput) -> String {
         matrix,
         space,
         name,
+        group,
         visible_to_camera,
         casts_shadows,
         instances,
@@ -134,6 +135,10 @@ fn volume_text(volume: &VolumeInput) -> String {
     // Likewise a volume without a name that the camera sees and that casts shadows
     if name.is_some() || !visible_to_camera || !casts_shadows {
         line += &format!(" object {name:?} {visible_to_camera} {casts_shadows}");
+    }
+    // Likewise a volume without a light group
+    if let Some(group) = group {
+        line += &format!(" group {group:?}");
     }
     // Likewise a volume without instances
     if let Some(instances) = instances {

@@ -9,13 +9,20 @@ use plume_engine::film::{Crop, Moments};
 use plume_engine::integrator::AovLayout;
 
 /// The AOV layout that `output` asks for (`--aovs`, `--denoise`): one layer per light
-/// group of the job's lights, and the half sums with `--denoise`.
+/// group of the job's lights and volumes, and the half sums with `--denoise`.
 pub(crate) fn layout_for(output: &plume_scene::OutputSettings, job: &Job<'_>) -> Option<AovLayout> {
+    let scene = &job.shot.scene;
     let filtered = plume_engine::denoise::Filtered::for_camera(
-        plume_engine::integrator::Integrator::for_scene(&job.shot.scene).camera_estimator(),
+        plume_engine::integrator::Integrator::for_scene(scene).camera_estimator(),
     );
+    // Volume light groups move direct emission out of the `emission` layer, which the
+    // denoiser would otherwise leave out of its filter: it filters the whole beauty
+    let filtered = match scene.entries().iter().any(|e| e.volume.group.is_some()) {
+        true => plume_engine::denoise::Filtered::Beauty,
+        false => filtered,
+    };
     (output.aovs || output.denoise).then(|| AovLayout {
-        groups: job.shot.scene.lights.groups(),
+        groups: scene.aov_groups(),
         halves: output.denoise.then_some(filtered),
     })
 }
@@ -24,7 +31,10 @@ pub(crate) fn layout_for(output: &plume_scene::OutputSettings, job: &Job<'_>) ->
 pub(crate) fn aov_layout(job: &Job<'_>, loaded: &LoadedScene) -> Option<AovLayout> {
     let layout = layout_for(&job.shot.settings.output, job);
     if let (Some(l), Some(e)) = (&layout, &loaded.scene.lights().external) {
-        debug_assert_eq!(l.groups, e.groups(), "the description's groups are the built lights'");
+        debug_assert!(
+            l.groups.starts_with(e.groups()),
+            "the description's groups begin with the built lights'"
+        );
     }
     layout
 }

@@ -25,6 +25,7 @@ use crate::load::bind::{
 use crate::vdb::{FloatGrid, GridRequest};
 use plume_core::error::{Error, Result};
 use plume_engine::camera::{Camera, CameraMotion, LookAt};
+use plume_engine::integrator::lights::VolumeLayers;
 use plume_engine::integrator::{AnyScene, LightSampling, Lights, Scene, Tracking};
 use plume_engine::medium::{Emission, EmissionKind, Medium};
 use plume_scene::{JobSettings, SceneDescription, UpAxis};
@@ -128,6 +129,13 @@ fn placed_medium(
         scene.medium.g,
         emission,
     )
+}
+
+/// The AOV layer of a volume's light `group` among the scene's layers of light groups
+/// (`SceneDescription::aov_groups`).
+fn group_layer(scene: &SceneDescription, group: Option<&String>) -> Option<usize> {
+    let group = group?;
+    scene.aov_groups().iter().position(|g| g == group)
 }
 
 /// The world box a volume fills, or the unit box around the origin for an empty one.
@@ -234,6 +242,9 @@ pub fn load_scene(
     };
     // Lights besides the volume: seen by camera rays even when nothing scatters
     lights.external = external_lights(scene, bounds_of(&volume))?;
+    if let Some(layer) = group_layer(scene, scene.volume.group.as_ref()) {
+        lights.volume_layers = VolumeLayers::One(layer);
+    }
     let motion = match (&scene.volume.velocity_grid, scene.shutter_seconds()) {
         (Some(name), Some(shutter)) => Some(Motion::new(
             &volume,

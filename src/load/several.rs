@@ -27,11 +27,12 @@ use glam::DAffine3;
 
 use super::bind::{emission_model, memory_budget};
 use super::{
-    bounds_of, camera, external_lights, load_volume, placed_medium, LoadedScene, LoadedVolume,
+    bounds_of, camera, external_lights, group_layer, load_volume, placed_medium, LoadedScene,
+    LoadedVolume,
 };
 use crate::cache::CacheCheck;
 use plume_core::error::{Error, Result};
-use plume_engine::integrator::lights::proxy_weight;
+use plume_engine::integrator::lights::{proxy_weight, VolumeLayers};
 use plume_engine::integrator::{AnyScene, LightSampling, Lights, Scene};
 use plume_engine::light::mixture::{PlacedProxy, ProxyMixture};
 use plume_engine::light::nee_mixture::{emitting_bounds, EmitterMixture, PlacedEmitters};
@@ -57,6 +58,8 @@ struct Part {
     proxy_power: Option<(CellPower, String)>,
     visible_to_camera: bool,
     casts_shadows: bool,
+    /// The AOV layer of its light group, if it has one.
+    layer: Option<usize>,
 }
 
 /// One place a volume appears: its instance (`None`: where the entry places it) and the
@@ -118,6 +121,7 @@ pub(super) fn load_several(
             proxy_power,
             visible_to_camera: entry.volume.visible_to_camera,
             casts_shadows: entry.volume.casts_shadows,
+            layer: group_layer(scene, entry.volume.group.as_ref()),
         });
     }
     // Framing: the union of every appearance's box
@@ -174,16 +178,19 @@ fn appearances(
 }
 
 /// The scene of `parts`, each volume reconstructed by `field` once and shared by its
-/// appearances, one member each.
+/// appearances, one member each; their light groups as `plume_engine::integrator`'s
+/// groups module takes them: all emission to one layer where one group holds every
+/// emitting volume, else a view per group.
 fn several<F: plume_volume::Field + Send>(
     parts: Vec<Part>,
     field: impl Fn(Volume) -> F,
     camera: plume_engine::camera::Camera,
-    lights: Lights,
+    mut lights: Lights,
 ) -> Result<Scene<Volumes<F>>> {
-    let mut members = Vec::new();
+    let (mut members, mut layer_of) = (Vec::new(), Vec::new());
     for p in parts {
         let shared = Arc::new(field(p.volume));
+        layer_of.extend(std::iter::repeat_n(p.layer, p.appearances.len()));
         members.extend(p.appearances.into_iter().map(|a| Member {
             field: Arc::clone(&shared),
             instance: a.instance,
@@ -192,7 +199,26 @@ fn several<F: plume_volume::Field + Send>(
             casts_shadows: p.casts_shadows,
         }));
     }
+    let emitting: Vec<Option<usize>> = members
+        .iter()
+        .zip(&layer_of)
+        .filter(|(m, _)| m.medium.emission.kind != EmissionKind::None)
+        .map(|(_, l)| *l)
+        .collect();
     let volumes = Volumes::new(members)?;
+    lights.volume_layers = match emitting.first() {
+        Some(&Some(layer)) if emitting.iter().all(|l| *l == Some(layer)) => {
+            VolumeLayers::One(layer)
+        }
+        _ if emitting.iter().any(Option::is_some) => {
+            VolumeLayers::Split { ungrouped: emitting.iter().any(Option::is_none) }
+        }
+        _ => VolumeLayers::Unsplit,
+    };
+    let volumes = match lights.volume_layers {
+        VolumeLayers::Split { .. } => volumes.with_emission_groups(&layer_of)?,
+        _ => volumes,
+    };
     let medium = volumes.medium();
     Ok(Scene { field: volumes, medium, camera, lights, motion: None, majorants: None })
 }

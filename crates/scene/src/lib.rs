@@ -335,6 +335,20 @@ impl SceneDescription {
         r.max(g).max(b)
     }
 
+    /// The AOV layers of light groups, in order: the lights' groups
+    /// ([`LightSettings::groups`]), then the volumes' groups not among them. A volume and a
+    /// light of the same group share its layer.
+    #[must_use]
+    pub fn aov_groups(&self) -> Vec<String> {
+        let mut groups = self.lights.groups();
+        for g in self.entries().iter().filter_map(|e| e.volume.group.clone()) {
+            if !groups.contains(&g) {
+                groups.push(g);
+            }
+        }
+        groups
+    }
+
     /// Whether paths scatter: an albedo above 0 in any volume, and at least one bounce.
     #[must_use]
     pub fn scatters(&self) -> bool {

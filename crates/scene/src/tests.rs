@@ -43,6 +43,7 @@ file = "fire.vdb"
 file = "smoke.vdb"
 translate = [2.0, 0.0, 0.0]
 name = "smoke"
+group = "smoke_light"
 casts_shadows = false
 emission = { source = "none" }
 [volumes.medium]
@@ -64,6 +65,8 @@ fn entries_inherit_the_top_level_emission_and_medium_keys_they_leave_out() {
     assert_eq!(smoke.volume.file, Path::new("smoke.vdb"));
     assert_eq!(smoke.volume.translate, Some([2.0, 0.0, 0.0]));
     assert_eq!(smoke.volume.name.as_deref(), Some("smoke"));
+    assert_eq!(smoke.volume.group.as_deref(), Some("smoke_light"));
+    assert_eq!(s.aov_groups(), ["smoke_light"]);
     assert!(smoke.volume.visible_to_camera && !smoke.volume.casts_shadows);
     assert_eq!(
         (smoke.medium.density_scale, smoke.medium.albedo, smoke.medium.g),
@@ -192,6 +195,7 @@ fn every_volume_gets_the_checks_of_one_naming_its_keys() {
         ("emission = { color = [1, -1, 1] }", "volumes[1].emission.color", "≥ 0"),
         ("density_grid = \"\"", "volumes[1].density_grid", "name[N]"),
         ("name = \"emission\"", "volumes[1].name", "fixed layer"),
+        ("group = \"a.b\"", "volumes[1].group", "letters"),
     ] {
         let text =
             format!("[[volumes]]\nfile = \"a\"\n[[volumes]]\nfile = \"b\"\n{entry}\n{OUTPUT}");
@@ -239,16 +243,14 @@ fn what_several_volumes_cannot_do_yet_is_refused_naming_the_key() {
         ("", "medium = { absorption_color = 0.5 }", "volumes[1].medium.absorption_color"),
         ("[medium]\nabsorption_color = 0.5\n", "", "volumes[0].medium.absorption_color"),
         ("[integrator]\ntracking = \"null\"\n", "", "integrator.tracking"),
-        ("[integrator]\nlight_sampling = \"nee\"\n", "", "integrator.light_sampling"),
-        ("[integrator]\nmethod = \"point-nee\"\n", "", "integrator.method"),
     ] {
         let text =
             format!("{top}[[volumes]]\nfile = \"a\"\n[[volumes]]\nfile = \"b\"\n{entry}\n{OUTPUT}");
         let (k, m) = refusal(shot(&text));
         assert_eq!(k, key, "{entry}{top}: {m}");
     }
-    // FNEE and no light sampling work
-    for ls in ["fnee", "none"] {
+    // Every light sampling works
+    for ls in ["fnee", "nee", "none"] {
         let text = format!("[integrator]\nlight_sampling = \"{ls}\"\n[[volumes]]\nfile = \"a\"\n[[volumes]]\nfile = \"b\"\n{OUTPUT}");
         assert!(shot(&text).validate().is_ok(), "{ls}");
     }
@@ -381,7 +383,6 @@ fn bad_instances_are_refused_naming_their_key_and_line() {
 #[test]
 fn instances_make_one_volume_several_for_validation() {
     for (top, key) in [
-        ("[integrator]\nlight_sampling = \"nee\"\n", "integrator.light_sampling"),
         ("[integrator]\ntracking = \"null\"\n", "integrator.tracking"),
         ("[medium]\nabsorption_color = 0.5\n", "medium.absorption_color"),
     ] {
@@ -399,6 +400,6 @@ fn instances_make_one_volume_several_for_validation() {
     }
     // Without instances the same one volume may
     let plain =
-        shot(&format!("[integrator]\nlight_sampling = \"nee\"\n[volume]\nfile = \"a\"\n{OUTPUT}"));
+        shot(&format!("[integrator]\ntracking = \"null\"\n[volume]\nfile = \"a\"\n{OUTPUT}"));
     assert!(plain.validate().is_ok());
 }

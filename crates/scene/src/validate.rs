@@ -457,7 +457,8 @@ fn instances(e: &EntryRef<'_>) -> Result<()> {
     Ok(())
 }
 
-/// Every grid name of a volume parses as `name` or `name[N]`; its name is a layer name.
+/// Every grid name of a volume parses as `name` or `name[N]`; its name and group are
+/// layer names.
 fn grids(e: &EntryRef<'_>) -> Result<()> {
     let v = e.volume;
     selector(&e.key("density_grid"), &v.density_grid)?;
@@ -467,7 +468,8 @@ fn grids(e: &EntryRef<'_>) -> Result<()> {
             selector(&e.key(field), n)?;
         }
     }
-    crate::lights::group_name(&e.key("name"), v.name.as_ref())
+    crate::lights::group_name(&e.key("name"), v.name.as_ref())?;
+    crate::lights::group_name(&e.key("group"), v.group.as_ref())
 }
 
 /// Outputs, reading, and the farm's frames, crops, tiles and sample ranges.

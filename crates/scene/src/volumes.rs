@@ -78,6 +78,10 @@ pub struct VolumeInput {
     /// it does not change the render.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub name: Option<String>,
+    /// The light group (AOV layer) of the volume's emission, seen directly and scattered;
+    /// `None`: the `emission` and `scattered` layers.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub group: Option<String>,
     /// Whether camera rays see the volume (its emission and extinction); when not, only
     /// light scattered or shadowed by it is seen.
     #[serde(default = "defaults::yes", skip_serializing_if = "defaults::is_yes")]
@@ -111,6 +115,7 @@ impl VolumeInput {
             matrix: None,
             space: VolumeSpace::World,
             name: None,
+            group: None,
             visible_to_camera: true,
             casts_shadows: true,
             instances: None,
@@ -317,6 +322,8 @@ pub struct VolumeEntryKeys {
     space: VolumeSpace,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     name: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    group: Option<String>,
     #[serde(default = "defaults::yes", skip_serializing_if = "defaults::is_yes")]
     visible_to_camera: bool,
     #[serde(default = "defaults::yes", skip_serializing_if = "defaults::is_yes")]
@@ -349,6 +356,7 @@ impl VolumeEntryKeys {
             matrix,
             space,
             name,
+            group,
             visible_to_camera,
             casts_shadows,
             instances,
@@ -371,6 +379,7 @@ impl VolumeEntryKeys {
                 matrix,
                 space,
                 name,
+                group,
                 visible_to_camera,
                 casts_shadows,
                 instances,
@@ -400,6 +409,7 @@ impl VolumeEntryKeys {
             matrix,
             space,
             name,
+            group,
             visible_to_camera,
             casts_shadows,
             instances,
@@ -419,6 +429,7 @@ impl VolumeEntryKeys {
             matrix,
             space,
             name,
+            group,
             visible_to_camera,
             casts_shadows,
             instances,

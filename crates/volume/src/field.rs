@@ -14,7 +14,7 @@ use glam::DVec3;
 
 use plume_core::color::Rgb;
 
-pub use crate::overlap::{ClassWeights, PieceCubics, ScatterClass};
+pub use crate::overlap::{ClassWeights, EmissionGroup, PieceCubics, ScatterClass};
 pub use crate::values::{Bounds3, VoxelValues};
 
 /// A piece of a ray over which density and emission source are constant.
@@ -406,6 +406,15 @@ pub trait Field: Sync {
     /// The scattering classes of a field of several volumes, which its pieces'
     /// [`Piece::class_weights`] index (`volume::overlap`); empty for one volume.
     fn scatter_classes(&self) -> &[ScatterClass] {
+        &[]
+    }
+
+    /// The light groups of a field of several volumes whose emission is split between
+    /// AOV layers, each a view in which only its volumes emit; empty for one volume.
+    fn emission_groups(&self) -> &[EmissionGroup<Self>]
+    where
+        Self: Sized,
+    {
         &[]
     }
 

@@ -41,3 +41,15 @@ pub struct ScatterClass {
     /// Asymmetry in `(−1, 1)`.
     pub g: f64,
 }
+
+/// A field of several volumes in which only one light group's volumes emit: the same
+/// extinction and scattering, so a walk with the same numbers takes the same path and
+/// collects that group's share of the emission (the engine's AOV layers of volume light
+/// groups). `layer` is the group's AOV layer.
+#[derive(Debug)]
+pub struct EmissionGroup<F> {
+    /// The group's AOV layer (an index the engine gives).
+    pub layer: usize,
+    /// The field with only the group's emission.
+    pub field: F,
+}

@@ -9,7 +9,8 @@
 //!   segments after a collision, NEE and FNEE);
 //! - one layer per light group: an external light's radiance, seen directly or after
 //!   scattering (lights are grouped by their `group` key; by default one group per kind:
-//!   `sun`, `sphere`, `environment`, `sky`).
+//!   `sun`, `sphere`, `environment`, `sky`), and the emission of volumes with a `group`,
+//!   which then leaves `emission` and `scattered` (`integrator::groups`).
 //!
 //! So the colour layers sum to the beauty: per sample exactly (each contribution is added
 //! to both), per pixel up to the rounding of each layer's fixed-point sum and of `f32`.
@@ -50,6 +51,9 @@ pub enum Component {
 pub trait Aovs {
     /// Whether anything is recorded (lets the integrator skip work for [`NoAovs`]).
     const ON: bool;
+    /// Whether volume emission is split between light-group layers
+    /// (`integrator::groups`); only the render's own AOVs do.
+    const GROUPS: bool = false;
     /// `w · e` was added to the beauty for `component`.
     fn add(&mut self, component: Component, w: [f64; 3], e: [f64; 3]);
     /// The camera ray's first collision is at distance `t`.
@@ -216,6 +220,7 @@ impl AovSample {
 
 impl Aovs for AovSample {
     const ON: bool = true;
+    const GROUPS: bool = true;
     #[inline]
     fn add(&mut self, component: Component, w: [f64; 3], e: [f64; 3]) {
         let o = AovLayout::offset(component);

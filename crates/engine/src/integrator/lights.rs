@@ -27,6 +27,8 @@ pub struct Lights {
     pub proxies: Option<ProxyMixture>,
     /// Lights besides the volume (`light::external`); `None` costs nothing.
     pub external: Option<ExternalLights>,
+    /// How volume emission is split between AOV layers (`integrator::groups`).
+    pub volume_layers: VolumeLayers,
 }
 
 impl Lights {
@@ -107,6 +109,24 @@ impl Lights {
     pub fn for_interpolation(self, interpolation: plume_volume::Interpolation) -> Lights {
         Lights { nee: self.nee.map(|n| n.for_interpolation(interpolation)), ..self }
     }
+}
+
+/// How volume emission goes to the AOV layers (`integrator::groups`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum VolumeLayers {
+    /// No volume has a light group: `emission` and `scattered`.
+    #[default]
+    Unsplit,
+    /// One group holds every emitting volume: all of it to this layer (an index into the
+    /// layout's groups).
+    One(usize),
+    /// Several groups: the field's views ([`plume_volume::Field::emission_groups`]) give
+    /// each group's share; `ungrouped` when some emitting volume has no group, whose share
+    /// is the rest.
+    Split {
+        /// Some emitting volume has no group.
+        ungrouped: bool,
+    },
 }
 
 /// Power that light sampling distributes by: the luminance `Y(L_e)` of the emission

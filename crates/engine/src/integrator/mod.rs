@@ -10,6 +10,7 @@ mod buffered;
 mod build;
 pub mod counters;
 pub mod deferred;
+mod groups;
 pub mod lights;
 pub mod path;
 mod scatter;

@@ -7,6 +7,7 @@
 use glam::DVec3;
 
 use super::aov::{Aovs, Component};
+use super::groups;
 use super::path::{contribute, times, Beta, Bounces, ForwardWeight, PathState, Vertex};
 use super::scene::Scene;
 use super::trace::Trace;
@@ -160,6 +161,7 @@ impl Integrator {
         let t_max = hit.map_or(f64::INFINITY, |(t, _)| t);
         let u = state.sampler.get_1d(Dim::FreePath);
         let collision = if need_collision { Collision::Analog } else { Collision::Skip };
+        let replay = groups::replay::<F, A>(scene, state.sampler);
         let r = tracker.track(m, &ray, t_max, self.estimator, collision, u, state.sampler);
         state.counters.add_track(&r);
         // Add emission along the segment
@@ -182,7 +184,20 @@ impl Integrator {
                 / (t * t);
             w = self.mis.weight(p_fwd, nee.pdf(ray.at(t)));
         }
-        contribute(l, state.aovs, Component::Scattered, times(beta, w), r.emission);
+        groups::contribute_volume(
+            scene,
+            l,
+            state.aovs,
+            Component::Scattered,
+            times(beta, w),
+            r.emission,
+            |v| {
+                let mut sampler =
+                    replay.clone().expect("invariant: views are walked with a replay");
+                let view = Tracker::Regular(v);
+                view.track(m, &ray, t_max, self.estimator, collision, u, &mut sampler).emission
+            },
+        );
         state.trace.event(|| {
             format!(
                 "segment depth {depth}: origin {:?} dir {:?} -> {:?}, F {:?}, w_fwd {w}, beta {beta:?}, tau {}",
@@ -233,6 +248,7 @@ impl Integrator {
                 let Some(wi) = proxy.sample_direction_only(x, u_cell, u_pos) else { return };
                 c.fnee_samples += 1;
                 let u2 = sampler.get_1d(Dim::FreePath);
+                let replay = groups::replay::<F, A>(scene, sampler);
                 let rl = tracker.track(
                     m,
                     &Ray { origin: x, direction: wi },
@@ -249,12 +265,30 @@ impl Integrator {
                     if p_sigma > 0.0 {
                         let PhaseValue { f, pdf } = phase.eval(incoming.dot(wi));
                         let w_l = self.mis.weight(p_sigma, pdf);
-                        contribute(
+                        let w = std::array::from_fn(|c| beta[c] * f[c] * w_l / p_sigma);
+                        let scattered = Component::Scattered;
+                        groups::contribute_volume(
+                            scene,
                             l,
                             state.aovs,
-                            Component::Scattered,
-                            std::array::from_fn(|c| beta[c] * f[c] * w_l / p_sigma),
+                            scattered,
+                            w,
                             rl.emission,
+                            |v| {
+                                let mut sampler = replay.clone().expect("invariant: a replay");
+                                let ray = Ray { origin: x, direction: wi };
+                                let view = Tracker::Regular(v);
+                                view.track(
+                                    m,
+                                    &ray,
+                                    f64::INFINITY,
+                                    self.estimator,
+                                    Collision::Skip,
+                                    u2,
+                                    &mut sampler,
+                                )
+                                .emission
+                            },
                         );
                         state.trace.event(|| {
                             format!(
@@ -297,7 +331,15 @@ impl Integrator {
                         let w: Beta = std::array::from_fn(|c| {
                             beta[c] * f[c] * (tau * channels[c]) * w_l / (vs.pdf * r2)
                         });
-                        contribute(l, state.aovs, Component::Scattered, w, le);
+                        groups::contribute_volume(
+                            scene,
+                            l,
+                            state.aovs,
+                            Component::Scattered,
+                            w,
+                            le,
+                            |v| emission_at_point(v, m, vs.p_world).emission,
+                        );
                         state.trace.event(|| {
                             format!(
                                 "  nee: y {:?} p_V {} tau {tau} f {pdf} w {w_l} L_e {le:?}",

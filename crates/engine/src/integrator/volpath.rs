@@ -69,6 +69,7 @@
 
 use super::aov::{Aovs, Component, NoAovs};
 use super::buffered::BufferedPoints;
+use super::groups;
 use super::tracker::Tracker;
 use crate::medium::forced::{Forced, SplitFirsts};
 use crate::medium::{Collision, DistanceSample, Estimator, Extinction};
@@ -300,22 +301,32 @@ impl Integrator {
         // (`medium::forced`); otherwise they share the walk's collision
         let paths = if scatters { self.split.max(1) } else { 1 };
         let mut firsts = Vec::new();
-        let r = if paths > 1 {
-            camera.track_split(
-                m,
-                camera_ray,
-                t_max,
-                self.camera_estimator(),
-                collision,
-                u,
-                state.sampler,
-                SplitFirsts { paths, firsts: &mut firsts },
-            )
-        } else {
-            camera.track(m, camera_ray, t_max, self.camera_estimator(), collision, u, state.sampler)
+        let replay = groups::replay::<F, A>(scene, state.sampler);
+        let walk = |tracker: &Tracker<'_, F>, sampler: &mut Sampler, firsts: &mut Vec<_>| {
+            let estimator = self.camera_estimator();
+            if paths > 1 {
+                let split = SplitFirsts { paths, firsts };
+                tracker.track_split(m, camera_ray, t_max, estimator, collision, u, sampler, split)
+            } else {
+                tracker.track(m, camera_ray, t_max, estimator, collision, u, sampler)
+            }
         };
+        let r = walk(&camera, state.sampler, &mut firsts);
         state.counters.add_track(&r);
-        contribute(&mut l, state.aovs, Component::Emission, [1.0; 3], r.emission);
+        let e = r.emission;
+        groups::contribute_volume(
+            scene,
+            &mut l,
+            state.aovs,
+            Component::Emission,
+            [1.0; 3],
+            e,
+            |v| {
+                let mut sampler =
+                    replay.clone().expect("invariant: views are walked with a replay");
+                walk(&Tracker::Regular(v.camera_view()), &mut sampler, &mut Vec::new()).emission
+            },
+        );
         state.trace.event(|| {
             format!(
                 "segment depth 0: origin {:?} dir {:?} -> {:?} (weight {}), F {:?}, w_fwd 1, beta 1, tau {}",

@@ -20,10 +20,12 @@ use glam::DVec3;
 use super::member::Member;
 use super::piece::OverlapPiece;
 use super::stream::{Along, OverlapSegments};
-use crate::medium::{Emission, Extinction, Medium};
+use crate::medium::{Emission, EmissionKind, Extinction, Medium};
 use plume_core::color::Rgb;
 use plume_core::error::{Error, Result};
-use plume_volume::field::{Bounds3, Field, PointValues, Ray, RayGrid, ScatterClass, VoxelValues};
+use plume_volume::field::{
+    Bounds3, EmissionGroup, Field, PointValues, Ray, RayGrid, ScatterClass, VoxelValues,
+};
 use plume_volume::instance::BoundsIndex;
 use plume_volume::overlap::MAX_CLASSES;
 
@@ -39,6 +41,8 @@ pub struct Volumes<F: Field> {
     index: BoundsIndex,
     /// The volumes camera rays see, when some are hidden from them.
     camera: Option<Box<Volumes<F>>>,
+    /// Views with one light group's emission each ([`Volumes::with_emission_groups`]).
+    groups: Vec<EmissionGroup<Volumes<F>>>,
 }
 
 impl<F: Field> Volumes<F> {
@@ -100,7 +104,55 @@ impl<F: Field> Volumes<F> {
             boxes.iter().copied().reduce(|a, b| Bounds3 { lo: a.lo.min(b.lo), hi: a.hi.max(b.hi) });
         let bounds = bounds.unwrap_or(Bounds3 { lo: DVec3::ZERO, hi: DVec3::ZERO });
         let index = BoundsIndex::new(&boxes);
-        Volumes { members, class_of, classes, bounds, index, camera: None }
+        Volumes { members, class_of, classes, bounds, index, camera: None, groups: Vec::new() }
+    }
+
+    /// The same volumes with their emission split between AOV layers: `layer_of[i]` is
+    /// member `i`'s light group's layer (`None`: the `emission` and `scattered` layers).
+    /// One view per layer that an emitting member has, in which only that layer's members
+    /// emit ([`EmissionGroup`]); a walk of the view with the same numbers collects that
+    /// layer's share of what the whole walk collects.
+    ///
+    /// # Errors
+    /// `layer_of` not of one entry per member.
+    pub fn with_emission_groups(self, layer_of: &[Option<usize>]) -> Result<Volumes<F>> {
+        if layer_of.len() != self.members.len() {
+            return Err(Error::Scene(format!(
+                "{} light groups for {} volumes",
+                layer_of.len(),
+                self.members.len()
+            )));
+        }
+        let mut layers: Vec<usize> = Vec::new();
+        for (m, layer) in self.members.iter().zip(layer_of) {
+            if let (Some(l), true) = (layer, m.medium.emission.kind != EmissionKind::None) {
+                if !layers.contains(l) {
+                    layers.push(*l);
+                }
+            }
+        }
+        let mut groups = Vec::with_capacity(layers.len());
+        for layer in layers {
+            let members = self
+                .members
+                .iter()
+                .zip(layer_of)
+                .map(|(m, l)| Member {
+                    field: Arc::clone(&m.field),
+                    medium: Medium {
+                        emission: if *l == Some(layer) {
+                            m.medium.emission
+                        } else {
+                            Emission::none()
+                        },
+                        ..m.medium
+                    },
+                    ..*m
+                })
+                .collect();
+            groups.push(EmissionGroup { layer, field: Volumes::new(members)? });
+        }
+        Ok(Volumes { groups, ..self })
     }
 
     /// The volumes.
@@ -236,6 +288,10 @@ impl<F: Field + Send> Field for Volumes<F> {
 
     fn scatter_classes(&self) -> &[ScatterClass] {
         &self.classes
+    }
+
+    fn emission_groups(&self) -> &[EmissionGroup<Self>] {
+        &self.groups
     }
 
     fn camera_view(&self) -> &Self {

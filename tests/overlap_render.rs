@@ -1,7 +1,10 @@
 //! Several volumes through the binary (`--add-volume`, `[[volumes]]`): the same bits on
 //! any number of threads, from tiles and sample ranges merged, and from a resumed render;
 //! a volume hidden from the camera leaves it seeing the other alone; what goes wrong in one
-//! volume's file is one line naming that volume's key, with nothing written.
+//! volume's file is one line naming that volume's key, with nothing written; a small
+//! volume leaves the rest of the memory budget to a large one.
+
+use std::path::Path;
 
 use crate::common;
 
@@ -191,5 +194,50 @@ fn a_fault_in_one_volume_names_its_key_and_writes_nothing() {
         assert!(err.contains(key), "{body}: {err}");
         assert_eq!(err.trim_end().lines().count(), 1, "{err}");
         assert!(!out.exists(), "{body}: an output was written");
+    }
+}
+
+#[test]
+fn a_small_volume_leaves_the_rest_of_the_budget_to_a_large_one() {
+    // Each volume needs four times its file to be read whole; the small one takes its
+    // need, the large one the rest: read whole at exactly both needs, paged one byte below
+    // (an equal share, half, would page it at either)
+    let dir = tmpdir("several", "shares");
+    let (large, small) = (dir.join("large.vdb"), dir.join("small.vdb"));
+    common::synth_explosion(&large, 48, Some(2));
+    common::synth_explosion(&small, 16, Some(2));
+    let need = |p: &Path| 4 * std::fs::metadata(p).unwrap().len();
+    let both = need(&large) + need(&small);
+    let add = format!("file = {:?}, translate = [0.5, 0, 0]", s(&small));
+    for (budget, paged) in [(both, false), (both - 1, true)] {
+        let cache = dir.join(format!("cache{budget}"));
+        let out = dir.join(format!("o{budget}.exr"));
+        let budget = budget.to_string();
+        let o = plume(&[
+            "render",
+            s(&large),
+            "--add-volume",
+            &add,
+            "--memory-budget",
+            &budget,
+            "--cache-dir",
+            s(&cache),
+            "--width",
+            "16",
+            "--height",
+            "12",
+            "--spp",
+            "1",
+            "-o",
+            s(&out),
+            "-q",
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let made = match cache.exists() {
+            true => common::names_in(&cache, |n| n.ends_with(".plume")),
+            false => Vec::new(),
+        };
+        assert_eq!(!made.is_empty(), paged, "budget {budget}: {made:?}");
+        assert!(made.iter().all(|n| n.starts_with("large")), "{made:?}");
     }
 }

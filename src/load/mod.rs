@@ -13,6 +13,7 @@
 
 pub mod bind;
 mod several;
+mod shares;
 
 use std::path::Path;
 

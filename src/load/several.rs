@@ -13,8 +13,9 @@
 //! (`Instance::base_per_world_volume`): the power of the volume placed there. A single
 //! volume with instances is loaded here too (`SceneDescription::is_several`).
 //!
-//! **Memory.** The budget is shared: each volume's automatic-cache decision sees an equal
-//! share of it, so volumes that would fit alone but not together are paged. Instances
+//! **Memory.** The budget is shared (`load::shares`): each volume's automatic-cache decision
+//! and light tables see its share, what it needs up to an equal part of what the smaller
+//! volumes leave, so volumes that would fit alone but not together are paged. Instances
 //! share their volume's share: N instances cost one volume's data and proxy, and per
 //! instance a member and a placed proxy (a few hundred bytes).
 //!
@@ -26,6 +27,7 @@ use std::sync::Arc;
 use glam::DAffine3;
 
 use super::bind::{emission_model, memory_budget};
+use super::shares;
 use super::{
     bounds_of, camera, external_lights, group_layer, load_volume, placed_medium, LoadedScene,
     LoadedVolume,
@@ -60,6 +62,8 @@ struct Part {
     casts_shadows: bool,
     /// The AOV layer of its light group, if it has one.
     layer: Option<usize>,
+    /// Its share of the memory budget (`load::shares`).
+    budget: u64,
 }
 
 /// One place a volume appears: its instance (`None`: where the entry places it) and the
@@ -93,7 +97,8 @@ pub(super) fn load_several(
     frame: Option<i64>,
 ) -> Result<LoadedScene> {
     let entries = scene.entries();
-    let budget = memory_budget(settings) / entries.len() as u64;
+    let needs: Vec<Option<u64>> = entries.iter().map(|e| shares::need(path_of(e, input))).collect();
+    let budgets = shares::shares(&needs, memory_budget(settings));
     let mut parts = Vec::with_capacity(entries.len());
     let (mut first_cache, mut further_caches): (Option<CacheCheck>, Vec<CacheCheck>) =
         (None, Vec::new());
@@ -101,9 +106,10 @@ pub(super) fn load_several(
     for entry in &entries {
         let single = entry_scene(scene, entry);
         emission_model(&single.emission, EmissionKind::None).map_err(|e| rekey(e, entry))?;
-        let path = if entry.index == 0 { input } else { entry.volume.file.as_path() };
+        let budget = budgets[entry.index];
         let LoadedVolume { volume, emission, source_grid, proxy_power, cache } =
-            load_volume(&single, path, settings, budget).map_err(|e| rekey(e, entry))?;
+            load_volume(&single, path_of(entry, input), settings, budget)
+                .map_err(|e| rekey(e, entry))?;
         first.get_or_insert((emission.kind, source_grid));
         match (entry.index, cache) {
             (0, cache) => first_cache = cache,
@@ -122,6 +128,7 @@ pub(super) fn load_several(
             visible_to_camera: entry.volume.visible_to_camera,
             casts_shadows: entry.volume.casts_shadows,
             layer: group_layer(scene, entry.volume.group.as_ref()),
+            budget,
         });
     }
     // Framing: the union of every appearance's box
@@ -131,7 +138,7 @@ pub(super) fn load_several(
         .reduce(|a, b| Bounds3 { lo: a.lo.min(b.lo), hi: a.hi.max(b.hi) });
     let bounds = bounds.expect("invariant: a scene of several volumes has volumes");
     let camera = camera(scene, input, bounds, frame)?;
-    let mut lights = volume_lights(scene, &parts, budget)?;
+    let mut lights = volume_lights(scene, &parts)?;
     lights.external = external_lights(scene, bounds)?;
     let (emission_kind, source_grid) = first.expect("invariant: at least one volume");
     let scene = match scene.volume.interpolation {
@@ -226,14 +233,14 @@ fn several<F: plume_volume::Field + Send>(
 /// FNEE's proxies of the emitting volumes, when paths scatter: each from its cache's
 /// stored power where it matches, else built, once per volume and shared by its
 /// appearances; chosen by power (an instance's scaled by the world volume it fills).
-fn volume_lights(scene: &SceneDescription, parts: &[Part], budget: u64) -> Result<Lights> {
+fn volume_lights(scene: &SceneDescription, parts: &[Part]) -> Result<Lights> {
     let scatters = scene.scatters();
     let (_, light_sampling) = scene.integrator.parts();
     match light_sampling {
         _ if !scatters => Ok(Lights::default()),
         LightSampling::None => Ok(Lights::default()),
         LightSampling::Nee => {
-            Ok(Lights { nee_several: volume_emitters(scene, parts, budget)?, ..Lights::default() })
+            Ok(Lights { nee_several: volume_emitters(scene, parts)?, ..Lights::default() })
         }
         LightSampling::Fnee => {
             let mut proxies = Vec::new();
@@ -268,11 +275,7 @@ fn volume_lights(scene: &SceneDescription, parts: &[Part], budget: u64) -> Resul
 /// Classic NEE's emitter tables of the emitting volumes: each built once per volume (at
 /// the resolution `integrator.nee_table` asks for, within the volume's share of the
 /// budget) and shared by its appearances; chosen by power as FNEE's proxies are.
-fn volume_emitters(
-    scene: &SceneDescription,
-    parts: &[Part],
-    budget: u64,
-) -> Result<Option<EmitterMixture>> {
+fn volume_emitters(scene: &SceneDescription, parts: &[Part]) -> Result<Option<EmitterMixture>> {
     let mut emitters = Vec::new();
     let mut member = 0;
     for part in parts {
@@ -282,7 +285,7 @@ fn volume_emitters(
             &part.volume,
             LightSampling::Nee,
             scene.integrator.nee_table,
-            budget,
+            part.budget,
         )?;
         let table = EmitterDistribution::build_as(
             &part.volume,
@@ -306,6 +309,16 @@ fn volume_emitters(
         }
     }
     Ok(EmitterMixture::new(emitters))
+}
+
+/// The file `entry` reads: `input` for the first (its frame token resolved), its own for
+/// the others.
+fn path_of<'a>(entry: &EntryRef<'a>, input: &'a Path) -> &'a Path {
+    if entry.index == 0 {
+        input
+    } else {
+        entry.volume.file.as_path()
+    }
 }
 
 /// `scene` with `entry` as its one volume (what loading a volume alone reads).

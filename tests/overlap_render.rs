@@ -1,5 +1,6 @@
 //! Several volumes through the binary (`--add-volume`, `[[volumes]]`): the same bits on
-//! any number of threads, from tiles and sample ranges merged, and from a resumed render;
+//! any number of threads, from tiles and sample ranges merged, and from a resumed render,
+//! light-group layers included;
 //! a volume hidden from the camera leaves it seeing the other alone; what goes wrong in one
 //! volume's file is one line naming that volume's key, with nothing written; a small
 //! volume leaves the rest of the memory budget to a large one.
@@ -36,7 +37,9 @@ fn render_bits(dir: &std::path::Path, name: &str, ex: &std::path::Path, extra: &
 fn several_volumes_give_the_same_bits_across_threads_parts_and_resumes() {
     let dir = tmpdir("overlap", "binary");
     let ex = common::explosion(&dir, 24, Some(2));
-    let add = second(&ex);
+    // In a light group of its own: its layer, the first volume's `emission` and
+    // `scattered`, are walked apart and must merge and resume as the beauty does
+    let add = format!("{}, group = \"second\"", second(&ex));
     let with = |extra: &[&'static str]| -> Vec<String> {
         let mut v: Vec<String> = vec!["--add-volume".into(), add.clone()];
         v.extend(extra.iter().map(|x| (*x).to_string()));
@@ -47,6 +50,7 @@ fn several_volumes_give_the_same_bits_across_threads_parts_and_resumes() {
         render_bits(&dir, name, &ex, &args.iter().map(String::as_str).collect::<Vec<_>>())
     };
     let one = render("one", &["--spp", "4", "--threads", "1"]);
+    assert!(one.contains_key("second.R"), "{:?}", one.keys());
     assert_eq!(one, render("three", &["--spp", "4", "--threads", "3"]));
     assert_ne!(one, render_bits(&dir, "alone", &ex, &["--spp", "4", "--threads", "1"]));
     // Classic NEE over the volumes' tables, too

@@ -6,7 +6,8 @@
 //! needs and leaves the rest to the others: with the needs sorted, each in turn gets
 //! `min(need, what is left / volumes left)`, and volumes of unknown need (a brick cache,
 //! mapped whatever its share; a file not found, which loading reports) split what is left
-//! equally. So a small volume beside a large one no longer pages the large one that the
+//! equally. What every need leaves over is added to all shares equally, for the light
+//! tables each volume's share also bounds (one volume has the whole budget). So a small volume beside a large one no longer pages the large one that the
 //! whole budget less the small one's need would hold, and volumes that all fit share as
 //! before. The shares never sum to more than the budget.
 
@@ -34,6 +35,9 @@ pub(super) fn shares(needs: &[Option<u64>], budget: u64) -> Vec<u64> {
         out[i] = share;
         left -= share;
     }
+    // What every need leaves is shared equally (one volume has the whole budget)
+    let extra = left / needs.len().max(1) as u64;
+    out.iter_mut().for_each(|s| *s += extra);
     out
 }
 
@@ -50,6 +54,9 @@ mod tests {
         assert_eq!(shares(&[Some(2000), Some(100)], 1000), [900, 100]);
         // Unknown needs split what the known ones leave, whatever the order given
         assert_eq!(shares(&[None, Some(100), None], 1000), [450, 100, 450]);
+        // What the needs leave is shared equally; one volume has the whole budget
+        assert_eq!(shares(&[Some(100), Some(200)], 1000), [450, 550]);
+        assert_eq!(shares(&[Some(100)], 1000), [1000]);
         // Never more than the budget, every volume something
         let s = shares(&[Some(10), Some(5000), Some(300), None], 1000);
         assert!(s.iter().sum::<u64>() <= 1000 && s.iter().all(|&x| x > 0), "{s:?}");

@@ -9,13 +9,17 @@
 //! collisions — through views of the field in which only group `g`'s volumes emit
 //! ([`plume_volume::field::EmissionGroup`]). A contribution `w · e` is then added to the
 //! beauty once, and to the layers as `w · e_g` for each group and `w · (e − Σ_g e_g)` for
-//! the volumes without one. The layers sum to the beauty per sample up to rounding.
+//! the volumes without one (where some emitting volume has none). The layers sum to the
+//! beauty per sample up to rounding. `n` groups cost `n` more walks of each segment that
+//! collects emission. (Where every emitter is grouped, the last group's share could be the
+//! rest, one walk fewer; it is walked too, so that the sum of the layers checks every
+//! group's walks.)
 //!
 //! The views are walked only with AOVs that keep light groups ([`Aovs::GROUPS`]) and only
 //! when the scene has them: a render without AOVs runs the code it ran before groups.
 //! When every emitting volume is of one group (one volume with a `group`, say), nothing
 //! needs walking again: the whole emission goes to that group's layer
-//! ([`super::Lights::volume_group`]).
+//! ([`super::lights::VolumeLayers`]).
 
 use super::aov::{Aovs, Component};
 use super::lights::VolumeLayers;

@@ -24,6 +24,7 @@ use std::sync::Arc;
 
 use glam::DVec3;
 
+use super::by_power::{shared_bytes, ByPower, Chosen};
 use super::fnee::{ProxyPoint, ProxySampling};
 use plume_volume::field::{Bounds3, Ray};
 use plume_volume::instance::{BoundsIndex, Instance};
@@ -81,11 +82,7 @@ impl PlacedProxy {
 /// Several volumes' proxies and the probability of choosing each (see the module docs).
 #[derive(Debug)]
 pub struct ProxyMixture {
-    proxies: Vec<PlacedProxy>,
-    /// `P_i`, summing to 1.
-    pmf: Vec<f64>,
-    /// `Σ_{j<i} P_j`, for choosing by bisection.
-    cdf: Vec<f64>,
+    proxies: ByPower<PlacedProxy>,
     /// The emitting boxes.
     index: BoundsIndex,
 }
@@ -95,52 +92,24 @@ impl ProxyMixture {
     /// left out. `None` when no proxy is left.
     #[must_use]
     pub fn new(proxies: Vec<(PlacedProxy, f64)>) -> Option<ProxyMixture> {
-        let kept: Vec<(PlacedProxy, f64)> =
-            proxies.into_iter().filter(|(_, w)| *w > 0.0 && w.is_finite()).collect();
-        let total: f64 = kept.iter().map(|(_, w)| w).sum();
-        if kept.is_empty() || !(total > 0.0 && total.is_finite()) {
-            return None;
-        }
-        let (proxies, weights): (Vec<_>, Vec<_>) = kept.into_iter().unzip();
-        let pmf: Vec<f64> = weights.iter().map(|w| w / total).collect();
-        let cdf = pmf
-            .iter()
-            .scan(0.0f64, |below, p| {
-                let start = *below;
-                *below += p;
-                Some(start)
-            })
-            .collect();
-        let boxes: Vec<Bounds3> = proxies.iter().map(PlacedProxy::emitting_bounds).collect();
-        Some(ProxyMixture { proxies, pmf, cdf, index: BoundsIndex::new(&boxes) })
+        let proxies = ByPower::new(proxies)?;
+        let boxes: Vec<Bounds3> =
+            proxies.lights().iter().map(PlacedProxy::emitting_bounds).collect();
+        Some(ProxyMixture { proxies, index: BoundsIndex::new(&boxes) })
     }
 
     /// The proxies kept, and their probabilities.
     pub fn proxies(&self) -> impl Iterator<Item = (&PlacedProxy, f64)> {
-        self.proxies.iter().zip(self.pmf.iter().copied())
+        self.proxies.iter()
     }
 
     /// Bytes held by the proxies (a shared one once) and the mixture's own tables.
     #[must_use]
     pub fn memory_bytes(&self) -> usize {
-        let mut seen: Vec<*const ProxyGrid> =
-            self.proxies.iter().map(|p| Arc::as_ptr(&p.proxy)).collect();
-        seen.sort_unstable();
-        seen.dedup();
-        let shared: usize = seen
-            .iter()
-            .filter_map(|&ptr| self.proxies.iter().find(|p| Arc::as_ptr(&p.proxy) == ptr))
-            .map(|p| p.proxy.memory_bytes())
-            .sum();
-        shared + self.proxies.len() * (std::mem::size_of::<PlacedProxy>() + 2 * 8 + 64)
-    }
-
-    /// The proxy that `u` chooses, its probability, and `u` rescaled to `[0, 1)` for the
-    /// choice inside it.
-    fn choose(&self, u: f64) -> (usize, f64, f64) {
-        let i = self.cdf.partition_point(|&c| c <= u).saturating_sub(1);
-        let p = self.pmf[i];
-        (i, p, ((u - self.cdf[i]) / p).clamp(0.0, 1.0 - f64::EPSILON))
+        let lights = self.proxies.lights();
+        shared_bytes(lights, |p| &p.proxy, ProxyGrid::memory_bytes)
+            + lights.len() * (std::mem::size_of::<PlacedProxy>() + 64)
+            + self.proxies.table_bytes()
     }
 }
 
@@ -148,8 +117,8 @@ impl ProxySampling for ProxyMixture {
     /// A point of the chosen volume's proxy; `cell` is that proxy's cell and `pmf` the
     /// product of the two choices.
     fn sample_point(&self, u_cell: f64, u_pos: [f64; 3]) -> ProxyPoint {
-        let (i, p, v) = self.choose(u_cell);
-        let placed = &self.proxies[i];
+        let Chosen { index, pmf: p, u: v } = self.proxies.choose(u_cell);
+        let placed = &self.proxies.lights()[index];
         let point = placed.proxy.sample_point(v, u_pos);
         let p_world = placed
             .instance
@@ -158,8 +127,8 @@ impl ProxySampling for ProxyMixture {
     }
 
     fn sample_direction_only(&self, x_world: DVec3, u_cell: f64, u_pos: [f64; 3]) -> Option<DVec3> {
-        let (i, _, v) = self.choose(u_cell);
-        self.proxies[i].sample_direction_only(x_world, v, u_pos)
+        let Chosen { index, u, .. } = self.proxies.choose(u_cell);
+        self.proxies.lights()[index].sample_direction_only(x_world, u, u_pos)
     }
 
     /// `Σ_i P_i p_σ^i(ω)` over the proxies whose emitting boxes the ray `x + tω` meets.
@@ -167,7 +136,10 @@ impl ProxySampling for ProxyMixture {
         let mut met = Vec::new();
         let ray = Ray { origin: x_world, direction: w_world };
         self.index.on_ray(&ray, 0.0, f64::INFINITY, &mut met);
-        met.into_iter().map(|i| self.pmf[i] * self.proxies[i].direction_pdf(x_world, w_world)).sum()
+        let proxies = self.proxies.lights();
+        met.into_iter()
+            .map(|i| self.proxies.pmf(i) * proxies[i].direction_pdf(x_world, w_world))
+            .sum()
     }
 }
 

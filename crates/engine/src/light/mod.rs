@@ -22,6 +22,7 @@
 //! - [`sky`]: Preetham et al.'s (1999) analytic daylight sky and sun disc, as radiance per
 //!   direction or as a lat-long environment map, and plume's lat-long convention.
 
+mod by_power;
 pub mod envmap;
 pub mod external;
 pub mod fnee;

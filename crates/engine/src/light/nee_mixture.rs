@@ -26,6 +26,7 @@ use std::sync::Arc;
 
 use glam::DVec3;
 
+use super::by_power::{shared_bytes, ByPower, Chosen};
 use super::nee::{EmitterDistribution, VoxelSample};
 use plume_volume::field::{Bounds3, Field};
 use plume_volume::instance::{BoundsIndex, Instance};
@@ -59,11 +60,7 @@ impl PlacedEmitters {
 /// Several volumes' emitter tables and the probability of choosing each (module docs).
 #[derive(Debug)]
 pub struct EmitterMixture {
-    emitters: Vec<PlacedEmitters>,
-    /// `P_i`, summing to 1.
-    pmf: Vec<f64>,
-    /// `Σ_{j<i} P_j`, for choosing by bisection.
-    cdf: Vec<f64>,
+    emitters: ByPower<PlacedEmitters>,
     /// The emitters' boxes.
     index: BoundsIndex,
 }
@@ -73,44 +70,23 @@ impl EmitterMixture {
     /// left out. `None` when none is left.
     #[must_use]
     pub fn new(emitters: Vec<(PlacedEmitters, f64)>) -> Option<EmitterMixture> {
-        let kept: Vec<(PlacedEmitters, f64)> =
-            emitters.into_iter().filter(|(_, w)| *w > 0.0 && w.is_finite()).collect();
-        let total: f64 = kept.iter().map(|(_, w)| w).sum();
-        if kept.is_empty() || !(total > 0.0 && total.is_finite()) {
-            return None;
-        }
-        let (emitters, weights): (Vec<_>, Vec<_>) = kept.into_iter().unzip();
-        let pmf: Vec<f64> = weights.iter().map(|w| w / total).collect();
-        let cdf = pmf
-            .iter()
-            .scan(0.0f64, |below, p| {
-                let start = *below;
-                *below += p;
-                Some(start)
-            })
-            .collect();
-        let boxes: Vec<Bounds3> = emitters.iter().map(|e| e.bounds).collect();
-        Some(EmitterMixture { emitters, pmf, cdf, index: BoundsIndex::new(&boxes) })
+        let emitters = ByPower::new(emitters)?;
+        let boxes: Vec<Bounds3> = emitters.lights().iter().map(|e| e.bounds).collect();
+        Some(EmitterMixture { emitters, index: BoundsIndex::new(&boxes) })
     }
 
     /// The tables kept, and their probabilities.
     pub fn emitters(&self) -> impl Iterator<Item = (&PlacedEmitters, f64)> {
-        self.emitters.iter().zip(self.pmf.iter().copied())
+        self.emitters.iter()
     }
 
     /// Bytes held by the tables (a shared one once) and the mixture's own.
     #[must_use]
     pub fn memory_bytes(&self) -> usize {
-        let mut seen: Vec<*const EmitterDistribution> =
-            self.emitters.iter().map(|e| Arc::as_ptr(&e.table)).collect();
-        seen.sort_unstable();
-        seen.dedup();
-        let tables: usize = seen
-            .iter()
-            .filter_map(|&ptr| self.emitters.iter().find(|e| Arc::as_ptr(&e.table) == ptr))
-            .map(|e| e.table.memory_bytes())
-            .sum();
-        tables + self.emitters.len() * (std::mem::size_of::<PlacedEmitters>() + 2 * 8 + 64)
+        let lights = self.emitters.lights();
+        shared_bytes(lights, |e| &e.table, EmitterDistribution::memory_bytes)
+            + lights.len() * (std::mem::size_of::<PlacedEmitters>() + 64)
+            + self.emitters.table_bytes()
     }
 
     /// A point `y` of the volume `u_voxel` chooses, drawn from its table with the rest of
@@ -122,10 +98,8 @@ impl EmitterMixture {
         u_voxel: f64,
         u_pos: [f64; 3],
     ) -> Option<VoxelSample> {
-        let i = self.cdf.partition_point(|&c| c <= u_voxel).saturating_sub(1);
-        let p = self.pmf[i];
-        let v = ((u_voxel - self.cdf[i]) / p).clamp(0.0, 1.0 - f64::EPSILON);
-        let chosen = &self.emitters[i];
+        let Chosen { index: i, pmf: p, u: v } = self.emitters.choose(u_voxel);
+        let chosen = &self.emitters.lights()[i];
         let s = chosen.table.sample(field.member_voxels(chosen.member)?, v, u_pos);
         let (p_world, own) = match &chosen.instance {
             None => (s.p_world, s.pdf),
@@ -150,8 +124,8 @@ impl EmitterMixture {
             .into_iter()
             .filter(|&j| Some(j) != skip)
             .filter_map(|j| {
-                let e = &self.emitters[j];
-                Some(self.pmf[j] * e.pdf(field.member_voxels(e.member)?, y))
+                let e = &self.emitters.lights()[j];
+                Some(self.emitters.pmf(j) * e.pdf(field.member_voxels(e.member)?, y))
             })
             .sum()
     }

@@ -434,7 +434,9 @@ fn inside(p: DVec3, lo: DVec3, hi: DVec3) -> bool {
 
 /// Intersect a ray with an axis-aligned box; returns the parameter interval clipped to
 /// `[t_min, t_max]`, or `None` if empty. Robust to zero (and −0.0) direction components.
-/// `direction` need not be unit length: `t` is the ray parameter.
+/// `direction` need not be unit length: `t` is the ray parameter. The box is half-open,
+/// `[lo, hi)`: a ray lying in the max face belongs to the cell beyond it, matching the
+/// nearest-voxel lookup `⌊p + ½⌋`, and an empty interval (a ray grazing an edge) is none.
 #[must_use]
 pub fn clip_to_box(
     origin: DVec3,
@@ -444,14 +446,29 @@ pub fn clip_to_box(
     t_min: f64,
     t_max: f64,
 ) -> Option<(f64, f64)> {
+    let (t0, t1) = slabs(origin, direction, lo, hi, t_min, t_max, false)?;
+    (t0 < t1).then_some((t0, t1))
+}
+
+/// The slab method's interval of a ray in the box `[lo, hi]` clipped to `[t_min, t_max]`
+/// (possibly empty, `t0 > t1`), or `None` where a ray parallel to an axis lies outside
+/// the box's slab on it: outside `[lo, hi]` when `closed`, else outside `[lo, hi)`.
+#[inline]
+pub(crate) fn slabs(
+    origin: DVec3,
+    direction: DVec3,
+    lo: DVec3,
+    hi: DVec3,
+    t_min: f64,
+    t_max: f64,
+    closed: bool,
+) -> Option<(f64, f64)> {
     let mut t0 = t_min;
     let mut t1 = t_max;
     for a in 0..3 {
         let (o, d) = (origin[a], direction[a]);
         if d == 0.0 {
-            // Half-open [lo, hi): a ray lying in the max face belongs to the cell beyond
-            // it, matching the nearest-voxel lookup ⌊p + ½⌋.
-            if o < lo[a] || o >= hi[a] {
+            if o < lo[a] || o > hi[a] || (!closed && o == hi[a]) {
                 return None;
             }
             continue;
@@ -464,7 +481,7 @@ pub fn clip_to_box(
         t0 = t0.max(ta);
         t1 = t1.min(tb);
     }
-    (t0 < t1).then_some((t0, t1))
+    Some((t0, t1))
 }
 
 /// Analytic test field: a constant box.

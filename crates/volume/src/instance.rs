@@ -175,24 +175,8 @@ impl SelectionFunction<Leaf> for OnRay {
 /// a grazing ray counts).
 #[must_use]
 pub fn meets(ray: &Ray, lo: DVec3, hi: DVec3, t_min: f64, t_max: f64) -> bool {
-    let (mut t0, mut t1) = (t_min, t_max);
-    for a in 0..3 {
-        let (o, d) = (ray.origin[a], ray.direction[a]);
-        if d == 0.0 {
-            if o < lo[a] || o > hi[a] {
-                return false;
-            }
-            continue;
-        }
-        let inv = 1.0 / d;
-        let (mut ta, mut tb) = ((lo[a] - o) * inv, (hi[a] - o) * inv);
-        if ta > tb {
-            std::mem::swap(&mut ta, &mut tb);
-        }
-        t0 = t0.max(ta);
-        t1 = t1.min(tb);
-    }
-    t0 <= t1
+    crate::field::slabs(ray.origin, ray.direction, lo, hi, t_min, t_max, true)
+        .is_some_and(|(t0, t1)| t0 <= t1)
 }
 
 #[cfg(test)]

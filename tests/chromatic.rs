@@ -247,28 +247,6 @@ fn explosion(medium: Medium, light_sampling: LightSampling) -> Scene<Volume> {
     Scene { field, medium, camera, lights, motion: None, majorants: None }
 }
 
-/// Mean and standard error over runs of each channel's image mean.
-fn image_means<F: Field>(scene: &Scene<F>, integ: Integrator, seed0: u64) -> [(f64, f64); 3] {
-    let per_run: Vec<[f64; 3]> = (0..12u64)
-        .map(|k| {
-            let settings = plume_engine::render::RenderSettings {
-                budget: plume_engine::render::SampleBudget::Spp(64),
-                seed: seed0 + k,
-                sampler: plume_core::sampling::SamplerKind::Sobol,
-                threads: 0,
-                first_sample: 0,
-                adaptive: None,
-                integrator: integ,
-            };
-            let px = plume_engine::render::render(scene, &settings, &|_, _| {}).film.average();
-            std::array::from_fn(|c| {
-                px.iter().map(|p| f64::from(p[c])).sum::<f64>() / px.len() as f64
-            })
-        })
-        .collect();
-    std::array::from_fn(|c| common::mean_stderr(&per_run.iter().map(|r| r[c]).collect::<Vec<_>>()))
-}
-
 #[test]
 fn each_channel_of_a_chromatic_render_is_the_grey_medium_of_that_channel() {
     // Channel c sees extinction k_c σ_t and albedo C_c/k_c: the grey render with those has
@@ -283,7 +261,7 @@ fn each_channel_of_a_chromatic_render_is_the_grey_medium_of_that_channel() {
     // Either reconstruction of the explosion in `medium`
     let means = |medium, light_sampling, interpolation, integ, seed| {
         let any = AnyScene::new(explosion(medium, light_sampling), interpolation);
-        plume_engine::with_scene!(any, s => image_means(&s, integ, seed))
+        plume_engine::with_scene!(any, s => common::image_means(&s, integ, seed, 64))
     };
     for (estimator, camera_estimator, light_sampling, interpolation) in methods {
         let integ = Integrator {

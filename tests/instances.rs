@@ -19,18 +19,6 @@ use plume_scene::placement::{instance_placement, Placement};
 use plume_scene::{Scale, Shot};
 use plume_volume::trilinear::Trilinear;
 
-/// The small fire of the real data set (75 KB, about 16 × 16 × 30 world units).
-fn fire() -> PathBuf {
-    common::data("fire/openusd_densityAndHeat.vdb")
-}
-
-/// Writes `text` to `dir/name` and returns the path.
-fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
-    let path = dir.join(name);
-    std::fs::write(&path, text).unwrap();
-    path
-}
-
 /// A scene file rendering `volumes` (the volume tables) with `top` before them, 48×36 at
 /// 8 spp, seed 7, to `dir/name.exr`; returns the file.
 fn scene(dir: &Path, name: &str, top: &str, volumes: &str) -> PathBuf {
@@ -39,7 +27,7 @@ fn scene(dir: &Path, name: &str, top: &str, volumes: &str) -> PathBuf {
         "{top}\n{volumes}\n[camera]\nwidth = 48\nheight = 36\n\n[render]\nspp = 8\nseed = 7\n\n[output]\nimage = {:?}\n",
         s(&out)
     );
-    write(dir, &format!("{name}.toml"), &text)
+    common::write_file(dir, &format!("{name}.toml"), &text)
 }
 
 /// Renders the scene file `file` with `extra` flags; its RGBA pixels.
@@ -95,7 +83,7 @@ fn matrix_rows(m: glam::DAffine3) -> String {
 /// The volume tables of one entry of the fire with `entry` keys and `INSTANCES`, and of
 /// the same fire listed once per instance at the whole placement `instance · entry`.
 fn instanced_and_listed(entry: &str) -> (String, String) {
-    let fire = s(&fire()).to_string();
+    let fire = s(&common::fire()).to_string();
     let instanced =
         format!("[[volumes]]\nfile = {fire:?}\n{entry}\ninstances = [{}]\n", INSTANCES.join(", "));
     let own = entry_placement().transform("volume").unwrap();
@@ -190,7 +178,7 @@ fn an_instanced_scene_renders_the_same_bits_at_any_thread_count() {
 fn bad_instances_are_refused_in_one_line_naming_the_key() {
     let dir = tmpdir("instances", "refused");
     let out = dir.join("o.exr");
-    let fire = s(&fire()).to_string();
+    let fire = s(&common::fire()).to_string();
     let singular = "{ matrix = [[1, 0, 0, 0], [2, 0, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]] }";
     let one = |instances: &str| format!("[volume]\nfile = {fire:?}\ninstances = {instances}\n");
     let two = |instances: &str| {
@@ -209,7 +197,7 @@ fn bad_instances_are_refused_in_one_line_naming_the_key() {
         (one("[{ scale = \"big\" }]"), "volume.instances[0].scale", "a number or [x, y, z]"),
     ];
     for (i, (volumes, key, needle)) in cases.iter().enumerate() {
-        let file = write(
+        let file = common::write_file(
             &dir,
             &format!("case{i}.toml"),
             &format!("{volumes}\n[output]\nimage = {:?}\n", s(&out)),
@@ -227,7 +215,7 @@ fn bad_instances_are_refused_in_one_line_naming_the_key() {
 fn instances_make_a_scene_of_one_volume_several() {
     let dir = tmpdir("instances", "several");
     let out = dir.join("o.exr");
-    let fire = s(&fire()).to_string();
+    let fire = s(&common::fire()).to_string();
     let volume = format!("[volume]\nfile = {fire:?}\ninstances = [{}]\n", INSTANCES[0]);
     for (top, entry, key, needle) in [
         ("[integrator]\ntracking = \"null\"", "", "integrator.tracking", "regularly"),
@@ -236,7 +224,7 @@ fn instances_make_a_scene_of_one_volume_several() {
         ("[medium]\nabsorption_color = 0.5", "", "medium.absorption_color", "one volume"),
     ] {
         let text = format!("{top}\n{volume}{entry}\n[output]\nimage = {:?}\n", s(&out));
-        let file = write(&dir, "case.toml", &text);
+        let file = common::write_file(&dir, "case.toml", &text);
         let key = format!("key `{key}`");
         refused_in_one_line(&["render", s(&file)], 2, &[&key, needle], &out);
     }
@@ -266,7 +254,7 @@ fn instances_round_trip_and_are_in_the_settings_hash() {
     let again = SceneFile::parse(&file, to_toml_as_is(&shot).unwrap(), Path::new("")).unwrap().0;
     assert_eq!(again, shot);
     // A single volume given as [volume] with instances, and through --add-volume
-    let fire = s(&fire()).to_string();
+    let fire = s(&common::fire()).to_string();
     let one = scene(
         &dir,
         "one",
@@ -303,7 +291,7 @@ fn instances_round_trip_and_are_in_the_settings_hash() {
 #[test]
 fn a_thousand_instances_share_one_volume() {
     let dir = tmpdir("instances", "thousand");
-    let mut shot = Shot::new(fire(), dir.join("o.exr"));
+    let mut shot = Shot::new(common::fire(), dir.join("o.exr"));
     shot.scene.medium.albedo = Some(plume_scene::Albedo::Grey(0.8));
     let n = 1000;
     let grid: Vec<Placement> = (0..n)
@@ -317,7 +305,8 @@ fn a_thousand_instances_share_one_volume() {
         .collect();
     shot.scene.volume.instances = Some(grid);
     let shot = shot.validate().unwrap();
-    let loaded = plume::load::load_scene(&shot.scene, &fire(), &shot.settings, None).unwrap();
+    let loaded =
+        plume::load::load_scene(&shot.scene, &common::fire(), &shot.settings, None).unwrap();
     let AnyScene::LinearVolumes(scene) = &loaded.scene else {
         panic!("an instanced volume loads as several volumes")
     };

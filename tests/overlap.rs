@@ -251,33 +251,6 @@ pub(crate) fn mixture_lights(members: &[Member<Volume>]) -> Lights {
     Lights { proxies: ProxyMixture::new(proxies), ..Lights::default() }
 }
 
-/// Mean and standard error over runs of each channel's image mean, through a camera
-/// looking down at the slabs.
-pub(crate) fn image_means<F: Field>(
-    sc: &Scene<F>,
-    integ: Integrator,
-    seed0: u64,
-) -> [(f64, f64); 3] {
-    let per_run: Vec<[f64; 3]> = (0..12u64)
-        .map(|k| {
-            let settings = plume_engine::render::RenderSettings {
-                budget: plume_engine::render::SampleBudget::Spp(32),
-                seed: seed0 + k,
-                sampler: plume_core::sampling::SamplerKind::Sobol,
-                threads: 0,
-                first_sample: 0,
-                adaptive: None,
-                integrator: integ,
-            };
-            let px = plume_engine::render::render(sc, &settings, &|_, _| {}).film.average();
-            std::array::from_fn(|c| {
-                px.iter().map(|p| f64::from(p[c])).sum::<f64>() / px.len() as f64
-            })
-        })
-        .collect();
-    std::array::from_fn(|c| common::mean_stderr(&per_run.iter().map(|r| r[c]).collect::<Vec<_>>()))
-}
-
 #[test]
 fn scattering_in_overlapping_slabs_is_the_summed_medium_in_the_mean() {
     // One class (same albedo and g): the sum is one volume of the summed coefficients,
@@ -317,7 +290,8 @@ fn scattering_in_overlapping_slabs_is_the_summed_medium_in_the_mean() {
         ..scene(one_volume, one_medium, Lights { external: external(), ..one_lights })
     };
     let integ = integrator(Estimator::Line, 8, LightSampling::Fnee);
-    let (got, want) = (image_means(&sc, integ, 100), image_means(&one, integ, 200));
+    let (got, want) =
+        (common::image_means(&sc, integ, 100, 32), common::image_means(&one, integ, 200, 32));
     for c in 0..3 {
         let ((a, sa), (b, sb)) = (got[c], want[c]);
         let z = (a - b) / (sa * sa + sb * sb).sqrt();

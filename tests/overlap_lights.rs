@@ -6,7 +6,8 @@
 
 use std::sync::Arc;
 
-use crate::overlap::{image_means, integrator, medium, merged, scene, two_slabs};
+use crate::common::image_means;
+use crate::overlap::{integrator, medium, merged, scene, two_slabs};
 use glam::DVec3;
 use plume_core::sampling::Sampler;
 use plume_engine::camera::Camera;
@@ -97,7 +98,7 @@ fn scattering_lit_by_classic_nee_over_overlapping_slabs_is_the_summed_medium_in_
     // (Line integration with classic NEE has no MIS partner, and its variance is infinite
     // from vertices inside emitters: `tests/path.rs`; the point estimator's is finite)
     let integ = integrator(Estimator::Point, 8, LightSampling::Nee);
-    let (got, want) = (image_means(&sc, integ, 300), image_means(&one, integ, 350));
+    let (got, want) = (image_means(&sc, integ, 300, 32), image_means(&one, integ, 350, 32));
     for c in 0..3 {
         let ((a, sa), (b, sb)) = (got[c], want[c]);
         let z = (a - b) / (sa * sa + sb * sb).sqrt();

@@ -22,18 +22,6 @@ fn smoke() -> PathBuf {
     common::data("smoke/openvdb_org_smoke1.vdb")
 }
 
-/// The fire of the real data set, absolute.
-fn fire() -> PathBuf {
-    common::data("fire/openusd_densityAndHeat.vdb")
-}
-
-/// Writes `text` to `dir/name` and returns the path.
-fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
-    let path = dir.join(name);
-    std::fs::write(&path, text).unwrap();
-    path
-}
-
 /// The shot of the scene file `path`.
 fn read(path: &Path) -> Shot {
     SceneFile::read(path).unwrap().0
@@ -45,7 +33,7 @@ fn two_volumes(top: &str, entry: &str, out: &Path) -> String {
     format!(
         "{top}\n[[volumes]]\nfile = {:?}\n\n[[volumes]]\nfile = {:?}\n{entry}\n\n[output]\nimage = {:?}\n",
         s(&smoke()),
-        s(&fire()),
+        s(&common::fire()),
         s(out)
     )
 }
@@ -53,7 +41,7 @@ fn two_volumes(top: &str, entry: &str, out: &Path) -> String {
 #[test]
 fn entries_inherit_what_they_leave_out_and_resolve_paths_against_the_file() {
     let dir = tmpdir("several", "parse");
-    let path = write(
+    let path = common::write_file(
         &dir,
         "shot.toml",
         r#"
@@ -115,13 +103,16 @@ fn volume_beside_volumes_and_an_empty_list_are_refused() {
     let out = dir.join("o.exr");
     let both =
         format!("[volume]\nfile = {:?}\n{}", s(&smoke()), two_volumes("", "", &out).trim_start());
-    let file = write(&dir, "both.toml", &both);
+    let file = common::write_file(&dir, "both.toml", &both);
     refused_in_one_line(&["render", s(&file)], 2, &["both.toml:3", "key `volumes`"], &out);
-    let file =
-        write(&dir, "empty.toml", &format!("volumes = []\n[output]\nimage = {:?}\n", s(&out)));
+    let file = common::write_file(
+        &dir,
+        "empty.toml",
+        &format!("volumes = []\n[output]\nimage = {:?}\n", s(&out)),
+    );
     refused_in_one_line(&["render", s(&file)], 2, &["key `volumes`", "empty"], &out);
     let bad = two_volumes("", "medium = { gg = 0.3 }", &out);
-    let file = write(&dir, "unknown.toml", &bad);
+    let file = common::write_file(&dir, "unknown.toml", &bad);
     refused_in_one_line(
         &["render", s(&file)],
         2,
@@ -135,7 +126,11 @@ fn write_scene_round_trips_a_list() {
     let dir = tmpdir("several", "roundtrip");
     let out = dir.join("o.exr");
     let entry = "translate = [1.0, 0.0, 0.0]\nname = \"fire\"\nvisible_to_camera = false\n[volumes.medium]\ng = 0.3\nalbedo = [0.5, 0.6, 0.7]";
-    let file = write(&dir, "two.toml", &two_volumes("[medium]\ndensity_scale = 3", entry, &out));
+    let file = common::write_file(
+        &dir,
+        "two.toml",
+        &two_volumes("[medium]\ndensity_scale = 3", entry, &out),
+    );
     let written = dir.join("written.toml");
     let o = plume(&["render", s(&file), "--write-scene", s(&written)]);
     assert!(o.status.success(), "{}", stderr(&o));
@@ -270,12 +265,13 @@ fn what_several_volumes_cannot_do_yet_is_refused_in_one_line_naming_the_key() {
         ("", "medium = { albedo = [0.5, 1.5, 0.5] }", "volumes[1].medium.albedo", "[0, 1]"),
     ];
     for (i, (top, entry, key, needle)) in cases.iter().enumerate() {
-        let file = write(&dir, &format!("case{i}.toml"), &two_volumes(top, entry, &out));
+        let file =
+            common::write_file(&dir, &format!("case{i}.toml"), &two_volumes(top, entry, &out));
         let key = format!("key `{key}`");
         refused_in_one_line(&["render", s(&file)], 2, &[&key, needle], &out);
     }
     // The same through flags: the flag that gave the value
-    let (smoke, add) = (smoke(), format!("file = {:?}", s(&fire())));
+    let (smoke, add) = (smoke(), format!("file = {:?}", s(&common::fire())));
     for (flags, needle) in [
         (&["--tracking", "null"][..], "--tracking"),
         (&["--absorption-color", "0.5"], "--absorption-color"),
@@ -295,7 +291,7 @@ fn add_volume_gives_the_scene_of_the_equivalent_file() {
     let out = dir.join("o.exr");
     let keys = format!(
         "file = {:?}, translate = [1, 0, 0], name = \"fire\", medium = {{ density_scale = 2, g = 0.3 }}",
-        s(&fire())
+        s(&common::fire())
     );
     let by_flags = dir.join("flags.toml");
     let o = plume(&[
@@ -312,7 +308,8 @@ fn add_volume_gives_the_scene_of_the_equivalent_file() {
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let entry = "translate = [1, 0, 0]\nname = \"fire\"\nmedium = { density_scale = 2, g = 0.3 }";
-    let file = write(&dir, "file.toml", &two_volumes("[medium]\nalbedo = 0.5", entry, &out));
+    let file =
+        common::write_file(&dir, "file.toml", &two_volumes("[medium]\nalbedo = 0.5", entry, &out));
     assert_eq!(read(&by_flags), read(&file));
     // Beside a scene file: appended to its list, inheriting its first volume's values
     let over = dir.join("over.toml");
@@ -324,7 +321,7 @@ fn add_volume_gives_the_scene_of_the_equivalent_file() {
         two_volumes("[medium]\nalbedo = 0.5", entry, &out),
         s(&smoke())
     );
-    assert_eq!(read(&over), read(&write(&dir, "three.toml", &three)));
+    assert_eq!(read(&over), read(&common::write_file(&dir, "three.toml", &three)));
     assert!(!out.exists());
 }
 
@@ -335,12 +332,12 @@ fn further_files_are_resolved_per_frame_and_a_missing_one_is_named_by_its_key() 
     let sequence = common::data("sequence/openusd_smoke_######.vdb");
     let entry = format!("[[volumes]]\nfile = {:?}\n", s(&sequence));
     let text = format!("{}{entry}\n[farm]\nframes = \"2\"\n", two_volumes("", "", &out));
-    let shot = read(&write(&dir, "frames.toml", &text));
+    let shot = read(&common::write_file(&dir, "frames.toml", &text));
     let valid: ValidShot = shot.validate().unwrap();
     let job = plume::farm::plan::Job::new(&valid).unwrap();
     let paths = plume::farm::outputs::FramePaths::resolve(&job, Some(2));
     let scene = paths.scene(job.scene());
-    assert_eq!(scene.more_volumes[0].volume.file, fire());
+    assert_eq!(scene.more_volumes[0].volume.file, common::fire());
     assert_eq!(
         scene.more_volumes[1].volume.file,
         common::data("sequence/openusd_smoke_000002.vdb")
@@ -350,7 +347,7 @@ fn further_files_are_resolved_per_frame_and_a_missing_one_is_named_by_its_key() 
     let missing = dir.join("missing.####.vdb");
     let entry = format!("[[volumes]]\nfile = {:?}\n", s(&missing));
     let text = format!("{}{entry}\n[farm]\nframes = \"7\"\n", two_volumes("", "", &out));
-    let file = write(&dir, "missing.toml", &text);
+    let file = common::write_file(&dir, "missing.toml", &text);
     let written = dir.join("o.0007.exr");
     let needles = ["volumes[2].file", "missing.0007.vdb"];
     refused_in_one_line(&["render", s(&file), "-q"], 3, &needles, &written);

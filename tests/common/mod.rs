@@ -612,3 +612,44 @@ pub fn render_integrator_keys(
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     exr_pixels(&out)
 }
+
+/// Mean and standard error, over 12 renders of `spp` samples with seeds `seed0 + k`, of
+/// each channel's image mean.
+pub fn image_means<F: plume_volume::Field>(
+    scene: &plume_engine::integrator::Scene<F>,
+    integrator: Integrator,
+    seed0: u64,
+    spp: u32,
+) -> [(f64, f64); 3] {
+    let per_run: Vec<[f64; 3]> = (0..12u64)
+        .map(|k| {
+            let settings = RenderSettings {
+                budget: SampleBudget::Spp(spp),
+                seed: seed0 + k,
+                sampler: SamplerKind::Sobol,
+                threads: 0,
+                first_sample: 0,
+                adaptive: None,
+                integrator,
+            };
+            let px = render(scene, &settings, &|_, _| {}).film.average();
+            std::array::from_fn(|c| {
+                px.iter().map(|p| f64::from(p[c])).sum::<f64>() / px.len() as f64
+            })
+        })
+        .collect();
+    std::array::from_fn(|c| mean_stderr(&per_run.iter().map(|r| r[c]).collect::<Vec<_>>()))
+}
+
+/// Writes `text` to `dir/name` and returns the path.
+pub fn write_file(dir: &Path, name: &str, text: &str) -> PathBuf {
+    let path = dir.join(name);
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+/// The small fire of the real data set (OpenUSD's, 75 KB, about 16 × 16 × 30 world units),
+/// absolute.
+pub fn fire() -> PathBuf {
+    data("fire/openusd_densityAndHeat.vdb")
+}
